@@ -1,0 +1,194 @@
+//! `nlsolve`: runs one case and prints its record as one JSON line on stdout, with a short human
+//! summary on stderr. Bad input exits with code 2 and one sentence naming the field.
+
+use clap::{Args, Parser, Subcommand};
+use serde_json::{Map, Value};
+use solver::case::Case;
+use solver::record::Record;
+use std::io::Read;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "nlsolve",
+    version,
+    about = "Runs one nonlocal diffusion case and prints its JSON record."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run one case, given as a JSON file, as flags, or as a file with flags overriding its fields.
+    Run(CaseArgs),
+}
+
+/// Each flag sets the case field of the same name (dashes become underscores); see README.md.
+#[derive(Args)]
+#[command(allow_negative_numbers = true)]
+struct CaseArgs {
+    /// Case file in JSON (`-` for standard input); flags given too override its fields.
+    #[arg(long, value_name = "FILE")]
+    case: Option<PathBuf>,
+    /// Method: nonlocal (forward Euler on eq. 2.1).
+    #[arg(long)]
+    method: Option<String>,
+    /// Dimension of D = [0,1]^d: 1 or 2.
+    #[arg(long)]
+    dim: Option<usize>,
+    /// Nodes per side; h = 1/n, nodes at cell centres.
+    #[arg(long)]
+    n: Option<usize>,
+    /// Horizon in cells, ε = m·h (give --m or --eps).
+    #[arg(long)]
+    m: Option<usize>,
+    /// Horizon as a length in (0, 0.5]; m = ceil(ε/h).
+    #[arg(long)]
+    eps: Option<f64>,
+    /// Influence function J: constant, linear, gaussian, inverse_distance.
+    #[arg(long)]
+    kernel: Option<String>,
+    /// Operator backend: stencil (precomputed weights) or neighbour_list (Algorithm 1, the oracle).
+    #[arg(long)]
+    backend: Option<String>,
+    /// Diffusivity k of the local limit kΔ (default 1).
+    #[arg(long)]
+    diffusivity: Option<f64>,
+    /// Problem: manufactured (exact solution known) or bump (Gaussian, no source).
+    #[arg(long)]
+    problem: Option<String>,
+    /// Source mode of the manufactured problem: discrete, continuum (default) or local.
+    #[arg(long)]
+    source: Option<String>,
+    /// Final time.
+    #[arg(long)]
+    t_end: Option<f64>,
+    /// Time step (lowered to land on t_end); give --dt or --cfl.
+    #[arg(long)]
+    dt: Option<f64>,
+    /// Time step as a fraction of the stable step dt_stable.
+    #[arg(long)]
+    cfl: Option<f64>,
+    /// Accept a time step above dt_stable (stability studies); the run may end `diverged`.
+    #[arg(long)]
+    allow_unstable: bool,
+    /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
+    #[arg(long)]
+    error_total: bool,
+    /// Threads (rayon); results are bitwise the same for any count.
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+/// Bad input: a message for the user, exit code 2.
+struct BadInput(String);
+
+impl CaseArgs {
+    /// The case: the file's fields (if any) with the flags' fields set on top.
+    fn case(&self) -> Result<Case, BadInput> {
+        let mut fields = match &self.case {
+            Some(path) => read_case_file(path)?,
+            None => Map::new(),
+        };
+        let mut set = |field: &str, value: Option<Value>| {
+            if let Some(value) = value {
+                fields.insert(field.to_string(), value);
+            }
+        };
+        set("method", self.method.clone().map(Value::from));
+        set("dim", self.dim.map(Value::from));
+        set("n", self.n.map(Value::from));
+        set("m", self.m.map(Value::from));
+        set("eps", self.eps.map(Value::from));
+        set("kernel", self.kernel.clone().map(Value::from));
+        set("backend", self.backend.clone().map(Value::from));
+        set("diffusivity", self.diffusivity.map(Value::from));
+        set("problem", self.problem.clone().map(Value::from));
+        set("source", self.source.clone().map(Value::from));
+        set("t_end", self.t_end.map(Value::from));
+        set("dt", self.dt.map(Value::from));
+        set("cfl", self.cfl.map(Value::from));
+        set(
+            "allow_unstable",
+            self.allow_unstable.then_some(Value::Bool(true)),
+        );
+        set("error_total", self.error_total.then_some(Value::Bool(true)));
+        set("threads", self.threads.map(Value::from));
+        Case::from_json(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))
+    }
+}
+
+fn read_case_file(path: &PathBuf) -> Result<Map<String, Value>, BadInput> {
+    let name = path.display();
+    let text = if path.as_os_str() == "-" {
+        let mut text = String::new();
+        std::io::stdin()
+            .read_to_string(&mut text)
+            .map_err(|e| BadInput(format!("cannot read the case from standard input: {e}")))?;
+        text
+    } else {
+        std::fs::read_to_string(path).map_err(|e| {
+            BadInput(format!(
+                "cannot read case file {name}: {e}; check the path given to --case"
+            ))
+        })?
+    };
+    match serde_json::from_str(&text) {
+        Ok(Value::Object(fields)) => Ok(fields),
+        Ok(_) => Err(BadInput(format!(
+            "case file {name} must hold one JSON object of case fields"
+        ))),
+        Err(e) => Err(BadInput(format!("case file {name} is not valid JSON: {e}"))),
+    }
+}
+
+fn summary(record: &Record) -> String {
+    let case = &record.case;
+    let errors = match (record.error_l2, record.error_max) {
+        (Some(l2), Some(max)) => format!("; error l2 {l2:.3e}, max {max:.3e}"),
+        _ => String::new(),
+    };
+    format!(
+        "nlsolve: {}D n={} m={} {:?} {:?}, {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {:?} {}",
+        case.dim,
+        case.n,
+        record.m,
+        case.kernel,
+        case.backend,
+        case.threads,
+        record.steps_done,
+        record.dt,
+        record.dt / record.dt_stable,
+        record.solve_s,
+        record.step_s,
+        record.status,
+        record.message,
+    )
+}
+
+fn main() -> ExitCode {
+    let Command::Run(args) = Cli::parse().command;
+    let outcome = args
+        .case()
+        .and_then(|case| solver::run::run(&case).map_err(|e| BadInput(e.to_string())));
+    match outcome {
+        Ok(outcome) => {
+            match serde_json::to_string(&outcome.record) {
+                Ok(line) => println!("{line}"),
+                Err(e) => {
+                    eprintln!("nlsolve: cannot write the record: {e}");
+                    return ExitCode::FAILURE;
+                }
+            }
+            eprintln!("{}", summary(&outcome.record));
+            ExitCode::SUCCESS
+        }
+        Err(BadInput(message)) => {
+            eprintln!("nlsolve: {message}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! The case: everything that determines a run's result, and its validation.
+//!
+//! A case is read from JSON with unknown fields refused, so a misspelt field is an error rather
+//! than a silently ignored setting. Every rule below names the field and the fix in one sentence.
+
+use crate::influence::Kernel;
+use crate::operator::Backend;
+use crate::problem::{Problem, SourceMode};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Largest horizon accepted: beyond it the collar is wider than half of D.
+pub const MAX_EPS: f64 = 0.5;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// The nonlocal heat equation of seed 000, forward Euler in time (eq. 2.1).
+    #[default]
+    Nonlocal,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    #[serde(default)]
+    pub method: Method,
+    /// Dimension d of D = [0,1]^d: 1 or 2.
+    pub dim: usize,
+    /// Nodes per side; h = 1/n.
+    pub n: usize,
+    /// Horizon in cells, ε = m·h. Give `m` or `eps`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub m: Option<usize>,
+    /// Horizon as a length; then m = ⌈ε/h⌉.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
+    #[serde(default = "default_kernel")]
+    pub kernel: Kernel,
+    #[serde(default)]
+    pub backend: Backend,
+    /// k of the local limit kΔ (eq. 1.4).
+    #[serde(default = "one")]
+    pub diffusivity: f64,
+    #[serde(default)]
+    pub problem: Problem,
+    /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourceMode>,
+    /// Final time T.
+    pub t_end: f64,
+    /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt: Option<f64>,
+    /// Time step as a fraction of dt_stable.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cfl: Option<f64>,
+    /// Accept a dt above dt_stable (stability studies); the run may end `diverged`.
+    #[serde(default)]
+    pub allow_unstable: bool,
+    /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
+    #[serde(default)]
+    pub error_total: bool,
+    /// Threads of the rayon pool that runs the case.
+    #[serde(default = "one_thread")]
+    pub threads: usize,
+}
+
+fn default_kernel() -> Kernel {
+    Kernel::Constant
+}
+fn one() -> f64 {
+    1.0
+}
+fn one_thread() -> usize {
+    1
+}
+
+/// Bad input: the field at fault and one sentence saying what is wrong and how to fix it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseError {
+    pub field: String,
+    pub message: String,
+}
+
+impl CaseError {
+    pub fn new(field: &str, message: impl Into<String>) -> Self {
+        CaseError {
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for CaseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "case field `{}`: {}", self.field, self.message)
+    }
+}
+
+impl std::error::Error for CaseError {}
+
+impl Case {
+    /// Parses a case from JSON, naming the offending field on any error.
+    pub fn from_json(value: serde_json::Value) -> Result<Case, CaseError> {
+        let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            // serde reports an unknown or missing field at the parent; name the field itself.
+            let field = field_named_in(&inner).unwrap_or(path);
+            CaseError::new(
+                &field,
+                format!("{inner}; see `nlsolve run --help` for the fields"),
+            )
+        })?;
+        case.validate()?;
+        Ok(case)
+    }
+
+    pub fn source(&self) -> SourceMode {
+        self.source.unwrap_or(self.problem.default_source())
+    }
+
+    /// Checks what can be checked before any setup; dt against dt_stable is checked in `run`.
+    pub fn validate(&self) -> Result<(), CaseError> {
+        if !(1..=2).contains(&self.dim) {
+            return Err(CaseError::new(
+                "dim",
+                format!(
+                    "must be 1 or 2 (got {}); the solver covers D = [0,1] and [0,1]^2",
+                    self.dim
+                ),
+            ));
+        }
+        if self.n < 1 {
+            return Err(CaseError::new(
+                "n",
+                "must be at least 1 (got 0); give the number of nodes per side, h = 1/n",
+            ));
+        }
+        let eps = match (self.m, self.eps) {
+            (Some(_), Some(_)) => {
+                return Err(CaseError::new(
+                    "eps",
+                    "give the horizon once, as `m` (cells) or `eps` (length), not both",
+                ))
+            }
+            (None, None) => {
+                return Err(CaseError::new(
+                    "m",
+                    "the horizon is missing; give `m` (ε = m·h) or `eps`",
+                ))
+            }
+            (Some(0), None) => {
+                return Err(CaseError::new(
+                    "m",
+                    "must be at least 1 (got 0); the horizon ε = m·h spans m cells",
+                ))
+            }
+            (Some(m), None) => {
+                let eps = m as f64 / self.n as f64;
+                if eps > MAX_EPS {
+                    return Err(CaseError::new(
+                        "m",
+                        format!(
+                            "m = {m} with n = {} gives ε = m/n = {eps} above {MAX_EPS}; use m ≤ n/2",
+                            self.n
+                        ),
+                    ));
+                }
+                eps
+            }
+            (None, Some(eps)) => eps,
+        };
+        if !(eps > 0.0 && eps <= MAX_EPS) {
+            return Err(CaseError::new(
+                "eps",
+                format!("must lie in (0, {MAX_EPS}] (got {eps}); the collar of width ε surrounds D = [0,1]^d"),
+            ));
+        }
+        positive("diffusivity", self.diffusivity)?;
+        positive("t_end", self.t_end)?;
+        match (self.dt, self.cfl) {
+            (Some(_), Some(_)) => return Err(CaseError::new(
+                "cfl",
+                "give the time step once, as `dt` or as `cfl` (a fraction of dt_stable), not both",
+            )),
+            (None, None) => return Err(CaseError::new(
+                "dt",
+                "the time step is missing; give `dt` or `cfl` (e.g. 0.5 for half the stable step)",
+            )),
+            (Some(dt), None) => positive("dt", dt)?,
+            (None, Some(cfl)) => positive("cfl", cfl)?,
+        }
+        if self.threads < 1 {
+            return Err(CaseError::new("threads", "must be at least 1 (got 0)"));
+        }
+        match (self.problem, self.source()) {
+            (Problem::Manufactured, SourceMode::None) => Err(CaseError::new(
+                "source",
+                "the manufactured problem needs a source: `discrete`, `continuum` or `local`",
+            )),
+            (Problem::Bump, s) if s != SourceMode::None => Err(CaseError::new(
+                "source",
+                "the bump problem has no source; leave `source` out or set it to `none`",
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+fn positive(field: &str, value: f64) -> Result<(), CaseError> {
+    if value > 0.0 && value.is_finite() {
+        Ok(())
+    } else {
+        Err(CaseError::new(
+            field,
+            format!("must be a positive number (got {value})"),
+        ))
+    }
+}
+
+/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
+fn field_named_in(message: &str) -> Option<String> {
+    ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|prefix| {
+            let rest = message.strip_prefix(prefix)?;
+            Some(rest[..rest.find('`')?].to_string())
+        })
+}

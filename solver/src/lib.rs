@@ -1,0 +1,18 @@
+//! Nonlocal diffusion solvers: the partitioned nonlocal heat equation of Jha & Diehl (seed 000),
+//! planned once and stepped many times, with interchangeable operator backends.
+//!
+//! A run goes case → grid and horizon → stencil weights and stable step → operator plan →
+//! forward Euler → errors and diagnostics → record (see `run`).
+
+pub mod case;
+pub mod continuum;
+pub mod diagnostics;
+pub mod euler;
+pub mod grid;
+pub mod influence;
+pub mod operator;
+pub mod problem;
+pub mod record;
+pub mod run;
+pub mod stability;
+pub mod stencil;

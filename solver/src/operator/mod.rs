@@ -1,0 +1,47 @@
+//! The discrete nonlocal operator L_h of eq. 2.1 behind one interface, with interchangeable backends.
+//!
+//! Every backend is planned once (neighbour lists or weights built) and then applied every step
+//! without allocating. Each output value is summed by exactly one thread in a fixed order, so the
+//! result does not depend on the thread count, bit for bit.
+
+mod neighbour_list;
+mod stencil;
+
+pub use neighbour_list::NeighbourList;
+pub use stencil::StencilOperator;
+
+use crate::grid::Horizon;
+use crate::influence::Kernel;
+use crate::stencil::Stencil;
+use serde::{Deserialize, Serialize};
+
+/// Which implementation of L_h a case runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Backend {
+    /// Precomputed weights per lattice offset, applied row by row (uniform grids).
+    #[default]
+    Stencil,
+    /// Algorithm 1 of seed 000 literally: a neighbour list per node, distances and J recomputed
+    /// for every bond at every application. The oracle the fast backends are tested against.
+    NeighbourList,
+}
+
+pub trait NonlocalOperator: Send + Sync {
+    /// out = L_h u on the nodes of D, with u = 0 on the collar (eq. 2.2).
+    fn apply(&self, u: &[f64], out: &mut [f64]);
+}
+
+/// Plans the operator of `backend` for the case whose weights are `stencil`.
+pub fn plan(
+    backend: Backend,
+    stencil: &Stencil,
+    horizon: &Horizon,
+    kernel: Kernel,
+    c: f64,
+) -> Box<dyn NonlocalOperator> {
+    match backend {
+        Backend::Stencil => Box::new(StencilOperator::new(stencil.clone())),
+        Backend::NeighbourList => Box::new(NeighbourList::new(stencil.grid, *horizon, kernel, c)),
+    }
+}

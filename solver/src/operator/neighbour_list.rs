@@ -1,0 +1,107 @@
+//! The neighbour-list backend: Algorithm 1 of seed 000, literally.
+//!
+//! The list of node i holds every node j of D ∪ D_c with 0 < |x_j − x_i| ≤ ε, by its index on the
+//! grid extended by the collar. Each application recomputes |x_j − x_i| and J for every bond and
+//! sums c J (U[j] − U[i]) V_j, with U = 0 on the collar. This is the slow, obviously right oracle.
+
+use super::NonlocalOperator;
+use crate::grid::{Grid, Horizon};
+use crate::influence::Kernel;
+use rayon::prelude::*;
+
+pub struct NeighbourList {
+    grid: Grid,
+    horizon: Horizon,
+    kernel: Kernel,
+    c: f64,
+    /// Side of the extended grid, n + 2m (1 in the second direction in 1D).
+    extended_side: usize,
+    /// neighbours[start[i]..start[i + 1]] is the list of node i (compressed rows).
+    start: Vec<usize>,
+    neighbours: Vec<u32>,
+}
+
+impl NeighbourList {
+    pub fn new(grid: Grid, horizon: Horizon, kernel: Kernel, c: f64) -> Self {
+        let m = horizon.m as i64;
+        let extended_side = grid.n + 2 * horizon.m;
+        let mut start = Vec::with_capacity(grid.nodes() + 1);
+        let mut neighbours = Vec::new();
+        let dy_reach = if grid.dim == 2 { m } else { 0 };
+        for i in 0..grid.nodes() {
+            start.push(neighbours.len());
+            let xi = grid.position(i);
+            let (ix, iy) = ((i % grid.n) as i64, (i / grid.n) as i64);
+            for jy in iy - dy_reach..=iy + dy_reach {
+                for jx in ix - m..=ix + m {
+                    if jx == ix && jy == iy {
+                        continue;
+                    }
+                    let xj = position_of(&grid, jx, jy);
+                    if horizon.contains_distance(distance(xi, xj)) {
+                        let ex = (jx + m) as usize;
+                        let ey = if grid.dim == 2 { (jy + m) as usize } else { 0 };
+                        neighbours.push((ey * extended_side + ex) as u32);
+                    }
+                }
+            }
+        }
+        start.push(neighbours.len());
+        NeighbourList {
+            grid,
+            horizon,
+            kernel,
+            c,
+            extended_side,
+            start,
+            neighbours,
+        }
+    }
+
+    /// Grid indices (jx, jy) of extended index j; they are negative or ≥ n on the collar.
+    fn grid_indices(&self, j: u32) -> (i64, i64) {
+        let m = self.horizon.m as i64;
+        let j = j as usize;
+        let jx = (j % self.extended_side) as i64 - m;
+        let jy = if self.grid.dim == 2 {
+            (j / self.extended_side) as i64 - m
+        } else {
+            0
+        };
+        (jx, jy)
+    }
+}
+
+fn position_of(grid: &Grid, jx: i64, jy: i64) -> [f64; 2] {
+    let y = if grid.dim == 2 { grid.coord(jy) } else { 0.0 };
+    [grid.coord(jx), y]
+}
+
+fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+impl NonlocalOperator for NeighbourList {
+    fn apply(&self, u: &[f64], out: &mut [f64]) {
+        let grid = &self.grid;
+        let n = grid.n as i64;
+        let volume = grid.volume();
+        out.par_iter_mut().enumerate().for_each(|(i, out_i)| {
+            let xi = grid.position(i);
+            let ui = u[i];
+            let mut val_i = 0.0;
+            for &j in &self.neighbours[self.start[i]..self.start[i + 1]] {
+                let (jx, jy) = self.grid_indices(j);
+                let inside = (0..n).contains(&jx) && (0..n).contains(&jy);
+                let uj = if inside {
+                    u[(jy * n + jx) as usize]
+                } else {
+                    0.0
+                };
+                let r = distance(xi, position_of(grid, jx, jy)) / self.horizon.eps;
+                val_i += self.c * self.kernel.influence(r) * (uj - ui) * volume;
+            }
+            *out_i = val_i;
+        });
+    }
+}

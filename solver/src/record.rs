@@ -1,0 +1,85 @@
+//! The record: one JSON object per run, what the orchestrator stores and tabulates.
+
+use crate::case::Case;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Ok,
+    Diverged,
+    Failed,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Record {
+    pub case: Case,
+    pub status: Status,
+    pub message: String,
+    // What the case resolved to.
+    pub h: f64,
+    pub eps: f64,
+    pub m: usize,
+    /// The constant c of eq. 1.5.
+    pub c: f64,
+    pub dt: f64,
+    pub dt_stable: f64,
+    /// Steps planned to reach t_end, and steps completed (fewer when diverged).
+    pub steps: usize,
+    pub steps_done: usize,
+    pub nodes: usize,
+    /// Σᵢ |neighbourList[i]|: bonds of nodes in D to nodes of D ∪ D_c.
+    pub bonds: usize,
+    // Timings in seconds: setup (operator plan, sources, dt_stable), the time loop, its median step.
+    pub setup_s: f64,
+    pub solve_s: f64,
+    pub step_s: f64,
+    /// Discrete L² error at the final time, √(eᵏ).
+    pub error_l2: Option<f64>,
+    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (seed 000, eq. A.3).
+    pub error_ek: Option<f64>,
+    pub error_max: Option<f64>,
+    /// e = Σₖ eᵏ (only when the case sets `error_total`).
+    pub error_total: Option<f64>,
+    /// h^d Σᵢ ûᵢ at the end.
+    pub mass: Option<f64>,
+    pub max_abs: Option<f64>,
+    pub diverged_step: Option<usize>,
+    pub diverged_time: Option<f64>,
+    pub provenance: Provenance,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Provenance {
+    pub solver_version: String,
+    pub git_revision: Option<String>,
+    pub host: String,
+    pub cpu: String,
+    pub threads: usize,
+    pub ranks: usize,
+    pub timestamp: String,
+}
+
+impl Provenance {
+    pub fn here(threads: usize, ranks: usize) -> Self {
+        Provenance {
+            solver_version: env!("CARGO_PKG_VERSION").to_string(),
+            git_revision: option_env!("NLSOLVE_GIT_REVISION").map(str::to_string),
+            host: read_trimmed("/proc/sys/kernel/hostname").unwrap_or_else(|| "unknown".into()),
+            cpu: cpu_model().unwrap_or_else(|| "unknown".into()),
+            threads,
+            ranks,
+            timestamp: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        }
+    }
+}
+
+fn read_trimmed(path: &str) -> Option<String> {
+    Some(std::fs::read_to_string(path).ok()?.trim().to_string())
+}
+
+fn cpu_model() -> Option<String> {
+    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("model name"))?;
+    Some(line.split_once(':')?.1.trim().to_string())
+}

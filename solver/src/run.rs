@@ -1,0 +1,185 @@
+//! Runs one case: plan the operator, resolve the time step, integrate, measure.
+
+use crate::case::{Case, CaseError};
+use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
+use crate::diagnostics;
+use crate::euler::{forward_euler, Stepping};
+use crate::grid::{Grid, Horizon};
+use crate::influence::scaling_constant;
+use crate::operator::{self, NonlocalOperator};
+use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
+use crate::record::{Provenance, Record, Status};
+use crate::stability::forward_euler_dt_stable;
+use crate::stencil::Stencil;
+use std::time::Instant;
+
+/// Factor above the problem's natural scale at which a solution counts as diverged.
+const DIVERGENCE_FACTOR: f64 = 1e6;
+
+/// A finished run: its record and the final field on the nodes of D.
+pub struct Outcome {
+    pub record: Record,
+    pub field: Vec<f64>,
+}
+
+/// Runs `case` on a rayon pool of `case.threads` threads.
+pub fn run(case: &Case) -> Result<Outcome, CaseError> {
+    case.validate()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(case.threads)
+        .build()
+        .map_err(|e| {
+            CaseError::new(
+                "threads",
+                format!("cannot start {} threads: {e}", case.threads),
+            )
+        })?;
+    pool.install(|| run_in_pool(case))
+}
+
+fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
+    let setup_started = Instant::now();
+    let grid = Grid::new(case.dim, case.n);
+    let horizon = match case.m {
+        Some(m) => Horizon::from_m(&grid, m),
+        None => Horizon::from_eps(&grid, case.eps.expect("validated: m or eps")),
+    };
+    let c = scaling_constant(case.dim, case.kernel, horizon.eps, case.diffusivity);
+    let stencil = Stencil::new(grid, &horizon, case.kernel, c);
+    let dt_stable = forward_euler_dt_stable(&stencil);
+    let (dt, steps) = time_step(case, dt_stable)?;
+    let operator = operator::plan(case.backend, &stencil, &horizon, case.kernel, c);
+    let (u0, source) = initial_state(case, &grid, &horizon, c, operator.as_ref());
+    let setup_s = setup_started.elapsed().as_secs_f64();
+
+    let source_scale = source.as_ref().map_or(0.0, |s| {
+        WAVENUMBER * diagnostics::max_abs(&s.phi) + diagnostics::max_abs(&s.psi)
+    });
+    let divergence_bound = DIVERGENCE_FACTOR
+        * (1.0f64)
+            .max(diagnostics::max_abs(&u0))
+            .max(case.t_end * source_scale);
+    let stepping = Stepping {
+        dt,
+        steps,
+        divergence_bound,
+        track_total_error: case.error_total,
+        volume: grid.volume(),
+    };
+    let solve_started = Instant::now();
+    let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
+    let solve_s = solve_started.elapsed().as_secs_f64();
+
+    let t_final = trajectory.steps_done as f64 * dt;
+    let u = trajectory.u;
+    let (status, message) = match trajectory.diverged_at {
+        None => (Status::Ok, String::new()),
+        Some(step) => (
+            Status::Diverged,
+            format!(
+                "max |u| exceeded {divergence_bound:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
+                dt / dt_stable
+            ),
+        ),
+    };
+    let errors = match (&source, status) {
+        (Some(source), Status::Ok) => {
+            let exact: Vec<f64> = manufactured_solution(&source.phi, t_final).collect();
+            let ek = diagnostics::squared_l2_error(&exact, &u, grid.volume());
+            Some((ek, diagnostics::max_error(&exact, &u)))
+        }
+        _ => None,
+    };
+    let record = Record {
+        case: case.clone(),
+        status,
+        message,
+        h: grid.h,
+        eps: horizon.eps,
+        m: horizon.m,
+        c,
+        dt,
+        dt_stable,
+        steps,
+        steps_done: trajectory.steps_done,
+        nodes: grid.nodes(),
+        bonds: stencil.bonds(),
+        setup_s,
+        solve_s,
+        step_s: median(trajectory.step_seconds),
+        error_l2: errors.map(|(ek, _)| ek.sqrt()),
+        error_ek: errors.map(|(ek, _)| ek),
+        error_max: errors.map(|(_, max)| max),
+        error_total: trajectory.error_total,
+        mass: finite(diagnostics::total_mass(&u, grid.volume())),
+        max_abs: finite(diagnostics::max_abs(&u)),
+        diverged_step: trajectory.diverged_at,
+        diverged_time: trajectory.diverged_at.map(|_| t_final),
+        provenance: Provenance::here(case.threads, 1),
+    };
+    Ok(Outcome { record, field: u })
+}
+
+/// The time step actually used and the number of steps: dt (or cfl·dt_stable) lowered so that an
+/// integer number of steps lands on t_end; refused above dt_stable unless the case allows it.
+fn time_step(case: &Case, dt_stable: f64) -> Result<(f64, usize), CaseError> {
+    let (requested, field) = match (case.dt, case.cfl) {
+        (Some(dt), _) => (dt, "dt"),
+        (None, Some(cfl)) => (cfl * dt_stable, "cfl"),
+        (None, None) => unreachable!("validated: dt or cfl"),
+    };
+    if requested > dt_stable * (1.0 + 1e-12) && !case.allow_unstable {
+        return Err(CaseError::new(
+            field,
+            format!(
+                "gives dt = {requested:e} above dt_stable = {dt_stable:e} for this case; lower `dt`, \
+                 use `cfl` ≤ 1, or set `allow_unstable: true` to probe instability"
+            ),
+        ));
+    }
+    let steps = ((case.t_end / requested) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+    Ok((case.t_end / steps as f64, steps))
+}
+
+/// u₀ and the source fields of the case's problem.
+fn initial_state(
+    case: &Case,
+    grid: &Grid,
+    horizon: &Horizon,
+    c: f64,
+    operator: &dyn NonlocalOperator,
+) -> (Vec<f64>, Option<Source>) {
+    if case.problem == Problem::Bump {
+        return (problem::sample(grid, problem::bump), None);
+    }
+    let phi = problem::sample(grid, problem::profile);
+    let psi = match case.source() {
+        SourceMode::Discrete => {
+            let mut psi = vec![0.0; phi.len()];
+            operator.apply(&phi, &mut psi);
+            psi
+        }
+        SourceMode::Continuum => {
+            ContinuumOperator::new(case.dim, horizon, case.kernel, c, DEFAULT_ORDER)
+                .apply_to_profile(grid)
+        }
+        SourceMode::Local => {
+            let laplacian = -(case.dim as f64) * WAVENUMBER * WAVENUMBER * case.diffusivity;
+            phi.iter().map(|p| laplacian * p).collect()
+        }
+        SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
+    };
+    (phi.clone(), Some(Source { phi, psi }))
+}
+
+fn median(mut samples: Vec<f64>) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    let mid = samples.len() / 2;
+    *samples.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}

@@ -1,0 +1,86 @@
+//! The weights of the discrete nonlocal operator on a uniform grid, computed once per case.
+//!
+//! Eq. 2.1 on the lattice hℤ^d is translation invariant: bond offset o ≠ 0 with |o|h ≤ ε carries
+//! w_o = c J(|o|h/ε) V. Since the collar nodes count (with u = 0), every node of D sees the same
+//! total weight W = Σ_o w_o, and
+//!     L_h u_i = Σ_o w_o u_{i+o} − W u_i   (u = 0 outside D).
+//! The stencil backend applies this form, the stability bound reads its symbol, and later backends
+//! (FFT, distributed) reuse the same weights.
+
+use crate::grid::{Grid, Horizon};
+use crate::influence::Kernel;
+
+/// The bonds of one lattice row dy: offsets dx_min ..= −dx_min, contiguous because the ball is convex.
+#[derive(Clone, Debug)]
+pub struct StencilRow {
+    pub dy: i64,
+    pub dx_min: i64,
+    /// weights[k] belongs to dx = dx_min + k; the self-bond (0, 0) has weight 0.
+    pub weights: Vec<f64>,
+}
+
+impl StencilRow {
+    /// (dx, w) for every bond of the row, the self-bond excluded.
+    pub fn bonds(&self) -> impl Iterator<Item = (i64, f64)> + '_ {
+        let dy = self.dy;
+        self.weights
+            .iter()
+            .enumerate()
+            .map(move |(k, &w)| (self.dx_min + k as i64, w))
+            .filter(move |&(dx, _)| dx != 0 || dy != 0)
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Stencil {
+    pub grid: Grid,
+    pub rows: Vec<StencilRow>,
+    /// W = Σ_o w_o over every bond, collar included.
+    pub total_weight: f64,
+    /// Number of bond offsets, i.e. neighbours of each node in D ∪ D_c.
+    pub offsets: usize,
+}
+
+impl Stencil {
+    pub fn new(grid: Grid, horizon: &Horizon, kernel: Kernel, c: f64) -> Self {
+        let m = horizon.m as i64;
+        let dy_range = if grid.dim == 2 { -m..=m } else { 0..=0 };
+        let volume = grid.volume();
+        let mut rows = Vec::new();
+        for dy in dy_range {
+            let reach = (0..=m).rev().find(|&dx| horizon.contains_offset(dx, dy));
+            let Some(reach) = reach else { continue };
+            let weights = (-reach..=reach)
+                .map(|dx| {
+                    if dx == 0 && dy == 0 {
+                        return 0.0;
+                    }
+                    let r = ((dx * dx + dy * dy) as f64).sqrt() * grid.h / horizon.eps;
+                    c * kernel.influence(r) * volume
+                })
+                .collect();
+            rows.push(StencilRow {
+                dy,
+                dx_min: -reach,
+                weights,
+            });
+        }
+        let total_weight = rows
+            .iter()
+            .flat_map(|row| row.bonds())
+            .map(|(_, w)| w)
+            .sum();
+        let offsets = rows.iter().map(|row| row.bonds().count()).sum();
+        Stencil {
+            grid,
+            rows,
+            total_weight,
+            offsets,
+        }
+    }
+
+    /// Σ_i |neighbourList[i]| of Algorithm 1: every node of D with each of its neighbours in D ∪ D_c.
+    pub fn bonds(&self) -> usize {
+        self.grid.nodes() * self.offsets
+    }
+}

@@ -1,0 +1,28 @@
+//! Helpers shared by the solver's tests.
+#![allow(dead_code)]
+
+use solver::case::Case;
+
+/// A deterministic pseudo-random field in [−1, 1) (xorshift64*), so failures reproduce.
+pub fn random_field(len: usize, seed: u64) -> Vec<f64> {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..len)
+        .map(|_| {
+            state ^= state >> 12;
+            state ^= state << 25;
+            state ^= state >> 27;
+            let bits = state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11;
+            bits as f64 / (1u64 << 52) as f64 - 1.0
+        })
+        .collect()
+}
+
+/// A case from JSON text, panicking with serde's message if the text is not a valid case.
+pub fn case(json: serde_json::Value) -> Case {
+    Case::from_json(json).unwrap_or_else(|e| panic!("test case is invalid: {e}"))
+}
+
+/// Observed orders log2(e_i / e_{i+1}) of a sequence of errors under halving.
+pub fn observed_orders(errors: &[f64]) -> Vec<f64> {
+    errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect()
+}
