@@ -85,7 +85,8 @@ impl ContinuumOperator {
             |s: f64| self.kernel.influence(s.abs() / eps) * (profile(1, [x + s, 0.0]) - phi_x);
         let integral: f64 = breaks
             .windows(2)
-            .map(|p| self.rule.integrate(p[0], p[1], integrand))
+            .flat_map(|p| graded_panels(p[0], p[1]))
+            .map(|(a, b)| self.rule.integrate(a, b, integrand))
             .sum();
         self.c * integral
     }
@@ -181,6 +182,24 @@ impl ContinuumOperator {
         };
         self.c * integral
     }
+}
+
+/// Splits [a, b] (on one side of 0) into panels no wider than their distance from 0, so that
+/// J = 1/|s| on the collar part of the ball, −ε φ(x)/|s| for s from −ε to −x, is resolved even
+/// when its pole at s = 0 is close to the panel (x ≪ ε).
+fn graded_panels(a: f64, b: f64) -> Vec<(f64, f64)> {
+    let (near, far) = if a.abs() < b.abs() { (a, b) } else { (b, a) };
+    if near == 0.0 || far.abs() <= 2.0 * near.abs() {
+        return vec![(a, b)];
+    }
+    let mut cuts = vec![near];
+    while cuts.last().unwrap().abs() * 2.0 < far.abs() {
+        cuts.push(cuts.last().unwrap() * 2.0);
+    }
+    cuts.push(far);
+    cuts.windows(2)
+        .map(|w| (w[0].min(w[1]), w[0].max(w[1])))
+        .collect()
 }
 
 fn sort_dedup(v: &mut Vec<f64>) {

@@ -46,6 +46,15 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     };
     let c = scaling_constant(case.dim, case.kernel, horizon.eps, case.diffusivity);
     let stencil = Stencil::new(grid, &horizon, case.kernel, c);
+    if stencil.total_weight == 0.0 {
+        return Err(CaseError::new(
+            "m",
+            format!(
+                "every bond of this horizon has J = 0 (kernel {:?}, ε/h = {}), so L_h vanishes; use m ≥ 2",
+                case.kernel, horizon.radius_cells
+            ),
+        ));
+    }
     let dt_stable = forward_euler_dt_stable(&stencil);
     let (dt, steps) = time_step(case, dt_stable)?;
     let operator = operator::plan(case.backend, &stencil, &horizon, case.kernel, c);

@@ -145,6 +145,14 @@ fn read_case_file(path: &PathBuf) -> Result<Map<String, Value>, BadInput> {
     }
 }
 
+/// The name a value has in the JSON case and record (`linear`, `neighbour_list`, `ok`).
+fn label<T: serde::Serialize>(value: &T) -> String {
+    match serde_json::to_value(value) {
+        Ok(Value::String(name)) => name,
+        _ => String::from("?"),
+    }
+}
+
 fn summary(record: &Record) -> String {
     let case = &record.case;
     let errors = match (record.error_l2, record.error_max) {
@@ -152,19 +160,19 @@ fn summary(record: &Record) -> String {
         _ => String::new(),
     };
     format!(
-        "nlsolve: {}D n={} m={} {:?} {:?}, {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {:?} {}",
+        "nlsolve: {}D n={} m={} {} {}, {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
         case.n,
         record.m,
-        case.kernel,
-        case.backend,
+        label(&case.kernel),
+        label(&case.backend),
         case.threads,
         record.steps_done,
         record.dt,
         record.dt / record.dt_stable,
         record.solve_s,
         record.step_s,
-        record.status,
+        label(&record.status),
         record.message,
     )
 }

@@ -26,3 +26,9 @@ pub fn case(json: serde_json::Value) -> Case {
 pub fn observed_orders(errors: &[f64]) -> Vec<f64> {
     errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect()
 }
+
+/// Errors printed as `[1.234e-3, …]`.
+pub fn scientific(values: &[f64]) -> String {
+    let items: Vec<String> = values.iter().map(|v| format!("{v:.3e}")).collect();
+    format!("[{}]", items.join(", "))
+}

@@ -1,0 +1,143 @@
+//! Forward Euler's stable step dt_stable = 2 / max σ (see `stability`): tested from both sides.
+
+mod common;
+
+use common::{case, random_field};
+use serde_json::json;
+use solver::grid::{Grid, Horizon};
+use solver::influence::{scaling_constant, Kernel};
+use solver::operator::{plan, Backend};
+use solver::record::Status;
+use solver::run::run;
+use solver::stability::{forward_euler_dt_stable, Symbol};
+use solver::stencil::Stencil;
+
+fn stencil(dim: usize, n: usize, m: usize, kernel: Kernel) -> Stencil {
+    let grid = Grid::new(dim, n);
+    let horizon = Horizon::from_m(&grid, m);
+    let c = scaling_constant(dim, kernel, horizon.eps, 1.0);
+    Stencil::new(grid, &horizon, kernel, c)
+}
+
+fn l2_norm(u: &[f64]) -> f64 {
+    u.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// The largest eigenvalue of −L_h on D by power iteration (−L_h is symmetric positive definite).
+fn largest_eigenvalue(stencil: &Stencil) -> f64 {
+    let grid = stencil.grid;
+    let horizon = Horizon::from_m(&grid, 1); // unused by the stencil backend
+    let op = plan(Backend::Stencil, stencil, &horizon, Kernel::Constant, 1.0);
+    let mut v = random_field(grid.nodes(), 3);
+    let mut w = vec![0.0; v.len()];
+    let mut lambda = 0.0;
+    for _ in 0..3000 {
+        let norm = l2_norm(&v);
+        v.iter_mut().for_each(|x| *x /= norm);
+        op.apply(&v, &mut w);
+        lambda = -v.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>();
+        v.iter_mut().zip(&w).for_each(|(x, y)| *x = -y);
+    }
+    lambda
+}
+
+#[test]
+fn symbol_maximum_bounds_the_spectrum_and_is_nearly_attained() {
+    for (dim, n, m) in [(1, 200, 1), (1, 200, 5), (2, 48, 1), (2, 48, 3), (2, 64, 6)] {
+        for kernel in Kernel::ALL {
+            let stencil = stencil(dim, n, m, kernel);
+            if stencil.total_weight == 0.0 {
+                continue; // J = 1 − r with m = 1: every bond has r = 1; such cases are refused
+            }
+            let bound = Symbol::new(&stencil).maximum();
+            let lambda = largest_eigenvalue(&stencil);
+            assert!(
+                lambda <= bound * (1.0 + 1e-9),
+                "{dim}D m={m} {kernel:?}: λ_max {lambda} above the bound {bound}"
+            );
+            assert!(
+                lambda >= 0.97 * bound,
+                "{dim}D m={m} {kernel:?}: λ_max {lambda} far below the bound {bound}"
+            );
+        }
+    }
+}
+
+#[test]
+fn local_stencil_limit_is_the_classical_bound() {
+    // m = 1, J = 1 in 1D: two neighbours of weight c h with c = 3/h³, so σ(π) = 4 c h = 12/h² and
+    // dt_stable = h²/6 (the 3-point Laplacian's h²/2, scaled by the nonlocal constant).
+    let s = stencil(1, 50, 1, Kernel::Constant);
+    let h = 1.0 / 50.0;
+    let dt = forward_euler_dt_stable(&s);
+    assert!((dt - h * h / 6.0).abs() <= 1e-14 * dt, "dt_stable = {dt}");
+}
+
+fn stability_case(dim: usize, n: usize, m: usize, ratio: f64, steps: usize) -> serde_json::Value {
+    let dt_stable = forward_euler_dt_stable(&stencil(dim, n, m, Kernel::Linear));
+    let dt = ratio * dt_stable;
+    json!({"dim": dim, "n": n, "m": m, "kernel": "linear", "problem": "bump",
+           "t_end": dt * steps as f64, "dt": dt, "allow_unstable": ratio > 1.0})
+}
+
+#[test]
+fn just_below_dt_stable_stays_bounded_for_10000_steps() {
+    for (dim, n, m) in [(1, 256, 4), (2, 48, 2)] {
+        let c = case(stability_case(dim, n, m, 0.99, 10_000));
+        let outcome = run(&c).unwrap();
+        assert_eq!(outcome.record.status, Status::Ok);
+        assert_eq!(outcome.record.steps_done, 10_000);
+        // |1 − dt λ| ≤ 1 for every eigenvalue: the l² norm cannot grow.
+        let grid = Grid::new(dim, n);
+        let u0 = solver::problem::sample(&grid, solver::problem::bump);
+        assert!(
+            l2_norm(&outcome.field) <= l2_norm(&u0),
+            "{dim}D: the l² norm grew"
+        );
+    }
+}
+
+#[test]
+fn just_above_dt_stable_diverges_and_says_where() {
+    for (dim, n, m) in [(1, 256, 4), (2, 48, 2)] {
+        let record = run(&case(stability_case(dim, n, m, 1.05, 10_000)))
+            .unwrap()
+            .record;
+        assert_eq!(record.status, Status::Diverged, "{dim}D: {record:?}");
+        let step = record.diverged_step.expect("diverged step");
+        assert!(step < 10_000 && step == record.steps_done);
+        assert!((record.diverged_time.unwrap() - step as f64 * record.dt).abs() < 1e-12);
+        assert!(
+            record.message.contains(&format!("step {step}")),
+            "{}",
+            record.message
+        );
+        assert!(
+            record.error_l2.is_none(),
+            "no error is reported for a blown-up run"
+        );
+    }
+}
+
+#[test]
+fn above_dt_stable_is_refused_unless_allowed() {
+    let mut refused = stability_case(2, 32, 2, 1.05, 10);
+    refused["allow_unstable"] = json!(false);
+    let err = run(&case(refused)).err().expect("refused");
+    assert_eq!(err.field, "dt");
+    assert!(
+        err.message.contains("dt_stable") && err.message.contains("allow_unstable"),
+        "{err}"
+    );
+
+    let by_cfl = case(json!({"dim": 1, "n": 32, "m": 2, "t_end": 0.01, "cfl": 1.2}));
+    assert_eq!(run(&by_cfl).err().expect("refused").field, "cfl");
+}
+
+#[test]
+fn a_vanishing_operator_is_refused() {
+    let c = case(json!({"dim": 2, "n": 16, "m": 1, "kernel": "linear", "t_end": 0.01, "cfl": 0.5}));
+    let err = run(&c).err().expect("refused");
+    assert_eq!(err.field, "m");
+    assert!(err.message.contains("m ≥ 2"), "{err}");
+}

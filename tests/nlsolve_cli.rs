@@ -1,0 +1,238 @@
+//! `nlsolve` as a process: a record on stdout, identical numbers for any thread count, and bad
+//! input refused with exit code 2 and a sentence naming the field.
+
+use nonlocal_study::{nlsolve, record};
+use serde_json::Value;
+
+const BASE: &[&str] = &[
+    "run", "--dim", "2", "--n", "48", "--m", "3", "--kernel", "linear", "--t-end", "0.02", "--cfl",
+    "0.5",
+];
+
+/// The record's numbers that describe the result (timings and provenance left out).
+fn result_numbers(record: &Value) -> Vec<(String, Value)> {
+    [
+        "h",
+        "eps",
+        "c",
+        "dt",
+        "dt_stable",
+        "steps",
+        "nodes",
+        "bonds",
+        "error_l2",
+        "error_ek",
+        "error_max",
+        "error_total",
+        "mass",
+        "max_abs",
+    ]
+    .iter()
+    .map(|k| (k.to_string(), record[k].clone()))
+    .collect()
+}
+
+#[test]
+fn flags_give_one_record_with_the_fields_of_the_contract() {
+    let out = nlsolve(BASE, None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rec = record(&out);
+    assert_eq!(rec["status"], "ok");
+    for field in [
+        "case",
+        "message",
+        "h",
+        "eps",
+        "c",
+        "dt",
+        "dt_stable",
+        "steps",
+        "nodes",
+        "bonds",
+        "setup_s",
+        "solve_s",
+        "step_s",
+        "error_l2",
+        "error_ek",
+        "error_max",
+        "error_total",
+        "mass",
+        "max_abs",
+        "provenance",
+    ] {
+        assert!(rec.get(field).is_some(), "record lacks `{field}`");
+    }
+    assert_eq!(rec["nodes"], 48 * 48);
+    assert_eq!(rec["bonds"], 48 * 48 * 28);
+    let (l2, ek) = (
+        rec["error_l2"].as_f64().unwrap(),
+        rec["error_ek"].as_f64().unwrap(),
+    );
+    assert!((l2 * l2 - ek).abs() <= 1e-15 * ek.max(1e-300));
+    for field in ["solver_version", "host", "cpu", "threads", "timestamp"] {
+        assert!(
+            rec["provenance"].get(field).is_some(),
+            "provenance lacks `{field}`"
+        );
+    }
+    let summary = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        summary.contains("steps") && summary.contains("status ok"),
+        "{summary}"
+    );
+}
+
+#[test]
+fn case_file_and_flags_agree_and_flags_override() {
+    let case = r#"{"dim": 2, "n": 48, "m": 3, "kernel": "linear", "t_end": 0.02, "cfl": 0.5, "threads": 1}"#;
+    let from_file = record(&nlsolve(&["run", "--case", "-"], Some(case)));
+    let from_flags = record(&nlsolve(BASE, None));
+    assert_eq!(result_numbers(&from_file), result_numbers(&from_flags));
+    let overridden = record(&nlsolve(&["run", "--case", "-", "--n", "24"], Some(case)));
+    assert_eq!(overridden["nodes"], 24 * 24);
+}
+
+#[test]
+fn one_two_and_three_threads_give_bitwise_identical_numbers() {
+    for backend in ["stencil", "neighbour_list"] {
+        let records: Vec<Value> = ["1", "2", "3"]
+            .iter()
+            .map(|threads| {
+                let mut args = BASE.to_vec();
+                args.extend(["--threads", threads, "--backend", backend, "--error-total"]);
+                record(&nlsolve(&args, None))
+            })
+            .collect();
+        // serde_json prints the shortest string that round-trips, so equal text is equal bits.
+        for r in &records[1..] {
+            assert_eq!(result_numbers(r), result_numbers(&records[0]), "{backend}");
+        }
+        assert!(records[0]["error_total"].as_f64().unwrap() > 0.0);
+    }
+}
+
+/// Runs a bad case and checks exit code 2, no record, and a message naming the field.
+fn assert_refused(args: &[&str], stdin: Option<&str>, field: &str) {
+    let out = nlsolve(args, stdin);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {message}");
+    assert!(out.stdout.is_empty(), "no record for bad input");
+    assert!(
+        message.contains(field),
+        "message must name `{field}`: {message}"
+    );
+    assert!(!message.contains("panicked"), "{message}");
+    assert_eq!(message.trim().lines().count(), 1, "one sentence: {message}");
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_field() {
+    let ok = r#""dim": 2, "m": 2, "t_end": 0.01, "cfl": 0.5"#;
+    assert_refused(
+        &["run", "--case", "-"],
+        Some(&format!(r#"{{{ok}, "n": 16, "colour": 3}}"#)),
+        "colour",
+    );
+    assert_refused(
+        &["run", "--case", "-"],
+        Some(&format!(r#"{{{ok}, "n": 0}}"#)),
+        "`n`",
+    );
+    assert_refused(
+        &["run", "--case", "-"],
+        Some(&format!(r#"{{{ok}, "n": -4}}"#)),
+        "n",
+    );
+    assert_refused(
+        &["run", "--case", "-"],
+        Some(&format!(r#"{{{ok}, "n": 16, "kernel": "cubic"}}"#)),
+        "kernel",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "2", "--n", "16", "--m", "0", "--t-end", "0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`m`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "1", "--n", "16", "--eps", "0.6", "--t-end", "0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`eps`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "1", "--n", "16", "--m", "9", "--t-end", "0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`m`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "1", "--n", "16", "--m", "2", "--t-end", "-0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`t_end`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "1", "--n", "16", "--m", "2", "--t-end", "0.1", "--dt", "1",
+        ],
+        None,
+        "`dt`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "3", "--n", "16", "--m", "2", "--t-end", "0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`dim`",
+    );
+    assert_refused(
+        &[
+            "run", "--dim", "1", "--n", "16", "--t-end", "0.1", "--cfl", "0.5",
+        ],
+        None,
+        "`m`",
+    );
+    assert_refused(&["run", "--case", "/nonexistent/case.json"], None, "--case");
+    assert_refused(&["run", "--case", "-"], Some("{not json"), "not valid JSON");
+    assert_refused(
+        &["run", "--case", "-"],
+        Some(r#"{"n": 16, "m": 2, "t_end": 0.1, "cfl": 0.5}"#),
+        "dim",
+    );
+}
+
+#[test]
+fn help_documents_every_case_field() {
+    let out = nlsolve(&["run", "--help"], None);
+    let help = String::from_utf8_lossy(&out.stdout);
+    for flag in [
+        "--case",
+        "--method",
+        "--dim",
+        "--n",
+        "--m",
+        "--eps",
+        "--kernel",
+        "--backend",
+        "--diffusivity",
+        "--problem",
+        "--source",
+        "--t-end",
+        "--dt",
+        "--cfl",
+        "--allow-unstable",
+        "--error-total",
+        "--threads",
+    ] {
+        assert!(help.contains(flag), "help lacks {flag}");
+    }
+}
