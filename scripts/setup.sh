@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
+# the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
+# Cheap when everything is there, so `make run` and `make test` call it every time.
+set -euo pipefail
+
+packages=(openmpi-bin libopenmpi-dev libclang-dev pkg-config)
+missing=()
+for package in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$package")
+  fi
+done
+
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}" >&2
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "setup: need root (or sudo) to install ${missing[*]}" >&2; exit 1; }
+    sudo=sudo
+  fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+command -v cargo >/dev/null || { echo "setup: cargo not found; install the Rust toolchain (rustup)" >&2; exit 1; }
