@@ -21,7 +21,7 @@ fn result_numbers(record: &Value) -> Vec<(String, Value)> {
         "nodes",
         "bonds",
         "error_l2",
-        "error_ek",
+        "error_l2_norm",
         "error_max",
         "error_total",
         "mass",
@@ -57,7 +57,7 @@ fn flags_give_one_record_with_the_fields_of_the_contract() {
         "solve_s",
         "step_s",
         "error_l2",
-        "error_ek",
+        "error_l2_norm",
         "error_max",
         "error_total",
         "mass",
@@ -68,11 +68,27 @@ fn flags_give_one_record_with_the_fields_of_the_contract() {
     }
     assert_eq!(rec["nodes"], 48 * 48);
     assert_eq!(rec["bonds"], 48 * 48 * 28);
-    let (l2, ek) = (
+    let (ek, norm) = (
         rec["error_l2"].as_f64().unwrap(),
-        rec["error_ek"].as_f64().unwrap(),
+        rec["error_l2_norm"].as_f64().unwrap(),
     );
-    assert!((l2 * l2 - ek).abs() <= 1e-15 * ek.max(1e-300));
+    assert!(
+        (norm * norm - ek).abs() <= 1e-15 * ek,
+        "error_l2 is e^k, the square of error_l2_norm"
+    );
+    // φ = sin(2πx₁) sin(2πx₂) is odd about x₁ = ½ on the cell-centred grid, and so is the whole
+    // solution: the mass stays zero to round-off, and |û| ≤ |cos(2πT)| + error.
+    assert!(
+        rec["mass"].as_f64().unwrap().abs() < 1e-14,
+        "mass {}",
+        rec["mass"]
+    );
+    let amplitude = (2.0 * std::f64::consts::PI * 0.02f64).cos();
+    let max_abs = rec["max_abs"].as_f64().unwrap();
+    assert!(
+        (max_abs - amplitude).abs() <= rec["error_max"].as_f64().unwrap() + 1e-3,
+        "max |û| = {max_abs}"
+    );
     for field in ["solver_version", "host", "cpu", "threads", "timestamp"] {
         assert!(
             rec["provenance"].get(field).is_some(),
@@ -145,7 +161,7 @@ fn bad_input_exits_2_naming_the_field() {
     assert_refused(
         &["run", "--case", "-"],
         Some(&format!(r#"{{{ok}, "n": -4}}"#)),
-        "n",
+        "`n`",
     );
     assert_refused(
         &["run", "--case", "-"],
@@ -201,6 +217,8 @@ fn bad_input_exits_2_naming_the_field() {
         None,
         "`m`",
     );
+    assert_refused(&["run", "--n", "abc"], None, "--n");
+    assert_refused(&["run", "--colour", "3"], None, "--colour");
     assert_refused(&["run", "--case", "/nonexistent/case.json"], None, "--case");
     assert_refused(&["run", "--case", "-"], Some("{not json"), "not valid JSON");
     assert_refused(
@@ -212,7 +230,7 @@ fn bad_input_exits_2_naming_the_field() {
 
 #[test]
 fn help_documents_every_case_field() {
-    let out = nlsolve(&["run", "--help"], None);
+    let out = nlsolve(&["--help"], None);
     let help = String::from_utf8_lossy(&out.stdout);
     for flag in [
         "--case",
@@ -235,4 +253,25 @@ fn help_documents_every_case_field() {
     ] {
         assert!(help.contains(flag), "help lacks {flag}");
     }
+}
+
+#[test]
+fn an_oracle_too_large_for_memory_is_refused_before_allocating() {
+    // 2D n = 20000, m = 8: 4·10⁸ nodes × 196 bonds × 4 bytes ≈ 290 GiB of neighbour lists.
+    let args = [
+        "run",
+        "--dim",
+        "2",
+        "--n",
+        "20000",
+        "--m",
+        "8",
+        "--t-end",
+        "0.1",
+        "--cfl",
+        "0.5",
+        "--backend",
+        "neighbour_list",
+    ];
+    assert_refused(&args, None, "backend");
 }

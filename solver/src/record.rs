@@ -34,10 +34,11 @@ pub struct Record {
     pub setup_s: f64,
     pub solve_s: f64,
     pub step_s: f64,
-    /// Discrete L² error at the final time, √(eᵏ).
+    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (seed 000, eq. A.3): the *squared*
+    /// discrete L² error, as the contract names it.
     pub error_l2: Option<f64>,
-    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (seed 000, eq. A.3).
-    pub error_ek: Option<f64>,
+    /// √(eᵏ), the discrete L² norm of the error, whose orders are the usual ones.
+    pub error_l2_norm: Option<f64>,
     pub error_max: Option<f64>,
     /// e = Σₖ eᵏ (only when the case sets `error_total`).
     pub error_total: Option<f64>,

@@ -5,8 +5,7 @@ use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics;
 use crate::euler::{forward_euler, Stepping};
 use crate::grid::{Grid, Horizon};
-use crate::influence::scaling_constant;
-use crate::operator::{self, NonlocalOperator};
+use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
 use crate::record::{Provenance, Record, Status};
 use crate::stability::forward_euler_dt_stable;
@@ -15,6 +14,9 @@ use std::time::Instant;
 
 /// Factor above the problem's natural scale at which a solution counts as diverged.
 const DIVERGENCE_FACTOR: f64 = 1e6;
+/// Longest run accepted, in steps: beyond any study this tool serves, and a guard against a
+/// t_end/dt typo that would run for days.
+const MAX_STEPS: usize = 100_000_000;
 
 /// A finished run: its record and the final field on the nodes of D.
 pub struct Outcome {
@@ -44,20 +46,13 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         Some(m) => Horizon::from_m(&grid, m),
         None => Horizon::from_eps(&grid, case.eps.expect("validated: m or eps")),
     };
-    let c = scaling_constant(case.dim, case.kernel, horizon.eps, case.diffusivity);
-    let stencil = Stencil::new(grid, &horizon, case.kernel, c);
-    if stencil.total_weight == 0.0 {
-        return Err(CaseError::new(
-            "m",
-            format!(
-                "every bond of this horizon has J = 0 (kernel {:?}, ε/h = {}), so L_h vanishes; use m ≥ 2",
-                case.kernel, horizon.radius_cells
-            ),
-        ));
-    }
+    let stencil = Stencil::new(grid, horizon, case.kernel, case.diffusivity);
+    let c = stencil.c;
+    check_operator_does_not_vanish(case, &stencil)?;
     let dt_stable = forward_euler_dt_stable(&stencil);
     let (dt, steps) = time_step(case, dt_stable)?;
-    let operator = operator::plan(case.backend, &stencil, &horizon, case.kernel, c);
+    check_neighbour_list_size(case, &stencil, horizon.m)?;
+    let operator = operator::plan(case.backend, &stencil);
     let (u0, source) = initial_state(case, &grid, &horizon, c, operator.as_ref());
     let setup_s = setup_started.elapsed().as_secs_f64();
 
@@ -75,9 +70,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         track_total_error: case.error_total,
         volume: grid.volume(),
     };
-    let solve_started = Instant::now();
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
-    let solve_s = solve_started.elapsed().as_secs_f64();
 
     let t_final = trajectory.steps_done as f64 * dt;
     let u = trajectory.u;
@@ -93,7 +86,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     };
     let errors = match (&source, status) {
         (Some(source), Status::Ok) => {
-            let exact: Vec<f64> = manufactured_solution(&source.phi, t_final).collect();
+            let exact = manufactured_solution(&source.phi, t_final);
             let ek = diagnostics::squared_l2_error(&exact, &u, grid.volume());
             Some((ek, diagnostics::max_error(&exact, &u)))
         }
@@ -114,10 +107,10 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         nodes: grid.nodes(),
         bonds: stencil.bonds(),
         setup_s,
-        solve_s,
+        solve_s: trajectory.solve_seconds,
         step_s: median(trajectory.step_seconds),
-        error_l2: errors.map(|(ek, _)| ek.sqrt()),
-        error_ek: errors.map(|(ek, _)| ek),
+        error_l2: errors.map(|(ek, _)| ek),
+        error_l2_norm: errors.map(|(ek, _)| ek.sqrt()),
         error_max: errors.map(|(_, max)| max),
         error_total: trajectory.error_total,
         mass: finite(diagnostics::total_mass(&u, grid.volume())),
@@ -146,8 +139,64 @@ fn time_step(case: &Case, dt_stable: f64) -> Result<(f64, usize), CaseError> {
             ),
         ));
     }
-    let steps = ((case.t_end / requested) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
-    Ok((case.t_end / steps as f64, steps))
+    let steps = ((case.t_end / requested) * (1.0 - 1e-12)).ceil().max(1.0);
+    if steps > MAX_STEPS as f64 {
+        return Err(CaseError::new(
+            "t_end",
+            format!(
+                "t_end / dt = {steps:e} steps, more than {MAX_STEPS:e}; shorten `t_end` or enlarge the time step"
+            ),
+        ));
+    }
+    Ok((case.t_end / steps, steps as usize))
+}
+
+/// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
+/// L_h = 0 and an infinite dt_stable: no study wants that, so say which field to change.
+fn check_operator_does_not_vanish(case: &Case, stencil: &Stencil) -> Result<(), CaseError> {
+    let field = if case.m.is_some() { "m" } else { "eps" };
+    let h = stencil.grid.h;
+    if stencil.offsets == 0 {
+        return Err(CaseError::new(
+            field,
+            format!(
+                "ε = {} is below h = {h}, so the ball holds no neighbour; use ε ≥ h",
+                stencil.horizon.eps
+            ),
+        ));
+    }
+    if stencil.total_weight == 0.0 {
+        return Err(CaseError::new(
+            field,
+            format!(
+                "every bond of this horizon has J = 0 (kernel {:?}, ε/h = {}), so L_h vanishes; use m ≥ 2 (ε ≥ 2h)",
+                case.kernel, stencil.horizon.radius_cells
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The oracle stores every bond (4 bytes each) by a u32 index on the extended grid: refuse a case
+/// whose lists would not fit, rather than abort on a failed allocation.
+fn check_neighbour_list_size(case: &Case, stencil: &Stencil, m: usize) -> Result<(), CaseError> {
+    const LIMIT_BYTES: usize = 8 << 30;
+    if case.backend != Backend::NeighbourList {
+        return Ok(());
+    }
+    let bytes = stencil.bonds().saturating_mul(4);
+    let extended_nodes = (case.n + 2 * m).pow(case.dim as u32);
+    if bytes > LIMIT_BYTES || extended_nodes > u32::MAX as usize {
+        return Err(CaseError::new(
+            "backend",
+            format!(
+                "`neighbour_list` would store {:.1} GiB of bonds for this case (limit {} GiB); use `stencil`",
+                bytes as f64 / (1u64 << 30) as f64,
+                LIMIT_BYTES >> 30
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// u₀ and the source fields of the case's problem.

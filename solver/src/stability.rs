@@ -19,84 +19,84 @@ use std::f64::consts::PI;
 const ZOOM_STEPS: usize = 50;
 /// Coarse candidates refined, in case two basins are nearly as high.
 const CANDIDATES: usize = 8;
+/// Coarse samples per unit of reach: σ has degree m, so its features are ~π/m wide and a spacing
+/// of π/(4m) puts several samples in each basin before zooming.
+const SAMPLES_PER_CELL: usize = 4;
 
-/// The symbol σ of a stencil with its weights on a dense (2m+1)^d array.
+/// The symbol σ of a stencil, folded onto the quadrant dx, dy ≥ 0: with the stencil's mirror
+/// symmetry, σ(ξ) = W − Σ_{dx,dy ≥ 0} f(dx, dy) cos(dx ξ₁) cos(dy ξ₂), f summing the mirror images.
 pub struct Symbol {
-    reach: i64,
+    /// Largest |dx| or |dy| of a bond.
+    reach: usize,
     dim: usize,
-    /// Weight of offset (dx, dy) at (dy + reach)·(2·reach + 1) + dx + reach.
-    weights: Vec<f64>,
+    /// f(dx, dy) at dy·(reach + 1) + dx.
+    folded: Vec<f64>,
     total_weight: f64,
 }
 
 impl Symbol {
     pub fn new(stencil: &Stencil) -> Self {
-        let reach = stencil
-            .rows
-            .iter()
-            .map(|row| -row.dx_min)
-            .max()
-            .unwrap_or(0);
-        let width = (2 * reach + 1) as usize;
-        let mut weights = vec![0.0; width * width];
+        let reach = stencil.reach();
+        let mut folded = vec![0.0; (reach + 1) * (reach + 1)];
         for row in &stencil.rows {
             for (dx, w) in row.bonds() {
-                weights[(row.dy + reach) as usize * width + (dx + reach) as usize] = w;
+                folded
+                    [row.dy.unsigned_abs() as usize * (reach + 1) + dx.unsigned_abs() as usize] +=
+                    w;
             }
         }
         Symbol {
             reach,
             dim: stencil.grid.dim,
-            weights,
+            folded,
             total_weight: stencil.total_weight,
         }
     }
 
-    fn width(&self) -> usize {
-        (2 * self.reach + 1) as usize
-    }
-
-    /// g_dx(ξ₂) = Σ_dy w(dx, dy) cos(dy ξ₂), so that σ(ξ) = W − Σ_dx cos(dx ξ₁) g_dx(ξ₂).
-    fn column_sums(&self, xi2: f64, g: &mut [f64]) {
-        let width = self.width();
+    /// g_dx = Σ_dy f(dx, dy) cos(dy ξ₂), from cos(dy ξ₂) for dy = 0 ..= reach.
+    fn column_sums(&self, cos_xi2: &[f64], g: &mut [f64]) {
         g.iter_mut().for_each(|v| *v = 0.0);
-        for (row, dy) in self.weights.chunks(width).zip(-self.reach..) {
-            let cy = (dy as f64 * xi2).cos();
-            for (gx, &w) in g.iter_mut().zip(row) {
-                *gx += w * cy;
+        for (row, &cy) in self.folded.chunks(self.reach + 1).zip(cos_xi2) {
+            for (gx, &f) in g.iter_mut().zip(row) {
+                *gx += f * cy;
             }
         }
     }
 
-    fn value_with(&self, xi1: f64, g: &[f64]) -> f64 {
-        let s: f64 = g
-            .iter()
-            .zip(-self.reach..)
-            .map(|(&gx, dx)| gx * (dx as f64 * xi1).cos())
-            .sum();
-        self.total_weight - s
+    /// σ = W − Σ_dx g_dx cos(dx ξ₁), from cos(dx ξ₁) for dx = 0 ..= reach.
+    fn value_with(&self, cos_xi1: &[f64], g: &[f64]) -> f64 {
+        self.total_weight - g.iter().zip(cos_xi1).map(|(a, b)| a * b).sum::<f64>()
+    }
+
+    fn cosines(&self, xi: f64) -> Vec<f64> {
+        (0..=self.reach).map(|d| (d as f64 * xi).cos()).collect()
     }
 
     /// σ(ξ₁, ξ₂).
     pub fn value(&self, xi1: f64, xi2: f64) -> f64 {
-        let mut g = vec![0.0; self.width()];
-        self.column_sums(xi2, &mut g);
-        self.value_with(xi1, &g)
+        let mut g = vec![0.0; self.reach + 1];
+        self.column_sums(&self.cosines(xi2), &mut g);
+        self.value_with(&self.cosines(xi1), &g)
     }
 
     /// max over ξ of σ(ξ), i.e. the bound on λ_max(−L_h).
     pub fn maximum(&self) -> f64 {
-        let samples = 16 * self.reach as usize + 17;
+        let samples = SAMPLES_PER_CELL * self.reach + 9;
         let spacing = PI / (samples - 1) as f64;
+        let table: Vec<Vec<f64>> = (0..samples)
+            .map(|a| self.cosines(a as f64 * spacing))
+            .collect();
         let xi2_samples = if self.dim == 2 { samples } else { 1 };
-        let mut g = vec![0.0; self.width()];
+        let mut g = vec![0.0; self.reach + 1];
         let mut coarse = Vec::with_capacity(samples * xi2_samples);
-        for b in 0..xi2_samples {
-            let xi2 = b as f64 * spacing;
-            self.column_sums(xi2, &mut g);
-            for a in 0..samples {
-                let xi1 = a as f64 * spacing;
-                coarse.push((self.value_with(xi1, &g), xi1, xi2));
+        for (b, cos_xi2) in table.iter().take(xi2_samples).enumerate() {
+            self.column_sums(cos_xi2, &mut g);
+            for (a, cos_xi1) in table.iter().enumerate() {
+                coarse.push((
+                    self.value_with(cos_xi1, &g),
+                    a as f64 * spacing,
+                    b as f64 * spacing,
+                ));
             }
         }
         coarse.sort_by(|p, q| q.0.total_cmp(&p.0));
@@ -106,7 +106,6 @@ impl Symbol {
             .map(|&(value, xi1, xi2)| self.zoom(value, xi1, xi2, spacing))
             .fold(f64::NEG_INFINITY, f64::max)
     }
-
     /// Hill-climbs from a coarse sample on ever finer 5 × 5 (or 5 in 1D) patterns.
     fn zoom(&self, mut best: f64, mut xi1: f64, mut xi2: f64, mut spacing: f64) -> f64 {
         let steps2: &[f64] = if self.dim == 2 {

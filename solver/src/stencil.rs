@@ -8,7 +8,7 @@
 //! (FFT, distributed) reuse the same weights.
 
 use crate::grid::{Grid, Horizon};
-use crate::influence::Kernel;
+use crate::influence::{scaling_constant, Kernel};
 
 /// The bonds of one lattice row dy: offsets dx_min ..= −dx_min, contiguous because the ball is convex.
 #[derive(Clone, Debug)]
@@ -34,6 +34,10 @@ impl StencilRow {
 #[derive(Clone, Debug)]
 pub struct Stencil {
     pub grid: Grid,
+    pub horizon: Horizon,
+    pub kernel: Kernel,
+    /// The constant c of eq. 1.5.
+    pub c: f64,
     pub rows: Vec<StencilRow>,
     /// W = Σ_o w_o over every bond, collar included.
     pub total_weight: f64,
@@ -42,7 +46,9 @@ pub struct Stencil {
 }
 
 impl Stencil {
-    pub fn new(grid: Grid, horizon: &Horizon, kernel: Kernel, c: f64) -> Self {
+    /// The weights of eq. 2.1 for `kernel` with horizon `horizon` and diffusivity k.
+    pub fn new(grid: Grid, horizon: Horizon, kernel: Kernel, diffusivity: f64) -> Self {
+        let c = scaling_constant(grid.dim, kernel, horizon.eps, diffusivity);
         let m = horizon.m as i64;
         let dy_range = if grid.dim == 2 { -m..=m } else { 0..=0 };
         let volume = grid.volume();
@@ -73,10 +79,22 @@ impl Stencil {
         let offsets = rows.iter().map(|row| row.bonds().count()).sum();
         Stencil {
             grid,
+            horizon,
+            kernel,
+            c,
             rows,
             total_weight,
             offsets,
         }
+    }
+
+    /// Largest |dx| or |dy| of a bond, at most m.
+    pub fn reach(&self) -> usize {
+        self.rows
+            .iter()
+            .map(|row| row.dx_min.unsigned_abs() as usize)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Σ_i |neighbourList[i]| of Algorithm 1: every node of D with each of its neighbours in D ∪ D_c.

@@ -6,9 +6,12 @@ use common::{case, observed_orders, scientific};
 use serde_json::json;
 use solver::run::run;
 
+/// The discrete L² error √(eᵏ) at the final time; checks on the way that eᵏ is its square.
 fn error_l2(case_json: serde_json::Value) -> f64 {
     let record = run(&case(case_json)).expect("case runs").record;
-    record.error_l2.expect("manufactured problem has an error")
+    let (ek, norm) = (record.error_l2.unwrap(), record.error_l2_norm.unwrap());
+    assert!((norm * norm - ek).abs() <= 1e-14 * ek);
+    norm
 }
 
 #[test]
@@ -71,6 +74,61 @@ fn continuum_source_error_falls_with_h_at_fixed_eps() {
                     "{dim}D {kernel}: order {order} in h at fixed ε, expected > {least_order}"
                 );
             }
+        }
+    }
+}
+
+#[test]
+fn total_error_sums_the_squared_errors_of_every_step() {
+    // e = Σₖ eᵏ: runs of 1, 2 and 3 steps with the same dt follow the same trajectory, so the total
+    // of the 3-step run must equal the sum of their final eᵏ (e⁰ = 0 since u⁰ = w(0) exactly).
+    let run_steps = |steps: usize| {
+        let dt = 1e-4;
+        let c = case(
+            json!({"dim": 2, "n": 24, "m": 3, "kernel": "gaussian", "source": "continuum",
+                            "t_end": dt * steps as f64, "dt": dt, "error_total": true}),
+        );
+        run(&c).unwrap().record
+    };
+    let records: Vec<_> = (1..=3).map(run_steps).collect();
+    assert_eq!(
+        records[0].error_total, records[0].error_l2,
+        "one step: e = e⁰ + e¹ = e¹"
+    );
+    let sum: f64 = records.iter().map(|r| r.error_l2.unwrap()).sum();
+    let total = records[2].error_total.unwrap();
+    assert!(
+        (total - sum).abs() <= 1e-14 * sum,
+        "e = {total} vs Σ eᵏ = {sum}"
+    );
+}
+
+#[test]
+fn local_source_error_falls_as_eps_shrinks() {
+    // With b = ∂ₜw − kΔw the error is the distance between the nonlocal scheme and the local limit.
+    // Appendix B's O(ε²) holds where the ball misses the collar; within ε of ∂D the zero collar
+    // (φ extended by 0, not by its odd continuation) makes L φ − kΔφ = O(k|∇φ|/ε) on a layer of
+    // width ε. The error therefore falls like ε¹, not ε² (observed ≈ 0.85–0.9 at ε = 0.2 … 0.05).
+    for (dim, sizes) in [(1, [40, 80, 160]), (2, [40, 80, 160])] {
+        let errors: Vec<f64> = sizes
+            .iter()
+            .map(|n| {
+                error_l2(
+                    json!({"dim": dim, "n": n, "m": 8, "kernel": "linear", "source": "local",
+                                "t_end": 0.02, "dt": 5e-6}),
+                )
+            })
+            .collect();
+        let orders = observed_orders(&errors);
+        println!(
+            "{dim}D local source, m = 8: errors {}, orders in ε {orders:.3?}",
+            scientific(&errors)
+        );
+        for order in orders {
+            assert!(
+                order > 0.6,
+                "{dim}D: order {order} in ε toward the local limit, expected ≈ 1"
+            );
         }
     }
 }

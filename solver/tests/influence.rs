@@ -68,10 +68,43 @@ fn scaling_constant_follows_eq_1_5_exactly() {
             );
         }
     }
-    // Literal values: J = 1 − r, ε = 0.3, k = 1: c = 12/0.027 in 1D (not truncated to 444) and
-    // 40/(π·0.0081) in 2D (with the π the public HPX code dropped).
-    let c1 = scaling_constant(1, Kernel::Linear, 0.3, 1.0);
-    assert!((c1 - 444.444_444_444_444_4).abs() < 1e-9, "1D c = {c1}");
-    let c2 = scaling_constant(2, Kernel::Linear, 0.3, 1.0);
-    assert!((c2 - 1571.900_672_512_546_6).abs() < 1e-8, "2D c = {c2}");
+    // Literal values at ε = 0.3, k = 1 (computed apart, with erf from the C library), so that a
+    // wrong moment or a dropped π shows: 1D c is not truncated to an integer (444.44…, not 444),
+    // and 2D c has the π that the public HPX code dropped.
+    let literal = [
+        (
+            Kernel::Constant,
+            111.111_111_111_111_14,
+            314.380_134_502_509_35,
+        ),
+        (
+            Kernel::Linear,
+            444.444_444_444_444_57,
+            1_571.900_672_512_546_6,
+        ),
+        (
+            Kernel::Gaussian,
+            195.474_631_807_885_26,
+            594.873_608_789_483_3,
+        ),
+        (
+            Kernel::InverseDistance,
+            74.074_074_074_074_09,
+            235.785_100_876_882,
+        ),
+    ];
+    for (kernel, want1, want2) in literal {
+        let (c1, c2) = (
+            scaling_constant(1, kernel, 0.3, 1.0),
+            scaling_constant(2, kernel, 0.3, 1.0),
+        );
+        assert!(
+            (c1 - want1).abs() <= 1e-12 * want1,
+            "{kernel:?} 1D c = {c1}, want {want1}"
+        );
+        assert!(
+            (c2 - want2).abs() <= 1e-12 * want2,
+            "{kernel:?} 2D c = {c2}, want {want2}"
+        );
+    }
 }

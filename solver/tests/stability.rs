@@ -5,7 +5,7 @@ mod common;
 use common::{case, random_field};
 use serde_json::json;
 use solver::grid::{Grid, Horizon};
-use solver::influence::{scaling_constant, Kernel};
+use solver::influence::Kernel;
 use solver::operator::{plan, Backend};
 use solver::record::Status;
 use solver::run::run;
@@ -15,8 +15,7 @@ use solver::stencil::Stencil;
 fn stencil(dim: usize, n: usize, m: usize, kernel: Kernel) -> Stencil {
     let grid = Grid::new(dim, n);
     let horizon = Horizon::from_m(&grid, m);
-    let c = scaling_constant(dim, kernel, horizon.eps, 1.0);
-    Stencil::new(grid, &horizon, kernel, c)
+    Stencil::new(grid, horizon, kernel, 1.0)
 }
 
 fn l2_norm(u: &[f64]) -> f64 {
@@ -26,8 +25,7 @@ fn l2_norm(u: &[f64]) -> f64 {
 /// The largest eigenvalue of −L_h on D by power iteration (−L_h is symmetric positive definite).
 fn largest_eigenvalue(stencil: &Stencil) -> f64 {
     let grid = stencil.grid;
-    let horizon = Horizon::from_m(&grid, 1); // unused by the stencil backend
-    let op = plan(Backend::Stencil, stencil, &horizon, Kernel::Constant, 1.0);
+    let op = plan(Backend::Stencil, stencil);
     let mut v = random_field(grid.nodes(), 3);
     let mut w = vec![0.0; v.len()];
     let mut lambda = 0.0;

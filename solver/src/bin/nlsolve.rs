@@ -1,7 +1,8 @@
 //! `nlsolve`: runs one case and prints its record as one JSON line on stdout, with a short human
 //! summary on stderr. Bad input exits with code 2 and one sentence naming the field.
 
-use clap::{Args, Parser, Subcommand};
+use clap::error::ErrorKind;
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use serde_json::{Map, Value};
 use solver::case::Case;
 use solver::record::Record;
@@ -177,8 +178,38 @@ fn summary(record: &Record) -> String {
     )
 }
 
+/// Parses the command line. `nlsolve --help` also lists the flags of `run`; a usage error is one
+/// line and exit code 2, like every other kind of bad input.
+fn parse_command_line() -> Result<Cli, BadInput> {
+    let mut command = Cli::command();
+    let run_help = command
+        .find_subcommand_mut("run")
+        .expect("the run subcommand exists")
+        .render_help();
+    let command = command.after_help(format!("`nlsolve run` takes these flags:\n\n{run_help}"));
+    let matches = command.try_get_matches().map_err(|e| match e.kind() {
+        ErrorKind::DisplayHelp
+        | ErrorKind::DisplayVersion
+        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => e.exit(),
+        _ => {
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or_default();
+            BadInput(first.trim_start_matches("error: ").to_string())
+        }
+    })?;
+    Cli::from_arg_matches(&matches).map_err(|e| BadInput(e.to_string()))
+}
+
 fn main() -> ExitCode {
-    let Command::Run(args) = Cli::parse().command;
+    let args = match parse_command_line() {
+        Ok(Cli {
+            command: Command::Run(args),
+        }) => args,
+        Err(BadInput(message)) => {
+            eprintln!("nlsolve: {message}");
+            return ExitCode::from(2);
+        }
+    };
     let outcome = args
         .case()
         .and_then(|case| solver::run::run(&case).map_err(|e| BadInput(e.to_string())));

@@ -10,8 +10,6 @@ mod stencil;
 pub use neighbour_list::NeighbourList;
 pub use stencil::StencilOperator;
 
-use crate::grid::Horizon;
-use crate::influence::Kernel;
 use crate::stencil::Stencil;
 use serde::{Deserialize, Serialize};
 
@@ -32,16 +30,10 @@ pub trait NonlocalOperator: Send + Sync {
     fn apply(&self, u: &[f64], out: &mut [f64]);
 }
 
-/// Plans the operator of `backend` for the case whose weights are `stencil`.
-pub fn plan(
-    backend: Backend,
-    stencil: &Stencil,
-    horizon: &Horizon,
-    kernel: Kernel,
-    c: f64,
-) -> Box<dyn NonlocalOperator> {
+/// Plans the operator of `backend` for the case whose grid, horizon, kernel and weights `stencil` holds.
+pub fn plan(backend: Backend, stencil: &Stencil) -> Box<dyn NonlocalOperator> {
     match backend {
         Backend::Stencil => Box::new(StencilOperator::new(stencil.clone())),
-        Backend::NeighbourList => Box::new(NeighbourList::new(stencil.grid, *horizon, kernel, c)),
+        Backend::NeighbourList => Box::new(NeighbourList::new(stencil)),
     }
 }

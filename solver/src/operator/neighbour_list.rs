@@ -7,6 +7,7 @@
 use super::NonlocalOperator;
 use crate::grid::{Grid, Horizon};
 use crate::influence::Kernel;
+use crate::stencil::Stencil;
 use rayon::prelude::*;
 
 pub struct NeighbourList {
@@ -22,7 +23,9 @@ pub struct NeighbourList {
 }
 
 impl NeighbourList {
-    pub fn new(grid: Grid, horizon: Horizon, kernel: Kernel, c: f64) -> Self {
+    /// Builds the lists for the grid, horizon, kernel and c of `stencil` (not its weights).
+    pub fn new(stencil: &Stencil) -> Self {
+        let (grid, horizon) = (stencil.grid, stencil.horizon);
         let m = horizon.m as i64;
         let extended_side = grid.n + 2 * horizon.m;
         let mut start = Vec::with_capacity(grid.nodes() + 1);
@@ -50,8 +53,8 @@ impl NeighbourList {
         NeighbourList {
             grid,
             horizon,
-            kernel,
-            c,
+            kernel: stencil.kernel,
+            c: stencil.c,
             extended_side,
             start,
             neighbours,
