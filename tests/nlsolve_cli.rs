@@ -147,85 +147,48 @@ fn assert_refused(args: &[&str], stdin: Option<&str>, field: &str) {
 
 #[test]
 fn bad_input_exits_2_naming_the_field() {
-    let ok = r#""dim": 2, "m": 2, "t_end": 0.01, "cfl": 0.5"#;
-    assert_refused(
-        &["run", "--case", "-"],
-        Some(&format!(r#"{{{ok}, "n": 16, "colour": 3}}"#)),
-        "colour",
-    );
-    assert_refused(
-        &["run", "--case", "-"],
-        Some(&format!(r#"{{{ok}, "n": 0}}"#)),
-        "`n`",
-    );
-    assert_refused(
-        &["run", "--case", "-"],
-        Some(&format!(r#"{{{ok}, "n": -4}}"#)),
-        "`n`",
-    );
-    assert_refused(
-        &["run", "--case", "-"],
-        Some(&format!(r#"{{{ok}, "n": 16, "kernel": "cubic"}}"#)),
-        "kernel",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "2", "--n", "16", "--m", "0", "--t-end", "0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`m`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "1", "--n", "16", "--eps", "0.6", "--t-end", "0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`eps`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "1", "--n", "16", "--m", "9", "--t-end", "0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`m`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "1", "--n", "16", "--m", "2", "--t-end", "-0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`t_end`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "1", "--n", "16", "--m", "2", "--t-end", "0.1", "--dt", "1",
-        ],
-        None,
-        "`dt`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "3", "--n", "16", "--m", "2", "--t-end", "0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`dim`",
-    );
-    assert_refused(
-        &[
-            "run", "--dim", "1", "--n", "16", "--t-end", "0.1", "--cfl", "0.5",
-        ],
-        None,
-        "`m`",
-    );
-    assert_refused(&["run", "--n", "abc"], None, "--n");
-    assert_refused(&["run", "--colour", "3"], None, "--colour");
-    assert_refused(&["run", "--case", "/nonexistent/case.json"], None, "--case");
-    assert_refused(&["run", "--case", "-"], Some("{not json"), "not valid JSON");
-    assert_refused(
-        &["run", "--case", "-"],
-        Some(r#"{"n": 16, "m": 2, "t_end": 0.1, "cfl": 0.5}"#),
-        "dim",
-    );
+    let by_file = [
+        (
+            r#"{"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "colour": 3}"#,
+            "colour",
+        ),
+        (
+            r#"{"dim": 2, "n": 0, "m": 2, "t_end": 0.01, "cfl": 0.5}"#,
+            "`n`",
+        ),
+        (
+            r#"{"dim": 2, "n": -4, "m": 2, "t_end": 0.01, "cfl": 0.5}"#,
+            "`n`",
+        ),
+        (
+            r#"{"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "kernel": "cubic"}"#,
+            "kernel",
+        ),
+        (r#"{"n": 16, "m": 2, "t_end": 0.1, "cfl": 0.5}"#, "dim"),
+        ("{not json", "not valid JSON"),
+    ];
+    for (case, field) in by_file {
+        assert_refused(&["run", "--case", "-"], Some(case), field);
+    }
+    let by_flags = [
+        ("--dim 2 --n 16 --m 0 --t-end 0.1 --cfl 0.5", "`m`"),
+        ("--dim 1 --n 16 --eps 0.6 --t-end 0.1 --cfl 0.5", "`eps`"),
+        ("--dim 1 --n 16 --m 9 --t-end 0.1 --cfl 0.5", "`m`"),
+        ("--dim 1 --n 16 --m 2 --t-end -0.1 --cfl 0.5", "`t_end`"),
+        ("--dim 1 --n 16 --m 2 --t-end 0.1 --dt 1", "`dt`"),
+        ("--dim 3 --n 16 --m 2 --t-end 0.1 --cfl 0.5", "`dim`"),
+        ("--dim 1 --n 16 --t-end 0.1 --cfl 0.5", "`m`"),
+        ("--dim 1 --n 16 --eps 0.01 --t-end 0.1 --cfl 0.5", "`eps`"),
+        ("--dim 1 --n 16 --m 2 --t-end 1e9 --cfl 0.5", "`t_end`"),
+        ("--n abc", "--n"),
+        ("--colour 3", "--colour"),
+        ("--case /nonexistent/case.json", "--case"),
+    ];
+    for (flags, field) in by_flags {
+        let mut args = vec!["run"];
+        args.extend(flags.split_whitespace());
+        assert_refused(&args, None, field);
+    }
 }
 
 #[test]
