@@ -156,8 +156,8 @@ fn label<T: serde::Serialize>(value: &T) -> String {
 
 fn summary(record: &Record) -> String {
     let case = &record.case;
-    let errors = match (record.error_l2, record.error_max) {
-        (Some(l2), Some(max)) => format!("; error l2 {l2:.3e}, max {max:.3e}"),
+    let errors = match (record.error_l2_norm, record.error_max) {
+        (Some(l2), Some(max)) => format!("; error L2 norm {l2:.3e}, max {max:.3e}"),
         _ => String::new(),
     };
     format!(
