@@ -51,9 +51,9 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     check_operator_does_not_vanish(case, &stencil)?;
     let dt_stable = forward_euler_dt_stable(&stencil);
     let (dt, steps) = time_step(case, dt_stable)?;
-    check_neighbour_list_size(case, &stencil, horizon.m)?;
+    check_neighbour_list_size(case, &stencil)?;
     let operator = operator::plan(case.backend, &stencil);
-    let (u0, source) = initial_state(case, &grid, &horizon, c, operator.as_ref());
+    let (u0, source) = initial_state(case, &stencil, operator.as_ref());
     let setup_s = setup_started.elapsed().as_secs_f64();
 
     let source_scale = source.as_ref().map_or(0.0, |s| {
@@ -179,13 +179,13 @@ fn check_operator_does_not_vanish(case: &Case, stencil: &Stencil) -> Result<(), 
 
 /// The oracle stores every bond (4 bytes each) by a u32 index on the extended grid: refuse a case
 /// whose lists would not fit, rather than abort on a failed allocation.
-fn check_neighbour_list_size(case: &Case, stencil: &Stencil, m: usize) -> Result<(), CaseError> {
+fn check_neighbour_list_size(case: &Case, stencil: &Stencil) -> Result<(), CaseError> {
     const LIMIT_BYTES: usize = 8 << 30;
     if case.backend != Backend::NeighbourList {
         return Ok(());
     }
     let bytes = stencil.bonds().saturating_mul(4);
-    let extended_nodes = (case.n + 2 * m).pow(case.dim as u32);
+    let extended_nodes = (case.n + 2 * stencil.horizon.m).pow(case.dim as u32);
     if bytes > LIMIT_BYTES || extended_nodes > u32::MAX as usize {
         return Err(CaseError::new(
             "backend",
@@ -202,11 +202,10 @@ fn check_neighbour_list_size(case: &Case, stencil: &Stencil, m: usize) -> Result
 /// u₀ and the source fields of the case's problem.
 fn initial_state(
     case: &Case,
-    grid: &Grid,
-    horizon: &Horizon,
-    c: f64,
+    stencil: &Stencil,
     operator: &dyn NonlocalOperator,
 ) -> (Vec<f64>, Option<Source>) {
+    let grid = &stencil.grid;
     if case.problem == Problem::Bump {
         return (problem::sample(grid, problem::bump), None);
     }
@@ -217,10 +216,14 @@ fn initial_state(
             operator.apply(&phi, &mut psi);
             psi
         }
-        SourceMode::Continuum => {
-            ContinuumOperator::new(case.dim, horizon, case.kernel, c, DEFAULT_ORDER)
-                .apply_to_profile(grid)
-        }
+        SourceMode::Continuum => ContinuumOperator::new(
+            case.dim,
+            &stencil.horizon,
+            case.kernel,
+            stencil.c,
+            DEFAULT_ORDER,
+        )
+        .apply_to_profile(grid),
         SourceMode::Local => {
             let laplacian = -(case.dim as f64) * WAVENUMBER * WAVENUMBER * case.diffusivity;
             phi.iter().map(|p| laplacian * p).collect()
