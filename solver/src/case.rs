@@ -5,6 +5,7 @@
 
 use crate::influence::Kernel;
 use crate::operator::Backend;
+use crate::partition::Partition;
 use crate::problem::{Problem, SourceMode};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -61,9 +62,21 @@ pub struct Case {
     /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
     #[serde(default)]
     pub error_total: bool,
-    /// Threads of the rayon pool that runs the case.
+    /// Threads of the rayon pool that runs the case (on each rank).
     #[serde(default = "one_thread")]
     pub threads: usize,
+    /// MPI ranks: the run must be started by `mpirun -n ranks`.
+    #[serde(default = "one_thread")]
+    pub ranks: usize,
+    /// How the grid is divided among ranks.
+    #[serde(default)]
+    pub partition: Partition,
+    /// Blocks along x of a `block` partition; chosen to minimise the halo when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub px: Option<usize>,
+    /// Blocks along y of a `block` partition (2D).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub py: Option<usize>,
 }
 
 fn default_kernel() -> Kernel {
@@ -195,6 +208,7 @@ impl Case {
         if self.threads < 1 {
             return Err(CaseError::new("threads", "must be at least 1 (got 0)"));
         }
+        self.validate_distribution()?;
         match (self.problem, self.source()) {
             (Problem::Manufactured, SourceMode::None) => Err(CaseError::new(
                 "source",
@@ -206,6 +220,42 @@ impl Case {
             )),
             _ => Ok(()),
         }
+    }
+}
+
+impl Case {
+    fn validate_distribution(&self) -> Result<(), CaseError> {
+        let nodes = self.n.saturating_pow(self.dim as u32);
+        if self.ranks < 1 {
+            return Err(CaseError::new("ranks", "must be at least 1 (got 0)"));
+        }
+        if self.ranks > nodes {
+            return Err(CaseError::new(
+                "ranks",
+                format!(
+                    "{} ranks cannot share {nodes} nodes (every rank must own one); use ranks ≤ {nodes} or a larger n",
+                    self.ranks
+                ),
+            ));
+        }
+        if self.ranks > 1 && self.backend != Backend::Stencil {
+            return Err(CaseError::new(
+                "backend",
+                "the distributed solver runs the `stencil` backend; use it with ranks > 1",
+            ));
+        }
+        for (field, value) in [("px", self.px), ("py", self.py)] {
+            if value.is_some() && self.partition != Partition::Block {
+                return Err(CaseError::new(
+                    field,
+                    format!("applies to `partition: block` only; leave `{field}` out"),
+                ));
+            }
+            if value == Some(0) {
+                return Err(CaseError::new(field, "must be at least 1 (got 0)"));
+            }
+        }
+        Ok(())
     }
 }
 

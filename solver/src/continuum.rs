@@ -34,37 +34,44 @@ pub struct ContinuumOperator {
     kernel: Kernel,
     c: f64,
     rule: GaussLegendre,
+    /// L φ = (this) · φ wherever the ball lies inside D.
+    interior_multiplier: f64,
 }
 
 impl ContinuumOperator {
     pub fn new(dim: usize, horizon: &Horizon, kernel: Kernel, c: f64, order: usize) -> Self {
         let order = NonZeroUsize::new(order).expect("quadrature order is at least 1");
-        ContinuumOperator {
+        let mut operator = ContinuumOperator {
             dim,
             eps: horizon.eps,
             kernel,
             c,
             rule: GaussLegendre::new(order),
-        }
+            interior_multiplier: 0.0,
+        };
+        operator.interior_multiplier = operator.compute_interior_multiplier();
+        operator
     }
 
     /// L φ at every node of the grid.
     pub fn apply_to_profile(&self, grid: &Grid) -> Vec<f64> {
-        let interior_multiplier = self.interior_multiplier();
         (0..grid.nodes())
             .into_par_iter()
-            .map(|i| {
-                let x = grid.position(i);
-                let clearance = (0..self.dim)
-                    .map(|a| x[a].min(1.0 - x[a]))
-                    .fold(f64::INFINITY, f64::min);
-                if clearance >= self.eps {
-                    interior_multiplier * profile(self.dim, x)
-                } else {
-                    self.at(x)
-                }
-            })
+            .map(|i| self.at_node(grid, i))
             .collect()
+    }
+
+    /// L φ at node i of the grid: the closed form where the ball lies inside D, else quadrature.
+    pub fn at_node(&self, grid: &Grid, i: usize) -> f64 {
+        let x = grid.position(i);
+        let clearance = (0..self.dim)
+            .map(|a| x[a].min(1.0 - x[a]))
+            .fold(f64::INFINITY, f64::min);
+        if clearance >= self.eps {
+            self.interior_multiplier * profile(self.dim, x)
+        } else {
+            self.at(x)
+        }
     }
 
     /// L φ(x) by the split quadrature, valid at any x in D.
@@ -157,7 +164,7 @@ impl ContinuumOperator {
     }
 
     /// λ with L φ = λ φ at nodes whose ball lies in D (see the module comment).
-    fn interior_multiplier(&self) -> f64 {
+    fn compute_interior_multiplier(&self) -> f64 {
         let eps = self.eps;
         let a = WAVENUMBER;
         let integral = match self.dim {

@@ -35,7 +35,15 @@ pub fn total_mass(u: &[f64], volume: f64) -> f64 {
 
 /// maxᵢ |uᵢ|, with a NaN counted as +∞ so that a blown-up field is never reported as small.
 pub fn max_abs(u: &[f64]) -> f64 {
-    u.par_iter()
-        .map(|v| if v.is_nan() { f64::INFINITY } else { v.abs() })
-        .reduce(|| 0.0, f64::max)
+    u.par_iter().map(|&v| magnitude(v)).reduce(|| 0.0, f64::max)
+}
+
+/// |v|, or +∞ for a NaN.
+#[inline]
+pub fn magnitude(v: f64) -> f64 {
+    if v.is_nan() {
+        f64::INFINITY
+    } else {
+        v.abs()
+    }
 }

@@ -103,11 +103,7 @@ fn update(u: &mut [f64], lu: &[f64], dt: f64, rate: impl Fn(usize, f64) -> f64 +
             let mut block_max: f64 = 0.0;
             for (k, (ui, &l)) in u_block.iter_mut().zip(lu_block).enumerate() {
                 *ui += dt * rate(b * BLOCK + k, l);
-                block_max = if ui.is_nan() {
-                    f64::INFINITY
-                } else {
-                    block_max.max(ui.abs())
-                };
+                block_max = block_max.max(diagnostics::magnitude(*ui));
             }
             block_max
         })

@@ -29,6 +29,15 @@ impl Grid {
         self.n.pow(self.dim as u32)
     }
 
+    /// Rows of nodes: n in 2D, 1 in 1D.
+    pub fn rows(&self) -> usize {
+        if self.dim == 2 {
+            self.n
+        } else {
+            1
+        }
+    }
+
     /// V_j = h^d.
     pub fn volume(&self) -> f64 {
         self.h.powi(self.dim as i32)
@@ -92,5 +101,37 @@ impl Horizon {
     #[inline]
     pub fn contains_distance(&self, dist: f64) -> bool {
         dist <= self.eps * (1.0 + BALL_SLACK)
+    }
+}
+
+/// A rectangle of D's lattice, [x0, x0 + nx) × [y0, y0 + ny), stored row-major: the part of the
+/// grid a rank keeps (its nodes and their ghosts), or all of D. In 1D, y0 = 0 and ny = 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub x0: usize,
+    pub y0: usize,
+    pub nx: usize,
+    pub ny: usize,
+}
+
+impl Window {
+    /// All of D.
+    pub fn whole(grid: &Grid) -> Self {
+        Window {
+            x0: 0,
+            y0: 0,
+            nx: grid.n,
+            ny: grid.rows(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.nx * self.ny
+    }
+
+    /// Storage index of the node in column x, row y of D (which must lie in the window).
+    #[inline]
+    pub fn index(&self, x: usize, y: usize) -> usize {
+        (y - self.y0) * self.nx + (x - self.x0)
     }
 }

@@ -7,12 +7,15 @@
 pub mod case;
 pub mod continuum;
 pub mod diagnostics;
+pub mod distributed;
 pub mod euler;
 pub mod grid;
 pub mod influence;
 pub mod operator;
+pub mod partition;
 pub mod problem;
 pub mod record;
 pub mod run;
 pub mod stability;
 pub mod stencil;
+pub mod subdomain;

@@ -89,6 +89,11 @@ pub fn manufactured_solution(phi: &[f64], t: f64) -> impl Fn(usize) -> f64 + Syn
     move |i| amplitude * phi[i]
 }
 
+/// ψ/φ for the `local` source: kΔφ = −d (2π)² k φ.
+pub fn local_laplacian_factor(dim: usize, diffusivity: f64) -> f64 {
+    -(dim as f64) * WAVENUMBER * WAVENUMBER * diffusivity
+}
+
 /// φ or the bump at every node.
 pub fn sample(grid: &Grid, f: impl Fn(usize, [f64; 2]) -> f64) -> Vec<f64> {
     (0..grid.nodes())

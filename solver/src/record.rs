@@ -1,6 +1,7 @@
 //! The record: one JSON object per run, what the orchestrator stores and tabulates.
 
 use crate::case::Case;
+use crate::partition::Partition;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -47,7 +48,44 @@ pub struct Record {
     pub max_abs: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
+    #[serde(flatten)]
+    pub distribution: Distribution,
     pub provenance: Provenance,
+}
+
+/// How the run was spread over ranks, and what that cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Distribution {
+    pub ranks: usize,
+    pub partition: Partition,
+    /// The block partition's shape (py = 1 in 1D); absent for `graph`.
+    pub px: Option<usize>,
+    pub py: Option<usize>,
+    /// Ghost nodes summed over ranks: values received per step.
+    pub halo_nodes: usize,
+    /// Bytes received per step, all ranks together (8 per ghost).
+    pub halo_bytes: usize,
+    /// max owned / mean owned nodes per rank.
+    pub imbalance: f64,
+    /// Median per step of the time spent communicating (halo exchange and the divergence check's
+    /// reduction), max over ranks; 0 on one rank.
+    pub comm_s: f64,
+}
+
+impl Distribution {
+    /// One process owning all of D.
+    pub fn serial(case: &Case) -> Self {
+        Distribution {
+            ranks: 1,
+            partition: case.partition,
+            px: Some(1),
+            py: Some(1),
+            halo_nodes: 0,
+            halo_bytes: 0,
+            imbalance: 1.0,
+            comm_s: 0.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

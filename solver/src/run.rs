@@ -7,7 +7,7 @@ use crate::euler::{forward_euler, Stepping};
 use crate::grid::{Grid, Horizon};
 use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
-use crate::record::{Provenance, Record, Status};
+use crate::record::{Distribution, Provenance, Record, Status};
 use crate::stability::forward_euler_dt_stable;
 use crate::stencil::Stencil;
 use std::time::Instant;
@@ -27,99 +27,187 @@ pub struct Outcome {
 /// Runs `case` on a rayon pool of `case.threads` threads.
 pub fn run(case: &Case) -> Result<Outcome, CaseError> {
     case.validate()?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(case.threads)
-        .build()
-        .map_err(|e| {
-            CaseError::new(
-                "threads",
-                format!("cannot start {} threads: {e}", case.threads),
-            )
-        })?;
-    pool.install(|| run_in_pool(case))
+    if case.ranks > 1 {
+        return Err(CaseError::new(
+            "ranks",
+            format!(
+                "{r} ranks need MPI: start the run with `mpirun -n {r} nlsolve run …`",
+                r = case.ranks
+            ),
+        ));
+    }
+    in_pool(case.threads, || run_in_pool(case))
 }
 
-fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
-    let setup_started = Instant::now();
+/// Runs `work` on a rayon pool of `threads` threads.
+pub(crate) fn in_pool<T: Send>(
+    threads: usize,
+    work: impl FnOnce() -> Result<T, CaseError> + Send,
+) -> Result<T, CaseError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))?;
+    pool.install(work)
+}
+
+/// What a case resolves to before its time loop: the weights of L_h and the time step.
+pub(crate) struct Plan {
+    pub stencil: Stencil,
+    pub dt_stable: f64,
+    pub dt: f64,
+    pub steps: usize,
+}
+
+impl Plan {
+    pub fn new(case: &Case) -> Result<Plan, CaseError> {
+        let stencil = stencil_of(case);
+        check_operator_does_not_vanish(case, &stencil)?;
+        let dt_stable = forward_euler_dt_stable(&stencil);
+        let (dt, steps) = time_step(case, dt_stable)?;
+        check_neighbour_list_size(case, &stencil)?;
+        Ok(Plan {
+            stencil,
+            dt_stable,
+            dt,
+            steps,
+        })
+    }
+
+    /// The max |u| beyond which a run counts as diverged, from max |u₀| and the source's scale
+    /// (max |φ| and max |ψ|).
+    pub fn divergence_bound(
+        &self,
+        case: &Case,
+        u0_max: f64,
+        source_max: Option<(f64, f64)>,
+    ) -> f64 {
+        let source_scale = source_max.map_or(0.0, |(phi, psi)| WAVENUMBER * phi + psi);
+        DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end * source_scale)
+    }
+}
+
+/// The weights of the case's L_h.
+pub(crate) fn stencil_of(case: &Case) -> Stencil {
     let grid = Grid::new(case.dim, case.n);
     let horizon = match case.m {
         Some(m) => Horizon::from_m(&grid, m),
         None => Horizon::from_eps(&grid, case.eps.expect("validated: m or eps")),
     };
-    let stencil = Stencil::new(grid, horizon, case.kernel, case.diffusivity);
-    let c = stencil.c;
-    check_operator_does_not_vanish(case, &stencil)?;
-    let dt_stable = forward_euler_dt_stable(&stencil);
-    let (dt, steps) = time_step(case, dt_stable)?;
-    check_neighbour_list_size(case, &stencil)?;
-    let operator = operator::plan(case.backend, &stencil);
-    let (u0, source) = initial_state(case, &stencil, operator.as_ref());
+    Stencil::new(grid, horizon, case.kernel, case.diffusivity)
+}
+
+/// What a time loop measured, already reduced over ranks.
+pub(crate) struct Measured {
+    pub setup_s: f64,
+    pub solve_s: f64,
+    pub step_s: f64,
+    pub steps_done: usize,
+    pub diverged_at: Option<usize>,
+    pub divergence_bound: f64,
+    /// (eᵏ, max error) at the final time, for a manufactured problem that did not diverge.
+    pub errors: Option<(f64, f64)>,
+    pub error_total: Option<f64>,
+    pub mass: f64,
+    pub max_abs: f64,
+    pub distribution: Distribution,
+}
+
+/// The record of a finished run.
+pub(crate) fn record(case: &Case, plan: &Plan, measured: Measured) -> Record {
+    let stencil = &plan.stencil;
+    let t_final = measured.steps_done as f64 * plan.dt;
+    let (status, message) = match measured.diverged_at {
+        None => (Status::Ok, String::new()),
+        Some(step) => (
+            Status::Diverged,
+            format!(
+                "max |u| exceeded {:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
+                measured.divergence_bound,
+                plan.dt / plan.dt_stable
+            ),
+        ),
+    };
+    let errors = measured.errors;
+    Record {
+        case: case.clone(),
+        status,
+        message,
+        h: stencil.grid.h,
+        eps: stencil.horizon.eps,
+        m: stencil.horizon.m,
+        c: stencil.c,
+        dt: plan.dt,
+        dt_stable: plan.dt_stable,
+        steps: plan.steps,
+        steps_done: measured.steps_done,
+        nodes: stencil.grid.nodes(),
+        bonds: stencil.bonds(),
+        setup_s: measured.setup_s,
+        solve_s: measured.solve_s,
+        step_s: measured.step_s,
+        error_l2: errors.map(|(ek, _)| ek),
+        error_l2_norm: errors.map(|(ek, _)| ek.sqrt()),
+        error_max: errors.map(|(_, max)| max),
+        error_total: measured.error_total,
+        mass: finite(measured.mass),
+        max_abs: finite(measured.max_abs),
+        diverged_step: measured.diverged_at,
+        diverged_time: measured.diverged_at.map(|_| t_final),
+        provenance: Provenance::here(case.threads, measured.distribution.ranks),
+        distribution: measured.distribution,
+    }
+}
+
+fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
+    let setup_started = Instant::now();
+    let plan = Plan::new(case)?;
+    let stencil = &plan.stencil;
+    let grid = stencil.grid;
+    let operator = operator::plan(case.backend, stencil);
+    let (u0, source) = initial_state(case, stencil, operator.as_ref());
     let setup_s = setup_started.elapsed().as_secs_f64();
 
-    let source_scale = source.as_ref().map_or(0.0, |s| {
-        WAVENUMBER * diagnostics::max_abs(&s.phi) + diagnostics::max_abs(&s.psi)
-    });
-    let divergence_bound = DIVERGENCE_FACTOR
-        * (1.0f64)
-            .max(diagnostics::max_abs(&u0))
-            .max(case.t_end * source_scale);
+    let source_max = source
+        .as_ref()
+        .map(|s| (diagnostics::max_abs(&s.phi), diagnostics::max_abs(&s.psi)));
+    let divergence_bound = plan.divergence_bound(case, diagnostics::max_abs(&u0), source_max);
     let stepping = Stepping {
-        dt,
-        steps,
+        dt: plan.dt,
+        steps: plan.steps,
         divergence_bound,
         track_total_error: case.error_total,
         volume: grid.volume(),
     };
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
-    let t_final = trajectory.steps_done as f64 * dt;
     let u = trajectory.u;
-    let (status, message) = match trajectory.diverged_at {
-        None => (Status::Ok, String::new()),
-        Some(step) => (
-            Status::Diverged,
-            format!(
-                "max |u| exceeded {divergence_bound:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
-                dt / dt_stable
-            ),
-        ),
-    };
-    let errors = match (&source, status) {
-        (Some(source), Status::Ok) => {
+    let t_final = trajectory.steps_done as f64 * plan.dt;
+    let errors = match (&source, trajectory.diverged_at) {
+        (Some(source), None) => {
             let exact = manufactured_solution(&source.phi, t_final);
             let ek = diagnostics::squared_l2_error(&exact, &u, grid.volume());
             Some((ek, diagnostics::max_error(&exact, &u)))
         }
         _ => None,
     };
-    let record = Record {
-        case: case.clone(),
-        status,
-        message,
-        h: grid.h,
-        eps: horizon.eps,
-        m: horizon.m,
-        c,
-        dt,
-        dt_stable,
-        steps,
-        steps_done: trajectory.steps_done,
-        nodes: grid.nodes(),
-        bonds: stencil.bonds(),
+    let measured = Measured {
         setup_s,
         solve_s: trajectory.solve_seconds,
         step_s: median(trajectory.step_seconds),
-        error_l2: errors.map(|(ek, _)| ek),
-        error_l2_norm: errors.map(|(ek, _)| ek.sqrt()),
-        error_max: errors.map(|(_, max)| max),
+        steps_done: trajectory.steps_done,
+        diverged_at: trajectory.diverged_at,
+        divergence_bound,
+        errors,
         error_total: trajectory.error_total,
-        mass: finite(diagnostics::total_mass(&u, grid.volume())),
-        max_abs: finite(diagnostics::max_abs(&u)),
-        diverged_step: trajectory.diverged_at,
-        diverged_time: trajectory.diverged_at.map(|_| t_final),
-        provenance: Provenance::here(case.threads, 1),
+        mass: diagnostics::total_mass(&u, grid.volume()),
+        max_abs: diagnostics::max_abs(&u),
+        distribution: Distribution::serial(case),
     };
-    Ok(Outcome { record, field: u })
+    Ok(Outcome {
+        record: record(case, &plan, measured),
+        field: u,
+    })
 }
 
 /// The time step actually used and the number of steps: dt (or cfl·dt_stable) lowered so that an
@@ -225,15 +313,15 @@ fn initial_state(
         )
         .apply_to_profile(grid),
         SourceMode::Local => {
-            let laplacian = -(case.dim as f64) * WAVENUMBER * WAVENUMBER * case.diffusivity;
-            phi.iter().map(|p| laplacian * p).collect()
+            let factor = problem::local_laplacian_factor(case.dim, case.diffusivity);
+            phi.iter().map(|p| factor * p).collect()
         }
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };
     (phi.clone(), Some(Source { phi, psi }))
 }
 
-fn median(mut samples: Vec<f64>) -> f64 {
+pub(crate) fn median(mut samples: Vec<f64>) -> f64 {
     if samples.is_empty() {
         return 0.0;
     }

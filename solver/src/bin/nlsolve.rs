@@ -3,11 +3,13 @@
 
 use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use mpi::topology::{Communicator, SimpleCommunicator};
 use serde_json::{Map, Value};
 use solver::case::Case;
 use solver::record::Record;
+use solver::subdomain::HaloReport;
 use std::io::Read;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -24,7 +26,20 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run one case, given as a JSON file, as flags, or as a file with flags overriding its fields.
-    Run(CaseArgs),
+    /// With ranks > 1, start it as `mpirun -n <ranks> nlsolve run … --ranks <ranks>`.
+    Run(RunArgs),
+    /// Report the partition and halo a distributed run of the case would use (ghost nodes, bytes
+    /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
+    Partition(CaseArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    case: CaseArgs,
+    /// Also write the final field to FILE: little-endian f64 values in node order (iy·n + ix).
+    #[arg(long, value_name = "FILE")]
+    write_field: Option<PathBuf>,
 }
 
 /// Each flag sets the case field of the same name (dashes become underscores); see README.md.
@@ -79,9 +94,21 @@ struct CaseArgs {
     /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
     #[arg(long)]
     error_total: bool,
-    /// Threads (rayon); results are bitwise the same for any count.
+    /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
     threads: Option<usize>,
+    /// MPI ranks; must match `mpirun -n`. Results are bitwise the same for any count.
+    #[arg(long)]
+    ranks: Option<usize>,
+    /// How the grid is divided among ranks: block (px × py rectangles) or graph (METIS).
+    #[arg(long)]
+    partition: Option<String>,
+    /// Blocks along x of a block partition (chosen to minimise the halo when left out).
+    #[arg(long)]
+    px: Option<usize>,
+    /// Blocks along y of a block partition.
+    #[arg(long)]
+    py: Option<usize>,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -90,6 +117,11 @@ struct BadInput(String);
 impl CaseArgs {
     /// The case: the file's fields (if any) with the flags' fields set on top.
     fn case(&self) -> Result<Case, BadInput> {
+        Case::from_json(Value::Object(self.fields()?)).map_err(|e| BadInput(e.to_string()))
+    }
+
+    /// The case's fields as JSON, before they are checked.
+    fn fields(&self) -> Result<Map<String, Value>, BadInput> {
         let mut fields = match &self.case {
             Some(path) => read_case_file(path)?,
             None => Map::new(),
@@ -118,7 +150,11 @@ impl CaseArgs {
         );
         set("error_total", self.error_total.then_some(Value::Bool(true)));
         set("threads", self.threads.map(Value::from));
-        Case::from_json(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))
+        set("ranks", self.ranks.map(Value::from));
+        set("partition", self.partition.clone().map(Value::from));
+        set("px", self.px.map(Value::from));
+        set("py", self.py.map(Value::from));
+        Ok(fields)
     }
 }
 
@@ -200,34 +236,91 @@ fn parse_command_line() -> Result<Cli, BadInput> {
     Cli::from_arg_matches(&matches).map_err(|e| BadInput(e.to_string()))
 }
 
+/// Was this process started by an MPI launcher (mpirun, mpiexec, srun)?
+fn launched_by_mpi() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"]
+        .iter()
+        .any(|name| std::env::var_os(name).is_some())
+}
+
 fn main() -> ExitCode {
-    let args = match parse_command_line() {
-        Ok(Cli {
-            command: Command::Run(args),
-        }) => args,
-        Err(BadInput(message)) => {
-            eprintln!("nlsolve: {message}");
-            return ExitCode::from(2);
-        }
-    };
-    let outcome = args
-        .case()
-        .and_then(|case| solver::run::run(&case).map_err(|e| BadInput(e.to_string())));
-    match outcome {
-        Ok(outcome) => {
-            match serde_json::to_string(&outcome.record) {
-                Ok(line) => println!("{line}"),
-                Err(e) => {
-                    eprintln!("nlsolve: cannot write the record: {e}");
-                    return ExitCode::FAILURE;
-                }
+    // MPI starts before anything can fail, so that every rank of a bad run finalizes and exits
+    // with the same code instead of leaving mpirun to report a crash.
+    let universe = match launched_by_mpi() {
+        true => match mpi::initialize_with_threading(mpi::Threading::Funneled) {
+            Some((universe, _)) => Some(universe),
+            None => {
+                eprintln!("nlsolve: MPI could not be initialised");
+                return ExitCode::FAILURE;
             }
-            eprintln!("{}", summary(&outcome.record));
-            ExitCode::SUCCESS
-        }
+        },
+        false => None,
+    };
+    let world = universe.as_ref().map(|u| u.world());
+    let rank0 = world.as_ref().is_none_or(|w| w.rank() == 0);
+    let result = parse_command_line().and_then(|cli| match cli.command {
+        Command::Run(args) => run(&args, world.as_ref()),
+        Command::Partition(args) => partition_report(&args),
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
         Err(BadInput(message)) => {
-            eprintln!("nlsolve: {message}");
+            if rank0 {
+                eprintln!("nlsolve: {message}");
+            }
             ExitCode::from(2)
         }
     }
+}
+
+/// Runs the case (on every rank of `world` when started by MPI); rank 0 prints the record.
+fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInput> {
+    let case = args.case.case()?;
+    let outcome = match world {
+        Some(world) => solver::distributed::run(world, &case, args.write_field.is_some()),
+        None => solver::run::run(&case).map(Some),
+    }
+    .map_err(|e| BadInput(e.to_string()))?;
+    let Some(outcome) = outcome else {
+        return Ok(()); // not rank 0
+    };
+    if let Some(path) = &args.write_field {
+        write_field(path, &outcome.field)?;
+    }
+    let line = serde_json::to_string(&outcome.record)
+        .map_err(|e| BadInput(format!("cannot write the record: {e}")))?;
+    println!("{line}");
+    eprintln!("{}", summary(&outcome.record));
+    Ok(())
+}
+
+/// Writes the field as little-endian f64, through a temporary file so no half-written field is left.
+fn write_field(path: &Path, field: &[f64]) -> Result<(), BadInput> {
+    let bytes: Vec<u8> = field.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let partial = path.with_extension("partial");
+    std::fs::write(&partial, bytes)
+        .and_then(|()| std::fs::rename(&partial, path))
+        .map_err(|e| {
+            BadInput(format!(
+                "cannot write the field to {}: {e}; check the path given to --write-field",
+                path.display()
+            ))
+        })
+}
+
+/// Prints the halo report of the case as one JSON line.
+fn partition_report(args: &CaseArgs) -> Result<(), BadInput> {
+    let mut fields = args.fields()?;
+    // The time step does not shape the partition; fill it in when absent.
+    fields.entry("t_end").or_insert(Value::from(1.0));
+    if !fields.contains_key("dt") {
+        fields.entry("cfl").or_insert(Value::from(1.0));
+    }
+    let case = Case::from_json(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))?;
+    let report = HaloReport::of(&case).map_err(|e| BadInput(e.to_string()))?;
+    println!(
+        "{}",
+        serde_json::to_string(&report).expect("the report serializes")
+    );
+    Ok(())
 }

@@ -5,7 +5,7 @@
 //! result does not depend on the thread count, bit for bit.
 
 mod neighbour_list;
-mod stencil;
+pub(crate) mod stencil;
 
 pub use neighbour_list::NeighbourList;
 pub use stencil::StencilOperator;
