@@ -172,6 +172,26 @@ fn bad_input_exits_2_naming_the_field() {
         ("--n abc", "--n"),
         ("--colour 3", "--colour"),
         ("--case /nonexistent/case.json", "--case"),
+        (
+            "--dim 1 --n 4 --m 1 --t-end 0.1 --cfl 0.5 --ranks 5",
+            "`ranks`",
+        ),
+        (
+            "--dim 1 --n 16 --m 1 --t-end 0.1 --cfl 0.5 --ranks 2",
+            "`ranks`",
+        ),
+        (
+            "--dim 2 --n 16 --m 1 --t-end 0.1 --cfl 0.5 --partition graph --px 2",
+            "`px`",
+        ),
+        (
+            "--dim 2 --n 16 --m 1 --t-end 0.1 --cfl 0.5 --partition metis",
+            "partition",
+        ),
+        (
+            "--dim 2 --n 16 --m 1 --t-end 0.1 --cfl 0.5 --ranks 2 --backend neighbour_list",
+            "`backend`",
+        ),
     ];
     for (flags, field) in by_flags {
         let mut args = vec!["run"];
@@ -202,6 +222,11 @@ fn help_documents_every_case_field() {
         "--allow-unstable",
         "--error-total",
         "--threads",
+        "--ranks",
+        "--partition",
+        "--px",
+        "--py",
+        "--write-field",
     ] {
         assert!(help.contains(flag), "help lacks {flag}");
     }
@@ -226,4 +251,46 @@ fn an_oracle_too_large_for_memory_is_refused_before_allocating() {
         "neighbour_list",
     ];
     assert_refused(&args, None, "backend");
+}
+
+#[test]
+fn the_partition_report_refuses_a_block_shape_that_does_not_multiply_to_the_ranks() {
+    assert_refused(
+        &[
+            "partition",
+            "--dim",
+            "2",
+            "--n",
+            "16",
+            "--m",
+            "2",
+            "--ranks",
+            "4",
+            "--px",
+            "3",
+        ],
+        None,
+        "`px`",
+    );
+    let out = nlsolve(
+        &[
+            "partition",
+            "--dim",
+            "2",
+            "--n",
+            "16",
+            "--m",
+            "2",
+            "--ranks",
+            "4",
+            "--px",
+            "4",
+        ],
+        None,
+    );
+    let report = record(&out);
+    assert_eq!(
+        (report["px"].as_u64(), report["py"].as_u64()),
+        (Some(4), Some(1))
+    );
 }

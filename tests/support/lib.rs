@@ -49,3 +49,51 @@ pub fn record(output: &Output) -> serde_json::Value {
     assert_eq!(lines.len(), 1, "expected one record line, got: {stdout}");
     serde_json::from_str(lines[0]).expect("the record is JSON")
 }
+
+/// Longest an MPI run of the tests may take before it counts as hung.
+const MPI_DEADLINE: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// `scripts/mpirun -n ranks <program> <args>`: mpirun set up to run as root and with more ranks
+/// than cores. Panics if the job is still running after two minutes: a hang is a failure, not a
+/// stuck test suite.
+pub fn mpirun(ranks: usize, program: &[&str]) -> Output {
+    mpirun_with(ranks, program, &[])
+}
+
+/// `mpirun` with extra environment variables (Open MPI reads `OMPI_MCA_*` as its settings). One
+/// job at a time: ranks beyond the cores already oversubscribe this machine.
+pub fn mpirun_with(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
+    static ONE_JOB_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_JOB_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/mpirun");
+    let child = Command::new(script)
+        .args(["-n", &ranks.to_string()])
+        .args(program)
+        .envs(env.iter().copied())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("scripts/mpirun starts");
+    let id = child.id();
+    let (done, finished) = std::sync::mpsc::channel();
+    let waiter = std::thread::spawn(move || {
+        let output = child.wait_with_output().expect("mpirun finishes");
+        let _ = done.send(());
+        output
+    });
+    if finished.recv_timeout(MPI_DEADLINE).is_err() {
+        let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
+        panic!("mpirun -n {ranks} {program:?} did not finish in {MPI_DEADLINE:?}: a hang");
+    }
+    waiter.join().expect("waiter thread")
+}
+
+/// A field written by `nlsolve run --write-field`: little-endian f64 in node order.
+pub fn read_field(path: &std::path::Path) -> Vec<f64> {
+    std::fs::read(path)
+        .unwrap_or_else(|e| panic!("cannot read field {}: {e}", path.display()))
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}

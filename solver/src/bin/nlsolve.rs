@@ -197,12 +197,13 @@ fn summary(record: &Record) -> String {
         _ => String::new(),
     };
     format!(
-        "nlsolve: {}D n={} m={} {} {}, {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
+        "nlsolve: {}D n={} m={} {} {}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
         case.n,
         record.m,
         label(&case.kernel),
         label(&case.backend),
+        case.ranks,
         case.threads,
         record.steps_done,
         record.dt,

@@ -1,0 +1,328 @@
+//! The distributed solver through `mpirun`, as a user runs it: its final field and its record's
+//! numbers must equal the serial run's (the field to 1e-12, in fact bit for bit), for every rank
+//! count, both partitions, 1D and 2D, two kernels and horizons from one cell to eight; ε wider
+//! than a subdomain and uneven splits work; a rank count that cannot partition the grid is
+//! refused by every rank with exit code 2, without hanging.
+
+use nonlocal_study::{binary, mpirun, mpirun_with, nlsolve, read_field, record};
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::Output;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+const TOLERANCE: f64 = 1e-12;
+
+/// A fresh path for a field file.
+fn field_path() -> PathBuf {
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!("nlsolve-distributed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(format!(
+        "field-{}.bin",
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ))
+}
+
+/// One run: its record and final field.
+struct Run {
+    record: Value,
+    field: Vec<f64>,
+}
+
+fn finished(output: &Output, path: &PathBuf, what: &str) -> Run {
+    assert!(
+        output.status.success(),
+        "{what} failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    Run {
+        record: record(output),
+        field: read_field(path),
+    }
+}
+
+fn serial(case: &[&str]) -> Run {
+    let path = field_path();
+    let mut args = vec!["run", "--write-field", path.to_str().unwrap()];
+    args.extend(case);
+    finished(&nlsolve(&args, None), &path, "serial run")
+}
+
+fn distributed(ranks: usize, partition: &str, threads: usize, case: &[&str]) -> Run {
+    let path = field_path();
+    let (ranks_text, threads_text) = (ranks.to_string(), threads.to_string());
+    let exe = binary("nlsolve");
+    let mut program = vec![
+        exe.to_str().unwrap(),
+        "run",
+        "--write-field",
+        path.to_str().unwrap(),
+    ];
+    program.extend(case);
+    program.extend(["--ranks", &ranks_text, "--partition", partition]);
+    program.extend(["--threads", &threads_text]);
+    let what = format!("{ranks} ranks, {partition}: {case:?}");
+    finished(&mpirun(ranks, &program), &path, &what)
+}
+
+fn close(a: &Value, b: &Value) -> bool {
+    match (a.as_f64(), b.as_f64()) {
+        (Some(a), Some(b)) => (a - b).abs() <= TOLERANCE * a.abs().max(1.0),
+        _ => a == b,
+    }
+}
+
+/// The distributed run reproduces the serial field and numbers, and reports its distribution.
+fn assert_agrees(serial: &Run, run: &Run, ranks: usize, partition: &str, what: &str) {
+    assert_eq!(serial.field.len(), run.field.len(), "{what}: field length");
+    let difference = serial
+        .field
+        .iter()
+        .zip(&run.field)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        difference <= TOLERANCE,
+        "{what}: field differs by {difference:e}"
+    );
+    for field in [
+        "status",
+        "steps_done",
+        "nodes",
+        "bonds",
+        "dt",
+        "error_l2",
+        "error_l2_norm",
+        "error_max",
+        "error_total",
+        "mass",
+        "max_abs",
+    ] {
+        let (a, b) = (&serial.record[field], &run.record[field]);
+        assert!(close(a, b), "{what}: {field} serial {a} vs distributed {b}");
+    }
+    let record = &run.record;
+    assert_eq!(record["ranks"], ranks, "{what}");
+    assert_eq!(record["partition"], partition, "{what}");
+    assert_eq!(record["provenance"]["ranks"], ranks, "{what}");
+    if partition == "block" {
+        let blocks = record["px"].as_u64().unwrap() * record["py"].as_u64().unwrap();
+        assert_eq!(blocks, ranks as u64, "{what}: px × py");
+    }
+    let halo = record["halo_nodes"].as_u64().unwrap();
+    assert_eq!(ranks > 1, halo > 0, "{what}: halo_nodes {halo}");
+    assert_eq!(record["halo_bytes"].as_u64().unwrap(), 8 * halo, "{what}");
+    assert!(record["imbalance"].as_f64().unwrap() >= 1.0, "{what}");
+    assert!(record["comm_s"].as_f64().unwrap() >= 0.0, "{what}");
+}
+
+/// Every rank count of the issue, both partitions, two kernels and m ∈ {1, 3, 8} (the linear
+/// kernel vanishes at m = 1, so it starts at 3), with each source mode and the total error.
+fn rank_sweep(dim: usize, n: usize) {
+    let (dim_text, n_text) = (dim.to_string(), n.to_string());
+    for (kernel, m, source) in [
+        ("constant", "1", "continuum"),
+        ("constant", "3", "discrete"),
+        ("constant", "8", "local"),
+        ("linear", "3", "continuum"),
+        ("linear", "8", "discrete"),
+    ] {
+        let case = [
+            "--dim",
+            &dim_text,
+            "--n",
+            &n_text,
+            "--m",
+            m,
+            "--kernel",
+            kernel,
+            "--source",
+            source,
+            "--t-end",
+            "0.004",
+            "--cfl",
+            "0.5",
+            "--error-total",
+        ];
+        let reference = serial(&case);
+        for ranks in [1, 2, 3, 4, 6] {
+            for partition in ["block", "graph"] {
+                if ranks == 1 && partition == "graph" {
+                    continue; // one rank owns everything either way
+                }
+                let threads = if ranks == 2 { 2 } else { 1 };
+                let what = format!("{ranks} ranks × {threads} threads, {partition}: {case:?}");
+                let run = distributed(ranks, partition, threads, &case);
+                assert_agrees(&reference, &run, ranks, partition, &what);
+            }
+        }
+    }
+}
+
+#[test]
+fn one_dimensional_runs_equal_the_serial_run_on_every_rank_count() {
+    rank_sweep(1, 60);
+}
+
+#[test]
+fn two_dimensional_runs_equal_the_serial_run_on_every_rank_count() {
+    rank_sweep(2, 24);
+}
+
+/// n = 40 on 6 ranks gives subdomains of 6 or 7 nodes, narrower than the reach m = 8: a rank
+/// needs ghosts from ranks two away. That works: each rank receives the 8 nodes on each side
+/// (fewer where D ends), whoever owns them.
+#[test]
+fn a_horizon_wider_than_a_subdomain_reaches_past_the_neighbouring_ranks() {
+    let case = [
+        "--dim",
+        "1",
+        "--n",
+        "40",
+        "--m",
+        "8",
+        "--problem",
+        "bump",
+        "--t-end",
+        "0.001",
+        "--cfl",
+        "0.9",
+    ];
+    let reference = serial(&case);
+    let run = distributed(6, "block", 1, &case);
+    assert_agrees(&reference, &run, 6, "block", "ε wider than a subdomain");
+    let ghosts: usize = (0..6)
+        .map(|r| {
+            let (x0, x1) = (r * 40 / 6, (r + 1) * 40 / 6);
+            x0.min(8) + (40 - x1).min(8)
+        })
+        .sum();
+    assert_eq!(run.record["halo_nodes"], ghosts);
+}
+
+#[test]
+fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
+    for dim in ["1", "2"] {
+        let case = [
+            "--dim", dim, "--n", "101", "--m", "3", "--kernel", "linear", "--t-end", "0.0005",
+            "--cfl", "0.5",
+        ];
+        let reference = serial(&case);
+        for partition in ["block", "graph"] {
+            let run = distributed(4, partition, 1, &case);
+            assert_agrees(
+                &reference,
+                &run,
+                4,
+                partition,
+                &format!("{dim}D n = 101, {partition}"),
+            );
+        }
+    }
+}
+
+/// The halo a run exchanges is what `nlsolve partition` reports without running.
+#[test]
+fn the_partition_report_matches_the_run() {
+    let case = [
+        "--dim", "2", "--n", "101", "--m", "3", "--t-end", "0.0002", "--cfl", "0.5",
+    ];
+    for partition in ["block", "graph"] {
+        let run = distributed(4, partition, 1, &case);
+        let mut args = vec!["partition", "--ranks", "4", "--partition", partition];
+        args.extend(&case);
+        let report = record(&nlsolve(&args, None));
+        for field in ["halo_nodes", "halo_bytes", "imbalance", "px", "py"] {
+            assert_eq!(report[field], run.record[field], "{partition}: {field}");
+        }
+    }
+    let report = record(&nlsolve(
+        &[
+            "partition",
+            "--dim",
+            "2",
+            "--n",
+            "101",
+            "--m",
+            "3",
+            "--ranks",
+            "4",
+        ],
+        None,
+    ));
+    assert_eq!(
+        (report["px"].as_u64(), report["py"].as_u64()),
+        (Some(2), Some(2))
+    );
+}
+
+/// mpirun's output and each rank's exit code, printed by a shell around nlsolve. mpirun is told
+/// not to kill the other ranks when the first exits non-zero, so each rank shows its own code.
+fn exit_codes_of_every_rank(ranks: usize, args: &str) -> (Output, Vec<String>) {
+    let nlsolve = binary("nlsolve").display().to_string();
+    let plain: Vec<&str> = std::iter::once(nlsolve.as_str())
+        .chain(args.split(' '))
+        .collect();
+    let output = mpirun(ranks, &plain);
+    let script = format!(
+        "{nlsolve} {args}; code=$?; echo \"rank $OMPI_COMM_WORLD_RANK exit $code\"; exit $code"
+    );
+    let every_rank = mpirun_with(
+        ranks,
+        &["sh", "-c", &script],
+        &[("OMPI_MCA_orte_abort_on_non_zero_status", "0")],
+    );
+    let stdout = String::from_utf8_lossy(&every_rank.stdout);
+    let mut codes: Vec<String> = stdout
+        .lines()
+        .filter(|l| l.starts_with("rank "))
+        .map(String::from)
+        .collect();
+    codes.sort();
+    (output, codes)
+}
+
+#[test]
+fn more_ranks_than_nodes_is_refused_by_every_rank_with_exit_code_2() {
+    let (output, codes) = exit_codes_of_every_rank(
+        5,
+        "run --dim 1 --n 4 --m 1 --t-end 0.01 --cfl 0.5 --ranks 5",
+    );
+    let expected: Vec<String> = (0..5).map(|r| format!("rank {r} exit 2")).collect();
+    assert_eq!(codes, expected);
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("case field `ranks`: 5 ranks cannot share 4 nodes"),
+        "{stderr}"
+    );
+    assert_eq!(
+        stderr.matches("case field").count(),
+        1,
+        "rank 0 alone explains: {stderr}"
+    );
+}
+
+#[test]
+fn a_rank_count_that_differs_from_mpirun_or_has_no_block_shape_is_refused() {
+    let (output, codes) = exit_codes_of_every_rank(
+        3,
+        "run --dim 1 --n 40 --m 1 --t-end 0.01 --cfl 0.5 --ranks 2",
+    );
+    assert_eq!(output.status.code(), Some(2));
+    assert_eq!(codes.len(), 3);
+    assert!(codes.iter().all(|c| c.ends_with("exit 2")), "{codes:?}");
+    assert!(String::from_utf8_lossy(&output.stderr).contains("mpirun started 3"));
+
+    // 7 ranks on a 5 × 5 grid: 7 × 1 does not fit, so no block partition exists.
+    let (output, codes) = exit_codes_of_every_rank(
+        7,
+        "run --dim 2 --n 5 --m 1 --t-end 0.01 --cfl 0.5 --ranks 7",
+    );
+    assert!(
+        codes.iter().all(|c| c.ends_with("exit 2")) && codes.len() == 7,
+        "{codes:?}"
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no factor pair px × py"), "{stderr}");
+}
