@@ -4,7 +4,7 @@
 //! than a subdomain and uneven splits work; a rank count that cannot partition the grid is
 //! refused by every rank with exit code 2, without hanging.
 
-use nonlocal_study::{binary, mpirun, mpirun_with, nlsolve, read_field, record};
+use nonlocal_study::{binary, mpirun, mpirun_with, nlsolve, read_field, record, RESULT_FIELDS};
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Output;
@@ -85,20 +85,8 @@ fn assert_agrees(serial: &Run, run: &Run, ranks: usize, partition: &str, what: &
         difference <= TOLERANCE,
         "{what}: field differs by {difference:e}"
     );
-    for field in [
-        "status",
-        "steps_done",
-        "nodes",
-        "bonds",
-        "dt",
-        "error_l2",
-        "error_l2_norm",
-        "error_max",
-        "error_total",
-        "mass",
-        "max_abs",
-    ] {
-        let (a, b) = (&serial.record[field], &run.record[field]);
+    for field in RESULT_FIELDS.iter().chain(&["status", "steps_done"]) {
+        let (a, b) = (&serial.record[*field], &run.record[*field]);
         assert!(close(a, b), "{what}: {field} serial {a} vs distributed {b}");
     }
     let record = &run.record;
@@ -325,4 +313,29 @@ fn a_rank_count_that_differs_from_mpirun_or_has_no_block_shape_is_refused() {
     );
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("no factor pair px × py"), "{stderr}");
+}
+
+/// Instability is detected by the same reduction on every rank: the run ends `diverged` at the
+/// serial run's step.
+#[test]
+fn an_unstable_run_diverges_at_the_serial_step() {
+    let case = [
+        "--dim",
+        "2",
+        "--n",
+        "32",
+        "--m",
+        "3",
+        "--t-end",
+        "1",
+        "--cfl",
+        "1.3",
+        "--allow-unstable",
+    ];
+    let reference = serial(&case);
+    assert_eq!(reference.record["status"], "diverged");
+    let run = distributed(3, "graph", 1, &case);
+    for field in ["status", "diverged_step", "diverged_time", "steps_done"] {
+        assert_eq!(reference.record[field], run.record[field], "{field}");
+    }
 }

@@ -1,30 +1,12 @@
 //! `nlsolve` as a process: a record on stdout, identical numbers for any thread count, and bad
 //! input refused with exit code 2 and a sentence naming the field.
 
-use nonlocal_study::{nlsolve, record};
+use nonlocal_study::{nlsolve, record, RESULT_FIELDS};
 use serde_json::Value;
 
 const BASE: &[&str] = &[
     "run", "--dim", "2", "--n", "48", "--m", "3", "--kernel", "linear", "--t-end", "0.02", "--cfl",
     "0.5",
-];
-
-/// The record's fields that describe the result (timings and provenance left out).
-const RESULT_FIELDS: [&str; 14] = [
-    "h",
-    "eps",
-    "c",
-    "dt",
-    "dt_stable",
-    "steps",
-    "nodes",
-    "bonds",
-    "error_l2",
-    "error_l2_norm",
-    "error_max",
-    "error_total",
-    "mass",
-    "max_abs",
 ];
 
 fn result_numbers(record: &Value) -> Vec<(String, Value)> {
@@ -255,39 +237,20 @@ fn an_oracle_too_large_for_memory_is_refused_before_allocating() {
 
 #[test]
 fn the_partition_report_refuses_a_block_shape_that_does_not_multiply_to_the_ranks() {
+    let partition = |px: &str| -> Vec<String> {
+        format!("partition --dim 2 --n 16 --m 2 --ranks 4 --px {px}")
+            .split_whitespace()
+            .map(String::from)
+            .collect()
+    };
+    let args = partition("3");
     assert_refused(
-        &[
-            "partition",
-            "--dim",
-            "2",
-            "--n",
-            "16",
-            "--m",
-            "2",
-            "--ranks",
-            "4",
-            "--px",
-            "3",
-        ],
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
         None,
         "`px`",
     );
-    let out = nlsolve(
-        &[
-            "partition",
-            "--dim",
-            "2",
-            "--n",
-            "16",
-            "--m",
-            "2",
-            "--ranks",
-            "4",
-            "--px",
-            "4",
-        ],
-        None,
-    );
+    let args = partition("4");
+    let out = nlsolve(&args.iter().map(String::as_str).collect::<Vec<_>>(), None);
     let report = record(&out);
     assert_eq!(
         (report["px"].as_u64(), report["py"].as_u64()),

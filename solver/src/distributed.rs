@@ -13,6 +13,7 @@
 use crate::case::{Case, CaseError};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, magnitude};
+use crate::euler::MAX_TIMED_STEPS;
 use crate::operator::stencil::apply_on_runs;
 use crate::partition::{self, Ownership, Partition};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode};
@@ -48,15 +49,7 @@ pub fn run(
             ),
         ));
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(case.threads)
-        .build()
-        .map_err(|e| {
-            CaseError::new(
-                "threads",
-                format!("cannot start {} threads: {e}", case.threads),
-            )
-        })?;
+    let pool = run::thread_pool(case.threads)?;
     let setup_started = Instant::now();
     let plan = pool.install(|| Plan::new(case))?;
     let ownership = ownership(world, case, &plan)?;
@@ -116,7 +109,7 @@ struct RankRun<'a> {
     source: Option<Source>,
     /// Runs sorted by their place in the window, with that place: for the update.
     placed_runs: Vec<(usize, Run)>,
-    halo: HaloExchange,
+    halo: HaloExchange<'a>,
     volume: f64,
 }
 
@@ -223,9 +216,9 @@ impl<'a> RankRun<'a> {
         };
 
         let mut lu = vec![0.0; owned];
-        let mut step_seconds = Vec::with_capacity(plan.steps.min(1 << 20));
-        let mut comm_seconds = Vec::with_capacity(plan.steps.min(1 << 20));
-        let stride = plan.steps.div_ceil(1 << 20).max(1);
+        let stride = plan.steps.div_ceil(MAX_TIMED_STEPS).max(1);
+        let mut step_seconds = Vec::with_capacity(plan.steps.min(MAX_TIMED_STEPS));
+        let mut comm_seconds = Vec::with_capacity(plan.steps.min(MAX_TIMED_STEPS));
         let (mut solve_s, mut steps_done, mut diverged_at) = (0.0, 0, None);
         for k in 0..plan.steps {
             let started = Instant::now();
@@ -367,16 +360,16 @@ impl<'a> RankRun<'a> {
 
 /// The halo of one rank: per neighbour, a buffer of the values it sends and one for those it
 /// receives, allocated once.
-struct HaloExchange {
-    neighbours: Vec<Neighbour>,
+struct HaloExchange<'a> {
+    neighbours: &'a [Neighbour],
     send: Vec<Vec<f64>>,
     receive: Vec<Vec<f64>>,
 }
 
-impl HaloExchange {
-    fn new(neighbours: &[Neighbour]) -> Self {
+impl<'a> HaloExchange<'a> {
+    fn new(neighbours: &'a [Neighbour]) -> Self {
         HaloExchange {
-            neighbours: neighbours.to_vec(),
+            neighbours,
             send: neighbours
                 .iter()
                 .map(|nb| vec![0.0; nb.send.len()])
@@ -405,7 +398,7 @@ impl HaloExchange {
         }
         let mut overlap_s = 0.0;
         let (send, receive) = (&self.send, &mut self.receive);
-        let neighbours = &self.neighbours;
+        let neighbours = self.neighbours;
         mpi::request::scope(|scope| {
             let mut requests = Vec::with_capacity(2 * neighbours.len());
             for (nb, buffer) in neighbours.iter().zip(receive.iter_mut()) {

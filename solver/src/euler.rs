@@ -13,7 +13,7 @@ use std::time::Instant;
 /// Update block; fixed so the update never depends on the thread count.
 const BLOCK: usize = 4096;
 /// Most step times kept for the median: longer runs time every k-th step.
-const MAX_TIMED_STEPS: usize = 1 << 20;
+pub(crate) const MAX_TIMED_STEPS: usize = 1 << 20;
 
 pub struct Stepping {
     pub dt: f64,

@@ -40,15 +40,19 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
 }
 
 /// Runs `work` on a rayon pool of `threads` threads.
-pub(crate) fn in_pool<T: Send>(
+fn in_pool<T: Send>(
     threads: usize,
     work: impl FnOnce() -> Result<T, CaseError> + Send,
 ) -> Result<T, CaseError> {
-    let pool = rayon::ThreadPoolBuilder::new()
+    thread_pool(threads)?.install(work)
+}
+
+/// The rayon pool a case runs on.
+pub(crate) fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, CaseError> {
+    rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))?;
-    pool.install(work)
+        .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))
 }
 
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
