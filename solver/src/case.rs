@@ -19,6 +19,16 @@ pub enum Method {
     /// The nonlocal heat equation of seed 000, forward Euler in time (eq. 2.1).
     #[default]
     Nonlocal,
+    /// Local diffusion (seed 004): central differences, forward Euler.
+    FdExplicit,
+    /// Local diffusion (seed 004): Peaceman–Rachford ADI with the Thomas algorithm.
+    Adi,
+}
+
+impl Method {
+    pub fn is_local(self) -> bool {
+        matches!(self, Method::FdExplicit | Method::Adi)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -48,6 +58,9 @@ pub struct Case {
     /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceMode>,
+    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in seed 004).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<f64>,
     /// Final time T.
     pub t_end: f64,
     /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
@@ -130,6 +143,11 @@ impl Case {
         Ok(case)
     }
 
+    /// L of the local methods' domain.
+    pub fn length(&self) -> f64 {
+        self.length.unwrap_or(crate::local::DEFAULT_LENGTH)
+    }
+
     pub fn source(&self) -> SourceMode {
         self.source.unwrap_or(self.problem.default_source())
     }
@@ -149,6 +167,66 @@ impl Case {
             return Err(CaseError::new(
                 "n",
                 "must be at least 1 (got 0); give the number of nodes per side, h = 1/n",
+            ));
+        }
+        if self.method.is_local() {
+            self.validate_local()?;
+        } else {
+            self.validate_horizon()?;
+        }
+        positive("diffusivity", self.diffusivity)?;
+        self.validate_time_and_threads()
+    }
+
+    fn validate_local(&self) -> Result<(), CaseError> {
+        let method = serde_json::to_value(self.method).unwrap_or_default();
+        for (field, given) in [("m", self.m.is_some()), ("eps", self.eps.is_some())] {
+            if given {
+                return Err(CaseError::new(
+                    field,
+                    format!("method {method} has no horizon; leave `{field}` out"),
+                ));
+            }
+        }
+        if !self.problem.is_local() {
+            return Err(CaseError::new(
+                "problem",
+                format!("method {method} solves `eigenmode` or `square` (seed 004's setup); set `problem`"),
+            ));
+        }
+        if self.source.is_some_and(|s| s != SourceMode::None) || self.error_total {
+            return Err(CaseError::new(
+                if self.error_total {
+                    "error_total"
+                } else {
+                    "source"
+                },
+                format!("method {method} has no source term and no total error; leave it out"),
+            ));
+        }
+        if self.ranks > 1 {
+            return Err(CaseError::new(
+                "ranks",
+                format!("method {method} runs on one rank; use threads"),
+            ));
+        }
+        if let Some(length) = self.length {
+            positive("length", length)?;
+        }
+        Ok(())
+    }
+
+    fn validate_horizon(&self) -> Result<(), CaseError> {
+        if self.problem.is_local() {
+            return Err(CaseError::new(
+                "problem",
+                "the nonlocal method solves `manufactured` or `bump`; `eigenmode` and `square` are for `fd_explicit` and `adi`",
+            ));
+        }
+        if self.length.is_some() {
+            return Err(CaseError::new(
+                "length",
+                "the nonlocal method runs on D = [0,1]^d; leave `length` out",
             ));
         }
         let eps = match (self.m, self.eps) {
@@ -191,7 +269,10 @@ impl Case {
                 format!("must lie in (0, {MAX_EPS}] (got {eps}); the collar of width ε surrounds D = [0,1]^d"),
             ));
         }
-        positive("diffusivity", self.diffusivity)?;
+        Ok(())
+    }
+
+    fn validate_time_and_threads(&self) -> Result<(), CaseError> {
         positive("t_end", self.t_end)?;
         match (self.dt, self.cfl) {
             (Some(_), Some(_)) => return Err(CaseError::new(

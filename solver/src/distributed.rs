@@ -39,6 +39,12 @@ pub fn run(
     gather_field: bool,
 ) -> Result<Option<Outcome>, CaseError> {
     case.validate()?;
+    if case.method.is_local() {
+        return Err(CaseError::new(
+            "method",
+            "fd_explicit and adi run on one process; start them without mpirun",
+        ));
+    }
     let ranks = world.size() as usize;
     if ranks != case.ranks {
         return Err(CaseError::new(
@@ -61,7 +67,7 @@ pub fn run(
 
     let field = gather_field.then(|| rank_run.gather_field(&ownership));
     Ok((rank == 0).then(|| Outcome {
-        record: run::record(case, &plan, measured),
+        record: run::record(case, &plan.resolved(), measured),
         field: field.flatten().unwrap_or_default(),
     }))
 }

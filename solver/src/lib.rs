@@ -11,6 +11,7 @@ pub mod distributed;
 pub mod euler;
 pub mod grid;
 pub mod influence;
+pub mod local;
 pub mod operator;
 pub mod partition;
 pub mod problem;

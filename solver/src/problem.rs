@@ -25,6 +25,10 @@ pub enum Problem {
     Manufactured,
     /// u₀ = exp(−|x − ½|²/(2·0.1²)), no source, no exact solution: for demonstrations.
     Bump,
+    /// Local methods: c = Π_a cos(π x_a / L) on (−L/2, L/2)^d, decaying as exp(−dπ²Dt/L²).
+    Eigenmode,
+    /// Local methods, seed 004's setup: c = 1 where every |x_a| < L/4, else 0.
+    Square,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -37,10 +41,15 @@ pub enum SourceMode {
 }
 
 impl Problem {
+    /// Does the problem belong to the local methods' domain (−L/2, L/2)^d?
+    pub fn is_local(self) -> bool {
+        matches!(self, Problem::Eigenmode | Problem::Square)
+    }
+
     pub fn default_source(self) -> SourceMode {
         match self {
             Problem::Manufactured => SourceMode::Continuum,
-            Problem::Bump => SourceMode::None,
+            Problem::Bump | Problem::Eigenmode | Problem::Square => SourceMode::None,
         }
     }
 }

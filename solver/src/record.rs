@@ -19,10 +19,10 @@ pub struct Record {
     pub message: String,
     // What the case resolved to.
     pub h: f64,
-    pub eps: f64,
-    pub m: usize,
-    /// The constant c of eq. 1.5.
-    pub c: f64,
+    /// The horizon and the constant c of eq. 1.5 (nonlocal method only).
+    pub eps: Option<f64>,
+    pub m: Option<usize>,
+    pub c: Option<f64>,
     pub dt: f64,
     pub dt_stable: f64,
     /// Steps planned to reach t_end, and steps completed (fewer when diverged).

@@ -1,10 +1,11 @@
 //! Runs one case: plan the operator, resolve the time step, integrate, measure.
 
-use crate::case::{Case, CaseError};
+use crate::case::{Case, CaseError, Method};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics;
 use crate::euler::{forward_euler, Stepping};
 use crate::grid::{Grid, Horizon};
+use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
 use crate::record::{Distribution, Provenance, Record, Status};
@@ -36,7 +37,11 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             ),
         ));
     }
-    in_pool(case.threads, || run_in_pool(case))
+    in_pool(case.threads, || match case.method {
+        Method::Nonlocal => run_in_pool(case),
+        Method::FdExplicit => local::run(case, false),
+        Method::Adi => local::run(case, true),
+    })
 }
 
 /// Runs `work` on a rayon pool of `threads` threads.
@@ -68,7 +73,7 @@ impl Plan {
         let stencil = stencil_of(case);
         check_operator_does_not_vanish(case, &stencil)?;
         let dt_stable = forward_euler_dt_stable(&stencil);
-        let (dt, steps) = time_step(case, dt_stable)?;
+        let (dt, steps) = time_step(case, dt_stable, false)?;
         check_neighbour_list_size(case, &stencil)?;
         Ok(Plan {
             stencil,
@@ -101,6 +106,36 @@ pub(crate) fn stencil_of(case: &Case) -> Stencil {
     Stencil::new(grid, horizon, case.kernel, case.diffusivity)
 }
 
+/// What a case resolved to, as the record reports it.
+pub(crate) struct Resolved {
+    pub h: f64,
+    pub eps: Option<f64>,
+    pub m: Option<usize>,
+    pub c: Option<f64>,
+    pub dt: f64,
+    pub dt_stable: f64,
+    pub steps: usize,
+    pub nodes: usize,
+    pub bonds: usize,
+}
+
+impl Plan {
+    pub fn resolved(&self) -> Resolved {
+        let stencil = &self.stencil;
+        Resolved {
+            h: stencil.grid.h,
+            eps: Some(stencil.horizon.eps),
+            m: Some(stencil.horizon.m),
+            c: Some(stencil.c),
+            dt: self.dt,
+            dt_stable: self.dt_stable,
+            steps: self.steps,
+            nodes: stencil.grid.nodes(),
+            bonds: stencil.bonds(),
+        }
+    }
+}
+
 /// What a time loop measured, already reduced over ranks.
 pub(crate) struct Measured {
     pub setup_s: f64,
@@ -118,8 +153,7 @@ pub(crate) struct Measured {
 }
 
 /// The record of a finished run.
-pub(crate) fn record(case: &Case, plan: &Plan, measured: Measured) -> Record {
-    let stencil = &plan.stencil;
+pub(crate) fn record(case: &Case, plan: &Resolved, measured: Measured) -> Record {
     let t_final = measured.steps_done as f64 * plan.dt;
     let (status, message) = match measured.diverged_at {
         None => (Status::Ok, String::new()),
@@ -137,16 +171,16 @@ pub(crate) fn record(case: &Case, plan: &Plan, measured: Measured) -> Record {
         case: case.clone(),
         status,
         message,
-        h: stencil.grid.h,
-        eps: stencil.horizon.eps,
-        m: stencil.horizon.m,
-        c: stencil.c,
+        h: plan.h,
+        eps: plan.eps,
+        m: plan.m,
+        c: plan.c,
         dt: plan.dt,
         dt_stable: plan.dt_stable,
         steps: plan.steps,
         steps_done: measured.steps_done,
-        nodes: stencil.grid.nodes(),
-        bonds: stencil.bonds(),
+        nodes: plan.nodes,
+        bonds: plan.bonds,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
         step_s: measured.step_s,
@@ -209,20 +243,25 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         distribution: Distribution::serial(case),
     };
     Ok(Outcome {
-        record: record(case, &plan, measured),
+        record: record(case, &plan.resolved(), measured),
         field: u,
     })
 }
 
 /// The time step actually used and the number of steps: dt (or cfl·dt_stable) lowered so that an
-/// integer number of steps lands on t_end; refused above dt_stable unless the case allows it.
-fn time_step(case: &Case, dt_stable: f64) -> Result<(f64, usize), CaseError> {
+/// integer number of steps lands on t_end; refused above dt_stable unless the case allows it or
+/// the scheme is `unconditionally_stable`.
+pub(crate) fn time_step(
+    case: &Case,
+    dt_stable: f64,
+    unconditionally_stable: bool,
+) -> Result<(f64, usize), CaseError> {
     let (requested, field) = match (case.dt, case.cfl) {
         (Some(dt), _) => (dt, "dt"),
         (None, Some(cfl)) => (cfl * dt_stable, "cfl"),
         (None, None) => unreachable!("validated: dt or cfl"),
     };
-    if requested > dt_stable * (1.0 + 1e-12) && !case.allow_unstable {
+    if requested > dt_stable * (1.0 + 1e-12) && !case.allow_unstable && !unconditionally_stable {
         return Err(CaseError::new(
             field,
             format!(

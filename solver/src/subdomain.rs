@@ -288,6 +288,12 @@ pub struct HaloReport {
 impl HaloReport {
     pub fn of(case: &Case) -> Result<HaloReport, CaseError> {
         case.validate()?;
+        if case.method.is_local() {
+            return Err(CaseError::new(
+                "method",
+                "the partition report is for the nonlocal method, the one that runs on many ranks",
+            ));
+        }
         let stencil = stencil_of(case);
         let started = std::time::Instant::now();
         let ownership = partition::of(case, &stencil)?;

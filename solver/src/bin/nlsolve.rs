@@ -49,7 +49,7 @@ struct CaseArgs {
     /// Case file in JSON (`-` for standard input); flags given too override its fields.
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
-    /// Method: nonlocal (forward Euler on eq. 2.1).
+    /// Method: nonlocal (forward Euler on eq. 2.1), fd_explicit or adi (local diffusion, seed 004).
     #[arg(long)]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
@@ -73,12 +73,15 @@ struct CaseArgs {
     /// Diffusivity k of the local limit kΔ (default 1).
     #[arg(long)]
     diffusivity: Option<f64>,
-    /// Problem: manufactured (exact solution known) or bump (Gaussian, no source).
+    /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi).
     #[arg(long)]
     problem: Option<String>,
     /// Source mode of the manufactured problem: discrete, continuum (default) or local.
     #[arg(long)]
     source: Option<String>,
+    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2).
+    #[arg(long)]
+    length: Option<f64>,
     /// Final time.
     #[arg(long)]
     t_end: Option<f64>,
@@ -141,6 +144,7 @@ impl CaseArgs {
         set("diffusivity", self.diffusivity.map(Value::from));
         set("problem", self.problem.clone().map(Value::from));
         set("source", self.source.clone().map(Value::from));
+        set("length", self.length.map(Value::from));
         set("t_end", self.t_end.map(Value::from));
         set("dt", self.dt.map(Value::from));
         set("cfl", self.cfl.map(Value::from));
@@ -196,13 +200,14 @@ fn summary(record: &Record) -> String {
         (Some(l2), Some(max)) => format!("; error L2 norm {l2:.3e}, max {max:.3e}"),
         _ => String::new(),
     };
+    let method = match record.m {
+        Some(m) => format!("m={m} {} {}", label(&case.kernel), label(&case.backend)),
+        None => label(&case.method),
+    };
     format!(
-        "nlsolve: {}D n={} m={} {} {}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
+        "nlsolve: {}D n={} {method}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
         case.n,
-        record.m,
-        label(&case.kernel),
-        label(&case.backend),
         case.ranks,
         case.threads,
         record.steps_done,
