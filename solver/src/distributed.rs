@@ -13,7 +13,7 @@
 use crate::case::{Case, CaseError};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, magnitude};
-use crate::euler::MAX_TIMED_STEPS;
+use crate::euler::{is_sampled, timed_steps, MAX_TIMED_STEPS};
 use crate::operator::stencil::apply_on_runs;
 use crate::partition::{self, Ownership, Partition};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode};
@@ -67,7 +67,7 @@ pub fn run(
 
     let field = gather_field.then(|| rank_run.gather_field(&ownership));
     Ok((rank == 0).then(|| Outcome {
-        record: run::record(case, &plan.resolved(), measured),
+        record: run::record(case, plan.resolved(), measured),
         field: field.flatten().unwrap_or_default(),
     }))
 }
@@ -213,7 +213,7 @@ impl<'a> RankRun<'a> {
                 all_max(world, pool.install(|| diagnostics::max_abs(&s.psi))),
             )
         });
-        let divergence_bound = plan.divergence_bound(case, u0_max, source_max);
+        let divergence_bound = run::divergence_bound(case, u0_max, source_max);
         let track_total_error = case.error_total && self.source.is_some();
         let mut error_total = if track_total_error {
             self.squared_error(0.0)
@@ -222,45 +222,46 @@ impl<'a> RankRun<'a> {
         };
 
         let mut lu = vec![0.0; owned];
-        let stride = plan.steps.div_ceil(MAX_TIMED_STEPS).max(1);
-        let mut step_seconds = Vec::with_capacity(plan.steps.min(MAX_TIMED_STEPS));
         let mut comm_seconds = Vec::with_capacity(plan.steps.min(MAX_TIMED_STEPS));
-        let (mut solve_s, mut steps_done, mut diverged_at) = (0.0, 0, None);
-        for k in 0..plan.steps {
-            let started = Instant::now();
-            let (lu_interior, lu_boundary) = lu.split_at_mut(interior_nodes);
-            let mut comm_s = self.halo.exchange(world, &mut self.u, |u| {
-                pool.install(|| apply_on_runs(stencil, window, &subdomain.interior, u, lu_interior))
-            });
-            let u = &mut self.u;
-            pool.install(|| apply_on_runs(stencil, window, &subdomain.boundary, u, lu_boundary));
-            let local_max = pool.install(|| match &self.source {
-                Some(source) => {
-                    let (alpha, beta) = Source::coefficients(k as f64 * dt);
-                    update(&self.placed_runs, u, &lu, dt, |i, l| {
-                        l + alpha * source.phi[i] + beta * source.psi[i]
+        let timing = timed_steps(
+            self,
+            plan.steps,
+            divergence_bound,
+            |run, k| {
+                let (lu_interior, lu_boundary) = lu.split_at_mut(interior_nodes);
+                let mut comm_s = run.halo.exchange(world, &mut run.u, |u| {
+                    pool.install(|| {
+                        apply_on_runs(stencil, window, &subdomain.interior, u, lu_interior)
                     })
+                });
+                let u = &mut run.u;
+                pool.install(|| {
+                    apply_on_runs(stencil, window, &subdomain.boundary, u, lu_boundary)
+                });
+                let local_max = pool.install(|| match &run.source {
+                    Some(source) => {
+                        let (alpha, beta) = Source::coefficients(k as f64 * dt);
+                        update(&run.placed_runs, u, &lu, dt, |i, l| {
+                            l + alpha * source.phi[i] + beta * source.psi[i]
+                        })
+                    }
+                    None => update(&run.placed_runs, u, &lu, dt, |_, l| l),
+                });
+                let reduce_started = Instant::now();
+                let max_abs = all_max(world, local_max);
+                comm_s += reduce_started.elapsed().as_secs_f64();
+                if is_sampled(plan.steps, k) {
+                    comm_seconds.push(comm_s);
                 }
-                None => update(&self.placed_runs, u, &lu, dt, |_, l| l),
-            });
-            let reduce_started = Instant::now();
-            let max_abs = all_max(world, local_max);
-            comm_s += reduce_started.elapsed().as_secs_f64();
-            let seconds = started.elapsed().as_secs_f64();
-            solve_s += seconds;
-            if k % stride == 0 {
-                step_seconds.push(seconds);
-                comm_seconds.push(comm_s);
-            }
-            steps_done = k + 1;
-            if !(max_abs <= divergence_bound) {
-                diverged_at = Some(steps_done);
-                break;
-            }
-            if track_total_error {
-                error_total += self.squared_error(steps_done as f64 * dt);
-            }
-        }
+                max_abs
+            },
+            |run, steps_done| {
+                if track_total_error {
+                    error_total += run.squared_error(steps_done as f64 * dt);
+                }
+            },
+        );
+        let (steps_done, diverged_at) = (timing.steps_done, timing.diverged_at);
 
         let t_final = steps_done as f64 * dt;
         let u_owned = self.owned_values();
@@ -280,8 +281,8 @@ impl<'a> RankRun<'a> {
         let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
         Measured {
             setup_s: all_max(world, setup_s),
-            solve_s: all_max(world, solve_s),
-            step_s: all_max(world, median(step_seconds)),
+            solve_s: all_max(world, timing.solve_seconds),
+            step_s: all_max(world, median(timing.step_seconds)),
             steps_done,
             diverged_at,
             divergence_bound,

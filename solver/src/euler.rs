@@ -27,15 +27,60 @@ pub struct Stepping {
 
 pub struct Trajectory {
     pub u: Vec<f64>,
+    pub timing: Timing,
+    /// e = Σₖ eᵏ over k = 0 ..= steps_done, when tracked.
+    pub error_total: Option<f64>,
+}
+
+/// What a timed loop of steps measured.
+pub struct Timing {
     pub steps_done: usize,
     /// The step after which the solution exceeded the bound.
     pub diverged_at: Option<usize>,
-    /// Wall time of the time loop, error bookkeeping excluded.
+    /// Wall time of the time loop, untimed bookkeeping excluded.
     pub solve_seconds: f64,
     /// Wall time of every step, or of every k-th step in runs longer than `MAX_TIMED_STEPS`.
     pub step_seconds: Vec<f64>,
-    /// e = Σₖ eᵏ over k = 0 ..= steps_done, when tracked.
-    pub error_total: Option<f64>,
+}
+
+/// Is step k of `steps` one whose time is kept (every k-th in runs longer than `MAX_TIMED_STEPS`)?
+pub(crate) fn is_sampled(steps: usize, k: usize) -> bool {
+    k % steps.div_ceil(MAX_TIMED_STEPS).max(1) == 0
+}
+
+/// The time loop every solver shares: up to `steps` timed calls of `step(state, k)`, which
+/// advances from step k and returns max |u| after it; the loop ends at the first step whose max
+/// |u| exceeds `bound` or is not finite. `after(state, k + 1)` runs untimed after every step that
+/// did not diverge (error bookkeeping).
+pub(crate) fn timed_steps<S>(
+    state: &mut S,
+    steps: usize,
+    bound: f64,
+    mut step: impl FnMut(&mut S, usize) -> f64,
+    mut after: impl FnMut(&S, usize),
+) -> Timing {
+    let mut timing = Timing {
+        steps_done: 0,
+        diverged_at: None,
+        solve_seconds: 0.0,
+        step_seconds: Vec::with_capacity(steps.min(MAX_TIMED_STEPS)),
+    };
+    for k in 0..steps {
+        let started = Instant::now();
+        let max_abs = step(state, k);
+        let seconds = started.elapsed().as_secs_f64();
+        timing.solve_seconds += seconds;
+        if is_sampled(steps, k) {
+            timing.step_seconds.push(seconds);
+        }
+        timing.steps_done = k + 1;
+        if !(max_abs <= bound) {
+            timing.diverged_at = Some(k + 1);
+            break;
+        }
+        after(state, k + 1);
+    }
+    timing
 }
 
 pub fn forward_euler(
@@ -53,44 +98,29 @@ pub fn forward_euler(
         })
     };
     let mut error_total = squared_error(&u, 0.0);
-
-    let stride = stepping.steps.div_ceil(MAX_TIMED_STEPS).max(1);
-    let mut step_seconds = Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS));
-    let mut solve_seconds = 0.0;
-    let mut steps_done = 0;
-    let mut diverged_at = None;
-    for k in 0..stepping.steps {
-        let t = k as f64 * dt;
-        let started = Instant::now();
-        operator.apply(&u, &mut lu);
-        let max_abs = match source {
-            Some(source) => {
-                let (alpha, beta) = Source::coefficients(t);
-                update(&mut u, &lu, dt, |i, l| {
-                    l + alpha * source.phi[i] + beta * source.psi[i]
-                })
+    let timing = timed_steps(
+        &mut u,
+        stepping.steps,
+        stepping.divergence_bound,
+        |u, k| {
+            operator.apply(u, &mut lu);
+            match source {
+                Some(source) => {
+                    let (alpha, beta) = Source::coefficients(k as f64 * dt);
+                    update(u, &lu, dt, |i, l| {
+                        l + alpha * source.phi[i] + beta * source.psi[i]
+                    })
+                }
+                None => update(u, &lu, dt, |_, l| l),
             }
-            None => update(&mut u, &lu, dt, |_, l| l),
-        };
-        let seconds = started.elapsed().as_secs_f64();
-        solve_seconds += seconds;
-        if k % stride == 0 {
-            step_seconds.push(seconds);
-        }
-        steps_done = k + 1;
-        if !(max_abs <= stepping.divergence_bound) {
-            diverged_at = Some(steps_done);
-            break;
-        }
-        error_total += squared_error(&u, steps_done as f64 * dt);
-    }
+        },
+        |u, steps_done| error_total += squared_error(u, steps_done as f64 * dt),
+    );
+    let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
     Trajectory {
         u,
-        steps_done,
-        diverged_at,
-        solve_seconds,
-        step_seconds,
-        error_total: (total_error_source.is_some() && diverged_at.is_none()).then_some(error_total),
+        timing,
+        error_total: tracked.then_some(error_total),
     }
 }
 

@@ -12,11 +12,11 @@
 
 use crate::case::{Case, CaseError};
 use crate::diagnostics;
-use crate::euler::{forward_euler, Stepping};
+use crate::euler::{forward_euler, timed_steps, Stepping, Timing};
 use crate::operator::NonlocalOperator;
 use crate::problem::Problem;
-use crate::record::Distribution;
-use crate::run::{median, Measured, Outcome, Resolved};
+use crate::record::{Distribution, Resolved};
+use crate::run::{median, Measured, Outcome};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -117,11 +117,10 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     let dt_stable = grid.explicit_dt_stable(case.diffusivity);
     let (dt, steps) = crate::run::time_step(case, dt_stable, implicit)?;
     let u0 = grid.sample(case.problem);
-    let divergence_bound = 1e6 * diagnostics::max_abs(&u0).max(1.0);
+    let divergence_bound = crate::run::divergence_bound(case, diagnostics::max_abs(&u0), None);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let (u, steps_done, diverged_at, solve_s, step_seconds) = if implicit {
-        let adi = Adi::new(grid, case.diffusivity, dt);
-        adi.integrate(u0, steps, divergence_bound)
+    let (u, timing) = if implicit {
+        Adi::new(grid, case.diffusivity, dt).integrate(u0, steps, divergence_bound)
     } else {
         let laplacian = Laplacian {
             grid,
@@ -134,17 +133,11 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
             track_total_error: false,
             volume: grid.volume(),
         };
-        let t = forward_euler(&laplacian, u0, None, &stepping);
-        (
-            t.u,
-            t.steps_done,
-            t.diverged_at,
-            t.solve_seconds,
-            t.step_seconds,
-        )
+        let trajectory = forward_euler(&laplacian, u0, None, &stepping);
+        (trajectory.u, trajectory.timing)
     };
-    let t_final = steps_done as f64 * dt;
-    let errors = (case.problem == Problem::Eigenmode && diverged_at.is_none()).then(|| {
+    let t_final = timing.steps_done as f64 * dt;
+    let errors = (case.problem == Problem::Eigenmode && timing.diverged_at.is_none()).then(|| {
         let phi = grid.sample(Problem::Eigenmode);
         let decay = grid.eigenmode_decay(case.diffusivity, t_final);
         let exact = |i: usize| decay * phi[i];
@@ -166,10 +159,10 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     };
     let measured = Measured {
         setup_s,
-        solve_s,
-        step_s: median(step_seconds),
-        steps_done,
-        diverged_at,
+        solve_s: timing.solve_seconds,
+        step_s: median(timing.step_seconds),
+        steps_done: timing.steps_done,
+        diverged_at: timing.diverged_at,
         divergence_bound,
         errors,
         error_total: None,
@@ -178,7 +171,7 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
         distribution: Distribution::serial(case),
     };
     Ok(Outcome {
-        record: crate::run::record(case, &resolved, measured),
+        record: crate::run::record(case, resolved, measured),
         field: u,
     })
 }
@@ -205,35 +198,27 @@ impl Adi {
         }
     }
 
-    /// Steps forward; returns (u, steps done, diverged at, solve seconds, step seconds).
+    /// Steps forward from u, in the shared timed loop.
     fn integrate(
         &self,
         mut u: Vec<f64>,
         steps: usize,
         divergence_bound: f64,
-    ) -> (Vec<f64>, usize, Option<usize>, f64, Vec<f64>) {
+    ) -> (Vec<f64>, Timing) {
         // Buffers for c* (by rows) and for cⁿ⁺¹ by columns, allocated once.
         let mut half = vec![0.0; u.len()];
         let mut by_columns = vec![0.0; u.len()];
-        let mut step_seconds = Vec::with_capacity(steps.min(crate::euler::MAX_TIMED_STEPS));
-        let stride = steps.div_ceil(crate::euler::MAX_TIMED_STEPS).max(1);
-        let (mut solve_s, mut steps_done, mut diverged_at) = (0.0, 0, None);
-        for k in 0..steps {
-            let started = Instant::now();
-            self.step(&mut u, &mut half, &mut by_columns);
-            let max_abs = diagnostics::max_abs(&u);
-            let seconds = started.elapsed().as_secs_f64();
-            solve_s += seconds;
-            if k % stride == 0 {
-                step_seconds.push(seconds);
-            }
-            steps_done = k + 1;
-            if !(max_abs <= divergence_bound) {
-                diverged_at = Some(steps_done);
-                break;
-            }
-        }
-        (u, steps_done, diverged_at, solve_s, step_seconds)
+        let timing = timed_steps(
+            &mut u,
+            steps,
+            divergence_bound,
+            |u, _| {
+                self.step(u, &mut half, &mut by_columns);
+                diagnostics::max_abs(u)
+            },
+            |_, _| {},
+        );
+        (u, timing)
     }
 
     fn step(&self, u: &mut [f64], half: &mut [f64], by_columns: &mut [f64]) {

@@ -17,20 +17,10 @@ pub struct Record {
     pub case: Case,
     pub status: Status,
     pub message: String,
-    // What the case resolved to.
-    pub h: f64,
-    /// The horizon and the constant c of eq. 1.5 (nonlocal method only).
-    pub eps: Option<f64>,
-    pub m: Option<usize>,
-    pub c: Option<f64>,
-    pub dt: f64,
-    pub dt_stable: f64,
-    /// Steps planned to reach t_end, and steps completed (fewer when diverged).
-    pub steps: usize,
+    #[serde(flatten)]
+    pub resolved: Resolved,
+    /// Steps completed (fewer than `steps` when diverged).
     pub steps_done: usize,
-    pub nodes: usize,
-    /// Σᵢ |neighbourList[i]|: bonds of nodes in D to nodes of D ∪ D_c.
-    pub bonds: usize,
     // Timings in seconds: setup (operator plan, sources, dt_stable), the time loop, its median step.
     pub setup_s: f64,
     pub solve_s: f64,
@@ -51,6 +41,24 @@ pub struct Record {
     #[serde(flatten)]
     pub distribution: Distribution,
     pub provenance: Provenance,
+}
+
+/// What the case resolved to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Resolved {
+    pub h: f64,
+    /// The horizon and the constant c of eq. 1.5 (nonlocal method only).
+    pub eps: Option<f64>,
+    pub m: Option<usize>,
+    pub c: Option<f64>,
+    pub dt: f64,
+    pub dt_stable: f64,
+    /// Steps planned to reach t_end.
+    pub steps: usize,
+    pub nodes: usize,
+    /// Σᵢ |neighbourList[i]|: bonds of nodes in D to nodes of D ∪ D_c (2d per node for the
+    /// local methods' stencil).
+    pub bonds: usize,
 }
 
 /// How the run was spread over ranks, and what that cost.

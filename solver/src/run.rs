@@ -8,7 +8,7 @@ use crate::grid::{Grid, Horizon};
 use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
-use crate::record::{Distribution, Provenance, Record, Status};
+use crate::record::{Distribution, Provenance, Record, Resolved, Status};
 use crate::stability::forward_euler_dt_stable;
 use crate::stencil::Stencil;
 use std::time::Instant;
@@ -82,18 +82,6 @@ impl Plan {
             steps,
         })
     }
-
-    /// The max |u| beyond which a run counts as diverged, from max |u₀| and the source's scale
-    /// (max |φ| and max |ψ|).
-    pub fn divergence_bound(
-        &self,
-        case: &Case,
-        u0_max: f64,
-        source_max: Option<(f64, f64)>,
-    ) -> f64 {
-        let source_scale = source_max.map_or(0.0, |(phi, psi)| WAVENUMBER * phi + psi);
-        DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end * source_scale)
-    }
 }
 
 /// The weights of the case's L_h.
@@ -106,17 +94,11 @@ pub(crate) fn stencil_of(case: &Case) -> Stencil {
     Stencil::new(grid, horizon, case.kernel, case.diffusivity)
 }
 
-/// What a case resolved to, as the record reports it.
-pub(crate) struct Resolved {
-    pub h: f64,
-    pub eps: Option<f64>,
-    pub m: Option<usize>,
-    pub c: Option<f64>,
-    pub dt: f64,
-    pub dt_stable: f64,
-    pub steps: usize,
-    pub nodes: usize,
-    pub bonds: usize,
+/// The max |u| beyond which a run counts as diverged, from max |u₀| and the source's scale
+/// (max |φ| and max |ψ|).
+pub(crate) fn divergence_bound(case: &Case, u0_max: f64, source_max: Option<(f64, f64)>) -> f64 {
+    let source_scale = source_max.map_or(0.0, |(phi, psi)| WAVENUMBER * phi + psi);
+    DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end * source_scale)
 }
 
 impl Plan {
@@ -153,8 +135,8 @@ pub(crate) struct Measured {
 }
 
 /// The record of a finished run.
-pub(crate) fn record(case: &Case, plan: &Resolved, measured: Measured) -> Record {
-    let t_final = measured.steps_done as f64 * plan.dt;
+pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Record {
+    let t_final = measured.steps_done as f64 * resolved.dt;
     let (status, message) = match measured.diverged_at {
         None => (Status::Ok, String::new()),
         Some(step) => (
@@ -162,7 +144,7 @@ pub(crate) fn record(case: &Case, plan: &Resolved, measured: Measured) -> Record
             format!(
                 "max |u| exceeded {:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
                 measured.divergence_bound,
-                plan.dt / plan.dt_stable
+                resolved.dt / resolved.dt_stable
             ),
         ),
     };
@@ -171,16 +153,8 @@ pub(crate) fn record(case: &Case, plan: &Resolved, measured: Measured) -> Record
         case: case.clone(),
         status,
         message,
-        h: plan.h,
-        eps: plan.eps,
-        m: plan.m,
-        c: plan.c,
-        dt: plan.dt,
-        dt_stable: plan.dt_stable,
-        steps: plan.steps,
+        resolved,
         steps_done: measured.steps_done,
-        nodes: plan.nodes,
-        bonds: plan.bonds,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
         step_s: measured.step_s,
@@ -209,7 +183,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     let source_max = source
         .as_ref()
         .map(|s| (diagnostics::max_abs(&s.phi), diagnostics::max_abs(&s.psi)));
-    let divergence_bound = plan.divergence_bound(case, diagnostics::max_abs(&u0), source_max);
+    let divergence_bound = divergence_bound(case, diagnostics::max_abs(&u0), source_max);
     let stepping = Stepping {
         dt: plan.dt,
         steps: plan.steps,
@@ -220,8 +194,9 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
     let u = trajectory.u;
-    let t_final = trajectory.steps_done as f64 * plan.dt;
-    let errors = match (&source, trajectory.diverged_at) {
+    let timing = trajectory.timing;
+    let t_final = timing.steps_done as f64 * plan.dt;
+    let errors = match (&source, timing.diverged_at) {
         (Some(source), None) => {
             let exact = manufactured_solution(&source.phi, t_final);
             let ek = diagnostics::squared_l2_error(&exact, &u, grid.volume());
@@ -231,10 +206,10 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     };
     let measured = Measured {
         setup_s,
-        solve_s: trajectory.solve_seconds,
-        step_s: median(trajectory.step_seconds),
-        steps_done: trajectory.steps_done,
-        diverged_at: trajectory.diverged_at,
+        solve_s: timing.solve_seconds,
+        step_s: median(timing.step_seconds),
+        steps_done: timing.steps_done,
+        diverged_at: timing.diverged_at,
         divergence_bound,
         errors,
         error_total: trajectory.error_total,
@@ -243,7 +218,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         distribution: Distribution::serial(case),
     };
     Ok(Outcome {
-        record: record(case, &plan.resolved(), measured),
+        record: record(case, plan.resolved(), measured),
         field: u,
     })
 }

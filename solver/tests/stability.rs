@@ -104,7 +104,7 @@ fn just_above_dt_stable_diverges_and_says_where() {
         assert_eq!(record.status, Status::Diverged, "{dim}D: {record:?}");
         let step = record.diverged_step.expect("diverged step");
         assert!(step < 10_000 && step == record.steps_done);
-        assert!((record.diverged_time.unwrap() - step as f64 * record.dt).abs() < 1e-12);
+        assert!((record.diverged_time.unwrap() - step as f64 * record.resolved.dt).abs() < 1e-12);
         assert!(
             record.message.contains(&format!("step {step}")),
             "{}",

@@ -200,7 +200,7 @@ fn summary(record: &Record) -> String {
         (Some(l2), Some(max)) => format!("; error L2 norm {l2:.3e}, max {max:.3e}"),
         _ => String::new(),
     };
-    let method = match record.m {
+    let method = match record.resolved.m {
         Some(m) => format!("m={m} {} {}", label(&case.kernel), label(&case.backend)),
         None => label(&case.method),
     };
@@ -211,8 +211,8 @@ fn summary(record: &Record) -> String {
         case.ranks,
         case.threads,
         record.steps_done,
-        record.dt,
-        record.dt / record.dt_stable,
+        record.resolved.dt,
+        record.resolved.dt / record.resolved.dt_stable,
         record.solve_s,
         record.step_s,
         label(&record.status),
