@@ -174,6 +174,18 @@ fn bad_input_exits_2_naming_the_field() {
             "--dim 2 --n 16 --m 1 --t-end 0.1 --cfl 0.5 --ranks 2 --backend neighbour_list",
             "`backend`",
         ),
+        (
+            "--method pse --problem square --dim 2 --n 16 --t-end 0.1 --cfl 0.5",
+            "`eps`",
+        ),
+        (
+            "--method adi --problem square --dim 1 --n 16 --t-end 0.1 --cfl 0.5 --write-diagnostics /tmp/never.csv",
+            "`diagnostics_every`",
+        ),
+        (
+            "--method adi --problem square --dim 1 --n 16 --t-end 0.1 --cfl 0.5 --histogram-bins 0",
+            "`histogram_bins`",
+        ),
     ];
     for (flags, field) in by_flags {
         let mut args = vec!["run"];
@@ -209,6 +221,9 @@ fn help_documents_every_case_field() {
         "--px",
         "--py",
         "--write-field",
+        "--diagnostics-every",
+        "--histogram-bins",
+        "--write-diagnostics",
     ] {
         assert!(help.contains(flag), "help lacks {flag}");
     }
@@ -256,4 +271,60 @@ fn the_partition_report_refuses_a_block_shape_that_does_not_multiply_to_the_rank
         (report["px"].as_u64(), report["py"].as_u64()),
         (Some(4), Some(1))
     );
+}
+
+/// `--write-diagnostics` writes the record's c_tot(t) series as CSV under a `t,c_tot` header.
+#[test]
+fn the_diagnostics_file_is_the_records_series_as_csv() {
+    let dir = std::env::temp_dir().join(format!("nlsolve-diagnostics-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temporary directory");
+    let path = dir.join("diagnostics.csv");
+    let out = nlsolve(
+        &[
+            "run",
+            "--method",
+            "fd_explicit",
+            "--problem",
+            "square",
+            "--dim",
+            "2",
+            "--n",
+            "40",
+            "--t-end",
+            "0.1",
+            "--cfl",
+            "0.9",
+            "--diagnostics-every",
+            "0.02",
+            "--write-diagnostics",
+            path.to_str().expect("utf-8 path"),
+        ],
+        None,
+    );
+    let record = record(&out);
+    let csv = std::fs::read_to_string(&path).expect("the diagnostics file is written");
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("t,c_tot"));
+    let rows: Vec<(f64, f64)> = lines
+        .map(|line| {
+            let (t, c) = line.split_once(',').expect("two columns");
+            (t.parse().expect("t"), c.parse().expect("c_tot"))
+        })
+        .collect();
+    let series = &record["c_tot"];
+    let column = |name: &str| -> Vec<f64> {
+        series[name]
+            .as_array()
+            .expect("array")
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    assert_eq!(rows.len(), 6, "t = 0, 0.02, …, 0.1");
+    assert_eq!(rows.iter().map(|r| r.0).collect::<Vec<_>>(), column("time"));
+    assert_eq!(
+        rows.iter().map(|r| r.1).collect::<Vec<_>>(),
+        column("c_tot")
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -23,11 +23,19 @@ pub enum Method {
     FdExplicit,
     /// Local diffusion (seed 004): Peaceman–Rachford ADI with the Thomas algorithm.
     Adi,
+    /// Local diffusion (seed 004): particle strength exchange, forward Euler.
+    Pse,
 }
 
 impl Method {
+    /// Does the method solve the local equation ∂c/∂t = D∇²c on (−L/2, L/2)^d?
     pub fn is_local(self) -> bool {
-        matches!(self, Method::FdExplicit | Method::Adi)
+        matches!(self, Method::FdExplicit | Method::Adi | Method::Pse)
+    }
+
+    /// Does the method need a horizon (`m` or `eps`)?
+    pub fn has_horizon(self) -> bool {
+        matches!(self, Method::Nonlocal | Method::Pse)
     }
 }
 
@@ -40,10 +48,11 @@ pub struct Case {
     pub dim: usize,
     /// Nodes per side; h = 1/n.
     pub n: usize,
-    /// Horizon in cells, ε = m·h. Give `m` or `eps`.
+    /// Horizon in cells, ε = m·h (for `pse`, the kernel width in particle spacings). Give `m`
+    /// or `eps`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub m: Option<usize>,
-    /// Horizon as a length; then m = ⌈ε/h⌉.
+    /// Horizon as a length; then m = ⌈ε/h⌉ (for `pse`, ε itself).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub eps: Option<f64>,
     #[serde(default = "default_kernel")]
@@ -75,6 +84,14 @@ pub struct Case {
     /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
     #[serde(default)]
     pub error_total: bool,
+    /// Time between samples of c_tot(t) = h^d Σ c (seed 004's diagnostics.dat), rounded to whole
+    /// steps; the series goes into the record. Absent: no series.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnostics_every: Option<f64>,
+    /// Bins of a histogram of the final field's values over [min, max] (seed 004's
+    /// compute_histogram). Absent: no histogram.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram_bins: Option<usize>,
     /// Threads of the rayon pool that runs the case (on each rank).
     #[serde(default = "one_thread")]
     pub threads: usize,
@@ -175,17 +192,22 @@ impl Case {
             self.validate_horizon()?;
         }
         positive("diffusivity", self.diffusivity)?;
+        self.validate_diagnostics()?;
         self.validate_time_and_threads()
     }
 
     fn validate_local(&self) -> Result<(), CaseError> {
         let method = serde_json::to_value(self.method).unwrap_or_default();
-        for (field, given) in [("m", self.m.is_some()), ("eps", self.eps.is_some())] {
-            if given {
-                return Err(CaseError::new(
-                    field,
-                    format!("method {method} has no horizon; leave `{field}` out"),
-                ));
+        if self.method.has_horizon() {
+            self.validate_kernel_width()?;
+        } else {
+            for (field, given) in [("m", self.m.is_some()), ("eps", self.eps.is_some())] {
+                if given {
+                    return Err(CaseError::new(
+                        field,
+                        format!("method {method} has no horizon; leave `{field}` out"),
+                    ));
+                }
             }
         }
         if !self.problem.is_local() {
@@ -216,11 +238,64 @@ impl Case {
         Ok(())
     }
 
+    /// PSE's kernel width: `m` particle spacings or a length `eps`, at most L/2.
+    fn validate_kernel_width(&self) -> Result<(), CaseError> {
+        let spacing = self.length() / self.n as f64;
+        let (field, eps) = match (self.m, self.eps) {
+            (Some(_), Some(_)) => {
+                return Err(CaseError::new(
+                    "eps",
+                    "give the kernel width once, as `m` (particle spacings) or `eps` (length), not both",
+                ))
+            }
+            (None, None) => {
+                return Err(CaseError::new(
+                    "eps",
+                    "the kernel width is missing; give `eps` or `m` (ε = m·h, e.g. 2 for h/ε = 0.5)",
+                ))
+            }
+            (Some(m), None) => ("m", m as f64 * spacing),
+            (None, Some(eps)) => ("eps", eps),
+        };
+        let half = self.length() / 2.0;
+        if !(eps > 0.0 && eps <= half) {
+            return Err(CaseError::new(
+                field,
+                format!("gives ε = {eps}, outside (0, L/2 = {half}]; the kernel must be narrower than D"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_diagnostics(&self) -> Result<(), CaseError> {
+        if let Some(every) = self.diagnostics_every {
+            positive("diagnostics_every", every)?;
+        }
+        if self.histogram_bins == Some(0) {
+            return Err(CaseError::new(
+                "histogram_bins",
+                "must be at least 1 (got 0); leave it out for no histogram",
+            ));
+        }
+        for (field, given) in [
+            ("diagnostics_every", self.diagnostics_every.is_some()),
+            ("histogram_bins", self.histogram_bins.is_some()),
+        ] {
+            if given && self.ranks > 1 {
+                return Err(CaseError::new(
+                    field,
+                    "the distributed solver computes no diagnostics series or histogram; leave it out or use ranks = 1",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     fn validate_horizon(&self) -> Result<(), CaseError> {
         if self.problem.is_local() {
             return Err(CaseError::new(
                 "problem",
-                "the nonlocal method solves `manufactured` or `bump`; `eigenmode` and `square` are for `fd_explicit` and `adi`",
+                "the nonlocal method solves `manufactured` or `bump`; `eigenmode` and `square` are for `fd_explicit`, `adi` and `pse`",
             ));
         }
         if self.length.is_some() {

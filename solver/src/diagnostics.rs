@@ -2,6 +2,7 @@
 //! order so that the numbers do not depend on the thread count.
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Reduction block: partial sums over fixed index blocks, added in block order.
 const BLOCK: usize = 4096;
@@ -46,4 +47,101 @@ pub fn magnitude(v: f64) -> f64 {
     } else {
         v.abs()
     }
+}
+
+/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (seed 004's diagnostics.dat): at t = 0, at the
+/// first step at or past each output time j·interval, and after the last step.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MassSeries {
+    #[serde(skip)]
+    interval: f64,
+    #[serde(skip)]
+    steps: usize,
+    #[serde(skip)]
+    dt: f64,
+    pub time: Vec<f64>,
+    pub c_tot: Vec<f64>,
+}
+
+impl MassSeries {
+    /// The series of a run of `steps` steps of `dt`, when an output `interval` is given,
+    /// starting from c_tot(0) = `c_tot0`.
+    pub fn start(interval: Option<f64>, dt: f64, steps: usize, c_tot0: f64) -> Option<Self> {
+        interval.map(|interval| MassSeries {
+            interval,
+            steps,
+            dt,
+            time: vec![0.0],
+            c_tot: vec![c_tot0],
+        })
+    }
+
+    /// Adds c_tot after step k if the series exists and step k reaches the next output time
+    /// (or is the last); `c_tot` is evaluated only then.
+    pub fn observe_if(series: &mut Option<Self>, k: usize, c_tot: impl FnOnce() -> f64) {
+        let Some(series) = series else { return };
+        let t = k as f64 * series.dt;
+        let sampled = series.time.len() - 1; // output times reached so far, t = 0 aside
+        let next_output = (sampled + 1) as f64 * series.interval;
+        // Relative slack: an output time reached up to rounding counts as reached.
+        if t >= next_output * (1.0 - 1e-12) || k == series.steps {
+            series.time.push(t);
+            series.c_tot.push(c_tot());
+        }
+    }
+
+    /// The series as CSV with a header: `t,c_tot`, one row per sample.
+    pub fn to_csv(&self) -> String {
+        let mut csv = String::from("t,c_tot\n");
+        for (t, c) in self.time.iter().zip(&self.c_tot) {
+            csv.push_str(&format!("{t},{c}\n"));
+        }
+        csv
+    }
+}
+
+/// Counts of values in `counts.len()` equal bins over [lo, hi] (the last bin closed).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Histogram {
+    pub lo: f64,
+    pub hi: f64,
+    pub counts: Vec<u64>,
+}
+
+/// The histogram of u over [min u, max u] in `bins` bins (seed 004's compute_histogram), counted
+/// in parallel by blocks; integer counts make the result independent of the thread count. A
+/// field that is not finite everywhere has no histogram.
+pub fn histogram(u: &[f64], bins: usize) -> Option<Histogram> {
+    let (lo, hi) = u.par_iter().map(|&v| (v, v)).reduce(
+        || (f64::INFINITY, f64::NEG_INFINITY),
+        |a, b| (a.0.min(b.0), a.1.max(b.1)),
+    );
+    if !(lo.is_finite() && hi.is_finite()) || u.par_iter().any(|v| v.is_nan()) {
+        return None;
+    }
+    let width = (hi - lo) / bins as f64;
+    let bin = |v: f64| {
+        if width > 0.0 {
+            (((v - lo) / width) as usize).min(bins - 1)
+        } else {
+            0
+        }
+    };
+    let counts = u
+        .par_chunks(BLOCK)
+        .map(|block| {
+            let mut counts = vec![0u64; bins];
+            for &v in block {
+                counts[bin(v)] += 1;
+            }
+            counts
+        })
+        .reduce(
+            || vec![0u64; bins],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    Some(Histogram { lo, hi, counts })
 }

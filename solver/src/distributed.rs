@@ -293,6 +293,9 @@ impl<'a> RankRun<'a> {
                 pool.install(|| diagnostics::total_mass(&u_owned, self.volume)),
             ),
             max_abs: all_max(world, pool.install(|| diagnostics::max_abs(&u_owned))),
+            // Refused for ranks > 1 by the case's validation.
+            c_tot: None,
+            histogram: None,
             distribution: Distribution {
                 ranks: ownership.ranks,
                 partition: case.partition,

@@ -4,7 +4,7 @@
 //! so that divergence is caught the step it happens at no extra cost. Nothing is allocated inside
 //! the loop. Error bookkeeping (the total error e = Σₖ eᵏ, when asked) is kept out of the timings.
 
-use crate::diagnostics;
+use crate::diagnostics::{self, MassSeries};
 use crate::operator::NonlocalOperator;
 use crate::problem::{manufactured_solution, Source};
 use rayon::prelude::*;
@@ -21,8 +21,10 @@ pub struct Stepping {
     /// A step whose max |u| exceeds this (or is not finite) ends the run as diverged.
     pub divergence_bound: f64,
     pub track_total_error: bool,
-    /// h^d, for the error norms.
+    /// h^d, for the error norms and c_tot.
     pub volume: f64,
+    /// Time between samples of c_tot(t), when the case asks for the series.
+    pub diagnostics_every: Option<f64>,
 }
 
 pub struct Trajectory {
@@ -30,6 +32,7 @@ pub struct Trajectory {
     pub timing: Timing,
     /// e = Σₖ eᵏ over k = 0 ..= steps_done, when tracked.
     pub error_total: Option<f64>,
+    pub c_tot: Option<MassSeries>,
 }
 
 /// What a timed loop of steps measured.
@@ -98,6 +101,8 @@ pub fn forward_euler(
         })
     };
     let mut error_total = squared_error(&u, 0.0);
+    let mass = |u: &[f64]| diagnostics::total_mass(u, stepping.volume);
+    let mut c_tot = MassSeries::start(stepping.diagnostics_every, dt, stepping.steps, mass(&u));
     let timing = timed_steps(
         &mut u,
         stepping.steps,
@@ -114,13 +119,17 @@ pub fn forward_euler(
                 None => update(u, &lu, dt, |_, l| l),
             }
         },
-        |u, steps_done| error_total += squared_error(u, steps_done as f64 * dt),
+        |u, steps_done| {
+            error_total += squared_error(u, steps_done as f64 * dt);
+            MassSeries::observe_if(&mut c_tot, steps_done, || mass(u));
+        },
     );
     let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
     Trajectory {
         u,
         timing,
         error_total: tracked.then_some(error_total),
+        c_tot,
     }
 }
 

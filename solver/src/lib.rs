@@ -15,6 +15,7 @@ pub mod local;
 pub mod operator;
 pub mod partition;
 pub mod problem;
+pub mod pse;
 pub mod record;
 pub mod run;
 pub mod stability;

@@ -11,8 +11,8 @@
 //! cos²(π/(2(n+1))) < 1, so the bound is (just) sufficient on the bounded grid too.
 
 use crate::case::{Case, CaseError};
-use crate::diagnostics;
-use crate::euler::{forward_euler, timed_steps, Stepping, Timing};
+use crate::diagnostics::{self, MassSeries};
+use crate::euler::{forward_euler, timed_steps, Stepping, Trajectory};
 use crate::operator::NonlocalOperator;
 use crate::problem::Problem;
 use crate::record::{Distribution, Resolved};
@@ -66,28 +66,27 @@ impl LocalGrid {
         self.h * self.h / (2.0 * self.dim as f64 * diffusivity)
     }
 
-    /// The initial field of `problem`.
+    /// The initial field of `problem` on the nodes.
     pub fn sample(&self, problem: Problem) -> Vec<f64> {
         (0..self.nodes())
             .into_par_iter()
-            .map(|i| {
-                let x = self.position(i);
-                let axes = &x[..self.dim];
-                match problem {
-                    Problem::Eigenmode => {
-                        axes.iter().map(|&s| (PI * s / self.length).cos()).product()
-                    }
-                    // c = 1 where every |x_a| < L/4 (seed 004), 0 elsewhere.
-                    _ => f64::from(u8::from(axes.iter().all(|s| s.abs() < self.length / 4.0))),
-                }
-            })
+            .map(|i| initial_value(problem, &self.position(i)[..self.dim], self.length))
             .collect()
     }
+}
 
-    /// The exact eigenmode solution's decay factor at time t: exp(−d π² D t / L²).
-    pub fn eigenmode_decay(&self, diffusivity: f64, t: f64) -> f64 {
-        (-(self.dim as f64) * PI * PI * diffusivity * t / (self.length * self.length)).exp()
+/// c(x, 0) of a local problem at x ∈ (−L/2, L/2)^d.
+pub(crate) fn initial_value(problem: Problem, x: &[f64], length: f64) -> f64 {
+    match problem {
+        Problem::Eigenmode => x.iter().map(|&s| (PI * s / length).cos()).product(),
+        // c = 1 where every |x_a| < L/4 (seed 004), 0 elsewhere.
+        _ => f64::from(u8::from(x.iter().all(|s| s.abs() < length / 4.0))),
     }
+}
+
+/// The exact eigenmode solution's decay factor at time t: exp(−d π² D t / L²).
+pub fn eigenmode_decay(dim: usize, length: f64, diffusivity: f64, t: f64) -> f64 {
+    (-(dim as f64) * PI * PI * diffusivity * t / (length * length)).exp()
 }
 
 /// D ∇²_h with c = 0 beyond the boundary: the 3-point (1D) or 5-point (2D) central difference.
@@ -110,7 +109,7 @@ impl NonlocalOperator for Laplacian {
     }
 }
 
-/// Runs a local-diffusion case (`fd_explicit` or `adi`).
+/// Runs a grid case (`fd_explicit`, or `adi` when `implicit`).
 pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();
     let grid = LocalGrid::new(case.dim, case.n, case.length());
@@ -119,33 +118,23 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     let u0 = grid.sample(case.problem);
     let divergence_bound = crate::run::divergence_bound(case, diagnostics::max_abs(&u0), None);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let (u, timing) = if implicit {
-        Adi::new(grid, case.diffusivity, dt).integrate(u0, steps, divergence_bound)
+    let stepping = Stepping {
+        dt,
+        steps,
+        divergence_bound,
+        track_total_error: false,
+        volume: grid.volume(),
+        diagnostics_every: case.diagnostics_every,
+    };
+    let trajectory = if implicit {
+        Adi::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     } else {
         let laplacian = Laplacian {
             grid,
             diffusivity: case.diffusivity,
         };
-        let stepping = Stepping {
-            dt,
-            steps,
-            divergence_bound,
-            track_total_error: false,
-            volume: grid.volume(),
-        };
-        let trajectory = forward_euler(&laplacian, u0, None, &stepping);
-        (trajectory.u, trajectory.timing)
+        forward_euler(&laplacian, u0, None, &stepping)
     };
-    let t_final = timing.steps_done as f64 * dt;
-    let errors = (case.problem == Problem::Eigenmode && timing.diverged_at.is_none()).then(|| {
-        let phi = grid.sample(Problem::Eigenmode);
-        let decay = grid.eigenmode_decay(case.diffusivity, t_final);
-        let exact = |i: usize| decay * phi[i];
-        (
-            diagnostics::squared_l2_error(exact, &u, grid.volume()),
-            diagnostics::max_error(exact, &u),
-        )
-    });
     let resolved = Resolved {
         h: grid.h,
         eps: None,
@@ -156,24 +145,57 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
         steps,
         nodes: grid.nodes(),
         bonds: 2 * grid.dim * grid.nodes(),
+        pair_visits: None,
     };
+    let position = |i: usize| grid.position(i);
+    Ok(outcome(
+        case, resolved, setup_s, &stepping, trajectory, position,
+    ))
+}
+
+/// The outcome of a local run whose node or particle i sits at `position(i)`: errors against
+/// the exact eigenmode (when that is the problem), diagnostics and the record.
+pub(crate) fn outcome(
+    case: &Case,
+    resolved: Resolved,
+    setup_s: f64,
+    stepping: &Stepping,
+    trajectory: Trajectory,
+    position: impl Fn(usize) -> [f64; 2] + Sync,
+) -> Outcome {
+    let Trajectory {
+        u, timing, c_tot, ..
+    } = trajectory;
+    let t_final = timing.steps_done as f64 * stepping.dt;
+    let errors = (case.problem == Problem::Eigenmode && timing.diverged_at.is_none()).then(|| {
+        let decay = eigenmode_decay(case.dim, case.length(), case.diffusivity, t_final);
+        let exact = |i: usize| {
+            decay * initial_value(Problem::Eigenmode, &position(i)[..case.dim], case.length())
+        };
+        (
+            diagnostics::squared_l2_error(exact, &u, stepping.volume),
+            diagnostics::max_error(exact, &u),
+        )
+    });
     let measured = Measured {
         setup_s,
         solve_s: timing.solve_seconds,
         step_s: median(timing.step_seconds),
         steps_done: timing.steps_done,
         diverged_at: timing.diverged_at,
-        divergence_bound,
+        divergence_bound: stepping.divergence_bound,
         errors,
         error_total: None,
-        mass: diagnostics::total_mass(&u, grid.volume()),
+        mass: diagnostics::total_mass(&u, stepping.volume),
         max_abs: diagnostics::max_abs(&u),
+        c_tot,
+        histogram: crate::run::histogram(case, &u),
         distribution: Distribution::serial(case),
     };
-    Ok(Outcome {
+    Outcome {
         record: crate::run::record(case, resolved, measured),
         field: u,
-    })
+    }
 }
 
 /// Peaceman–Rachford ADI: per step of dt, a half step implicit in x and explicit in y, then one
@@ -199,26 +221,33 @@ impl Adi {
     }
 
     /// Steps forward from u, in the shared timed loop.
-    fn integrate(
-        &self,
-        mut u: Vec<f64>,
-        steps: usize,
-        divergence_bound: f64,
-    ) -> (Vec<f64>, Timing) {
+    fn integrate(&self, mut u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         // Buffers for c* (by rows) and for cⁿ⁺¹ by columns, allocated once.
         let mut half = vec![0.0; u.len()];
         let mut by_columns = vec![0.0; u.len()];
+        let mass = |u: &[f64]| diagnostics::total_mass(u, stepping.volume);
+        let mut c_tot = MassSeries::start(
+            stepping.diagnostics_every,
+            stepping.dt,
+            stepping.steps,
+            mass(&u),
+        );
         let timing = timed_steps(
             &mut u,
-            steps,
-            divergence_bound,
+            stepping.steps,
+            stepping.divergence_bound,
             |u, _| {
                 self.step(u, &mut half, &mut by_columns);
                 diagnostics::max_abs(u)
             },
-            |_, _| {},
+            |u, k| MassSeries::observe_if(&mut c_tot, k, || mass(u)),
         );
-        (u, timing)
+        Trajectory {
+            u,
+            timing,
+            error_total: None,
+            c_tot,
+        }
     }
 
     fn step(&self, u: &mut [f64], half: &mut [f64], by_columns: &mut [f64]) {

@@ -1,6 +1,7 @@
 //! The record: one JSON object per run, what the orchestrator stores and tabulates.
 
 use crate::case::Case;
+use crate::diagnostics::{Histogram, MassSeries};
 use crate::partition::Partition;
 use serde::{Deserialize, Serialize};
 
@@ -38,6 +39,12 @@ pub struct Record {
     pub max_abs: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
+    /// c_tot(t) samples (when the case sets `diagnostics_every`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c_tot: Option<MassSeries>,
+    /// The final field's histogram (when the case sets `histogram_bins`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram: Option<Histogram>,
     #[serde(flatten)]
     pub distribution: Distribution,
     pub provenance: Provenance,
@@ -57,8 +64,12 @@ pub struct Resolved {
     pub steps: usize,
     pub nodes: usize,
     /// Σᵢ |neighbourList[i]|: bonds of nodes in D to nodes of D ∪ D_c (2d per node for the
-    /// local methods' stencil).
+    /// grid methods' stencil; for `pse`, the particle pairs within the kernel's cutoff, each
+    /// counted once, pairs with boundary images included).
     pub bonds: usize,
+    /// `pse`: the pairs whose distance is checked per step (the cost, O(N) by the cell lists).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pair_visits: Option<usize>,
 }
 
 /// How the run was spread over ranks, and what that cost.

@@ -2,12 +2,13 @@
 
 use crate::case::{Case, CaseError, Method};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
-use crate::diagnostics;
+use crate::diagnostics::{self, Histogram, MassSeries};
 use crate::euler::{forward_euler, Stepping};
 use crate::grid::{Grid, Horizon};
 use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
+use crate::pse;
 use crate::record::{Distribution, Provenance, Record, Resolved, Status};
 use crate::stability::forward_euler_dt_stable;
 use crate::stencil::Stencil;
@@ -41,6 +42,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         Method::Nonlocal => run_in_pool(case),
         Method::FdExplicit => local::run(case, false),
         Method::Adi => local::run(case, true),
+        Method::Pse => pse::run(case),
     })
 }
 
@@ -114,6 +116,7 @@ impl Plan {
             steps: self.steps,
             nodes: stencil.grid.nodes(),
             bonds: stencil.bonds(),
+            pair_visits: None,
         }
     }
 }
@@ -131,6 +134,8 @@ pub(crate) struct Measured {
     pub error_total: Option<f64>,
     pub mass: f64,
     pub max_abs: f64,
+    pub c_tot: Option<MassSeries>,
+    pub histogram: Option<Histogram>,
     pub distribution: Distribution,
 }
 
@@ -166,6 +171,8 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         max_abs: finite(measured.max_abs),
         diverged_step: measured.diverged_at,
         diverged_time: measured.diverged_at.map(|_| t_final),
+        c_tot: measured.c_tot,
+        histogram: measured.histogram,
         provenance: Provenance::here(case.threads, measured.distribution.ranks),
         distribution: measured.distribution,
     }
@@ -190,6 +197,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         divergence_bound,
         track_total_error: case.error_total,
         volume: grid.volume(),
+        diagnostics_every: case.diagnostics_every,
     };
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
@@ -215,6 +223,8 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         error_total: trajectory.error_total,
         mass: diagnostics::total_mass(&u, grid.volume()),
         max_abs: diagnostics::max_abs(&u),
+        c_tot: trajectory.c_tot,
+        histogram: histogram(case, &u),
         distribution: Distribution::serial(case),
     };
     Ok(Outcome {
@@ -337,6 +347,12 @@ fn initial_state(
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };
     (phi.clone(), Some(Source { phi, psi }))
+}
+
+/// The final field's histogram, when the case asks for one.
+pub(crate) fn histogram(case: &Case, u: &[f64]) -> Option<Histogram> {
+    case.histogram_bins
+        .and_then(|bins| diagnostics::histogram(u, bins))
 }
 
 pub(crate) fn median(mut samples: Vec<f64>) -> f64 {

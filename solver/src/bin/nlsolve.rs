@@ -5,7 +5,7 @@ use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use serde_json::{Map, Value};
-use solver::case::Case;
+use solver::case::{Case, Method};
 use solver::record::Record;
 use solver::subdomain::HaloReport;
 use std::io::Read;
@@ -40,6 +40,10 @@ struct RunArgs {
     /// Also write the final field to FILE: little-endian f64 values in node order (iy·n + ix).
     #[arg(long, value_name = "FILE")]
     write_field: Option<PathBuf>,
+    /// Also write the c_tot(t) series to FILE as CSV (`t,c_tot`, seed 004's diagnostics.dat);
+    /// needs --diagnostics-every.
+    #[arg(long, value_name = "FILE")]
+    write_diagnostics: Option<PathBuf>,
 }
 
 /// Each flag sets the case field of the same name (dashes become underscores); see README.md.
@@ -49,7 +53,8 @@ struct CaseArgs {
     /// Case file in JSON (`-` for standard input); flags given too override its fields.
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
-    /// Method: nonlocal (forward Euler on eq. 2.1), fd_explicit or adi (local diffusion, seed 004).
+    /// Method: nonlocal (forward Euler on eq. 2.1); fd_explicit, adi or pse (local diffusion,
+    /// seed 004).
     #[arg(long)]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
@@ -58,10 +63,10 @@ struct CaseArgs {
     /// Nodes per side; h = 1/n, nodes at cell centres.
     #[arg(long)]
     n: Option<usize>,
-    /// Horizon in cells, ε = m·h (give --m or --eps).
+    /// Horizon in cells, ε = m·h (give --m or --eps); for pse, the kernel width in spacings.
     #[arg(long)]
     m: Option<usize>,
-    /// Horizon as a length in (0, 0.5]; m = ceil(ε/h).
+    /// Horizon as a length in (0, 0.5]; m = ceil(ε/h). For pse, the kernel width ε ≤ L/2.
     #[arg(long)]
     eps: Option<f64>,
     /// Influence function J: constant, linear, gaussian, inverse_distance.
@@ -73,7 +78,7 @@ struct CaseArgs {
     /// Diffusivity k of the local limit kΔ (default 1).
     #[arg(long)]
     diffusivity: Option<f64>,
-    /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi).
+    /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi, pse).
     #[arg(long)]
     problem: Option<String>,
     /// Source mode of the manufactured problem: discrete, continuum (default) or local.
@@ -97,6 +102,12 @@ struct CaseArgs {
     /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
     #[arg(long)]
     error_total: bool,
+    /// Time between samples of c_tot(t) (into the record; see --write-diagnostics).
+    #[arg(long)]
+    diagnostics_every: Option<f64>,
+    /// Bins of a histogram of the final field's values (into the record).
+    #[arg(long)]
+    histogram_bins: Option<usize>,
     /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -153,6 +164,8 @@ impl CaseArgs {
             self.allow_unstable.then_some(Value::Bool(true)),
         );
         set("error_total", self.error_total.then_some(Value::Bool(true)));
+        set("diagnostics_every", self.diagnostics_every.map(Value::from));
+        set("histogram_bins", self.histogram_bins.map(Value::from));
         set("threads", self.threads.map(Value::from));
         set("ranks", self.ranks.map(Value::from));
         set("partition", self.partition.clone().map(Value::from));
@@ -200,9 +213,11 @@ fn summary(record: &Record) -> String {
         (Some(l2), Some(max)) => format!("; error L2 norm {l2:.3e}, max {max:.3e}"),
         _ => String::new(),
     };
-    let method = match record.resolved.m {
-        Some(m) => format!("m={m} {} {}", label(&case.kernel), label(&case.backend)),
-        None => label(&case.method),
+    let resolved = &record.resolved;
+    let method = match (case.method, resolved.m, resolved.eps) {
+        (Method::Pse, _, Some(eps)) => format!("pse ε={eps:.4} (ε/h {:.3})", eps / resolved.h),
+        (_, Some(m), _) => format!("m={m} {} {}", label(&case.kernel), label(&case.backend)),
+        _ => label(&case.method),
     };
     format!(
         "nlsolve: {}D n={} {method}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
@@ -282,6 +297,11 @@ fn main() -> ExitCode {
 /// Runs the case (on every rank of `world` when started by MPI); rank 0 prints the record.
 fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInput> {
     let case = args.case.case()?;
+    if args.write_diagnostics.is_some() && case.diagnostics_every.is_none() {
+        return Err(BadInput(
+            "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
+        ));
+    }
     let outcome = match world {
         Some(world) => solver::distributed::run(world, &case, args.write_field.is_some()),
         None => solver::run::run(&case).map(Some),
@@ -291,7 +311,11 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
         return Ok(()); // not rank 0
     };
     if let Some(path) = &args.write_field {
-        write_field(path, &outcome.field)?;
+        let bytes: Vec<u8> = outcome.field.iter().flat_map(|v| v.to_le_bytes()).collect();
+        write_atomically(path, &bytes, "--write-field")?;
+    }
+    if let (Some(path), Some(series)) = (&args.write_diagnostics, &outcome.record.c_tot) {
+        write_atomically(path, series.to_csv().as_bytes(), "--write-diagnostics")?;
     }
     let line = serde_json::to_string(&outcome.record)
         .map_err(|e| BadInput(format!("cannot write the record: {e}")))?;
@@ -300,15 +324,14 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
     Ok(())
 }
 
-/// Writes the field as little-endian f64, through a temporary file so no half-written field is left.
-fn write_field(path: &Path, field: &[f64]) -> Result<(), BadInput> {
-    let bytes: Vec<u8> = field.iter().flat_map(|v| v.to_le_bytes()).collect();
+/// Writes `bytes` to `path` through a temporary file, so that no half-written file is left.
+fn write_atomically(path: &Path, bytes: &[u8], flag: &str) -> Result<(), BadInput> {
     let partial = path.with_extension("partial");
     std::fs::write(&partial, bytes)
         .and_then(|()| std::fs::rename(&partial, path))
         .map_err(|e| {
             BadInput(format!(
-                "cannot write the field to {}: {e}; check the path given to --write-field",
+                "cannot write {}: {e}; check the path given to {flag}",
                 path.display()
             ))
         })
