@@ -86,6 +86,35 @@ pub(crate) fn timed_steps<S>(
     timing
 }
 
+/// `timed_steps` over `stepping`'s steps, also sampling c_tot = h^d Σ field(state) when the case
+/// asks for the series.
+pub(crate) fn timed_steps_sampling_mass<S>(
+    state: &mut S,
+    stepping: &Stepping,
+    field: impl Fn(&S) -> &[f64],
+    step: impl FnMut(&mut S, usize) -> f64,
+    mut after: impl FnMut(&S, usize),
+) -> (Timing, Option<MassSeries>) {
+    let mass = |state: &S| diagnostics::total_mass(field(state), stepping.volume);
+    let mut c_tot = MassSeries::start(
+        stepping.diagnostics_every,
+        stepping.dt,
+        stepping.steps,
+        mass(state),
+    );
+    let timing = timed_steps(
+        state,
+        stepping.steps,
+        stepping.divergence_bound,
+        step,
+        |state, k| {
+            after(state, k);
+            MassSeries::observe_if(&mut c_tot, k, || mass(state));
+        },
+    );
+    (timing, c_tot)
+}
+
 pub fn forward_euler(
     operator: &dyn NonlocalOperator,
     mut u: Vec<f64>,
@@ -101,12 +130,10 @@ pub fn forward_euler(
         })
     };
     let mut error_total = squared_error(&u, 0.0);
-    let mass = |u: &[f64]| diagnostics::total_mass(u, stepping.volume);
-    let mut c_tot = MassSeries::start(stepping.diagnostics_every, dt, stepping.steps, mass(&u));
-    let timing = timed_steps(
+    let (timing, c_tot) = timed_steps_sampling_mass(
         &mut u,
-        stepping.steps,
-        stepping.divergence_bound,
+        stepping,
+        |u| u,
         |u, k| {
             operator.apply(u, &mut lu);
             match source {
@@ -119,10 +146,7 @@ pub fn forward_euler(
                 None => update(u, &lu, dt, |_, l| l),
             }
         },
-        |u, steps_done| {
-            error_total += squared_error(u, steps_done as f64 * dt);
-            MassSeries::observe_if(&mut c_tot, steps_done, || mass(u));
-        },
+        |u, steps_done| error_total += squared_error(u, steps_done as f64 * dt),
     );
     let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
     Trajectory {

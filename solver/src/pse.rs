@@ -33,8 +33,8 @@
 //! extension keeps the Dirichlet modes among these Fourier modes.
 
 use crate::case::{Case, CaseError};
-use crate::diagnostics::{self, MassSeries};
-use crate::euler::{timed_steps, Stepping, Trajectory};
+use crate::diagnostics;
+use crate::euler::{timed_steps_sampling_mass, Stepping, Trajectory};
 use crate::local::{self, initial_value};
 use crate::record::Resolved;
 use crate::run::{self as runner, Outcome};
@@ -401,19 +401,12 @@ impl Particles {
         let mut phi = self.to_slots(u0);
         let mut rate = vec![0.0; self.count()];
         let dt_factor = stepping.dt * self.rate_factor(diffusivity);
-        let mass = |phi: &[f64]| diagnostics::total_mass(&phi[..self.count()], stepping.volume);
-        let mut c_tot = MassSeries::start(
-            stepping.diagnostics_every,
-            stepping.dt,
-            stepping.steps,
-            mass(&phi),
-        );
-        let timing = timed_steps(
+        let (timing, c_tot) = timed_steps_sampling_mass(
             &mut phi,
-            stepping.steps,
-            stepping.divergence_bound,
+            stepping,
+            |phi| &phi[..self.count()],
             |phi, _| self.step(phi, &mut rate, dt_factor),
-            |phi, k| MassSeries::observe_if(&mut c_tot, k, || mass(phi)),
+            |_, _| {},
         );
         Trajectory {
             u: self.to_lattice(&phi),
