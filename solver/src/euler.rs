@@ -4,6 +4,7 @@
 //! so that divergence is caught the step it happens at no extra cost. Nothing is allocated inside
 //! the loop. Error bookkeeping (the total error e = Σₖ eᵏ, when asked) is kept out of the timings.
 
+use crate::case::Case;
 use crate::diagnostics::{self, MassSeries};
 use crate::operator::NonlocalOperator;
 use crate::problem::{manufactured_solution, Source};
@@ -25,6 +26,20 @@ pub struct Stepping {
     pub volume: f64,
     /// Time between samples of c_tot(t), when the case asks for the series.
     pub diagnostics_every: Option<f64>,
+}
+
+impl Stepping {
+    /// The stepping a case asks for, once its dt, step count and divergence bound are resolved.
+    pub fn of_case(case: &Case, dt: f64, steps: usize, divergence_bound: f64, volume: f64) -> Self {
+        Stepping {
+            dt,
+            steps,
+            divergence_bound,
+            track_total_error: case.error_total,
+            volume,
+            diagnostics_every: case.diagnostics_every,
+        }
+    }
 }
 
 pub struct Trajectory {

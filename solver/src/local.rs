@@ -189,14 +189,7 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     let u0 = grid.sample(case.problem);
     let divergence_bound = crate::run::divergence_bound(case, diagnostics::max_abs(&u0), None);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let stepping = Stepping {
-        dt,
-        steps,
-        divergence_bound,
-        track_total_error: false,
-        volume: grid.volume(),
-        diagnostics_every: case.diagnostics_every,
-    };
+    let stepping = Stepping::of_case(case, dt, steps, divergence_bound, grid.volume());
     let trajectory = if implicit {
         Adi::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     } else {

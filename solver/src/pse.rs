@@ -474,14 +474,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
     let divergence_bound = runner::divergence_bound(case, diagnostics::max_abs(&u0), None);
     let (pair_visits, bonds) = particles.count_pairs();
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let stepping = Stepping {
-        dt,
-        steps,
-        divergence_bound,
-        track_total_error: false,
-        volume: particles.volume(),
-        diagnostics_every: case.diagnostics_every,
-    };
+    let stepping = Stepping::of_case(case, dt, steps, divergence_bound, particles.volume());
     let trajectory = particles.integrate(&u0, case.diffusivity, &stepping);
     let resolved = Resolved {
         h: particles.h,

@@ -191,14 +191,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
         .as_ref()
         .map(|s| (diagnostics::max_abs(&s.phi), diagnostics::max_abs(&s.psi)));
     let divergence_bound = divergence_bound(case, diagnostics::max_abs(&u0), source_max);
-    let stepping = Stepping {
-        dt: plan.dt,
-        steps: plan.steps,
-        divergence_bound,
-        track_total_error: case.error_total,
-        volume: grid.volume(),
-        diagnostics_every: case.diagnostics_every,
-    };
+    let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, grid.volume());
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
     let u = trajectory.u;
