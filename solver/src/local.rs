@@ -14,8 +14,8 @@ use crate::case::{Case, CaseError};
 use crate::diagnostics;
 use crate::euler::{timed_steps_sampling_mass, Stepping, Trajectory};
 use crate::problem::Problem;
-use crate::record::{Distribution, Resolved};
-use crate::run::{median, Measured, Outcome};
+use crate::record::Resolved;
+use crate::run::Outcome;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::time::Instant;
@@ -224,9 +224,7 @@ pub(crate) fn outcome(
     trajectory: Trajectory,
     position: impl Fn(usize) -> [f64; 2] + Sync,
 ) -> Outcome {
-    let Trajectory {
-        u, timing, c_tot, ..
-    } = trajectory;
+    let timing = &trajectory.timing;
     let t_final = timing.steps_done as f64 * stepping.dt;
     let errors = (case.problem == Problem::Eigenmode && timing.diverged_at.is_none()).then(|| {
         let decay = eigenmode_decay(case.dim, case.length(), case.diffusivity, t_final);
@@ -234,29 +232,11 @@ pub(crate) fn outcome(
             decay * initial_value(Problem::Eigenmode, &position(i)[..case.dim], case.length())
         };
         (
-            diagnostics::squared_l2_error(exact, &u, stepping.volume),
-            diagnostics::max_error(exact, &u),
+            diagnostics::squared_l2_error(exact, &trajectory.u, stepping.volume),
+            diagnostics::max_error(exact, &trajectory.u),
         )
     });
-    let measured = Measured {
-        setup_s,
-        solve_s: timing.solve_seconds,
-        step_s: median(timing.step_seconds),
-        steps_done: timing.steps_done,
-        diverged_at: timing.diverged_at,
-        divergence_bound: stepping.divergence_bound,
-        errors,
-        error_total: None,
-        mass: diagnostics::total_mass(&u, stepping.volume),
-        max_abs: diagnostics::max_abs(&u),
-        c_tot,
-        histogram: crate::run::histogram(case, &u),
-        distribution: Distribution::serial(case),
-    };
-    Outcome {
-        record: crate::run::record(case, resolved, measured),
-        field: u,
-    }
+    crate::run::serial_outcome(case, resolved, setup_s, stepping, trajectory, errors)
 }
 
 /// Peaceman–Rachford ADI: per step of dt, a half step implicit in x and explicit in y, then one

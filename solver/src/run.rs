@@ -3,7 +3,7 @@
 use crate::case::{Case, CaseError, Method};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, Histogram, MassSeries};
-use crate::euler::{forward_euler, Stepping};
+use crate::euler::{forward_euler, Stepping, Trajectory};
 use crate::grid::{Grid, Horizon};
 use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
@@ -194,36 +194,63 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, grid.volume());
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
-    let u = trajectory.u;
-    let timing = trajectory.timing;
-    let t_final = timing.steps_done as f64 * plan.dt;
-    let errors = match (&source, timing.diverged_at) {
+    let t_final = trajectory.timing.steps_done as f64 * plan.dt;
+    let u = &trajectory.u;
+    let errors = match (&source, trajectory.timing.diverged_at) {
         (Some(source), None) => {
             let exact = manufactured_solution(&source.phi, t_final);
-            let ek = diagnostics::squared_l2_error(&exact, &u, grid.volume());
-            Some((ek, diagnostics::max_error(&exact, &u)))
+            let ek = diagnostics::squared_l2_error(&exact, u, grid.volume());
+            Some((ek, diagnostics::max_error(&exact, u)))
         }
         _ => None,
     };
+    Ok(serial_outcome(
+        case,
+        plan.resolved(),
+        setup_s,
+        &stepping,
+        trajectory,
+        errors,
+    ))
+}
+
+/// The outcome of a run in one process: its trajectory measured and recorded, with `errors`
+/// (eᵏ, max error) at the final time when the problem has an exact solution.
+pub(crate) fn serial_outcome(
+    case: &Case,
+    resolved: Resolved,
+    setup_s: f64,
+    stepping: &Stepping,
+    trajectory: Trajectory,
+    errors: Option<(f64, f64)>,
+) -> Outcome {
+    let Trajectory {
+        u,
+        timing,
+        error_total,
+        c_tot,
+    } = trajectory;
     let measured = Measured {
         setup_s,
         solve_s: timing.solve_seconds,
         step_s: median(timing.step_seconds),
         steps_done: timing.steps_done,
         diverged_at: timing.diverged_at,
-        divergence_bound,
+        divergence_bound: stepping.divergence_bound,
         errors,
-        error_total: trajectory.error_total,
-        mass: diagnostics::total_mass(&u, grid.volume()),
+        error_total,
+        mass: diagnostics::total_mass(&u, stepping.volume),
         max_abs: diagnostics::max_abs(&u),
-        c_tot: trajectory.c_tot,
-        histogram: histogram(case, &u),
+        c_tot,
+        histogram: case
+            .histogram_bins
+            .and_then(|bins| diagnostics::histogram(&u, bins)),
         distribution: Distribution::serial(case),
     };
-    Ok(Outcome {
-        record: record(case, plan.resolved(), measured),
+    Outcome {
+        record: record(case, resolved, measured),
         field: u,
-    })
+    }
 }
 
 /// The time step actually used and the number of steps: dt (or cfl·dt_stable) lowered so that an
@@ -340,12 +367,6 @@ fn initial_state(
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };
     (phi.clone(), Some(Source { phi, psi }))
-}
-
-/// The final field's histogram, when the case asks for one.
-pub(crate) fn histogram(case: &Case, u: &[f64]) -> Option<Histogram> {
-    case.histogram_bins
-        .and_then(|bins| diagnostics::histogram(u, bins))
 }
 
 pub(crate) fn median(mut samples: Vec<f64>) -> f64 {
