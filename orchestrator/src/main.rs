@@ -1,9 +1,234 @@
-//! `nlstudy`: the study orchestrator. Its issue has not landed yet; until then this binary says so,
-//! and the README's main job runs a demonstration case with `nlsolve` directly.
+//! `nlstudy`: runs studies of the nonlocal and local diffusion solvers. A study file expands to
+//! cases; each case runs as an `nlsolve` process (or under mpirun) unless its record is already
+//! stored; records are gathered into tables.
 
-fn main() {
-    eprintln!(
-        "nlstudy is not built yet: run one case with `nlsolve run --case FILE` (see README.md)."
+mod expression;
+mod plan;
+mod pool;
+mod progress;
+mod solver;
+mod store;
+mod study;
+
+use clap::{Args, Parser, Subcommand};
+use plan::{Decision, Options, Planned};
+use pool::{PoolOptions, DEFAULT_LAUNCHER};
+use progress::{Mode, Progress};
+use solver::Solver;
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use store::Store;
+use study::Study;
+
+#[derive(Parser)]
+#[command(
+    name = "nlstudy",
+    version,
+    about = "Runs studies of nonlocal diffusion solvers."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print every point of the study, whether it will run and why; run nothing.
+    Plan(PlanArgs),
+    /// Run the points not yet stored (make-style) and store their records.
+    Run(RunArgs),
+    /// Count the stored records by status and list the failures.
+    Status(CommonArgs),
+}
+
+#[derive(Args)]
+struct CommonArgs {
+    /// The study file (JSON).
+    study: PathBuf,
+    /// Where results go: <results>/<study name>/runs/<key>.json.
+    #[arg(long, default_value = "results")]
+    results: PathBuf,
+    /// The nlsolve binary (default: $NLSOLVE, else the one beside nlstudy).
+    #[arg(long)]
+    solver: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct PlanArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Run every point again, stored or not.
+    #[arg(long)]
+    force: bool,
+    /// Run the points whose stored record failed.
+    #[arg(long)]
+    rerun_failed: bool,
+    /// Only the points with these keys (comma-separated), as cluster jobs do.
+    #[arg(long, value_delimiter = ',')]
+    only: Option<Vec<String>>,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    plan: PlanArgs,
+    /// Cores the running cases may use together (threads × ranks each); default: all.
+    #[arg(short = 'j', long)]
+    jobs: Option<usize>,
+    /// Seconds after which a case is stopped and stored as failed (overrides the study's).
+    #[arg(long)]
+    timeout: Option<f64>,
+    /// Command prefix of MPI cases; `{ranks}` becomes the case's rank count.
+    #[arg(long, default_value = DEFAULT_LAUNCHER)]
+    launcher: String,
+    /// No progress output.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Plan(args) => plan_command(&args),
+        Command::Run(args) => run_command(&args),
+        Command::Status(args) => status_command(&args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(message) => {
+            eprintln!("nlstudy: {message}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// The study, its solver and store, and the plan of its points.
+fn planned(args: &PlanArgs) -> Result<(Study, Solver, Store, Vec<Planned>), String> {
+    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
+    let solver = Solver::locate(args.common.solver.as_deref())?;
+    let store = Store::open(&args.common.results, &study.name);
+    let options = Options {
+        force: args.force,
+        rerun_failed: args.rerun_failed,
+        only: args
+            .only
+            .as_ref()
+            .map(|keys| keys.iter().cloned().collect::<HashSet<_>>()),
+    };
+    let planned = plan::plan(&study, &solver, &store, &options).map_err(|e| e.to_string())?;
+    Ok((study, solver, store, planned))
+}
+
+fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
+    let (study, solver, _, planned) = planned(args)?;
+    println!(
+        "study {}: {} points, solver {}",
+        study.name,
+        planned.len(),
+        solver.version
     );
-    std::process::exit(2);
+    if !study.description.is_empty() {
+        println!("{}", study.description);
+    }
+    for p in &planned {
+        let what = match &p.decision {
+            Decision::Run(reason) => format!("run   ({reason})"),
+            Decision::Skip(status) => format!("skip  ({status})"),
+        };
+        let refused = match &p.case {
+            Err(message) => format!("  refused: {message}"),
+            Ok(_) => String::new(),
+        };
+        println!("{}  {what:<40} {}{refused}", p.key, p.point.label());
+    }
+    let runs = planned.iter().filter(|p| p.runs()).count();
+    println!("{runs} to run, {} stored", planned.len() - runs);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
+    let (study, solver, store, planned) = planned(&args.plan)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let timeout = args.timeout.or(study.timeout_s);
+    if timeout.is_some_and(|t| !(t > 0.0)) {
+        return Err("the timeout must be a positive number of seconds".into());
+    }
+    let options = PoolOptions {
+        cores: args.jobs.unwrap_or(cores).max(1),
+        exclusive: !study.share_machine,
+        timeout: timeout.map(Duration::from_secs_f64),
+        launcher: args.launcher.clone(),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))
+        .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
+    let to_run = planned.iter().filter(|p| p.runs()).count();
+    let skipped = planned.len() - to_run;
+    let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
+    let tally = pool::run(&planned, &solver, &store, &options, &stop, &mut progress)
+        .map_err(|e| format!("cannot run the study: {e}"))?;
+    progress.close();
+    if !args.quiet {
+        eprintln!(
+            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored",
+            study.name,
+            tally.ok + tally.diverged + tally.failed,
+            tally.ok,
+            tally.diverged,
+            tally.failed,
+        );
+    }
+    if tally.interrupted {
+        eprintln!("nlstudy: interrupted; what finished is stored, run again to resume");
+        return Ok(ExitCode::from(130));
+    }
+    Ok(match tally.failed {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    })
+}
+
+fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let store = Store::open(&args.results, &study.name);
+    let records = store.records();
+    let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+    for record in &records {
+        let status = record["status"].as_str().unwrap_or("unknown").to_string();
+        *counts.entry(status).or_default() += 1;
+    }
+    let summary: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
+    println!(
+        "study {}: {} records in {}: {}",
+        study.name,
+        records.len(),
+        display(&store.runs),
+        if summary.is_empty() {
+            "none".to_string()
+        } else {
+            summary.join(", ")
+        }
+    );
+    for record in records.iter().filter(|r| r["status"] == "failed") {
+        println!(
+            "failed {}: {}",
+            record["key"].as_str().unwrap_or("?"),
+            record["message"]
+                .as_str()
+                .unwrap_or("")
+                .lines()
+                .next()
+                .unwrap_or("")
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn display(path: &Path) -> String {
+    path.display().to_string()
 }

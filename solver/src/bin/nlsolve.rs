@@ -8,7 +8,7 @@ use serde_json::{Map, Value};
 use solver::case::{Case, Method};
 use solver::record::Record;
 use solver::subdomain::HaloReport;
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -31,6 +31,10 @@ enum Command {
     /// Report the partition and halo a distributed run of the case would use (ghost nodes, bytes
     /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
     Partition(CaseArgs),
+    /// Check cases without running them: reads one JSON case per line on standard input and
+    /// prints one line for each, `{"case": …}` with the case in canonical form (every field,
+    /// defaults filled in, keys sorted) or `{"error": "…"}` naming the field at fault.
+    Check,
 }
 
 #[derive(Args)]
@@ -282,6 +286,7 @@ fn main() -> ExitCode {
     let result = parse_command_line().and_then(|cli| match cli.command {
         Command::Run(args) => run(&args, world.as_ref()),
         Command::Partition(args) => partition_report(&args),
+        Command::Check => check_cases(),
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -351,5 +356,25 @@ fn partition_report(args: &CaseArgs) -> Result<(), BadInput> {
         "{}",
         serde_json::to_string(&report).expect("the report serializes")
     );
+    Ok(())
+}
+
+/// `nlsolve check`: validates each case of standard input and prints its canonical form.
+fn check_cases() -> Result<(), BadInput> {
+    let mut out = std::io::stdout().lock();
+    for line in std::io::stdin().lines() {
+        let line = line.map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let verdict = match serde_json::from_str::<Value>(&line) {
+            Ok(fields) => match Case::from_json(fields) {
+                Ok(case) => serde_json::json!({ "case": case }),
+                Err(e) => serde_json::json!({ "error": e.to_string() }),
+            },
+            Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+        };
+        writeln!(out, "{verdict}").map_err(|e| BadInput(format!("cannot write: {e}")))?;
+    }
     Ok(())
 }

@@ -1,0 +1,115 @@
+//! Which points of a study run, and why: make-style, against the record store.
+
+use crate::solver::Solver;
+use crate::store::{self, Store};
+use crate::study::{Point, Study, StudyError};
+use serde_json::Value;
+use std::collections::HashSet;
+use std::fmt;
+
+/// What the command line asks beyond the study.
+#[derive(Default)]
+pub struct Options {
+    /// Run every selected point, stored or not.
+    pub force: bool,
+    /// Run points whose stored record failed.
+    pub rerun_failed: bool,
+    /// Only these keys (how a cluster job runs its share of a study).
+    pub only: Option<HashSet<String>>,
+}
+
+/// Why a point runs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reason {
+    Missing,
+    FailedBefore,
+    Forced,
+    SolverChanged { from: String },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Decision {
+    Run(Reason),
+    /// Stored with this status (`ok` or `diverged`: results, not failures), or failed and not
+    /// asked to run again, or not among `--only`.
+    Skip(String),
+}
+
+/// A point, its case as the solver resolved it (or why the solver refused it), its key and
+/// what happens to it.
+pub struct Planned {
+    pub point: Point,
+    pub case: Result<Value, String>,
+    pub key: String,
+    pub case_id: String,
+    pub decision: Decision,
+}
+
+impl Planned {
+    pub fn runs(&self) -> bool {
+        matches!(self.decision, Decision::Run(_))
+    }
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Reason::Missing => write!(f, "missing"),
+            Reason::FailedBefore => write!(f, "failed before"),
+            Reason::Forced => write!(f, "forced"),
+            Reason::SolverChanged { from } => write!(f, "solver version changed (was {from})"),
+        }
+    }
+}
+
+/// Plans every point of `study` against `store`.
+pub fn plan(
+    study: &Study,
+    solver: &Solver,
+    store: &Store,
+    options: &Options,
+) -> Result<Vec<Planned>, StudyError> {
+    let points = study.expand()?;
+    let cases = solver
+        .check(&points)
+        .map_err(|e| StudyError::new("solver", e))?;
+    let versions = store.versions_by_case();
+    Ok(points
+        .into_iter()
+        .zip(cases)
+        .map(|(point, case)| {
+            // A refused case is keyed by its fields as written.
+            let identity = match &case {
+                Ok(canonical) => canonical.clone(),
+                Err(_) => Value::Object(point.fields.clone()),
+            };
+            let case_id = store::case_id(&identity);
+            let key = store::key(&identity, &solver.version, point.repeat);
+            let stored = store
+                .load(&key)
+                .and_then(|r| r.get("status")?.as_str().map(str::to_string));
+            let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
+            let decision = match stored {
+                _ if !selected => Decision::Skip("not among --only".into()),
+                _ if options.force => Decision::Run(Reason::Forced),
+                None => match versions.get(&case_id) {
+                    Some(from) if *from != solver.version => {
+                        Decision::Run(Reason::SolverChanged { from: from.clone() })
+                    }
+                    _ => Decision::Run(Reason::Missing),
+                },
+                Some(status) if status == "failed" && options.rerun_failed => {
+                    Decision::Run(Reason::FailedBefore)
+                }
+                Some(status) => Decision::Skip(status),
+            };
+            Planned {
+                point,
+                case,
+                key,
+                case_id,
+                decision,
+            }
+        })
+        .collect())
+}

@@ -1,0 +1,297 @@
+//! The worker pool: `nlsolve` processes within a core budget, MPI cases through a launcher, a
+//! timeout per case, failures stored with the tail of stderr, and a clean stop on Ctrl-C.
+
+use crate::plan::Planned;
+use crate::progress::Progress;
+use crate::solver::Solver;
+use crate::store::Store;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// How `mpirun` is called by default; `{ranks}` is replaced by the case's rank count.
+pub const DEFAULT_LAUNCHER: &str = "mpirun --oversubscribe -n {ranks}";
+/// Lines of stderr kept in a failed record.
+const STDERR_TAIL: usize = 20;
+
+pub struct PoolOptions {
+    /// Cores the running cases may use together (threads × ranks each).
+    pub cores: usize,
+    /// One case at a time, so that timings are not disturbed.
+    pub exclusive: bool,
+    pub timeout: Option<Duration>,
+    /// Command prefix of MPI cases, e.g. `srun -n {ranks}`.
+    pub launcher: String,
+}
+
+/// Counts of a pool's work.
+#[derive(Debug, Default, PartialEq)]
+pub struct Tally {
+    pub ok: usize,
+    pub diverged: usize,
+    pub failed: usize,
+    pub interrupted: bool,
+}
+
+struct Running {
+    index: usize,
+    child: Child,
+    started: Instant,
+    cores: usize,
+    stdout: PathBuf,
+    stderr: PathBuf,
+    case_file: PathBuf,
+}
+
+/// Runs the planned points that run; stores each record as it finishes.
+pub fn run(
+    planned: &[Planned],
+    solver: &Solver,
+    store: &Store,
+    options: &PoolOptions,
+    stop: &Arc<AtomicBool>,
+    progress: &mut Progress,
+) -> std::io::Result<Tally> {
+    let mut tally = Tally::default();
+    let mut queue: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
+    queue.reverse(); // pop from the back in plan order
+    let mut running: Vec<Running> = Vec::new();
+    std::fs::create_dir_all(store.work_dir())?;
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            for mut job in running.drain(..) {
+                let _ = job.child.kill();
+                let _ = job.child.wait();
+                job.remove_files();
+            }
+            tally.interrupted = true;
+            return Ok(tally);
+        }
+        // Start what fits; a case larger than the budget runs alone.
+        while let Some(&next) = queue.last() {
+            let planned = &planned[next];
+            let cores = cores_of(planned);
+            let used: usize = running.iter().map(|r| r.cores).sum();
+            let fits = if options.exclusive {
+                running.is_empty()
+            } else {
+                running.is_empty() || used + cores <= options.cores
+            };
+            if !fits {
+                break;
+            }
+            queue.pop();
+            match &planned.case {
+                Err(message) => {
+                    let record = failed_record(planned, solver, message.clone());
+                    finish(store, planned, record, &mut tally, progress)?;
+                }
+                Ok(case) => {
+                    running.push(start(next, case, planned, solver, store, options, cores)?)
+                }
+            }
+        }
+        if running.is_empty() && queue.is_empty() {
+            return Ok(tally);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+        let mut k = 0;
+        while k < running.len() {
+            let job = &mut running[k];
+            let timed_out = options
+                .timeout
+                .is_some_and(|limit| job.started.elapsed() > limit);
+            let exit = if timed_out {
+                let _ = job.child.kill();
+                Some(job.child.wait()?)
+            } else {
+                job.child.try_wait()?
+            };
+            let Some(exit) = exit else {
+                k += 1;
+                continue;
+            };
+            let job = running.swap_remove(k);
+            if stop.load(Ordering::SeqCst) && !exit.success() {
+                // Ctrl-C reaches the whole process group: a case it ended is not a failure.
+                job.remove_files();
+                continue;
+            }
+            let planned = &planned[job.index];
+            let record = match timed_out {
+                true => failed_record(
+                    planned,
+                    solver,
+                    format!(
+                        "timed out after {:.0} s; {}",
+                        job.started.elapsed().as_secs_f64(),
+                        job.stderr_tail()
+                    ),
+                ),
+                false => job.record(planned, solver, exit),
+            };
+            job.remove_files();
+            finish(store, planned, record, &mut tally, progress)?;
+        }
+    }
+}
+
+/// threads × ranks of a case (1 for a refused one).
+fn cores_of(planned: &Planned) -> usize {
+    let field = |name: &str| {
+        planned
+            .case
+            .as_ref()
+            .ok()
+            .and_then(|c| c.get(name)?.as_u64())
+            .unwrap_or(1) as usize
+    };
+    field("threads").max(1) * field("ranks").max(1)
+}
+
+fn start(
+    index: usize,
+    case: &Value,
+    planned: &Planned,
+    solver: &Solver,
+    store: &Store,
+    options: &PoolOptions,
+    cores: usize,
+) -> std::io::Result<Running> {
+    let work = store.work_dir();
+    let case_file = work.join(format!("{}.case.json", planned.key));
+    let stdout = work.join(format!("{}.out", planned.key));
+    let stderr = work.join(format!("{}.err", planned.key));
+    std::fs::write(&case_file, case.to_string())?;
+    let ranks = case.get("ranks").and_then(Value::as_u64).unwrap_or(1);
+    let mut command = if ranks > 1 {
+        let launcher = options.launcher.replace("{ranks}", &ranks.to_string());
+        let mut words = launcher.split_whitespace();
+        let mut command = Command::new(words.next().unwrap_or("mpirun"));
+        command.args(words);
+        if is_root() {
+            // Open MPI refuses root (containers, CI) unless told.
+            command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
+            command.env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        }
+        command.arg(&solver.binary);
+        command
+    } else {
+        Command::new(&solver.binary)
+    };
+    command
+        .arg("run")
+        .arg("--case")
+        .arg(&case_file)
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&stdout)?)
+        .stderr(std::fs::File::create(&stderr)?);
+    let child = command.spawn()?;
+    Ok(Running {
+        index,
+        child,
+        started: Instant::now(),
+        cores,
+        stdout,
+        stderr,
+        case_file,
+    })
+}
+
+impl Running {
+    /// The record a finished process printed, or a failed record with its stderr.
+    fn record(&self, planned: &Planned, solver: &Solver, exit: std::process::ExitStatus) -> Value {
+        let printed = std::fs::read_to_string(&self.stdout).unwrap_or_default();
+        let record = printed.lines().rev().find_map(|line| {
+            serde_json::from_str::<Value>(line)
+                .ok()
+                .filter(Value::is_object)
+        });
+        match (exit.success(), record) {
+            (true, Some(mut record)) => {
+                let object = record.as_object_mut().expect("checked: an object");
+                for (field, value) in identity(planned, solver) {
+                    object.insert(field, value);
+                }
+                record
+            }
+            _ => failed_record(
+                planned,
+                solver,
+                format!("nlsolve exited with {exit}: {}", self.stderr_tail()),
+            ),
+        }
+    }
+
+    fn stderr_tail(&self) -> String {
+        let text = std::fs::read_to_string(&self.stderr).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n")
+    }
+
+    fn remove_files(&self) {
+        for path in [&self.stdout, &self.stderr, &self.case_file] {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The fields the orchestrator adds to every record: its key, case id, repeat and version.
+fn identity(planned: &Planned, solver: &Solver) -> Vec<(String, Value)> {
+    vec![
+        ("key".into(), json!(planned.key)),
+        ("case_id".into(), json!(planned.case_id)),
+        ("repeat".into(), json!(planned.point.repeat)),
+        ("solver_version".into(), json!(solver.version)),
+    ]
+}
+
+fn failed_record(planned: &Planned, solver: &Solver, message: String) -> Value {
+    let case = match &planned.case {
+        Ok(case) => case.clone(),
+        Err(_) => Value::Object(planned.point.fields.clone()),
+    };
+    let mut record = json!({ "case": case, "status": "failed", "message": message });
+    let object = record.as_object_mut().expect("an object");
+    for (field, value) in identity(planned, solver) {
+        object.insert(field, value);
+    }
+    record
+}
+
+fn finish(
+    store: &Store,
+    planned: &Planned,
+    record: Value,
+    tally: &mut Tally,
+    progress: &mut Progress,
+) -> std::io::Result<()> {
+    let status = record
+        .get("status")
+        .and_then(Value::as_str)
+        .unwrap_or("failed")
+        .to_string();
+    store.save(&planned.key, &record)?;
+    match status.as_str() {
+        "ok" => tally.ok += 1,
+        "diverged" => tally.diverged += 1,
+        _ => tally.failed += 1,
+    }
+    let message = record.get("message").and_then(Value::as_str).unwrap_or("");
+    progress.finished(&planned.point.label(), &status, message);
+    Ok(())
+}
+
+/// Is this process root (uid 0)? Read from /proc, to need no libc binding.
+fn is_root() -> bool {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("Uid:"))?;
+            Some(line.split_whitespace().nth(1)? == "0")
+        })
+        .unwrap_or(false)
+}

@@ -1,0 +1,467 @@
+//! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
+//! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
+
+use crate::expression::{self, Scope};
+use serde::Deserialize;
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// A study file, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Study {
+    /// Names the results directory `results/<name>/`.
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// The fields every point starts from.
+    pub base: Map<String, Value>,
+    /// Groups whose points multiply: a point takes one point of every group.
+    #[serde(default)]
+    pub sweep: Vec<Group>,
+    /// Fields computed from the others once the sweep is applied, e.g. `"ranks": "px * py"`;
+    /// `h` stands for the point's grid spacing. They may not refer to each other.
+    #[serde(default)]
+    pub derive: BTreeMap<String, String>,
+    /// Conditions every kept point satisfies, e.g. `"threads * ranks <= 2"`.
+    #[serde(default, rename = "where")]
+    pub filter: Vec<String>,
+    /// Runs of every point, for timing statistics.
+    #[serde(default = "one")]
+    pub repeat: usize,
+    /// Let cases share the machine even though their timings are recorded (by default each
+    /// case runs alone, so that no other run disturbs its timings).
+    #[serde(default)]
+    pub share_machine: bool,
+    /// Seconds after which a case is stopped and stored as failed.
+    #[serde(default)]
+    pub timeout_s: Option<f64>,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// One sweep group.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Group {
+    /// Every combination of the axes' values.
+    Product(BTreeMap<String, Vec<Value>>),
+    /// The axes' values in lock-step: the k-th point takes the k-th value of every axis.
+    Zip(BTreeMap<String, Vec<Value>>),
+    /// A path in the (ε, h) plane over grid sizes n.
+    Path(PathSpec),
+}
+
+/// Paths in the (ε, h) plane: how the horizon follows the grid as h → 0.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PathSpec {
+    /// ε = m·h with m fixed: the ratio stays, both shrink.
+    FixedM { m: u64, n: Vec<u64> },
+    /// ε fixed while h → 0: convergence to the nonlocal solution.
+    FixedEps { eps: f64, n: Vec<u64> },
+    /// ε = c·h^alpha (alpha < 1: ε/h grows as h → 0, the asymptotically compatible regime).
+    Power { c: f64, alpha: f64, n: Vec<u64> },
+}
+
+/// One point of a study: the case fields before the solver checks them, and which of them the
+/// sweep set (for messages and tables).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    pub fields: Map<String, Value>,
+    pub swept: Vec<String>,
+    pub repeat: usize,
+}
+
+impl Point {
+    /// `n=64 threads=2` – the swept fields, for messages.
+    pub fn label(&self) -> String {
+        let parts: Vec<String> = self
+            .swept
+            .iter()
+            .map(|f| match self.fields.get(f) {
+                Some(Value::String(s)) => format!("{f}={s}"),
+                Some(v) => format!("{f}={v}"),
+                None => format!("{f}=?"),
+            })
+            .collect();
+        let mut label = parts.join(" ");
+        if self.repeat > 0 {
+            label.push_str(&format!(" repeat={}", self.repeat));
+        }
+        label
+    }
+}
+
+/// Bad study file: where and what, in one sentence.
+#[derive(Debug, PartialEq)]
+pub struct StudyError {
+    pub place: String,
+    pub message: String,
+}
+
+impl StudyError {
+    pub(crate) fn new(place: impl Into<String>, message: impl Into<String>) -> Self {
+        StudyError {
+            place: place.into(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for StudyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "study `{}`: {}", self.place, self.message)
+    }
+}
+
+impl Study {
+    /// Reads and parses a study file, naming the field at fault.
+    pub fn read(path: &Path) -> Result<Study, StudyError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            StudyError::new(
+                &name,
+                format!("cannot read the study file: {e}; check the path"),
+            )
+        })?;
+        Study::parse(&text)
+    }
+
+    pub fn parse(text: &str) -> Result<Study, StudyError> {
+        let mut deserializer = serde_json::Deserializer::from_str(text);
+        let study: Study = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+            let path = e.path().to_string();
+            let message = e.into_inner().to_string();
+            // serde reports a missing field at its parent: name the field itself.
+            let place = match field_named_in(&message) {
+                Some(field) if path == "." => field,
+                Some(field) if !path.ends_with(&field) => format!("{path}.{field}"),
+                _ => path,
+            };
+            StudyError::new(place, message)
+        })?;
+        if study.name.is_empty()
+            || !study
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(StudyError::new(
+                "name",
+                format!(
+                    "`{}` must be non-empty letters, digits, `_` or `-`: it names the results directory",
+                    study.name
+                ),
+            ));
+        }
+        if study.repeat == 0 {
+            return Err(StudyError::new("repeat", "must be at least 1 (got 0)"));
+        }
+        Ok(study)
+    }
+
+    /// The points of the study, in sweep order, each repeated `repeat` times.
+    pub fn expand(&self) -> Result<Vec<Point>, StudyError> {
+        let mut points = vec![Point {
+            fields: self.base.clone(),
+            swept: Vec::new(),
+            repeat: 0,
+        }];
+        for (g, group) in self.sweep.iter().enumerate() {
+            let assignments = group.assignments(g)?;
+            let mut next = Vec::with_capacity(points.len() * assignments.len());
+            for point in &points {
+                for assignment in &assignments {
+                    let mut point = point.clone();
+                    for (field, value) in assignment {
+                        if point.swept.contains(field) {
+                            return Err(StudyError::new(
+                                format!("sweep[{g}].{field}"),
+                                "is swept by an earlier group too; sweep each field in one group",
+                            ));
+                        }
+                        point.fields.insert(field.clone(), value.clone());
+                        point.swept.push(field.clone());
+                    }
+                    next.push(point);
+                }
+            }
+            points = next;
+        }
+        let mut kept = Vec::with_capacity(points.len());
+        for mut point in points {
+            self.derive_fields(&mut point)?;
+            if self.keeps(&point)? {
+                kept.push(point);
+            }
+        }
+        Ok(kept
+            .into_iter()
+            .flat_map(|point| {
+                (0..self.repeat).map(move |repeat| Point {
+                    repeat,
+                    ..point.clone()
+                })
+            })
+            .collect())
+    }
+
+    fn derive_fields(&self, point: &mut Point) -> Result<(), StudyError> {
+        let scope = Scope::of(&point.fields);
+        let mut derived = Vec::new();
+        for (field, formula) in &self.derive {
+            let value = expression::number(formula, &scope)
+                .map_err(|e| StudyError::new(format!("derive.{field}"), e))?;
+            derived.push((field.clone(), value));
+        }
+        for (field, value) in derived {
+            point.fields.insert(field.clone(), value);
+            if !point.swept.contains(&field) {
+                point.swept.push(field);
+            }
+        }
+        Ok(())
+    }
+
+    fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
+        let scope = Scope::of(&point.fields);
+        for (k, condition) in self.filter.iter().enumerate() {
+            let holds = expression::condition(condition, &scope).map_err(|e| {
+                StudyError::new(format!("where[{k}]"), format!("{e} (at {})", point.label()))
+            })?;
+            if !holds {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
+fn field_named_in(message: &str) -> Option<String> {
+    ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|prefix| {
+            let rest = message.strip_prefix(prefix)?;
+            Some(rest[..rest.find('`')?].to_string())
+        })
+}
+
+impl Group {
+    /// The group's points, as field assignments; `g` is its index, for messages.
+    fn assignments(&self, g: usize) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+        let place = |what: &str| format!("sweep[{g}].{what}");
+        match self {
+            Group::Product(axes) => {
+                let mut assignments = vec![Vec::new()];
+                for (field, values) in axes {
+                    if values.is_empty() {
+                        return Err(StudyError::new(
+                            place(&format!("product.{field}")),
+                            "has no values; give at least one or remove the axis",
+                        ));
+                    }
+                    assignments = assignments
+                        .into_iter()
+                        .flat_map(|a: Vec<(String, Value)>| {
+                            values.iter().map(move |v| {
+                                let mut a = a.clone();
+                                a.push((field.clone(), v.clone()));
+                                a
+                            })
+                        })
+                        .collect();
+                }
+                Ok(assignments)
+            }
+            Group::Zip(axes) => {
+                let mut lengths = axes.iter().map(|(f, v)| (f, v.len()));
+                let Some((first, length)) = lengths.next() else {
+                    return Err(StudyError::new(place("zip"), "has no axes"));
+                };
+                if let Some((field, other)) = lengths.find(|&(_, l)| l != length) {
+                    return Err(StudyError::new(
+                        place(&format!("zip.{field}")),
+                        format!(
+                            "has {other} values but `{first}` has {length}; the axes of a zip step together, so give each the same number"
+                        ),
+                    ));
+                }
+                Ok((0..length)
+                    .map(|k| {
+                        axes.iter()
+                            .map(|(f, v)| (f.clone(), v[k].clone()))
+                            .collect()
+                    })
+                    .collect())
+            }
+            Group::Path(path) => path.assignments(&place("path")),
+        }
+    }
+}
+
+impl PathSpec {
+    fn assignments(&self, place: &str) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+        let sizes = match self {
+            PathSpec::FixedM { n, .. }
+            | PathSpec::FixedEps { n, .. }
+            | PathSpec::Power { n, .. } => n,
+        };
+        if let Some(bad) = sizes.iter().find(|&&n| n == 0) {
+            return Err(StudyError::new(
+                format!("{place}.n"),
+                format!("holds {bad}; grid sizes are at least 1"),
+            ));
+        }
+        if sizes.is_empty() {
+            return Err(StudyError::new(format!("{place}.n"), "has no grid sizes"));
+        }
+        Ok(sizes
+            .iter()
+            .map(|&n| {
+                let horizon = match self {
+                    PathSpec::FixedM { m, .. } => ("m", Value::from(*m)),
+                    PathSpec::FixedEps { eps, .. } => ("eps", Value::from(*eps)),
+                    // h = 1/n: paths are for the nonlocal method on D = [0, 1]^d.
+                    PathSpec::Power { c, alpha, .. } => {
+                        ("eps", Value::from(c * (1.0 / n as f64).powf(*alpha)))
+                    }
+                };
+                vec![
+                    ("n".to_string(), Value::from(n)),
+                    (horizon.0.to_string(), horizon.1),
+                ]
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn points(study: Value) -> Result<Vec<Map<String, Value>>, StudyError> {
+        let study = Study::parse(&study.to_string())?;
+        Ok(study.expand()?.into_iter().map(|p| p.fields).collect())
+    }
+
+    fn fields(value: Value) -> Map<String, Value> {
+        value.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn product_and_zip_groups_multiply() {
+        let got = points(json!({
+            "name": "s", "base": {"dim": 1},
+            "sweep": [
+                {"product": {"n": [8, 16], "m": [2, 3]}},
+                {"zip": {"threads": [1, 2], "ranks": [2, 1]}}
+            ]
+        }))
+        .unwrap();
+        let mut expected = Vec::new();
+        for (m, n) in [(2, 8), (3, 8), (2, 16), (3, 16)] {
+            for (threads, ranks) in [(1, 2), (2, 1)] {
+                expected.push(fields(json!({
+                    "dim": 1, "n": n, "m": m, "threads": threads, "ranks": ranks
+                })));
+            }
+        }
+        // Axes of a product vary in name order, the last fastest.
+        expected.sort_by_key(|f| (f["m"].as_u64(), f["n"].as_u64()));
+        let mut got_sorted = got.clone();
+        got_sorted.sort_by_key(|f| (f["m"].as_u64(), f["n"].as_u64()));
+        assert_eq!(got.len(), 8);
+        assert_eq!(got_sorted, expected);
+    }
+
+    #[test]
+    fn derived_fields_paths_filters_and_repeats() {
+        let study = Study::parse(
+            &json!({
+                "name": "s", "base": {"dim": 2},
+                "sweep": [
+                    {"path": {"kind": "fixed_m", "m": 3, "n": [16, 32]}},
+                    {"product": {"px": [1, 2], "py": [1, 2]}}
+                ],
+                "derive": {"ranks": "px * py", "eps_check": "m * h"},
+                "where": ["ranks <= 2"],
+                "repeat": 2
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        // 2 sizes × 3 shapes with px·py ≤ 2, twice each.
+        assert_eq!(points.len(), 12);
+        let first = &points[0].fields;
+        assert_eq!(first["n"], json!(16));
+        assert_eq!(first["m"], json!(3));
+        assert_eq!(first["ranks"], json!(1));
+        assert_eq!(first["eps_check"], json!(3.0 / 16.0));
+        assert_eq!((points[0].repeat, points[1].repeat), (0, 1));
+        assert!(points.iter().all(|p| p.fields["ranks"].as_u64() <= Some(2)));
+
+        let eps_paths = points_of_path(json!({"kind": "fixed_eps", "eps": 0.25, "n": [8, 16]}));
+        assert_eq!(eps_paths, vec![(8, json!(0.25)), (16, json!(0.25))]);
+        let power = points_of_path(json!({"kind": "power", "c": 2.0, "alpha": 0.5, "n": [4, 16]}));
+        assert_eq!(power, vec![(4, json!(1.0)), (16, json!(0.5))]);
+    }
+
+    fn points_of_path(path: Value) -> Vec<(u64, Value)> {
+        points(json!({"name": "s", "base": {}, "sweep": [{"path": path}]}))
+            .unwrap()
+            .into_iter()
+            .map(|f| (f["n"].as_u64().unwrap(), f["eps"].clone()))
+            .collect()
+    }
+
+    #[test]
+    fn malformed_studies_name_the_place() {
+        let place = |study: Value| points(study).unwrap_err().place;
+        assert_eq!(place(json!({"name": "s"})), "base");
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "colour": 1})),
+            "colour"
+        );
+        assert_eq!(place(json!({"name": "a b", "base": {}})), "name");
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "repeat": 0})),
+            "repeat"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [{"zip": {"n": [1, 2], "m": [1]}}]})),
+            "sweep[0].zip.n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [{"product": {"n": []}}]})),
+            "sweep[0].product.n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [
+                {"product": {"n": [1]}}, {"product": {"n": [2]}}
+            ]})),
+            "sweep[1].n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {"n": 4}, "derive": {"ranks": "px * 2"}})),
+            "derive.ranks"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {"n": 4}, "where": ["n + 1"]})),
+            "where[0]"
+        );
+        assert_eq!(
+            place(
+                json!({"name": "s", "base": {}, "sweep": [{"path": {"kind": "fixed_m", "m": 2, "n": [0]}}]})
+            ),
+            "sweep[0].path.n"
+        );
+    }
+}

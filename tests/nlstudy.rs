@@ -1,0 +1,203 @@
+//! `nlstudy` as a process: make-style runs, failures stored and re-run on request, a changed
+//! solver version explained, and an interrupted run resumed with nothing lost or duplicated.
+
+use nonlocal_study::binary;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A scratch directory with a study file; removed when dropped.
+struct Scratch {
+    dir: PathBuf,
+}
+
+impl Scratch {
+    fn new(name: &str, study: &Value) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("nlstudy-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch directory");
+        let scratch = Scratch { dir };
+        scratch.write_study(study);
+        scratch
+    }
+
+    fn write_study(&self, study: &Value) {
+        std::fs::write(self.study(), study.to_string()).expect("study file");
+    }
+
+    fn study(&self) -> PathBuf {
+        self.dir.join("study.json")
+    }
+
+    fn runs(&self, name: &str) -> PathBuf {
+        self.dir.join("results").join(name).join("runs")
+    }
+
+    /// `nlstudy <verb> study.json --results <scratch>/results <extra…>`.
+    fn nlstudy(&self, verb: &str, extra: &[&str]) -> Output {
+        Command::new(binary("nlstudy"))
+            .arg(verb)
+            .arg(self.study())
+            .arg("--results")
+            .arg(self.dir.join("results"))
+            .args(extra)
+            .output()
+            .expect("nlstudy starts")
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+fn text(output: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    )
+}
+
+/// The stored records, by file name.
+fn records(runs: &Path) -> Vec<Value> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    paths.retain(|p| p.extension().is_some_and(|x| x == "json"));
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("whole JSON"))
+        .collect()
+}
+
+fn small_study(sizes: &[u64]) -> Value {
+    json!({
+        "name": "small",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": sizes, "threads": [1, 2]}}]
+    })
+}
+
+#[test]
+fn a_second_run_runs_nothing_and_a_new_axis_value_runs_only_its_points() {
+    let scratch = Scratch::new("cache", &small_study(&[16, 32]));
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    assert!(text(&first).contains("4 ran (4 ok"), "{}", text(&first));
+    let stored = records(&scratch.runs("small"));
+    assert_eq!(stored.len(), 4);
+    assert!(stored
+        .iter()
+        .all(|r| r["status"] == "ok" && r["key"].is_string()));
+
+    let second = scratch.nlstudy("run", &[]);
+    assert!(text(&second).contains("0 ran"), "{}", text(&second));
+    assert!(
+        text(&second).contains("4 already stored"),
+        "{}",
+        text(&second)
+    );
+
+    scratch.write_study(&small_study(&[16, 32, 64]));
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    assert_eq!(plan.matches("run   (missing)").count(), 2, "{plan}");
+    assert!(plan.contains("2 to run, 4 stored"), "{plan}");
+    let third = scratch.nlstudy("run", &[]);
+    assert!(text(&third).contains("2 ran (2 ok"), "{}", text(&third));
+    assert_eq!(records(&scratch.runs("small")).len(), 6);
+}
+
+#[test]
+fn a_refused_case_is_stored_as_failed_without_stopping_the_others() {
+    // n = 2 cannot hold m = 2 (ε = 1 > 0.5): the solver refuses it.
+    let scratch = Scratch::new("failed", &small_study(&[2, 16]));
+    let run = scratch.nlstudy("run", &[]);
+    assert_eq!(run.status.code(), Some(1), "{}", text(&run));
+    let stored = records(&scratch.runs("small"));
+    assert_eq!(stored.len(), 4);
+    let failed: Vec<&Value> = stored.iter().filter(|r| r["status"] == "failed").collect();
+    assert_eq!(failed.len(), 2);
+    assert!(failed[0]["message"].as_str().unwrap().contains("`m`"));
+    let status = text(&scratch.nlstudy("status", &[]));
+    assert!(status.contains("2 failed, 2 ok"), "{status}");
+
+    let again = text(&scratch.nlstudy("plan", &[]));
+    assert!(
+        again.contains("0 to run"),
+        "failed runs are not retried unasked: {again}"
+    );
+    let retry = text(&scratch.nlstudy("plan", &["--rerun-failed"]));
+    assert_eq!(retry.matches("run   (failed before)").count(), 2, "{retry}");
+}
+
+#[test]
+fn plan_explains_a_changed_solver_version() {
+    let scratch = Scratch::new("version", &small_study(&[16]));
+    assert!(scratch.nlstudy("run", &[]).status.success());
+    // A solver that reports another version and otherwise is nlsolve.
+    let wrapper = scratch.dir.join("nlsolve-next");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\nif [ \"$1\" = --version ]; then echo 'nlsolve 9.9.9'; exit 0; fi\nexec {} \"$@\"\n",
+            binary("nlsolve").display()
+        ),
+    )
+    .unwrap();
+    Command::new("chmod")
+        .arg("+x")
+        .arg(&wrapper)
+        .status()
+        .unwrap();
+    let plan = text(&scratch.nlstudy("plan", &["--solver", wrapper.to_str().unwrap()]));
+    assert_eq!(
+        plan.matches("run   (solver version changed (was nlsolve 0.1.0))")
+            .count(),
+        2,
+        "{plan}"
+    );
+}
+
+#[test]
+fn an_interrupted_run_resumes_with_every_record_once() {
+    let study = json!({
+        "name": "long",
+        "base": {"dim": 2, "m": 2, "t_end": 0.002, "cfl": 0.5},
+        "sweep": [{"product": {"n": [48, 64, 80, 96, 112, 128]}}]
+    });
+    let scratch = Scratch::new("interrupt", &study);
+    let mut child = Command::new(binary("nlstudy"))
+        .arg("run")
+        .arg(scratch.study())
+        .arg("--results")
+        .arg(scratch.dir.join("results"))
+        .arg("--quiet")
+        .spawn()
+        .unwrap();
+    // Interrupt as soon as the first record is stored, as Ctrl-C would.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while records(&scratch.runs("long")).is_empty() && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let interrupted = child.wait().unwrap();
+    let stored_before = records(&scratch.runs("long")).len();
+    assert!(stored_before >= 1);
+    if stored_before < 6 {
+        assert_eq!(interrupted.code(), Some(130), "an interrupted run says so");
+    }
+    let resumed = scratch.nlstudy("run", &[]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let stored = records(&scratch.runs("long"));
+    assert_eq!(stored.len(), 6, "every point once");
+    let mut keys: Vec<&str> = stored.iter().map(|r| r["key"].as_str().unwrap()).collect();
+    keys.dedup();
+    assert_eq!(keys.len(), 6);
+    assert!(stored.iter().all(|r| r["status"] == "ok"));
+}
