@@ -11,5 +11,8 @@ run: setup
 	target/release/nlstudy status studies/quick.json
 
 # Tests and runs share the release profile, so dependencies compile once.
+# The binaries are built first: the end-to-end tests drive nlstudy, whose package has no
+# integration test of its own to make cargo build it.
 test: setup
+	cargo build --release --workspace --bins
 	cargo test --release --workspace

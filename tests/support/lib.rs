@@ -33,7 +33,7 @@ pub fn binary(name: &str) -> PathBuf {
     let path = profile_dir.join(name);
     assert!(
         path.exists(),
-        "{} is not built; run the tests with `cargo test --release --workspace`",
+        "{} is not built; run the tests with `make test` (it builds the binaries first)",
         path.display()
     );
     path
