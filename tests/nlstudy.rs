@@ -201,3 +201,85 @@ fn an_interrupted_run_resumes_with_every_record_once() {
     assert_eq!(keys.len(), 6);
     assert!(stored.iter().all(|r| r["status"] == "ok"));
 }
+
+/// The scripts of a two-point study: directives from the study's resources and the flags, and a
+/// command that runs exactly the two keys in the same record store.
+#[test]
+fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
+    let study = json!({
+        "name": "two",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"zip": {"n": [16, 32], "threads": [1, 2], "ranks": [2, 1]}}],
+        "resources": {"time": "01:30:00", "queue": "normal", "account": "nonlocal"}
+    });
+    let scratch = Scratch::new("submit", &study);
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    let keys: Vec<&str> = plan
+        .lines()
+        .filter(|l| l.contains("run   (missing)"))
+        .map(|l| l.split_whitespace().next().unwrap())
+        .collect();
+    assert_eq!(keys.len(), 2, "{plan}");
+    std::fs::create_dir_all(scratch.dir.join("results")).unwrap();
+    let absolute = |p: PathBuf| std::fs::canonicalize(p).unwrap().display().to_string();
+    let results = || absolute(scratch.dir.join("results"));
+    let command = |launcher: &str| {
+        format!(
+            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' -j 4 --only {}\n",
+            binary("nlstudy").display(),
+            absolute(scratch.study()),
+            results(),
+            absolute(binary("nlsolve")),
+            keys.join(",")
+        )
+    };
+    let jobs = format!("{}/two/jobs", results());
+
+    let slurm = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
+    assert!(slurm.status.success(), "{}", text(&slurm));
+    let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.sbatch")).unwrap();
+    let expected = format!(
+        "#!/bin/bash\n#SBATCH --job-name=nlstudy-two-0\n#SBATCH --nodes=1\n#SBATCH --ntasks=2\n\
+         #SBATCH --cpus-per-task=2\n#SBATCH --time=01:30:00\n#SBATCH --partition=normal\n\
+         #SBATCH --account=nonlocal\n#SBATCH --output={jobs}/nlstudy-two-0.%j.out\n{}",
+        command("srun -n {ranks}")
+    );
+    assert_eq!(script, expected);
+
+    let lsf = scratch.nlstudy(
+        "submit",
+        &[
+            "--scheduler",
+            "lsf",
+            "--dry-run",
+            "--queue",
+            "short",
+            "--nodes",
+            "2",
+        ],
+    );
+    assert!(lsf.status.success(), "{}", text(&lsf));
+    let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.bsub")).unwrap();
+    let expected = format!(
+        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 01:30\n\
+         #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -o {jobs}/nlstudy-two-0.%J.out\n{}",
+        command("mpirun -n {ranks}")
+    );
+    assert_eq!(script, expected);
+
+    // One case per job: two scripts, one key each.
+    let packed = scratch.nlstudy(
+        "submit",
+        &["--scheduler", "slurm", "--dry-run", "--cases-per-job", "1"],
+    );
+    assert!(
+        text(&packed).contains("nlstudy-two-1 (1 cases)"),
+        "{}",
+        text(&packed)
+    );
+    let second = std::fs::read_to_string(format!("{jobs}/nlstudy-two-1.sbatch")).unwrap();
+    assert!(
+        second.ends_with(&format!("--only {}\n", keys[1])),
+        "{second}"
+    );
+}

@@ -9,6 +9,7 @@ mod progress;
 mod solver;
 mod store;
 mod study;
+mod submit;
 
 use clap::{Args, Parser, Subcommand};
 use plan::{Decision, Options, Planned};
@@ -23,6 +24,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use store::Store;
 use study::Study;
+use submit::{Paths, Resources, Scheduler};
 
 #[derive(Parser)]
 #[command(
@@ -43,6 +45,36 @@ enum Command {
     Run(RunArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
+    /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
+    Submit(SubmitArgs),
+}
+
+#[derive(Args)]
+struct SubmitArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    #[arg(long, value_enum)]
+    scheduler: Scheduler,
+    /// Write the scripts into results/<study>/jobs/ without submitting them.
+    #[arg(long)]
+    dry_run: bool,
+    /// Nodes per job (overrides the study's `resources.nodes`).
+    #[arg(long)]
+    nodes: Option<usize>,
+    /// MPI tasks per job (default: the largest rank count among the job's cases).
+    #[arg(long)]
+    tasks: Option<usize>,
+    /// Wall time per job, HH:MM:SS.
+    #[arg(long)]
+    time: Option<String>,
+    /// Slurm partition or LSF queue.
+    #[arg(long)]
+    queue: Option<String>,
+    #[arg(long)]
+    account: Option<String>,
+    /// Cases packed into one job (default: all).
+    #[arg(long)]
+    cases_per_job: Option<usize>,
 }
 
 #[derive(Args)]
@@ -96,6 +128,7 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan_command(&args),
         Command::Run(args) => run_command(&args),
         Command::Status(args) => status_command(&args),
+        Command::Submit(args) => submit_command(&args),
     };
     match result {
         Ok(code) => code,
@@ -231,4 +264,71 @@ fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
 
 fn display(path: &Path) -> String {
     path.display().to_string()
+}
+
+fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
+    let plan_args = PlanArgs {
+        common: CommonArgs {
+            study: args.common.study.clone(),
+            results: args.common.results.clone(),
+            solver: args.common.solver.clone(),
+        },
+        force: false,
+        rerun_failed: false,
+        only: None,
+    };
+    let (study, solver, _, planned) = planned(&plan_args)?;
+    let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
+        .iter()
+        .filter(|p| p.runs())
+        .partition(|p| p.case.is_ok());
+    for p in &refused {
+        eprintln!(
+            "nlstudy: not submitted, the solver refuses {}: {}",
+            p.point.label(),
+            p.case.as_ref().err().map_or("", String::as_str)
+        );
+    }
+    if runnable.is_empty() {
+        println!(
+            "study {}: nothing to submit, every point is stored",
+            study.name
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let resources = study.resources.overridden_by(&Resources {
+        nodes: args.nodes,
+        tasks: args.tasks,
+        time: args.time.clone(),
+        queue: args.queue.clone(),
+        account: args.account.clone(),
+        cases_per_job: args.cases_per_job,
+    });
+    std::fs::create_dir_all(&args.common.results)
+        .map_err(|e| format!("cannot create {}: {e}", display(&args.common.results)))?;
+    let absolute = |path: &Path| {
+        std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", display(path)))
+    };
+    let results = absolute(&args.common.results)?;
+    let paths = Paths {
+        nlstudy: std::env::current_exe().map_err(|e| format!("cannot find nlstudy: {e}"))?,
+        nlsolve: absolute(&solver.binary)?,
+        study: absolute(&args.common.study)?,
+        jobs: results.join(&study.name).join("jobs"),
+        results,
+    };
+    let jobs = submit::write_jobs(&study.name, &runnable, args.scheduler, &resources, &paths)
+        .map_err(|e| format!("cannot write the job scripts: {e}"))?;
+    for job in &jobs {
+        println!(
+            "{} ({} cases): {}",
+            job.name,
+            job.keys.len(),
+            display(&job.script)
+        );
+        if !args.dry_run {
+            submit::submit(args.scheduler, &job.script)?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -2,6 +2,7 @@
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
 use crate::expression::{self, Scope};
+use crate::submit::Resources;
 use serde::Deserialize;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
@@ -38,6 +39,9 @@ pub struct Study {
     /// Seconds after which a case is stopped and stored as failed.
     #[serde(default)]
     pub timeout_s: Option<f64>,
+    /// What cluster jobs ask of the scheduler (`nlstudy submit`); flags override it.
+    #[serde(default)]
+    pub resources: Resources,
 }
 
 fn one() -> usize {

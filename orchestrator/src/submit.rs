@@ -1,0 +1,211 @@
+//! Cluster jobs: Slurm or LSF scripts for the points of a study not yet stored. Each job packs
+//! several cases into one allocation and runs `nlstudy run --only KEYS` inside it, so the same
+//! record store and the same make-style skipping serve the cluster and the workstation.
+
+use crate::plan::Planned;
+use serde::Deserialize;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Scheduler {
+    Slurm,
+    Lsf,
+}
+
+/// What a job asks of the scheduler: the study's `resources` section, overridden by flags.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Resources {
+    pub nodes: Option<usize>,
+    /// MPI tasks of the allocation (default: the largest rank count among the job's cases).
+    pub tasks: Option<usize>,
+    /// Wall time, HH:MM:SS for Slurm; LSF gets HH:MM.
+    pub time: Option<String>,
+    /// Slurm partition or LSF queue.
+    pub queue: Option<String>,
+    pub account: Option<String>,
+    /// Cases per job (default: all of them in one job).
+    pub cases_per_job: Option<usize>,
+}
+
+impl Resources {
+    /// `self` with every field `over` sets replaced.
+    pub fn overridden_by(&self, over: &Resources) -> Resources {
+        Resources {
+            nodes: over.nodes.or(self.nodes),
+            tasks: over.tasks.or(self.tasks),
+            time: over.time.clone().or_else(|| self.time.clone()),
+            queue: over.queue.clone().or_else(|| self.queue.clone()),
+            account: over.account.clone().or_else(|| self.account.clone()),
+            cases_per_job: over.cases_per_job.or(self.cases_per_job),
+        }
+    }
+}
+
+/// The absolute paths a job needs, since it starts in the scheduler's working directory.
+pub struct Paths {
+    pub nlstudy: PathBuf,
+    pub nlsolve: PathBuf,
+    pub study: PathBuf,
+    pub results: PathBuf,
+    pub jobs: PathBuf,
+}
+
+/// A written job script.
+pub struct Job {
+    pub name: String,
+    pub script: PathBuf,
+    pub keys: Vec<String>,
+}
+
+/// Writes one script per pack of runnable points into `paths.jobs`.
+pub fn write_jobs(
+    study_name: &str,
+    runnable: &[&Planned],
+    scheduler: Scheduler,
+    resources: &Resources,
+    paths: &Paths,
+) -> std::io::Result<Vec<Job>> {
+    std::fs::create_dir_all(&paths.jobs)?;
+    let per_job = resources.cases_per_job.unwrap_or(runnable.len()).max(1);
+    let mut jobs = Vec::new();
+    for (k, pack) in runnable.chunks(per_job).enumerate() {
+        let name = format!("nlstudy-{study_name}-{k}");
+        let keys: Vec<String> = pack.iter().map(|p| p.key.clone()).collect();
+        let largest = |field: &str| {
+            pack.iter()
+                .filter_map(|p| p.case.as_ref().ok()?.get(field)?.as_u64())
+                .max()
+                .unwrap_or(1) as usize
+        };
+        let shape = Shape {
+            tasks: resources.tasks.unwrap_or(largest("ranks")),
+            threads: largest("threads"),
+        };
+        let script = match scheduler {
+            Scheduler::Slurm => slurm(&name, &keys, shape, resources, paths),
+            Scheduler::Lsf => lsf(&name, &keys, shape, resources, paths),
+        };
+        let extension = match scheduler {
+            Scheduler::Slurm => "sbatch",
+            Scheduler::Lsf => "bsub",
+        };
+        let path = paths.jobs.join(format!("{name}.{extension}"));
+        let partial = path.with_extension("partial");
+        std::fs::write(&partial, script)?;
+        std::fs::rename(&partial, &path)?;
+        jobs.push(Job {
+            name,
+            script: path,
+            keys,
+        });
+    }
+    Ok(jobs)
+}
+
+/// The allocation of one job: MPI tasks and threads per task.
+#[derive(Clone, Copy)]
+struct Shape {
+    tasks: usize,
+    threads: usize,
+}
+
+fn slurm(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    let mut directive = |text: String| writeln!(s, "#SBATCH {text}").expect("a String");
+    directive(format!("--job-name={name}"));
+    directive(format!("--nodes={}", r.nodes.unwrap_or(1)));
+    directive(format!("--ntasks={}", shape.tasks));
+    directive(format!("--cpus-per-task={}", shape.threads));
+    if let Some(time) = &r.time {
+        directive(format!("--time={time}"));
+    }
+    if let Some(queue) = &r.queue {
+        directive(format!("--partition={queue}"));
+    }
+    if let Some(account) = &r.account {
+        directive(format!("--account={account}"));
+    }
+    directive(format!(
+        "--output={}",
+        paths.jobs.join(format!("{name}.%j.out")).display()
+    ));
+    s + &body(keys, shape, "srun -n {ranks}", paths)
+}
+
+fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    let mut directive = |text: String| writeln!(s, "#BSUB {text}").expect("a String");
+    directive(format!("-J {name}"));
+    // LSF counts slots: every task's threads.
+    directive(format!("-n {}", shape.tasks * shape.threads));
+    if let Some(nodes) = r.nodes {
+        directive(format!(
+            "-R \"span[ptile={}]\"",
+            (shape.tasks * shape.threads).div_ceil(nodes)
+        ));
+    }
+    if let Some(time) = &r.time {
+        // LSF's -W is [HH:]MM.
+        let minutes: Vec<&str> = time.split(':').collect();
+        let hh_mm = match minutes.as_slice() {
+            [h, m, _] => format!("{h}:{m}"),
+            _ => time.clone(),
+        };
+        directive(format!("-W {hh_mm}"));
+    }
+    if let Some(queue) = &r.queue {
+        directive(format!("-q {queue}"));
+    }
+    if let Some(account) = &r.account {
+        directive(format!("-P {account}"));
+    }
+    directive(format!(
+        "-o {}",
+        paths.jobs.join(format!("{name}.%J.out")).display()
+    ));
+    s + &body(keys, shape, "mpirun -n {ranks}", paths)
+}
+
+/// The commands of a job: run its keys of the study inside the allocation.
+fn body(keys: &[String], shape: Shape, launcher: &str, paths: &Paths) -> String {
+    format!(
+        "set -euo pipefail\n{} run {} --results {} --solver {} --launcher '{launcher}' -j {} --only {}\n",
+        quote(&paths.nlstudy),
+        quote(&paths.study),
+        quote(&paths.results),
+        quote(&paths.nlsolve),
+        shape.tasks * shape.threads,
+        keys.join(","),
+    )
+}
+
+/// A path in single quotes for the shell.
+fn quote(path: &Path) -> String {
+    format!("'{}'", path.display().to_string().replace('\'', r"'\''"))
+}
+
+/// Hands a script to the scheduler: `sbatch SCRIPT` or `bsub < SCRIPT`.
+pub fn submit(scheduler: Scheduler, script: &Path) -> Result<(), String> {
+    let (program, output) = match scheduler {
+        Scheduler::Slurm => ("sbatch", Command::new("sbatch").arg(script).output()),
+        Scheduler::Lsf => (
+            "bsub",
+            std::fs::File::open(script).and_then(|file| Command::new("bsub").stdin(file).output()),
+        ),
+    };
+    let output = output.map_err(|e| {
+        format!("cannot run {program}: {e}; on a machine without the scheduler use --dry-run to write the scripts only")
+    })?;
+    print!("{}", String::from_utf8_lossy(&output.stdout));
+    if !output.status.success() {
+        return Err(format!(
+            "{program} refused {}: {}",
+            script.display(),
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    Ok(())
+}
