@@ -266,6 +266,17 @@ impl Particles {
         self.slot_of.par_iter().map(|&slot| phi[slot]).collect()
     }
 
+    /// The pairs started in strip s: `visit_cell_pair` for each of its cells and their forward
+    /// partners.
+    fn visit_strip(&self, s: usize, mut visit: impl FnMut(usize, Range<usize>, Writes)) {
+        for x in 0..self.cells.across {
+            let a = self.cells.id(s, x);
+            for b in self.cells.forward_partners(s, x) {
+                self.visit_cell_pair(a, b, &mut visit);
+            }
+        }
+    }
+
     /// Calls `visit(i, partners, writes)` for every slot i of cell a that has partners in cell b
     /// (a forward partner of a), so that each pair with a real particle is visited once.
     fn visit_cell_pair(
@@ -298,17 +309,12 @@ impl Particles {
             .into_par_iter()
             .map(|s| {
                 let (mut visited, mut within) = (0, 0);
-                for x in 0..cells.across {
-                    let a = cells.id(s, x);
-                    for b in cells.forward_partners(s, x) {
-                        self.visit_cell_pair(a, b, |i, partners, _| {
-                            visited += partners.len();
-                            within += partners
-                                .filter(|&j| self.distance_squared(i, j) < self.cutoff_squared)
-                                .count();
-                        });
-                    }
-                }
+                self.visit_strip(s, |i, partners, _| {
+                    visited += partners.len();
+                    within += partners
+                        .filter(|&j| self.distance_squared(i, j) < self.cutoff_squared)
+                        .count();
+                });
                 (visited, within)
             })
             .reduce(|| (0, 0), |p, q| (p.0 + q.0, p.1 + q.1))
@@ -353,29 +359,24 @@ impl Particles {
     /// The pairs started in strip s; `rate` holds the rates of slots base.. (strips s, s + 1).
     fn exchange_strip(&self, s: usize, phi: &[f64], base: usize, rate: &mut [f64]) {
         let inverse_eps_squared = 1.0 / (self.eps * self.eps);
-        for x in 0..self.cells.across {
-            let a = self.cells.id(s, x);
-            for b in self.cells.forward_partners(s, x) {
-                self.visit_cell_pair(a, b, |i, partners, writes| {
-                    let (xi, phi_i) = (self.position[i], phi[i]);
-                    let mut gain = 0.0;
-                    for j in partners {
-                        let xj = self.position[j];
-                        let r2 = (xj[0] - xi[0]).powi(2) + (xj[1] - xi[1]).powi(2);
-                        if r2 < self.cutoff_squared {
-                            let flux = (-r2 * inverse_eps_squared).exp() * (phi[j] - phi_i);
-                            gain += flux;
-                            if writes != Writes::First {
-                                rate[j - base] -= flux;
-                            }
-                        }
+        self.visit_strip(s, |i, partners, writes| {
+            let (xi, phi_i) = (self.position[i], phi[i]);
+            let mut gain = 0.0;
+            for j in partners {
+                let xj = self.position[j];
+                let r2 = (xj[0] - xi[0]).powi(2) + (xj[1] - xi[1]).powi(2);
+                if r2 < self.cutoff_squared {
+                    let flux = (-r2 * inverse_eps_squared).exp() * (phi[j] - phi_i);
+                    gain += flux;
+                    if writes != Writes::First {
+                        rate[j - base] -= flux;
                     }
-                    if writes != Writes::Second {
-                        rate[i - base] += gain;
-                    }
-                });
+                }
             }
-        }
+            if writes != Writes::Second {
+                rate[i - base] += gain;
+            }
+        });
     }
 
     /// One forward Euler step of `dt`; returns max |φ| over the particles.
