@@ -73,7 +73,7 @@ pub fn plan(
     let cases = solver
         .check(&points)
         .map_err(|e| StudyError::new("solver", e))?;
-    let versions = store.versions_by_case();
+    let index = store.index();
     Ok(points
         .into_iter()
         .zip(cases)
@@ -85,14 +85,12 @@ pub fn plan(
             };
             let case_id = store::case_id(&identity);
             let key = store::key(&identity, &solver.version, point.repeat);
-            let stored = store
-                .load(&key)
-                .and_then(|r| r.get("status")?.as_str().map(str::to_string));
+            let stored = index.status.get(&key);
             let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
             let decision = match stored {
                 _ if !selected => Decision::Skip("not among --only".into()),
                 _ if options.force => Decision::Run(Reason::Forced),
-                None => match versions.get(&case_id) {
+                None => match index.version_by_case.get(&case_id) {
                     Some(from) if *from != solver.version => {
                         Decision::Run(Reason::SolverChanged { from: from.clone() })
                     }
@@ -101,7 +99,7 @@ pub fn plan(
                 Some(status) if status == "failed" && options.rerun_failed => {
                     Decision::Run(Reason::FailedBefore)
                 }
-                Some(status) => Decision::Skip(status),
+                Some(status) => Decision::Skip(status.clone()),
             };
             Planned {
                 point,

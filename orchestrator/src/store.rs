@@ -49,12 +49,6 @@ impl Store {
         self.runs.join(".work")
     }
 
-    /// The stored record of `key`; an unreadable file counts as absent (it is rewritten).
-    pub fn load(&self, key: &str) -> Option<Value> {
-        let text = std::fs::read_to_string(self.path(key)).ok()?;
-        serde_json::from_str(&text).ok()
-    }
-
     pub fn save(&self, key: &str, record: &Value) -> io::Result<()> {
         std::fs::create_dir_all(&self.runs)?;
         let path = self.path(key);
@@ -83,15 +77,25 @@ impl Store {
             .collect()
     }
 
-    /// The solver version each stored case id was last run with.
-    pub fn versions_by_case(&self) -> HashMap<String, String> {
-        self.records()
-            .iter()
-            .filter_map(|r| {
-                let id = r.get("case_id")?.as_str()?;
-                let version = r.get("solver_version")?.as_str()?;
-                Some((id.to_string(), version.to_string()))
-            })
-            .collect()
+    /// What the stored records say, read once: the status of each key and the solver version
+    /// each case id was run with. An unreadable file counts as absent (it is rewritten).
+    pub fn index(&self) -> Index {
+        let mut index = Index::default();
+        for record in self.records() {
+            let text = |field: &str| record.get(field)?.as_str().map(str::to_string);
+            if let (Some(key), Some(status)) = (text("key"), text("status")) {
+                index.status.insert(key, status);
+            }
+            if let (Some(id), Some(version)) = (text("case_id"), text("solver_version")) {
+                index.version_by_case.insert(id, version);
+            }
+        }
+        index
     }
+}
+
+#[derive(Default)]
+pub struct Index {
+    pub status: HashMap<String, String>,
+    pub version_by_case: HashMap<String, String>,
 }
