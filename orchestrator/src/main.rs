@@ -16,7 +16,7 @@ use plan::{Decision, Options, Planned};
 use pool::{PoolOptions, DEFAULT_LAUNCHER};
 use progress::{Mode, Progress};
 use solver::Solver;
-use std::collections::{BTreeMap, HashSet};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -139,25 +139,33 @@ fn main() -> ExitCode {
     }
 }
 
+impl PlanArgs {
+    fn options(&self) -> Options {
+        Options {
+            force: self.force,
+            rerun_failed: self.rerun_failed,
+            only: self
+                .only
+                .as_ref()
+                .map(|keys| keys.iter().cloned().collect()),
+        }
+    }
+}
+
 /// The study, its solver and store, and the plan of its points.
-fn planned(args: &PlanArgs) -> Result<(Study, Solver, Store, Vec<Planned>), String> {
-    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
-    let solver = Solver::locate(args.common.solver.as_deref())?;
-    let store = Store::open(&args.common.results, &study.name);
-    let options = Options {
-        force: args.force,
-        rerun_failed: args.rerun_failed,
-        only: args
-            .only
-            .as_ref()
-            .map(|keys| keys.iter().cloned().collect::<HashSet<_>>()),
-    };
-    let planned = plan::plan(&study, &solver, &store, &options).map_err(|e| e.to_string())?;
+fn planned(
+    args: &CommonArgs,
+    options: &Options,
+) -> Result<(Study, Solver, Store, Vec<Planned>), String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let solver = Solver::locate(args.solver.as_deref())?;
+    let store = Store::open(&args.results, &study.name);
+    let planned = plan::plan(&study, &solver, &store, options).map_err(|e| e.to_string())?;
     Ok((study, solver, store, planned))
 }
 
 fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
-    let (study, solver, _, planned) = planned(args)?;
+    let (study, solver, _, planned) = planned(&args.common, &args.options())?;
     println!(
         "study {}: {} points, solver {}",
         study.name,
@@ -184,7 +192,7 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
 }
 
 fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
-    let (study, solver, store, planned) = planned(&args.plan)?;
+    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let timeout = args.timeout.or(study.timeout_s);
     if timeout.is_some_and(|t| !(t > 0.0)) {
@@ -240,7 +248,7 @@ fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
         "study {}: {} records in {}: {}",
         study.name,
         records.len(),
-        display(&store.runs),
+        store.runs.display(),
         if summary.is_empty() {
             "none".to_string()
         } else {
@@ -262,22 +270,8 @@ fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn display(path: &Path) -> String {
-    path.display().to_string()
-}
-
 fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
-    let plan_args = PlanArgs {
-        common: CommonArgs {
-            study: args.common.study.clone(),
-            results: args.common.results.clone(),
-            solver: args.common.solver.clone(),
-        },
-        force: false,
-        rerun_failed: false,
-        only: None,
-    };
-    let (study, solver, _, planned) = planned(&plan_args)?;
+    let (study, solver, _, planned) = planned(&args.common, &Options::default())?;
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
         .iter()
         .filter(|p| p.runs())
@@ -305,9 +299,9 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
         cases_per_job: args.cases_per_job,
     });
     std::fs::create_dir_all(&args.common.results)
-        .map_err(|e| format!("cannot create {}: {e}", display(&args.common.results)))?;
+        .map_err(|e| format!("cannot create {}: {e}", args.common.results.display()))?;
     let absolute = |path: &Path| {
-        std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", display(path)))
+        std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", path.display()))
     };
     let results = absolute(&args.common.results)?;
     let paths = Paths {
@@ -324,7 +318,7 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
             "{} ({} cases): {}",
             job.name,
             job.keys.len(),
-            display(&job.script)
+            job.script.display()
         );
         if !args.dry_run {
             submit::submit(args.scheduler, &job.script)?;
