@@ -2,6 +2,7 @@
 //! solver version explained, and an interrupted run resumed with nothing lost or duplicated.
 
 use nonlocal_study::binary;
+use polars::prelude::{DataFrame, DataType, ParquetReader, SerReader};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -131,6 +132,117 @@ fn a_refused_case_is_stored_as_failed_without_stopping_the_others() {
     );
     let retry = text(&scratch.nlstudy("plan", &["--rerun-failed"]));
     assert_eq!(retry.matches("run   (failed before)").count(), 2, "{retry}");
+}
+
+/// A column of a Parquet table as floats (null as NaN).
+fn floats(frame: &DataFrame, name: &str) -> Vec<f64> {
+    let column = frame.column(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let column = column.cast(&DataType::Float64).unwrap();
+    let floats = column.f64().unwrap();
+    (0..floats.len())
+        .map(|i| floats.get(i).unwrap_or(f64::NAN))
+        .collect()
+}
+
+fn read_parquet(path: &Path) -> DataFrame {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    ParquetReader::new(file).finish().expect("a Parquet file")
+}
+
+#[test]
+fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
+    let mut study = small_study(&[16, 32]);
+    study["repeat"] = json!(2);
+    let scratch = Scratch::new("collect", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let table = |name: &str| scratch.dir.join("results/small").join(name);
+
+    // One row per run and repeat, flat columns of the case, results, timings and provenance.
+    let runs = read_parquet(&table("small.parquet"));
+    assert_eq!(runs.height(), 8);
+    for column in [
+        "point",
+        "refinement_series",
+        "scaling_series",
+        "key",
+        "case_id",
+        "repeat",
+        "status",
+        "case.n",
+        "case.threads",
+        "case.m",
+        "h",
+        "eps",
+        "bonds",
+        "steps_done",
+        "solve_s",
+        "step_s",
+        "error_l2_norm",
+        "error_max",
+        "provenance.host",
+        "solver_version",
+    ] {
+        assert!(
+            runs.column(column).is_ok(),
+            "{column} missing: {:?}",
+            runs.get_column_names()
+        );
+    }
+    assert_eq!(runs.column("case.n").unwrap().dtype(), &DataType::Int64);
+    assert_eq!(runs.column("solve_s").unwrap().dtype(), &DataType::Float64);
+    assert_eq!(runs.column("status").unwrap().dtype(), &DataType::String);
+
+    // One row per point; its timings are the median of its repeats' (two: their mean).
+    let summary = read_parquet(&table("small-summary.parquet"));
+    assert_eq!(summary.height(), 4);
+    let (n, threads) = (floats(&summary, "case.n"), floats(&summary, "case.threads"));
+    let solve_s = floats(&runs, "solve_s");
+    let (run_n, run_threads) = (floats(&runs, "case.n"), floats(&runs, "case.threads"));
+    let median = |point: usize| {
+        let times: Vec<f64> = (0..runs.height())
+            .filter(|&r| run_n[r] == n[point] && run_threads[r] == threads[point])
+            .map(|r| solve_s[r])
+            .collect();
+        assert_eq!(times.len(), 2);
+        (times[0] + times[1]) / 2.0
+    };
+    let medians = floats(&summary, "solve_s_median");
+    let (speedup, efficiency) = (floats(&summary, "speedup"), floats(&summary, "efficiency"));
+    for point in 0..4 {
+        assert!((medians[point] - median(point)).abs() <= 1e-15 * median(point));
+        // The baseline of each grid is its 1-thread point.
+        let base = (0..4)
+            .find(|&b| n[b] == n[point] && threads[b] == 1.0)
+            .unwrap();
+        let expected = median(base) / median(point);
+        assert!((speedup[point] - expected).abs() < 1e-12 * expected);
+        assert!((efficiency[point] - expected / threads[point]).abs() < 1e-12);
+    }
+    // The observed order between the grids, from the errors and the h of both.
+    let (h, error) = (floats(&summary, "h"), floats(&summary, "error_l2_norm"));
+    let order = floats(&summary, "order_l2");
+    let (coarse, fine) = (
+        (0..4).find(|&p| n[p] == 16.0).unwrap(),
+        (0..4).find(|&p| n[p] == 32.0).unwrap(),
+    );
+    let expected = (error[coarse] / error[fine]).ln() / (h[coarse] / h[fine]).ln();
+    assert!((order[fine] - expected).abs() < 1e-12, "{order:?}");
+    assert!(order[coarse].is_nan(), "the coarsest grid has no order");
+
+    // Points dropped from the study leave the tables; their records stay stored.
+    let mut fewer = small_study(&[16]);
+    fewer["repeat"] = json!(2);
+    scratch.write_study(&fewer);
+    let collect = scratch.nlstudy("collect", &[]);
+    assert!(collect.status.success(), "{}", text(&collect));
+    assert!(
+        text(&collect).contains("4 stored records are left out"),
+        "{}",
+        text(&collect)
+    );
+    assert_eq!(read_parquet(&table("small-summary.parquet")).height(), 2);
+    assert_eq!(records(&scratch.runs("small")).len(), 8);
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! cases; each case runs as an `nlsolve` process (or under mpirun) unless its record is already
 //! stored; records are gathered into tables.
 
+mod collect;
 mod expression;
 mod plan;
 mod pool;
@@ -10,6 +11,8 @@ mod solver;
 mod store;
 mod study;
 mod submit;
+mod summary;
+mod table;
 
 use clap::{Args, Parser, Subcommand};
 use plan::{Decision, Options, Planned};
@@ -43,6 +46,9 @@ enum Command {
     Plan(PlanArgs),
     /// Run the points not yet stored (make-style) and store their records.
     Run(RunArgs),
+    /// Gather the stored records into results/<study>/<study>.parquet (one row per run) and
+    /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
+    Collect(CommonArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
     /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
@@ -120,6 +126,9 @@ struct RunArgs {
     /// No progress output.
     #[arg(long, short)]
     quiet: bool,
+    /// Do not gather the records into the study's tables at the end.
+    #[arg(long)]
+    no_collect: bool,
 }
 
 fn main() -> ExitCode {
@@ -127,6 +136,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Plan(args) => plan_command(&args),
         Command::Run(args) => run_command(&args),
+        Command::Collect(args) => collect_command(&args),
         Command::Status(args) => status_command(&args),
         Command::Submit(args) => submit_command(&args),
     };
@@ -228,10 +238,51 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         eprintln!("nlstudy: interrupted; what finished is stored, run again to resume");
         return Ok(ExitCode::from(130));
     }
+    if !args.no_collect {
+        match collect::collect(&planned, &store) {
+            Ok(collected) if !args.quiet => report(&collected),
+            Ok(_) => {}
+            Err(message) => {
+                eprintln!("nlstudy: {message}");
+                return Ok(ExitCode::from(1));
+            }
+        }
+    }
     Ok(match tally.failed {
         0 => ExitCode::SUCCESS,
         _ => ExitCode::from(1),
     })
+}
+
+fn collect_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let (_, _, store, planned) = planned(args, &Options::default())?;
+    let collected = collect::collect(&planned, &store)?;
+    report(&collected);
+    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    println!("{}", collect::overview(&collected.table, swept));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report(collected: &collect::Collected) {
+    eprintln!(
+        "tables: {} ({} runs), {} ({} points)",
+        collected.runs.display(),
+        collected.rows,
+        collected.summary.display(),
+        collected.points
+    );
+    if collected.missing > 0 {
+        eprintln!(
+            "  {} runs of the study are not stored yet",
+            collected.missing
+        );
+    }
+    if collected.left_out > 0 {
+        eprintln!(
+            "  {} stored records are left out: their points are no longer in the study or were run by another solver version",
+            collected.left_out
+        );
+    }
 }
 
 fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {

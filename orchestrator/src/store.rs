@@ -8,6 +8,7 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 pub struct Store {
+    pub study: String,
     pub runs: PathBuf,
 }
 
@@ -36,8 +37,14 @@ pub fn key(case: &Value, solver_version: &str, repeat: usize) -> String {
 impl Store {
     pub fn open(results: &Path, study: &str) -> Store {
         Store {
+            study: study.to_string(),
             runs: results.join(study).join("runs"),
         }
+    }
+
+    /// A table of the study, beside its runs: `results/<study>/<name>`.
+    pub fn table(&self, name: &str) -> PathBuf {
+        self.runs.with_file_name(name)
     }
 
     pub fn path(&self, key: &str) -> PathBuf {

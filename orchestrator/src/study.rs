@@ -72,32 +72,58 @@ pub enum PathSpec {
     Power { c: f64, alpha: f64, n: Vec<u64> },
 }
 
-/// One point of a study: the case fields before the solver checks them, and which of them the
-/// sweep set (for messages and tables).
+/// One point of a study: the case fields before the solver checks them, which of them the
+/// sweep set (for messages and tables), and the series the point belongs to.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Point {
     pub fields: Map<String, Value>,
     pub swept: Vec<String>,
     pub repeat: usize,
+    pub series: Series,
 }
+
+/// The lines of a study's tables a point lies on, named by the swept fields held fixed along
+/// them: the points of one refinement series differ only in the grid (and what the sweep moves
+/// with it: the horizon of a path, the partners of `n` in a zip); those of one scaling series
+/// only in the workers (threads, ranks, px, py and their zip partners). Derived fields follow
+/// the swept ones, so they are left out of the names.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Series {
+    pub refinement: String,
+    pub scaling: String,
+}
+
+/// The fields whose change makes a refinement, and a scaling.
+const REFINED: &[&str] = &["n"];
+const SCALED: &[&str] = &["threads", "ranks", "px", "py"];
 
 impl Point {
     /// `n=64 threads=2` – the swept fields, for messages.
     pub fn label(&self) -> String {
+        let mut label = self.label_without_repeat();
+        if self.repeat > 0 {
+            label.push_str(&format!(" repeat={}", self.repeat));
+        }
+        label
+    }
+
+    /// The label shared by the point's repeats.
+    pub fn label_without_repeat(&self) -> String {
+        self.label_without(&[])
+    }
+
+    fn label_without(&self, left_out: &[String]) -> String {
         let parts: Vec<String> = self
             .swept
             .iter()
+            .filter(|f| !left_out.contains(f))
             .map(|f| match self.fields.get(f) {
                 Some(Value::String(s)) => format!("{f}={s}"),
                 Some(v) => format!("{f}={v}"),
                 None => format!("{f}=?"),
             })
             .collect();
-        let mut label = parts.join(" ");
-        if self.repeat > 0 {
-            label.push_str(&format!(" repeat={}", self.repeat));
-        }
-        label
+        parts.join(" ")
     }
 }
 
@@ -175,6 +201,7 @@ impl Study {
             fields: self.base.clone(),
             swept: Vec::new(),
             repeat: 0,
+            series: Series::default(),
         }];
         for (g, group) in self.sweep.iter().enumerate() {
             let assignments = group.assignments(g)?;
@@ -197,10 +224,25 @@ impl Study {
             }
             points = next;
         }
+        let derived: Vec<String> = self.derive.keys().cloned().collect();
+        let moving = |triggers: &[&str]| -> Vec<String> {
+            let mut fields: Vec<String> = self
+                .sweep
+                .iter()
+                .flat_map(|g| g.moving_with(triggers))
+                .collect();
+            fields.extend(derived.iter().cloned());
+            fields
+        };
+        let (refined, scaled) = (moving(REFINED), moving(SCALED));
         let mut kept = Vec::with_capacity(points.len());
         for mut point in points {
             self.derive_fields(&mut point)?;
             if self.keeps(&point)? {
+                point.series = Series {
+                    refinement: point.label_without(&refined),
+                    scaling: point.label_without(&scaled),
+                };
                 kept.push(point);
             }
         }
@@ -257,6 +299,21 @@ fn field_named_in(message: &str) -> Option<String> {
 }
 
 impl Group {
+    /// The group's fields that change when one of `triggers` does: the triggers themselves
+    /// among a product's axes, every field of a zip or path that holds one.
+    fn moving_with(&self, triggers: &[&str]) -> Vec<String> {
+        let fields: Vec<String> = match self {
+            Group::Product(axes) | Group::Zip(axes) => axes.keys().cloned().collect(),
+            Group::Path(_) => vec!["n".to_string(), "m".to_string(), "eps".to_string()],
+        };
+        let triggered = |f: &String| triggers.contains(&f.as_str());
+        match self {
+            Group::Product(_) => fields.into_iter().filter(triggered).collect(),
+            _ if fields.iter().any(triggered) => fields,
+            _ => Vec::new(),
+        }
+    }
+
     /// The group's points, as field assignments; `g` is its index, for messages.
     fn assignments(&self, g: usize) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
         let place = |what: &str| format!("sweep[{g}].{what}");
@@ -416,6 +473,60 @@ mod tests {
         assert_eq!(eps_paths, vec![(8, json!(0.25)), (16, json!(0.25))]);
         let power = points_of_path(json!({"kind": "power", "c": 2.0, "alpha": 0.5, "n": [4, 16]}));
         assert_eq!(power, vec![(4, json!(1.0)), (16, json!(0.5))]);
+    }
+
+    #[test]
+    fn series_hold_all_but_the_grid_or_the_workers_fixed() {
+        let series = |study: Value| -> Vec<(String, String)> {
+            let study = Study::parse(&study.to_string()).unwrap();
+            let points = study.expand().unwrap();
+            points
+                .into_iter()
+                .map(|p| (p.series.refinement, p.series.scaling))
+                .collect()
+        };
+        // A product moves only its `n`; a zip moves all its fields with its worker counts.
+        let got = series(json!({
+            "name": "s", "base": {},
+            "sweep": [
+                {"product": {"n": [8, 16], "m": [2]}},
+                {"zip": {"threads": [1, 2], "ranks": [2, 1]}}
+            ]
+        }));
+        let expected = [
+            ("m=2 ranks=2 threads=1", "m=2 n=8"),
+            ("m=2 ranks=1 threads=2", "m=2 n=8"),
+            ("m=2 ranks=2 threads=1", "m=2 n=16"),
+            ("m=2 ranks=1 threads=2", "m=2 n=16"),
+        ];
+        let expected: Vec<(String, String)> = expected
+            .iter()
+            .map(|(r, s)| (r.to_string(), s.to_string()))
+            .collect();
+        assert_eq!(got, expected);
+        // A path moves its horizon with n; derived fields are left out of the names.
+        let got = series(json!({
+            "name": "s", "base": {},
+            "sweep": [
+                {"path": {"kind": "power", "c": 1.0, "alpha": 0.5, "n": [4, 16]}},
+                {"product": {"px": [1, 2], "method": ["nonlocal"]}}
+            ],
+            "derive": {"ranks": "px"}
+        }));
+        assert_eq!(
+            got[0],
+            (
+                "method=nonlocal px=1".into(),
+                "n=4 eps=0.5 method=nonlocal".into()
+            )
+        );
+        assert_eq!(
+            got[3],
+            (
+                "method=nonlocal px=2".into(),
+                "n=16 eps=0.25 method=nonlocal".into()
+            )
+        );
     }
 
     fn points_of_path(path: Value) -> Vec<(u64, Value)> {

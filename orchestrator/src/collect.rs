@@ -1,0 +1,155 @@
+//! `nlstudy collect`: the stored records of the study's current points as two Parquet tables,
+//! `<study>.parquet` (one row per run and repeat) and `<study>-summary.parquet` (one row per
+//! point; see `summary`). Records of points the study no longer has (removed from the sweep,
+//! or run by another solver version) stay stored but are left out.
+
+use crate::plan::Planned;
+use crate::store::Store;
+use crate::summary;
+use crate::table::{self, Row};
+use polars::prelude::DataFrame;
+use serde_json::{json, Value};
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+pub struct Collected {
+    pub runs: PathBuf,
+    pub summary: PathBuf,
+    pub rows: usize,
+    pub points: usize,
+    /// Runs (points and repeats) with no stored record yet.
+    pub missing: usize,
+    /// Stored records that are not points of the study now.
+    pub left_out: usize,
+    /// The summary table, for printing.
+    pub table: DataFrame,
+}
+
+/// The fields that lead a run's row; the case follows, then the results, then provenance.
+const LEADING: &[&str] = &["key", "case_id", "repeat", "status", "message"];
+
+/// One run's row: the point's label and series, then the record, flattened.
+fn run_row(planned: &Planned, record: &Value) -> Row {
+    let mut row = Row::default();
+    let series = &planned.point.series;
+    row.set("point", json!(planned.point.label_without_repeat()));
+    row.set("refinement_series", json!(series.refinement));
+    row.set("scaling_series", json!(series.scaling));
+    let Some(record) = record.as_object() else {
+        return row;
+    };
+    for field in LEADING {
+        row.set(field, record.get(*field).cloned().unwrap_or(Value::Null));
+    }
+    let rank = |name: &str| match name {
+        "case" => 0,
+        "provenance" => 2,
+        _ => 1,
+    };
+    let mut rest: Vec<(&String, &Value)> = record
+        .iter()
+        .filter(|(name, _)| !LEADING.contains(&name.as_str()))
+        .collect();
+    rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
+    for (name, value) in rest {
+        let mut single = serde_json::Map::new();
+        single.insert(name.clone(), value.clone());
+        row.set_flattened("", &single);
+    }
+    row
+}
+
+pub fn collect(planned: &[Planned], store: &Store) -> Result<Collected, String> {
+    let mut records: HashMap<String, Value> = store
+        .records()
+        .into_iter()
+        .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
+        .collect();
+    let stored = records.len();
+    let mut rows = Vec::new();
+    let mut missing = 0;
+    for p in planned {
+        match records.remove(&p.key) {
+            Some(record) => rows.push(run_row(p, &record)),
+            None => missing += 1,
+        }
+    }
+    if rows.is_empty() {
+        return Err(format!(
+            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+            store.study
+        ));
+    }
+    let summary_rows = summary::summarize(&rows);
+    let runs_path = store.table(&format!("{}.parquet", store.study));
+    let summary_path = store.table(&format!("{}-summary.parquet", store.study));
+    table::write_parquet(&runs_path, &rows)?;
+    let table = table::write_parquet(&summary_path, &summary_rows)?;
+    Ok(Collected {
+        runs: runs_path,
+        summary: summary_path,
+        rows: rows.len(),
+        points: summary_rows.len(),
+        missing,
+        left_out: stored - rows.len(),
+        table,
+    })
+}
+
+/// The summary at a glance, for the terminal: the swept fields, then the headline results
+/// (those the study has), every row.
+pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
+    const RESULTS: &[&str] = &[
+        "status",
+        "solve_s_median",
+        "solve_s_iqr",
+        "error_l2_norm",
+        "order_l2",
+        "speedup",
+        "efficiency",
+    ];
+    let has = |name: &str| summary.column(name).is_ok();
+    // A swept field is shown under its own name: from the case, or derived by the solver.
+    let mut shown: Vec<(String, String)> = swept
+        .iter()
+        .filter_map(|field| {
+            let column = [format!("case.{field}"), field.clone()]
+                .into_iter()
+                .find(|c| has(c))?;
+            Some((column, field.clone()))
+        })
+        .collect();
+    shown.extend(
+        RESULTS
+            .iter()
+            .filter(|name| has(name))
+            .map(|name| (name.to_string(), name.to_string())),
+    );
+    // polars reads its display settings from the environment: a compact table of every row,
+    // unless the user chose otherwise.
+    for (name, value) in [
+        ("POLARS_FMT_MAX_ROWS", "-1"),
+        ("POLARS_FMT_MAX_COLS", "-1"),
+        ("POLARS_TABLE_WIDTH", "400"),
+        ("POLARS_FMT_TABLE_FORMATTING", "ASCII_MARKDOWN"),
+        ("POLARS_FMT_TABLE_HIDE_COLUMN_DATA_TYPES", "1"),
+        ("POLARS_FMT_TABLE_HIDE_DATAFRAME_SHAPE_INFORMATION", "1"),
+    ] {
+        if std::env::var_os(name).is_none() {
+            std::env::set_var(name, value);
+        }
+    }
+    let selected = summary.select(shown.iter().map(|(column, _)| column.as_str()));
+    let renamed = selected.and_then(|mut frame| {
+        for (column, name) in &shown {
+            if column != name {
+                frame.rename(column, name.as_str().into())?;
+            }
+        }
+        Ok(frame)
+    });
+    match renamed {
+        Ok(frame) => frame.to_string(),
+        Err(e) => format!("(cannot show the summary: {e})"),
+    }
+}

@@ -1,0 +1,185 @@
+//! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
+//! (booleans, integers, floats, else text; arrays are kept as JSON text).
+
+use polars::prelude::*;
+use serde_json::Value;
+use std::path::Path;
+
+/// A table row: named cells in column order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Row(Vec<(String, Value)>);
+
+impl Row {
+    pub fn get(&self, name: &str) -> Option<&Value> {
+        self.0.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+    }
+
+    pub fn number(&self, name: &str) -> Option<f64> {
+        self.get(name).and_then(Value::as_f64)
+    }
+
+    pub fn text(&self, name: &str) -> Option<&str> {
+        self.get(name).and_then(Value::as_str)
+    }
+
+    /// Sets a cell, in place if the column is there, else as a new last column.
+    pub fn set(&mut self, name: &str, value: Value) {
+        match self.0.iter_mut().find(|(n, _)| n == name) {
+            Some((_, cell)) => *cell = value,
+            None => self.0.push((name.to_string(), value)),
+        }
+    }
+
+    pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
+        self.0.iter().map(|(n, v)| (n.as_str(), v))
+    }
+
+    /// Sets the cells of a JSON object, nested objects flattened to `outer.inner`.
+    pub fn set_flattened(&mut self, prefix: &str, object: &serde_json::Map<String, Value>) {
+        for (name, value) in object {
+            let name = format!("{prefix}{name}");
+            match value {
+                Value::Object(inner) => self.set_flattened(&format!("{name}."), inner),
+                _ => self.set(&name, value.clone()),
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, PartialOrd)]
+enum Kind {
+    Boolean,
+    Integer,
+    Float,
+    Text,
+}
+
+fn kind_of(value: &Value) -> Option<Kind> {
+    match value {
+        Value::Null => None,
+        Value::Bool(_) => Some(Kind::Boolean),
+        Value::Number(n) if n.is_i64() => Some(Kind::Integer),
+        Value::Number(_) => Some(Kind::Float),
+        _ => Some(Kind::Text),
+    }
+}
+
+/// The narrowest type holding every cell: integers widen to floats, anything else mixed to text.
+/// A column of nulls only is a float column.
+fn column_kind<'a>(cells: impl Iterator<Item = &'a Value>) -> Kind {
+    cells
+        .filter_map(kind_of)
+        .fold(None, |acc, kind| match acc {
+            None => Some(kind),
+            Some(k) if k == kind => Some(k),
+            Some(Kind::Integer | Kind::Float) if matches!(kind, Kind::Integer | Kind::Float) => {
+                Some(Kind::Float)
+            }
+            Some(_) => Some(Kind::Text),
+        })
+        .unwrap_or(Kind::Float)
+}
+
+/// The rows as a data frame; its columns are the union of the rows' cells in first-seen order,
+/// a cell a row lacks being null.
+pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
+    let mut names: Vec<&str> = Vec::new();
+    for row in rows {
+        for (name, _) in row.cells() {
+            if !names.contains(&name) {
+                names.push(name);
+            }
+        }
+    }
+    let columns = names
+        .iter()
+        .map(|&name| {
+            let cells: Vec<&Value> = rows
+                .iter()
+                .map(|row| row.get(name).unwrap_or(&Value::Null))
+                .collect();
+            let name = PlSmallStr::from(name);
+            match column_kind(cells.iter().copied()) {
+                Kind::Boolean => {
+                    Column::new(name, cells.iter().map(|v| v.as_bool()).collect::<Vec<_>>())
+                }
+                Kind::Integer => {
+                    Column::new(name, cells.iter().map(|v| v.as_i64()).collect::<Vec<_>>())
+                }
+                Kind::Float => {
+                    Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
+                }
+                Kind::Text => {
+                    Column::new(name, cells.iter().map(|v| text_of(v)).collect::<Vec<_>>())
+                }
+            }
+        })
+        .collect();
+    DataFrame::new(rows.len(), columns)
+}
+
+fn text_of(value: &Value) -> Option<String> {
+    match value {
+        Value::Null => None,
+        Value::String(s) => Some(s.clone()),
+        other => Some(other.to_string()),
+    }
+}
+
+/// Writes the rows as Parquet through a temporary file and a rename: the file is whole or
+/// the previous one.
+pub fn write_parquet(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
+    let mut frame = data_frame(rows).map_err(|e| fail(&e))?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let partial = path.with_file_name(format!(".{name}.partial"));
+    let file = std::fs::File::create(&partial).map_err(|e| fail(&e))?;
+    ParquetWriter::new(file)
+        .finish(&mut frame)
+        .map_err(|e| fail(&e))?;
+    std::fs::rename(&partial, path).map_err(|e| fail(&e))?;
+    Ok(frame)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn row(value: Value) -> Row {
+        let mut row = Row::default();
+        row.set_flattened("", value.as_object().unwrap());
+        row
+    }
+
+    #[test]
+    fn columns_take_the_narrowest_type_of_their_cells() {
+        let rows = [
+            row(json!({"n": 8, "h": 1, "ok": true, "case": {"dim": 2}, "c_tot": [1.0, 2.0]})),
+            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no"})),
+        ];
+        let frame = data_frame(&rows).unwrap();
+        let names: Vec<&str> = frame
+            .get_column_names()
+            .iter()
+            .map(|n| n.as_str())
+            .collect();
+        // JSON objects iterate in name order; a column first seen in a later row comes last.
+        assert_eq!(names, ["c_tot", "case.dim", "h", "n", "ok", "message"]);
+        let dtype = |name: &str| frame.column(name).unwrap().dtype().clone();
+        assert_eq!(dtype("n"), DataType::Int64);
+        assert_eq!(dtype("h"), DataType::Float64);
+        assert_eq!(dtype("ok"), DataType::Boolean);
+        assert_eq!(dtype("c_tot"), DataType::String);
+        let c_tot = frame.column("c_tot").unwrap();
+        assert_eq!(c_tot.get(0).unwrap(), AnyValue::String("[1.0,2.0]"));
+        assert_eq!(c_tot.get(1).unwrap(), AnyValue::Null);
+        assert_eq!(
+            frame.column("h").unwrap().get(1).unwrap(),
+            AnyValue::Float64(0.5)
+        );
+    }
+}
