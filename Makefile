@@ -4,11 +4,13 @@
 setup:
 	@scripts/setup.sh
 
-# The main job: the quick study (make-style: a second `make run` runs only what is missing).
+# The main job: the quick study (make-style: a second `make run` runs only what is missing),
+# then its records by status and its summary table.
 run: setup
 	cargo build --release --workspace
-	target/release/nlstudy run studies/quick.json
+	target/release/nlstudy run studies/quick.json --no-collect
 	target/release/nlstudy status studies/quick.json
+	target/release/nlstudy collect studies/quick.json
 
 # Tests and runs share the release profile, so dependencies compile once.
 # The binaries are built first: the end-to-end tests drive nlstudy, whose package has no
