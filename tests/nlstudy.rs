@@ -337,7 +337,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let results = || absolute(scratch.dir.join("results"));
     let command = |launcher: &str| {
         format!(
-            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' -j 4 --only {}\n",
+            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only {}\n",
             binary("nlstudy").display(),
             absolute(scratch.study()),
             results(),

@@ -52,14 +52,13 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
         .collect();
     rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
     for (name, value) in rest {
-        let mut single = serde_json::Map::new();
-        single.insert(name.clone(), value.clone());
-        row.set_flattened("", &single);
+        row.set_flattened(name, value);
     }
     row
 }
 
-pub fn collect(planned: &[Planned], store: &Store) -> Result<Collected, String> {
+/// Writes the tables; `None` when no run of the study is stored yet.
+pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, String> {
     let mut records: HashMap<String, Value> = store
         .records()
         .into_iter()
@@ -75,25 +74,39 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Collected, String> 
         }
     }
     if rows.is_empty() {
-        return Err(format!(
-            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
-            store.study
-        ));
+        return Ok(None);
     }
     let summary_rows = summary::summarize(&rows);
-    let runs_path = store.table(&format!("{}.parquet", store.study));
-    let summary_path = store.table(&format!("{}-summary.parquet", store.study));
-    table::write_parquet(&runs_path, &rows)?;
-    let table = table::write_parquet(&summary_path, &summary_rows)?;
-    Ok(Collected {
-        runs: runs_path,
-        summary: summary_path,
+    let runs = store.table(&format!("{}.parquet", store.study));
+    let summary = store.table(&format!("{}-summary.parquet", store.study));
+    let mut frames = table::write_parquet(&[(&runs, &rows), (&summary, &summary_rows)])?;
+    Ok(Some(Collected {
+        runs,
+        summary,
         rows: rows.len(),
         points: summary_rows.len(),
         missing,
         left_out: stored - rows.len(),
-        table,
-    })
+        table: frames.pop().expect("two tables written"),
+    }))
+}
+
+/// polars reads its display settings from the environment: a compact table of every row,
+/// unless the user chose otherwise. Called first thing, before any thread could read the
+/// environment.
+pub fn set_display_defaults() {
+    for (name, value) in [
+        ("POLARS_FMT_MAX_ROWS", "-1"),
+        ("POLARS_FMT_MAX_COLS", "-1"),
+        ("POLARS_TABLE_WIDTH", "400"),
+        ("POLARS_FMT_TABLE_FORMATTING", "ASCII_MARKDOWN"),
+        ("POLARS_FMT_TABLE_HIDE_COLUMN_DATA_TYPES", "1"),
+        ("POLARS_FMT_TABLE_HIDE_DATAFRAME_SHAPE_INFORMATION", "1"),
+    ] {
+        if std::env::var_os(name).is_none() {
+            std::env::set_var(name, value);
+        }
+    }
 }
 
 /// The summary at a glance, for the terminal: the swept fields, then the headline results
@@ -125,20 +138,6 @@ pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
             .filter(|name| has(name))
             .map(|name| (name.to_string(), name.to_string())),
     );
-    // polars reads its display settings from the environment: a compact table of every row,
-    // unless the user chose otherwise.
-    for (name, value) in [
-        ("POLARS_FMT_MAX_ROWS", "-1"),
-        ("POLARS_FMT_MAX_COLS", "-1"),
-        ("POLARS_TABLE_WIDTH", "400"),
-        ("POLARS_FMT_TABLE_FORMATTING", "ASCII_MARKDOWN"),
-        ("POLARS_FMT_TABLE_HIDE_COLUMN_DATA_TYPES", "1"),
-        ("POLARS_FMT_TABLE_HIDE_DATAFRAME_SHAPE_INFORMATION", "1"),
-    ] {
-        if std::env::var_os(name).is_none() {
-            std::env::set_var(name, value);
-        }
-    }
     let selected = summary.select(shown.iter().map(|(column, _)| column.as_str()));
     let renamed = selected.and_then(|mut frame| {
         for (column, name) in &shown {

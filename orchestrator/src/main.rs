@@ -46,7 +46,7 @@ enum Command {
     Plan(PlanArgs),
     /// Run the points not yet stored (make-style) and store their records.
     Run(RunArgs),
-    /// Gather the stored records into results/<study>/<study>.parquet (one row per run) and
+    /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
     /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
     Collect(CommonArgs),
     /// Count the stored records by status and list the failures.
@@ -132,6 +132,7 @@ struct RunArgs {
 }
 
 fn main() -> ExitCode {
+    collect::set_display_defaults();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Plan(args) => plan_command(&args),
@@ -240,7 +241,7 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
     }
     if !args.no_collect {
         match collect::collect(&planned, &store) {
-            Ok(collected) if !args.quiet => report(&collected),
+            Ok(Some(collected)) if !args.quiet => report(&collected),
             Ok(_) => {}
             Err(message) => {
                 eprintln!("nlstudy: {message}");
@@ -256,7 +257,12 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
 
 fn collect_command(args: &CommonArgs) -> Result<ExitCode, String> {
     let (_, _, store, planned) = planned(args, &Options::default())?;
-    let collected = collect::collect(&planned, &store)?;
+    let collected = collect::collect(&planned, &store)?.ok_or_else(|| {
+        format!(
+            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+            store.study
+        )
+    })?;
     report(&collected);
     let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
     println!("{}", collect::overview(&collected.table, swept));

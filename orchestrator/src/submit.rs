@@ -169,10 +169,11 @@ fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) 
     s + &body(keys, shape, "mpirun -n {ranks}", paths)
 }
 
-/// The commands of a job: run its keys of the study inside the allocation.
+/// The commands of a job: run its keys of the study inside the allocation. Jobs of one study
+/// may run at once, so none writes the study's tables: `nlstudy collect` does, once they are done.
 fn body(keys: &[String], shape: Shape, launcher: &str, paths: &Paths) -> String {
     format!(
-        "set -euo pipefail\n{} run {} --results {} --solver {} --launcher '{launcher}' -j {} --only {}\n",
+        "set -euo pipefail\n{} run {} --results {} --solver {} --launcher '{launcher}' --no-collect -j {} --only {}\n",
         quote(&paths.nlstudy),
         quote(&paths.study),
         quote(&paths.results),

@@ -1,16 +1,17 @@
-//! The summary table: one row per point, its repeats' timings reduced to median, min and
+//! The summary table: one row per point, its repeats' timings reduced to median, min, max and
 //! interquartile range, and the derived columns of scaling and convergence studies.
 //!
 //! - Timings are the record's `*_s` fields, over the repeats that ran (ok or diverged).
 //! - `workers` = threads × ranks. Along a scaling series (points differing only in workers),
-//!   the point with the fewest workers p₀ is the baseline: speedup S = T(p₀)/T(p) of the median
-//!   `solve_s`, efficiency S·p₀/p, and the Karp–Flatt serial fraction (1/S − 1/q)/(1 − 1/q)
-//!   with q = p/p₀ (absent at the baseline, where it is 0/0).
+//!   the point with the fewest workers p₀ is the baseline (`baseline_workers`): speedup
+//!   S = T(p₀)/T(p) of the median `solve_s`, efficiency S·p₀/p, and the Karp–Flatt serial
+//!   fraction (1/S − 1/q)/(1 − 1/q) with q = p/p₀ (absent at the baseline, where it is 0/0).
+//!   A series of one point, or whose baseline is not ok, has none of these.
 //! - `bond_updates_per_s` = bonds × steps done / median `solve_s`.
 //! - Along a refinement series, ordered by h, the observed order between each point and the
 //!   next coarser one is ln(e_coarse/e)/ln(h_coarse/h), from the actual h of both.
 //!
-//! Derived columns use points whose every repeat is `ok`.
+//! Derived values come only from points whose every repeat is `ok`.
 
 use crate::table::Row;
 use serde_json::{json, Value};
@@ -20,33 +21,44 @@ const ORDERS: &[(&str, &str)] = &[("error_l2_norm", "order_l2"), ("error_max", "
 
 /// One summary row per point (rows sharing a `case_id`), in the order points first appear.
 pub fn summarize(runs: &[Row]) -> Vec<Row> {
-    let mut points: Vec<(&str, Vec<&Row>)> = Vec::new();
-    for run in runs {
-        let id = run.text("case_id").unwrap_or("");
-        match points.iter_mut().find(|(p, _)| *p == id) {
-            Some((_, repeats)) => repeats.push(run),
-            None => points.push((id, vec![run])),
-        }
-    }
-    let mut summary: Vec<Row> = points.iter().map(|(_, repeats)| reduce(repeats)).collect();
+    let mut summary: Vec<Row> = groups(runs, |r| r.text("case_id"))
+        .iter()
+        .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
+        .collect();
     derive_scaling(&mut summary);
     derive_orders(&mut summary);
     summary
+}
+
+/// Indices of the rows with each key, keys in first-seen order; rows without a key are left out.
+fn groups<'a>(rows: &'a [Row], key: impl Fn(&'a Row) -> Option<&'a str>) -> Vec<Vec<usize>> {
+    let mut groups: Vec<(&str, Vec<usize>)> = Vec::new();
+    for (i, row) in rows.iter().enumerate() {
+        let Some(k) = key(row) else { continue };
+        match groups.iter_mut().find(|(g, _)| *g == k) {
+            Some((_, members)) => members.push(i),
+            None => groups.push((k, vec![i])),
+        }
+    }
+    groups.into_iter().map(|(_, members)| members).collect()
 }
 
 fn is_timing(name: &str) -> bool {
     name.ends_with("_s") && !name.contains('.')
 }
 
+fn is_ok(row: &Row) -> bool {
+    row.text("status") == Some("ok")
+}
+
 /// The repeats of one point as one row: the values of its first ok repeat (else its first),
 /// the status they share (`mixed` if they differ), and their timings' statistics.
 fn reduce(repeats: &[&Row]) -> Row {
-    let status = |r: &Row| r.text("status").unwrap_or("").to_string();
-    let first = repeats
+    let statuses: Vec<&str> = repeats
         .iter()
-        .find(|r| status(r) == "ok")
-        .unwrap_or(&repeats[0]);
-    let shared = status(repeats[0]);
+        .map(|r| r.text("status").unwrap_or(""))
+        .collect();
+    let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
     let mut row = Row::default();
     for (name, value) in first.cells() {
         let per_run = matches!(name, "key" | "repeat") || name.starts_with("provenance.");
@@ -54,13 +66,15 @@ fn reduce(repeats: &[&Row]) -> Row {
             row.set(name, value.clone());
         }
     }
-    let uniform = repeats.iter().all(|r| status(r) == shared);
-    row.set(
-        "status",
-        json!(if uniform { shared } else { "mixed".into() }),
-    );
+    let uniform = statuses.iter().all(|s| *s == statuses[0]);
+    row.set("status", json!(if uniform { statuses[0] } else { "mixed" }));
     row.set("repeats", json!(repeats.len()));
-    let ran: Vec<&&Row> = repeats.iter().filter(|r| status(r) != "failed").collect();
+    let ran: Vec<&Row> = repeats
+        .iter()
+        .zip(&statuses)
+        .filter(|(_, s)| **s != "failed")
+        .map(|(r, _)| *r)
+        .collect();
     for (name, _) in first.cells().filter(|(name, _)| is_timing(name)) {
         let mut times: Vec<f64> = ran.iter().filter_map(|r| r.number(name)).collect();
         times.sort_by(f64::total_cmp);
@@ -70,6 +84,7 @@ fn reduce(repeats: &[&Row]) -> Row {
         };
         row.set(&format!("{name}_median"), statistic(|t| quantile(t, 0.5)));
         row.set(&format!("{name}_min"), statistic(|t| t[0]));
+        row.set(&format!("{name}_max"), statistic(|t| t[t.len() - 1]));
         row.set(
             &format!("{name}_iqr"),
             statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
@@ -78,12 +93,13 @@ fn reduce(repeats: &[&Row]) -> Row {
     let workers =
         row.number("case.threads").unwrap_or(1.0) * row.number("case.ranks").unwrap_or(1.0);
     row.set("workers", json!(workers));
-    let updates = match (
+    let work = (
         row.number("bonds"),
         row.number("steps_done"),
         row.number("solve_s_median"),
-    ) {
-        (Some(bonds), Some(steps), Some(t)) if t > 0.0 => json!(bonds * steps / t),
+    );
+    let updates = match work {
+        (Some(bonds), Some(steps), Some(t)) if t > 0.0 && is_ok(&row) => json!(bonds * steps / t),
         _ => Value::Null,
     };
     row.set("bond_updates_per_s", updates);
@@ -97,44 +113,27 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
     sorted[below] + (at - below as f64) * (sorted[above] - sorted[below])
 }
 
-/// Indices of the ok rows of each series named by `column`, in first-seen order.
-fn series(rows: &[Row], column: &str) -> Vec<Vec<usize>> {
-    let mut series: Vec<(&str, Vec<usize>)> = Vec::new();
-    for (i, row) in rows.iter().enumerate() {
-        if row.text("status") != Some("ok") {
-            continue;
-        }
-        let name = row.text(column).unwrap_or("");
-        match series.iter_mut().find(|(s, _)| *s == name) {
-            Some((_, members)) => members.push(i),
-            None => series.push((name, vec![i])),
-        }
-    }
-    series.into_iter().map(|(_, members)| members).collect()
-}
-
 fn derive_scaling(rows: &mut [Row]) {
-    for members in series(rows, "scaling_series") {
+    for members in groups(rows, |r| r.text("scaling_series")) {
         let workers: Vec<f64> = members
             .iter()
             .map(|&i| rows[i].number("workers").unwrap_or(1.0))
             .collect();
-        let times: Vec<Option<f64>> = members
-            .iter()
-            .map(|&i| rows[i].number("solve_s_median"))
-            .collect();
         let base = (0..members.len())
             .min_by(|&a, &b| workers[a].total_cmp(&workers[b]))
-            .expect("a series has members");
+            .expect("a group has members");
+        let base_time = rows[members[base]]
+            .number("solve_s_median")
+            .filter(|_| is_ok(&rows[members[base]]) && members.len() > 1);
+        let Some(t0) = base_time else { continue };
         for (k, &i) in members.iter().enumerate() {
-            let speedup = match (times[base], times[k]) {
-                (Some(t0), Some(t)) if t > 0.0 => Some(t0 / t),
-                _ => None,
-            };
+            let time = rows[i].number("solve_s_median").filter(|_| is_ok(&rows[i]));
+            let speedup = time.filter(|t| *t > 0.0).map(|t| t0 / t);
             let q = workers[k] / workers[base];
             let karp_flatt = speedup
                 .filter(|_| q > 1.0)
                 .map(|s| (1.0 / s - 1.0 / q) / (1.0 - 1.0 / q));
+            rows[i].set("baseline_workers", json!(workers[base]));
             rows[i].set("speedup", json!(speedup));
             rows[i].set("efficiency", json!(speedup.map(|s| s / q)));
             rows[i].set("karp_flatt", json!(karp_flatt));
@@ -143,7 +142,7 @@ fn derive_scaling(rows: &mut [Row]) {
 }
 
 fn derive_orders(rows: &mut [Row]) {
-    for mut members in series(rows, "refinement_series") {
+    for mut members in groups(rows, |r| r.text("refinement_series").filter(|_| is_ok(r))) {
         let h = |i: usize| rows[i].number("h").unwrap_or(f64::NAN);
         members.sort_by(|&a, &b| h(b).total_cmp(&h(a))); // coarse first
         let mut orders = Vec::new();
@@ -219,6 +218,7 @@ mod tests {
         assert_eq!(row.number("repeats"), Some(4.0));
         assert_eq!(row.number("solve_s_median"), Some(2.5));
         assert_eq!(row.number("solve_s_min"), Some(1.0));
+        assert_eq!(row.number("solve_s_max"), Some(4.0));
         // Quartiles of 1, 2, 3, 4 by linear interpolation: 1.75 and 3.25.
         assert_eq!(row.number("solve_s_iqr"), Some(1.5));
         assert_eq!(row.get("solve_s"), None);
@@ -291,7 +291,11 @@ mod tests {
         assert_eq!(summary[0].text("status"), Some("mixed"));
         // The failed repeat's time is not a timing.
         assert_eq!(summary[0].number("solve_s_median"), Some(2.0));
-        // The mixed point is not a baseline: the 2-thread point is its own.
-        close(column(&summary, "speedup"), &[None, Some(1.0)]);
+        // The baseline (1 thread) is mixed: no speedups in its series.
+        close(column(&summary, "speedup"), &[None, None]);
+        assert_eq!(summary[0].number("bond_updates_per_s"), None);
+        // A point alone in its series has no baseline to compare with.
+        let alone = summarize(&[run("c", 2, 1, 1.0)]);
+        assert_eq!(alone[0].number("speedup"), None);
     }
 }

@@ -34,14 +34,15 @@ impl Row {
         self.0.iter().map(|(n, v)| (n.as_str(), v))
     }
 
-    /// Sets the cells of a JSON object, nested objects flattened to `outer.inner`.
-    pub fn set_flattened(&mut self, prefix: &str, object: &serde_json::Map<String, Value>) {
-        for (name, value) in object {
-            let name = format!("{prefix}{name}");
-            match value {
-                Value::Object(inner) => self.set_flattened(&format!("{name}."), inner),
-                _ => self.set(&name, value.clone()),
+    /// Sets a cell, or one cell per field of an object, named `name.field` (recursively).
+    pub fn set_flattened(&mut self, name: &str, value: &Value) {
+        match value {
+            Value::Object(fields) => {
+                for (field, inner) in fields {
+                    self.set_flattened(&format!("{name}.{field}"), inner);
+                }
             }
+            _ => self.set(name, value.clone()),
         }
     }
 }
@@ -126,21 +127,51 @@ fn text_of(value: &Value) -> Option<String> {
     }
 }
 
-/// Writes the rows as Parquet through a temporary file and a rename: the file is whole or
-/// the previous one.
-pub fn write_parquet(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
-    let fail = |e: &dyn std::fmt::Display| format!("cannot write {}: {e}", path.display());
-    let mut frame = data_frame(rows).map_err(|e| fail(&e))?;
+/// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
+/// process) that is synced, and only once all are written are they renamed into place.
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, String> {
+    let mut written = Vec::new();
+    let mut frames = Vec::new();
+    let mut outcome = Ok(());
+    for (path, rows) in tables {
+        let partial = partial_name(path);
+        written.push((partial.clone(), path.to_path_buf()));
+        match write_one(&partial, rows) {
+            Ok(frame) => frames.push(frame),
+            Err(e) => {
+                outcome = Err(format!("cannot write {}: {e}", path.display()));
+                break;
+            }
+        }
+    }
+    if outcome.is_ok() {
+        for (partial, path) in &written {
+            std::fs::rename(partial, path)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        }
+        return Ok(frames);
+    }
+    for (partial, _) in &written {
+        let _ = std::fs::remove_file(partial);
+    }
+    outcome.map(|_| frames)
+}
+
+fn partial_name(path: &Path) -> std::path::PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let partial = path.with_file_name(format!(".{name}.partial"));
-    let file = std::fs::File::create(&partial).map_err(|e| fail(&e))?;
-    ParquetWriter::new(file)
+    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
+}
+
+fn write_one(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
+    let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
+    let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    ParquetWriter::new(&mut file)
         .finish(&mut frame)
-        .map_err(|e| fail(&e))?;
-    std::fs::rename(&partial, path).map_err(|e| fail(&e))?;
+        .map_err(|e| e.to_string())?;
+    file.sync_all().map_err(|e| e.to_string())?;
     Ok(frame)
 }
 
@@ -151,7 +182,9 @@ mod tests {
 
     fn row(value: Value) -> Row {
         let mut row = Row::default();
-        row.set_flattened("", value.as_object().unwrap());
+        for (name, value) in value.as_object().unwrap() {
+            row.set_flattened(name, value);
+        }
         row
     }
 
