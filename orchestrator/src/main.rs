@@ -3,8 +3,11 @@
 //! stored; records are gathered into tables.
 
 mod collect;
+mod draw;
 mod expression;
+mod figure;
 mod plan;
+mod plot;
 mod pool;
 mod progress;
 mod solver;
@@ -49,6 +52,9 @@ enum Command {
     /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
     /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
     Collect(CommonArgs),
+    /// Draw the study's figures from its summary table into <results>/<study>/figures/, each
+    /// only when its table or its spec changed.
+    Plot(CommonArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
     /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
@@ -126,7 +132,7 @@ struct RunArgs {
     /// No progress output.
     #[arg(long, short)]
     quiet: bool,
-    /// Do not gather the records into the study's tables at the end.
+    /// Do not gather the records into the study's tables, nor draw its figures, at the end.
     #[arg(long)]
     no_collect: bool,
 }
@@ -138,6 +144,7 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan_command(&args),
         Command::Run(args) => run_command(&args),
         Command::Collect(args) => collect_command(&args),
+        Command::Plot(args) => plot_command(&args),
         Command::Status(args) => status_command(&args),
         Command::Submit(args) => submit_command(&args),
     };
@@ -240,13 +247,20 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         return Ok(ExitCode::from(130));
     }
     if !args.no_collect {
-        match collect::collect(&planned, &store) {
-            Ok(Some(collected)) if !args.quiet => report(&collected),
-            Ok(_) => {}
-            Err(message) => {
-                eprintln!("nlstudy: {message}");
-                return Ok(ExitCode::from(1));
+        let tables = collect::collect(&planned, &store).and_then(|collected| match collected {
+            Some(collected) => {
+                let figures = plot::plot(&study.figures, &store)?;
+                if !args.quiet {
+                    report(&collected);
+                    report_figures(&figures);
+                }
+                Ok(())
             }
+            None => Ok(()),
+        });
+        if let Err(message) = tables {
+            eprintln!("nlstudy: {message}; the runs are stored");
+            return Ok(ExitCode::from(1));
         }
     }
     Ok(match tally.failed {
@@ -267,6 +281,31 @@ fn collect_command(args: &CommonArgs) -> Result<ExitCode, String> {
     let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
     println!("{}", collect::overview(&collected.table, swept));
     Ok(ExitCode::SUCCESS)
+}
+
+fn plot_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    if study.figures.is_empty() {
+        return Err(format!(
+            "study {} lists no figures; add a `figures` list to {}",
+            study.name,
+            args.study.display()
+        ));
+    }
+    let store = Store::open(&args.results, &study.name);
+    report_figures(&plot::plot(&study.figures, &store)?);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report_figures(figures: &[plot::Drawn]) {
+    for figure in figures {
+        let what = if figure.redrawn {
+            "drawn"
+        } else {
+            "up to date"
+        };
+        eprintln!("figure {what}: {}", figure.path.display());
+    }
 }
 
 fn report(collected: &collect::Collected) {

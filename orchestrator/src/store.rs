@@ -14,10 +14,11 @@ pub struct Store {
 
 /// The first 16 bytes of SHA-256, in hex.
 fn digest(text: &str) -> String {
-    Sha256::digest(text.as_bytes())[..16]
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+    hex(&Sha256::digest(text.as_bytes())[..16])
+}
+
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The identity of a case whatever the solver version: the hash of its canonical JSON.

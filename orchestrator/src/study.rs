@@ -2,6 +2,7 @@
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
 use crate::expression::{self, Scope};
+use crate::figure::FigureSpec;
 use crate::submit::Resources;
 use serde::Deserialize;
 use serde_json::{Map, Value};
@@ -42,6 +43,9 @@ pub struct Study {
     /// What cluster jobs ask of the scheduler (`nlstudy submit`); flags override it.
     #[serde(default)]
     pub resources: Resources,
+    /// The figures `nlstudy plot` draws from the study's summary table.
+    #[serde(default)]
+    pub figures: Vec<FigureSpec>,
 }
 
 fn one() -> usize {
@@ -175,12 +179,7 @@ impl Study {
             };
             StudyError::new(place, message)
         })?;
-        if study.name.is_empty()
-            || !study
-                .name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-        {
+        if !is_file_stem(&study.name) {
             return Err(StudyError::new(
                 "name",
                 format!(
@@ -188,6 +187,26 @@ impl Study {
                     study.name
                 ),
             ));
+        }
+        for (k, figure) in study.figures.iter().enumerate() {
+            if !is_file_stem(&figure.name) {
+                return Err(StudyError::new(
+                    format!("figures[{k}].name"),
+                    format!(
+                        "`{}` must be non-empty letters, digits, `_` or `-`: it names the SVG file",
+                        figure.name
+                    ),
+                ));
+            }
+            if study.figures[..k].iter().any(|f| f.name == figure.name) {
+                return Err(StudyError::new(
+                    format!("figures[{k}].name"),
+                    format!(
+                        "`{}` names an earlier figure too; give each figure its own name",
+                        figure.name
+                    ),
+                ));
+            }
         }
         if study.repeat == 0 {
             return Err(StudyError::new("repeat", "must be at least 1 (got 0)"));
@@ -286,6 +305,14 @@ impl Study {
         }
         Ok(true)
     }
+}
+
+/// Letters, digits, `_` and `-`: a name that is safe as a file or directory name.
+fn is_file_stem(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 /// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.

@@ -157,6 +157,30 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, Strin
     outcome.map(|_| frames)
 }
 
+/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null).
+pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot read {}: {e}", path.display());
+    let file = std::fs::File::open(path).map_err(|e| fail(&e))?;
+    let frame = ParquetReader::new(file).finish().map_err(|e| fail(&e))?;
+    let mut rows = vec![Row::default(); frame.height()];
+    for column in frame.columns() {
+        for (i, row) in rows.iter_mut().enumerate() {
+            let value = match column.get(i).map_err(|e| fail(&e))? {
+                AnyValue::Boolean(b) => Value::from(b),
+                AnyValue::Int64(v) => Value::from(v),
+                AnyValue::Float64(v) => {
+                    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+                }
+                AnyValue::String(s) => Value::from(s),
+                AnyValue::StringOwned(s) => Value::from(s.as_str()),
+                _ => Value::Null,
+            };
+            row.set(column.name(), value);
+        }
+    }
+    Ok(rows)
+}
+
 fn partial_name(path: &Path) -> std::path::PathBuf {
     let name = path
         .file_name()
