@@ -520,10 +520,13 @@ fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
             series(g.label.clone(), points)
         })
         .collect();
+    // The whole range from 0, as seed 004 draws c_tot(t).
+    let mut y_axis = Axis::linear(describe(y));
+    y_axis.include = vec![0.0];
     Panel {
         title: "time series".into(),
         x: Axis::linear(describe(x)),
-        y: Axis::linear(describe(y)),
+        y: y_axis,
         series: lines,
         guides: Vec::new(),
     }
