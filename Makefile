@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test
+.PHONY: setup run test figures
 
 setup:
 	@scripts/setup.sh
@@ -18,3 +18,10 @@ run: setup
 test: setup
 	cargo build --release --workspace --bins
 	cargo test --release --workspace
+
+# Every study of the set, each run (make-style) then collected and plotted into
+# results/<study>/figures/.
+STUDIES := quick convergence stability local_methods
+figures: setup
+	cargo build --release --workspace
+	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
