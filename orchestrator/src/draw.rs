@@ -178,7 +178,8 @@ impl Ranged for Ticked {
     }
 }
 
-fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
+/// (min, max) of the values; (∞, −∞) when there are none.
+pub fn span(values: impl Iterator<Item = f64>) -> (f64, f64) {
     values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
     })

@@ -1,7 +1,7 @@
 //! A study's figures: their specs as the study file lists them, and the charts each kind makes of
 //! the summary table (one row per point).
 
-use crate::draw::{Axis, Chart, Guide, Panel, Series};
+use crate::draw::{self, Axis, Chart, Guide, Panel, Series};
 use crate::expression::{self, Scope};
 use crate::table::Row;
 use serde::{Deserialize, Serialize};
@@ -326,11 +326,6 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
     let x_axis = || Axis::fitting(describe(x), workers.iter().copied()).counting();
     let mut efficiency_axis = Axis::linear("parallel efficiency T(p₀)·p₀ / (T(p)·p)");
     efficiency_axis.include = vec![0.0, 1.0];
-    let efficiency_ideal = Guide::Dashed {
-        label: Some("ideal".into()),
-        of: None,
-        points: span_of(&workers).map_or(Vec::new(), |(a, b)| vec![(a, 1.0), (b, 1.0)]),
-    };
     vec![
         Panel {
             title: "time".into(),
@@ -351,15 +346,22 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             x: x_axis(),
             y: efficiency_axis,
             series: efficiencies,
-            guides: vec![efficiency_ideal],
+            guides: vec![ideal_efficiency(&workers)],
         },
     ]
 }
 
-fn span_of(values: &[f64]) -> Option<(f64, f64)> {
-    let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    (lo <= hi).then_some((lo, hi))
+/// Efficiency 1 across the workers shown.
+fn ideal_efficiency(workers: &[f64]) -> Guide {
+    let (lo, hi) = draw::span(workers.iter().copied());
+    Guide::Dashed {
+        label: Some("ideal".into()),
+        of: None,
+        points: match lo <= hi {
+            true => vec![(lo, 1.0), (hi, 1.0)],
+            false => Vec::new(),
+        },
+    }
 }
 
 fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
@@ -381,11 +383,7 @@ fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
         title: "weak scaling".into(),
         x: Axis::fitting(describe(x), workers.iter().copied()).counting(),
         y: y_axis,
-        guides: vec![Guide::Dashed {
-            label: Some("ideal".into()),
-            of: None,
-            points: span_of(&workers).map_or(Vec::new(), |(a, b)| vec![(a, 1.0), (b, 1.0)]),
-        }],
+        guides: vec![ideal_efficiency(&workers)],
         series: lines,
     }
 }

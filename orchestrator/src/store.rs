@@ -17,6 +17,26 @@ fn digest(text: &str) -> String {
     hex(&Sha256::digest(text.as_bytes())[..16])
 }
 
+/// Where a file is written before it is renamed into place: hidden (readers skip dot files)
+/// and named for this process, so that processes writing the same file do not mix.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
+}
+
+/// Writes a file whole or not at all: to its partial path, then a rename.
+pub fn write_atomically(path: &Path, contents: &[u8]) -> io::Result<()> {
+    let partial = partial_path(path);
+    std::fs::write(&partial, contents)
+        .and_then(|_| std::fs::rename(&partial, path))
+        .inspect_err(|_| {
+            let _ = std::fs::remove_file(&partial);
+        })
+}
+
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -59,10 +79,7 @@ impl Store {
 
     pub fn save(&self, key: &str, record: &Value) -> io::Result<()> {
         std::fs::create_dir_all(&self.runs)?;
-        let path = self.path(key);
-        let partial = self.runs.join(format!(".{key}.json.partial"));
-        std::fs::write(&partial, format!("{record}\n"))?;
-        std::fs::rename(&partial, &path)
+        write_atomically(&self.path(key), format!("{record}\n").as_bytes())
     }
 
     /// Every stored record.

@@ -93,9 +93,7 @@ pub fn write_jobs(
             Scheduler::Lsf => "bsub",
         };
         let path = paths.jobs.join(format!("{name}.{extension}"));
-        let partial = path.with_extension("partial");
-        std::fs::write(&partial, script)?;
-        std::fs::rename(&partial, &path)?;
+        crate::store::write_atomically(&path, script.as_bytes())?;
         jobs.push(Job {
             name,
             script: path,

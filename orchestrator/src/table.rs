@@ -134,7 +134,7 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, Strin
     let mut frames = Vec::new();
     let mut outcome = Ok(());
     for (path, rows) in tables {
-        let partial = partial_name(path);
+        let partial = crate::store::partial_path(path);
         written.push((partial.clone(), path.to_path_buf()));
         match write_one(&partial, rows) {
             Ok(frame) => frames.push(frame),
@@ -179,14 +179,6 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
         }
     }
     Ok(rows)
-}
-
-fn partial_name(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
 fn write_one(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
