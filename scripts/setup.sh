@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
-# the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
+# the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen), and
+# Python's vtk, whose readers the tests use to open the solver's VTK files.
 # Cheap when everything is there, so `make run` and `make test` call it every time.
 set -euo pipefail
 
@@ -21,6 +22,12 @@ if ((${#missing[@]})); then
   fi
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+if ! python3 -c "import vtkmodules.vtkIOXML" 2>/dev/null; then
+  command -v python3 >/dev/null || { echo "setup: python3 not found; the tests read VTK files with Python's vtk" >&2; exit 1; }
+  echo "setup: installing Python's vtk (pip)" >&2
+  python3 -m pip install --quiet --root-user-action=ignore vtk
 fi
 
 command -v cargo >/dev/null || { echo "setup: cargo not found; install the Rust toolchain (rustup)" >&2; exit 1; }

@@ -186,6 +186,22 @@ fn bad_input_exits_2_naming_the_field() {
             "--method adi --problem square --dim 1 --n 16 --t-end 0.1 --cfl 0.5 --histogram-bins 0",
             "`histogram_bins`",
         ),
+        (
+            "--dim 2 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --field-snapshot 1000",
+            "`field_snapshot`",
+        ),
+        (
+            "--dim 2 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --vtk-every 0",
+            "`vtk_every`",
+        ),
+        (
+            "--dim 2 --n 4096 --m 2 --t-end 1 --cfl 0.5 --vtk-every 0.001",
+            "`vtk_every`",
+        ),
+        (
+            "--dim 2 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --ranks 2 --field-snapshot 8",
+            "`field_snapshot`",
+        ),
     ];
     for (flags, field) in by_flags {
         let mut args = vec!["run"];

@@ -3,12 +3,16 @@
 //! A case is read from JSON with unknown fields refused, so a misspelt field is an error rather
 //! than a silently ignored setting. Every rule below names the field and the fix in one sentence.
 
+use crate::field::MAX_SNAPSHOT_SIDE;
 use crate::influence::Kernel;
 use crate::operator::Backend;
 use crate::partition::Partition;
 use crate::problem::{Problem, SourceMode};
 use serde::{Deserialize, Serialize};
 use std::fmt;
+
+/// Most memory the frames kept for VTK output may take: they are written when the run ends.
+const MAX_FRAME_BYTES: f64 = (4u64 << 30) as f64;
 
 /// Largest horizon accepted: beyond it the collar is wider than half of D.
 pub const MAX_EPS: f64 = 0.5;
@@ -92,6 +96,14 @@ pub struct Case {
     /// compute_histogram). Absent: no histogram.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub histogram_bins: Option<usize>,
+    /// Blocks per side of a coarse copy of the final field (and of its error, when the problem
+    /// has an exact solution) put into the record for heat maps: block means, at most 256.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field_snapshot: Option<usize>,
+    /// Time between frames of the field kept for `nlsolve run --write-vtk DIR` (t = 0, each
+    /// output time, the end). Absent: --write-vtk writes the final field only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vtk_every: Option<f64>,
     /// Threads of the rayon pool that runs the case (on each rank).
     #[serde(default = "one_thread")]
     pub threads: usize,
@@ -277,14 +289,39 @@ impl Case {
                 "must be at least 1 (got 0); leave it out for no histogram",
             ));
         }
+        if let Some(side) = self.field_snapshot {
+            if !(1..=MAX_SNAPSHOT_SIDE).contains(&side) {
+                return Err(CaseError::new(
+                    "field_snapshot",
+                    format!("must be 1 to {MAX_SNAPSHOT_SIDE} blocks per side (got {side}); a heat map needs no more"),
+                ));
+            }
+        }
+        if let Some(every) = self.vtk_every {
+            positive("vtk_every", every)?;
+            let frames = (self.t_end / every).ceil() + 2.0;
+            let bytes = frames * (self.n as f64).powi(self.dim as i32) * 8.0;
+            if bytes > MAX_FRAME_BYTES {
+                return Err(CaseError::new(
+                    "vtk_every",
+                    format!(
+                        "keeps about {frames} frames of the field, {:.1} GiB, until the run ends (limit {} GiB); enlarge `vtk_every`",
+                        bytes / (1u64 << 30) as f64,
+                        MAX_FRAME_BYTES / (1u64 << 30) as f64
+                    ),
+                ));
+            }
+        }
         for (field, given) in [
             ("diagnostics_every", self.diagnostics_every.is_some()),
             ("histogram_bins", self.histogram_bins.is_some()),
+            ("field_snapshot", self.field_snapshot.is_some()),
+            ("vtk_every", self.vtk_every.is_some()),
         ] {
             if given && self.ranks > 1 {
                 return Err(CaseError::new(
                     field,
-                    "the distributed solver computes no diagnostics series or histogram; leave it out or use ranks = 1",
+                    "the distributed solver computes no diagnostics, snapshots or frames (its field equals the one-rank field bit for bit); leave it out or use ranks = 1",
                 ));
             }
         }

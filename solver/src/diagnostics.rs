@@ -49,16 +49,47 @@ pub fn magnitude(v: f64) -> f64 {
     }
 }
 
-/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (seed 004's diagnostics.dat): at t = 0, at the
-/// first step at or past each output time j·interval, and after the last step.
+/// Output times j·interval of a run of `steps` steps of dt: due at the first step at or past
+/// each output time not yet reached, and at the last step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Schedule {
+    interval: f64,
+    dt: f64,
+    steps: usize,
+    reached: usize,
+}
+
+impl Schedule {
+    pub fn new(interval: f64, dt: f64, steps: usize) -> Self {
+        Schedule {
+            interval,
+            dt,
+            steps,
+            reached: 0,
+        }
+    }
+
+    /// Is step k due? It counts as reached when it is.
+    pub fn due(&mut self, k: usize) -> bool {
+        let next_output = (self.reached + 1) as f64 * self.interval;
+        // Relative slack: an output time reached up to rounding counts as reached.
+        let due = self.time(k) >= next_output * (1.0 - 1e-12) || k == self.steps;
+        self.reached += usize::from(due);
+        due
+    }
+
+    /// The time after step k.
+    pub fn time(&self, k: usize) -> f64 {
+        k as f64 * self.dt
+    }
+}
+
+/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (seed 004's diagnostics.dat): at t = 0 and at the
+/// steps its schedule makes due.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MassSeries {
     #[serde(skip)]
-    interval: f64,
-    #[serde(skip)]
-    steps: usize,
-    #[serde(skip)]
-    dt: f64,
+    schedule: Schedule,
     pub time: Vec<f64>,
     pub c_tot: Vec<f64>,
 }
@@ -68,24 +99,18 @@ impl MassSeries {
     /// starting from c_tot(0) = `c_tot0`.
     pub fn start(interval: Option<f64>, dt: f64, steps: usize, c_tot0: f64) -> Option<Self> {
         interval.map(|interval| MassSeries {
-            interval,
-            steps,
-            dt,
+            schedule: Schedule::new(interval, dt, steps),
             time: vec![0.0],
             c_tot: vec![c_tot0],
         })
     }
 
-    /// Adds c_tot after step k if the series exists and step k reaches the next output time
-    /// (or is the last); `c_tot` is evaluated only then.
+    /// Adds c_tot after step k if the series exists and step k is due; `c_tot` is evaluated
+    /// only then.
     pub fn observe_if(series: &mut Option<Self>, k: usize, c_tot: impl FnOnce() -> f64) {
         let Some(series) = series else { return };
-        let t = k as f64 * series.dt;
-        let sampled = series.time.len() - 1; // output times reached so far, t = 0 aside
-        let next_output = (sampled + 1) as f64 * series.interval;
-        // Relative slack: an output time reached up to rounding counts as reached.
-        if t >= next_output * (1.0 - 1e-12) || k == series.steps {
-            series.time.push(t);
+        if series.schedule.due(k) {
+            series.time.push(series.schedule.time(k));
             series.c_tot.push(c_tot());
         }
     }

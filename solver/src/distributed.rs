@@ -66,9 +66,12 @@ pub fn run(
     let measured = rank_run.step(case, setup_s, &ownership);
 
     let field = gather_field.then(|| rank_run.gather_field(&ownership));
+    let grid = plan.stencil.grid;
     Ok((rank == 0).then(|| Outcome {
         record: run::record(case, plan.resolved(), measured),
         field: field.flatten().unwrap_or_default(),
+        lattice: grid.lattice(),
+        frames: Vec::new(), // refused for ranks > 1 by the case's validation
     }))
 }
 
@@ -296,6 +299,7 @@ impl<'a> RankRun<'a> {
             // Refused for ranks > 1 by the case's validation.
             c_tot: None,
             histogram: None,
+            field: None,
             distribution: Distribution {
                 ranks: ownership.ranks,
                 partition: case.partition,

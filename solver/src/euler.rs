@@ -5,10 +5,12 @@
 //! the loop. Error bookkeeping (the total error e = Σₖ eᵏ, when asked) is kept out of the timings.
 
 use crate::case::Case;
-use crate::diagnostics::{self, MassSeries};
+use crate::diagnostics::{self, MassSeries, Schedule};
+use crate::field::Frame;
 use crate::operator::NonlocalOperator;
 use crate::problem::{manufactured_solution, Source};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::time::Instant;
 
 /// Update block; fixed so the update never depends on the thread count.
@@ -26,6 +28,8 @@ pub struct Stepping {
     pub volume: f64,
     /// Time between samples of c_tot(t), when the case asks for the series.
     pub diagnostics_every: Option<f64>,
+    /// Time between frames of the field, when the case asks for them.
+    pub vtk_every: Option<f64>,
 }
 
 impl Stepping {
@@ -38,6 +42,7 @@ impl Stepping {
             track_total_error: case.error_total,
             volume,
             diagnostics_every: case.diagnostics_every,
+            vtk_every: case.vtk_every,
         }
     }
 }
@@ -48,6 +53,21 @@ pub struct Trajectory {
     /// e = Σₖ eᵏ over k = 0 ..= steps_done, when tracked.
     pub error_total: Option<f64>,
     pub c_tot: Option<MassSeries>,
+    /// The field at t = 0 and at each due step (when the case sets `vtk_every`).
+    pub frames: Vec<Frame>,
+}
+
+impl Trajectory {
+    /// The trajectory of a method that tracks no total error.
+    pub(crate) fn observed(u: Vec<f64>, timing: Timing, observed: Observed) -> Self {
+        Trajectory {
+            u,
+            timing,
+            error_total: None,
+            c_tot: observed.c_tot,
+            frames: observed.frames,
+        }
+    }
 }
 
 /// What a timed loop of steps measured.
@@ -101,22 +121,37 @@ pub(crate) fn timed_steps<S>(
     timing
 }
 
-/// `timed_steps` over `stepping`'s steps, also sampling c_tot = h^d Σ field(state) when the case
-/// asks for the series.
-pub(crate) fn timed_steps_sampling_mass<S>(
+/// What the untimed observers of a run kept: c_tot(t) and the field's frames.
+pub(crate) struct Observed {
+    pub c_tot: Option<MassSeries>,
+    pub frames: Vec<Frame>,
+}
+
+/// `timed_steps` over `stepping`'s steps, also sampling c_tot = h^d Σ field(state) and frames of
+/// `field(state)` (in lattice order) when the case asks for them.
+pub(crate) fn timed_steps_observed<S>(
     state: &mut S,
     stepping: &Stepping,
-    field: impl Fn(&S) -> &[f64],
+    field: impl Fn(&S) -> Cow<'_, [f64]>,
     step: impl FnMut(&mut S, usize) -> f64,
     mut after: impl FnMut(&S, usize),
-) -> (Timing, Option<MassSeries>) {
-    let mass = |state: &S| diagnostics::total_mass(field(state), stepping.volume);
+) -> (Timing, Observed) {
+    let mass = |state: &S| diagnostics::total_mass(&field(state), stepping.volume);
     let mut c_tot = MassSeries::start(
         stepping.diagnostics_every,
         stepping.dt,
         stepping.steps,
         mass(state),
     );
+    let mut frames = Vec::new();
+    let mut frame_schedule = stepping.vtk_every.map(|every| {
+        let schedule = Schedule::new(every, stepping.dt, stepping.steps);
+        frames.push(Frame {
+            time: 0.0,
+            values: field(state).into_owned(),
+        });
+        schedule
+    });
     let timing = timed_steps(
         state,
         stepping.steps,
@@ -125,9 +160,17 @@ pub(crate) fn timed_steps_sampling_mass<S>(
         |state, k| {
             after(state, k);
             MassSeries::observe_if(&mut c_tot, k, || mass(state));
+            if let Some(schedule) = frame_schedule.as_mut() {
+                if schedule.due(k) {
+                    frames.push(Frame {
+                        time: schedule.time(k),
+                        values: field(state).into_owned(),
+                    });
+                }
+            }
         },
     );
-    (timing, c_tot)
+    (timing, Observed { c_tot, frames })
 }
 
 pub fn forward_euler(
@@ -145,10 +188,10 @@ pub fn forward_euler(
         })
     };
     let mut error_total = squared_error(&u, 0.0);
-    let (timing, c_tot) = timed_steps_sampling_mass(
+    let (timing, observed) = timed_steps_observed(
         &mut u,
         stepping,
-        |u| u,
+        |u| Cow::Borrowed(u),
         |u, k| {
             operator.apply(u, &mut lu);
             match source {
@@ -168,7 +211,8 @@ pub fn forward_euler(
         u,
         timing,
         error_total: tracked.then_some(error_total),
-        c_tot,
+        c_tot: observed.c_tot,
+        frames: observed.frames,
     }
 }
 

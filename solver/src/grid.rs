@@ -4,6 +4,8 @@
 //! the collar D_c of width ε holds only nodes outside D, where u = 0 (eq. 2.2). In 2D the node
 //! (ix, iy) is stored at iy·n + ix.
 
+use crate::field::Lattice;
+
 /// Relative slack of the closed-ball test |x_j − x_i| ≤ ε, so that a node at distance exactly ε
 /// (in exact arithmetic) is inside whatever the rounding of ε/h.
 const BALL_SLACK: f64 = 1e-12;
@@ -47,6 +49,16 @@ impl Grid {
     #[inline]
     pub fn coord(&self, i: i64) -> f64 {
         (i as f64 + 0.5) * self.h
+    }
+
+    /// Where the field's values sit, for output.
+    pub fn lattice(&self) -> Lattice {
+        Lattice {
+            dim: self.dim,
+            n: self.n,
+            origin: self.coord(0),
+            spacing: self.h,
+        }
     }
 
     /// Position of node `index` of D (the second coordinate is 0 in 1D).

@@ -12,11 +12,13 @@
 
 use crate::case::{Case, CaseError};
 use crate::diagnostics;
-use crate::euler::{timed_steps_sampling_mass, Stepping, Trajectory};
+use crate::euler::{timed_steps_observed, Stepping, Trajectory};
+use crate::field::Lattice;
 use crate::problem::Problem;
 use crate::record::Resolved;
 use crate::run::Outcome;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::f64::consts::PI;
 use std::time::Instant;
 
@@ -105,10 +107,10 @@ impl ExplicitFd {
         let a = self.a;
         let across = if self.grid.dim == 2 { a } else { 0.0 };
         let mut state = (u, vec![0.0; self.grid.nodes()]);
-        let (timing, c_tot) = timed_steps_sampling_mass(
+        let (timing, observed) = timed_steps_observed(
             &mut state,
             stepping,
-            |(u, _)| u,
+            |(u, _)| Cow::Borrowed(u),
             |(u, next), _| {
                 let max_abs = next
                     .par_chunks_mut(n)
@@ -123,12 +125,7 @@ impl ExplicitFd {
             },
             |_, _| {},
         );
-        Trajectory {
-            u: state.0,
-            timing,
-            error_total: None,
-            c_tot,
-        }
+        Trajectory::observed(state.0, timing, observed)
     }
 }
 
@@ -224,19 +221,27 @@ pub(crate) fn outcome(
     trajectory: Trajectory,
     position: impl Fn(usize) -> [f64; 2] + Sync,
 ) -> Outcome {
-    let timing = &trajectory.timing;
-    let t_final = timing.steps_done as f64 * stepping.dt;
-    let errors = (case.problem == Problem::Eigenmode && timing.diverged_at.is_none()).then(|| {
-        let decay = eigenmode_decay(case.dim, case.length(), case.diffusivity, t_final);
-        let exact = |i: usize| {
-            decay * initial_value(Problem::Eigenmode, &position(i)[..case.dim], case.length())
-        };
-        (
-            diagnostics::squared_l2_error(exact, &trajectory.u, stepping.volume),
-            diagnostics::max_error(exact, &trajectory.u),
-        )
-    });
-    crate::run::serial_outcome(case, resolved, setup_s, stepping, trajectory, errors)
+    let t_final = trajectory.timing.steps_done as f64 * stepping.dt;
+    let decay = eigenmode_decay(case.dim, case.length(), case.diffusivity, t_final);
+    let eigenmode = |i: usize| {
+        decay * initial_value(Problem::Eigenmode, &position(i)[..case.dim], case.length())
+    };
+    let exact = (case.problem == Problem::Eigenmode).then_some(&eigenmode);
+    let lattice = Lattice {
+        dim: case.dim,
+        n: case.n,
+        origin: position(0)[0],
+        spacing: resolved.h,
+    };
+    crate::run::serial_outcome(
+        case,
+        resolved,
+        setup_s,
+        stepping,
+        trajectory,
+        lattice,
+        exact.map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
+    )
 }
 
 /// Peaceman–Rachford ADI: per step of dt, a half step implicit in x and explicit in y, then one
@@ -267,19 +272,14 @@ impl Adi {
         let mut row_tiles = vec![0.0; u.len()];
         let mut column_tiles = vec![0.0; u.len()];
         let zero_row = vec![0.0; self.grid.n];
-        let (timing, c_tot) = timed_steps_sampling_mass(
+        let (timing, observed) = timed_steps_observed(
             &mut u,
             stepping,
-            |u| u,
+            |u| Cow::Borrowed(u),
             |u, _| self.step(u, &mut row_tiles, &mut column_tiles, &zero_row),
             |_, _| {},
         );
-        Trajectory {
-            u,
-            timing,
-            error_total: None,
-            c_tot,
-        }
+        Trajectory::observed(u, timing, observed)
     }
 
     /// One step; returns max |cⁿ⁺¹|. Both halves work on TILE lines at a time, interleaved

@@ -34,11 +34,12 @@
 
 use crate::case::{Case, CaseError};
 use crate::diagnostics;
-use crate::euler::{timed_steps_sampling_mass, Stepping, Trajectory};
+use crate::euler::{timed_steps_observed, Stepping, Trajectory};
 use crate::local::{self, initial_value};
 use crate::record::Resolved;
 use crate::run::{self as runner, Outcome};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::f64::consts::{LN_10, PI};
 use std::ops::Range;
 use std::time::Instant;
@@ -402,19 +403,14 @@ impl Particles {
         let mut phi = self.to_slots(u0);
         let mut rate = vec![0.0; self.count()];
         let dt_factor = stepping.dt * self.rate_factor(diffusivity);
-        let (timing, c_tot) = timed_steps_sampling_mass(
+        let (timing, observed) = timed_steps_observed(
             &mut phi,
             stepping,
-            |phi| &phi[..self.count()],
+            |phi| Cow::Owned(self.to_lattice(phi)),
             |phi, _| self.step(phi, &mut rate, dt_factor),
             |_, _| {},
         );
-        Trajectory {
-            u: self.to_lattice(&phi),
-            timing,
-            error_total: None,
-            c_tot,
-        }
+        Trajectory::observed(self.to_lattice(&phi), timing, observed)
     }
 
     /// The initial field of a local problem in lattice order.

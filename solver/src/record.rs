@@ -2,6 +2,7 @@
 
 use crate::case::Case;
 use crate::diagnostics::{Histogram, MassSeries};
+use crate::field::FieldSnapshot;
 use crate::partition::Partition;
 use serde::{Deserialize, Serialize};
 
@@ -45,6 +46,9 @@ pub struct Record {
     /// The final field's histogram (when the case sets `histogram_bins`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub histogram: Option<Histogram>,
+    /// A coarse copy of the final field and its error (when the case sets `field_snapshot`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<FieldSnapshot>,
     #[serde(flatten)]
     pub distribution: Distribution,
     pub provenance: Provenance,

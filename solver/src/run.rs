@@ -4,6 +4,7 @@ use crate::case::{Case, CaseError, Method};
 use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, Histogram, MassSeries};
 use crate::euler::{forward_euler, Stepping, Trajectory};
+use crate::field::{FieldSnapshot, Frame, Lattice};
 use crate::grid::{Grid, Horizon};
 use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
@@ -20,10 +21,13 @@ const DIVERGENCE_FACTOR: f64 = 1e6;
 /// t_end/dt typo that would run for days.
 const MAX_STEPS: usize = 100_000_000;
 
-/// A finished run: its record and the final field on the nodes of D.
+/// A finished run: its record, the final field on the nodes of D (empty when a distributed run
+/// did not gather it), where its values sit, and the frames the case asked for.
 pub struct Outcome {
     pub record: Record,
     pub field: Vec<f64>,
+    pub lattice: Lattice,
+    pub frames: Vec<Frame>,
 }
 
 /// Runs `case` on a rayon pool of `case.threads` threads.
@@ -136,6 +140,7 @@ pub(crate) struct Measured {
     pub max_abs: f64,
     pub c_tot: Option<MassSeries>,
     pub histogram: Option<Histogram>,
+    pub field: Option<FieldSnapshot>,
     pub distribution: Distribution,
 }
 
@@ -173,6 +178,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         diverged_time: measured.diverged_at.map(|_| t_final),
         c_tot: measured.c_tot,
         histogram: measured.histogram,
+        field: measured.field,
         provenance: Provenance::here(case.threads, measured.distribution.ranks),
         distribution: measured.distribution,
     }
@@ -195,41 +201,47 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
 
     let t_final = trajectory.timing.steps_done as f64 * plan.dt;
-    let u = &trajectory.u;
-    let errors = match (&source, trajectory.timing.diverged_at) {
-        (Some(source), None) => {
-            let exact = manufactured_solution(&source.phi, t_final);
-            let ek = diagnostics::squared_l2_error(&exact, u, grid.volume());
-            Some((ek, diagnostics::max_error(&exact, u)))
-        }
-        _ => None,
-    };
+    let exact = source
+        .as_ref()
+        .map(|source| manufactured_solution(&source.phi, t_final));
+    let lattice = grid.lattice();
     Ok(serial_outcome(
         case,
         plan.resolved(),
         setup_s,
         &stepping,
         trajectory,
-        errors,
+        lattice,
+        exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
     ))
 }
 
-/// The outcome of a run in one process: its trajectory measured and recorded, with `errors`
-/// (eᵏ, max error) at the final time when the problem has an exact solution.
+/// The outcome of a run in one process: its trajectory measured and recorded, with the errors
+/// against `exact` (the exact solution at the final time, by node, when the problem has one).
 pub(crate) fn serial_outcome(
     case: &Case,
     resolved: Resolved,
     setup_s: f64,
     stepping: &Stepping,
     trajectory: Trajectory,
-    errors: Option<(f64, f64)>,
+    lattice: Lattice,
+    exact: Option<&(dyn Fn(usize) -> f64 + Sync)>,
 ) -> Outcome {
     let Trajectory {
         u,
         timing,
         error_total,
         c_tot,
+        frames,
     } = trajectory;
+    // A diverged field has no meaningful error.
+    let exact = exact.filter(|_| timing.diverged_at.is_none());
+    let errors = exact.map(|exact| {
+        (
+            diagnostics::squared_l2_error(exact, &u, stepping.volume),
+            diagnostics::max_error(exact, &u),
+        )
+    });
     let measured = Measured {
         setup_s,
         solve_s: timing.solve_seconds,
@@ -245,11 +257,16 @@ pub(crate) fn serial_outcome(
         histogram: case
             .histogram_bins
             .and_then(|bins| diagnostics::histogram(&u, bins)),
+        field: case
+            .field_snapshot
+            .map(|side| FieldSnapshot::of(&lattice, &u, exact, side)),
         distribution: Distribution::serial(case),
     };
     Outcome {
         record: record(case, resolved, measured),
         field: u,
+        lattice,
+        frames,
     }
 }
 

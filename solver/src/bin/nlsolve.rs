@@ -7,7 +7,9 @@ use mpi::topology::{Communicator, SimpleCommunicator};
 use serde_json::{Map, Value};
 use solver::case::{Case, Method};
 use solver::record::Record;
+use solver::run::Outcome;
 use solver::subdomain::HaloReport;
+use solver::vtk;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -48,6 +50,10 @@ struct RunArgs {
     /// needs --diagnostics-every.
     #[arg(long, value_name = "FILE")]
     write_diagnostics: Option<PathBuf>,
+    /// Also write the field for ParaView into DIR: u_<k>.vti (VTK image data) at each time the
+    /// case's `vtk_every` asks for, else the final field only, and u.pvd listing them by time.
+    #[arg(long, value_name = "DIR")]
+    write_vtk: Option<PathBuf>,
 }
 
 /// Each flag sets the case field of the same name (dashes become underscores); see README.md.
@@ -112,6 +118,12 @@ struct CaseArgs {
     /// Bins of a histogram of the final field's values (into the record).
     #[arg(long)]
     histogram_bins: Option<usize>,
+    /// Blocks per side of a coarse copy of the final field and its error (into the record).
+    #[arg(long)]
+    field_snapshot: Option<usize>,
+    /// Time between the field's frames written by --write-vtk.
+    #[arg(long)]
+    vtk_every: Option<f64>,
     /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
     threads: Option<usize>,
@@ -170,6 +182,8 @@ impl CaseArgs {
         set("error_total", self.error_total.then_some(Value::Bool(true)));
         set("diagnostics_every", self.diagnostics_every.map(Value::from));
         set("histogram_bins", self.histogram_bins.map(Value::from));
+        set("field_snapshot", self.field_snapshot.map(Value::from));
+        set("vtk_every", self.vtk_every.map(Value::from));
         set("threads", self.threads.map(Value::from));
         set("ranks", self.ranks.map(Value::from));
         set("partition", self.partition.clone().map(Value::from));
@@ -308,7 +322,11 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
         ));
     }
     let outcome = match world {
-        Some(world) => solver::distributed::run(world, &case, args.write_field.is_some()),
+        Some(world) => solver::distributed::run(
+            world,
+            &case,
+            args.write_field.is_some() || args.write_vtk.is_some(),
+        ),
         None => solver::run::run(&case).map(Some),
     }
     .map_err(|e| BadInput(e.to_string()))?;
@@ -322,11 +340,42 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
     if let (Some(path), Some(series)) = (&args.write_diagnostics, &outcome.record.c_tot) {
         write_atomically(path, series.to_csv().as_bytes(), "--write-diagnostics")?;
     }
+    if let Some(dir) = &args.write_vtk {
+        write_vtk(dir, &outcome)?;
+    }
     let line = serde_json::to_string(&outcome.record)
         .map_err(|e| BadInput(format!("cannot write the record: {e}")))?;
     println!("{line}");
     eprintln!("{}", summary(&outcome.record));
     Ok(())
+}
+
+/// Writes the outcome's frames (or its final field) into `dir` as `.vti` files, then the `.pvd`
+/// collection: a reader that finds the collection finds every frame it lists.
+fn write_vtk(dir: &Path, outcome: &Outcome) -> Result<(), BadInput> {
+    let t_final = outcome.record.steps_done as f64 * outcome.record.resolved.dt;
+    let frames: Vec<(f64, &[f64])> = match outcome.frames.is_empty() {
+        true => vec![(t_final, &outcome.field)],
+        false => outcome
+            .frames
+            .iter()
+            .map(|f| (f.time, &f.values[..]))
+            .collect(),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| {
+        BadInput(format!(
+            "cannot create {}: {e}; check the path given to --write-vtk",
+            dir.display()
+        ))
+    })?;
+    let names = vtk::frame_names(frames.len());
+    for ((_, values), name) in frames.iter().zip(&names) {
+        let bytes = vtk::image_data(&outcome.lattice, "u", values);
+        write_atomically(&dir.join(name), &bytes, "--write-vtk")?;
+    }
+    let entries: Vec<(f64, String)> = frames.iter().map(|f| f.0).zip(names).collect();
+    let collection = vtk::collection(&entries);
+    write_atomically(&dir.join("u.pvd"), collection.as_bytes(), "--write-vtk")
 }
 
 /// Writes `bytes` to `path` through a temporary file, so that no half-written file is left.
