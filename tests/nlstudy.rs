@@ -395,3 +395,33 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         "{second}"
     );
 }
+
+/// A case that asks for fields gets its VTK frames under results/<study>/fields/<key>/, and a
+/// field figure draws its snapshot from the summary table.
+#[test]
+fn fields_are_written_per_run_and_drawn_from_the_table() {
+    let study = json!({
+        "name": "fields",
+        "base": {"dim": 2, "n": 24, "m": 2, "t_end": 0.004, "cfl": 0.5,
+                 "field_snapshot": 8, "vtk_every": 0.002},
+        "sweep": [{"product": {"threads": [1, 2]}}],
+        "figures": [{"name": "final_field", "kind": "field", "where": ["threads == 1"]}]
+    });
+    let scratch = Scratch::new("fields", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let results = scratch.dir.join("results/fields");
+    for record in records(&scratch.runs("fields")) {
+        let key = record["key"].as_str().expect("a key");
+        let collection = std::fs::read_to_string(results.join("fields").join(key).join("u.pvd"))
+            .expect("the run's collection");
+        assert_eq!(
+            collection.matches("<DataSet").count(),
+            3,
+            "t = 0, 0.002, 0.004"
+        );
+        assert_eq!(record["field"]["values"].as_array().map(Vec::len), Some(64));
+    }
+    let svg = std::fs::read_to_string(results.join("figures/final_field.svg")).expect("the figure");
+    assert!(svg.contains("error u − u_exact"));
+}

@@ -20,6 +20,20 @@ pub struct Panel {
     pub y: Axis,
     pub series: Vec<Series>,
     pub guides: Vec<Guide>,
+    /// Drawn instead of the series and guides, with its colour bar.
+    pub heat: Option<HeatMap>,
+}
+
+/// Values on nx × ny equal cells tiling [lower, upper]², row by row from the bottom.
+pub struct HeatMap {
+    pub nx: usize,
+    pub ny: usize,
+    pub lower: f64,
+    pub upper: f64,
+    pub values: Vec<f64>,
+    /// Colours symmetric about 0 (blue below, white at 0, red above), for signed values such as
+    /// errors; else a sequential map from the smallest value to the largest.
+    pub diverging: bool,
 }
 
 pub struct Axis {
@@ -213,6 +227,133 @@ fn number(v: f64) -> String {
     }
 }
 
+/// Linear interpolation between colour stops at equal spacing over [0, 1].
+fn interpolate(stops: &[(u8, u8, u8)], t: f64) -> RGBColor {
+    let at = t.clamp(0.0, 1.0) * (stops.len() - 1) as f64;
+    let k = (at.floor() as usize).min(stops.len() - 2);
+    let f = at - k as f64;
+    let mix = |a: u8, b: u8| (a as f64 + f * (b as f64 - a as f64)).round() as u8;
+    let (a, b) = (stops[k], stops[k + 1]);
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+impl HeatMap {
+    /// The values the colours span: [min, max], or [−a, a] with a = max |v| when diverging.
+    fn scale(&self) -> (f64, f64) {
+        let (lo, hi) = span(self.values.iter().copied().filter(|v| v.is_finite()));
+        let (lo, hi) = match self.diverging {
+            true => {
+                let a = lo.abs().max(hi.abs());
+                (-a, a)
+            }
+            false => (lo, hi),
+        };
+        match hi > lo {
+            true => (lo, hi),
+            false => (lo - 0.5, lo + 0.5), // a constant field, or none finite
+        }
+    }
+
+    fn colour(&self, v: f64, (lo, hi): (f64, f64)) -> RGBColor {
+        // Viridis (sequential, readable in grey) and a blue–white–red map, at five stops each.
+        const SEQUENTIAL: [(u8, u8, u8); 5] = [
+            (68, 1, 84),
+            (59, 82, 139),
+            (33, 145, 140),
+            (94, 201, 98),
+            (253, 231, 37),
+        ];
+        const DIVERGING: [(u8, u8, u8); 5] = [
+            (59, 76, 192),
+            (141, 176, 254),
+            (247, 247, 247),
+            (244, 154, 123),
+            (180, 4, 38),
+        ];
+        if !v.is_finite() {
+            return RGBColor(128, 128, 128);
+        }
+        let stops = if self.diverging {
+            &DIVERGING
+        } else {
+            &SEQUENTIAL
+        };
+        interpolate(stops, (v - lo) / (hi - lo))
+    }
+}
+
+const COLOUR_BAR: u32 = 110;
+
+/// The cells coloured by value, and beside them a colour bar with its scale.
+fn draw_heat_map(panel: &Panel, heat: &HeatMap, area: &Area, caption: bool) -> DrawResult {
+    let (width, _) = area.dim_in_pixel();
+    let (cells, bar) = area.split_horizontally(width.saturating_sub(COLOUR_BAR));
+    let (lo, hi) = (heat.lower, heat.upper);
+    let axis = || Ticked {
+        lo,
+        hi,
+        ticks: linear_ticks(lo, hi),
+    };
+    let mut builder = ChartBuilder::on(&cells);
+    if caption {
+        builder.caption(&panel.title, ("sans-serif", 17));
+    }
+    let mut chart = builder
+        .margin(14)
+        .x_label_area_size(50)
+        .y_label_area_size(60)
+        .build_cartesian_2d(axis(), axis())?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(&panel.x.label)
+        .y_desc(&panel.y.label)
+        .x_label_formatter(&|t| number(*t))
+        .y_label_formatter(&|t| number(*t))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()?;
+    let scale = heat.scale();
+    let (dx, dy) = ((hi - lo) / heat.nx as f64, (hi - lo) / heat.ny as f64);
+    chart.draw_series(heat.values.iter().enumerate().map(|(i, &v)| {
+        let (ix, iy) = ((i % heat.nx) as f64, (i / heat.nx) as f64);
+        let corners = [
+            (lo + ix * dx, lo + iy * dy),
+            (lo + (ix + 1.0) * dx, lo + (iy + 1.0) * dy),
+        ];
+        Rectangle::new(corners, heat.colour(v, scale).filled())
+    }))?;
+
+    let mut builder = ChartBuilder::on(&bar);
+    builder
+        .margin_top(if caption { 44 } else { 14 })
+        .margin_bottom(64)
+        .margin_right(8)
+        .set_label_area_size(LabelAreaPosition::Right, 70);
+    let mut key = builder.build_cartesian_2d(
+        0.0..1.0,
+        Ticked {
+            lo: scale.0,
+            hi: scale.1,
+            ticks: linear_ticks(scale.0, scale.1),
+        },
+    )?;
+    key.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_label_formatter(&|t| number(*t))
+        .label_style(("sans-serif", 13))
+        .draw()?;
+    const LEVELS: usize = 64;
+    let step = (scale.1 - scale.0) / LEVELS as f64;
+    key.draw_series((0..LEVELS).map(|k| {
+        let v = scale.0 + k as f64 * step;
+        let colour = heat.colour(v + 0.5 * step, scale);
+        Rectangle::new([(0.0, v), (1.0, v + step)], colour.filled())
+    }))?;
+    Ok(())
+}
+
 /// An entry of the legend under the panels.
 struct Entry<'a> {
     label: &'a str,
@@ -307,6 +448,9 @@ fn draw_legend(entries: &[Entry], area: &Area, columns: u32) -> DrawResult {
 }
 
 fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
+    if let Some(heat) = &panel.heat {
+        return draw_heat_map(panel, heat, area, caption);
+    }
     let xs = panel
         .series
         .iter()

@@ -1,7 +1,7 @@
 //! A study's figures: their specs as the study file lists them, and the charts each kind makes of
 //! the summary table (one row per point).
 
-use crate::draw::{self, Axis, Chart, Guide, Panel, Series};
+use crate::draw::{self, Axis, Chart, Guide, HeatMap, Panel, Series};
 use crate::expression::{self, Scope};
 use crate::table::Row;
 use serde::{Deserialize, Serialize};
@@ -46,6 +46,9 @@ pub enum Kind {
     Stability,
     /// c_tot(t) of each point.
     TimeSeries,
+    /// Heat maps (profiles in 1D) of one point's final field and of its error, from the
+    /// snapshot the case's `field_snapshot` puts into the record.
+    Field,
 }
 
 impl Kind {
@@ -59,6 +62,7 @@ impl Kind {
             Kind::WorkPrecision => ("error_l2_norm", "solve_s_median", "case.method"),
             Kind::Stability => ("case.cfl", "max_abs", "case.method"),
             Kind::TimeSeries => ("c_tot.time", "c_tot.c_tot", "point"),
+            Kind::Field => ("field.values", "field.error", "point"),
         }
     }
 }
@@ -152,6 +156,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         Kind::WorkPrecision => vec![work_precision(&groups, &x, &y)],
         Kind::Stability => vec![stability(&groups, &x, &y)],
         Kind::TimeSeries => vec![time_series(&groups, &x, &y)],
+        Kind::Field => field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
     };
     Ok(Chart { title, panels })
 }
@@ -333,6 +338,7 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             y: Axis::fitting(describe(y), all(times.iter(), |p| p.1)),
             series: times,
             guides: ideal_time,
+            heat: None,
         },
         Panel {
             title: "speedup".into(),
@@ -340,6 +346,7 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             y: Axis::fitting("speedup T(p₀) / T(p)", all(speedups.iter(), |p| p.1)),
             series: speedups,
             guides: ideal_speedup,
+            heat: None,
         },
         Panel {
             title: "parallel efficiency".into(),
@@ -347,6 +354,7 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             y: efficiency_axis,
             series: efficiencies,
             guides: vec![ideal_efficiency(&workers)],
+            heat: None,
         },
     ]
 }
@@ -383,6 +391,7 @@ fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
         title: "weak scaling".into(),
         x: Axis::fitting(describe(x), workers.iter().copied()).counting(),
         y: y_axis,
+        heat: None,
         guides: vec![ideal_efficiency(&workers)],
         series: lines,
     }
@@ -430,6 +439,7 @@ fn convergence(groups: &[Group], x: &str, y: &str) -> Panel {
         y: Axis::fitting(describe(y), all(lines.iter(), |p| p.1)),
         series: lines,
         guides: Vec::new(),
+        heat: None,
     }
 }
 
@@ -457,6 +467,7 @@ fn work_precision(groups: &[Group], x: &str, y: &str) -> Panel {
         x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
         y: Axis::fitting(describe(y), all(lines.iter(), |p| p.1)),
         series: lines,
+        heat: None,
         guides: vec![Guide::Dashed {
             label: Some("Pareto front".into()),
             of: None,
@@ -491,6 +502,7 @@ fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
         x: x_axis,
         y: Axis::fitting(describe(y), ys),
         series: lines,
+        heat: None,
         guides: vec![Guide::Vertical {
             label: "dt = dt_stable".into(),
             x: 1.0,
@@ -498,15 +510,17 @@ fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
     }
 }
 
-fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
-    let numbers = |value: Option<&Value>| -> Vec<f64> {
-        let parsed = match value {
-            Some(Value::String(text)) => serde_json::from_str::<Vec<f64>>(text).ok(),
-            Some(Value::Array(items)) => items.iter().map(Value::as_f64).collect(),
-            _ => None,
-        };
-        parsed.unwrap_or_default()
+/// A column holding an array of numbers (stored as JSON text in the tables).
+fn numbers(value: Option<&Value>) -> Vec<f64> {
+    let parsed = match value {
+        Some(Value::String(text)) => serde_json::from_str::<Vec<f64>>(text).ok(),
+        Some(Value::Array(items)) => items.iter().map(Value::as_f64).collect(),
+        _ => None,
     };
+    parsed.unwrap_or_default()
+}
+
+fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
     let lines: Vec<Series> = groups
         .iter()
         .flat_map(|g| g.rows.iter().map(move |r| (g, r)))
@@ -527,5 +541,86 @@ fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
         y: y_axis,
         series: lines,
         guides: Vec::new(),
+        heat: None,
+    }
+}
+
+/// The final field of the one point `rows` holds (column `x`) and its error (column `y`): heat
+/// maps in 2D, profiles in 1D.
+fn field(rows: &[&Row], x: &str, y: &str) -> Result<Vec<Panel>, String> {
+    let [row] = rows else {
+        return Err(format!(
+            "selects {} points, but a field figure shows one; narrow the conditions (e.g. `n == 128 && method == 'nonlocal'`)",
+            rows.len()
+        ));
+    };
+    let stem = x.strip_suffix(".values").unwrap_or("field");
+    let size = |name: &str| row.number(&format!("{stem}.{name}"));
+    let (Some(nx), Some(ny), Some(lower), Some(upper)) =
+        (size("nx"), size("ny"), size("lower"), size("upper"))
+    else {
+        return Err(format!("the point has no `{stem}` snapshot; set `field_snapshot` (e.g. 64) in the study's base"));
+    };
+    let (nx, ny) = (nx as usize, ny as usize);
+    let values = numbers(row.get(x));
+    let error = numbers(row.get(y));
+    let mut panels = vec![field_panel(
+        "u at the final time",
+        nx,
+        ny,
+        (lower, upper),
+        values,
+        false,
+    )];
+    if !error.is_empty() {
+        panels.push(field_panel(
+            "error u − u_exact",
+            nx,
+            ny,
+            (lower, upper),
+            error,
+            true,
+        ));
+    }
+    Ok(panels)
+}
+
+/// One field panel: cells coloured by value in 2D, the profile over x in 1D.
+fn field_panel(
+    title: &str,
+    nx: usize,
+    ny: usize,
+    (lower, upper): (f64, f64),
+    values: Vec<f64>,
+    signed: bool,
+) -> Panel {
+    let heat = (ny > 1).then(|| HeatMap {
+        nx,
+        ny,
+        lower,
+        upper,
+        values: values.clone(),
+        diverging: signed,
+    });
+    let series = match heat {
+        Some(_) => Vec::new(),
+        None => {
+            let dx = (upper - lower) / nx as f64;
+            let profile = values
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| (lower + (i as f64 + 0.5) * dx, v))
+                .collect();
+            vec![series(title.to_string(), profile)]
+        }
+    };
+    let y_label = if heat.is_some() { "y" } else { title };
+    Panel {
+        title: title.to_string(),
+        x: Axis::linear("x"),
+        y: Axis::linear(y_label),
+        series,
+        guides: Vec::new(),
+        heat,
     }
 }

@@ -122,6 +122,24 @@ mod tests {
             }
         }
         rows[10].set("status", json!("diverged"));
+        // A 4 × 4 field snapshot on the coarsest grid: u = ix + 4 iy, error (ix − iy)/10.
+        for row in rows.iter_mut().filter(|r| r.number("case.n") == Some(16.0)) {
+            let values: Vec<f64> = (0..16).map(f64::from).collect();
+            let error: Vec<f64> = (0..16).map(|i| f64::from(i % 4 - i / 4) / 10.0).collect();
+            for (name, value) in [
+                ("field.nx", json!(4)),
+                ("field.ny", json!(4)),
+                ("field.lower", json!(0.0)),
+                ("field.upper", json!(1.0)),
+                (
+                    "field.values",
+                    json!(serde_json::to_string(&values).unwrap()),
+                ),
+                ("field.error", json!(serde_json::to_string(&error).unwrap())),
+            ] {
+                row.set(name, value);
+            }
+        }
         rows
     }
 
@@ -153,6 +171,11 @@ mod tests {
                 Kind::TimeSeries,
                 &["threads == 1", "method == 'pse'"],
             ),
+            spec(
+                "field",
+                Kind::Field,
+                &["n == 16", "threads == 1", "method == 'nonlocal'"],
+            ),
         ]
     }
 
@@ -170,7 +193,7 @@ mod tests {
     fn every_kind_draws_its_series_and_axes() {
         let rows = summary();
         // (figure, series in its legend, axis labels it must carry)
-        let expected: [(&str, usize, &[&str]); 6] = [
+        let expected: [(&str, usize, &[&str]); 7] = [
             (
                 "strong",
                 2,
@@ -196,6 +219,11 @@ mod tests {
                 &["dt / dt_stable", "max|u| at the final time"],
             ),
             ("series", 3, &["time t", "total concentration c_tot(t)"]),
+            (
+                "field",
+                0,
+                &["x", "y", "u at the final time", "error u − u_exact"],
+            ),
         ];
         for (k, spec) in specs().iter().enumerate() {
             let chart = figure::chart(spec, k, &rows).unwrap();
@@ -247,6 +275,51 @@ mod tests {
     }
 
     #[test]
+    fn a_field_figure_maps_one_points_field_and_its_error() {
+        let mut rows = summary();
+        let specs = specs();
+        let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+        let heat = |k: usize| chart.panels[k].heat.as_ref().expect("a heat map");
+        assert_eq!(chart.panels.len(), 2);
+        assert_eq!((heat(0).nx, heat(0).ny, heat(0).values[5]), (4, 4, 5.0));
+        assert!(!heat(0).diverging && heat(1).diverging);
+        assert_eq!(heat(1).values[1], 0.1);
+        // 16 cells per map, and 64 levels per colour bar.
+        let svg = draw::render(&chart).unwrap();
+        let document = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+        let rects = document
+            .descendants()
+            .filter(|n| n.has_tag_name("rect"))
+            .count();
+        assert!(rects >= 2 * (16 + 64), "{rects} rectangles");
+
+        // A 1D snapshot is drawn as profiles over x, at the cells' centres.
+        rows[0].set("field.nx", json!(16));
+        rows[0].set("field.ny", json!(1));
+        let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+        let profile = &chart.panels[0].series[0].points;
+        assert!(chart.panels[0].heat.is_none());
+        assert_eq!((profile[0], profile.len()), ((1.0 / 32.0, 0.0), 16));
+
+        // The figure shows one point: a filter selecting two is refused, naming `where`.
+        let mut both = specs[6].clone();
+        both.filter.pop();
+        let error = figure::chart(&both, 6, &rows).err().unwrap();
+        assert!(
+            error.starts_with("figures[6].where: selects 2 points"),
+            "{error}"
+        );
+        let mut none = specs[6].clone();
+        none.filter = vec![
+            "n == 32".into(),
+            "threads == 1".into(),
+            "method == 'pse'".into(),
+        ];
+        let error = figure::chart(&none, 6, &rows).err().unwrap();
+        assert!(error.contains("set `field_snapshot`"), "{error}");
+    }
+
+    #[test]
     fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
         let dir = std::env::temp_dir().join(format!("nlstudy-plot-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
@@ -258,7 +331,7 @@ mod tests {
         let mut specs = specs();
         let redrawn = |drawn: Vec<Drawn>| drawn.iter().filter(|d| d.redrawn).count();
 
-        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 6);
+        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 7);
         let first = std::fs::read(&plot(&specs, &store).unwrap()[2].path).unwrap();
         assert_eq!(redrawn(plot(&specs, &store).unwrap()), 0, "nothing changed");
 
@@ -281,7 +354,7 @@ mod tests {
         table::write_parquet(&[(&table, &changed)]).unwrap();
         assert_eq!(
             redrawn(plot(&specs, &store).unwrap()),
-            6,
+            7,
             "a changed table redraws all"
         );
         let _ = std::fs::remove_dir_all(&dir);

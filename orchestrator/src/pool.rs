@@ -182,10 +182,11 @@ fn start(
     } else {
         Command::new(&solver.binary)
     };
+    command.arg("run").arg("--case").arg(&case_file);
+    if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
+        command.arg("--write-vtk").arg(store.fields(&planned.key));
+    }
     command
-        .arg("run")
-        .arg("--case")
-        .arg(&case_file)
         .stdin(Stdio::null())
         .stdout(std::fs::File::create(&stdout)?)
         .stderr(std::fs::File::create(&stderr)?);

@@ -72,6 +72,11 @@ impl Store {
         self.runs.join(format!("{key}.json"))
     }
 
+    /// Where a run whose case sets `vtk_every` writes its VTK frames: `results/<study>/fields/<key>/`.
+    pub fn fields(&self, key: &str) -> PathBuf {
+        self.table("fields").join(key)
+    }
+
     /// Scratch space of runs in progress (case files, captured output).
     pub fn work_dir(&self) -> PathBuf {
         self.runs.join(".work")
