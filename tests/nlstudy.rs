@@ -425,3 +425,26 @@ fn fields_are_written_per_run_and_drawn_from_the_table() {
     let svg = std::fs::read_to_string(results.join("figures/final_field.svg")).expect("the figure");
     assert!(svg.contains("error u − u_exact"));
 }
+
+/// A run with more workers than the machine has cores is stored as `oversubscribed`.
+#[test]
+fn runs_beyond_the_core_count_are_marked_oversubscribed() {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let study = json!({
+        "name": "crowded",
+        "base": {"dim": 1, "n": 16, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"threads": [1, cores + 1]}}]
+    });
+    let scratch = Scratch::new("crowded", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let mut marks: Vec<(u64, bool)> = records(&scratch.runs("crowded"))
+        .iter()
+        .map(|r| {
+            let threads = r["case"]["threads"].as_u64().unwrap();
+            (threads, r["oversubscribed"].as_bool().expect("marked"))
+        })
+        .collect();
+    marks.sort();
+    assert_eq!(marks, [(1, false), (cores as u64 + 1, true)]);
+}

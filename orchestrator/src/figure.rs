@@ -149,7 +149,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
     if !common.is_empty() {
         title = format!("{title}: {common}");
     }
-    let panels = match spec.kind {
+    let mut panels = match spec.kind {
         Kind::StrongScaling => strong_scaling(&groups, &x, &y),
         Kind::WeakScaling => vec![weak_scaling(&groups, &x, &y)],
         Kind::Convergence => vec![convergence(&groups, &x, &y)],
@@ -158,6 +158,9 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         Kind::TimeSeries => vec![time_series(&groups, &x, &y)],
         Kind::Field => field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
     };
+    if matches!(spec.kind, Kind::StrongScaling | Kind::WeakScaling) {
+        mark_oversubscribed(&kept, &x, &mut panels, &mut title);
+    }
     Ok(Chart { title, panels })
 }
 
@@ -357,6 +360,28 @@ fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             heat: None,
         },
     ]
+}
+
+/// Crosses over the points run with more workers than the machine had cores (the record's
+/// `oversubscribed`), and a note in the title: their times measure contention, not scaling.
+fn mark_oversubscribed(rows: &[&Row], x: &str, panels: &mut [Panel], title: &mut String) {
+    let beyond: Vec<f64> = rows
+        .iter()
+        .filter(|r| r.get("oversubscribed") == Some(&Value::Bool(true)))
+        .filter_map(|r| r.number(x))
+        .collect();
+    if beyond.is_empty() {
+        return;
+    }
+    for line in panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
+        line.crosses = line
+            .points
+            .iter()
+            .filter(|p| beyond.contains(&p.0))
+            .copied()
+            .collect();
+    }
+    title.push_str(" (×: more workers than cores, not performance data)");
 }
 
 /// Efficiency 1 across the workers shown.

@@ -211,7 +211,7 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
 
 fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = pool::machine_cores();
     let timeout = args.timeout.or(study.timeout_s);
     if timeout.is_some_and(|t| !(t > 0.0)) {
         return Err("the timeout must be a positive number of seconds".into());

@@ -265,6 +265,29 @@ mod tests {
         assert!((speedup[1].1 - 1.8).abs() < 1e-12, "{speedup:?}");
         let efficiency = &chart.panels[2].series[0].points;
         assert!((efficiency[1].1 - 0.9).abs() < 1e-12);
+        assert!(chart.panels.iter().all(|p| p.series[0].crosses.is_empty()));
+        // Points run on more workers than cores are crossed out in every panel, and said so.
+        let mut crowded = rows.clone();
+        for row in crowded
+            .iter_mut()
+            .filter(|r| r.number("workers") == Some(2.0))
+        {
+            row.set("oversubscribed", json!(true));
+        }
+        let chart = figure::chart(&specs[0], 0, &crowded).unwrap();
+        for panel in &chart.panels {
+            assert_eq!(
+                panel.series[0].crosses,
+                panel.series[0].points[1..],
+                "{}",
+                panel.title
+            );
+        }
+        assert!(
+            chart.title.contains("not performance data"),
+            "{}",
+            chart.title
+        );
         // Stability: the diverged pse point is a cross, not a point of the line.
         let chart = figure::chart(&specs[4], 4, &rows).unwrap();
         let pse = &chart.panels[0].series[1];

@@ -139,6 +139,11 @@ pub fn run(
     }
 }
 
+/// The cores this process may use (its affinity mask and cgroup quota respected).
+pub fn machine_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// threads × ranks of a case (1 for a refused one).
 fn cores_of(planned: &Planned) -> usize {
     let field = |name: &str| {
@@ -217,6 +222,8 @@ impl Running {
                 for (field, value) in identity(planned, solver) {
                     object.insert(field, value);
                 }
+                // Its timings measure contention, not scaling; figures and tables say so.
+                object.insert("oversubscribed".into(), json!(self.cores > machine_cores()));
                 record
             }
             _ => failed_record(
