@@ -397,7 +397,9 @@ const LEGEND_COLUMN: u32 = 480;
 /// The chart as SVG text: the title, the panels side by side, and one legend under them.
 pub fn render(chart: &Chart) -> Result<String, String> {
     let mut svg = String::new();
-    let width = PANEL.0 * chart.panels.len().max(1) as u32;
+    // Wide enough for the title too (about 10 px a character at its size).
+    let title_width = 10 * chart.title.chars().count() as u32 + 40;
+    let width = (PANEL.0 * chart.panels.len().max(1) as u32).max(title_width);
     let entries = legend(chart);
     let columns = (width / LEGEND_COLUMN).max(1);
     let rows = (entries.len() as u32).div_ceil(columns);

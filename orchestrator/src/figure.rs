@@ -120,7 +120,12 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         })
     };
     let x = resolve("x", spec.x.as_deref().unwrap_or(dx))?;
-    let y = resolve("y", spec.y.as_deref().unwrap_or(dy))?;
+    let y_name = spec.y.as_deref().unwrap_or(dy);
+    let y = match spec.kind {
+        // A problem without an exact solution has no error to map.
+        Kind::Field => column(rows, y_name).unwrap_or_else(|| y_name.to_string()),
+        _ => resolve("y", y_name)?,
+    };
     let series_columns: Vec<String> = match &spec.series {
         Some(names) => names
             .iter()
@@ -204,7 +209,13 @@ fn group<'a>(rows: &[&'a Row], columns: &[String]) -> Vec<Group<'a>> {
                 }
             })
             .collect();
-        let label = parts.join(" ");
+        // `m=null` (a field a zip leaves out for some points) tells nothing apart.
+        let label = parts
+            .iter()
+            .flat_map(|p| p.split(' '))
+            .filter(|p| !p.ends_with("=null"))
+            .collect::<Vec<_>>()
+            .join(" ");
         match groups.iter_mut().find(|g| g.label == label) {
             Some(g) => g.rows.push(row),
             None => groups.push(Group {

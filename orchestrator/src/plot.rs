@@ -324,6 +324,20 @@ mod tests {
         assert!(chart.panels[0].heat.is_none());
         assert_eq!((profile[0], profile.len()), ((1.0 / 32.0, 0.0), 16));
 
+        // Without an exact solution there is no error column, and only the field is drawn.
+        let without_error: Vec<Row> = rows
+            .iter()
+            .map(|r| {
+                let mut kept = Row::default();
+                for (name, value) in r.cells().filter(|(name, _)| *name != "field.error") {
+                    kept.set(name, value.clone());
+                }
+                kept
+            })
+            .collect();
+        let chart = figure::chart(&specs[6], 6, &without_error).unwrap();
+        assert_eq!(chart.panels.len(), 1);
+
         // The figure shows one point: a filter selecting two is refused, naming `where`.
         let mut both = specs[6].clone();
         both.filter.pop();
