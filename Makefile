@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures
+.PHONY: setup run test figures docs-figures
 
 setup:
 	@scripts/setup.sh
@@ -21,7 +21,14 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods
+STUDIES := quick convergence stability local_methods threads ranks work_precision
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
+
+# The figures the README shows, regenerated and copied to docs/figures/.
+docs-figures: figures
+	mkdir -p docs/figures
+	cp results/convergence/figures/convergence.svg docs/figures/convergence.svg
+	cp results/work_precision/figures/work_precision.svg docs/figures/work_precision.svg
+	cp results/ranks/figures/strong.svg docs/figures/ranks_strong.svg
