@@ -51,11 +51,12 @@ fn raw_field(path: &Path) -> Vec<f64> {
         .collect()
 }
 
-fn run(dir: &Path, flags: &[&str]) -> (Value, Vec<f64>) {
+/// `nlsolve run FLAGS`, also writing the raw field and the VTK frames into `dir`.
+fn run(dir: &Path, flags: &str) -> (Value, Vec<f64>) {
     let field = dir.join("field.bin");
     let vtk = dir.join("vtk");
     let mut args = vec!["run"];
-    args.extend_from_slice(flags);
+    args.extend(flags.split_whitespace());
     args.extend([
         "--write-field",
         field.to_str().expect("utf-8 path"),
@@ -76,22 +77,7 @@ fn vtk_frames_hold_the_field_at_each_output_time() {
     let dir = scratch("vtk-frames");
     let (record, field) = run(
         &dir,
-        &[
-            "--dim",
-            "2",
-            "--n",
-            "32",
-            "--m",
-            "3",
-            "--t-end",
-            "0.01",
-            "--cfl",
-            "0.5",
-            "--vtk-every",
-            "0.004",
-            "--diagnostics-every",
-            "0.004",
-        ],
+        "--dim 2 --n 32 --m 3 --t-end 0.01 --cfl 0.5 --vtk-every 0.004 --diagnostics-every 0.004",
     );
     let frames = read_with_vtk(&dir.join("vtk/u.pvd"));
     let h = 1.0 / 32.0;
@@ -127,20 +113,7 @@ fn without_vtk_every_the_final_field_alone_is_written_on_its_own_grid() {
     let dir = scratch("vtk-final");
     let (record, field) = run(
         &dir,
-        &[
-            "--method",
-            "fd_explicit",
-            "--problem",
-            "eigenmode",
-            "--dim",
-            "1",
-            "--n",
-            "99",
-            "--t-end",
-            "0.05",
-            "--cfl",
-            "0.9",
-        ],
+        "--method fd_explicit --problem eigenmode --dim 1 --n 99 --t-end 0.05 --cfl 0.9",
     );
     let frames = read_with_vtk(&dir.join("vtk/u.pvd"));
     assert_eq!(frames.len(), 1);
@@ -160,20 +133,7 @@ fn the_field_snapshot_is_block_means_of_the_final_field_and_its_error() {
     let dir = scratch("snapshot");
     let (record, field) = run(
         &dir,
-        &[
-            "--dim",
-            "2",
-            "--n",
-            "40",
-            "--m",
-            "3",
-            "--t-end",
-            "0.01",
-            "--cfl",
-            "0.5",
-            "--field-snapshot",
-            "16",
-        ],
+        "--dim 2 --n 40 --m 3 --t-end 0.01 --cfl 0.5 --field-snapshot 16",
     );
     // n = 40 in at most 16 blocks per side: blocks of 3, the last of one node; 14 per side.
     let snapshot = &record["field"];
