@@ -630,24 +630,26 @@ fn field_panel(
     values: Vec<f64>,
     signed: bool,
 ) -> Panel {
-    let heat = (ny > 1).then(|| HeatMap {
-        nx,
-        ny,
-        lower,
-        upper,
-        values: values.clone(),
-        diverging: signed,
-    });
-    let series = match heat {
-        Some(_) => Vec::new(),
-        None => {
+    let (heat, series) = match ny > 1 {
+        true => {
+            let heat = HeatMap {
+                nx,
+                ny,
+                lower,
+                upper,
+                values,
+                diverging: signed,
+            };
+            (Some(heat), Vec::new())
+        }
+        false => {
             let dx = (upper - lower) / nx as f64;
             let profile = values
                 .iter()
                 .enumerate()
                 .map(|(i, &v)| (lower + (i as f64 + 0.5) * dx, v))
                 .collect();
-            vec![series(title.to_string(), profile)]
+            (None, vec![series(title.to_string(), profile)])
         }
     };
     let y_label = if heat.is_some() { "y" } else { title };
