@@ -58,7 +58,7 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
-    /// The trajectory of a method that tracks no total error.
+    /// The trajectory of what a timed loop observed, with no total error.
     pub(crate) fn observed(u: Vec<f64>, timing: Timing, observed: Observed) -> Self {
         Trajectory {
             u,
@@ -208,11 +208,8 @@ pub fn forward_euler(
     );
     let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
     Trajectory {
-        u,
-        timing,
         error_total: tracked.then_some(error_total),
-        c_tot: observed.c_tot,
-        frames: observed.frames,
+        ..Trajectory::observed(u, timing, observed)
     }
 }
 
