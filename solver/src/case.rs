@@ -8,6 +8,7 @@ use crate::influence::Kernel;
 use crate::operator::Backend;
 use crate::partition::Partition;
 use crate::problem::{Problem, SourceMode};
+use crate::quadrature::Quadrature;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -61,6 +62,10 @@ pub struct Case {
     pub eps: Option<f64>,
     #[serde(default = "default_kernel")]
     pub kernel: Kernel,
+    /// The nonlocal operator's quadrature: `midpoint` (seed 000), `partial_volume` or `ac`.
+    /// Left out of the case's JSON when `midpoint`, so keys of earlier runs stay valid.
+    #[serde(default, skip_serializing_if = "Quadrature::is_midpoint")]
+    pub quadrature: Quadrature,
     #[serde(default)]
     pub backend: Backend,
     /// k of the local limit kΔ (eq. 1.4).
@@ -236,6 +241,12 @@ impl Case {
                     "source"
                 },
                 format!("method {method} has no source term and no total error; leave it out"),
+            ));
+        }
+        if !self.quadrature.is_midpoint() {
+            return Err(CaseError::new(
+                "quadrature",
+                format!("belongs to the nonlocal operator; method {method} has none, leave it out"),
             ));
         }
         if self.ranks > 1 {

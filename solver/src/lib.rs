@@ -17,6 +17,7 @@ pub mod operator;
 pub mod partition;
 pub mod problem;
 pub mod pse;
+pub mod quadrature;
 pub mod record;
 pub mod run;
 pub mod stability;

@@ -74,6 +74,10 @@ pub struct Resolved {
     /// `pse`: the pairs whose distance is checked per step (the cost, O(N) by the cell lists).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pair_visits: Option<usize>,
+    /// Nonlocal method: L_h|x|²/(2dk) − 1, the relative error of the quadratic patch test of the
+    /// case's quadrature (0 up to round-off for `ac`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch_error: Option<f64>,
 }
 
 /// How the run was spread over ranks, and what that cost.

@@ -97,7 +97,13 @@ pub(crate) fn stencil_of(case: &Case) -> Stencil {
         Some(m) => Horizon::from_m(&grid, m),
         None => Horizon::from_eps(&grid, case.eps.expect("validated: m or eps")),
     };
-    Stencil::new(grid, horizon, case.kernel, case.diffusivity)
+    Stencil::new(
+        grid,
+        horizon,
+        case.kernel,
+        case.quadrature,
+        case.diffusivity,
+    )
 }
 
 /// The max |u| beyond which a run counts as diverged, from max |u₀| and the source's scale
@@ -121,6 +127,7 @@ impl Plan {
             nodes: stencil.grid.nodes(),
             bonds: stencil.bonds(),
             pair_visits: None,
+            patch_error: Some(stencil.patch_error()),
         }
     }
 }

@@ -1,7 +1,8 @@
 //! The weights of the discrete nonlocal operator on a uniform grid, computed once per case.
 //!
-//! Eq. 2.1 on the lattice hℤ^d is translation invariant: bond offset o ≠ 0 with |o|h ≤ ε carries
-//! w_o = c J(|o|h/ε) V. Since the collar nodes count (with u = 0), every node of D sees the same
+//! Eq. 2.1 on the lattice hℤ^d is translation invariant: bond offset o ≠ 0 carries
+//! w_o = c J(|o|h/ε) V_o, with V_o the volume the case's quadrature gives it (h^d inside the ball
+//! for seed 000's midpoint rule; see `quadrature`). Since the collar nodes count (with u = 0), every node of D sees the same
 //! total weight W = Σ_o w_o, and
 //!     L_h u_i = Σ_o w_o u_{i+o} − W u_i   (u = 0 outside D).
 //! The stencil backend applies this form, the stability bound reads its symbol, and later backends
@@ -9,6 +10,7 @@
 
 use crate::grid::{Grid, Horizon};
 use crate::influence::{scaling_constant, Kernel};
+use crate::quadrature::{bond_influence, kernel_second_moment, BondVolumes, Quadrature};
 
 /// The bonds of one lattice row dy: offsets dx_min ..= −dx_min, contiguous because the ball is convex.
 #[derive(Clone, Debug)]
@@ -36,8 +38,11 @@ pub struct Stencil {
     pub grid: Grid,
     pub horizon: Horizon,
     pub kernel: Kernel,
+    pub quadrature: Quadrature,
     /// The constant c of eq. 1.5.
     pub c: f64,
+    /// V_o per offset, shared with the neighbour-list backend.
+    pub volumes: BondVolumes,
     pub rows: Vec<StencilRow>,
     /// W = Σ_o w_o over every bond, collar included.
     pub total_weight: f64,
@@ -46,15 +51,22 @@ pub struct Stencil {
 }
 
 impl Stencil {
-    /// The weights of eq. 2.1 for `kernel` with horizon `horizon` and diffusivity k.
-    pub fn new(grid: Grid, horizon: Horizon, kernel: Kernel, diffusivity: f64) -> Self {
+    /// The weights of eq. 2.1 for `kernel` with horizon `horizon`, diffusivity k and the
+    /// bond volumes of `quadrature`.
+    pub fn new(
+        grid: Grid,
+        horizon: Horizon,
+        kernel: Kernel,
+        quadrature: Quadrature,
+        diffusivity: f64,
+    ) -> Self {
         let c = scaling_constant(grid.dim, kernel, horizon.eps, diffusivity);
+        let volumes = BondVolumes::new(&grid, &horizon, kernel, quadrature);
         let m = horizon.m as i64;
         let dy_range = if grid.dim == 2 { -m..=m } else { 0..=0 };
-        let volume = grid.volume();
         let mut rows = Vec::new();
         for dy in dy_range {
-            let reach = (0..=m).rev().find(|&dx| horizon.contains_offset(dx, dy));
+            let reach = (0..=m).rev().find(|&dx| volumes.get(dx, dy) > 0.0);
             let Some(reach) = reach else { continue };
             let weights = (-reach..=reach)
                 .map(|dx| {
@@ -62,7 +74,7 @@ impl Stencil {
                         return 0.0;
                     }
                     let r = ((dx * dx + dy * dy) as f64).sqrt() * grid.h / horizon.eps;
-                    c * kernel.influence(r) * volume
+                    c * bond_influence(kernel, r) * volumes.get(dx, dy)
                 })
                 .collect();
             rows.push(StencilRow {
@@ -81,11 +93,31 @@ impl Stencil {
             grid,
             horizon,
             kernel,
+            quadrature,
             c,
+            volumes,
             rows,
             total_weight,
             offsets,
         }
+    }
+
+    /// L_h|x|² / (2dk) − 1: the relative error of the quadratic patch test (seed 003) on the
+    /// lattice, where L_h|x|² = Σ_o w_o |o h|² at every node whose ball lies in D. Zero up to
+    /// round-off for `ac`; 2dk = c ∫_{B_ε} J |z|² dz by eq. 1.5.
+    pub fn patch_error(&self) -> f64 {
+        let h2 = self.grid.h * self.grid.h;
+        let moment: f64 = self
+            .rows
+            .iter()
+            .flat_map(|row| {
+                row.bonds()
+                    .map(move |(dx, w)| w * (dx * dx + row.dy * row.dy) as f64)
+            })
+            .sum::<f64>()
+            * h2;
+        let exact = self.c * kernel_second_moment(self.grid.dim, self.kernel, self.horizon.eps);
+        moment / exact - 1.0
     }
 
     /// Largest |dx| or |dy| of a bond, at most m.

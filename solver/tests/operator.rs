@@ -6,6 +6,7 @@ use common::random_field;
 use solver::grid::{Grid, Horizon};
 use solver::influence::Kernel;
 use solver::operator::{plan, Backend, NonlocalOperator};
+use solver::quadrature::Quadrature;
 use solver::stencil::Stencil;
 
 /// The horizon of a test case, in cells or as a length.
@@ -20,52 +21,60 @@ fn operator_pair(
     n: usize,
     reach: Reach,
     kernel: Kernel,
+    quadrature: Quadrature,
 ) -> (Stencil, [Box<dyn NonlocalOperator>; 2]) {
     let grid = Grid::new(dim, n);
     let horizon = match reach {
         Reach::Cells(m) => Horizon::from_m(&grid, m),
         Reach::Length(eps) => Horizon::from_eps(&grid, eps),
     };
-    let stencil = Stencil::new(grid, horizon, kernel, 1.0);
+    let stencil = Stencil::new(grid, horizon, kernel, quadrature, 1.0);
     let backends = [Backend::Stencil, Backend::NeighbourList].map(|b| plan(b, &stencil));
     (stencil, backends)
 }
 
+/// Every dimension, kernel and quadrature.
+fn every_operator() -> impl Iterator<Item = (usize, Kernel, Quadrature)> {
+    [1, 2].into_iter().flat_map(|dim| {
+        Kernel::ALL
+            .into_iter()
+            .flat_map(move |k| Quadrature::ALL.into_iter().map(move |q| (dim, k, q)))
+    })
+}
+
 #[test]
 fn stencil_equals_neighbour_list_on_random_fields() {
-    for dim in [1, 2] {
-        for kernel in Kernel::ALL {
-            // ε = m·h for m in {1, 2, 3, 5}; ε between nodes (2.5h); and ε = 0.1 with n = 30,
-            // where ε/h rounds to 3.0000000000000004 and the bonds at distance 3h must stay in.
-            let n = if dim == 1 { 37 } else { 23 };
-            let cases = [
-                (n, Reach::Cells(1)),
-                (n, Reach::Cells(2)),
-                (n, Reach::Cells(3)),
-                (n, Reach::Cells(5)),
-                (n, Reach::Length(2.5 / n as f64)),
-                (30, Reach::Length(0.1)),
-            ];
-            for (seed, (n, reach)) in cases.into_iter().enumerate() {
-                let (stencil, [fast, oracle]) = operator_pair(dim, n, reach, kernel);
-                let u = random_field(stencil.grid.nodes(), (dim * 100 + seed) as u64);
-                let (mut a, mut b) = (vec![0.0; u.len()], vec![0.0; u.len()]);
-                fast.apply(&u, &mut a);
-                oracle.apply(&u, &mut b);
-                // Both sum one term of size ~c V |u_j − u_i| per bond: the round-off scale is
-                // c V · bonds. (Not W: for J = 1 − r and m = 1 every bond has J = 0 and W = 0, while
-                // the oracle's J(1 − δ) is a round-off-sized number.)
-                let scale = stencil.c * stencil.grid.volume() * stencil.offsets as f64;
-                let worst = a
-                    .iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x - y).abs())
-                    .fold(0.0, f64::max);
-                assert!(
-                    worst <= 1e-13 * scale,
-                    "{dim}D {kernel:?} n={n} {reach:?}: max difference {worst:e} vs scale {scale:e}"
-                );
-            }
+    for (dim, kernel, quadrature) in every_operator() {
+        // ε = m·h for m in {1, 2, 3, 5}; ε between nodes (2.5h); and ε = 0.1 with n = 30,
+        // where ε/h rounds to 3.0000000000000004 and the bonds at distance 3h must stay in.
+        let n = if dim == 1 { 37 } else { 23 };
+        let cases = [
+            (n, Reach::Cells(1)),
+            (n, Reach::Cells(2)),
+            (n, Reach::Cells(3)),
+            (n, Reach::Cells(5)),
+            (n, Reach::Length(2.5 / n as f64)),
+            (30, Reach::Length(0.1)),
+        ];
+        for (seed, (n, reach)) in cases.into_iter().enumerate() {
+            let (stencil, [fast, oracle]) = operator_pair(dim, n, reach, kernel, quadrature);
+            let u = random_field(stencil.grid.nodes(), (dim * 100 + seed) as u64);
+            let (mut a, mut b) = (vec![0.0; u.len()], vec![0.0; u.len()]);
+            fast.apply(&u, &mut a);
+            oracle.apply(&u, &mut b);
+            // Both sum one term of size ~c V |u_j − u_i| per bond: the round-off scale is
+            // c V · bonds. (Not W: for J = 1 − r and m = 1 every bond has J = 0 and W = 0, while
+            // the oracle's J(1 − δ) is a round-off-sized number.)
+            let scale = stencil.c * stencil.grid.volume() * stencil.offsets as f64;
+            let worst = a
+                .iter()
+                .zip(&b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-13 * scale,
+                "{dim}D {kernel:?} {quadrature:?} n={n} {reach:?}: max difference {worst:e} vs scale {scale:e}"
+            );
         }
     }
 }
@@ -74,13 +83,31 @@ fn stencil_equals_neighbour_list_on_random_fields() {
 fn neighbour_list_holds_the_ball_with_collar_nodes() {
     // m = 2 in 2D: offsets with |o| ≤ 2 are the 12 lattice points of the disc of radius 2 (centre
     // excluded): (±1,0),(0,±1),(±1,±1),(±2,0),(0,±2) → 4 + 4 + 4 = 12.
-    let (stencil, _) = operator_pair(2, 10, Reach::Cells(2), Kernel::Constant);
+    let (stencil, _) = operator_pair(
+        2,
+        10,
+        Reach::Cells(2),
+        Kernel::Constant,
+        Quadrature::Midpoint,
+    );
     assert_eq!(stencil.offsets, 12);
     assert_eq!(stencil.bonds(), 100 * 12);
     // m = 3: adds (±2,±1),(±1,±2) (|o|² = 5), (±2,±2) (8 ≤ 9), (±3,0),(0,±3): 12 + 8 + 4 + 4 = 28.
-    let (stencil, _) = operator_pair(2, 10, Reach::Cells(3), Kernel::Constant);
+    let (stencil, _) = operator_pair(
+        2,
+        10,
+        Reach::Cells(3),
+        Kernel::Constant,
+        Quadrature::Midpoint,
+    );
     assert_eq!(stencil.offsets, 28);
-    let (stencil, _) = operator_pair(1, 10, Reach::Cells(3), Kernel::Constant);
+    let (stencil, _) = operator_pair(
+        1,
+        10,
+        Reach::Cells(3),
+        Kernel::Constant,
+        Quadrature::Midpoint,
+    );
     assert_eq!(stencil.offsets, 6);
 }
 
@@ -88,7 +115,13 @@ fn neighbour_list_holds_the_ball_with_collar_nodes() {
 fn operators_kill_constants_away_from_the_collar() {
     // L_h 1 = 0 wherever the ball misses the collar, for every backend (a patch test of order 0).
     for dim in [1, 2] {
-        let (stencil, ops) = operator_pair(dim, 20, Reach::Cells(3), Kernel::Gaussian);
+        let (stencil, ops) = operator_pair(
+            dim,
+            20,
+            Reach::Cells(3),
+            Kernel::Gaussian,
+            Quadrature::Midpoint,
+        );
         let grid = stencil.grid;
         let u = vec![1.0; grid.nodes()];
         for op in ops {
@@ -117,7 +150,7 @@ fn operators_kill_constants_away_from_the_collar() {
 fn results_do_not_depend_on_the_thread_count() {
     for dim in [1, 2] {
         let n = if dim == 1 { 10_000 } else { 70 };
-        let (stencil, ops) = operator_pair(dim, n, Reach::Cells(4), Kernel::Linear);
+        let (stencil, ops) = operator_pair(dim, n, Reach::Cells(4), Kernel::Linear, Quadrature::Ac);
         let u = random_field(stencil.grid.nodes(), 7);
         for op in ops {
             let outputs: Vec<Vec<f64>> = [1, 2, 3]
@@ -146,8 +179,20 @@ fn results_do_not_depend_on_the_thread_count() {
 fn a_horizon_landing_on_a_node_keeps_that_node() {
     // ε = 0.1, n = 30: ε/h = 3.0000000000000004 in floating point; the closed ball holds the
     // nodes at distance exactly 3h (seed 000 uses |x_j − x_i| ≤ ε), so m = 3 and 6 bonds in 1D.
-    let (stencil, _) = operator_pair(1, 30, Reach::Length(0.1), Kernel::Constant);
+    let (stencil, _) = operator_pair(
+        1,
+        30,
+        Reach::Length(0.1),
+        Kernel::Constant,
+        Quadrature::Midpoint,
+    );
     assert_eq!((stencil.horizon.m, stencil.offsets), (3, 6));
-    let (stencil, _) = operator_pair(1, 40, Reach::Length(0.1), Kernel::Constant);
+    let (stencil, _) = operator_pair(
+        1,
+        40,
+        Reach::Length(0.1),
+        Kernel::Constant,
+        Quadrature::Midpoint,
+    );
     assert_eq!((stencil.horizon.m, stencil.offsets), (4, 8));
 }

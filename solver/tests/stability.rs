@@ -7,15 +7,20 @@ use serde_json::json;
 use solver::grid::{Grid, Horizon};
 use solver::influence::Kernel;
 use solver::operator::{plan, Backend};
+use solver::quadrature::Quadrature;
 use solver::record::Status;
 use solver::run::run;
 use solver::stability::{forward_euler_dt_stable, Symbol};
 use solver::stencil::Stencil;
 
 fn stencil(dim: usize, n: usize, m: usize, kernel: Kernel) -> Stencil {
+    stencil_with(dim, n, m, kernel, Quadrature::Midpoint)
+}
+
+fn stencil_with(dim: usize, n: usize, m: usize, kernel: Kernel, quadrature: Quadrature) -> Stencil {
     let grid = Grid::new(dim, n);
     let horizon = Horizon::from_m(&grid, m);
-    Stencil::new(grid, horizon, kernel, 1.0)
+    Stencil::new(grid, horizon, kernel, quadrature, 1.0)
 }
 
 fn l2_norm(u: &[f64]) -> f64 {
@@ -42,8 +47,11 @@ fn largest_eigenvalue(stencil: &Stencil) -> f64 {
 #[test]
 fn symbol_maximum_bounds_the_spectrum_and_is_nearly_attained() {
     for (dim, n, m) in [(1, 200, 1), (1, 200, 5), (2, 48, 1), (2, 48, 3), (2, 64, 6)] {
-        for kernel in Kernel::ALL {
-            let stencil = stencil(dim, n, m, kernel);
+        for (kernel, quadrature) in Kernel::ALL
+            .into_iter()
+            .flat_map(|k| Quadrature::ALL.map(|q| (k, q)))
+        {
+            let stencil = stencil_with(dim, n, m, kernel, quadrature);
             if stencil.total_weight == 0.0 {
                 continue; // J = 1 − r with m = 1: every bond has r = 1; such cases are refused
             }
@@ -51,11 +59,11 @@ fn symbol_maximum_bounds_the_spectrum_and_is_nearly_attained() {
             let lambda = largest_eigenvalue(&stencil);
             assert!(
                 lambda <= bound * (1.0 + 1e-9),
-                "{dim}D m={m} {kernel:?}: λ_max {lambda} above the bound {bound}"
+                "{dim}D m={m} {kernel:?} {quadrature:?}: λ_max {lambda} above the bound {bound}"
             );
             assert!(
                 lambda >= 0.97 * bound,
-                "{dim}D m={m} {kernel:?}: λ_max {lambda} far below the bound {bound}"
+                "{dim}D m={m} {kernel:?} {quadrature:?}: λ_max {lambda} far below the bound {bound}"
             );
         }
     }

@@ -1,12 +1,14 @@
 //! The neighbour-list backend: Algorithm 1 of seed 000, literally.
 //!
-//! The list of node i holds every node j of D ∪ D_c with 0 < |x_j − x_i| ≤ ε, by its index on the
-//! grid extended by the collar. Each application recomputes |x_j − x_i| and J for every bond and
-//! sums c J (U[j] − U[i]) V_j, with U = 0 on the collar. This is the slow, obviously right oracle.
+//! The list of node i holds every node j of D ∪ D_c that the quadrature gives a volume V_ij > 0
+//! (for seed 000's midpoint rule: 0 < |x_j − x_i| ≤ ε), by its index on the grid extended by the
+//! collar. Each application recomputes |x_j − x_i| and J for every bond and sums
+//! c J (U[j] − U[i]) V_ij, with U = 0 on the collar. This is the slow, obviously right oracle.
 
 use super::NonlocalOperator;
 use crate::grid::{Grid, Horizon};
 use crate::influence::Kernel;
+use crate::quadrature::{bond_influence, BondVolumes, Quadrature};
 use crate::stencil::Stencil;
 use rayon::prelude::*;
 
@@ -15,6 +17,7 @@ pub struct NeighbourList {
     horizon: Horizon,
     kernel: Kernel,
     c: f64,
+    volumes: BondVolumes,
     /// Side of the extended grid, n + 2m (1 in the second direction in 1D).
     extended_side: usize,
     /// neighbours[start[i]..start[i + 1]] is the list of node i (compressed rows).
@@ -23,7 +26,8 @@ pub struct NeighbourList {
 }
 
 impl NeighbourList {
-    /// Builds the lists for the grid, horizon, kernel and c of `stencil` (not its weights).
+    /// Builds the lists for the grid, horizon, kernel, c and bond volumes of `stencil` (not its
+    /// weights).
     pub fn new(stencil: &Stencil) -> Self {
         let (grid, horizon) = (stencil.grid, stencil.horizon);
         let m = horizon.m as i64;
@@ -41,7 +45,11 @@ impl NeighbourList {
                         continue;
                     }
                     let xj = position_of(&grid, jx, jy);
-                    if horizon.contains_distance(distance(xi, xj)) {
+                    let member = match stencil.quadrature {
+                        Quadrature::Midpoint => horizon.contains_distance(distance(xi, xj)),
+                        _ => stencil.volumes.get(jx - ix, jy - iy) > 0.0,
+                    };
+                    if member {
                         let ex = (jx + m) as usize;
                         let ey = if grid.dim == 2 { (jy + m) as usize } else { 0 };
                         neighbours.push((ey * extended_side + ex) as u32);
@@ -55,6 +63,7 @@ impl NeighbourList {
             horizon,
             kernel: stencil.kernel,
             c: stencil.c,
+            volumes: stencil.volumes.clone(),
             extended_side,
             start,
             neighbours,
@@ -88,9 +97,9 @@ impl NonlocalOperator for NeighbourList {
     fn apply(&self, u: &[f64], out: &mut [f64]) {
         let grid = &self.grid;
         let n = grid.n as i64;
-        let volume = grid.volume();
         out.par_iter_mut().enumerate().for_each(|(i, out_i)| {
             let xi = grid.position(i);
+            let (ix, iy) = ((i % grid.n) as i64, (i / grid.n) as i64);
             let ui = u[i];
             let mut val_i = 0.0;
             for &j in &self.neighbours[self.start[i]..self.start[i + 1]] {
@@ -102,7 +111,8 @@ impl NonlocalOperator for NeighbourList {
                     0.0
                 };
                 let r = distance(xi, position_of(grid, jx, jy)) / self.horizon.eps;
-                val_i += self.c * self.kernel.influence(r) * (uj - ui) * volume;
+                let volume = self.volumes.get(jx - ix, jy - iy);
+                val_i += self.c * bond_influence(self.kernel, r) * (uj - ui) * volume;
             }
             *out_i = val_i;
         });
