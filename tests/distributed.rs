@@ -209,6 +209,49 @@ fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
     }
 }
 
+/// Every quadrature's weights, and the exact collar's source term, travel to the ranks.
+#[test]
+fn quadratures_and_the_exact_collar_equal_the_serial_run() {
+    for (dim, quadrature, source, collar) in [
+        ("1", "partial_volume", "continuum", "exact"),
+        ("2", "ac", "local", "exact"),
+        ("2", "partial_volume", "discrete", "zero"),
+    ] {
+        let case = [
+            "--dim",
+            dim,
+            "--n",
+            "30",
+            "--eps",
+            "0.11",
+            "--kernel",
+            "gaussian",
+            "--quadrature",
+            quadrature,
+            "--source",
+            source,
+            "--collar",
+            collar,
+            "--t-end",
+            "0.003",
+            "--cfl",
+            "0.5",
+            "--error-total",
+        ];
+        let reference = serial(&case);
+        for partition in ["block", "graph"] {
+            let run = distributed(3, partition, 1, &case);
+            assert_agrees(
+                &reference,
+                &run,
+                3,
+                partition,
+                &format!("{case:?} {partition}"),
+            );
+        }
+    }
+}
+
 /// The halo a run exchanges is what `nlsolve partition` reports without running.
 #[test]
 fn the_partition_report_matches_the_run() {

@@ -33,6 +33,9 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     let mut row = Row::default();
     let series = &planned.point.series;
     row.set("point", json!(planned.point.label_without_repeat()));
+    if let Some(branch) = &planned.point.branch {
+        row.set("branch", json!(branch));
+    }
     row.set("refinement_series", json!(series.refinement));
     row.set("scaling_series", json!(series.scaling));
     let Some(record) = record.as_object() else {

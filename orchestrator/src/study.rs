@@ -62,7 +62,14 @@ pub enum Group {
     Zip(BTreeMap<String, Vec<Value>>),
     /// A path in the (ε, h) plane over grid sizes n.
     Path(PathSpec),
+    /// Named alternatives, each a list of groups that multiply: a point lies on one branch, whose
+    /// name the tables keep in the column `branch` (e.g. the paths of an ε/h study, each with its
+    /// own source and time step). The solver never sees it.
+    Branches(BTreeMap<String, Vec<Group>>),
 }
+
+/// The pseudo-field through which a branch's name travels with its points' assignments.
+const BRANCH: &str = "branch";
 
 /// Paths in the (ε, h) plane: how the horizon follows the grid as h → 0.
 #[derive(Debug, Deserialize)]
@@ -81,6 +88,8 @@ pub enum PathSpec {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Point {
     pub fields: Map<String, Value>,
+    /// The `branches` alternative the point lies on, if any.
+    pub branch: Option<String>,
     pub swept: Vec<String>,
     pub repeat: usize,
     pub series: Series,
@@ -117,17 +126,29 @@ impl Point {
     }
 
     fn label_without(&self, left_out: &[String]) -> String {
-        let parts: Vec<String> = self
-            .swept
-            .iter()
-            .filter(|f| !left_out.contains(f))
-            .map(|f| match self.fields.get(f) {
-                Some(Value::String(s)) => format!("{f}={s}"),
-                Some(v) => format!("{f}={v}"),
-                None => format!("{f}=?"),
-            })
+        let branch = self.branch.iter().map(|b| format!("{BRANCH}={b}"));
+        let parts: Vec<String> = branch
+            .chain(
+                self.swept
+                    .iter()
+                    .filter(|f| !left_out.contains(f))
+                    .map(|f| match self.fields.get(f) {
+                        Some(Value::String(s)) => format!("{f}={s}"),
+                        Some(v) => format!("{f}={v}"),
+                        None => format!("{f}=?"),
+                    }),
+            )
             .collect();
         parts.join(" ")
+    }
+
+    /// The fields an expression sees: the case's, and the branch.
+    fn scope(&self) -> Scope {
+        let mut fields = self.fields.clone();
+        if let Some(branch) = &self.branch {
+            fields.insert(BRANCH.into(), Value::from(branch.clone()));
+        }
+        Scope::of(&fields)
     }
 }
 
@@ -218,6 +239,7 @@ impl Study {
     pub fn expand(&self) -> Result<Vec<Point>, StudyError> {
         let mut points = vec![Point {
             fields: self.base.clone(),
+            branch: None,
             swept: Vec::new(),
             repeat: 0,
             series: Series::default(),
@@ -229,6 +251,10 @@ impl Study {
                 for assignment in &assignments {
                     let mut point = point.clone();
                     for (field, value) in assignment {
+                        if field == BRANCH {
+                            point.branch = value.as_str().map(str::to_string);
+                            continue;
+                        }
                         if point.swept.contains(field) {
                             return Err(StudyError::new(
                                 format!("sweep[{g}].{field}"),
@@ -277,7 +303,7 @@ impl Study {
     }
 
     fn derive_fields(&self, point: &mut Point) -> Result<(), StudyError> {
-        let scope = Scope::of(&point.fields);
+        let scope = point.scope();
         let mut derived = Vec::new();
         for (field, formula) in &self.derive {
             let value = expression::number(formula, &scope)
@@ -294,7 +320,7 @@ impl Study {
     }
 
     fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
-        let scope = Scope::of(&point.fields);
+        let scope = point.scope();
         for (k, condition) in self.filter.iter().enumerate() {
             let holds = expression::condition(condition, &scope).map_err(|e| {
                 StudyError::new(format!("where[{k}]"), format!("{e} (at {})", point.label()))
@@ -332,6 +358,13 @@ impl Group {
         let fields: Vec<String> = match self {
             Group::Product(axes) | Group::Zip(axes) => axes.keys().cloned().collect(),
             Group::Path(_) => vec!["n".to_string(), "m".to_string(), "eps".to_string()],
+            Group::Branches(branches) => {
+                return branches
+                    .values()
+                    .flatten()
+                    .flat_map(|g| g.moving_with(triggers))
+                    .collect()
+            }
         };
         let triggered = |f: &String| triggers.contains(&f.as_str());
         match self {
@@ -389,6 +422,37 @@ impl Group {
                     .collect())
             }
             Group::Path(path) => path.assignments(&place("path")),
+            Group::Branches(branches) => {
+                if branches.is_empty() {
+                    return Err(StudyError::new(place("branches"), "has no branches"));
+                }
+                let mut assignments = Vec::new();
+                for (name, groups) in branches {
+                    let mut own = vec![vec![(BRANCH.to_string(), Value::from(name.clone()))]];
+                    for (k, group) in groups.iter().enumerate() {
+                        let inner = group.assignments(k).map_err(|e| {
+                            StudyError::new(
+                                format!(
+                                    "{}.{name}{}",
+                                    place("branches"),
+                                    e.place.trim_start_matches("sweep")
+                                ),
+                                e.message,
+                            )
+                        })?;
+                        own = own
+                            .iter()
+                            .flat_map(|a| {
+                                inner
+                                    .iter()
+                                    .map(move |b| a.iter().chain(b).cloned().collect())
+                            })
+                            .collect();
+                    }
+                    assignments.extend(own);
+                }
+                Ok(assignments)
+            }
         }
     }
 }
@@ -441,6 +505,58 @@ mod tests {
 
     fn fields(value: Value) -> Map<String, Value> {
         value.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn branches_are_alternatives_named_in_the_tables_but_not_the_case() {
+        let study = Study::parse(
+            &json!({
+                "name": "s", "base": {"dim": 1},
+                "sweep": [
+                    {"branches": {
+                        "fixed_m": [{"product": {"m": [2, 4], "source": ["local"]}},
+                                    {"product": {"n": [8, 16]}}],
+                        "fixed_eps": [{"path": {"kind": "fixed_eps", "eps": 0.25, "n": [8, 16]}}]
+                    }},
+                    {"product": {"kernel": ["constant", "linear"]}}
+                ],
+                "where": ["branch != 'fixed_eps' || kernel == 'linear'"]
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        let on = |b: &str| {
+            points
+                .iter()
+                .filter(|p| p.branch.as_deref() == Some(b))
+                .count()
+        };
+        assert_eq!((on("fixed_m"), on("fixed_eps"), points.len()), (8, 2, 10));
+        for p in &points {
+            assert!(
+                !p.fields.contains_key("branch"),
+                "the solver must not see it"
+            );
+            assert!(p
+                .label()
+                .starts_with(&format!("branch={}", p.branch.as_ref().unwrap())));
+        }
+        // A refinement series runs along n within one branch.
+        let eps_series: Vec<&str> = points
+            .iter()
+            .filter(|p| p.branch.as_deref() == Some("fixed_eps"))
+            .map(|p| p.series.refinement.as_str())
+            .collect();
+        assert_eq!(eps_series, ["branch=fixed_eps kernel=linear"; 2]);
+        let bad = Study::parse(
+            &json!({"name": "s", "base": {}, "sweep": [{"branches": {"a": [{"product": {"n": []}}]}}]})
+                .to_string(),
+        )
+        .unwrap()
+        .expand()
+        .unwrap_err();
+        assert_eq!(bad.place, "sweep[0].branches.a[0].product.n", "{bad}");
     }
 
     #[test]

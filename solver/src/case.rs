@@ -7,7 +7,7 @@ use crate::field::MAX_SNAPSHOT_SIDE;
 use crate::influence::Kernel;
 use crate::operator::Backend;
 use crate::partition::Partition;
-use crate::problem::{Problem, SourceMode};
+use crate::problem::{Collar, Problem, SourceMode};
 use crate::quadrature::Quadrature;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -73,6 +73,10 @@ pub struct Case {
     pub diffusivity: f64,
     #[serde(default)]
     pub problem: Problem,
+    /// The collar's values: `zero` (eq. 2.2) or `exact` (the manufactured solution continued,
+    /// a nonhomogeneous volume constraint). Left out of the case's JSON when `zero`.
+    #[serde(default, skip_serializing_if = "Collar::is_zero")]
+    pub collar: Collar,
     /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceMode>,
@@ -243,11 +247,18 @@ impl Case {
                 format!("method {method} has no source term and no total error; leave it out"),
             ));
         }
-        if !self.quadrature.is_midpoint() {
-            return Err(CaseError::new(
-                "quadrature",
-                format!("belongs to the nonlocal operator; method {method} has none, leave it out"),
-            ));
+        for (field, given) in [
+            ("quadrature", !self.quadrature.is_midpoint()),
+            ("collar", !self.collar.is_zero()),
+        ] {
+            if given {
+                return Err(CaseError::new(
+                    field,
+                    format!(
+                        "belongs to the nonlocal method; method {method} has none, leave it out"
+                    ),
+                ));
+            }
         }
         if self.ranks > 1 {
             return Err(CaseError::new(
@@ -350,6 +361,12 @@ impl Case {
             return Err(CaseError::new(
                 "length",
                 "the nonlocal method runs on D = [0,1]^d; leave `length` out",
+            ));
+        }
+        if self.collar == Collar::Exact && self.problem != Problem::Manufactured {
+            return Err(CaseError::new(
+                "collar",
+                "`exact` continues the manufactured solution into the collar; use it with problem `manufactured`",
             ));
         }
         let eps = match (self.m, self.eps) {

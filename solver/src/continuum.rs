@@ -53,6 +53,11 @@ impl ContinuumOperator {
         operator
     }
 
+    /// λ with L φ̃ = λ φ̃ for the continued profile φ̃ (see the module comment).
+    pub fn eigenvalue(&self) -> f64 {
+        self.interior_multiplier
+    }
+
     /// L φ at every node of the grid.
     pub fn apply_to_profile(&self, grid: &Grid) -> Vec<f64> {
         (0..grid.nodes())

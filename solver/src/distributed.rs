@@ -11,7 +11,6 @@
 //! case's rayon pool.
 
 use crate::case::{Case, CaseError};
-use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, magnitude};
 use crate::euler::{is_sampled, timed_steps, MAX_TIMED_STEPS};
 use crate::operator::stencil::apply_on_runs;
@@ -19,6 +18,7 @@ use crate::partition::{self, Ownership, Partition};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode};
 use crate::record::Distribution;
 use crate::run::{self, median, Measured, Outcome, Plan};
+use crate::source::PointwiseSource;
 use crate::subdomain::{Neighbour, Run, Subdomain};
 use mpi::collective::SystemOperation;
 use mpi::point_to_point::Source as _;
@@ -156,24 +156,9 @@ impl<'a> RankRun<'a> {
                     pool.install(|| apply_on_runs(stencil, window, &runs, &phi_window, &mut psi));
                     psi
                 }
-                SourceMode::Continuum => {
-                    let continuum = ContinuumOperator::new(
-                        case.dim,
-                        &stencil.horizon,
-                        case.kernel,
-                        stencil.c,
-                        DEFAULT_ORDER,
-                    );
-                    pool.install(|| {
-                        nodes
-                            .par_iter()
-                            .map(|&i| continuum.at_node(&grid, i))
-                            .collect()
-                    })
-                }
-                SourceMode::Local => {
-                    let factor = problem::local_laplacian_factor(case.dim, case.diffusivity);
-                    phi.iter().map(|p| factor * p).collect()
+                SourceMode::Continuum | SourceMode::Local => {
+                    let pointwise = PointwiseSource::new(case, stencil).expect("a pointwise mode");
+                    pool.install(|| nodes.par_iter().map(|&i| pointwise.psi(i)).collect())
                 }
                 SourceMode::None => {
                     unreachable!("validated: the manufactured problem has a source")

@@ -20,6 +20,7 @@ pub mod pse;
 pub mod quadrature;
 pub mod record;
 pub mod run;
+mod source;
 pub mod stability;
 pub mod stencil;
 pub mod subdomain;

@@ -31,6 +31,26 @@ pub enum Problem {
     Square,
 }
 
+/// What the collar D_c holds: the data of the volume constraint.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Collar {
+    /// u = 0 (eq. 2.2). Then even the continuum nonlocal solution differs from the local one by
+    /// O(ε) in a layer of width ε along ∂D.
+    #[default]
+    Zero,
+    /// The manufactured solution's smooth continuation cos(2πt) sin(2πx₁)[sin(2πx₂)], which is
+    /// odd about ∂D: the local solution's own values, so that no boundary layer forms and the
+    /// error against the local solution is the interior consistency error alone.
+    Exact,
+}
+
+impl Collar {
+    pub fn is_zero(&self) -> bool {
+        *self == Collar::Zero
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SourceMode {
@@ -71,6 +91,17 @@ pub fn profile(dim: usize, x: [f64; 2]) -> f64 {
         };
     }
     value
+}
+
+/// sin(2πx₁)[sin(2πx₂)] everywhere: φ's smooth continuation into the collar.
+#[inline]
+pub fn continued_profile(dim: usize, x: [f64; 2]) -> f64 {
+    let value = (WAVENUMBER * x[0]).sin();
+    if dim == 2 {
+        value * (WAVENUMBER * x[1]).sin()
+    } else {
+        value
+    }
 }
 
 /// The Gaussian bump's initial value at x.

@@ -1,7 +1,6 @@
 //! Runs one case: plan the operator, resolve the time step, integrate, measure.
 
 use crate::case::{Case, CaseError, Method};
-use crate::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use crate::diagnostics::{self, Histogram, MassSeries};
 use crate::euler::{forward_euler, Stepping, Trajectory};
 use crate::field::{FieldSnapshot, Frame, Lattice};
@@ -11,8 +10,10 @@ use crate::operator::{self, Backend, NonlocalOperator};
 use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
 use crate::pse;
 use crate::record::{Distribution, Provenance, Record, Resolved, Status};
+use crate::source::PointwiseSource;
 use crate::stability::forward_euler_dt_stable;
 use crate::stencil::Stencil;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Factor above the problem's natural scale at which a solution counts as diverged.
@@ -376,17 +377,12 @@ fn initial_state(
             operator.apply(&phi, &mut psi);
             psi
         }
-        SourceMode::Continuum => ContinuumOperator::new(
-            case.dim,
-            &stencil.horizon,
-            case.kernel,
-            stencil.c,
-            DEFAULT_ORDER,
-        )
-        .apply_to_profile(grid),
-        SourceMode::Local => {
-            let factor = problem::local_laplacian_factor(case.dim, case.diffusivity);
-            phi.iter().map(|p| factor * p).collect()
+        SourceMode::Continuum | SourceMode::Local => {
+            let pointwise = PointwiseSource::new(case, stencil).expect("a pointwise mode");
+            (0..grid.nodes())
+                .into_par_iter()
+                .map(|i| pointwise.psi(i))
+                .collect()
         }
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };

@@ -120,6 +120,25 @@ impl Stencil {
         moment / exact - 1.0
     }
 
+    /// Σ_o w_o f(x_{i+o}) over the bonds of node i that reach into the collar.
+    pub fn collar_sum(&self, i: usize, f: impl Fn(usize, [f64; 2]) -> f64) -> f64 {
+        let grid = &self.grid;
+        let (n, rows) = (grid.n as i64, grid.rows() as i64);
+        let (ix, iy) = ((i % grid.n) as i64, (i / grid.n) as i64);
+        let mut sum = 0.0;
+        for row in &self.rows {
+            let jy = iy + row.dy;
+            for (dx, w) in row.bonds() {
+                let jx = ix + dx;
+                if !(0..n).contains(&jx) || !(0..rows).contains(&jy) {
+                    let y = if grid.dim == 2 { grid.coord(jy) } else { 0.0 };
+                    sum += w * f(grid.dim, [grid.coord(jx), y]);
+                }
+            }
+        }
+        sum
+    }
+
     /// Largest |dx| or |dy| of a bond, at most m.
     pub fn reach(&self) -> usize {
         self.rows

@@ -82,6 +82,12 @@ struct CaseArgs {
     /// Influence function J: constant, linear, gaussian, inverse_distance.
     #[arg(long)]
     kernel: Option<String>,
+    /// Quadrature of the nonlocal operator: midpoint (seed 000), partial_volume, ac (exact on quadratics).
+    #[arg(long)]
+    quadrature: Option<String>,
+    /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
+    #[arg(long)]
+    collar: Option<String>,
     /// Operator backend: stencil (precomputed weights) or neighbour_list (Algorithm 1, the oracle).
     #[arg(long)]
     backend: Option<String>,
@@ -167,6 +173,8 @@ impl CaseArgs {
         set("m", self.m.map(Value::from));
         set("eps", self.eps.map(Value::from));
         set("kernel", self.kernel.clone().map(Value::from));
+        set("quadrature", self.quadrature.clone().map(Value::from));
+        set("collar", self.collar.clone().map(Value::from));
         set("backend", self.backend.clone().map(Value::from));
         set("diffusivity", self.diffusivity.map(Value::from));
         set("problem", self.problem.clone().map(Value::from));
@@ -234,7 +242,12 @@ fn summary(record: &Record) -> String {
     let resolved = &record.resolved;
     let method = match (case.method, resolved.m, resolved.eps) {
         (Method::Pse, _, Some(eps)) => format!("pse ε={eps:.4} (ε/h {:.3})", eps / resolved.h),
-        (_, Some(m), _) => format!("m={m} {} {}", label(&case.kernel), label(&case.backend)),
+        (_, Some(m), _) => format!(
+            "m={m} {} {} {}",
+            label(&case.kernel),
+            label(&case.quadrature),
+            label(&case.backend)
+        ),
         _ => label(&case.method),
     };
     format!(
