@@ -21,6 +21,7 @@ pub struct FigureSpec {
     /// defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub x: Option<String>,
+    /// A column, or `abs(column)` for its magnitude (signed values on a log axis).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub y: Option<String>,
     /// Columns whose values tell the series apart.
@@ -114,13 +115,44 @@ fn column(rows: &[Row], name: &str) -> Option<String> {
 /// The chart of figure `k` of a study whose summary table is `rows`.
 pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String> {
     let (dx, dy, ds) = spec.kind.defaults();
+    let magnitude = spec
+        .y
+        .as_deref()
+        .and_then(|y| y.strip_prefix("abs(")?.strip_suffix(')'));
+    let with_magnitude: Vec<Row>;
+    let rows = match magnitude {
+        Some(name) => {
+            let source = column(rows, name).ok_or_else(|| {
+                fault(
+                    k,
+                    "y",
+                    format!("the table has no column `{name}` to take abs() of"),
+                )
+            })?;
+            with_magnitude = rows
+                .iter()
+                .map(|row| {
+                    let mut row = row.clone();
+                    let value = row.number(&source).map(f64::abs);
+                    row.set(&format!("|{name}|"), serde_json::json!(value));
+                    row
+                })
+                .collect();
+            &with_magnitude[..]
+        }
+        None => rows,
+    };
     let resolve = |field: &str, name: &str| {
         column(rows, name).ok_or_else(|| {
             fault(k, field, format!("the table has no column `{name}`; name one of the summary's columns (`nlstudy collect` lists them in results/<study>/<study>-summary.parquet)"))
         })
     };
     let x = resolve("x", spec.x.as_deref().unwrap_or(dx))?;
-    let y_name = spec.y.as_deref().unwrap_or(dy);
+    let magnitude_name = magnitude.map(|name| format!("|{name}|"));
+    let y_name = magnitude_name
+        .as_deref()
+        .or(spec.y.as_deref())
+        .unwrap_or(dy);
     let y = match spec.kind {
         // A problem without an exact solution has no error to map.
         Kind::Field => column(rows, y_name).unwrap_or_else(|| y_name.to_string()),
@@ -170,7 +202,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
 }
 
 /// A row as expression names: its columns, and the case's fields by their own names.
-fn fields(row: &Row) -> Map<String, Value> {
+pub(crate) fn fields(row: &Row) -> Map<String, Value> {
     let mut fields = Map::new();
     for (name, value) in row.cells() {
         fields.insert(name.to_string(), value.clone());

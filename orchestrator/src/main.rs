@@ -6,6 +6,7 @@ mod collect;
 mod draw;
 mod expression;
 mod figure;
+mod pivot;
 mod plan;
 mod plot;
 mod pool;
@@ -57,6 +58,9 @@ enum Command {
     Plot(CommonArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
+    /// Print one value of the summary table as a Markdown table: rows by some fields, columns
+    /// by another (e.g. `--rows branch,quadrature --column n --value order_l2_norm`).
+    Table(TableArgs),
     /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
     Submit(SubmitArgs),
 }
@@ -87,6 +91,24 @@ struct SubmitArgs {
     /// Cases packed into one job (default: all).
     #[arg(long)]
     cases_per_job: Option<usize>,
+}
+
+#[derive(Args)]
+struct TableArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// The fields that name a line (comma-separated), e.g. `dim,quadrature`.
+    #[arg(long, value_delimiter = ',')]
+    rows: Vec<String>,
+    /// The field whose values head the columns, e.g. `n`.
+    #[arg(long)]
+    column: String,
+    /// The column of the summary table in the cells, e.g. `error_l2_norm_median`.
+    #[arg(long)]
+    value: String,
+    /// Conditions a point must meet, in the study language (repeatable).
+    #[arg(long = "where")]
+    filter: Vec<String>,
 }
 
 #[derive(Args)]
@@ -146,6 +168,7 @@ fn main() -> ExitCode {
         Command::Collect(args) => collect_command(&args),
         Command::Plot(args) => plot_command(&args),
         Command::Status(args) => status_command(&args),
+        Command::Table(args) => table_command(&args),
         Command::Submit(args) => submit_command(&args),
     };
     match result {
@@ -294,6 +317,27 @@ fn plot_command(args: &CommonArgs) -> Result<ExitCode, String> {
     }
     let store = Store::open(&args.results, &study.name);
     report_figures(&plot::plot(&study.figures, &store)?);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn table_command(args: &TableArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
+    let store = Store::open(&args.common.results, &study.name);
+    let path = store.table(&format!("{}-summary.parquet", study.name));
+    if !path.exists() {
+        return Err(format!(
+            "{} does not exist; `nlstudy collect {}` writes it",
+            path.display(),
+            args.common.study.display()
+        ));
+    }
+    let spec = pivot::PivotSpec {
+        rows: args.rows.clone(),
+        column: args.column.clone(),
+        value: args.value.clone(),
+        filter: args.filter.clone(),
+    };
+    print!("{}", pivot::markdown(&spec, &table::read_parquet(&path)?)?);
     Ok(ExitCode::SUCCESS)
 }
 

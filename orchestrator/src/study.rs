@@ -270,20 +270,21 @@ impl Study {
             points = next;
         }
         let derived: Vec<String> = self.derive.keys().cloned().collect();
-        let moving = |triggers: &[&str]| -> Vec<String> {
+        let moving = |triggers: &[&str], branch: Option<&str>| -> Vec<String> {
             let mut fields: Vec<String> = self
                 .sweep
                 .iter()
-                .flat_map(|g| g.moving_with(triggers))
+                .flat_map(|g| g.moving_with(triggers, branch))
                 .collect();
             fields.extend(derived.iter().cloned());
             fields
         };
-        let (refined, scaled) = (moving(REFINED), moving(SCALED));
         let mut kept = Vec::with_capacity(points.len());
         for mut point in points {
             self.derive_fields(&mut point)?;
             if self.keeps(&point)? {
+                let branch = point.branch.as_deref();
+                let (refined, scaled) = (moving(REFINED, branch), moving(SCALED, branch));
                 point.series = Series {
                     refinement: point.label_without(&refined),
                     scaling: point.label_without(&scaled),
@@ -353,16 +354,18 @@ fn field_named_in(message: &str) -> Option<String> {
 
 impl Group {
     /// The group's fields that change when one of `triggers` does: the triggers themselves
-    /// among a product's axes, every field of a zip or path that holds one.
-    fn moving_with(&self, triggers: &[&str]) -> Vec<String> {
+    /// among a product's axes, every field of a zip or path that holds one; of `branches`,
+    /// only those of the point's own branch.
+    fn moving_with(&self, triggers: &[&str], branch: Option<&str>) -> Vec<String> {
         let fields: Vec<String> = match self {
             Group::Product(axes) | Group::Zip(axes) => axes.keys().cloned().collect(),
             Group::Path(_) => vec!["n".to_string(), "m".to_string(), "eps".to_string()],
             Group::Branches(branches) => {
-                return branches
-                    .values()
+                return branch
+                    .and_then(|b| branches.get(b))
+                    .into_iter()
                     .flatten()
-                    .flat_map(|g| g.moving_with(triggers))
+                    .flat_map(|g| g.moving_with(triggers, branch))
                     .collect()
             }
         };
@@ -549,6 +552,15 @@ mod tests {
             .map(|p| p.series.refinement.as_str())
             .collect();
         assert_eq!(eps_series, ["branch=fixed_eps kernel=linear"; 2]);
+        // The other branch's path moves m with n; this one's m stays in its series.
+        let m_series = points
+            .iter()
+            .find(|p| p.branch.as_deref() == Some("fixed_m"))
+            .map(|p| p.series.refinement.clone());
+        assert_eq!(
+            m_series.as_deref(),
+            Some("branch=fixed_m m=2 source=local kernel=constant")
+        );
         let bad = Study::parse(
             &json!({"name": "s", "base": {}, "sweep": [{"branches": {"a": [{"product": {"n": []}}]}}]})
                 .to_string(),

@@ -204,6 +204,8 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
         nodes: grid.nodes(),
         bonds: 2 * grid.dim * grid.nodes(),
         pair_visits: None,
+        quadrature: None,
+        collar: None,
         patch_error: None,
     };
     let position = |i: usize| grid.position(i);

@@ -484,6 +484,8 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         nodes: particles.count(),
         bonds,
         pair_visits: Some(pair_visits),
+        quadrature: None,
+        collar: None,
         patch_error: None,
     };
     let position = |i: usize| particles.lattice_position(i);

@@ -4,6 +4,8 @@ use crate::case::Case;
 use crate::diagnostics::{Histogram, MassSeries};
 use crate::field::FieldSnapshot;
 use crate::partition::Partition;
+use crate::problem::Collar;
+use crate::quadrature::Quadrature;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -74,6 +76,12 @@ pub struct Resolved {
     /// `pse`: the pairs whose distance is checked per step (the cost, O(N) by the cell lists).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pair_visits: Option<usize>,
+    /// Nonlocal method: the quadrature and the collar's values, also when the case left them at
+    /// their defaults (and so out of its JSON), so that tables can select on them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quadrature: Option<Quadrature>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collar: Option<Collar>,
     /// Nonlocal method: L_h|x|²/(2dk) − 1, the relative error of the quadratic patch test of the
     /// case's quadrature (0 up to round-off for `ac`).
     #[serde(default, skip_serializing_if = "Option::is_none")]

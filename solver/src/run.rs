@@ -7,7 +7,9 @@ use crate::field::{FieldSnapshot, Frame, Lattice};
 use crate::grid::{Grid, Horizon};
 use crate::local;
 use crate::operator::{self, Backend, NonlocalOperator};
-use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode, WAVENUMBER};
+use crate::problem::{
+    self, manufactured_solution, Collar, Problem, Source, SourceMode, WAVENUMBER,
+};
 use crate::pse;
 use crate::record::{Distribution, Provenance, Record, Resolved, Status};
 use crate::source::PointwiseSource;
@@ -70,6 +72,7 @@ pub(crate) fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, CaseError
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
 pub(crate) struct Plan {
     pub stencil: Stencil,
+    pub collar: Collar,
     pub dt_stable: f64,
     pub dt: f64,
     pub steps: usize,
@@ -84,6 +87,7 @@ impl Plan {
         check_neighbour_list_size(case, &stencil)?;
         Ok(Plan {
             stencil,
+            collar: case.collar,
             dt_stable,
             dt,
             steps,
@@ -128,6 +132,8 @@ impl Plan {
             nodes: stencil.grid.nodes(),
             bonds: stencil.bonds(),
             pair_visits: None,
+            quadrature: Some(stencil.quadrature),
+            collar: Some(self.collar),
             patch_error: Some(stencil.patch_error()),
         }
     }

@@ -133,7 +133,10 @@ fn the_non_ac_limit_is_the_local_solution_with_the_patch_errors_diffusivity() {
 /// midpoint rule is erratic (the lattice points of the disc), the others second order.
 #[test]
 fn every_quadrature_converges_to_the_nonlocal_solution_at_fixed_eps() {
-    for (dim, eps, sizes) in [(1, 0.125, vec![32, 64, 128, 256]), (2, 0.25, vec![16, 32, 64])] {
+    for (dim, eps, sizes) in [
+        (1, 0.125, vec![32, 64, 128, 256]),
+        (2, 0.25, vec![16, 32, 64]),
+    ] {
         for quadrature in ["midpoint", "partial_volume", "ac"] {
             let e: Vec<f64> = sizes
                 .iter()
@@ -145,11 +148,7 @@ fn every_quadrature_converges_to_the_nonlocal_solution_at_fixed_eps() {
                 })
                 .collect();
             let orders = observed_orders(&e);
-            let least = if quadrature == "midpoint" {
-                0.2
-            } else {
-                1.8
-            };
+            let least = if quadrature == "midpoint" { 0.2 } else { 1.8 };
             assert!(
                 orders.iter().all(|&p| p >= least) && e[e.len() - 1] < 0.5 * e[0],
                 "{dim}D {quadrature}: errors {} orders {orders:?}",

@@ -1,0 +1,160 @@
+//! `nlstudy table`: one value of a study's summary table as a Markdown pivot, rows named by some
+//! fields and columns by another (e.g. observed orders by path and quadrature against n), for
+//! results pages that are regenerated rather than copied by hand.
+
+use crate::expression::{self, Scope};
+use crate::figure::fields;
+use crate::table::Row;
+use serde_json::Value;
+
+pub struct PivotSpec {
+    pub rows: Vec<String>,
+    pub column: String,
+    pub value: String,
+    pub filter: Vec<String>,
+}
+
+/// The pivot as a Markdown table; a cell no row fills stays empty, one that several fill is an
+/// error (the row fields do not tell the points apart).
+pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
+    let mut columns: Vec<Value> = Vec::new();
+    let mut lines: Vec<(Vec<String>, Vec<(usize, String)>)> = Vec::new();
+    for row in table {
+        let named = fields(row);
+        let scope = Scope::of(&named);
+        let mut keep = true;
+        for (k, condition) in spec.filter.iter().enumerate() {
+            keep &= expression::condition(condition, &scope)
+                .map_err(|e| format!("--where {k}: {e}"))?;
+        }
+        if !keep {
+            continue;
+        }
+        let lookup = |name: &str| {
+            named
+                .get(name)
+                .cloned()
+                .ok_or_else(|| format!("the table has no column `{name}`; see `nlstudy collect`'s output for the columns"))
+        };
+        let key: Vec<String> = spec
+            .rows
+            .iter()
+            .map(|name| lookup(name).map(|v| text(&v)))
+            .collect::<Result<_, _>>()?;
+        let column = lookup(&spec.column)?;
+        let value = text(&lookup(&spec.value)?);
+        let c = match columns.iter().position(|c| *c == column) {
+            Some(c) => c,
+            None => {
+                columns.push(column);
+                columns.len() - 1
+            }
+        };
+        let line = match lines.iter().position(|(k, _)| *k == key) {
+            Some(l) => l,
+            None => {
+                lines.push((key.clone(), Vec::new()));
+                lines.len() - 1
+            }
+        };
+        if lines[line].1.iter().any(|(filled, _)| *filled == c) {
+            return Err(format!(
+                "several points share the cell {} / {}={}; add the field that tells them apart to --rows or --where",
+                key.join(", "),
+                spec.column,
+                text(&columns[c])
+            ));
+        }
+        lines[line].1.push((c, value));
+    }
+    let mut order: Vec<usize> = (0..columns.len()).collect();
+    order.sort_by(|&a, &b| match (columns[a].as_f64(), columns[b].as_f64()) {
+        (Some(x), Some(y)) => x.total_cmp(&y),
+        _ => text(&columns[a]).cmp(&text(&columns[b])),
+    });
+    let mut out = String::new();
+    let header: Vec<String> = spec
+        .rows
+        .iter()
+        .cloned()
+        .chain(
+            order
+                .iter()
+                .map(|&c| format!("{}={}", spec.column, text(&columns[c]))),
+        )
+        .collect();
+    out.push_str(&format!("| {} |\n", header.join(" | ")));
+    out.push_str(&format!("|{}\n", " --- |".repeat(header.len())));
+    for (key, cells) in &lines {
+        let values = order.iter().map(|&c| {
+            cells
+                .iter()
+                .find(|(filled, _)| *filled == c)
+                .map_or(String::new(), |(_, v)| v.clone())
+        });
+        let line: Vec<String> = key.iter().cloned().chain(values).collect();
+        out.push_str(&format!("| {} |\n", line.join(" | ")));
+    }
+    Ok(out)
+}
+
+/// A cell's text: numbers to three significant digits, null as empty.
+fn text(value: &Value) -> String {
+    match value {
+        Value::Null => String::new(),
+        Value::String(s) => s.clone(),
+        Value::Number(n) if n.is_i64() || n.is_u64() => n.to_string(),
+        Value::Number(n) => {
+            let x = n.as_f64().unwrap_or(f64::NAN);
+            let decade = x.abs().log10().floor();
+            if x == 0.0 || !x.is_finite() {
+                x.to_string()
+            } else if (-2.0..4.0).contains(&decade) {
+                let decimals = (2.0 - decade).max(0.0) as usize;
+                format!("{x:.decimals$}")
+            } else {
+                format!("{x:.2e}")
+            }
+        }
+        other => other.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn row(cells: Value) -> Row {
+        let mut row = Row::default();
+        for (name, value) in cells.as_object().unwrap() {
+            row.set(name, value.clone());
+        }
+        row
+    }
+
+    #[test]
+    fn values_land_in_their_row_and_column_in_numeric_order() {
+        let table = [
+            row(json!({"case.quadrature": "ac", "n": 128, "order": 2.013})),
+            row(json!({"case.quadrature": "ac", "n": 64, "order": 1.97})),
+            row(json!({"case.quadrature": "midpoint", "n": 128, "order": 0.0012345})),
+            row(json!({"case.quadrature": "midpoint", "n": 32, "order": null})),
+        ];
+        let spec = PivotSpec {
+            rows: vec!["quadrature".into()],
+            column: "n".into(),
+            value: "order".into(),
+            filter: vec!["n >= 64".into()],
+        };
+        assert_eq!(
+            markdown(&spec, &table).unwrap(),
+            "| quadrature | n=64 | n=128 |\n| --- | --- | --- |\n| ac | 1.97 | 2.01 |\n| midpoint |  | 1.23e-3 |\n"
+        );
+        let clash = PivotSpec {
+            rows: vec![],
+            ..spec
+        };
+        assert!(markdown(&clash, &table).unwrap_err().contains("--rows"));
+    }
+}
