@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures
+.PHONY: setup run test figures docs-figures ac-docs
 
 setup:
 	@scripts/setup.sh
@@ -21,7 +21,7 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision
+STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
@@ -32,3 +32,9 @@ docs-figures: figures
 	cp results/convergence/figures/convergence.svg docs/figures/convergence.svg
 	cp results/work_precision/figures/work_precision.svg docs/figures/work_precision.svg
 	cp results/ranks/figures/strong.svg docs/figures/ranks_strong.svg
+
+# The asymptotic-compatibility page docs/ac_limit.md and its figures, from the patch and ac_limit
+# studies (about 45 s for a first run).
+ac-docs: setup
+	cargo build --release --workspace
+	scripts/ac_report.sh
