@@ -163,7 +163,7 @@ fn cell_in_ball(dim: usize, radius: f64, dx: i64, dy: i64) -> f64 {
 /// Area of [x0, x1] × [y0, y1] ∩ {|z| ≤ R}, exactly: ∫ |[y0, y1] ∩ [−s, s]| dx with
 /// s(x) = √(R² − x²), split where s crosses |y0| or |y1| so that on each piece the chord's ends are
 /// fixed (a side of the rectangle or the circle), each integrated with ∫ s = ½(x s + R² asin(x/R)).
-pub(crate) fn rectangle_in_disc(radius: f64, [x0, x1]: [f64; 2], [y0, y1]: [f64; 2]) -> f64 {
+fn rectangle_in_disc(radius: f64, [x0, x1]: [f64; 2], [y0, y1]: [f64; 2]) -> f64 {
     let (a, b) = (x0.max(-radius), x1.min(radius));
     if a >= b {
         return 0.0;
