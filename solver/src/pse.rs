@@ -341,20 +341,29 @@ impl Particles {
         let cells = &self.cells;
         rate.par_iter_mut().for_each(|r| *r = 0.0);
         for parity in 0..2 {
-            // Strips s and s + 1 hold the rates the pairs started in strip s change.
-            let mut tasks = Vec::with_capacity(cells.strips / 2 + 1);
-            let mut rest = &mut rate[cells.strip_start(parity.min(cells.strips))..];
-            for s in (parity..cells.strips).step_by(2) {
-                let base = cells.strip_start(s);
-                let end = cells.strip_start((s + 2).min(cells.strips));
-                let (chunk, tail) = std::mem::take(&mut rest).split_at_mut(end - base);
-                tasks.push((s, base, chunk));
-                rest = tail;
+            let tasks = cells.strips.saturating_sub(parity).div_ceil(2);
+            if tasks > 0 {
+                let start = cells.strip_start(parity);
+                self.exchange_strips(parity, tasks, phi, &mut rate[start..]);
             }
-            tasks
-                .into_par_iter()
-                .for_each(|(s, base, chunk)| self.exchange_strip(s, phi, base, chunk));
         }
+    }
+
+    /// The pairs started in strips first, first + 2, … (`tasks` of them), in parallel: strips s
+    /// and s + 1 hold the rates the pairs started in strip s change, so these tasks write
+    /// disjoint slots. `rate` starts at strip `first`'s first slot.
+    fn exchange_strips(&self, first: usize, tasks: usize, phi: &[f64], rate: &mut [f64]) {
+        let cells = &self.cells;
+        if tasks == 1 {
+            self.exchange_strip(first, phi, cells.strip_start(first), rate);
+            return;
+        }
+        let middle = first + 2 * (tasks / 2);
+        let (left, right) = rate.split_at_mut(cells.strip_start(middle) - cells.strip_start(first));
+        rayon::join(
+            || self.exchange_strips(first, tasks / 2, phi, left),
+            || self.exchange_strips(middle, tasks - tasks / 2, phi, right),
+        );
     }
 
     /// The pairs started in strip s; `rate` holds the rates of slots base.. (strips s, s + 1).
@@ -487,6 +496,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         quadrature: None,
         collar: None,
         patch_error: None,
+        backend: None,
     };
     let position = |i: usize| particles.lattice_position(i);
     Ok(local::outcome(
