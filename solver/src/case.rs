@@ -459,10 +459,10 @@ impl Case {
                 ),
             ));
         }
-        if self.ranks > 1 && self.backend != Backend::Stencil {
+        if self.ranks > 1 && !matches!(self.backend, Backend::Stencil | Backend::Auto) {
             return Err(CaseError::new(
                 "backend",
-                "the distributed solver runs the `stencil` backend; use it with ranks > 1",
+                "the distributed solver runs the `stencil` backend; use `stencil` or `auto` with ranks > 1",
             ));
         }
         for (field, value) in [("px", self.px), ("py", self.py)] {

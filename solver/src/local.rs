@@ -207,6 +207,7 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
         quadrature: None,
         collar: None,
         patch_error: None,
+        backend: None,
     };
     let position = |i: usize| grid.position(i);
     Ok(outcome(

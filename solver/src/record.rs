@@ -3,6 +3,7 @@
 use crate::case::Case;
 use crate::diagnostics::{Histogram, MassSeries};
 use crate::field::FieldSnapshot;
+use crate::operator::Backend;
 use crate::partition::Partition;
 use crate::problem::Collar;
 use crate::quadrature::Quadrature;
@@ -86,6 +87,9 @@ pub struct Resolved {
     /// case's quadrature (0 up to round-off for `ac`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch_error: Option<f64>,
+    /// Nonlocal method: the operator backend that ran (`auto` resolved by the cost model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub backend: Option<Backend>,
 }
 
 /// How the run was spread over ranks, and what that cost.

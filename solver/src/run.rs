@@ -72,6 +72,8 @@ pub(crate) fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, CaseError
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
 pub(crate) struct Plan {
     pub stencil: Stencil,
+    /// The backend that runs: `auto` resolved by the cost model; the distributed solver's stencil.
+    pub backend: Backend,
     pub collar: Collar,
     pub dt_stable: f64,
     pub dt: f64,
@@ -85,8 +87,14 @@ impl Plan {
         let dt_stable = forward_euler_dt_stable(&stencil);
         let (dt, steps) = time_step(case, dt_stable, false)?;
         check_neighbour_list_size(case, &stencil)?;
+        let backend = if case.ranks > 1 {
+            Backend::Stencil
+        } else {
+            case.backend.resolve(&stencil)
+        };
         Ok(Plan {
             stencil,
+            backend,
             collar: case.collar,
             dt_stable,
             dt,
@@ -135,6 +143,7 @@ impl Plan {
             quadrature: Some(stencil.quadrature),
             collar: Some(self.collar),
             patch_error: Some(stencil.patch_error()),
+            backend: Some(self.backend),
         }
     }
 }
@@ -203,7 +212,7 @@ fn run_in_pool(case: &Case) -> Result<Outcome, CaseError> {
     let plan = Plan::new(case)?;
     let stencil = &plan.stencil;
     let grid = stencil.grid;
-    let operator = operator::plan(case.backend, stencil);
+    let operator = operator::plan(plan.backend, stencil);
     let (u0, source) = initial_state(case, stencil, operator.as_ref());
     let setup_s = setup_started.elapsed().as_secs_f64();
 

@@ -88,7 +88,8 @@ struct CaseArgs {
     /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
     #[arg(long)]
     collar: Option<String>,
-    /// Operator backend: stencil (precomputed weights) or neighbour_list (Algorithm 1, the oracle).
+    /// Operator backend: auto (default: stencil or fft by the cost model), stencil (precomputed
+    /// weights), fft (convolution by FFT) or neighbour_list (Algorithm 1, the oracle).
     #[arg(long)]
     backend: Option<String>,
     /// Diffusivity k of the local limit kΔ (default 1).
@@ -246,7 +247,9 @@ fn summary(record: &Record) -> String {
             "m={m} {} {} {}",
             label(&case.kernel),
             label(&case.quadrature),
-            label(&case.backend)
+            resolved
+                .backend
+                .map_or_else(|| label(&case.backend), |b| label(&b))
         ),
         _ => label(&case.method),
     };

@@ -1,0 +1,328 @@
+//! The FFT backend: with u = 0 on the collar (eq. 2.2), L_h u = K ∗ u − W u is a linear
+//! convolution of u with the stencil's weights K (w_o at offset o), which costs O(P^d log P)
+//! whatever the horizon, against O(N m^d) for the stencil.
+//!
+//! u is zero-padded to P ≥ n + r per side (r the stencil's reach, capped at n − 1 since longer
+//! bonds only reach the collar), so the circular convolution of size P equals the linear one on
+//! D: a neighbour index i + o with −r ≤ i + o < 0 wraps to P + i + o ≥ n, where u is zero.
+//! The weights are even in dx and in dy, so K's transform is real; it is computed once, scaled by
+//! 1/P^d, and each application is: real-to-complex transforms of the rows, complex transforms of
+//! the columns, one product, and the same back. Every buffer is made at planning time.
+//!
+//! In 2D the row spectra (n rows × P/2 + 1 frequencies) are regrouped into columns block by block:
+//! each task gathers `BLOCK` columns, transforms them zero-padded to P, multiplies and transforms
+//! back, and keeps their first n values; the final pass gathers `BLOCK` rows at a time. Each value
+//! is computed by one task whatever the thread count, so results do not depend on it.
+
+use super::NonlocalOperator;
+use crate::stencil::Stencil;
+use rayon::prelude::*;
+use realfft::num_complex::Complex;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use rustfft::{Fft, FftPlanner};
+use std::sync::{Arc, Mutex};
+
+type C64 = Complex<f64>;
+
+/// Columns (or rows) a task regroups at once: long enough contiguous reads (BLOCK · 16 bytes).
+const BLOCK: usize = 8;
+
+pub struct FftOperator {
+    dim: usize,
+    n: usize,
+    /// Transform length per side.
+    size: usize,
+    total_weight: f64,
+    /// K's transform over 1/P^d; in 2D indexed [frequency along x][frequency along y].
+    symbol: Vec<f64>,
+    rows_forward: Arc<dyn RealToComplex<f64>>,
+    rows_inverse: Arc<dyn ComplexToReal<f64>>,
+    columns_forward: Arc<dyn Fft<f64>>,
+    columns_inverse: Arc<dyn Fft<f64>>,
+    work: Mutex<Work>,
+}
+
+/// The spectra between passes, and one set of scratch buffers per task.
+struct Work {
+    /// Row spectra, n × (P/2 + 1), row-major (1D: one row).
+    rows: Vec<C64>,
+    /// The filtered spectra by column, (P/2 + 1) × n, column-major (2D only).
+    columns: Vec<C64>,
+    lanes: Vec<Lane>,
+}
+
+struct Lane {
+    real: Vec<f64>,
+    /// BLOCK rows of spectra, or BLOCK zero-padded columns of length P.
+    block: Vec<C64>,
+    scratch: Vec<C64>,
+}
+
+impl FftOperator {
+    pub fn new(stencil: &Stencil) -> Self {
+        let grid = stencil.grid;
+        let (dim, n) = (grid.dim, grid.n);
+        let reach = stencil.reach().min(n - 1);
+        let size = transform_length(n + reach);
+        let mut real_planner = RealFftPlanner::<f64>::new();
+        let mut planner = FftPlanner::<f64>::new();
+        let mut operator = FftOperator {
+            dim,
+            n,
+            size,
+            total_weight: stencil.total_weight,
+            symbol: Vec::new(),
+            rows_forward: real_planner.plan_fft_forward(size),
+            rows_inverse: real_planner.plan_fft_inverse(size),
+            columns_forward: planner.plan_fft_forward(size),
+            columns_inverse: planner.plan_fft_inverse(size),
+            work: Mutex::new(Work {
+                rows: vec![C64::default(); grid.rows() * (size / 2 + 1)],
+                columns: vec![C64::default(); if dim == 2 { n * (size / 2 + 1) } else { 0 }],
+                lanes: Vec::new(),
+            }),
+        };
+        operator.symbol = operator.kernel_symbol(stencil, reach);
+        operator
+    }
+
+    fn frequencies(&self) -> usize {
+        self.size / 2 + 1
+    }
+
+    fn new_lane(&self) -> Lane {
+        let scratch = [
+            self.rows_forward.get_scratch_len(),
+            self.rows_inverse.get_scratch_len(),
+            self.columns_forward.get_inplace_scratch_len(),
+            self.columns_inverse.get_inplace_scratch_len(),
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        let block = if self.dim == 2 { BLOCK * self.size } else { 0 };
+        Lane {
+            real: vec![0.0; self.size],
+            block: vec![C64::default(); block],
+            scratch: vec![C64::default(); scratch],
+        }
+    }
+
+    /// The transform of the weights placed at their offsets modulo P, scaled by 1/P^d. Bonds
+    /// reaching further than `reach` only touch the collar and are left out.
+    fn kernel_symbol(&self, stencil: &Stencil, reach: usize) -> Vec<f64> {
+        let (p, k) = (self.size, self.frequencies());
+        let scale = 1.0 / (p as f64).powi(self.dim as i32);
+        let wrap = |offset: i64| offset.rem_euclid(p as i64) as usize;
+        let reach = reach as i64;
+        let mut lane = self.new_lane();
+        let mut row_spectra = vec![C64::default(); p * k];
+        for row in stencil.rows.iter().filter(|row| row.dy.abs() <= reach) {
+            lane.real.fill(0.0);
+            for (dx, w) in row.bonds().filter(|(dx, _)| dx.abs() <= reach) {
+                lane.real[wrap(dx)] = w;
+            }
+            let spectrum = &mut row_spectra[wrap(row.dy) * k..][..k];
+            self.rows_forward
+                .process_with_scratch(&mut lane.real, spectrum, &mut lane.scratch)
+                .expect("buffer lengths come from the plan");
+        }
+        if self.dim == 1 {
+            return row_spectra[..k].iter().map(|z| z.re * scale).collect();
+        }
+        let mut symbol = vec![0.0; k * p];
+        let mut column = vec![C64::default(); p];
+        for (f, symbol_column) in symbol.chunks_mut(p).enumerate() {
+            for (y, value) in column.iter_mut().enumerate() {
+                *value = row_spectra[y * k + f];
+            }
+            self.columns_forward
+                .process_with_scratch(&mut column, &mut lane.scratch);
+            for (s, z) in symbol_column.iter_mut().zip(&column) {
+                *s = z.re * scale;
+            }
+        }
+        symbol
+    }
+
+    fn apply_1d(&self, u: &[f64], out: &mut [f64], spectrum: &mut [C64], lane: &mut Lane) {
+        self.forward_row(u, &mut lane.real, spectrum, &mut lane.scratch);
+        for (z, &s) in spectrum.iter_mut().zip(&self.symbol) {
+            *z *= s;
+        }
+        self.inverse_row(spectrum, u, out, &mut lane.real, &mut lane.scratch);
+    }
+
+    fn apply_2d(
+        &self,
+        u: &[f64],
+        out: &mut [f64],
+        rows: &mut [C64],
+        columns: &mut [C64],
+        lanes: &mut [Lane],
+    ) {
+        let (n, p, k) = (self.n, self.size, self.frequencies());
+        let tasks = lanes.len();
+        // Rows: u zero-padded to P, to their spectra.
+        let rows_per_task = n.div_ceil(tasks);
+        rows.par_chunks_mut(rows_per_task * k)
+            .zip(u.par_chunks(rows_per_task * n))
+            .zip(lanes.par_iter_mut())
+            .for_each(|((spectra, u_rows), lane)| {
+                for (spectrum, u_row) in spectra.chunks_mut(k).zip(u_rows.chunks(n)) {
+                    self.forward_row(u_row, &mut lane.real, spectrum, &mut lane.scratch);
+                }
+            });
+        // Columns: BLOCK at a time gathered, zero-padded, filtered, and their first n values kept.
+        let rows = &rows[..];
+        let blocks_per_task = k.div_ceil(BLOCK).div_ceil(tasks);
+        columns
+            .par_chunks_mut(blocks_per_task * BLOCK * n)
+            .zip(lanes.par_iter_mut())
+            .enumerate()
+            .for_each(|(t, (task_columns, lane))| {
+                let first = t * blocks_per_task * BLOCK;
+                for (b, kept) in task_columns.chunks_mut(BLOCK * n).enumerate() {
+                    let f0 = first + b * BLOCK;
+                    let width = kept.len() / n;
+                    let block = &mut lane.block[..width * p];
+                    for (c, column) in block.chunks_mut(p).enumerate() {
+                        for (y, value) in column[..n].iter_mut().enumerate() {
+                            *value = rows[y * k + f0 + c];
+                        }
+                        column[n..].fill(C64::default());
+                    }
+                    self.columns_forward
+                        .process_with_scratch(block, &mut lane.scratch);
+                    for (column, symbol) in block.chunks_mut(p).zip(self.symbol[f0 * p..].chunks(p))
+                    {
+                        for (z, &s) in column.iter_mut().zip(symbol) {
+                            *z *= s;
+                        }
+                    }
+                    self.columns_inverse
+                        .process_with_scratch(block, &mut lane.scratch);
+                    for (column, kept) in block.chunks(p).zip(kept.chunks_mut(n)) {
+                        kept.copy_from_slice(&column[..n]);
+                    }
+                }
+            });
+        // Rows again: BLOCK rows gathered from the columns, back to real values, minus W u.
+        let columns = &columns[..];
+        let blocks_per_task = n.div_ceil(BLOCK).div_ceil(tasks);
+        out.par_chunks_mut(blocks_per_task * BLOCK * n)
+            .zip(u.par_chunks(blocks_per_task * BLOCK * n))
+            .zip(lanes.par_iter_mut())
+            .enumerate()
+            .for_each(|(t, ((out_rows, u_rows), lane))| {
+                let first = t * blocks_per_task * BLOCK;
+                for (b, (out_block, u_block)) in out_rows
+                    .chunks_mut(BLOCK * n)
+                    .zip(u_rows.chunks(BLOCK * n))
+                    .enumerate()
+                {
+                    let y0 = first + b * BLOCK;
+                    let height = out_block.len() / n;
+                    let spectra = &mut lane.block[..height * k];
+                    for (f, column) in columns.chunks(n).enumerate() {
+                        for (r, value) in column[y0..y0 + height].iter().enumerate() {
+                            spectra[r * k + f] = *value;
+                        }
+                    }
+                    for ((spectrum, u_row), out_row) in spectra
+                        .chunks_mut(k)
+                        .zip(u_block.chunks(n))
+                        .zip(out_block.chunks_mut(n))
+                    {
+                        self.inverse_row(
+                            spectrum,
+                            u_row,
+                            out_row,
+                            &mut lane.real,
+                            &mut lane.scratch,
+                        );
+                    }
+                }
+            });
+    }
+
+    /// The spectrum of one row of u, zero-padded to P.
+    fn forward_row(
+        &self,
+        u_row: &[f64],
+        real: &mut [f64],
+        spectrum: &mut [C64],
+        scratch: &mut [C64],
+    ) {
+        real[..self.n].copy_from_slice(u_row);
+        real[self.n..].fill(0.0);
+        self.rows_forward
+            .process_with_scratch(real, spectrum, scratch)
+            .expect("buffer lengths come from the plan");
+    }
+
+    /// out = (K ∗ u on the row, from its filtered spectrum) − W u.
+    fn inverse_row(
+        &self,
+        spectrum: &mut [C64],
+        u_row: &[f64],
+        out: &mut [f64],
+        real: &mut [f64],
+        scratch: &mut [C64],
+    ) {
+        // The transform of a real row has real end values; round-off left imaginary parts there.
+        spectrum[0].im = 0.0;
+        if self.size % 2 == 0 {
+            spectrum[self.size / 2].im = 0.0;
+        }
+        self.rows_inverse
+            .process_with_scratch(spectrum, real, scratch)
+            .expect("buffer lengths come from the plan");
+        for ((o, &convolved), &ui) in out.iter_mut().zip(&real[..self.n]).zip(u_row) {
+            *o = convolved - self.total_weight * ui;
+        }
+    }
+}
+
+impl NonlocalOperator for FftOperator {
+    fn apply(&self, u: &[f64], out: &mut [f64]) {
+        let mut work = self
+            .work
+            .lock()
+            .unwrap_or_else(|poison| poison.into_inner());
+        let Work {
+            rows,
+            columns,
+            lanes,
+        } = &mut *work;
+        // One lane per task, made on the first application with this many threads.
+        let tasks = if self.dim == 2 {
+            rayon::current_num_threads().min(self.n)
+        } else {
+            1
+        };
+        while lanes.len() < tasks {
+            lanes.push(self.new_lane());
+        }
+        if self.dim == 2 {
+            self.apply_2d(u, out, rows, columns, &mut lanes[..tasks]);
+        } else {
+            self.apply_1d(u, out, rows, &mut lanes[0]);
+        }
+    }
+}
+
+/// The smallest even length ≥ `at_least` with no prime factor above 7, where the FFT is fastest.
+pub(crate) fn transform_length(at_least: usize) -> usize {
+    (at_least.max(2)..)
+        .find(|&p| {
+            let mut rest = p;
+            for factor in [2, 3, 5, 7] {
+                while rest % factor == 0 {
+                    rest /= factor;
+                }
+            }
+            p % 2 == 0 && rest == 1
+        })
+        .expect("smooth numbers are unbounded")
+}
