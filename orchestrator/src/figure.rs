@@ -47,6 +47,9 @@ pub enum Kind {
     Stability,
     /// c_tot(t) of each point.
     TimeSeries,
+    /// Bond updates per second against the horizon m, one panel per grid size n, one series per
+    /// backend that ran, and the measured crossover where the FFT overtakes the stencil marked.
+    Throughput,
     /// Heat maps (profiles in 1D) of one point's final field and of its error, from the
     /// snapshot the case's `field_snapshot` puts into the record.
     Field,
@@ -63,6 +66,7 @@ impl Kind {
             Kind::WorkPrecision => ("error_l2_norm", "solve_s_median", "case.method"),
             Kind::Stability => ("case.cfl", "max_abs", "case.method"),
             Kind::TimeSeries => ("c_tot.time", "c_tot.c_tot", "point"),
+            Kind::Throughput => ("case.m", "bond_updates_per_s", "backend"),
             Kind::Field => ("field.values", "field.error", "point"),
         }
     }
@@ -79,6 +83,8 @@ fn describe(column: &str) -> String {
         ("error_l2_norm", "discrete L² error"),
         ("error_max", "max-norm error"),
         ("c_tot.time", "time t"),
+        ("case.m", "horizon m = ε/h"),
+        ("bond_updates_per_s", "bond updates per second"),
         ("c_tot.c_tot", "total concentration c_tot(t)"),
     ];
     if let Some((_, text)) = known.iter().find(|(c, _)| *c == column) {
@@ -177,6 +183,14 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             kept.push(row);
         }
     }
+    if spec.kind == Kind::Throughput {
+        let panels = throughput(&kept, &series_columns, &x, &y);
+        let title = spec
+            .title
+            .clone()
+            .unwrap_or_else(|| spec.name.replace('_', " "));
+        return Ok(Chart { title, panels });
+    }
     let mut groups = group(&kept, &series_columns);
     let mut title = spec
         .title
@@ -193,6 +207,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         Kind::WorkPrecision => vec![work_precision(&groups, &x, &y)],
         Kind::Stability => vec![stability(&groups, &x, &y)],
         Kind::TimeSeries => vec![time_series(&groups, &x, &y)],
+        Kind::Throughput => unreachable!("drawn above, one panel per n"),
         Kind::Field => field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
     };
     if matches!(spec.kind, Kind::StrongScaling | Kind::WeakScaling) {
@@ -544,6 +559,70 @@ fn work_precision(groups: &[Group], x: &str, y: &str) -> Panel {
     }
 }
 
+/// One panel per grid size n: a series per backend, and the crossover where the FFT overtakes
+/// the stencil.
+fn throughput(rows: &[&Row], series_columns: &[String], x: &str, y: &str) -> Vec<Panel> {
+    let mut sizes: Vec<f64> = rows.iter().filter_map(|r| r.number("case.n")).collect();
+    sizes.sort_by(f64::total_cmp);
+    sizes.dedup();
+    sizes
+        .iter()
+        .map(|&n| {
+            let of_size: Vec<&Row> = rows
+                .iter()
+                .copied()
+                .filter(|r| r.number("case.n") == Some(n))
+                .collect();
+            let mut groups = group(&of_size, series_columns);
+            shared_by_all(&mut groups);
+            let lines: Vec<Series> = groups
+                .iter()
+                .map(|g| series(g.legend(), g.points(x, y)))
+                .collect();
+            let backend_points = |name: &str| {
+                groups
+                    .iter()
+                    .find(|g| g.rows.iter().all(|r| r.text("backend") == Some(name)))
+                    .map(|g| g.points(x, y))
+            };
+            let guides = match (backend_points("stencil"), backend_points("fft")) {
+                (Some(stencil), Some(fft)) => crossover(&stencil, &fft)
+                    .map(|m| Guide::Vertical {
+                        label: format!("crossover m ≈ {m:.1}"),
+                        x: m,
+                    })
+                    .into_iter()
+                    .collect(),
+                _ => Vec::new(),
+            };
+            Panel {
+                title: format!("n = {n}"),
+                x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
+                y: Axis::fitting(describe(y), all(lines.iter(), |p| p.1)),
+                series: lines,
+                guides,
+                heat: None,
+            }
+        })
+        .collect()
+}
+
+/// The m where `fast_for_large` (throughput against m) first overtakes `fast_for_small`,
+/// interpolated linearly in log m on the log of their ratio between the m's both measured.
+fn crossover(fast_for_small: &[(f64, f64)], fast_for_large: &[(f64, f64)]) -> Option<f64> {
+    let advantage: Vec<(f64, f64)> = fast_for_small
+        .iter()
+        .filter_map(|&(m, small)| {
+            let &(_, large) = fast_for_large.iter().find(|p| p.0 == m)?;
+            Some((m.ln(), (large / small).ln()))
+        })
+        .collect();
+    advantage.windows(2).find_map(|pair| {
+        let [(m0, a0), (m1, a1)] = [pair[0], pair[1]];
+        (a0 < 0.0 && a1 >= 0.0).then(|| (m0 + (m1 - m0) * a0 / (a0 - a1)).exp())
+    })
+}
+
 fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
     let lines: Vec<Series> = groups
         .iter()
@@ -692,5 +771,30 @@ fn field_panel(
         series,
         guides: Vec::new(),
         heat,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::crossover;
+
+    #[test]
+    fn crossover_interpolates_in_log_m_where_the_ratio_changes_sign() {
+        // The FFT's throughput grows like m² while the stencil's stays flat: they meet at m = 4.
+        let stencil = [(1.0, 16.0), (2.0, 16.0), (8.0, 16.0)];
+        let fft = [(1.0, 1.0), (2.0, 4.0), (8.0, 64.0)];
+        let m = crossover(&stencil, &fft).expect("they cross");
+        assert!((m - 4.0).abs() < 1e-12, "{m}");
+        // Never overtaken: no crossover.
+        assert_eq!(
+            crossover(
+                &fft[..2],
+                &stencil[..2]
+                    .iter()
+                    .map(|&(m, _)| (m, 0.5))
+                    .collect::<Vec<_>>()
+            ),
+            None
+        );
     }
 }

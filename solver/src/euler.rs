@@ -219,12 +219,10 @@ fn update(u: &mut [f64], lu: &[f64], dt: f64, rate: impl Fn(usize, f64) -> f64 +
         .zip(lu.par_chunks(BLOCK))
         .enumerate()
         .map(|(b, (u_block, lu_block))| {
-            let mut block_max: f64 = 0.0;
             for (k, (ui, &l)) in u_block.iter_mut().zip(lu_block).enumerate() {
                 *ui += dt * rate(b * BLOCK + k, l);
-                block_max = block_max.max(diagnostics::magnitude(*ui));
             }
-            block_max
+            diagnostics::block_max_abs(u_block)
         })
         .reduce(|| 0.0, f64::max)
 }

@@ -94,32 +94,44 @@ pub fn eigenmode_decay(dim: usize, length: f64, diffusivity: f64, t: f64) -> f64
 
 /// Forward Euler on the (2d+1)-point Laplacian, swapping two buffers: each step reads cⁿ and
 /// writes cⁿ⁺¹ in one sweep over rows, so the field is never copied.
-struct ExplicitFd {
+pub struct ExplicitFd {
     grid: LocalGrid,
     /// a = dt D / h².
     a: f64,
+    /// The boundary's row of zeros.
+    zero_row: Vec<f64>,
 }
 
 impl ExplicitFd {
-    fn integrate(&self, u: Vec<f64>, stepping: &Stepping) -> Trajectory {
-        let n = self.grid.n;
-        let zero_row = vec![0.0; n];
-        let a = self.a;
+    pub fn new(grid: LocalGrid, diffusivity: f64, dt: f64) -> Self {
+        ExplicitFd {
+            grid,
+            a: dt * diffusivity / (grid.h * grid.h),
+            zero_row: vec![0.0; grid.n],
+        }
+    }
+
+    /// next = cⁿ⁺¹ from u = cⁿ; returns max |cⁿ⁺¹|.
+    pub fn step(&self, u: &[f64], next: &mut [f64]) -> f64 {
+        let (n, a) = (self.grid.n, self.a);
         let across = if self.grid.dim == 2 { a } else { 0.0 };
+        next.par_chunks_mut(n)
+            .enumerate()
+            .map(|(y, out)| {
+                let (below, above) = neighbour_rows(u, y, n, &self.zero_row);
+                relax_row(out, &u[y * n..(y + 1) * n], below, above, a, across)
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
+    fn integrate(&self, u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         let mut state = (u, vec![0.0; self.grid.nodes()]);
         let (timing, observed) = timed_steps_observed(
             &mut state,
             stepping,
             |(u, _)| Cow::Borrowed(u),
             |(u, next), _| {
-                let max_abs = next
-                    .par_chunks_mut(n)
-                    .enumerate()
-                    .map(|(y, out)| {
-                        let (below, above) = neighbour_rows(u, y, n, &zero_row);
-                        relax_row(out, &u[y * n..(y + 1) * n], below, above, a, across)
-                    })
-                    .reduce(|| 0.0, f64::max);
+                let max_abs = self.step(u, next);
                 std::mem::swap(u, next);
                 max_abs
             },
@@ -160,21 +172,16 @@ fn relax_row(out: &mut [f64], row: &[f64], below: &[f64], above: &[f64], ax: f64
         let c = row[x];
         c + ax * (left - 2.0 * c + right) + ay * (below[x] - 2.0 * c + above[x])
     };
-    let mut max_abs: f64 = 0.0;
-    let mut set = |x: usize, v: f64| {
-        out[x] = v;
-        max_abs = max_abs.max(diagnostics::magnitude(v));
-    };
     if n == 1 {
-        set(0, value(0, 0.0, 0.0));
-        return max_abs;
+        out[0] = value(0, 0.0, 0.0);
+    } else {
+        out[0] = value(0, 0.0, row[1]);
+        for x in 1..n - 1 {
+            out[x] = value(x, row[x - 1], row[x + 1]);
+        }
+        out[n - 1] = value(n - 1, row[n - 2], 0.0);
     }
-    set(0, value(0, 0.0, row[1]));
-    for x in 1..n - 1 {
-        set(x, value(x, row[x - 1], row[x + 1]));
-    }
-    set(n - 1, value(n - 1, row[n - 2], 0.0));
-    max_abs
+    diagnostics::block_max_abs(out)
 }
 
 /// Runs a grid case (`fd_explicit`, or `adi` when `implicit`).
@@ -190,8 +197,7 @@ pub fn run(case: &Case, implicit: bool) -> Result<Outcome, CaseError> {
     let trajectory = if implicit {
         Adi::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     } else {
-        let a = dt * case.diffusivity / (grid.h * grid.h);
-        ExplicitFd { grid, a }.integrate(u0, &stepping)
+        ExplicitFd::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     };
     let resolved = Resolved {
         h: grid.h,
@@ -270,17 +276,23 @@ impl Adi {
         }
     }
 
+    /// The buffers a step works in, allocated once.
+    pub fn workspace(&self) -> AdiWorkspace {
+        AdiWorkspace {
+            row_tiles: vec![0.0; self.grid.nodes()],
+            column_tiles: vec![0.0; self.grid.nodes()],
+            zero_row: vec![0.0; self.grid.n],
+        }
+    }
+
     /// Steps forward from u, in the shared timed loop.
     fn integrate(&self, mut u: Vec<f64>, stepping: &Stepping) -> Trajectory {
-        // c* in row tiles, cⁿ⁺¹ in column tiles, and the boundary's zero row, allocated once.
-        let mut row_tiles = vec![0.0; u.len()];
-        let mut column_tiles = vec![0.0; u.len()];
-        let zero_row = vec![0.0; self.grid.n];
+        let mut workspace = self.workspace();
         let (timing, observed) = timed_steps_observed(
             &mut u,
             stepping,
             |u| Cow::Borrowed(u),
-            |u, _| self.step(u, &mut row_tiles, &mut column_tiles, &zero_row),
+            |u, _| self.step(u, &mut workspace),
             |_, _| {},
         );
         Trajectory::observed(u, timing, observed)
@@ -289,13 +301,14 @@ impl Adi {
     /// One step; returns max |cⁿ⁺¹|. Both halves work on TILE lines at a time, interleaved
     /// (element i of line k at i·lanes + k), so that the tile's Thomas solves run in lockstep:
     /// one solve is a chain of dependent multiply-adds, several side by side keep the FPU busy.
-    fn step(
-        &self,
-        u: &mut [f64],
-        row_tiles: &mut [f64],
-        column_tiles: &mut [f64],
-        zero_row: &[f64],
-    ) -> f64 {
+    pub fn step(&self, u: &mut [f64], workspace: &mut AdiWorkspace) -> f64 {
+        let AdiWorkspace {
+            row_tiles,
+            column_tiles,
+            zero_row,
+        } = workspace;
+        let (row_tiles, column_tiles, zero_row) =
+            (&mut row_tiles[..], &mut column_tiles[..], &zero_row[..]);
         let n = self.grid.n;
         let r = self.r;
         if self.grid.dim == 1 {
@@ -362,6 +375,13 @@ impl Adi {
             })
             .reduce(|| 0.0, f64::max)
     }
+}
+
+/// c* in row tiles, cⁿ⁺¹ in column tiles, and the boundary's zero row.
+pub struct AdiWorkspace {
+    row_tiles: Vec<f64>,
+    column_tiles: Vec<f64>,
+    zero_row: Vec<f64>,
 }
 
 /// The Thomas algorithm for the constant tridiagonal matrix (a, b, a) of order n with the

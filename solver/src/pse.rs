@@ -226,7 +226,8 @@ impl Particles {
     }
 
     /// K = D V η_ε(0) / ε²: the factor of every pair's exp(−r²/ε²)(φ_j − φ_i).
-    fn rate_factor(&self, diffusivity: f64) -> f64 {
+    /// dt times this is the factor of a step.
+    pub fn rate_factor(&self, diffusivity: f64) -> f64 {
         let eta0 = 4.0 / (PI.powf(self.dim as f64 / 2.0) * self.eps.powi(self.dim as i32));
         diffusivity * self.volume() * eta0 / (self.eps * self.eps)
     }
@@ -254,6 +255,11 @@ impl Particles {
     }
 
     /// The slot-ordered state of a lattice-ordered field (images are filled each step).
+    /// Particles and their images.
+    pub fn slots(&self) -> usize {
+        self.position.len()
+    }
+
     fn to_slots(&self, field: &[f64]) -> Vec<f64> {
         let mut phi = vec![0.0; self.position.len()];
         for (i, &value) in field.iter().enumerate() {
@@ -389,8 +395,9 @@ impl Particles {
         });
     }
 
-    /// One forward Euler step of `dt`; returns max |φ| over the particles.
-    fn step(&self, phi: &mut [f64], rate: &mut [f64], dt_factor: f64) -> f64 {
+    /// One forward Euler step: φ += dt_factor · rate (see `rate_factor`); returns max |φ| over
+    /// the particles. φ has a slot per particle and image (`slots`), `rate` one per particle.
+    pub fn step(&self, phi: &mut [f64], rate: &mut [f64], dt_factor: f64) -> f64 {
         self.fill_images(phi);
         self.exchange(phi, rate);
         phi[..self.count()]

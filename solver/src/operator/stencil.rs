@@ -26,6 +26,10 @@ const LANES: usize = if cfg!(target_feature = "avx512f") {
     16
 };
 
+/// Rows per task in 2D, and the width of the column tiles each task sweeps its rows by.
+const BAND: usize = 16;
+const TILE: usize = 1024;
+
 pub struct StencilOperator {
     stencil: Stencil,
     /// Every bond in summation order (rows by dy, then dx), as its weight and the distance from a
@@ -82,15 +86,26 @@ impl NonlocalOperator for StencilOperator {
             .zip(u.par_chunks(n))
             .for_each(|(padded_row, u_row)| padded_row[reach..reach + n].copy_from_slice(u_row));
         let padded = &padded[..];
-        // A block never straddles two rows: a whole row in 2D, a fixed-length segment in 1D, so the
-        // blocks (and therefore the rounding) do not depend on the thread count.
-        let block = if grid.dim == 2 { n } else { SEGMENT_1D.min(n) };
-        out.par_chunks_mut(block)
+        if grid.dim == 1 {
+            out.par_chunks_mut(SEGMENT_1D)
+                .enumerate()
+                .for_each(|(b, segment)| {
+                    self.padded_segment(padded, 0, b * SEGMENT_1D, segment);
+                });
+            return;
+        }
+        // Each task takes a band of rows and sweeps it one column tile at a time, so the source
+        // rows a tile reads (2·reach + 1 of them) stay in cache from one output row to the next.
+        let tile = TILE.min(n);
+        out.par_chunks_mut(BAND * n)
             .enumerate()
-            .for_each(|(b, out_block)| {
-                let start = b * block;
-                let (y, x0) = (start / n, start % n);
-                self.padded_segment(padded, y, x0, out_block);
+            .for_each(|(b, band)| {
+                for x0 in (0..n).step_by(tile) {
+                    for (r, row) in band.chunks_mut(n).enumerate() {
+                        let width = tile.min(n - x0);
+                        self.padded_segment(padded, b * BAND + r, x0, &mut row[x0..x0 + width]);
+                    }
+                }
             });
     }
 }
