@@ -54,7 +54,19 @@ pub struct Record {
     pub field: Option<FieldSnapshot>,
     #[serde(flatten)]
     pub distribution: Distribution,
+    /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
+    /// included; absent where /proc does not tell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_memory_bytes: Option<u64>,
     pub provenance: Provenance,
+}
+
+/// VmHWM of /proc/self/status: the most resident memory this process has held.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 /// What the case resolved to.

@@ -204,6 +204,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         field: measured.field,
         provenance: Provenance::here(case.threads, measured.distribution.ranks),
         distribution: measured.distribution,
+        peak_memory_bytes: crate::record::peak_memory_bytes(),
     }
 }
 
