@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs
 
 setup:
 	@scripts/setup.sh
@@ -21,7 +21,7 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit
+STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
@@ -38,3 +38,14 @@ docs-figures: figures
 ac-docs: setup
 	cargo build --release --workspace
 	scripts/ac_report.sh
+
+# The binaries built for this machine's processor (AVX-512 here), in their own target directory.
+native: setup
+	cargo build --release --workspace --target-dir target/native --config 'build.rustflags=["-C", "target-cpu=native"]'
+
+# The perf study (portable build, 2 threads) and its figure in docs/figures/perf/.
+perf-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/perf.json
+	mkdir -p docs/figures/perf
+	cp results/perf/figures/throughput.svg docs/figures/perf/throughput.svg

@@ -588,7 +588,7 @@ fn throughput(rows: &[&Row], series_columns: &[String], x: &str, y: &str) -> Vec
             let guides = match (backend_points("stencil"), backend_points("fft")) {
                 (Some(stencil), Some(fft)) => crossover(&stencil, &fft)
                     .map(|m| Guide::Vertical {
-                        label: format!("crossover m ≈ {m:.1}"),
+                        label: format!("n = {n}: FFT faster from m ≈ {m:.1}"),
                         x: m,
                     })
                     .into_iter()

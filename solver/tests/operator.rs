@@ -6,7 +6,7 @@ mod common;
 use common::random_field;
 use solver::grid::{Grid, Horizon};
 use solver::influence::Kernel;
-use solver::operator::{plan, Backend, NonlocalOperator};
+use solver::operator::{plan, Backend, Cost, NonlocalOperator};
 use solver::quadrature::Quadrature;
 use solver::stencil::Stencil;
 
@@ -213,4 +213,48 @@ fn a_horizon_landing_on_a_node_keeps_that_node() {
         Quadrature::Midpoint,
     );
     assert_eq!((stencil.horizon.m, stencil.offsets), (4, 8));
+}
+
+#[test]
+fn auto_follows_the_cost_model() {
+    // On the model (docs/performance.md), not on a timing: the stencil for m = 1, the FFT for a
+    // long horizon, at every grid size of the perf study, and the choice is the cheaper cost.
+    for (dim, sizes) in [(1, [1000, 100_000, 1_000_000]), (2, [256, 1024, 4096])] {
+        for n in sizes {
+            let grid = Grid::new(dim, n);
+            let of = |m| {
+                Stencil::new(
+                    grid,
+                    Horizon::from_m(&grid, m),
+                    Kernel::Linear,
+                    Quadrature::Midpoint,
+                    1.0,
+                )
+            };
+            let (short, long) = (of(1), of(if dim == 1 { 400 } else { 32 }));
+            assert_eq!(
+                Backend::Auto.resolve(&short),
+                Backend::Stencil,
+                "{dim}D n={n}, m=1"
+            );
+            assert_eq!(
+                Backend::Auto.resolve(&long),
+                Backend::Fft,
+                "{dim}D n={n}, long horizon"
+            );
+            for stencil in [short, long] {
+                let cost = Cost::of(&stencil);
+                let cheaper = if cost.fft < cost.stencil {
+                    Backend::Fft
+                } else {
+                    Backend::Stencil
+                };
+                assert_eq!(Backend::Auto.resolve(&stencil), cheaper);
+            }
+            // Explicit choices are kept as they are.
+            for backend in [Backend::Stencil, Backend::Fft, Backend::NeighbourList] {
+                assert_eq!(backend.resolve(&of(1)), backend);
+            }
+        }
+    }
 }

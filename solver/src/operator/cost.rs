@@ -1,6 +1,7 @@
-//! The cost model behind `backend: auto`: predicted seconds per application of the stencil and
-//! FFT backends, with constants fitted to `studies/perf.json` on the development machine (see
-//! docs/performance.md). Only the ratio matters for the choice, so one set of constants serves
+//! The cost model behind `backend: auto`: predicted seconds per step with the stencil and with
+//! the FFT backend, with constants fitted to `studies/perf.json` on the development machine (see
+//! docs/performance.md). The stencil costs N·(offsets·a + b), the FFT P^d log₂(P^d)·c + N·b:
+//! the FFT wins from m ≈ 5–6 in 2D on n = 256…4096 (measured 4.7–5.5). Only the ratio matters for the choice, so one set of constants serves
 //! every thread count; the model is a property of the case, never a timing taken at run time, so
 //! the same case always runs the same backend.
 
@@ -8,13 +9,15 @@ use super::fft::transform_length;
 use super::Backend;
 use crate::stencil::Stencil;
 
+// Least-squares fits to the median step times of `studies/perf.json` (2D, 2 threads, portable
+// build; 18 points per backend, each within 2× of the fit), the Euler update included.
 /// Seconds per bond update of the stencil backend.
-const STENCIL_PER_BOND: f64 = 1.0e-10;
-/// Seconds per node of the stencil backend's fixed work (the padded copy, −W u, the store).
-const STENCIL_PER_NODE: f64 = 1.0e-9;
-/// Seconds per (transform point × log₂ of the transform's size) of the FFT backend, both
-/// directions together.
-const FFT_PER_POINT_LOG: f64 = 1.0e-9;
+const STENCIL_PER_BOND: f64 = 6.6e-11;
+/// Seconds per node of either backend's work that does not depend on m (the Euler update, the
+/// stencil's padded copy, the FFT's −W u).
+const PER_NODE: f64 = 1.4e-9;
+/// Seconds per (transform point × log₂ of the transform's size) of the FFT backend, every pass.
+const FFT_PER_POINT_LOG: f64 = 2.8e-10;
 
 /// Predicted seconds per application of each fast backend.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,8 +33,8 @@ impl Cost {
         let reach = stencil.reach().min(grid.n - 1);
         let points = (transform_length(grid.n + reach) as f64).powi(grid.dim as i32);
         Cost {
-            stencil: nodes * (STENCIL_PER_BOND * stencil.offsets as f64 + STENCIL_PER_NODE),
-            fft: FFT_PER_POINT_LOG * points * points.log2(),
+            stencil: nodes * (STENCIL_PER_BOND * stencil.offsets as f64 + PER_NODE),
+            fft: FFT_PER_POINT_LOG * points * points.log2() + PER_NODE * nodes,
         }
     }
 }
