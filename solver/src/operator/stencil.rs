@@ -3,8 +3,8 @@
 //! The serial kernel copies u once per application into a buffer with a zero collar of width
 //! `reach`, so no bond needs a bounds check, and then register-blocks: a block of `LANES`
 //! consecutive outputs of a row stays in registers while every bond of the stencil is added to it
-//! (one load and one multiply-add per bond and lane, no store). The distributed solver's windows
-//! use `row_segment`, which sums in the same order, so both agree bit for bit.
+//! (one load, one multiply and one add per bond and lane, no store). The distributed solver's
+//! windows use `row_segment`, which sums in the same order, so both agree bit for bit.
 
 use super::NonlocalOperator;
 use crate::grid::Window;
