@@ -404,12 +404,10 @@ impl Particles {
             .par_chunks_mut(BLOCK)
             .zip(rate.par_chunks(BLOCK))
             .map(|(phi_block, rate_block)| {
-                let mut block_max: f64 = 0.0;
                 for (value, &r) in phi_block.iter_mut().zip(rate_block) {
                     *value += dt_factor * r;
-                    block_max = block_max.max(diagnostics::magnitude(*value));
                 }
-                block_max
+                diagnostics::block_max_abs(phi_block)
             })
             .reduce(|| 0.0, f64::max)
     }

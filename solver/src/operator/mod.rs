@@ -34,13 +34,6 @@ pub enum Backend {
 }
 
 impl Backend {
-    pub const ALL: [Backend; 4] = [
-        Backend::Auto,
-        Backend::Stencil,
-        Backend::Fft,
-        Backend::NeighbourList,
-    ];
-
     /// The backend that runs: `Auto` made concrete by the cost model, the others as they are.
     pub fn resolve(self, stencil: &Stencil) -> Backend {
         match self {
