@@ -18,6 +18,9 @@ const MAX_FRAME_BYTES: f64 = (4u64 << 30) as f64;
 /// Largest horizon accepted: beyond it the collar is wider than half of D.
 pub const MAX_EPS: f64 = 0.5;
 
+/// Seed 001's relative tolerance for the steady solvers.
+pub const DEFAULT_RTOL: f64 = 1e-5;
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
@@ -30,6 +33,11 @@ pub enum Method {
     Adi,
     /// Local diffusion (seed 004): particle strength exchange, forward Euler.
     Pse,
+    /// Steady nonlocal diffusion (seed 001): unpreconditioned conjugate gradients on A u = f.
+    SteadyCg,
+    /// Steady nonlocal diffusion (seed 001): FETI with p × p subdomains, projected CG on the
+    /// Lagrange multipliers.
+    Feti,
 }
 
 impl Method {
@@ -42,6 +50,24 @@ impl Method {
     pub fn has_horizon(self) -> bool {
         matches!(self, Method::Nonlocal | Method::Pse)
     }
+
+    /// Does the method solve the steady problem −L u = f of seed 001 (no time)?
+    pub fn is_steady(self) -> bool {
+        matches!(self, Method::SteadyCg | Method::Feti)
+    }
+}
+
+/// The preconditioner of FETI's projected CG (seed 001, section 3.1.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FetiPreconditioner {
+    /// None: Q = I.
+    None,
+    /// The Dirichlet preconditioner of eq. 33, interior solves by sparse Cholesky.
+    #[default]
+    Dirichlet,
+    /// The Dirichlet preconditioner with 5 CG iterations for the interior solves.
+    DirichletCg,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -83,8 +109,9 @@ pub struct Case {
     /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in seed 004).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length: Option<f64>,
-    /// Final time T.
-    pub t_end: f64,
+    /// Final time T (time-dependent methods).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_end: Option<f64>,
     /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dt: Option<f64>,
@@ -128,6 +155,15 @@ pub struct Case {
     /// Blocks along y of a `block` partition (2D).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub py: Option<usize>,
+    /// Steady methods: relative tolerance of the iteration (default 1e-5, seed 001's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rtol: Option<f64>,
+    /// `feti`: subdomains per side, p (p × p in all; p² may exceed the ranks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subdomains: Option<usize>,
+    /// `feti`: the preconditioner (default `dirichlet`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preconditioner: Option<FetiPreconditioner>,
 }
 
 fn default_kernel() -> Kernel {
@@ -186,6 +222,20 @@ impl Case {
         self.length.unwrap_or(crate::local::DEFAULT_LENGTH)
     }
 
+    /// T, 0 for the steady methods.
+    pub fn t_end(&self) -> f64 {
+        self.t_end.unwrap_or(0.0)
+    }
+
+    /// The steady methods' relative tolerance.
+    pub fn rtol(&self) -> f64 {
+        self.rtol.unwrap_or(DEFAULT_RTOL)
+    }
+
+    pub fn preconditioner(&self) -> FetiPreconditioner {
+        self.preconditioner.unwrap_or_default()
+    }
+
     pub fn source(&self) -> SourceMode {
         self.source.unwrap_or(self.problem.default_source())
     }
@@ -207,6 +257,10 @@ impl Case {
                 "must be at least 1 (got 0); give the number of nodes per side, h = 1/n",
             ));
         }
+        if self.method.is_steady() {
+            return crate::steady::validate(self);
+        }
+        self.refuse_steady_fields()?;
         if self.method.is_local() {
             self.validate_local()?;
         } else {
@@ -321,7 +375,7 @@ impl Case {
         }
         if let Some(every) = self.vtk_every {
             positive("vtk_every", every)?;
-            let frames = (self.t_end / every).ceil() + 2.0;
+            let frames = (self.t_end() / every).ceil() + 2.0;
             let bytes = frames * (self.n as f64).powi(self.dim as i32) * 8.0;
             if bytes > MAX_FRAME_BYTES {
                 return Err(CaseError::new(
@@ -413,7 +467,13 @@ impl Case {
     }
 
     fn validate_time_and_threads(&self) -> Result<(), CaseError> {
-        positive("t_end", self.t_end)?;
+        let Some(t_end) = self.t_end else {
+            return Err(CaseError::new(
+                "t_end",
+                "the final time is missing; give `t_end`",
+            ));
+        };
+        positive("t_end", t_end)?;
         match (self.dt, self.cfl) {
             (Some(_), Some(_)) => return Err(CaseError::new(
                 "cfl",
@@ -445,7 +505,24 @@ impl Case {
 }
 
 impl Case {
-    fn validate_distribution(&self) -> Result<(), CaseError> {
+    /// The steady methods' fields, refused elsewhere.
+    fn refuse_steady_fields(&self) -> Result<(), CaseError> {
+        for (field, given) in [
+            ("rtol", self.rtol.is_some()),
+            ("subdomains", self.subdomains.is_some()),
+            ("preconditioner", self.preconditioner.is_some()),
+        ] {
+            if given {
+                return Err(CaseError::new(
+                    field,
+                    "belongs to the steady methods `steady_cg` and `feti`; leave it out",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub(crate) fn validate_distribution(&self) -> Result<(), CaseError> {
         let nodes = self.n.saturating_pow(self.dim as u32);
         if self.ranks < 1 {
             return Err(CaseError::new("ranks", "must be at least 1 (got 0)"));
@@ -480,7 +557,7 @@ impl Case {
     }
 }
 
-fn positive(field: &str, value: f64) -> Result<(), CaseError> {
+pub(crate) fn positive(field: &str, value: f64) -> Result<(), CaseError> {
     if value > 0.0 && value.is_finite() {
         Ok(())
     } else {

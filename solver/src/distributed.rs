@@ -19,6 +19,7 @@ use crate::problem::{self, manufactured_solution, Problem, Source, SourceMode};
 use crate::record::Distribution;
 use crate::run::{self, median, Measured, Outcome, Plan};
 use crate::source::PointwiseSource;
+use crate::stencil::Stencil;
 use crate::subdomain::{Neighbour, Run, Subdomain};
 use mpi::collective::SystemOperation;
 use mpi::point_to_point::Source as _;
@@ -55,10 +56,13 @@ pub fn run(
             ),
         ));
     }
+    if case.method.is_steady() {
+        return crate::steady::distributed::run(world, case);
+    }
     let pool = run::thread_pool(case.threads)?;
     let setup_started = Instant::now();
     let plan = pool.install(|| Plan::new(case))?;
-    let ownership = ownership(world, case, &plan)?;
+    let ownership = ownership(world, case, &plan.stencil)?;
     let rank = world.rank() as usize;
     let subdomain = Subdomain::new(&ownership, &plan.stencil, rank);
     let mut rank_run = RankRun::new(world, &pool, case, &plan, &subdomain);
@@ -76,15 +80,19 @@ pub fn run(
 }
 
 /// The partition of the case, the same on every rank.
-fn ownership(world: &SimpleCommunicator, case: &Case, plan: &Plan) -> Result<Ownership, CaseError> {
-    let grid = plan.stencil.grid;
+pub(crate) fn ownership(
+    world: &SimpleCommunicator,
+    case: &Case,
+    stencil: &Stencil,
+) -> Result<Ownership, CaseError> {
+    let grid = stencil.grid;
     if case.partition == Partition::Block {
-        return partition::of(case, &plan.stencil); // cheap and the same everywhere
+        return partition::of(case, stencil); // cheap and the same everywhere
     }
     // METIS on rank 0 and the map broadcast: one partition, however METIS would behave on
     // other hosts.
     let root = world.process_at_rank(0);
-    let computed = (world.rank() == 0).then(|| partition::of(case, &plan.stencil));
+    let computed = (world.rank() == 0).then(|| partition::of(case, stencil));
     let mut failed = i32::from(matches!(computed, Some(Err(_))));
     root.broadcast_into(&mut failed);
     let mut owner = match computed {
@@ -359,14 +367,14 @@ impl<'a> RankRun<'a> {
 
 /// The halo of one rank: per neighbour, a buffer of the values it sends and one for those it
 /// receives, allocated once.
-struct HaloExchange<'a> {
+pub(crate) struct HaloExchange<'a> {
     neighbours: &'a [Neighbour],
     send: Vec<Vec<f64>>,
     receive: Vec<Vec<f64>>,
 }
 
 impl<'a> HaloExchange<'a> {
-    fn new(neighbours: &'a [Neighbour]) -> Self {
+    pub(crate) fn new(neighbours: &'a [Neighbour]) -> Self {
         HaloExchange {
             neighbours,
             send: neighbours
@@ -383,7 +391,7 @@ impl<'a> HaloExchange<'a> {
     /// Sends the owned values other ranks need and receives the ghosts into `u`, running
     /// `overlap` (which must not read ghosts) while the messages are in flight. Returns the
     /// seconds spent on the exchange itself, `overlap` excluded.
-    fn exchange(
+    pub(crate) fn exchange(
         &mut self,
         world: &SimpleCommunicator,
         u: &mut [f64],
@@ -455,13 +463,13 @@ fn update(
         .reduce(|| 0.0, f64::max)
 }
 
-fn all_max(world: &SimpleCommunicator, local: f64) -> f64 {
+pub(crate) fn all_max(world: &SimpleCommunicator, local: f64) -> f64 {
     let mut global = 0.0;
     world.all_reduce_into(&local, &mut global, SystemOperation::max());
     global
 }
 
-fn all_sum(world: &SimpleCommunicator, local: f64) -> f64 {
+pub(crate) fn all_sum(world: &SimpleCommunicator, local: f64) -> f64 {
     let mut global = 0.0;
     world.all_reduce_into(&local, &mut global, SystemOperation::sum());
     global

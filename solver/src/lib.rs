@@ -22,6 +22,7 @@ pub mod record;
 pub mod run;
 mod source;
 pub mod stability;
+pub mod steady;
 pub mod stencil;
 pub mod subdomain;
 pub mod vtk;

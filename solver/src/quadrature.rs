@@ -113,6 +113,14 @@ impl BondVolumes {
         bond_volumes
     }
 
+    /// h² for every offset of the square |o|∞ ≤ m but the origin (2D): seed 001's ω_j.
+    pub fn square(grid: &Grid, m: usize) -> Self {
+        let side = 2 * m + 1;
+        let mut volumes = vec![grid.volume(); side * side];
+        volumes[m * side + m] = 0.0;
+        BondVolumes { dim: 2, m, volumes }
+    }
+
     /// V_o, 0 outside the ball (and for |o_a| > m).
     #[inline]
     pub fn get(&self, dx: i64, dy: i64) -> f64 {

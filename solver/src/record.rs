@@ -54,6 +54,9 @@ pub struct Record {
     pub field: Option<FieldSnapshot>,
     #[serde(flatten)]
     pub distribution: Distribution,
+    /// The steady methods' iteration: counts, residual and FETI's sizes (absent otherwise).
+    #[serde(flatten)]
+    pub steady: SteadySolve,
     /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
     /// included; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -102,6 +105,41 @@ pub struct Resolved {
     /// Nonlocal method: the operator backend that ran (`auto` resolved by the cost model).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub backend: Option<Backend>,
+}
+
+/// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SteadySolve {
+    /// CG iterations (`steady_cg`) or projected-CG iterations on the multipliers (`feti`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// ‖f − A u‖/‖f‖ of the single-domain system (eq. 20) for the solution returned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relative_residual: Option<f64>,
+    /// FETI: √(rᵀy / r₀ᵀy₀), the preconditioned projected residual its iteration stops on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dual_residual: Option<f64>,
+    /// FETI: p², the subdomains, and how many of them float (Γ_n = ∅).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subdomains: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floating_subdomains: Option<usize>,
+    /// FETI: q, the Lagrange multipliers (one per node shared by a pair of subdomains).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub multipliers: Option<usize>,
+    /// FETI: the non-zeros of the largest subdomain's Cholesky factor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor_nonzeros_max: Option<usize>,
+}
+
+impl SteadySolve {
+    /// The record of a CG solve on the single-domain system.
+    pub fn cg(iterations: usize) -> Self {
+        SteadySolve {
+            iterations: Some(iterations),
+            ..SteadySolve::default()
+        }
+    }
 }
 
 /// How the run was spread over ranks, and what that cost.

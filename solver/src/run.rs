@@ -11,7 +11,7 @@ use crate::problem::{
     self, manufactured_solution, Collar, Problem, Source, SourceMode, WAVENUMBER,
 };
 use crate::pse;
-use crate::record::{Distribution, Provenance, Record, Resolved, Status};
+use crate::record::{Distribution, Provenance, Record, Resolved, Status, SteadySolve};
 use crate::source::PointwiseSource;
 use crate::stability::forward_euler_dt_stable;
 use crate::stencil::Stencil;
@@ -45,11 +45,15 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             ),
         ));
     }
+    if case.method.is_steady() {
+        return crate::steady::run(case);
+    }
     in_pool(case.threads, || match case.method {
         Method::Nonlocal => run_in_pool(case),
         Method::FdExplicit => local::run(case, false),
         Method::Adi => local::run(case, true),
         Method::Pse => pse::run(case),
+        Method::SteadyCg | Method::Feti => unreachable!("steady methods run above"),
     })
 }
 
@@ -123,7 +127,7 @@ pub(crate) fn stencil_of(case: &Case) -> Stencil {
 /// (max |φ| and max |ψ|).
 pub(crate) fn divergence_bound(case: &Case, u0_max: f64, source_max: Option<(f64, f64)>) -> f64 {
     let source_scale = source_max.map_or(0.0, |(phi, psi)| WAVENUMBER * phi + psi);
-    DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end * source_scale)
+    DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end() * source_scale)
 }
 
 impl Plan {
@@ -204,6 +208,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         field: measured.field,
         provenance: Provenance::here(case.threads, measured.distribution.ranks),
         distribution: measured.distribution,
+        steady: SteadySolve::default(),
         peak_memory_bytes: crate::record::peak_memory_bytes(),
     }
 }
@@ -316,7 +321,7 @@ pub(crate) fn time_step(
             ),
         ));
     }
-    let steps = ((case.t_end / requested) * (1.0 - 1e-12)).ceil().max(1.0);
+    let steps = ((case.t_end() / requested) * (1.0 - 1e-12)).ceil().max(1.0);
     if steps > MAX_STEPS as f64 {
         return Err(CaseError::new(
             "t_end",
@@ -325,7 +330,7 @@ pub(crate) fn time_step(
             ),
         ));
     }
-    Ok((case.t_end / steps, steps as usize))
+    Ok((case.t_end() / steps, steps as usize))
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives

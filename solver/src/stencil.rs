@@ -83,6 +83,48 @@ impl Stencil {
                 weights,
             });
         }
+        Stencil::from_rows(grid, horizon, kernel, quadrature, c, volumes, rows)
+    }
+
+    /// The stencil of the square (ℓ∞) neighbourhood |o|∞ ≤ m of seed 001, bond o weighted
+    /// `weight(dx, dy)`: every row spans −m ..= m.
+    pub fn square(
+        grid: Grid,
+        horizon: Horizon,
+        kernel: Kernel,
+        quadrature: Quadrature,
+        c: f64,
+        weight: impl Fn(i64, i64) -> f64,
+    ) -> Self {
+        let m = horizon.m as i64;
+        let volumes = BondVolumes::square(&grid, horizon.m);
+        let rows = (-m..=m)
+            .map(|dy| StencilRow {
+                dy,
+                dx_min: -m,
+                weights: (-m..=m)
+                    .map(|dx| {
+                        if (dx, dy) == (0, 0) {
+                            0.0
+                        } else {
+                            weight(dx, dy)
+                        }
+                    })
+                    .collect(),
+            })
+            .collect();
+        Stencil::from_rows(grid, horizon, kernel, quadrature, c, volumes, rows)
+    }
+
+    fn from_rows(
+        grid: Grid,
+        horizon: Horizon,
+        kernel: Kernel,
+        quadrature: Quadrature,
+        c: f64,
+        volumes: BondVolumes,
+        rows: Vec<StencilRow>,
+    ) -> Self {
         let total_weight = rows
             .iter()
             .flat_map(|row| row.bonds())

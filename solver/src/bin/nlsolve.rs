@@ -146,6 +146,16 @@ struct CaseArgs {
     /// Blocks along y of a block partition.
     #[arg(long)]
     py: Option<usize>,
+    /// Steady methods: relative tolerance of the iteration (default 1e-5).
+    #[arg(long)]
+    rtol: Option<f64>,
+    /// feti: subdomains per side, p (p × p in all).
+    #[arg(long)]
+    subdomains: Option<usize>,
+    /// feti: preconditioner none, dirichlet (default; Cholesky interior solves) or dirichlet_cg
+    /// (5 CG iterations for the interior solves).
+    #[arg(long)]
+    preconditioner: Option<String>,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -198,6 +208,12 @@ impl CaseArgs {
         set("partition", self.partition.clone().map(Value::from));
         set("px", self.px.map(Value::from));
         set("py", self.py.map(Value::from));
+        set("rtol", self.rtol.map(Value::from));
+        set("subdomains", self.subdomains.map(Value::from));
+        set(
+            "preconditioner",
+            self.preconditioner.clone().map(Value::from),
+        );
         Ok(fields)
     }
 }
@@ -253,6 +269,27 @@ fn summary(record: &Record) -> String {
         ),
         _ => label(&case.method),
     };
+    if let Some(iterations) = record.steady.iterations {
+        let solver = match case.subdomains {
+            Some(p) => format!(
+                "feti {p}×{p} ({}) with {} multipliers",
+                label(&case.preconditioner()),
+                record.steady.multipliers.unwrap_or(0)
+            ),
+            None => "cg".into(),
+        };
+        return format!(
+            "nlsolve: steady n={} {method}, {solver}, {} rank(s) × {} thread(s): {iterations} iterations in {:.3} s (setup {:.3} s), relative residual {:.2e}{errors}; status {} {}",
+            case.n,
+            case.ranks,
+            case.threads,
+            record.solve_s,
+            record.setup_s,
+            record.steady.relative_residual.unwrap_or(f64::NAN),
+            label(&record.status),
+            record.message,
+        );
+    }
     format!(
         "nlsolve: {}D n={} {method}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
