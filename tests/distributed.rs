@@ -382,3 +382,80 @@ fn an_unstable_run_diverges_at_the_serial_step() {
         assert_eq!(reference.record[field], run.record[field], "{field}");
     }
 }
+
+/// FETI over ranks (several subdomains per rank, p = 3 and 4 with floating subdomains) computes
+/// the one-process iterates: the same field bit for bit and the same iteration count. The
+/// one-process field equals the single-domain direct solve (solver/tests/steady.rs).
+#[test]
+fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit() {
+    for (p, ranks, preconditioner) in [
+        ("3", 2, "dirichlet"),
+        ("4", 3, "dirichlet_cg"),
+        ("4", 2, "none"),
+    ] {
+        let case = [
+            "--method",
+            "feti",
+            "--dim",
+            "2",
+            "--n",
+            "64",
+            "--m",
+            "4",
+            "--kernel",
+            "inverse_distance",
+            "--subdomains",
+            p,
+            "--preconditioner",
+            preconditioner,
+        ];
+        let one = serial(&case);
+        let many = distributed(ranks, "block", 1, &case);
+        assert_eq!(
+            one.field, many.field,
+            "p {p} on {ranks} ranks, {preconditioner}"
+        );
+        assert_eq!(one.record["iterations"], many.record["iterations"]);
+        assert_eq!(many.record["ranks"], ranks);
+        assert_eq!(
+            many.record["subdomains"].as_u64(),
+            Some(p.parse::<u64>().unwrap().pow(2))
+        );
+    }
+}
+
+/// CG over ranks applies the same A through the halo exchange; its inner products are summed in
+/// another order, so the iterates agree to rounding, not bit for bit.
+#[test]
+fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
+    let case = [
+        "--method",
+        "steady_cg",
+        "--dim",
+        "2",
+        "--n",
+        "60",
+        "--m",
+        "3",
+        "--kernel",
+        "inverse_distance",
+        "--rtol",
+        "1e-10",
+    ];
+    let one = serial(&case);
+    for (ranks, partition) in [(2, "block"), (3, "graph")] {
+        let many = distributed(ranks, partition, 1, &case);
+        let scale = one.field.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let difference = one
+            .field
+            .iter()
+            .zip(&many.field)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            difference < 1e-8 * scale,
+            "{ranks} ranks {partition}: {difference:e}"
+        );
+        let iterations = |r: &Run| r.record["iterations"].as_i64().unwrap();
+        assert!((iterations(&one) - iterations(&many)).abs() <= 1);
+    }
+}

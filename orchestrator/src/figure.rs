@@ -53,6 +53,10 @@ pub enum Kind {
     /// Heat maps (profiles in 1D) of one point's final field and of its error, from the
     /// snapshot the case's `field_snapshot` puts into the record.
     Field,
+    /// Steady solvers (seed 001): iterations and solve time against the subdomains, one series
+    /// per method and preconditioner. CG has no subdomains: its points sit at the subdomain count
+    /// of the FETI points that solve the same L.
+    SolverComparison,
 }
 
 impl Kind {
@@ -68,6 +72,7 @@ impl Kind {
             Kind::TimeSeries => ("c_tot.time", "c_tot.c_tot", "point"),
             Kind::Throughput => ("case.m", "bond_updates_per_s", "backend"),
             Kind::Field => ("field.values", "field.error", "point"),
+            Kind::SolverComparison => ("subdomains", "iterations", "case.method"),
         }
     }
 }
@@ -86,6 +91,8 @@ fn describe(column: &str) -> String {
         ("case.m", "horizon m = ε/h"),
         ("bond_updates_per_s", "bond updates per second"),
         ("c_tot.c_tot", "total concentration c_tot(t)"),
+        ("subdomains", "subdomains p²"),
+        ("iterations", "iterations"),
     ];
     if let Some((_, text)) = known.iter().find(|(c, _)| *c == column) {
         return text.to_string();
@@ -183,6 +190,14 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             kept.push(row);
         }
     }
+    if spec.kind == Kind::SolverComparison {
+        let title = spec
+            .title
+            .clone()
+            .unwrap_or_else(|| spec.name.replace('_', " "));
+        let panels = solver_comparison(&kept, &series_columns, &x, &y);
+        return Ok(Chart { title, panels });
+    }
     if spec.kind == Kind::Throughput {
         let panels = throughput(&kept, &series_columns, &x, &y);
         let title = spec
@@ -208,6 +223,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         Kind::Stability => vec![stability(&groups, &x, &y)],
         Kind::TimeSeries => vec![time_series(&groups, &x, &y)],
         Kind::Throughput => unreachable!("drawn above, one panel per n"),
+        Kind::SolverComparison => unreachable!("drawn above, two panels"),
         Kind::Field => field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
     };
     if matches!(spec.kind, Kind::StrongScaling | Kind::WeakScaling) {
@@ -557,6 +573,55 @@ fn work_precision(groups: &[Group], x: &str, y: &str) -> Panel {
             points: pareto_front(&everything),
         }],
     }
+}
+
+/// Iterations (`y`) and median solve time against the subdomains, a series per solver; a row
+/// without subdomains (CG) is drawn at every subdomain count of the rows with its n.
+fn solver_comparison(rows: &[&Row], series_columns: &[String], x: &str, y: &str) -> Vec<Panel> {
+    let subdomains_of_n: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|r| Some((r.number("case.n")?, r.number(x)?)))
+        .collect();
+    let mut placed: Vec<Row> = Vec::new();
+    for &row in rows {
+        if row.number(x).is_some() {
+            placed.push(row.clone());
+            continue;
+        }
+        let n = row.number("case.n");
+        let mut at: Vec<f64> = subdomains_of_n
+            .iter()
+            .filter(|(m, _)| Some(*m) == n)
+            .map(|&(_, s)| s)
+            .collect();
+        at.sort_by(f64::total_cmp);
+        at.dedup();
+        for s in at {
+            let mut copy = row.clone();
+            copy.set(x, serde_json::json!(s));
+            placed.push(copy);
+        }
+    }
+    let placed: Vec<&Row> = placed.iter().collect();
+    let mut groups = group(&placed, series_columns);
+    shared_by_all(&mut groups);
+    [(y, "iterations"), ("solve_s_median", "solve time")]
+        .into_iter()
+        .map(|(column, title)| {
+            let lines: Vec<Series> = groups
+                .iter()
+                .map(|g| series(g.legend(), g.points(x, column)))
+                .collect();
+            Panel {
+                title: title.into(),
+                x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
+                y: Axis::fitting(describe(column), all(lines.iter(), |p| p.1)),
+                series: lines,
+                heat: None,
+                guides: Vec::new(),
+            }
+        })
+        .collect()
 }
 
 /// One panel per grid size n: a series per backend, and the crossover where the FFT overtakes

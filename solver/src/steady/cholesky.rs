@@ -4,7 +4,7 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
-use faer::sparse::{SparseColMat, SparseColMatRef};
+use faer::sparse::SparseColMatRef;
 use faer::{Conj, MatMut, Par, Side};
 
 /// L Lᵀ = A for a symmetric positive definite sparse A.
@@ -67,15 +67,6 @@ impl Cholesky {
     }
 }
 
-/// A symmetric sparse matrix from (row, column, value) entries, duplicates summed.
-pub fn symmetric_matrix(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
-    let triplets: Vec<faer::sparse::Triplet<usize, usize, f64>> = entries
-        .iter()
-        .map(|&(i, j, v)| faer::sparse::Triplet::new(i, j, v))
-        .collect();
-    SparseColMat::try_new_from_triplets(n, n, &triplets).expect("entries lie inside the matrix")
-}
-
 /// y = A x for a matrix stored by columns whose columns are its rows (A symmetric).
 pub fn symmetric_product(a: SparseColMatRef<'_, usize, f64>, x: &[f64], y: &mut [f64]) {
     let (col_ptr, row_idx, values) = (a.col_ptr(), a.row_idx(), a.val());
@@ -92,6 +83,16 @@ pub fn symmetric_product(a: SparseColMatRef<'_, usize, f64>, x: &[f64], y: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use faer::sparse::SparseColMat;
+
+    /// A symmetric sparse matrix from (row, column, value) entries, duplicates summed.
+    fn symmetric_matrix(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
+        let triplets: Vec<faer::sparse::Triplet<usize, usize, f64>> = entries
+            .iter()
+            .map(|&(i, j, v)| faer::sparse::Triplet::new(i, j, v))
+            .collect();
+        SparseColMat::try_new_from_triplets(n, n, &triplets).expect("entries lie inside the matrix")
+    }
 
     #[test]
     fn solves_a_small_spd_system() {

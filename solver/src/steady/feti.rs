@@ -711,3 +711,59 @@ fn max_over_ranks(exchange: &dyn Exchange, local: f64) -> f64 {
     exchange.all_sum(&mut all);
     all.into_iter().fold(f64::NEG_INFINITY, f64::max)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On a floating subdomain, A_n^† is the Moore–Penrose pseudo-inverse: A A^† b = P b (P removes
+    /// the mean, the projection on range A_n = 1⊥), A^† b ⊥ 1, and A^† is symmetric.
+    #[test]
+    fn the_floating_solve_is_the_moore_penrose_pseudo_inverse() {
+        let case = Case::from_json(serde_json::json!({
+            "method": "feti", "dim": 2, "n": 36, "m": 4, "kernel": "inverse_distance",
+            "subdomains": 3,
+        }))
+        .unwrap();
+        let problem = SteadyProblem::new(&case);
+        let decomposition = Decomposition::new(36, 3, 4);
+        let geometry = &decomposition.subdomains[4];
+        assert!(geometry.floating);
+        let mut local = Local::new(
+            &problem,
+            &decomposition,
+            geometry,
+            FetiPreconditioner::Dirichlet,
+        )
+        .unwrap();
+        let s = geometry.unknowns();
+        let b: Vec<f64> = (0..s).map(|i| (i as f64 * 0.37).sin() + 0.3).collect();
+        let c: Vec<f64> = (0..s).map(|i| (i as f64 * 0.11).cos()).collect();
+        let pseudo = |local: &mut Local, v: &[f64]| {
+            let mut x = v.to_vec();
+            Local::pseudo_solve(&mut local.factor, true, &mut x);
+            x
+        };
+        let x = pseudo(&mut local, &b);
+        let mut ax = vec![0.0; s];
+        symmetric_product(local.a.as_ref(), &x, &mut ax);
+        let mean = b.iter().sum::<f64>() / s as f64;
+        for (axi, bi) in ax.iter().zip(&b) {
+            assert!(
+                (axi - (bi - mean)).abs() < 1e-10,
+                "A A† b ≠ P b: {axi} vs {}",
+                bi - mean
+            );
+        }
+        assert!(x.iter().sum::<f64>().abs() < 1e-10 * s as f64);
+        let y = pseudo(&mut local, &c);
+        let (cx, by): (f64, f64) = (
+            c.iter().zip(&x).map(|(p, q)| p * q).sum(),
+            b.iter().zip(&y).map(|(p, q)| p * q).sum(),
+        );
+        assert!(
+            (cx - by).abs() < 1e-9 * cx.abs().max(1.0),
+            "cᵀA†b {cx} vs bᵀA†c {by}"
+        );
+    }
+}
