@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs native perf-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs
 
 setup:
 	@scripts/setup.sh
@@ -21,7 +21,7 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf
+STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
@@ -49,3 +49,13 @@ perf-docs: setup
 	target/release/nlstudy run studies/perf.json
 	mkdir -p docs/figures/perf
 	cp results/perf/figures/throughput.svg docs/figures/perf/throughput.svg
+
+# The steady solvers' weak and strong scaling studies (seed 001; about 3½ minutes) and their
+# comparison figures in docs/figures/feti/.
+feti-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/feti_weak.json
+	target/release/nlstudy run studies/feti_strong.json
+	mkdir -p docs/figures/feti
+	cp results/feti_weak/figures/comparison.svg docs/figures/feti/weak.svg
+	cp results/feti_strong/figures/comparison.svg docs/figures/feti/strong.svg
