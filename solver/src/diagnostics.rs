@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 const BLOCK: usize = 4096;
 
 /// Σᵢ term(i) for i < len, with the same rounding whatever the number of threads.
-fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     let partials: Vec<f64> = (0..len.div_ceil(BLOCK))
         .into_par_iter()
         .map(|b| (b * BLOCK..len.min((b + 1) * BLOCK)).map(&term).sum())

@@ -150,7 +150,8 @@ pub struct Distribution {
     /// The block partition's shape (py = 1 in 1D); absent for `graph`.
     pub px: Option<usize>,
     pub py: Option<usize>,
-    /// Ghost nodes summed over ranks: values received per step.
+    /// Ghost nodes summed over ranks: values received per step (`feti`: multiplier values
+    /// received per interface exchange; `steady_cg`: ghosts per matrix–vector product).
     pub halo_nodes: usize,
     /// Bytes received per step, all ranks together (8 per ghost).
     pub halo_bytes: usize,

@@ -383,27 +383,28 @@ impl<'d> Feti<'d> {
         partial.iter().sum()
     }
 
-    /// out ← K x (local products, then the interface sum).
+    /// out ← K x.
     fn apply_k(&mut self, exchange: &dyn Exchange, x: &[f64], out: &mut [f64]) {
-        let parts = self.layout.split(out);
-        let offsets = &self.layout.offsets;
-        let locals = &mut self.locals;
-        self.pool.install(|| {
-            locals
-                .par_iter_mut()
-                .zip(parts)
-                .enumerate()
-                .for_each(|(k, (local, out))| local.apply_k(&x[offsets[k]..offsets[k + 1]], out))
-        });
-        self.layout.interface_sum(exchange, out);
+        self.interface_assembled(exchange, x, out, Local::apply_k);
     }
 
     /// out ← Q r.
     fn apply_preconditioner(&mut self, exchange: &dyn Exchange, r: &[f64], out: &mut [f64]) {
-        if self.preconditioner == FetiPreconditioner::None {
-            out.copy_from_slice(r);
-            return;
+        match self.preconditioner {
+            FetiPreconditioner::None => out.copy_from_slice(r),
+            _ => self.interface_assembled(exchange, r, out, Local::apply_dirichlet),
         }
+    }
+
+    /// out ← Σ_n R_nᵀ product_n(R_n x): every subdomain's local product in parallel, then the
+    /// interface sum.
+    fn interface_assembled(
+        &mut self,
+        exchange: &dyn Exchange,
+        x: &[f64],
+        out: &mut [f64],
+        product: fn(&mut Local<'d>, &[f64], &mut [f64]),
+    ) {
         let parts = self.layout.split(out);
         let offsets = &self.layout.offsets;
         let locals = &mut self.locals;
@@ -412,9 +413,7 @@ impl<'d> Feti<'d> {
                 .par_iter_mut()
                 .zip(parts)
                 .enumerate()
-                .for_each(|(k, (local, out))| {
-                    local.apply_dirichlet(&r[offsets[k]..offsets[k + 1]], out)
-                })
+                .for_each(|(k, (local, out))| product(local, &x[offsets[k]..offsets[k + 1]], out))
         });
         self.layout.interface_sum(exchange, out);
     }
@@ -665,6 +664,15 @@ pub fn run_on(
         }
     }
     exchange.all_sum(&mut field);
+    // Multiplier values each exchange brings in, over all ranks.
+    let mut received = [feti
+        .layout
+        .peer_blocks
+        .iter()
+        .flatten()
+        .map(|&(_, len)| len)
+        .sum::<usize>() as f64];
+    exchange.all_sum(&mut received);
     let factor_nonzeros = max_over_ranks(
         exchange,
         feti.locals
@@ -690,6 +698,8 @@ pub fn run_on(
     distribution.px = None;
     distribution.py = None;
     distribution.comm_s = comm_s;
+    distribution.halo_nodes = received[0] as usize;
+    distribution.halo_bytes = received[0] as usize * std::mem::size_of::<f64>();
     Ok(Some(outcome(
         case,
         problem,

@@ -38,6 +38,7 @@ pub mod exchange;
 pub mod feti;
 
 use crate::case::{positive, Case, CaseError, Method};
+use crate::diagnostics::fixed_order_sum;
 use crate::grid::{Grid, Horizon};
 use crate::influence::Kernel;
 use crate::operator::{self, Backend};
@@ -173,20 +174,9 @@ impl SteadyProblem {
         let mut lu = vec![0.0; u.len()];
         operator.apply(u, &mut lu);
         let grid = self.grid();
-        let (residual2, load2, error) = (0..u.len())
-            .into_par_iter()
-            .map(|i| {
-                let b = self.load(i);
-                (
-                    (b + lu[i]).powi(2),
-                    b * b,
-                    (u[i] - exact(grid.position(i))).abs(),
-                )
-            })
-            .reduce(
-                || (0.0, 0.0, 0.0),
-                |a, b| (a.0 + b.0, a.1 + b.1, a.2.max(b.2)),
-            );
+        let residual2 = fixed_order_sum(u.len(), |i| (self.load(i) + lu[i]).powi(2));
+        let load2 = fixed_order_sum(u.len(), |i| self.load(i).powi(2));
+        let error = crate::diagnostics::max_error(|i| exact(grid.position(i)), u);
         ((residual2 / load2).sqrt(), error)
     }
 }
