@@ -392,6 +392,7 @@ fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit() {
         ("3", 2, "dirichlet"),
         ("4", 3, "dirichlet_cg"),
         ("4", 2, "none"),
+        ("5", 3, "dirichlet_scaled"),
     ] {
         let case = [
             "--method",

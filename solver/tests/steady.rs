@@ -155,7 +155,7 @@ fn feti_reconstructs_the_single_domain_solution() {
         let problem = SteadyProblem::new(&steady("steady_cg", n, m, quadrature, json!({})));
         let direct = direct_solution(&problem);
         for p in [2, 3, 4] {
-            for preconditioner in ["none", "dirichlet", "dirichlet_cg"] {
+            for preconditioner in ["none", "dirichlet", "dirichlet_cg", "dirichlet_scaled"] {
                 let feti = steady(
                     "feti",
                     n,
@@ -183,10 +183,12 @@ fn feti_reconstructs_the_single_domain_solution() {
 /// while the Dirichlet-preconditioned FETI count levels off. Measured: p = 2 takes about half
 /// the iterations of the rest (10 against 14–18): it has no floating subdomain, so no coarse
 /// space and no cross points shared by four subdomains. From p = 3, the first p with floating
-/// subdomains, on, the count varies by less than 50%; that is what is asserted, next to p = 2's.
+/// subdomains, on, the count varies by less than 50%; that is what is asserted, next to p = 2's,
+/// for `dirichlet` (eq. 33) and `dirichlet_scaled` (5, 7, 9, 10).
 #[test]
 fn dirichlet_feti_iterations_level_off_while_cg_grows() {
     let mut feti_counts = Vec::new();
+    let mut scaled_counts: Vec<usize> = Vec::new();
     let mut cg_counts = Vec::new();
     let ps = [2, 3, 4, 8];
     for p in ps {
@@ -206,6 +208,13 @@ fn dirichlet_feti_iterations_level_off_while_cg_grows() {
             "midpoint",
             json!({"subdomains": p, "threads": 2}),
         )));
+        scaled_counts.push(run(steady(
+            "feti",
+            n,
+            4,
+            "midpoint",
+            json!({"subdomains": p, "threads": 2, "preconditioner": "dirichlet_scaled"}),
+        )));
         cg_counts.push(run(steady(
             "steady_cg",
             n,
@@ -214,17 +223,22 @@ fn dirichlet_feti_iterations_level_off_while_cg_grows() {
             json!({"threads": 2}),
         )));
     }
-    println!("L/p = 24, m = 4, p = {ps:?}: FETI (dirichlet) iterations {feti_counts:?}, CG iterations {cg_counts:?}");
-    let floating = &feti_counts[1..];
-    let (low, high) = (
-        *floating.iter().min().unwrap() as f64,
-        *floating.iter().max().unwrap() as f64,
+    println!(
+        "L/p = 24, m = 4, p = {ps:?}: FETI iterations, dirichlet {feti_counts:?}, \
+         dirichlet_scaled {scaled_counts:?}; CG iterations {cg_counts:?}"
     );
-    assert!(
-        high < 1.5 * low,
-        "FETI iterations from p = 3 on vary by 50% or more: {feti_counts:?}"
-    );
-    assert!(feti_counts[0] as f64 >= 0.4 * low, "p = 2: {feti_counts:?}");
+    for counts in [&feti_counts, &scaled_counts] {
+        let floating = &counts[1..];
+        let (low, high) = (
+            *floating.iter().min().unwrap() as f64,
+            *floating.iter().max().unwrap() as f64,
+        );
+        assert!(
+            high < 1.5 * low,
+            "FETI iterations from p = 3 on vary by 50% or more: {counts:?}"
+        );
+        assert!(counts[0] as f64 >= 0.4 * low, "p = 2: {counts:?}");
+    }
     assert!(
         cg_counts.windows(2).all(|w| w[1] > w[0]),
         "CG: {cg_counts:?}"

@@ -152,8 +152,8 @@ struct CaseArgs {
     /// feti: subdomains per side, p (p × p in all).
     #[arg(long)]
     subdomains: Option<usize>,
-    /// feti: preconditioner none, dirichlet (default; Cholesky interior solves) or dirichlet_cg
-    /// (5 CG iterations for the interior solves).
+    /// feti: preconditioner none, dirichlet (default; Cholesky interior solves), dirichlet_cg
+    /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
     #[arg(long)]
     preconditioner: Option<String>,
 }

@@ -58,6 +58,8 @@ struct Local<'d> {
     correction: Vec<f64>,
     interior_load: Vec<f64>,
     interior_solution: Vec<f64>,
+    /// `dirichlet_scaled`: 1/(subdomains whose Λ holds the node), per node of Λ_n.
+    multiplicity_scale: Option<Vec<f64>>,
 }
 
 impl<'d> Local<'d> {
@@ -86,11 +88,21 @@ impl<'d> Local<'d> {
             .collect();
         let interior_matrix = submatrix(&a, &interior);
         let interior_factor = match preconditioner {
-            FetiPreconditioner::Dirichlet if !interior.is_empty() => {
+            FetiPreconditioner::Dirichlet | FetiPreconditioner::DirichletScaled
+                if !interior.is_empty() =>
+            {
                 Some(Cholesky::new(interior_matrix.as_ref())?)
             }
             _ => None,
         };
+        let multiplicity_scale =
+            (preconditioner == FetiPreconditioner::DirichletScaled).then(|| {
+                let [xs, ys] = &geometry.lambda;
+                ys.clone()
+                    .flat_map(|y| xs.clone().map(move |x| (x, y)))
+                    .map(|(x, y)| 1.0 / decomposition.zeta_a([x, y], [x, y]) as f64)
+                    .collect()
+            });
         let (s, ni) = (geometry.unknowns(), interior.len());
         Ok(Local {
             geometry,
@@ -105,6 +117,7 @@ impl<'d> Local<'d> {
             correction: vec![0.0; s],
             interior_load: vec![0.0; ni],
             interior_solution: vec![0.0; ni],
+            multiplicity_scale,
         })
     }
 
@@ -155,9 +168,13 @@ impl<'d> Local<'d> {
     }
 
     /// out ← Q_n r_n = M_n S_n M_nᵀ r_n (eq. 33), S_n = A_BB − A_BI A_II⁻¹ A_IB applied as
-    /// A_n v − A_n (A_II⁻¹ (A_n v)_I) on B, for v = M_nᵀ r_n (zero on I).
+    /// A_n v − A_n (A_II⁻¹ (A_n v)_I) on B, for v = M_nᵀ r_n (zero on I); with multiplicity
+    /// scaling, M_n D_n S_n D_n M_nᵀ r_n.
     fn apply_dirichlet(&mut self, residual: &[f64], out: &mut [f64]) {
         Self::scatter(self.geometry, residual, &mut self.u);
+        if let Some(scale) = &self.multiplicity_scale {
+            self.u.iter_mut().zip(scale).for_each(|(u, d)| *u *= d);
+        }
         symmetric_product(self.a.as_ref(), &self.u, &mut self.w);
         if !self.interior.is_empty() {
             for (b, &i) in self.interior_load.iter_mut().zip(&self.interior) {
@@ -191,6 +208,9 @@ impl<'d> Local<'d> {
             for (w, c) in self.w.iter_mut().zip(&self.correction) {
                 *w -= c;
             }
+        }
+        if let Some(scale) = &self.multiplicity_scale {
+            self.w.iter_mut().zip(scale).for_each(|(w, d)| *w *= d);
         }
         Self::gather(self.geometry, &self.w, out);
     }
