@@ -50,7 +50,7 @@ perf-docs: setup
 	mkdir -p docs/figures/perf
 	cp results/perf/figures/throughput.svg docs/figures/perf/throughput.svg
 
-# The steady solvers' weak and strong scaling studies (seed 001; about 9 minutes) and their
+# The steady solvers' weak and strong scaling studies (seed 001; about 11 minutes) and their
 # comparison figures in docs/figures/feti/.
 feti-docs: setup
 	cargo build --release --workspace
