@@ -7,6 +7,7 @@ use crate::operator::Backend;
 use crate::partition::Partition;
 use crate::problem::Collar;
 use crate::quadrature::Quadrature;
+use crate::stencil::Stencil;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -105,6 +106,28 @@ pub struct Resolved {
     /// Nonlocal method: the operator backend that ran (`auto` resolved by the cost model).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub backend: Option<Backend>,
+}
+
+impl Resolved {
+    /// What the weights `stencil` resolved to; no time step, collar, patch error or backend.
+    pub fn of_stencil(stencil: &Stencil) -> Self {
+        Resolved {
+            h: stencil.grid.h,
+            eps: Some(stencil.horizon.eps),
+            m: Some(stencil.horizon.m),
+            c: Some(stencil.c),
+            dt: 0.0,
+            dt_stable: 0.0,
+            steps: 0,
+            nodes: stencil.grid.nodes(),
+            bonds: stencil.bonds(),
+            pair_visits: None,
+            quadrature: Some(stencil.quadrature),
+            collar: None,
+            patch_error: None,
+            backend: None,
+        }
+    }
 }
 
 /// What a steady solve (seed 001) did; every field absent for the time-dependent methods.

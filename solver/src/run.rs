@@ -134,20 +134,13 @@ impl Plan {
     pub fn resolved(&self) -> Resolved {
         let stencil = &self.stencil;
         Resolved {
-            h: stencil.grid.h,
-            eps: Some(stencil.horizon.eps),
-            m: Some(stencil.horizon.m),
-            c: Some(stencil.c),
             dt: self.dt,
             dt_stable: self.dt_stable,
             steps: self.steps,
-            nodes: stencil.grid.nodes(),
-            bonds: stencil.bonds(),
-            pair_visits: None,
-            quadrature: Some(stencil.quadrature),
             collar: Some(self.collar),
             patch_error: Some(stencil.patch_error()),
             backend: Some(self.backend),
+            ..Resolved::of_stencil(stencil)
         }
     }
 }

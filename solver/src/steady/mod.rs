@@ -134,22 +134,10 @@ impl SteadyProblem {
 
     /// What the case resolved to.
     pub fn resolved(&self, backend: Option<Backend>) -> Resolved {
-        let stencil = &self.stencil;
         Resolved {
-            h: stencil.grid.h,
-            eps: Some(stencil.horizon.eps),
-            m: Some(stencil.horizon.m),
-            c: Some(stencil.c),
-            dt: 0.0,
-            dt_stable: 0.0,
-            steps: 0,
-            nodes: stencil.grid.nodes(),
-            bonds: stencil.bonds(),
-            pair_visits: None,
-            quadrature: Some(stencil.quadrature),
-            collar: None,
             patch_error: Some(self.patch_error()),
             backend,
+            ..Resolved::of_stencil(&self.stencil)
         }
     }
 
