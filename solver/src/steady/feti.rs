@@ -41,6 +41,15 @@ use std::time::Instant;
 /// Iterations of CG for the interior solves of `dirichlet_cg` (seed 001, section 4.1).
 const INTERIOR_CG_ITERATIONS: usize = 5;
 
+/// How the Dirichlet preconditioner solves with A_II.
+enum InteriorSolve {
+    /// No preconditioner, or no interior node: S_n = A_BB.
+    None,
+    Cholesky(Cholesky),
+    /// `dirichlet_cg`: a few CG iterations on A_II, from zero.
+    Cg(SparseColMat<usize, f64>),
+}
+
 /// One subdomain's matrices, factors and work vectors.
 struct Local<'d> {
     geometry: &'d Subdomain,
@@ -48,10 +57,9 @@ struct Local<'d> {
     load: Vec<f64>,
     /// A_n's factor, or the regularised A_n + ρ e_k e_kᵀ's when floating.
     factor: Cholesky,
-    /// The Dirichlet preconditioner's interior I (nodes in no interface) and A_II.
+    /// The Dirichlet preconditioner's interior I (nodes in no interface) and its solves.
     interior: Vec<usize>,
-    interior_matrix: SparseColMat<usize, f64>,
-    interior_factor: Option<Cholesky>,
+    interior_solve: InteriorSolve,
     /// Work vectors on Λ_n and on I.
     u: Vec<f64>,
     w: Vec<f64>,
@@ -86,14 +94,13 @@ impl<'d> Local<'d> {
         let interior: Vec<usize> = (0..geometry.unknowns())
             .filter(|&i| !on_interface[i])
             .collect();
-        let interior_matrix = submatrix(&a, &interior);
-        let interior_factor = match preconditioner {
-            FetiPreconditioner::Dirichlet | FetiPreconditioner::DirichletScaled
-                if !interior.is_empty() =>
-            {
-                Some(Cholesky::new(interior_matrix.as_ref())?)
+        let interior_solve = match preconditioner {
+            _ if interior.is_empty() => InteriorSolve::None,
+            FetiPreconditioner::None => InteriorSolve::None,
+            FetiPreconditioner::DirichletCg => InteriorSolve::Cg(submatrix(&a, &interior)),
+            FetiPreconditioner::Dirichlet | FetiPreconditioner::DirichletScaled => {
+                InteriorSolve::Cholesky(Cholesky::new(submatrix(&a, &interior).as_ref())?)
             }
-            _ => None,
         };
         let multiplicity_scale =
             (preconditioner == FetiPreconditioner::DirichletScaled).then(|| {
@@ -110,8 +117,7 @@ impl<'d> Local<'d> {
             load,
             factor,
             interior,
-            interior_matrix,
-            interior_factor,
+            interior_solve,
             u: vec![0.0; s],
             w: vec![0.0; s],
             correction: vec![0.0; s],
@@ -176,30 +182,34 @@ impl<'d> Local<'d> {
             self.u.iter_mut().zip(scale).for_each(|(u, d)| *u *= d);
         }
         symmetric_product(self.a.as_ref(), &self.u, &mut self.w);
-        if !self.interior.is_empty() {
-            for (b, &i) in self.interior_load.iter_mut().zip(&self.interior) {
-                *b = self.w[i];
-            }
-            let y = &mut self.interior_solution;
-            match &mut self.interior_factor {
-                Some(factor) => {
-                    y.copy_from_slice(&self.interior_load);
-                    factor.solve_in_place(y);
+        let y = &mut self.interior_solution;
+        let solved = match &mut self.interior_solve {
+            InteriorSolve::None => false,
+            InteriorSolve::Cholesky(factor) => {
+                for (yi, &i) in y.iter_mut().zip(&self.interior) {
+                    *yi = self.w[i];
                 }
-                None => {
-                    let a_ii = self.interior_matrix.as_ref();
-                    y.fill(0.0);
-                    conjugate_gradient(
-                        None,
-                        |p, ap| symmetric_product(a_ii, p, ap),
-                        dot_serial,
-                        &self.interior_load,
-                        y,
-                        0.0,
-                        INTERIOR_CG_ITERATIONS,
-                    );
-                }
+                factor.solve_in_place(y);
+                true
             }
+            InteriorSolve::Cg(a_ii) => {
+                for (b, &i) in self.interior_load.iter_mut().zip(&self.interior) {
+                    *b = self.w[i];
+                }
+                y.fill(0.0);
+                conjugate_gradient(
+                    None,
+                    |p, ap| symmetric_product(a_ii.as_ref(), p, ap),
+                    dot_serial,
+                    &self.interior_load,
+                    y,
+                    0.0,
+                    INTERIOR_CG_ITERATIONS,
+                );
+                true
+            }
+        };
+        if solved {
             self.u.fill(0.0);
             for (&yi, &i) in y.iter().zip(&self.interior) {
                 self.u[i] = yi;
