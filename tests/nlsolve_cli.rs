@@ -161,6 +161,8 @@ fn bad_input_exits_2_naming_the_field() {
         ("--method steady_cg --dim 2 --n 32 --m 4 --kernel linear", "`kernel`"),
         ("--method steady_cg --dim 2 --n 32 --m 4 --rtol 2", "`rtol`"),
         ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --rtol 1e-6", "`rtol`"),
+        ("--method steady_cg --dim 2 --n 32 --m 4 --max-iterations 0", "`max_iterations`"),
+        ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --max-iterations 9", "`max_iterations`"),
         ("--n abc", "--n"),
         ("--colour 3", "--colour"),
         ("--case /nonexistent/case.json", "--case"),

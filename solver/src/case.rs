@@ -162,6 +162,9 @@ pub struct Case {
     /// Steady methods: relative tolerance of the iteration (default 1e-5, seed 001's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rtol: Option<f64>,
+    /// Steady methods: most iterations before the solve stops as not converged (default 100000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_iterations: Option<usize>,
     /// `feti`: subdomains per side, p (p × p in all; p² may exceed the ranks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub subdomains: Option<usize>,
@@ -234,6 +237,11 @@ impl Case {
     /// The steady methods' relative tolerance.
     pub fn rtol(&self) -> f64 {
         self.rtol.unwrap_or(DEFAULT_RTOL)
+    }
+
+    /// The steady methods' iteration limit.
+    pub fn max_iterations(&self) -> usize {
+        self.max_iterations.unwrap_or(crate::steady::MAX_ITERATIONS)
     }
 
     pub fn preconditioner(&self) -> FetiPreconditioner {
@@ -513,6 +521,7 @@ impl Case {
     fn refuse_steady_fields(&self) -> Result<(), CaseError> {
         for (field, given) in [
             ("rtol", self.rtol.is_some()),
+            ("max_iterations", self.max_iterations.is_some()),
             ("subdomains", self.subdomains.is_some()),
             ("preconditioner", self.preconditioner.is_some()),
         ] {

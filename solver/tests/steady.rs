@@ -249,3 +249,31 @@ fn dirichlet_feti_iterations_level_off_while_cg_grows() {
         "CG should grow about like L (×4 here): {cg_counts:?}"
     );
 }
+
+/// A solve that hits `max_iterations` before `rtol` says so: status `diverged`, the residual in
+/// the message, rather than `ok`; for CG and for FETI.
+#[test]
+fn a_solve_stopped_by_the_iteration_limit_is_not_ok() {
+    for (method, limit, base) in [
+        ("steady_cg", 5, json!({})),
+        ("feti", 2, json!({"subdomains": 3})),
+    ] {
+        let mut limited = base.clone();
+        limited["max_iterations"] = json!(limit);
+        let stopped = solver::run::run(&steady(method, 48, 4, "ac", limited)).unwrap();
+        let record = &stopped.record;
+        assert_eq!(record.status, solver::record::Status::Diverged, "{method}");
+        assert_eq!(record.steady.iterations, Some(limit), "{method}");
+        assert!(
+            record.message.contains("above rtol"),
+            "{method}: {}",
+            record.message
+        );
+        let converged = solver::run::run(&steady(method, 48, 4, "ac", base)).unwrap();
+        assert_eq!(
+            converged.record.status,
+            solver::record::Status::Ok,
+            "{method}"
+        );
+    }
+}

@@ -149,6 +149,9 @@ struct CaseArgs {
     /// Steady methods: relative tolerance of the iteration (default 1e-5).
     #[arg(long)]
     rtol: Option<f64>,
+    /// Steady methods: iteration limit (default 100000); a solve stopped by it is `diverged`.
+    #[arg(long)]
+    max_iterations: Option<usize>,
     /// feti: subdomains per side, p (p × p in all).
     #[arg(long)]
     subdomains: Option<usize>,
@@ -209,6 +212,7 @@ impl CaseArgs {
         set("px", self.px.map(Value::from));
         set("py", self.py.map(Value::from));
         set("rtol", self.rtol.map(Value::from));
+        set("max_iterations", self.max_iterations.map(Value::from));
         set("subdomains", self.subdomains.map(Value::from));
         set(
             "preconditioner",

@@ -8,7 +8,7 @@
 
 use super::cg::{self, conjugate_gradient};
 use super::exchange::Mpi;
-use super::{feti, outcome, SteadyProblem, Timings, MAX_ITERATIONS};
+use super::{feti, outcome, SteadyProblem, Stop, Timings};
 use crate::case::{Case, CaseError, Method};
 use crate::distributed::{all_sum, ownership, HaloExchange};
 use crate::operator::stencil::apply_on_runs;
@@ -79,7 +79,7 @@ pub fn run(world: &SimpleCommunicator, case: &Case) -> Result<Option<Outcome>, C
         &b,
         &mut u,
         problem.rtol,
-        MAX_ITERATIONS,
+        case.max_iterations(),
     );
     let solve_s = solve_started.elapsed().as_secs_f64();
 
@@ -113,6 +113,7 @@ pub fn run(world: &SimpleCommunicator, case: &Case) -> Result<Option<Outcome>, C
             &problem,
             Some(Backend::Stencil),
             timings,
+            Stop::of_cg(&convergence, problem.rtol),
             SteadySolve::cg(convergence.iterations),
             distribution,
             field,

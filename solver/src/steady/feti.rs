@@ -27,7 +27,7 @@ use super::cg::{conjugate_gradient, dot_serial};
 use super::cholesky::{symmetric_product, Cholesky};
 use super::decomposition::{Decomposition, Subdomain};
 use super::exchange::Exchange;
-use super::{outcome, SteadyProblem, Timings, MAX_ITERATIONS};
+use super::{outcome, SteadyProblem, Stop, Timings};
 use crate::case::{Case, CaseError, FetiPreconditioner};
 use crate::record::{Distribution, SteadySolve};
 use crate::run::Outcome;
@@ -524,6 +524,7 @@ fn projected_cg(
     e: &[f64],
     g: &[f64],
     rtol: f64,
+    max_iterations: usize,
 ) -> DualSolve {
     let len = feti.layout.len();
     let mut lambda = vec![0.0; len];
@@ -543,7 +544,7 @@ fn projected_cg(
     let alpha0 = alpha;
     let mut dual_residual = if alpha0 > 0.0 { 1.0 } else { 0.0 };
     let mut iterations = 0;
-    while dual_residual > rtol && iterations < MAX_ITERATIONS {
+    while dual_residual > rtol && iterations < max_iterations {
         iterations += 1;
         feti.apply_k(exchange, &p, &mut x);
         feti.project(exchange, &mut x);
@@ -656,7 +657,14 @@ pub fn run_on(
     let comm_before = exchange.seconds();
 
     let solve_started = Instant::now();
-    let dual = projected_cg(&mut feti, exchange, &e, &g, problem.rtol);
+    let dual = projected_cg(
+        &mut feti,
+        exchange,
+        &e,
+        &g,
+        problem.rtol,
+        case.max_iterations(),
+    );
     // α from Gα = Kλ − e, then u_n = A_n^†(f_n − M_nᵀλ_n) + Z_n α_n.
     let mut w = vec![0.0; feti.layout.len()];
     feti.apply_k(exchange, &dual.lambda, &mut w);
@@ -735,6 +743,10 @@ pub fn run_on(
         problem,
         None,
         Timings { setup_s, solve_s },
+        Stop {
+            reached_tolerance: dual.dual_residual <= problem.rtol,
+            residual: dual.dual_residual,
+        },
         solve,
         distribution,
         field,

@@ -51,7 +51,7 @@ use crate::stencil::Stencil;
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Most CG iterations a steady solve may take: far beyond the L/m the method needs.
+/// Default iteration limit of a steady solve: far beyond the L/m that CG needs.
 pub const MAX_ITERATIONS: usize = 100_000;
 
 /// The steady problem of a case: the square stencil of A = −L_h and the data.
@@ -240,6 +240,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         }
     }
     positive("diffusivity", case.diffusivity)?;
+    if case.max_iterations == Some(0) {
+        return Err(CaseError::new(
+            "max_iterations",
+            "must be at least 1 (got 0); leave it out for the default 100000",
+        ));
+    }
     if let Some(rtol) = case.rtol {
         if !(rtol > 0.0 && rtol < 1.0) {
             return Err(CaseError::new(
@@ -348,7 +354,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             &b,
             &mut u,
             problem.rtol,
-            MAX_ITERATIONS,
+            case.max_iterations(),
         );
         let solve_s = solve_started.elapsed().as_secs_f64();
         Ok(outcome(
@@ -356,6 +362,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             &problem,
             Some(backend),
             Timings { setup_s, solve_s },
+            Stop::of_cg(&convergence, problem.rtol),
             SteadySolve::cg(convergence.iterations),
             Distribution::serial(case),
             u,
@@ -373,12 +380,29 @@ pub(crate) struct Timings {
     pub solve_s: f64,
 }
 
+/// How the iteration ended: within `rtol`, or stopped at the case's `max_iterations` (or on a
+/// non-finite residual), with the residual it measures.
+pub(crate) struct Stop {
+    pub reached_tolerance: bool,
+    pub residual: f64,
+}
+
+impl Stop {
+    pub(crate) fn of_cg(convergence: &cg::Convergence, rtol: f64) -> Self {
+        Stop {
+            reached_tolerance: convergence.relative_residual <= rtol,
+            residual: convergence.relative_residual,
+        }
+    }
+}
+
 /// The record of a finished steady solve, its residual and error measured on the whole field.
 pub(crate) fn outcome(
     case: &Case,
     problem: &SteadyProblem,
     backend: Option<Backend>,
     timings: Timings,
+    stop: Stop,
     mut solve: SteadySolve,
     distribution: Distribution,
     u: Vec<f64>,
@@ -388,24 +412,32 @@ pub(crate) fn outcome(
     solve.relative_residual = Some(relative_residual);
     let exact_values = problem.exact_values();
     let error_l2 = crate::diagnostics::squared_l2_error(|i| exact_values[i], &u, grid.volume());
-    let converged = relative_residual.is_finite();
+    let iterations = solve.iterations.unwrap_or(0);
+    let (status, message) = if !relative_residual.is_finite() {
+        (
+            Status::Diverged,
+            "the iteration produced a non-finite solution".to_string(),
+        )
+    } else if !stop.reached_tolerance {
+        (
+            Status::Diverged,
+            format!(
+                "stopped after {iterations} iterations with residual {:.3e}, above rtol = {:e}",
+                stop.residual, problem.rtol
+            ),
+        )
+    } else {
+        (Status::Ok, String::new())
+    };
     let record = Record {
         case: case.clone(),
-        status: if converged {
-            Status::Ok
-        } else {
-            Status::Diverged
-        },
-        message: if converged {
-            String::new()
-        } else {
-            "the iteration produced a non-finite solution".into()
-        },
+        status,
+        message,
         resolved: problem.resolved(backend),
         steps_done: 0,
         setup_s: timings.setup_s,
         solve_s: timings.solve_s,
-        step_s: timings.solve_s / solve.iterations.unwrap_or(0).max(1) as f64,
+        step_s: timings.solve_s / iterations.max(1) as f64,
         error_l2: Some(error_l2),
         error_l2_norm: Some(error_l2.sqrt()),
         error_max: Some(error_max),
