@@ -36,6 +36,7 @@ use faer::sparse::SparseColMat;
 use faer::{Mat, MatMut, Side};
 use rayon::prelude::*;
 use rayon::ThreadPool;
+use std::ops::Range;
 use std::time::Instant;
 
 /// Iterations of CG for the interior solves of `dirichlet_cg` (seed 001, section 4.1).
@@ -415,25 +416,27 @@ impl<'d> Feti<'d> {
 
     /// out ← K x.
     fn apply_k(&mut self, exchange: &dyn Exchange, x: &[f64], out: &mut [f64]) {
-        self.interface_assembled(exchange, x, out, Local::apply_k);
+        self.interface_assembled(exchange, out, |local, own, out| local.apply_k(&x[own], out));
     }
 
     /// out ← Q r.
     fn apply_preconditioner(&mut self, exchange: &dyn Exchange, r: &[f64], out: &mut [f64]) {
-        match self.preconditioner {
-            FetiPreconditioner::None => out.copy_from_slice(r),
-            _ => self.interface_assembled(exchange, r, out, Local::apply_dirichlet),
+        if self.preconditioner == FetiPreconditioner::None {
+            out.copy_from_slice(r);
+            return;
         }
+        self.interface_assembled(exchange, out, |local, own, out| {
+            local.apply_dirichlet(&r[own], out)
+        });
     }
 
-    /// out ← Σ_n R_nᵀ product_n(R_n x): every subdomain's local product in parallel, then the
-    /// interface sum.
+    /// out ← Σ_n R_nᵀ product_n: every owned subdomain's local product in parallel, as
+    /// `product(local, its range in the dual vectors, its part of out)`, then the interface sum.
     fn interface_assembled(
         &mut self,
         exchange: &dyn Exchange,
-        x: &[f64],
         out: &mut [f64],
-        product: fn(&mut Local<'d>, &[f64], &mut [f64]),
+        product: impl Fn(&mut Local<'d>, Range<usize>, &mut [f64]) + Sync,
     ) {
         let parts = self.layout.split(out);
         let offsets = &self.layout.offsets;
@@ -443,7 +446,7 @@ impl<'d> Feti<'d> {
                 .par_iter_mut()
                 .zip(parts)
                 .enumerate()
-                .for_each(|(k, (local, out))| product(local, &x[offsets[k]..offsets[k + 1]], out))
+                .for_each(|(k, (local, out))| product(local, offsets[k]..offsets[k + 1], out))
         });
         self.layout.interface_sum(exchange, out);
     }
@@ -635,17 +638,7 @@ pub fn run_on(
     };
     // e = M A^† f and g = Zᵀ f.
     let mut e = vec![0.0; feti.layout.len()];
-    {
-        let parts = feti.layout.split(&mut e);
-        let locals = &mut feti.locals;
-        pool.install(|| {
-            locals
-                .par_iter_mut()
-                .zip(parts)
-                .for_each(|(local, out)| local.dual_load(out))
-        });
-    }
-    feti.layout.interface_sum(exchange, &mut e);
+    feti.interface_assembled(exchange, &mut e, |local, _, out| local.dual_load(out));
     let mut g = vec![0.0; nf];
     for local in &feti.locals {
         if let Some(a) = local.geometry.coarse {
