@@ -19,6 +19,7 @@ use crate::subdomain::Subdomain;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use rayon::prelude::*;
 use std::cell::Cell;
 use std::time::Instant;
 
@@ -44,7 +45,7 @@ pub fn run(world: &SimpleCommunicator, case: &Case) -> Result<Option<Outcome>, C
             start..start + run.len()
         })
         .collect();
-    let b: Vec<f64> = pool.install(|| nodes.iter().map(|&i| problem.load(i)).collect());
+    let b: Vec<f64> = pool.install(|| nodes.par_iter().map(|&i| problem.load(i)).collect());
     let interior_nodes: usize = subdomain.interior.iter().map(|r| r.len()).sum();
     let mut halo = HaloExchange::new(&subdomain.neighbours);
     let mut p_window = vec![0.0; window.len()];
@@ -90,13 +91,14 @@ pub fn run(world: &SimpleCommunicator, case: &Case) -> Result<Option<Outcome>, C
     }
     let local = field.clone();
     world.all_reduce_into(&local[..], &mut field[..], SystemOperation::sum());
+    let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
     let distribution = Distribution {
         ranks: ownership.ranks,
         partition: case.partition,
         px: ownership.blocks.map(|(px, _)| px),
         py: ownership.blocks.map(|(_, py)| py),
-        halo_nodes: all_sum(world, subdomain.ghosts() as f64) as usize,
-        halo_bytes: all_sum(world, subdomain.ghosts() as f64) as usize * 8,
+        halo_nodes: ghosts,
+        halo_bytes: ghosts * std::mem::size_of::<f64>(),
         imbalance: ownership.imbalance(),
         comm_s: crate::distributed::all_max(world, comm_s.get()),
     };
