@@ -288,14 +288,10 @@ impl Case {
         if self.method.has_horizon() {
             self.validate_kernel_width()?;
         } else {
-            for (field, given) in [("m", self.m.is_some()), ("eps", self.eps.is_some())] {
-                if given {
-                    return Err(CaseError::new(
-                        field,
-                        format!("method {method} has no horizon; leave `{field}` out"),
-                    ));
-                }
-            }
+            refuse_given(
+                &[("m", self.m.is_some()), ("eps", self.eps.is_some())],
+                |field| format!("method {method} has no horizon; leave `{field}` out"),
+            )?;
         }
         if !self.problem.is_local() {
             return Err(CaseError::new(
@@ -313,19 +309,13 @@ impl Case {
                 format!("method {method} has no source term and no total error; leave it out"),
             ));
         }
-        for (field, given) in [
-            ("quadrature", !self.quadrature.is_midpoint()),
-            ("collar", !self.collar.is_zero()),
-        ] {
-            if given {
-                return Err(CaseError::new(
-                    field,
-                    format!(
-                        "belongs to the nonlocal method; method {method} has none, leave it out"
-                    ),
-                ));
-            }
-        }
+        refuse_given(
+            &[
+                ("quadrature", !self.quadrature.is_midpoint()),
+                ("collar", !self.collar.is_zero()),
+            ],
+            |_| format!("belongs to the nonlocal method; method {method} has none, leave it out"),
+        )?;
         if self.ranks > 1 {
             return Err(CaseError::new(
                 "ranks",
@@ -400,20 +390,20 @@ impl Case {
                 ));
             }
         }
-        for (field, given) in [
-            ("diagnostics_every", self.diagnostics_every.is_some()),
-            ("histogram_bins", self.histogram_bins.is_some()),
-            ("field_snapshot", self.field_snapshot.is_some()),
-            ("vtk_every", self.vtk_every.is_some()),
-        ] {
-            if given && self.ranks > 1 {
-                return Err(CaseError::new(
-                    field,
-                    "the distributed solver computes no diagnostics, snapshots or frames (its field equals the one-rank field bit for bit); leave it out or use ranks = 1",
-                ));
-            }
+        if self.ranks <= 1 {
+            return Ok(());
         }
-        Ok(())
+        refuse_given(
+            &[
+                ("diagnostics_every", self.diagnostics_every.is_some()),
+                ("histogram_bins", self.histogram_bins.is_some()),
+                ("field_snapshot", self.field_snapshot.is_some()),
+                ("vtk_every", self.vtk_every.is_some()),
+            ],
+            |_| {
+                "the distributed solver computes no diagnostics, snapshots or frames (its field equals the one-rank field bit for bit); leave it out or use ranks = 1".into()
+            },
+        )
     }
 
     fn validate_horizon(&self) -> Result<(), CaseError> {
@@ -519,20 +509,15 @@ impl Case {
 impl Case {
     /// The steady methods' fields, refused elsewhere.
     fn refuse_steady_fields(&self) -> Result<(), CaseError> {
-        for (field, given) in [
-            ("rtol", self.rtol.is_some()),
-            ("max_iterations", self.max_iterations.is_some()),
-            ("subdomains", self.subdomains.is_some()),
-            ("preconditioner", self.preconditioner.is_some()),
-        ] {
-            if given {
-                return Err(CaseError::new(
-                    field,
-                    "belongs to the steady methods `steady_cg` and `feti`; leave it out",
-                ));
-            }
-        }
-        Ok(())
+        refuse_given(
+            &[
+                ("rtol", self.rtol.is_some()),
+                ("max_iterations", self.max_iterations.is_some()),
+                ("subdomains", self.subdomains.is_some()),
+                ("preconditioner", self.preconditioner.is_some()),
+            ],
+            |_| "belongs to the steady methods `steady_cg` and `feti`; leave it out".into(),
+        )
     }
 
     pub(crate) fn validate_distribution(&self) -> Result<(), CaseError> {
@@ -567,6 +552,17 @@ impl Case {
             }
         }
         Ok(())
+    }
+}
+
+/// Refuses the first of `fields` that is given (true), with `message(field)`.
+pub(crate) fn refuse_given(
+    fields: &[(&str, bool)],
+    message: impl Fn(&str) -> String,
+) -> Result<(), CaseError> {
+    match fields.iter().find(|(_, given)| *given) {
+        Some((field, _)) => Err(CaseError::new(field, message(field))),
+        None => Ok(()),
     }
 }
 

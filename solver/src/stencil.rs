@@ -148,18 +148,21 @@ impl Stencil {
     /// lattice, where L_h|x|² = Σ_o w_o |o h|² at every node whose ball lies in D. Zero up to
     /// round-off for `ac`; 2dk = c ∫_{B_ε} J |z|² dz by eq. 1.5.
     pub fn patch_error(&self) -> f64 {
+        let exact = self.c * kernel_second_moment(self.grid.dim, self.kernel, self.horizon.eps);
+        self.second_moment() / exact - 1.0
+    }
+
+    /// Σ_o w_o |o h|²: L_h|x|² at a node whose neighbourhood lies in D.
+    pub fn second_moment(&self) -> f64 {
         let h2 = self.grid.h * self.grid.h;
-        let moment: f64 = self
-            .rows
+        self.rows
             .iter()
             .flat_map(|row| {
                 row.bonds()
                     .map(move |(dx, w)| w * (dx * dx + row.dy * row.dy) as f64)
             })
             .sum::<f64>()
-            * h2;
-        let exact = self.c * kernel_second_moment(self.grid.dim, self.kernel, self.horizon.eps);
-        moment / exact - 1.0
+            * h2
     }
 
     /// Σ_o w_o f(x_{i+o}) over the bonds of node i that reach into the collar.

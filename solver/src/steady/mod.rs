@@ -37,8 +37,8 @@ pub mod distributed;
 pub mod exchange;
 pub mod feti;
 
-use crate::case::{positive, Case, CaseError, Method};
-use crate::diagnostics::fixed_order_sum;
+use crate::case::{positive, refuse_given, Case, CaseError, Method};
+use crate::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
 use crate::grid::{Grid, Horizon};
 use crate::influence::Kernel;
 use crate::operator::{self, Backend};
@@ -143,30 +143,33 @@ impl SteadyProblem {
 
     /// L_h|x|²/(4k) − 1 in the interior: 0 up to round-off for `ac`.
     pub fn patch_error(&self) -> f64 {
-        let h2 = self.grid().volume();
-        let moment: f64 = self
-            .stencil
-            .rows
-            .iter()
-            .flat_map(|row| {
-                row.bonds()
-                    .map(move |(dx, w)| w * (dx * dx + row.dy * row.dy) as f64)
-            })
-            .sum();
-        moment * h2 / (4.0 * self.diffusivity) - 1.0
+        self.stencil.second_moment() / (4.0 * self.diffusivity) - 1.0
     }
 
-    /// ‖b − A u‖ / ‖b‖ and max |u − exact| for a solution on the nodes of Ω.
-    pub fn check(&self, u: &[f64]) -> (f64, f64) {
+    /// How well u on the nodes of Ω solves the single-domain system and matches the exact u.
+    pub fn measure(&self, u: &[f64]) -> Fit {
         let operator = operator::plan(Backend::Stencil, &self.stencil);
         let mut lu = vec![0.0; u.len()];
         operator.apply(u, &mut lu);
-        let grid = self.grid();
-        let residual2 = fixed_order_sum(u.len(), |i| (self.load(i) + lu[i]).powi(2));
-        let load2 = fixed_order_sum(u.len(), |i| self.load(i).powi(2));
-        let error = crate::diagnostics::max_error(|i| exact(grid.position(i)), u);
-        ((residual2 / load2).sqrt(), error)
+        let (b, exact) = (self.loads(), self.exact_values());
+        let residual2 = fixed_order_sum(u.len(), |i| (b[i] + lu[i]).powi(2));
+        let load2 = fixed_order_sum(u.len(), |i| b[i] * b[i]);
+        Fit {
+            relative_residual: (residual2 / load2).sqrt(),
+            error_max: max_error(|i| exact[i], u),
+            error_l2: squared_l2_error(|i| exact[i], u, self.grid().volume()),
+        }
     }
+}
+
+/// A solution measured against the system and the manufactured u.
+pub struct Fit {
+    /// ‖b − A u‖ / ‖b‖.
+    pub relative_residual: f64,
+    /// max |u − exact|.
+    pub error_max: f64,
+    /// h² Σ (u − exact)², the squared discrete L² error.
+    pub error_l2: f64,
 }
 
 /// Q_J = ∫_{[−1,1]²} J(|s|) |s|² ds for the kernels positive on the whole square.
@@ -218,27 +221,23 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             format!("method {method} solves the manufactured u = x₁² + x₂²; leave `problem` out"),
         ));
     }
-    for (field, given) in [
-        ("t_end", case.t_end.is_some()),
-        ("dt", case.dt.is_some()),
-        ("cfl", case.cfl.is_some()),
-        ("allow_unstable", case.allow_unstable),
-        ("error_total", case.error_total),
-        ("source", case.source.is_some()),
-        ("collar", case.collar != Collar::Zero),
-        ("length", case.length.is_some()),
-        ("diagnostics_every", case.diagnostics_every.is_some()),
-        ("histogram_bins", case.histogram_bins.is_some()),
-        ("field_snapshot", case.field_snapshot.is_some()),
-        ("vtk_every", case.vtk_every.is_some()),
-    ] {
-        if given {
-            return Err(CaseError::new(
-                field,
-                format!("method {method} is steady (−L u = f, g = u on Γ); leave `{field}` out"),
-            ));
-        }
-    }
+    refuse_given(
+        &[
+            ("t_end", case.t_end.is_some()),
+            ("dt", case.dt.is_some()),
+            ("cfl", case.cfl.is_some()),
+            ("allow_unstable", case.allow_unstable),
+            ("error_total", case.error_total),
+            ("source", case.source.is_some()),
+            ("collar", case.collar != Collar::Zero),
+            ("length", case.length.is_some()),
+            ("diagnostics_every", case.diagnostics_every.is_some()),
+            ("histogram_bins", case.histogram_bins.is_some()),
+            ("field_snapshot", case.field_snapshot.is_some()),
+            ("vtk_every", case.vtk_every.is_some()),
+        ],
+        |field| format!("method {method} is steady (−L u = f, g = u on Γ); leave `{field}` out"),
+    )?;
     positive("diffusivity", case.diffusivity)?;
     if case.max_iterations == Some(0) {
         return Err(CaseError::new(
@@ -265,17 +264,13 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     }
     match case.method {
         Method::SteadyCg => {
-            for (field, given) in [
-                ("subdomains", case.subdomains.is_some()),
-                ("preconditioner", case.preconditioner.is_some()),
-            ] {
-                if given {
-                    return Err(CaseError::new(
-                        field,
-                        "belongs to `feti`; steady_cg is unpreconditioned CG, leave it out",
-                    ));
-                }
-            }
+            refuse_given(
+                &[
+                    ("subdomains", case.subdomains.is_some()),
+                    ("preconditioner", case.preconditioner.is_some()),
+                ],
+                |_| "belongs to `feti`; steady_cg is unpreconditioned CG, leave it out".into(),
+            )?;
             case.validate_distribution()
         }
         _ => validate_feti(case, m),
@@ -311,20 +306,17 @@ fn validate_feti(case: &Case, m: usize) -> Result<(), CaseError> {
             ),
         ));
     }
-    for (field, given) in [
-        ("px", case.px.is_some()),
-        ("py", case.py.is_some()),
-        ("partition", case.partition != Partition::Block),
-        ("backend", case.backend != Backend::Auto),
-    ] {
-        if given {
-            return Err(CaseError::new(
-                field,
-                "feti splits the grid into its p × p subdomains (`subdomains`) and assembles sparse matrices; leave it out",
-            ));
-        }
-    }
-    Ok(())
+    refuse_given(
+        &[
+            ("px", case.px.is_some()),
+            ("py", case.py.is_some()),
+            ("partition", case.partition != Partition::Block),
+            ("backend", case.backend != Backend::Auto),
+        ],
+        |_| {
+            "feti splits the grid into its p × p subdomains (`subdomains`) and assembles sparse matrices; leave it out".into()
+        },
+    )
 }
 
 /// Runs a steady case in one process, on a rayon pool of `case.threads` threads.
@@ -408,10 +400,12 @@ pub(crate) fn outcome(
     u: Vec<f64>,
 ) -> Outcome {
     let grid = problem.grid();
-    let (relative_residual, error_max) = problem.check(&u);
+    let Fit {
+        relative_residual,
+        error_max,
+        error_l2,
+    } = problem.measure(&u);
     solve.relative_residual = Some(relative_residual);
-    let exact_values = problem.exact_values();
-    let error_l2 = crate::diagnostics::squared_l2_error(|i| exact_values[i], &u, grid.volume());
     let iterations = solve.iterations.unwrap_or(0);
     let (status, message) = if !relative_residual.is_finite() {
         (
