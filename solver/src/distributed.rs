@@ -274,7 +274,6 @@ impl<'a> RankRun<'a> {
             )),
             _ => None,
         };
-        let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
         Measured {
             setup_s: all_max(world, setup_s),
             solve_s: all_max(world, timing.solve_seconds),
@@ -293,16 +292,7 @@ impl<'a> RankRun<'a> {
             c_tot: None,
             histogram: None,
             field: None,
-            distribution: Distribution {
-                ranks: ownership.ranks,
-                partition: case.partition,
-                px: ownership.blocks.map(|(px, _)| px),
-                py: ownership.blocks.map(|(_, py)| py),
-                halo_nodes: ghosts,
-                halo_bytes: ghosts * std::mem::size_of::<f64>(),
-                imbalance: ownership.imbalance(),
-                comm_s: all_max(world, median(comm_seconds)),
-            },
+            distribution: distribution(world, case, ownership, subdomain, median(comm_seconds)),
         }
     }
 
@@ -461,6 +451,28 @@ fn update(
             chunk_max
         })
         .reduce(|| 0.0, f64::max)
+}
+
+/// How a run was spread over the ranks of `world`: the partition, the ghosts summed over ranks
+/// and the communication seconds `comm_s` (this rank's) maximised over them.
+pub(crate) fn distribution(
+    world: &SimpleCommunicator,
+    case: &Case,
+    ownership: &Ownership,
+    subdomain: &Subdomain,
+    comm_s: f64,
+) -> Distribution {
+    let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
+    Distribution {
+        ranks: ownership.ranks,
+        partition: case.partition,
+        px: ownership.blocks.map(|(px, _)| px),
+        py: ownership.blocks.map(|(_, py)| py),
+        halo_nodes: ghosts,
+        halo_bytes: ghosts * std::mem::size_of::<f64>(),
+        imbalance: ownership.imbalance(),
+        comm_s: all_max(world, comm_s),
+    }
 }
 
 pub(crate) fn all_max(world: &SimpleCommunicator, local: f64) -> f64 {

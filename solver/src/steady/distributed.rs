@@ -10,10 +10,10 @@ use super::cg::{self, conjugate_gradient};
 use super::exchange::Mpi;
 use super::{feti, outcome, SteadyProblem, Stop, Timings};
 use crate::case::{Case, CaseError, Method};
-use crate::distributed::{all_sum, ownership, HaloExchange};
+use crate::distributed::{all_max, all_sum, distribution, ownership, HaloExchange};
 use crate::operator::stencil::apply_on_runs;
 use crate::operator::Backend;
-use crate::record::{Distribution, SteadySolve};
+use crate::record::SteadySolve;
 use crate::run::{self, Outcome};
 use crate::subdomain::Subdomain;
 use mpi::collective::SystemOperation;
@@ -91,20 +91,10 @@ pub fn run(world: &SimpleCommunicator, case: &Case) -> Result<Option<Outcome>, C
     }
     let local = field.clone();
     world.all_reduce_into(&local[..], &mut field[..], SystemOperation::sum());
-    let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
-    let distribution = Distribution {
-        ranks: ownership.ranks,
-        partition: case.partition,
-        px: ownership.blocks.map(|(px, _)| px),
-        py: ownership.blocks.map(|(_, py)| py),
-        halo_nodes: ghosts,
-        halo_bytes: ghosts * std::mem::size_of::<f64>(),
-        imbalance: ownership.imbalance(),
-        comm_s: crate::distributed::all_max(world, comm_s.get()),
-    };
+    let distribution = distribution(world, case, &ownership, &subdomain, comm_s.get());
     let timings = Timings {
-        setup_s: crate::distributed::all_max(world, setup_s),
-        solve_s: crate::distributed::all_max(world, solve_s),
+        setup_s: all_max(world, setup_s),
+        solve_s: all_max(world, solve_s),
     };
     if rank != 0 {
         return Ok(None);
