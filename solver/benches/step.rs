@@ -6,13 +6,12 @@
 use divan::counter::{BytesCount, ItemsCount};
 use divan::{black_box, Bencher};
 use rayon::prelude::*;
-use solver::grid::{Grid, Horizon};
-use solver::influence::Kernel;
-use solver::local::{Adi, ExplicitFd, LocalGrid};
-use solver::operator::{plan, Backend};
-use solver::pse::Particles;
-use solver::quadrature::Quadrature;
-use solver::stencil::Stencil;
+use solver::case::{Backend, Kernel, Quadrature};
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::stencil::Stencil;
+use solver::methods::local::{Adi, ExplicitFd, LocalGrid};
+use solver::methods::pse::Particles;
+use solver::operator::plan;
 
 fn main() {
     divan::main();

@@ -1,28 +1,35 @@
-//! Nonlocal diffusion solvers: the partitioned nonlocal heat equation of Jha & Diehl (seed 000),
-//! planned once and stepped many times, with interchangeable operator backends.
+//! Nonlocal and local diffusion solvers: the partitioned nonlocal heat equation of Jha & Diehl
+//! (seed 000), the local grid and particle methods of seed 004, the asymptotically compatible
+//! quadratures of seed 002 and the steady problem with CG and FETI of seed 001.
 //!
-//! A run goes case → grid and horizon → stencil weights and stable step → operator plan →
-//! forward Euler → errors and diagnostics → record (see `run`).
+//! The modules are layers; each imports only those above it in this list (a test checks it):
+//!
+//! - `case`: the input, plain data read by everyone, and the rules every case obeys;
+//! - `threads`, `linalg`: the pool and fixed-order reductions; CG and dense Cholesky;
+//! - `discretization`: grid, horizon, influence function, quadrature weights, stencil, stability;
+//! - `problem`: manufactured solutions, initial values and sources;
+//! - `operator`: L_h behind one trait, with interchangeable backends;
+//! - `output`: diagnostics, field snapshots, VTK, the record and a run's outcome;
+//! - `parallel`: partitions, subdomain windows, halo exchange and collectives over MPI;
+//! - `integrate`: time stepping and the time step;
+//! - `methods`: one module per method, and the one dispatch from a case to its method.
+//!
+//! A run goes case → `methods::validate` → the method's plan (stencil, operator, dt) →
+//! `integrate` → `output` (errors, diagnostics, record); see docs/architecture.md.
 
 pub mod case;
-pub mod continuum;
-pub mod diagnostics;
-pub mod distributed;
-pub mod euler;
-pub mod field;
-pub mod grid;
-pub mod influence;
-pub mod local;
+pub mod discretization;
+pub mod integrate;
+pub mod linalg;
+pub mod methods;
 pub mod operator;
-pub mod partition;
+pub mod output;
+pub mod parallel;
 pub mod problem;
-pub mod pse;
-pub mod quadrature;
-pub mod record;
-pub mod run;
-mod source;
-pub mod stability;
-pub mod steady;
-pub mod stencil;
-pub mod subdomain;
-pub mod vtk;
+pub mod threads;
+
+pub use case::ValidCase;
+pub use case::{Case, CaseError};
+pub use methods::{partition_report, run, run_on_ranks, validate};
+pub use output::outcome::Outcome;
+pub use output::record::Record;

@@ -7,7 +7,7 @@ mod common;
 
 use common::case;
 use serde_json::json;
-use solver::run::run;
+use solver::run;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

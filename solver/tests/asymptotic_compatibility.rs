@@ -5,11 +5,10 @@ mod common;
 
 use common::{case, observed_orders, scientific};
 use serde_json::{json, Value};
-use solver::grid::{Grid, Horizon};
-use solver::influence::Kernel;
-use solver::quadrature::Quadrature;
-use solver::run::run;
-use solver::stencil::Stencil;
+use solver::case::{Kernel, Quadrature};
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::stencil::Stencil;
+use solver::run;
 use std::f64::consts::PI;
 
 const T_END: f64 = 0.1;

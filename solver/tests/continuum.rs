@@ -1,8 +1,9 @@
 //! The continuum operator L φ used by the `continuum` source: accurate to 1e-10 relative.
 
-use solver::continuum::{ContinuumOperator, DEFAULT_ORDER};
-use solver::grid::{Grid, Horizon};
-use solver::influence::{scaling_constant, Kernel};
+use solver::case::Kernel;
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::influence::scaling_constant;
+use solver::problem::continuum::{ContinuumOperator, DEFAULT_ORDER};
 use solver::problem::profile;
 
 fn continuum(dim: usize, eps: f64, kernel: Kernel, order: usize) -> ContinuumOperator {

@@ -4,7 +4,7 @@ mod common;
 
 use common::{case, observed_orders, scientific};
 use serde_json::json;
-use solver::run::run;
+use solver::run;
 
 /// The discrete L² error √(eᵏ) at the final time; checks on the way that eᵏ is its square.
 fn error_l2(case_json: serde_json::Value) -> f64 {

@@ -1,7 +1,8 @@
 //! The moments M_i and the constant c of eq. 1.5, pinned to their formulas.
 
 use gauss_quad::legendre::GaussLegendre;
-use solver::influence::{scaling_constant, Kernel};
+use solver::case::Kernel;
+use solver::discretization::influence::scaling_constant;
 use std::f64::consts::PI;
 
 /// M_i by composite Gauss–Legendre (64 panels × 20 points), independent of the closed forms.

@@ -7,8 +7,8 @@ mod common;
 
 use common::{case, observed_orders, scientific};
 use serde_json::json;
-use solver::record::Status;
-use solver::run::{run, Outcome};
+use solver::output::record::Status;
+use solver::{run, Outcome};
 use std::f64::consts::PI;
 
 fn solve(fields: serde_json::Value) -> Outcome {
@@ -312,7 +312,7 @@ fn pse_is_stable_up_to_its_bound_and_diverges_beyond() {
 #[test]
 fn cases_name_the_field_at_fault() {
     let field = |fields: serde_json::Value| {
-        solver::case::Case::from_json(fields)
+        solver::ValidCase::from_json(fields)
             .map(|_| ())
             .expect_err("refused")
             .field

@@ -4,11 +4,10 @@
 mod common;
 
 use common::random_field;
-use solver::grid::{Grid, Horizon};
-use solver::influence::Kernel;
-use solver::operator::{plan, Backend, Cost, NonlocalOperator};
-use solver::quadrature::Quadrature;
-use solver::stencil::Stencil;
+use solver::case::{Backend, Kernel, Quadrature};
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::stencil::Stencil;
+use solver::operator::{plan, Cost, NonlocalOperator};
 
 /// The horizon of a test case, in cells or as a length.
 #[derive(Clone, Copy, Debug)]

@@ -2,11 +2,10 @@
 //! is 2dk, checked on the operators themselves (both backends) at the nodes whose ball lies in D,
 //! for every quadrature, kernel and m from 1 to 10.
 
-use solver::grid::{Grid, Horizon};
-use solver::influence::Kernel;
-use solver::operator::{plan, Backend};
-use solver::quadrature::Quadrature;
-use solver::stencil::Stencil;
+use solver::case::{Backend, Kernel, Quadrature};
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::stencil::Stencil;
+use solver::operator::plan;
 
 const DIFFUSIVITY: f64 = 0.7;
 

@@ -4,14 +4,13 @@ mod common;
 
 use common::{case, random_field};
 use serde_json::json;
-use solver::grid::{Grid, Horizon};
-use solver::influence::Kernel;
-use solver::operator::{plan, Backend};
-use solver::quadrature::Quadrature;
-use solver::record::Status;
-use solver::run::run;
-use solver::stability::{forward_euler_dt_stable, Symbol};
-use solver::stencil::Stencil;
+use solver::case::{Backend, Kernel, Quadrature};
+use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::stability::{forward_euler_dt_stable, Symbol};
+use solver::discretization::stencil::Stencil;
+use solver::operator::plan;
+use solver::output::record::Status;
+use solver::run;
 
 fn stencil(dim: usize, n: usize, m: usize, kernel: Kernel) -> Stencil {
     stencil_with(dim, n, m, kernel, Quadrature::Midpoint)

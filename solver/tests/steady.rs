@@ -5,10 +5,11 @@ mod common;
 
 use common::{case, observed_orders, random_field, scientific};
 use serde_json::json;
-use solver::operator::{self, Backend};
-use solver::steady::assembly::single_domain;
-use solver::steady::cholesky::{symmetric_product, Cholesky};
-use solver::steady::SteadyProblem;
+use solver::case::Backend;
+use solver::linalg::cholesky::{symmetric_product, Cholesky};
+use solver::methods::steady::assembly::single_domain;
+use solver::methods::steady::problem::SteadyProblem;
+use solver::operator::{self};
 
 /// A steady case on the L × L lattice.
 fn steady(
@@ -50,7 +51,13 @@ fn max_abs(a: &[f64]) -> f64 {
 #[test]
 fn the_assembled_matrix_is_minus_the_stencil_operator_and_the_load_matches() {
     for (n, m, quadrature) in [(24, 3, "midpoint"), (20, 4, "ac")] {
-        let problem = SteadyProblem::new(&steady("steady_cg", n, m, quadrature, json!({})));
+        let problem = SteadyProblem::new(&common::valid(steady(
+            "steady_cg",
+            n,
+            m,
+            quadrature,
+            json!({}),
+        )));
         let (a, load) = single_domain(&problem);
         let u = random_field(n * n, 7);
         let mut au = vec![0.0; n * n];
@@ -87,13 +94,20 @@ fn the_assembled_matrix_is_minus_the_stencil_operator_and_the_load_matches() {
 #[test]
 fn ac_reproduces_the_quadratic_and_midpoint_converges_only_at_fixed_horizon() {
     for (n, m) in [(16, 2), (32, 4), (48, 5)] {
-        let problem = SteadyProblem::new(&steady("steady_cg", n, m, "ac", json!({})));
+        let problem =
+            SteadyProblem::new(&common::valid(steady("steady_cg", n, m, "ac", json!({}))));
         let error = max_difference(&direct_solution(&problem), &problem.exact_values());
         assert!(error < 1e-11, "ac, n {n} m {m}: max error {error:e}");
         assert!(problem.patch_error().abs() < 1e-13);
     }
     let midpoint_error = |n: usize, m: usize| {
-        let problem = SteadyProblem::new(&steady("steady_cg", n, m, "midpoint", json!({})));
+        let problem = SteadyProblem::new(&common::valid(steady(
+            "steady_cg",
+            n,
+            m,
+            "midpoint",
+            json!({}),
+        )));
         max_difference(&direct_solution(&problem), &problem.exact_values())
     };
     let fixed_m: Vec<f64> = [32, 64, 128]
@@ -124,14 +138,14 @@ fn ac_reproduces_the_quadratic_and_midpoint_converges_only_at_fixed_horizon() {
 #[test]
 fn cg_converges_to_the_direct_solution_on_any_thread_count() {
     let base = steady("steady_cg", 48, 4, "midpoint", json!({"rtol": 1e-10}));
-    let problem = SteadyProblem::new(&base);
+    let problem = SteadyProblem::new(&common::valid(base.clone()));
     let direct = direct_solution(&problem);
     let mut fields = Vec::new();
     for (threads, backend) in [(1, "stencil"), (2, "stencil"), (2, "fft")] {
         let mut case = base.clone();
         case.threads = threads;
         case.backend = serde_json::from_value(json!(backend)).unwrap();
-        let outcome = solver::run::run(&case).unwrap();
+        let outcome = solver::run(&case).unwrap();
         let difference = max_difference(&outcome.field, &direct) / max_abs(&direct);
         assert!(
             difference < 1e-8,
@@ -152,7 +166,13 @@ fn cg_converges_to_the_direct_solution_on_any_thread_count() {
 #[test]
 fn feti_reconstructs_the_single_domain_solution() {
     for (n, m, quadrature) in [(48, 4, "midpoint"), (45, 3, "ac")] {
-        let problem = SteadyProblem::new(&steady("steady_cg", n, m, quadrature, json!({})));
+        let problem = SteadyProblem::new(&common::valid(steady(
+            "steady_cg",
+            n,
+            m,
+            quadrature,
+            json!({}),
+        )));
         let direct = direct_solution(&problem);
         for p in [2, 3, 4] {
             for preconditioner in ["none", "dirichlet", "dirichlet_cg", "dirichlet_scaled"] {
@@ -163,7 +183,7 @@ fn feti_reconstructs_the_single_domain_solution() {
                     quadrature,
                     json!({"subdomains": p, "preconditioner": preconditioner, "rtol": 1e-9, "threads": 2}),
                 );
-                let outcome = solver::run::run(&feti).unwrap();
+                let outcome = solver::run(&feti).unwrap();
                 let difference = max_difference(&outcome.field, &direct) / max_abs(&direct);
                 let solve = &outcome.record.steady;
                 println!(
@@ -194,7 +214,7 @@ fn dirichlet_feti_iterations_level_off_while_cg_grows() {
     for p in ps {
         let n = 24 * p;
         let run = |case| {
-            solver::run::run(&case)
+            solver::run(&case)
                 .unwrap()
                 .record
                 .steady
@@ -260,19 +280,23 @@ fn a_solve_stopped_by_the_iteration_limit_is_not_ok() {
     ] {
         let mut limited = base.clone();
         limited["max_iterations"] = json!(limit);
-        let stopped = solver::run::run(&steady(method, 48, 4, "ac", limited)).unwrap();
+        let stopped = solver::run(&steady(method, 48, 4, "ac", limited)).unwrap();
         let record = &stopped.record;
-        assert_eq!(record.status, solver::record::Status::Diverged, "{method}");
+        assert_eq!(
+            record.status,
+            solver::output::record::Status::Diverged,
+            "{method}"
+        );
         assert_eq!(record.steady.iterations, Some(limit), "{method}");
         assert!(
             record.message.contains("above rtol"),
             "{method}: {}",
             record.message
         );
-        let converged = solver::run::run(&steady(method, 48, 4, "ac", base)).unwrap();
+        let converged = solver::run(&steady(method, 48, 4, "ac", base)).unwrap();
         assert_eq!(
             converged.record.status,
-            solver::record::Status::Ok,
+            solver::output::record::Status::Ok,
             "{method}"
         );
     }

@@ -6,10 +6,9 @@ use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use serde_json::{Map, Value};
 use solver::case::{Case, Method};
-use solver::record::Record;
-use solver::run::Outcome;
-use solver::subdomain::HaloReport;
-use solver::vtk;
+use solver::output::record::Record;
+use solver::output::vtk;
+use solver::{Outcome, ValidCase};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -29,7 +28,7 @@ struct Cli {
 enum Command {
     /// Run one case, given as a JSON file, as flags, or as a file with flags overriding its fields.
     /// With ranks > 1, start it as `mpirun -n <ranks> nlsolve run … --ranks <ranks>`.
-    Run(RunArgs),
+    RowRun(RunArgs),
     /// Report the partition and halo a distributed run of the case would use (ghost nodes, bytes
     /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
     Partition(CaseArgs),
@@ -166,8 +165,8 @@ struct BadInput(String);
 
 impl CaseArgs {
     /// The case: the file's fields (if any) with the flags' fields set on top.
-    fn case(&self) -> Result<Case, BadInput> {
-        Case::from_json(Value::Object(self.fields()?)).map_err(|e| BadInput(e.to_string()))
+    fn case(&self) -> Result<ValidCase, BadInput> {
+        ValidCase::from_json(Value::Object(self.fields()?)).map_err(|e| BadInput(e.to_string()))
     }
 
     /// The case's fields as JSON, before they are checked.
@@ -355,7 +354,7 @@ fn main() -> ExitCode {
     let world = universe.as_ref().map(|u| u.world());
     let rank0 = world.as_ref().is_none_or(|w| w.rank() == 0);
     let result = parse_command_line().and_then(|cli| match cli.command {
-        Command::Run(args) => run(&args, world.as_ref()),
+        Command::RowRun(args) => run(&args, world.as_ref()),
         Command::Partition(args) => partition_report(&args),
         Command::Check => check_cases(),
     });
@@ -379,12 +378,12 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
         ));
     }
     let outcome = match world {
-        Some(world) => solver::distributed::run(
+        Some(world) => solver::run_on_ranks(
             world,
             &case,
             args.write_field.is_some() || args.write_vtk.is_some(),
         ),
-        None => solver::run::run(&case).map(Some),
+        None => solver::run(&case).map(Some),
     }
     .map_err(|e| BadInput(e.to_string()))?;
     let Some(outcome) = outcome else {
@@ -456,8 +455,8 @@ fn partition_report(args: &CaseArgs) -> Result<(), BadInput> {
     if !fields.contains_key("dt") {
         fields.entry("cfl").or_insert(Value::from(1.0));
     }
-    let case = Case::from_json(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))?;
-    let report = HaloReport::of(&case).map_err(|e| BadInput(e.to_string()))?;
+    let case = Case::parse(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))?;
+    let report = solver::partition_report(&case).map_err(|e| BadInput(e.to_string()))?;
     println!(
         "{}",
         serde_json::to_string(&report).expect("the report serializes")
@@ -474,8 +473,8 @@ fn check_cases() -> Result<(), BadInput> {
             continue;
         }
         let verdict = match serde_json::from_str::<Value>(&line) {
-            Ok(fields) => match Case::from_json(fields) {
-                Ok(case) => serde_json::json!({ "case": case }),
+            Ok(fields) => match ValidCase::from_json(fields) {
+                Ok(case) => serde_json::json!({ "case": *case }),
                 Err(e) => serde_json::json!({ "error": e.to_string() }),
             },
             Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),

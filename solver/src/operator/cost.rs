@@ -6,8 +6,8 @@
 //! the same case always runs the same backend.
 
 use super::fft::transform_length;
-use super::Backend;
-use crate::stencil::Stencil;
+use crate::case::Backend;
+use crate::discretization::stencil::Stencil;
 
 // Least-squares fits to the median step times of `studies/perf.json` (2D, 2 threads, portable
 // build; 18 points per backend, each within 2× of the fit), the Euler update included.

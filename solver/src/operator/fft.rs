@@ -14,8 +14,8 @@
 //! back, and keeps their first n values; the final pass gathers `BLOCK` rows at a time. Each value
 //! is computed by one task whatever the thread count, so results do not depend on it.
 
-use super::NonlocalOperator;
-use crate::stencil::Stencil;
+use super::interface::NonlocalOperator;
+use crate::discretization::stencil::Stencil;
 use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};

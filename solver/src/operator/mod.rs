@@ -6,32 +6,18 @@
 
 mod cost;
 mod fft;
+mod interface;
 mod neighbour_list;
 pub(crate) mod stencil;
 
 pub use cost::{choose, Cost};
 pub use fft::FftOperator;
+pub use interface::NonlocalOperator;
 pub use neighbour_list::NeighbourList;
 pub use stencil::StencilOperator;
 
-use crate::stencil::Stencil;
-use serde::{Deserialize, Serialize};
-
-/// Which implementation of L_h a case runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Backend {
-    /// The stencil or the FFT, whichever the calibrated cost model (`cost`) says is faster.
-    #[default]
-    Auto,
-    /// Precomputed weights per lattice offset, register-blocked (uniform grids): O(N m^d).
-    Stencil,
-    /// Zero-padded FFT convolution with the weights (uniform grids): O(N log N) for any m.
-    Fft,
-    /// Algorithm 1 of seed 000 literally: a neighbour list per node, distances and J recomputed
-    /// for every bond at every application. The oracle the fast backends are tested against.
-    NeighbourList,
-}
+use crate::case::Backend;
+use crate::discretization::stencil::Stencil;
 
 impl Backend {
     /// The backend that runs: `Auto` made concrete by the cost model, the others as they are.
@@ -41,11 +27,6 @@ impl Backend {
             concrete => concrete,
         }
     }
-}
-
-pub trait NonlocalOperator: Send + Sync {
-    /// out = L_h u on the nodes of D, with u = 0 on the collar (eq. 2.2).
-    fn apply(&self, u: &[f64], out: &mut [f64]);
 }
 
 /// Plans the operator of `backend` (`Auto` resolved first) for the case whose grid, horizon,

@@ -5,11 +5,11 @@
 //! collar. Each application recomputes |x_j − x_i| and J for every bond and sums
 //! c J (U[j] − U[i]) V_ij, with U = 0 on the collar. This is the slow, obviously right oracle.
 
-use super::NonlocalOperator;
-use crate::grid::{Grid, Horizon};
-use crate::influence::Kernel;
-use crate::quadrature::{bond_influence, BondVolumes, Quadrature};
-use crate::stencil::Stencil;
+use super::interface::NonlocalOperator;
+use crate::case::{Kernel, Quadrature};
+use crate::discretization::grid::{Grid, Horizon};
+use crate::discretization::quadrature::{bond_influence, BondVolumes};
+use crate::discretization::stencil::Stencil;
 use rayon::prelude::*;
 
 pub struct NeighbourList {

@@ -6,10 +6,10 @@
 //! (one load, one multiply and one add per bond and lane, no store). The distributed solver's
 //! windows use `row_segment`, which sums in the same order, so both agree bit for bit.
 
-use super::NonlocalOperator;
-use crate::grid::Window;
-use crate::stencil::Stencil;
-use crate::subdomain::Run;
+use super::interface::NonlocalOperator;
+use crate::discretization::grid::RowRun;
+use crate::discretization::grid::Window;
+use crate::discretization::stencil::Stencil;
 use rayon::prelude::*;
 use std::sync::Mutex;
 
@@ -205,7 +205,7 @@ pub(crate) fn row_segment(
 pub(crate) fn apply_on_runs(
     stencil: &Stencil,
     window: &Window,
-    runs: &[Run],
+    runs: &[RowRun],
     u: &[f64],
     out: &mut [f64],
 ) {

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use solver::case::Case;
+use solver::ValidCase;
 
 /// A deterministic pseudo-random field in [−1, 1) (xorshift64*), so failures reproduce.
 pub fn random_field(len: usize, seed: u64) -> Vec<f64> {
@@ -19,7 +20,9 @@ pub fn random_field(len: usize, seed: u64) -> Vec<f64> {
 
 /// A case from JSON text, panicking with serde's message if the text is not a valid case.
 pub fn case(json: serde_json::Value) -> Case {
-    Case::from_json(json).unwrap_or_else(|e| panic!("test case is invalid: {e}"))
+    ValidCase::from_json(json)
+        .map(ValidCase::into_case)
+        .unwrap_or_else(|e| panic!("test case is invalid: {e}"))
 }
 
 /// Observed orders log2(e_i / e_{i+1}) of a sequence of errors under halving.
@@ -31,4 +34,9 @@ pub fn observed_orders(errors: &[f64]) -> Vec<f64> {
 pub fn scientific(values: &[f64]) -> String {
     let items: Vec<String> = values.iter().map(|v| format!("{v:.3e}")).collect();
     format!("[{}]", items.join(", "))
+}
+
+/// `case` as validated, for the APIs that take only a validated case.
+pub fn valid(case: Case) -> ValidCase {
+    ValidCase::new(case).unwrap_or_else(|e| panic!("test case is invalid: {e}"))
 }

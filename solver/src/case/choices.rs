@@ -1,0 +1,181 @@
+//! The choices a case makes: one enum per field with named values, serialised in snake_case.
+//!
+//! They are plain data here, at the bottom of the crate, so that every layer can read a case;
+//! what a choice means numerically lives with the numerics (`impl Kernel` in
+//! `discretization::influence`, `impl Backend` in `operator`, …).
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// The nonlocal heat equation of seed 000, forward Euler in time (eq. 2.1).
+    #[default]
+    Nonlocal,
+    /// Local diffusion (seed 004): central differences, forward Euler.
+    FdExplicit,
+    /// Local diffusion (seed 004): Peaceman–Rachford ADI with the Thomas algorithm.
+    Adi,
+    /// Local diffusion (seed 004): particle strength exchange, forward Euler.
+    Pse,
+    /// Steady nonlocal diffusion (seed 001): unpreconditioned conjugate gradients on A u = f.
+    SteadyCg,
+    /// Steady nonlocal diffusion (seed 001): FETI with p × p subdomains, projected CG on the
+    /// Lagrange multipliers.
+    Feti,
+}
+
+impl Method {
+    /// Does the method solve the local equation ∂c/∂t = D∇²c on (−L/2, L/2)^d?
+    pub fn is_local(self) -> bool {
+        matches!(self, Method::FdExplicit | Method::Adi | Method::Pse)
+    }
+
+    /// Does the method need a horizon (`m` or `eps`)?
+    pub fn has_horizon(self) -> bool {
+        matches!(self, Method::Nonlocal | Method::Pse)
+    }
+
+    /// Does the method solve the steady problem −L u = f of seed 001 (no time)?
+    pub fn is_steady(self) -> bool {
+        matches!(self, Method::SteadyCg | Method::Feti)
+    }
+}
+
+/// The preconditioner of FETI's projected CG (seed 001, section 3.1.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FetiPreconditioner {
+    /// None: Q = I.
+    None,
+    /// The Dirichlet preconditioner of eq. 33, interior solves by sparse Cholesky.
+    #[default]
+    Dirichlet,
+    /// The Dirichlet preconditioner with 5 CG iterations for the interior solves.
+    DirichletCg,
+    /// The Dirichlet preconditioner with multiplicity scaling (Rixen & Farhat, IJNME 44, 1999):
+    /// each interface value weighted by 1/(subdomains sharing its node) on the way in and out.
+    /// Not in seed 001; about half the iterations of `dirichlet`.
+    DirichletScaled,
+}
+
+/// The influence function J of eq. 1.1, as a function of r = |y − x| / ε.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kernel {
+    /// J = 1.
+    Constant,
+    /// J = 1 − r.
+    Linear,
+    /// J = exp(−r²), cut at r = 1.
+    Gaussian,
+    /// J = 1/r: singular at the origin, integrable in the moments used by c (seed 001's kernel).
+    InverseDistance,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Quadrature {
+    /// Full cell volume for every node in the closed ball (seed 000).
+    #[default]
+    Midpoint,
+    /// The part of each cell inside the ball.
+    PartialVolume,
+    /// Partial volumes rescaled to be exact on quadratics (asymptotically compatible).
+    Ac,
+}
+
+impl Quadrature {
+    pub const ALL: [Quadrature; 3] = [
+        Quadrature::Midpoint,
+        Quadrature::PartialVolume,
+        Quadrature::Ac,
+    ];
+
+    pub fn is_midpoint(&self) -> bool {
+        *self == Quadrature::Midpoint
+    }
+}
+
+/// Which implementation of L_h a case runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Backend {
+    /// The stencil or the FFT, whichever the calibrated cost model (`cost`) says is faster.
+    #[default]
+    Auto,
+    /// Precomputed weights per lattice offset, register-blocked (uniform grids): O(N m^d).
+    Stencil,
+    /// Zero-padded FFT convolution with the weights (uniform grids): O(N log N) for any m.
+    Fft,
+    /// Algorithm 1 of seed 000 literally: a neighbour list per node, distances and J recomputed
+    /// for every bond at every application. The oracle the fast backends are tested against.
+    NeighbourList,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Partition {
+    /// px × py rectangles of the grid.
+    #[default]
+    Block,
+    /// A METIS partition of the grid graph: irregular subdomains, like seed 000's Figure 3.
+    Graph,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Problem {
+    /// w = cos(2πt) sin(2πx₁)[sin(2πx₂)], exact solution known (Appendix A).
+    #[default]
+    Manufactured,
+    /// u₀ = exp(−|x − ½|²/(2·0.1²)), no source, no exact solution: for demonstrations.
+    Bump,
+    /// Local methods: c = Π_a cos(π x_a / L) on (−L/2, L/2)^d, decaying as exp(−dπ²Dt/L²).
+    Eigenmode,
+    /// Local methods, seed 004's setup: c = 1 where every |x_a| < L/4, else 0.
+    Square,
+}
+
+/// What the collar D_c holds: the data of the volume constraint.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Collar {
+    /// u = 0 (eq. 2.2). Then even the continuum nonlocal solution differs from the local one by
+    /// O(ε) in a layer of width ε along ∂D.
+    #[default]
+    Zero,
+    /// The manufactured solution's smooth continuation cos(2πt) sin(2πx₁)[sin(2πx₂)], which is
+    /// odd about ∂D: the local solution's own values, so that no boundary layer forms and the
+    /// error against the local solution is the interior consistency error alone.
+    Exact,
+}
+
+impl Collar {
+    pub fn is_zero(&self) -> bool {
+        *self == Collar::Zero
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceMode {
+    Discrete,
+    Continuum,
+    Local,
+    None,
+}
+
+impl Problem {
+    /// Does the problem belong to the local methods' domain (−L/2, L/2)^d?
+    pub fn is_local(self) -> bool {
+        matches!(self, Problem::Eigenmode | Problem::Square)
+    }
+
+    pub fn default_source(self) -> SourceMode {
+        match self {
+            Problem::Manufactured => SourceMode::Continuum,
+            Problem::Bump | Problem::Eigenmode | Problem::Square => SourceMode::None,
+        }
+    }
+}

@@ -1,0 +1,137 @@
+//! The stable time step of forward Euler for the nonlocal operator, from the stencil's symbol.
+//!
+//! Forward Euler on u' = L_h u + b amplifies an eigenmode of −L_h with eigenvalue λ by 1 − Δt λ,
+//! so it is stable iff Δt ≤ 2/λ_max. On the infinite lattice, L_h is a convolution with the symbol
+//!     σ(ξ) = Σ_o w_o (1 − cos(o·ξ)),   ξ ∈ [−π, π]^d,
+//! whose spectrum is the range of σ. −L_h on D (zero collar) is the compression of that operator to
+//! the nodes of D, so its Rayleigh quotients, and thus λ_max, lie below max σ; as n grows the
+//! compression's top eigenvalue tends to max σ. Hence
+//!     dt_stable = 2 / max_ξ σ(ξ),
+//! safe for every n and sharp for large n. The weights are symmetric in each axis, so
+//! σ(ξ) = W − Σ_o w_o cos(o₁ξ₁) cos(o₂ξ₂) and it suffices to search ξ ∈ [0, π]^d. For a long horizon
+//! the maximum is not at ξ = π (as it is for the local 5-point stencil), so we search: a grid fine
+//! enough to resolve the degree-m trigonometric polynomial, then repeated local zooming.
+
+use crate::discretization::stencil::Stencil;
+use std::f64::consts::PI;
+
+/// Zoom steps after the coarse search: each halves the spacing, far below round-off after 50.
+const ZOOM_STEPS: usize = 50;
+/// Coarse candidates refined, in case two basins are nearly as high.
+const CANDIDATES: usize = 8;
+/// Coarse samples per unit of reach: σ has degree m, so its features are ~π/m wide and a spacing
+/// of π/(4m) puts several samples in each basin before zooming.
+const SAMPLES_PER_CELL: usize = 4;
+
+/// The symbol σ of a stencil, folded onto the quadrant dx, dy ≥ 0: with the stencil's mirror
+/// symmetry, σ(ξ) = W − Σ_{dx,dy ≥ 0} f(dx, dy) cos(dx ξ₁) cos(dy ξ₂), f summing the mirror images.
+pub struct Symbol {
+    /// Largest |dx| or |dy| of a bond.
+    reach: usize,
+    dim: usize,
+    /// f(dx, dy) at dy·(reach + 1) + dx.
+    folded: Vec<f64>,
+    total_weight: f64,
+}
+
+impl Symbol {
+    pub fn new(stencil: &Stencil) -> Self {
+        let reach = stencil.reach();
+        let mut folded = vec![0.0; (reach + 1) * (reach + 1)];
+        for row in &stencil.rows {
+            for (dx, w) in row.bonds() {
+                folded
+                    [row.dy.unsigned_abs() as usize * (reach + 1) + dx.unsigned_abs() as usize] +=
+                    w;
+            }
+        }
+        Symbol {
+            reach,
+            dim: stencil.grid.dim,
+            folded,
+            total_weight: stencil.total_weight,
+        }
+    }
+
+    /// g_dx = Σ_dy f(dx, dy) cos(dy ξ₂), from cos(dy ξ₂) for dy = 0 ..= reach.
+    fn column_sums(&self, cos_xi2: &[f64], g: &mut [f64]) {
+        g.iter_mut().for_each(|v| *v = 0.0);
+        for (row, &cy) in self.folded.chunks(self.reach + 1).zip(cos_xi2) {
+            for (gx, &f) in g.iter_mut().zip(row) {
+                *gx += f * cy;
+            }
+        }
+    }
+
+    /// σ = W − Σ_dx g_dx cos(dx ξ₁), from cos(dx ξ₁) for dx = 0 ..= reach.
+    fn value_with(&self, cos_xi1: &[f64], g: &[f64]) -> f64 {
+        self.total_weight - g.iter().zip(cos_xi1).map(|(a, b)| a * b).sum::<f64>()
+    }
+
+    fn cosines(&self, xi: f64) -> Vec<f64> {
+        (0..=self.reach).map(|d| (d as f64 * xi).cos()).collect()
+    }
+
+    /// σ(ξ₁, ξ₂).
+    pub fn value(&self, xi1: f64, xi2: f64) -> f64 {
+        let mut g = vec![0.0; self.reach + 1];
+        self.column_sums(&self.cosines(xi2), &mut g);
+        self.value_with(&self.cosines(xi1), &g)
+    }
+
+    /// max over ξ of σ(ξ), i.e. the bound on λ_max(−L_h).
+    pub fn maximum(&self) -> f64 {
+        let samples = SAMPLES_PER_CELL * self.reach + 9;
+        let spacing = PI / (samples - 1) as f64;
+        let table: Vec<Vec<f64>> = (0..samples)
+            .map(|a| self.cosines(a as f64 * spacing))
+            .collect();
+        let xi2_samples = if self.dim == 2 { samples } else { 1 };
+        let mut g = vec![0.0; self.reach + 1];
+        let mut coarse = Vec::with_capacity(samples * xi2_samples);
+        for (b, cos_xi2) in table.iter().take(xi2_samples).enumerate() {
+            self.column_sums(cos_xi2, &mut g);
+            for (a, cos_xi1) in table.iter().enumerate() {
+                coarse.push((
+                    self.value_with(cos_xi1, &g),
+                    a as f64 * spacing,
+                    b as f64 * spacing,
+                ));
+            }
+        }
+        coarse.sort_by(|p, q| q.0.total_cmp(&p.0));
+        coarse
+            .iter()
+            .take(CANDIDATES)
+            .map(|&(value, xi1, xi2)| self.zoom(value, xi1, xi2, spacing))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+    /// Hill-climbs from a coarse sample on ever finer 5 × 5 (or 5 in 1D) patterns.
+    fn zoom(&self, mut best: f64, mut xi1: f64, mut xi2: f64, mut spacing: f64) -> f64 {
+        let steps2: &[f64] = if self.dim == 2 {
+            &[-1.0, -0.5, 0.0, 0.5, 1.0]
+        } else {
+            &[0.0]
+        };
+        for _ in 0..ZOOM_STEPS {
+            let (c1, c2) = (xi1, xi2);
+            for &s2 in steps2 {
+                for s1 in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+                    let t1 = (c1 + s1 * spacing).clamp(0.0, PI);
+                    let t2 = (c2 + s2 * spacing).clamp(0.0, PI);
+                    let v = self.value(t1, t2);
+                    if v > best {
+                        (best, xi1, xi2) = (v, t1, t2);
+                    }
+                }
+            }
+            spacing *= 0.5;
+        }
+        best
+    }
+}
+
+/// dt_stable = 2 / max σ for forward Euler.
+pub fn forward_euler_dt_stable(stencil: &Stencil) -> f64 {
+    2.0 / Symbol::new(stencil).maximum()
+}

@@ -1,0 +1,134 @@
+//! The methods a case can name, and the one place where a case reaches its method.
+//!
+//! Each method is a module with the same two entry points: `validate(case)`, the rules of its
+//! own fields, and `run(case)`, which plans, integrates and measures on the current rayon pool
+//! (the distributed ones also `run(world, case, …)` over MPI ranks). This module dispatches
+//! with a `match` on `Method` rather than through a trait object: the set of methods is closed
+//! (a case file names one of them), the compiler then checks that every method has a rule and a
+//! runner, and each arm is one call, so adding a method is one module and one arm in each of
+//! `validate`, `run` and `run_on_ranks`.
+//!
+//! A case reaches a runner only as a `ValidCase`, which outside this crate only `validate` (or
+//! `ValidCase::from_json`) builds: the runners' `expect`s on fields that validation guarantees
+//! cannot fire through the library's API.
+
+pub mod local;
+pub mod nonlocal;
+pub mod pse;
+pub mod steady;
+
+use crate::case::{Case, CaseError, Method, ValidCase};
+use crate::discretization::stencil::Stencil;
+use crate::output::outcome::Outcome;
+use crate::parallel::subdomain::HaloReport;
+use crate::threads;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+impl ValidCase {
+    /// Checks `case` against the rules every case obeys and then those of its method.
+    pub fn new(case: Case) -> Result<ValidCase, CaseError> {
+        validate(case)
+    }
+
+    /// Parses and validates a case, naming the offending field on any error.
+    pub fn from_json(value: serde_json::Value) -> Result<ValidCase, CaseError> {
+        validate(Case::parse(value)?)
+    }
+}
+
+/// Checks what can be checked before any setup; dt against dt_stable is checked when the
+/// stencil is known.
+pub fn validate(case: Case) -> Result<ValidCase, CaseError> {
+    check(&case)?;
+    Ok(ValidCase::validated(case))
+}
+
+/// The rules every case obeys, then those of its method.
+fn check(case: &Case) -> Result<(), CaseError> {
+    case.validate_grid()?;
+    let time_dependent = |own_rules: fn(&Case) -> Result<(), CaseError>| {
+        case.refuse_steady_fields()?;
+        own_rules(case)?;
+        case.validate_time_dependent()
+    };
+    match case.method {
+        Method::Nonlocal => time_dependent(nonlocal::validate),
+        Method::FdExplicit | Method::Adi => time_dependent(local::validate),
+        Method::Pse => time_dependent(pse::validate),
+        Method::SteadyCg | Method::Feti => steady::validate(case),
+    }
+}
+
+/// Runs `case` in this process, on a rayon pool of `case.threads` threads.
+pub fn run(case: &Case) -> Result<Outcome, CaseError> {
+    let case = validate(case.clone())?;
+    if case.ranks > 1 {
+        return Err(CaseError::new(
+            "ranks",
+            format!(
+                "{r} ranks need MPI: start the run with `mpirun -n {r} nlsolve run …`",
+                r = case.ranks
+            ),
+        ));
+    }
+    match case.method {
+        Method::Nonlocal => in_pool(&case, nonlocal::run),
+        Method::FdExplicit => in_pool(&case, |case| local::run(case, false)),
+        Method::Adi => in_pool(&case, |case| local::run(case, true)),
+        Method::Pse => in_pool(&case, pse::run),
+        // The steady methods start their pool inside their setup timing.
+        Method::SteadyCg | Method::Feti => steady::run(&case),
+    }
+}
+
+/// Runs a method on a rayon pool of `case.threads` threads.
+fn in_pool(
+    case: &ValidCase,
+    run: impl FnOnce(&ValidCase) -> Result<Outcome, CaseError> + Send,
+) -> Result<Outcome, CaseError> {
+    threads::pool(case.threads)?.install(|| run(case))
+}
+
+/// What a distributed run of `case` would exchange, found without running it.
+pub fn partition_report(case: &Case) -> Result<HaloReport, CaseError> {
+    let case = validate(case.clone())?;
+    if case.method.is_local() {
+        return Err(CaseError::new(
+            "method",
+            "the partition report is for the nonlocal method, the one that runs on many ranks",
+        ));
+    }
+    HaloReport::of(&case, &Stencil::of_case(&case))
+}
+
+/// Runs `case` on the ranks of `world`. Rank 0 gets the outcome (with the whole field when
+/// `gather_field`), the other ranks `None`. Every rank returns the same error for bad input.
+pub fn run_on_ranks(
+    world: &SimpleCommunicator,
+    case: &Case,
+    gather_field: bool,
+) -> Result<Option<Outcome>, CaseError> {
+    let case = validate(case.clone())?;
+    if case.method.is_local() {
+        return Err(CaseError::new(
+            "method",
+            "fd_explicit and adi run on one process; start them without mpirun",
+        ));
+    }
+    let ranks = world.size() as usize;
+    if ranks != case.ranks {
+        return Err(CaseError::new(
+            "ranks",
+            format!(
+                "the case asks for {} ranks but mpirun started {ranks}; start `mpirun -n {}` or set `ranks` to {ranks}",
+                case.ranks, case.ranks
+            ),
+        ));
+    }
+    match case.method {
+        Method::Nonlocal => nonlocal::distributed::run(world, &case, gather_field),
+        Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case),
+        Method::FdExplicit | Method::Adi | Method::Pse => unreachable!("refused above"),
+    }
+}

@@ -1,0 +1,241 @@
+//! The nonlocal heat equation of seed 000: plan the operator, resolve the time step, step with
+//! forward Euler (eq. 2.1) on one process (`run`) or over MPI ranks (`distributed`), measure.
+
+pub mod distributed;
+
+use crate::case::ValidCase;
+use crate::case::{Backend, Case, CaseError, Collar, Problem, SourceMode, MAX_EPS};
+use crate::discretization::stability::forward_euler_dt_stable;
+use crate::discretization::stencil::Stencil;
+use crate::integrate::euler::{forward_euler, serial_outcome, Stepping};
+use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::operator::{self, NonlocalOperator};
+use crate::output::diagnostics;
+use crate::output::outcome::Outcome;
+use crate::output::record::Resolved;
+use crate::problem::source::PointwiseSource;
+use crate::problem::{self, manufactured_solution, Source};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// The nonlocal method's own rules: seed 000's problems on D = [0,1]^d and a horizon in (0, 1/2].
+pub fn validate(case: &Case) -> Result<(), CaseError> {
+    if case.problem.is_local() {
+        return Err(CaseError::new(
+                "problem",
+                "the nonlocal method solves `manufactured` or `bump`; `eigenmode` and `square` are for `fd_explicit`, `adi` and `pse`",
+            ));
+    }
+    if case.length.is_some() {
+        return Err(CaseError::new(
+            "length",
+            "the nonlocal method runs on D = [0,1]^d; leave `length` out",
+        ));
+    }
+    if case.collar == Collar::Exact && case.problem != Problem::Manufactured {
+        return Err(CaseError::new(
+                "collar",
+                "`exact` continues the manufactured solution into the collar; use it with problem `manufactured`",
+            ));
+    }
+    let eps = match (case.m, case.eps) {
+        (Some(_), Some(_)) => {
+            return Err(CaseError::new(
+                "eps",
+                "give the horizon once, as `m` (cells) or `eps` (length), not both",
+            ))
+        }
+        (None, None) => {
+            return Err(CaseError::new(
+                "m",
+                "the horizon is missing; give `m` (ε = m·h) or `eps`",
+            ))
+        }
+        (Some(0), None) => {
+            return Err(CaseError::new(
+                "m",
+                "must be at least 1 (got 0); the horizon ε = m·h spans m cells",
+            ))
+        }
+        (Some(m), None) => {
+            let eps = m as f64 / case.n as f64;
+            if eps > MAX_EPS {
+                return Err(CaseError::new(
+                    "m",
+                    format!(
+                        "m = {m} with n = {} gives ε = m/n = {eps} above {MAX_EPS}; use m ≤ n/2",
+                        case.n
+                    ),
+                ));
+            }
+            eps
+        }
+        (None, Some(eps)) => eps,
+    };
+    if !(eps > 0.0 && eps <= MAX_EPS) {
+        return Err(CaseError::new(
+                "eps",
+                format!("must lie in (0, {MAX_EPS}] (got {eps}); the collar of width ε surrounds D = [0,1]^d"),
+            ));
+    }
+    Ok(())
+}
+
+/// What a case resolves to before its time loop: the weights of L_h and the time step.
+pub(crate) struct Plan {
+    pub stencil: Stencil,
+    /// The backend that runs: `auto` resolved by the cost model; the distributed solver's stencil.
+    pub backend: Backend,
+    pub collar: Collar,
+    pub dt_stable: f64,
+    pub dt: f64,
+    pub steps: usize,
+}
+
+impl Plan {
+    pub fn new(case: &Case) -> Result<Plan, CaseError> {
+        let stencil = Stencil::of_case(case);
+        check_operator_does_not_vanish(case, &stencil)?;
+        let dt_stable = forward_euler_dt_stable(&stencil);
+        let (dt, steps) = time_step(case, dt_stable, false)?;
+        check_neighbour_list_size(case, &stencil)?;
+        let backend = if case.ranks > 1 {
+            Backend::Stencil
+        } else {
+            case.backend.resolve(&stencil)
+        };
+        Ok(Plan {
+            stencil,
+            backend,
+            collar: case.collar,
+            dt_stable,
+            dt,
+            steps,
+        })
+    }
+}
+
+impl Plan {
+    pub fn resolved(&self) -> Resolved {
+        let stencil = &self.stencil;
+        Resolved {
+            dt: self.dt,
+            dt_stable: self.dt_stable,
+            steps: self.steps,
+            collar: Some(self.collar),
+            patch_error: Some(stencil.patch_error()),
+            backend: Some(self.backend),
+            ..Resolved::of_stencil(stencil)
+        }
+    }
+}
+
+/// Runs a case of the nonlocal method on the current rayon pool.
+pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
+    let setup_started = Instant::now();
+    let plan = Plan::new(case)?;
+    let stencil = &plan.stencil;
+    let grid = stencil.grid;
+    let operator = operator::plan(plan.backend, stencil);
+    let (u0, source) = initial_state(case, stencil, operator.as_ref());
+    let setup_s = setup_started.elapsed().as_secs_f64();
+
+    let source_max = source
+        .as_ref()
+        .map(|s| (diagnostics::max_abs(&s.phi), diagnostics::max_abs(&s.psi)));
+    let divergence_bound = divergence_bound(case, diagnostics::max_abs(&u0), source_max);
+    let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, grid.volume());
+    let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
+
+    let t_final = trajectory.timing.steps_done as f64 * plan.dt;
+    let exact = source
+        .as_ref()
+        .map(|source| manufactured_solution(&source.phi, t_final));
+    let lattice = grid.lattice();
+    Ok(serial_outcome(
+        case,
+        plan.resolved(),
+        setup_s,
+        &stepping,
+        trajectory,
+        lattice,
+        exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
+    ))
+}
+
+/// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
+/// L_h = 0 and an infinite dt_stable: no study wants that, so say which field to change.
+fn check_operator_does_not_vanish(case: &Case, stencil: &Stencil) -> Result<(), CaseError> {
+    let field = if case.m.is_some() { "m" } else { "eps" };
+    let h = stencil.grid.h;
+    if stencil.offsets == 0 {
+        return Err(CaseError::new(
+            field,
+            format!(
+                "ε = {} is below h = {h}, so the ball holds no neighbour; use ε ≥ h",
+                stencil.horizon.eps
+            ),
+        ));
+    }
+    if stencil.total_weight == 0.0 {
+        return Err(CaseError::new(
+            field,
+            format!(
+                "every bond of this horizon has J = 0 (kernel {:?}, ε/h = {}), so L_h vanishes; use m ≥ 2 (ε ≥ 2h)",
+                case.kernel, stencil.horizon.radius_cells
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The oracle stores every bond (4 bytes each) by a u32 index on the extended grid: refuse a case
+/// whose lists would not fit, rather than abort on a failed allocation.
+fn check_neighbour_list_size(case: &Case, stencil: &Stencil) -> Result<(), CaseError> {
+    const LIMIT_BYTES: usize = 8 << 30;
+    if case.backend != Backend::NeighbourList {
+        return Ok(());
+    }
+    let bytes = stencil.bonds().saturating_mul(4);
+    let extended_nodes = (case.n + 2 * stencil.horizon.m).pow(case.dim as u32);
+    if bytes > LIMIT_BYTES || extended_nodes > u32::MAX as usize {
+        return Err(CaseError::new(
+            "backend",
+            format!(
+                "`neighbour_list` would store {:.1} GiB of bonds for this case (limit {} GiB); use `stencil`",
+                bytes as f64 / (1u64 << 30) as f64,
+                LIMIT_BYTES >> 30
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// u₀ and the source fields of the case's problem.
+fn initial_state(
+    case: &Case,
+    stencil: &Stencil,
+    operator: &dyn NonlocalOperator,
+) -> (Vec<f64>, Option<Source>) {
+    let grid = &stencil.grid;
+    if case.problem == Problem::Bump {
+        return (problem::sample(grid, problem::bump), None);
+    }
+    let phi = problem::sample(grid, problem::profile);
+    let psi = match case.source() {
+        SourceMode::Discrete => {
+            let mut psi = vec![0.0; phi.len()];
+            operator.apply(&phi, &mut psi);
+            psi
+        }
+        SourceMode::Continuum | SourceMode::Local => {
+            let pointwise = PointwiseSource::new(case, stencil).expect("a pointwise mode");
+            (0..grid.nodes())
+                .into_par_iter()
+                .map(|i| pointwise.psi(i))
+                .collect()
+        }
+        SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
+    };
+    (phi.clone(), Some(Source { phi, psi }))
+}

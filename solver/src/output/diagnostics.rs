@@ -1,0 +1,205 @@
+//! Errors against an exact solution and the conserved-quantity diagnostics, reduced in a fixed
+//! order so that the numbers do not depend on the thread count.
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Reduction block: partial sums over fixed index blocks, added in block order.
+const BLOCK: usize = 4096;
+
+/// Σᵢ term(i) for i < len, with the same rounding whatever the number of threads.
+pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
+    let partials: Vec<f64> = (0..len.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| (b * BLOCK..len.min((b + 1) * BLOCK)).map(&term).sum())
+        .collect();
+    partials.iter().sum()
+}
+
+/// e^k = h^d Σᵢ |exact(i) − uᵢ|² (seed 000, eq. A.3): the square of the discrete L² error.
+pub fn squared_l2_error(exact: impl Fn(usize) -> f64 + Sync, u: &[f64], volume: f64) -> f64 {
+    volume * fixed_order_sum(u.len(), |i| (exact(i) - u[i]).powi(2))
+}
+
+/// maxᵢ |exact(i) − uᵢ|.
+pub fn max_error(exact: impl Fn(usize) -> f64 + Sync, u: &[f64]) -> f64 {
+    (0..u.len())
+        .into_par_iter()
+        .map(|i| (exact(i) - u[i]).abs())
+        .reduce(|| 0.0, f64::max)
+}
+
+/// h^d Σᵢ uᵢ.
+pub fn total_mass(u: &[f64], volume: f64) -> f64 {
+    volume * fixed_order_sum(u.len(), |i| u[i])
+}
+
+/// maxᵢ |uᵢ|, with a NaN counted as +∞ so that a blown-up field is never reported as small.
+pub fn max_abs(u: &[f64]) -> f64 {
+    u.par_chunks(BLOCK)
+        .map(block_max_abs)
+        .reduce(|| 0.0, f64::max)
+}
+
+/// maxᵢ |uᵢ| of a block, NaN counted as +∞, in one pass the compiler vectorises: eight running
+/// maxima side by side, and NaNs tracked apart (a running `f64::max` is a serial chain).
+pub fn block_max_abs(u: &[f64]) -> f64 {
+    const LANES: usize = 8;
+    let mut lanes = [0.0f64; LANES];
+    let mut nan = false;
+    let chunks = u.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (m, &v) in lanes.iter_mut().zip(chunk) {
+            let a = v.abs();
+            *m = if a > *m { a } else { *m };
+            nan |= v.is_nan();
+        }
+    }
+    let rest_max = rest.iter().fold(0.0, |m: f64, &v| m.max(magnitude(v)));
+    if nan {
+        return f64::INFINITY;
+    }
+    lanes.into_iter().fold(rest_max, f64::max)
+}
+
+/// |v|, or +∞ for a NaN.
+#[inline]
+pub fn magnitude(v: f64) -> f64 {
+    if v.is_nan() {
+        f64::INFINITY
+    } else {
+        v.abs()
+    }
+}
+
+/// Output times j·interval of a run of `steps` steps of dt: due at the first step at or past
+/// each output time not yet reached, and at the last step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Schedule {
+    interval: f64,
+    dt: f64,
+    steps: usize,
+    reached: usize,
+}
+
+impl Schedule {
+    pub fn new(interval: f64, dt: f64, steps: usize) -> Self {
+        Schedule {
+            interval,
+            dt,
+            steps,
+            reached: 0,
+        }
+    }
+
+    /// Is step k due? It counts as reached when it is.
+    pub fn due(&mut self, k: usize) -> bool {
+        let next_output = (self.reached + 1) as f64 * self.interval;
+        // Relative slack: an output time reached up to rounding counts as reached.
+        let due = self.time(k) >= next_output * (1.0 - 1e-12) || k == self.steps;
+        self.reached += usize::from(due);
+        due
+    }
+
+    /// The time after step k.
+    pub fn time(&self, k: usize) -> f64 {
+        k as f64 * self.dt
+    }
+}
+
+/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (seed 004's diagnostics.dat): at t = 0 and at the
+/// steps its schedule makes due.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MassSeries {
+    #[serde(skip)]
+    schedule: Schedule,
+    pub time: Vec<f64>,
+    pub c_tot: Vec<f64>,
+}
+
+impl MassSeries {
+    /// The series of a run of `steps` steps of `dt`, when an output `interval` is given,
+    /// starting from c_tot(0) = `c_tot0`.
+    pub fn start(interval: Option<f64>, dt: f64, steps: usize, c_tot0: f64) -> Option<Self> {
+        interval.map(|interval| MassSeries {
+            schedule: Schedule::new(interval, dt, steps),
+            time: vec![0.0],
+            c_tot: vec![c_tot0],
+        })
+    }
+
+    /// Adds c_tot after step k if the series exists and step k is due; `c_tot` is evaluated
+    /// only then.
+    pub fn observe_if(series: &mut Option<Self>, k: usize, c_tot: impl FnOnce() -> f64) {
+        let Some(series) = series else { return };
+        if series.schedule.due(k) {
+            series.time.push(series.schedule.time(k));
+            series.c_tot.push(c_tot());
+        }
+    }
+
+    /// The series as CSV with a header: `t,c_tot`, one row per sample.
+    pub fn to_csv(&self) -> String {
+        let mut csv = String::from("t,c_tot\n");
+        for (t, c) in self.time.iter().zip(&self.c_tot) {
+            csv.push_str(&format!("{t},{c}\n"));
+        }
+        csv
+    }
+}
+
+/// Counts of values in `counts.len()` equal bins over [lo, hi] (the last bin closed).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Histogram {
+    pub lo: f64,
+    pub hi: f64,
+    pub counts: Vec<u64>,
+}
+
+/// The histogram of u over [min u, max u] in `bins` bins (seed 004's compute_histogram), counted
+/// in parallel by blocks; integer counts make the result independent of the thread count. A
+/// field that is not finite everywhere has no histogram.
+pub fn histogram(u: &[f64], bins: usize) -> Option<Histogram> {
+    let (lo, hi) = u.par_iter().map(|&v| (v, v)).reduce(
+        || (f64::INFINITY, f64::NEG_INFINITY),
+        |a, b| (a.0.min(b.0), a.1.max(b.1)),
+    );
+    if !(lo.is_finite() && hi.is_finite()) || u.par_iter().any(|v| v.is_nan()) {
+        return None;
+    }
+    let width = (hi - lo) / bins as f64;
+    let bin = |v: f64| {
+        if width > 0.0 {
+            (((v - lo) / width) as usize).min(bins - 1)
+        } else {
+            0
+        }
+    };
+    let counts = u
+        .par_chunks(BLOCK)
+        .map(|block| {
+            let mut counts = vec![0u64; bins];
+            for &v in block {
+                counts[bin(v)] += 1;
+            }
+            counts
+        })
+        .reduce(
+            || vec![0u64; bins],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    Some(Histogram { lo, hi, counts })
+}
+
+/// The median of timing samples, 0 when there are none.
+pub fn median(mut samples: Vec<f64>) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    let mid = samples.len() / 2;
+    *samples.select_nth_unstable_by(mid, f64::total_cmp).1
+}

@@ -1,0 +1,233 @@
+//! The record: one JSON object per run, what the orchestrator stores and tabulates.
+
+use crate::case::{Backend, Case, Collar, Partition, Quadrature};
+use crate::discretization::stencil::Stencil;
+use crate::output::diagnostics::{Histogram, MassSeries};
+use crate::output::field::FieldSnapshot;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Ok,
+    Diverged,
+    Failed,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Record {
+    pub case: Case,
+    pub status: Status,
+    pub message: String,
+    #[serde(flatten)]
+    pub resolved: Resolved,
+    /// Steps completed (fewer than `steps` when diverged).
+    pub steps_done: usize,
+    // Timings in seconds: setup (operator plan, sources, dt_stable), the time loop, its median step.
+    pub setup_s: f64,
+    pub solve_s: f64,
+    pub step_s: f64,
+    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (seed 000, eq. A.3): the *squared*
+    /// discrete L² error, as the contract names it.
+    pub error_l2: Option<f64>,
+    /// √(eᵏ), the discrete L² norm of the error, whose orders are the usual ones.
+    pub error_l2_norm: Option<f64>,
+    pub error_max: Option<f64>,
+    /// e = Σₖ eᵏ (only when the case sets `error_total`).
+    pub error_total: Option<f64>,
+    /// h^d Σᵢ ûᵢ at the end.
+    pub mass: Option<f64>,
+    pub max_abs: Option<f64>,
+    pub diverged_step: Option<usize>,
+    pub diverged_time: Option<f64>,
+    /// c_tot(t) samples (when the case sets `diagnostics_every`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub c_tot: Option<MassSeries>,
+    /// The final field's histogram (when the case sets `histogram_bins`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram: Option<Histogram>,
+    /// A coarse copy of the final field and its error (when the case sets `field_snapshot`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<FieldSnapshot>,
+    #[serde(flatten)]
+    pub distribution: Distribution,
+    /// The steady methods' iteration: counts, residual and FETI's sizes (absent otherwise).
+    #[serde(flatten)]
+    pub steady: SteadySolve,
+    /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
+    /// included; absent where /proc does not tell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_memory_bytes: Option<u64>,
+    pub provenance: Provenance,
+}
+
+/// VmHWM of /proc/self/status: the most resident memory this process has held.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// What the case resolved to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Resolved {
+    pub h: f64,
+    /// The horizon and the constant c of eq. 1.5 (nonlocal method only).
+    pub eps: Option<f64>,
+    pub m: Option<usize>,
+    pub c: Option<f64>,
+    pub dt: f64,
+    pub dt_stable: f64,
+    /// Steps planned to reach t_end.
+    pub steps: usize,
+    pub nodes: usize,
+    /// Σᵢ |neighbourList[i]|: bonds of nodes in D to nodes of D ∪ D_c (2d per node for the
+    /// grid methods' stencil; for `pse`, the particle pairs within the kernel's cutoff, each
+    /// counted once, pairs with boundary images included).
+    pub bonds: usize,
+    /// `pse`: the pairs whose distance is checked per step (the cost, O(N) by the cell lists).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pair_visits: Option<usize>,
+    /// Nonlocal method: the quadrature and the collar's values, also when the case left them at
+    /// their defaults (and so out of its JSON), so that tables can select on them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quadrature: Option<Quadrature>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collar: Option<Collar>,
+    /// Nonlocal method: L_h|x|²/(2dk) − 1, the relative error of the quadratic patch test of the
+    /// case's quadrature (0 up to round-off for `ac`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch_error: Option<f64>,
+    /// Nonlocal method: the operator backend that ran (`auto` resolved by the cost model).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub backend: Option<Backend>,
+}
+
+impl Resolved {
+    /// What the weights `stencil` resolved to; no time step, collar, patch error or backend.
+    pub fn of_stencil(stencil: &Stencil) -> Self {
+        Resolved {
+            h: stencil.grid.h,
+            eps: Some(stencil.horizon.eps),
+            m: Some(stencil.horizon.m),
+            c: Some(stencil.c),
+            dt: 0.0,
+            dt_stable: 0.0,
+            steps: 0,
+            nodes: stencil.grid.nodes(),
+            bonds: stencil.bonds(),
+            pair_visits: None,
+            quadrature: Some(stencil.quadrature),
+            collar: None,
+            patch_error: None,
+            backend: None,
+        }
+    }
+}
+
+/// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SteadySolve {
+    /// CG iterations (`steady_cg`) or projected-CG iterations on the multipliers (`feti`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// ‖f − A u‖/‖f‖ of the single-domain system (eq. 20) for the solution returned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relative_residual: Option<f64>,
+    /// FETI: √(rᵀy / r₀ᵀy₀), the preconditioned projected residual its iteration stops on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dual_residual: Option<f64>,
+    /// FETI: p², the subdomains, and how many of them float (Γ_n = ∅).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subdomains: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floating_subdomains: Option<usize>,
+    /// FETI: q, the Lagrange multipliers (one per node shared by a pair of subdomains).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub multipliers: Option<usize>,
+    /// FETI: the non-zeros of the largest subdomain's Cholesky factor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor_nonzeros_max: Option<usize>,
+}
+
+impl SteadySolve {
+    /// The record of a CG solve on the single-domain system.
+    pub fn cg(iterations: usize) -> Self {
+        SteadySolve {
+            iterations: Some(iterations),
+            ..SteadySolve::default()
+        }
+    }
+}
+
+/// How the run was spread over ranks, and what that cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Distribution {
+    pub ranks: usize,
+    pub partition: Partition,
+    /// The block partition's shape (py = 1 in 1D); absent for `graph`.
+    pub px: Option<usize>,
+    pub py: Option<usize>,
+    /// Ghost nodes summed over ranks: values received per step (`feti`: multiplier values
+    /// received per interface exchange; `steady_cg`: ghosts per matrix–vector product).
+    pub halo_nodes: usize,
+    /// Bytes received per step, all ranks together (8 per ghost).
+    pub halo_bytes: usize,
+    /// max owned / mean owned nodes per rank.
+    pub imbalance: f64,
+    /// Median per step of the time spent communicating (halo exchange and the divergence check's
+    /// reduction), max over ranks; 0 on one rank.
+    pub comm_s: f64,
+}
+
+impl Distribution {
+    /// One process owning all of D.
+    pub fn serial(case: &Case) -> Self {
+        Distribution {
+            ranks: 1,
+            partition: case.partition,
+            px: Some(1),
+            py: Some(1),
+            halo_nodes: 0,
+            halo_bytes: 0,
+            imbalance: 1.0,
+            comm_s: 0.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Provenance {
+    pub solver_version: String,
+    pub git_revision: Option<String>,
+    pub host: String,
+    pub cpu: String,
+    pub threads: usize,
+    pub ranks: usize,
+    pub timestamp: String,
+}
+
+impl Provenance {
+    pub fn here(threads: usize, ranks: usize) -> Self {
+        Provenance {
+            solver_version: env!("CARGO_PKG_VERSION").to_string(),
+            git_revision: option_env!("NLSOLVE_GIT_REVISION").map(str::to_string),
+            host: read_trimmed("/proc/sys/kernel/hostname").unwrap_or_else(|| "unknown".into()),
+            cpu: cpu_model().unwrap_or_else(|| "unknown".into()),
+            threads,
+            ranks,
+            timestamp: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        }
+    }
+}
+
+fn read_trimmed(path: &str) -> Option<String> {
+    Some(std::fs::read_to_string(path).ok()?.trim().to_string())
+}
+
+fn cpu_model() -> Option<String> {
+    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("model name"))?;
+    Some(line.split_once(':')?.1.trim().to_string())
+}

@@ -1,0 +1,210 @@
+//! How the nodes of D are divided among ranks (seed 000, section 3): which rank owns each node.
+//!
+//! - `block`: px × py rectangles, boundaries at ⌊i·n/p⌋ so uneven splits differ by at most one
+//!   node; px·py = R is chosen to minimise the halo unless the case gives it.
+//! - `graph`: METIS k-way partition of the lattice's nearest-neighbour graph. Its edge cut is the
+//!   subdomains' perimeter, and the ε-halo is that perimeter times the reach, so minimising one
+//!   minimises the other while the graph stays 2d edges per node instead of the ~πm² bonds of the
+//!   full interaction graph (which at n = 1024, m = 8 would be 2·10⁸ edges for METIS to hold).
+
+use crate::case::{Case, CaseError, Partition};
+use crate::discretization::grid::Grid;
+use crate::discretization::stencil::Stencil;
+
+/// The rank that owns each node of D.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ownership {
+    pub grid: Grid,
+    pub ranks: usize,
+    /// owner[i] for node index i.
+    pub owner: Vec<u32>,
+    /// px × py of a block partition (py = 1 in 1D).
+    pub blocks: Option<(usize, usize)>,
+}
+
+impl Ownership {
+    /// Nodes owned by each rank.
+    pub fn owned_counts(&self) -> Vec<usize> {
+        let mut counts = vec![0; self.ranks];
+        for &r in &self.owner {
+            counts[r as usize] += 1;
+        }
+        counts
+    }
+
+    /// max owned / mean owned: 1 for a perfect balance.
+    pub fn imbalance(&self) -> f64 {
+        let max = self.owned_counts().into_iter().max().unwrap_or(0);
+        max as f64 * self.ranks as f64 / self.grid.nodes() as f64
+    }
+}
+
+/// The partition the case asks for.
+pub fn of(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
+    match case.partition {
+        Partition::Block => block(case, stencil),
+        Partition::Graph => graph(case, stencil.grid),
+    }
+}
+
+/// The block partition of the case: px × py given or chosen, then each node's block.
+pub fn block(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
+    let grid = stencil.grid;
+    let (px, py) = block_shape(case, stencil)?;
+    let column_block = block_of_each_index(grid.n, px);
+    let row_block = block_of_each_index(grid.rows(), py);
+    let owner = (0..grid.nodes())
+        .map(|i| (row_block[i / grid.n] * px + column_block[i % grid.n]) as u32)
+        .collect();
+    Ok(Ownership {
+        grid,
+        ranks: px * py,
+        owner,
+        blocks: Some((px, py)),
+    })
+}
+
+/// The graph partition of the case by METIS (deterministic: METIS's seed is fixed).
+pub fn graph(case: &Case, grid: Grid) -> Result<Ownership, CaseError> {
+    let ranks = case.ranks;
+    let owner: Vec<u32> = if ranks == 1 {
+        vec![0; grid.nodes()]
+    } else {
+        let (xadj, adjncy) = lattice_graph(&grid);
+        let mut part = vec![0 as metis::Idx; grid.nodes()];
+        let metis_failed = |e: &dyn std::fmt::Display| {
+            CaseError::new(
+                "partition",
+                format!("METIS failed: {e}; use `partition: block`"),
+            )
+        };
+        metis::Graph::new(1, ranks as metis::Idx, &xadj, &adjncy)
+            .map_err(|e| metis_failed(&e))?
+            .set_option(metis::option::Seed(1))
+            .part_kway(&mut part)
+            .map_err(|e| metis_failed(&e))?;
+        part.into_iter().map(|p| p as u32).collect()
+    };
+    let ownership = Ownership {
+        grid,
+        ranks,
+        owner,
+        blocks: None,
+    };
+    let empty = ownership.owned_counts().iter().filter(|&&c| c == 0).count();
+    if empty > 0 {
+        return Err(CaseError::new(
+            "ranks",
+            format!(
+                "METIS left {empty} of {ranks} ranks without nodes on this {}-node grid; use fewer ranks or `partition: block`",
+                grid.nodes()
+            ),
+        ));
+    }
+    Ok(ownership)
+}
+
+/// px × py: as given (checked), or the factor pair of R whose halo is smallest (ties go to the
+/// smaller px, i.e. wider blocks, whose rows the stencil sweeps in longer runs).
+fn block_shape(case: &Case, stencil: &Stencil) -> Result<(usize, usize), CaseError> {
+    let grid = stencil.grid;
+    let ranks = case.ranks;
+    let (n, rows) = (grid.n, grid.rows());
+    if grid.dim == 1 {
+        if case.py.is_some_and(|py| py != 1) {
+            return Err(CaseError::new(
+                "py",
+                "a 1D grid is split along x only; leave `py` out",
+            ));
+        }
+        if case.px.is_some_and(|px| px != ranks) {
+            return Err(CaseError::new(
+                "px",
+                format!("in 1D px must equal ranks = {ranks}; leave `px` out"),
+            ));
+        }
+        return Ok((ranks, 1));
+    }
+    let fits = |px: usize, py: usize| px * py == ranks && px <= n && py <= rows;
+    let shape = match (case.px, case.py) {
+        (Some(px), Some(py)) => Some((px, py)),
+        (Some(px), None) => (ranks % px == 0).then(|| (px, ranks / px)),
+        (None, Some(py)) => (ranks % py == 0).then(|| (ranks / py, py)),
+        (None, None) => (1..=ranks)
+            .filter(|&px| ranks % px == 0 && fits(px, ranks / px))
+            .map(|px| (px, ranks / px))
+            .min_by_key(|&(px, py)| (block_halo(stencil, px, py), px)),
+    };
+    match shape {
+        Some((px, py)) if fits(px, py) => Ok((px, py)),
+        _ if case.px.is_some() || case.py.is_some() => Err(CaseError::new(
+            if case.px.is_some() { "px" } else { "py" },
+            format!(
+                "px × py must equal ranks = {ranks} with px, py ≤ n = {n} (got px = {:?}, py = {:?}); leave both out to have them chosen",
+                case.px, case.py
+            ),
+        )),
+        _ => Err(CaseError::new(
+            "ranks",
+            format!(
+                "{ranks} ranks have no factor pair px × py with px, py ≤ n = {n}, so no block partition exists; use `partition: graph` or another rank count"
+            ),
+        )),
+    }
+}
+
+/// block_of[i]: the block holding index i when 0..len is cut into `parts` at ⌊k·len/parts⌋.
+fn block_of_each_index(len: usize, parts: usize) -> Vec<usize> {
+    let mut block_of = vec![0; len];
+    for b in 0..parts {
+        block_of[b * len / parts..(b + 1) * len / parts].fill(b);
+    }
+    block_of
+}
+
+/// Total ghost nodes of the px × py block partition, counted exactly from the stencil's shape: a
+/// block's ghosts in the row d rows beyond its edge reach as far sideways as the stencil row
+/// |dy| = d does, since the ball narrows away from its centre.
+pub fn block_halo(stencil: &Stencil, px: usize, py: usize) -> usize {
+    let grid = stencil.grid;
+    let (n, rows) = (grid.n, grid.rows());
+    // reach_at[d]: half-width of the stencil row |dy| = d.
+    let mut reach_at = vec![0usize; stencil.reach() + 1];
+    for row in &stencil.rows {
+        reach_at[row.dy.unsigned_abs() as usize] = row.dx_min.unsigned_abs() as usize;
+    }
+    let dilated_width = |x0: usize, x1: usize, k: usize| (x1 + k).min(n) - x0.saturating_sub(k);
+    let mut ghosts = 0;
+    for by in 0..py {
+        let (y0, y1) = (by * rows / py, (by + 1) * rows / py);
+        for bx in 0..px {
+            let (x0, x1) = (bx * n / px, (bx + 1) * n / px);
+            ghosts += (y1 - y0) * (dilated_width(x0, x1, reach_at[0]) - (x1 - x0));
+            for (d, &k) in reach_at.iter().enumerate().skip(1) {
+                let beyond = usize::from(y0 >= d) + usize::from(y1 + d <= rows);
+                ghosts += beyond * dilated_width(x0, x1, k);
+            }
+        }
+    }
+    ghosts
+}
+
+/// The lattice's nearest-neighbour graph in METIS's CSR form (xadj, adjncy).
+fn lattice_graph(grid: &Grid) -> (Vec<metis::Idx>, Vec<metis::Idx>) {
+    let (n, rows) = (grid.n as i64, grid.rows() as i64);
+    let mut xadj = Vec::with_capacity(grid.nodes() + 1);
+    let mut adjncy = Vec::with_capacity(grid.nodes() * 2 * grid.dim);
+    xadj.push(0);
+    for y in 0..rows {
+        for x in 0..n {
+            for (dx, dy) in [(0, -1), (-1, 0), (1, 0), (0, 1)] {
+                let (jx, jy) = (x + dx, y + dy);
+                if (0..n).contains(&jx) && (0..rows).contains(&jy) {
+                    adjncy.push((jy * n + jx) as metis::Idx);
+                }
+            }
+            xadj.push(adjncy.len() as metis::Idx);
+        }
+    }
+    (xadj, adjncy)
+}
