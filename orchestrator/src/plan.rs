@@ -1,5 +1,6 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
+use crate::record::Status;
 use crate::solver::Solver;
 use crate::store::{self, Store};
 use crate::study::{Point, Study, StudyError};
@@ -96,7 +97,7 @@ pub fn plan(
                     }
                     _ => Decision::Run(Reason::Missing),
                 },
-                Some(status) if status == "failed" && options.rerun_failed => {
+                Some(status) if status == Status::Failed.as_str() && options.rerun_failed => {
                     Decision::Run(Reason::FailedBefore)
                 }
                 Some(status) => Decision::Skip(status.clone()),

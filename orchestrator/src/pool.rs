@@ -3,6 +3,7 @@
 
 use crate::plan::Planned;
 use crate::progress::Progress;
+use crate::record::Status;
 use crate::solver::Solver;
 use crate::store::Store;
 use serde_json::{json, Value};
@@ -262,7 +263,7 @@ fn failed_record(planned: &Planned, solver: &Solver, message: String) -> Value {
         Ok(case) => case.clone(),
         Err(_) => Value::Object(planned.point.fields.clone()),
     };
-    let mut record = json!({ "case": case, "status": "failed", "message": message });
+    let mut record = json!({ "case": case, "status": Status::Failed.as_str(), "message": message });
     let object = record.as_object_mut().expect("an object");
     for (field, value) in identity(planned, solver) {
         object.insert(field, value);
@@ -277,19 +278,15 @@ fn finish(
     tally: &mut Tally,
     progress: &mut Progress,
 ) -> std::io::Result<()> {
-    let status = record
-        .get("status")
-        .and_then(Value::as_str)
-        .unwrap_or("failed")
-        .to_string();
+    let status = Status::of(&record).unwrap_or(Status::Failed);
     store.save(&planned.key, &record)?;
-    match status.as_str() {
-        "ok" => tally.ok += 1,
-        "diverged" => tally.diverged += 1,
-        _ => tally.failed += 1,
+    match status {
+        Status::Ok => tally.ok += 1,
+        Status::Diverged => tally.diverged += 1,
+        Status::Failed => tally.failed += 1,
     }
     let message = record.get("message").and_then(Value::as_str).unwrap_or("");
-    progress.finished(&planned.point.label(), &status, message);
+    progress.finished(&planned.point.label(), status, message);
     Ok(())
 }
 

@@ -1,6 +1,7 @@
 //! Progress of a run: an indicatif bar on a terminal, one plain line per finished case
 //! otherwise (logs, CI), nothing with `--quiet`.
 
+use crate::record::Status;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 
@@ -53,15 +54,15 @@ impl Progress {
     }
 
     /// A case finished with `status`.
-    pub fn finished(&mut self, label: &str, status: &str, message: &str) {
+    pub fn finished(&mut self, label: &str, status: Status, message: &str) {
         self.done += 1;
-        if status == "failed" {
+        if status == Status::Failed {
             self.failed += 1;
         }
         match self.mode {
             Mode::Bar => {
                 let bar = self.bar.as_ref().expect("bar mode has a bar");
-                if status == "failed" {
+                if status == Status::Failed {
                     bar.println(format!("failed: {label}: {}", first_line(message)));
                 }
                 bar.inc(1);
@@ -69,8 +70,8 @@ impl Progress {
             }
             Mode::Lines => {
                 let detail = match status {
-                    "failed" => format!(": {}", first_line(message)),
-                    _ => String::new(),
+                    Status::Failed => format!(": {}", first_line(message)),
+                    Status::Ok | Status::Diverged => String::new(),
                 };
                 eprintln!("[{}/{}] {status} {label}{detail}", self.done, self.total);
             }

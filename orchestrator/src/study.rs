@@ -3,12 +3,41 @@
 
 use crate::expression::{self, Scope};
 use crate::figure::FigureSpec;
-use crate::submit::Resources;
 use serde::Deserialize;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
+
+/// What a job asks of the scheduler: the study's `resources` section, overridden by flags.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Resources {
+    pub nodes: Option<usize>,
+    /// MPI tasks of the allocation (default: the largest rank count among the job's cases).
+    pub tasks: Option<usize>,
+    /// Wall time, HH:MM:SS for Slurm; LSF gets HH:MM.
+    pub time: Option<String>,
+    /// Slurm partition or LSF queue.
+    pub queue: Option<String>,
+    pub account: Option<String>,
+    /// Cases per job (default: all of them in one job).
+    pub cases_per_job: Option<usize>,
+}
+
+impl Resources {
+    /// `self` with every field `over` sets replaced.
+    pub fn overridden_by(&self, over: &Resources) -> Resources {
+        Resources {
+            nodes: over.nodes.or(self.nodes),
+            tasks: over.tasks.or(self.tasks),
+            time: over.time.clone().or_else(|| self.time.clone()),
+            queue: over.queue.clone().or_else(|| self.queue.clone()),
+            account: over.account.clone().or_else(|| self.account.clone()),
+            cases_per_job: over.cases_per_job.or(self.cases_per_job),
+        }
+    }
+}
 
 /// A study file, as written.
 #[derive(Debug, Deserialize)]

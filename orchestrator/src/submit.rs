@@ -3,7 +3,8 @@
 //! record store and the same make-style skipping serve the cluster and the workstation.
 
 use crate::plan::Planned;
-use serde::Deserialize;
+use crate::solver::Solver;
+use crate::study::{Resources, Study};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -14,34 +15,76 @@ pub enum Scheduler {
     Lsf,
 }
 
-/// What a job asks of the scheduler: the study's `resources` section, overridden by flags.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Resources {
-    pub nodes: Option<usize>,
-    /// MPI tasks of the allocation (default: the largest rank count among the job's cases).
-    pub tasks: Option<usize>,
-    /// Wall time, HH:MM:SS for Slurm; LSF gets HH:MM.
-    pub time: Option<String>,
-    /// Slurm partition or LSF queue.
-    pub queue: Option<String>,
-    pub account: Option<String>,
-    /// Cases per job (default: all of them in one job).
-    pub cases_per_job: Option<usize>,
+/// Where and how `nlstudy submit` sends a study: the scheduler, the resources (the study's,
+/// overridden by flags), the results directory and study file as given, and whether to stop
+/// after writing the scripts.
+pub struct Target {
+    pub scheduler: Scheduler,
+    pub resources: Resources,
+    pub results: PathBuf,
+    pub study_file: PathBuf,
+    pub dry_run: bool,
 }
 
-impl Resources {
-    /// `self` with every field `over` sets replaced.
-    pub fn overridden_by(&self, over: &Resources) -> Resources {
-        Resources {
-            nodes: over.nodes.or(self.nodes),
-            tasks: over.tasks.or(self.tasks),
-            time: over.time.clone().or_else(|| self.time.clone()),
-            queue: over.queue.clone().or_else(|| self.queue.clone()),
-            account: over.account.clone().or_else(|| self.account.clone()),
-            cases_per_job: over.cases_per_job.or(self.cases_per_job),
+/// Writes the job scripts for the planned points that run (those the solver refuses are named
+/// and left out), prints one line per job, and submits them unless `dry_run`.
+pub fn submit_study(
+    study: &Study,
+    solver: &Solver,
+    planned: &[Planned],
+    target: &Target,
+) -> Result<(), String> {
+    let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
+        .iter()
+        .filter(|p| p.runs())
+        .partition(|p| p.case.is_ok());
+    for p in &refused {
+        eprintln!(
+            "nlstudy: not submitted, the solver refuses {}: {}",
+            p.point.label(),
+            p.case.as_ref().err().map_or("", String::as_str)
+        );
+    }
+    if runnable.is_empty() {
+        println!(
+            "study {}: nothing to submit, every point is stored",
+            study.name
+        );
+        return Ok(());
+    }
+    std::fs::create_dir_all(&target.results)
+        .map_err(|e| format!("cannot create {}: {e}", target.results.display()))?;
+    let absolute = |path: &Path| {
+        std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", path.display()))
+    };
+    let results = absolute(&target.results)?;
+    let paths = Paths {
+        nlstudy: std::env::current_exe().map_err(|e| format!("cannot find nlstudy: {e}"))?,
+        nlsolve: absolute(&solver.binary)?,
+        study: absolute(&target.study_file)?,
+        jobs: results.join(&study.name).join("jobs"),
+        results,
+    };
+    let jobs = write_jobs(
+        &study.name,
+        &runnable,
+        target.scheduler,
+        &target.resources,
+        &paths,
+    )
+    .map_err(|e| format!("cannot write the job scripts: {e}"))?;
+    for job in &jobs {
+        println!(
+            "{} ({} cases): {}",
+            job.name,
+            job.keys.len(),
+            job.script.display()
+        );
+        if !target.dry_run {
+            submit(target.scheduler, &job.script)?;
         }
     }
+    Ok(())
 }
 
 /// The absolute paths a job needs, since it starts in the scheduler's working directory.

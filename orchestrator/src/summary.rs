@@ -13,6 +13,7 @@
 //!
 //! Derived values come only from points whose every repeat is `ok`.
 
+use crate::record::{Status, MIXED, TIMINGS};
 use crate::table::Row;
 use serde_json::{json, Value};
 
@@ -44,11 +45,11 @@ fn groups<'a>(rows: &'a [Row], key: impl Fn(&'a Row) -> Option<&'a str>) -> Vec<
 }
 
 fn is_timing(name: &str) -> bool {
-    name.ends_with("_s") && !name.contains('.')
+    TIMINGS.contains(&name)
 }
 
 fn is_ok(row: &Row) -> bool {
-    row.text("status") == Some("ok")
+    row.status() == Some(Status::Ok)
 }
 
 /// The repeats of one point as one row: the values of its first ok repeat (else its first),
@@ -67,12 +68,12 @@ fn reduce(repeats: &[&Row]) -> Row {
         }
     }
     let uniform = statuses.iter().all(|s| *s == statuses[0]);
-    row.set("status", json!(if uniform { statuses[0] } else { "mixed" }));
+    row.set("status", json!(if uniform { statuses[0] } else { MIXED }));
     row.set("repeats", json!(repeats.len()));
     let ran: Vec<&Row> = repeats
         .iter()
         .zip(&statuses)
-        .filter(|(_, s)| **s != "failed")
+        .filter(|(_, s)| Status::parse(s) != Some(Status::Failed))
         .map(|(r, _)| *r)
         .collect();
     for (name, _) in first.cells().filter(|(name, _)| is_timing(name)) {

@@ -1,6 +1,7 @@
 //! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
 //! (booleans, integers, floats, else text; arrays are kept as JSON text).
 
+use crate::record::Status;
 use polars::prelude::*;
 use serde_json::Value;
 use std::path::Path;
@@ -20,6 +21,11 @@ impl Row {
 
     pub fn text(&self, name: &str) -> Option<&str> {
         self.get(name).and_then(Value::as_str)
+    }
+
+    /// The run's status (`None` for a summary row whose repeats are `mixed`).
+    pub fn status(&self) -> Option<Status> {
+        self.text("status").and_then(Status::parse)
     }
 
     /// Sets a cell, in place if the column is there, else as a new last column.

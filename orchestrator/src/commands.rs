@@ -1,0 +1,382 @@
+//! The `nlstudy` command line: its commands and flags, and what each command does with the
+//! library's parts (study → plan → pool → store → collect → plot).
+
+use crate::plan::{Decision, Options, Planned};
+use crate::pool::{PoolOptions, DEFAULT_LAUNCHER};
+use crate::progress::{Mode, Progress};
+use crate::solver::Solver;
+use crate::status;
+use crate::store::Store;
+use crate::study::{Resources, Study};
+use crate::submit::{self, Scheduler};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+#[derive(Parser)]
+#[command(
+    name = "nlstudy",
+    version,
+    about = "Runs studies of nonlocal diffusion solvers."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Print every point of the study, whether it will run and why; run nothing.
+    Plan(PlanArgs),
+    /// Run the points not yet stored (make-style) and store their records.
+    Run(RunArgs),
+    /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
+    /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
+    Collect(CommonArgs),
+    /// Draw the study's figures from its summary table into <results>/<study>/figures/, each
+    /// only when its table or its spec changed.
+    Plot(CommonArgs),
+    /// Count the stored records by status and list the failures.
+    Status(CommonArgs),
+    /// Print one value of the summary table as a Markdown table: rows by some fields, columns
+    /// by another (e.g. `--rows branch,quadrature --column n --value order_l2_norm`).
+    Table(TableArgs),
+    /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
+    Submit(SubmitArgs),
+}
+
+#[derive(Args)]
+pub struct SubmitArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    #[arg(long, value_enum)]
+    scheduler: Scheduler,
+    /// Write the scripts into results/<study>/jobs/ without submitting them.
+    #[arg(long)]
+    dry_run: bool,
+    /// Nodes per job (overrides the study's `resources.nodes`).
+    #[arg(long)]
+    nodes: Option<usize>,
+    /// MPI tasks per job (default: the largest rank count among the job's cases).
+    #[arg(long)]
+    tasks: Option<usize>,
+    /// Wall time per job, HH:MM:SS.
+    #[arg(long)]
+    time: Option<String>,
+    /// Slurm partition or LSF queue.
+    #[arg(long)]
+    queue: Option<String>,
+    #[arg(long)]
+    account: Option<String>,
+    /// Cases packed into one job (default: all).
+    #[arg(long)]
+    cases_per_job: Option<usize>,
+}
+
+#[derive(Args)]
+pub struct TableArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// The fields that name a line (comma-separated), e.g. `dim,quadrature`.
+    #[arg(long, value_delimiter = ',')]
+    rows: Vec<String>,
+    /// The field whose values head the columns, e.g. `n`.
+    #[arg(long)]
+    column: String,
+    /// The column of the summary table in the cells, e.g. `error_l2_norm_median`.
+    #[arg(long)]
+    value: String,
+    /// Conditions a point must meet, in the study language (repeatable).
+    #[arg(long = "where")]
+    filter: Vec<String>,
+}
+
+#[derive(Args)]
+pub struct CommonArgs {
+    /// The study file (JSON).
+    study: PathBuf,
+    /// Where results go: <results>/<study name>/runs/<key>.json.
+    #[arg(long, default_value = "results")]
+    results: PathBuf,
+    /// The nlsolve binary (default: $NLSOLVE, else the one beside nlstudy).
+    #[arg(long)]
+    solver: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Run every point again, stored or not.
+    #[arg(long)]
+    force: bool,
+    /// Run the points whose stored record failed.
+    #[arg(long)]
+    rerun_failed: bool,
+    /// Only the points with these keys (comma-separated), as cluster jobs do.
+    #[arg(long, value_delimiter = ',')]
+    only: Option<Vec<String>>,
+}
+
+#[derive(Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    plan: PlanArgs,
+    /// Cores the running cases may use together (threads × ranks each); default: all.
+    #[arg(short = 'j', long)]
+    jobs: Option<usize>,
+    /// Seconds after which a case is stopped and stored as failed (overrides the study's).
+    #[arg(long)]
+    timeout: Option<f64>,
+    /// Command prefix of MPI cases; `{ranks}` becomes the case's rank count.
+    #[arg(long, default_value = DEFAULT_LAUNCHER)]
+    launcher: String,
+    /// No progress output.
+    #[arg(long, short)]
+    quiet: bool,
+    /// Do not gather the records into the study's tables, nor draw its figures, at the end.
+    #[arg(long)]
+    no_collect: bool,
+}
+
+/// Runs one `nlstudy` command; the error is the message for the user (exit code 2).
+pub fn execute(cli: Cli) -> Result<ExitCode, String> {
+    match cli.command {
+        Command::Plan(args) => plan_command(&args),
+        Command::Run(args) => run_command(&args),
+        Command::Collect(args) => collect_command(&args),
+        Command::Plot(args) => plot_command(&args),
+        Command::Status(args) => status_command(&args),
+        Command::Table(args) => table_command(&args),
+        Command::Submit(args) => submit_command(&args),
+    }
+}
+
+impl PlanArgs {
+    fn options(&self) -> Options {
+        Options {
+            force: self.force,
+            rerun_failed: self.rerun_failed,
+            only: self
+                .only
+                .as_ref()
+                .map(|keys| keys.iter().cloned().collect()),
+        }
+    }
+}
+
+/// The study, its solver and store, and the plan of its points.
+fn planned(
+    args: &CommonArgs,
+    options: &Options,
+) -> Result<(Study, Solver, Store, Vec<Planned>), String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let solver = Solver::locate(args.solver.as_deref())?;
+    let store = Store::open(&args.results, &study.name);
+    let planned = crate::plan::plan(&study, &solver, &store, options).map_err(|e| e.to_string())?;
+    Ok((study, solver, store, planned))
+}
+
+fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
+    let (study, solver, _, planned) = planned(&args.common, &args.options())?;
+    println!(
+        "study {}: {} points, solver {}",
+        study.name,
+        planned.len(),
+        solver.version
+    );
+    if !study.description.is_empty() {
+        println!("{}", study.description);
+    }
+    for p in &planned {
+        let what = match &p.decision {
+            Decision::Run(reason) => format!("run   ({reason})"),
+            Decision::Skip(status) => format!("skip  ({status})"),
+        };
+        let refused = match &p.case {
+            Err(message) => format!("  refused: {message}"),
+            Ok(_) => String::new(),
+        };
+        println!("{}  {what:<40} {}{refused}", p.key, p.point.label());
+    }
+    let runs = planned.iter().filter(|p| p.runs()).count();
+    println!("{runs} to run, {} stored", planned.len() - runs);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
+    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
+    let cores = crate::pool::machine_cores();
+    let timeout = args.timeout.or(study.timeout_s);
+    if timeout.is_some_and(|t| !(t > 0.0)) {
+        return Err("the timeout must be a positive number of seconds".into());
+    }
+    let options = PoolOptions {
+        cores: args.jobs.unwrap_or(cores).max(1),
+        exclusive: !study.share_machine,
+        timeout: timeout.map(Duration::from_secs_f64),
+        launcher: args.launcher.clone(),
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))
+        .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
+    let to_run = planned.iter().filter(|p| p.runs()).count();
+    let skipped = planned.len() - to_run;
+    let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
+    let tally = crate::pool::run(&planned, &solver, &store, &options, &stop, &mut progress)
+        .map_err(|e| format!("cannot run the study: {e}"))?;
+    progress.close();
+    if !args.quiet {
+        eprintln!(
+            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored",
+            study.name,
+            tally.ok + tally.diverged + tally.failed,
+            tally.ok,
+            tally.diverged,
+            tally.failed,
+        );
+    }
+    if tally.interrupted {
+        eprintln!("nlstudy: interrupted; what finished is stored, run again to resume");
+        return Ok(ExitCode::from(130));
+    }
+    if !args.no_collect {
+        let tables =
+            crate::collect::collect(&planned, &store).and_then(|collected| match collected {
+                Some(collected) => {
+                    let figures = crate::plot::plot(&study.figures, &store)?;
+                    if !args.quiet {
+                        report(&collected);
+                        report_figures(&figures);
+                    }
+                    Ok(())
+                }
+                None => Ok(()),
+            });
+        if let Err(message) = tables {
+            eprintln!("nlstudy: {message}; the runs are stored");
+            return Ok(ExitCode::from(1));
+        }
+    }
+    Ok(match tally.failed {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    })
+}
+
+fn collect_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let (_, _, store, planned) = planned(args, &Options::default())?;
+    let collected = crate::collect::collect(&planned, &store)?.ok_or_else(|| {
+        format!(
+            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+            store.study
+        )
+    })?;
+    report(&collected);
+    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    println!("{}", crate::collect::overview(&collected.table, swept));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn plot_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    if study.figures.is_empty() {
+        return Err(format!(
+            "study {} lists no figures; add a `figures` list to {}",
+            study.name,
+            args.study.display()
+        ));
+    }
+    let store = Store::open(&args.results, &study.name);
+    report_figures(&crate::plot::plot(&study.figures, &store)?);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn table_command(args: &TableArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
+    let store = Store::open(&args.common.results, &study.name);
+    let path = store.table(&format!("{}-summary.parquet", study.name));
+    if !path.exists() {
+        return Err(format!(
+            "{} does not exist; `nlstudy collect {}` writes it",
+            path.display(),
+            args.common.study.display()
+        ));
+    }
+    let spec = crate::pivot::PivotSpec {
+        rows: args.rows.clone(),
+        column: args.column.clone(),
+        value: args.value.clone(),
+        filter: args.filter.clone(),
+    };
+    print!(
+        "{}",
+        crate::pivot::markdown(&spec, &crate::table::read_parquet(&path)?)?
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report_figures(figures: &[crate::plot::Drawn]) {
+    for figure in figures {
+        let what = if figure.redrawn {
+            "drawn"
+        } else {
+            "up to date"
+        };
+        eprintln!("figure {what}: {}", figure.path.display());
+    }
+}
+
+fn report(collected: &crate::collect::Collected) {
+    eprintln!(
+        "tables: {} ({} runs), {} ({} points)",
+        collected.runs.display(),
+        collected.rows,
+        collected.summary.display(),
+        collected.points
+    );
+    if collected.missing > 0 {
+        eprintln!(
+            "  {} runs of the study are not stored yet",
+            collected.missing
+        );
+    }
+    if collected.left_out > 0 {
+        eprintln!(
+            "  {} stored records are left out: their points are no longer in the study or were run by another solver version",
+            collected.left_out
+        );
+    }
+}
+
+fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let store = Store::open(&args.results, &study.name);
+    print!("{}", status::report(&study.name, &store));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
+    let (study, solver, _, planned) = planned(&args.common, &Options::default())?;
+    let overrides = Resources {
+        nodes: args.nodes,
+        tasks: args.tasks,
+        time: args.time.clone(),
+        queue: args.queue.clone(),
+        account: args.account.clone(),
+        cases_per_job: args.cases_per_job,
+    };
+    let target = submit::Target {
+        scheduler: args.scheduler,
+        resources: study.resources.overridden_by(&overrides),
+        results: args.common.results.clone(),
+        study_file: args.common.study.clone(),
+        dry_run: args.dry_run,
+    };
+    submit::submit_study(&study, &solver, &planned, &target)?;
+    Ok(ExitCode::SUCCESS)
+}
