@@ -1,0 +1,313 @@
+//! The import graph of both crates has no cycle, between files or between folders, and the
+//! solver's layers import only the layers below them (the order of `solver/src/lib.rs`).
+//!
+//! A module's imports are the paths its non-test code names: `crate::a::b`, `super::a`,
+//! `super::*`, `crate::{a, b::c}` and `child::x` for a child module it declares, each resolved to
+//! the longest module path that exists. A parent using its child and the child using its parent
+//! is a cycle too.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+/// The solver's top-level modules, lowest first.
+const SOLVER_LAYERS: [&str; 10] = [
+    "case",
+    "threads",
+    "linalg",
+    "discretization",
+    "problem",
+    "operator",
+    "output",
+    "parallel",
+    "integrate",
+    "methods",
+];
+
+type Graph = BTreeMap<String, BTreeSet<String>>;
+
+#[test]
+fn the_solver_has_no_import_cycle_and_its_layers_only_look_down() {
+    let graph = imports(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("solver/src")
+            .as_path(),
+    );
+    assert_acyclic("solver", &graph);
+    assert_acyclic("solver (folders)", &folders(&graph));
+    let layer = |module: &str| {
+        let top = module.split("::").next().unwrap_or_default();
+        SOLVER_LAYERS
+            .iter()
+            .position(|l| *l == top)
+            .unwrap_or_else(|| {
+                panic!("solver module `{top}` is in no layer; add it to SOLVER_LAYERS and lib.rs")
+            })
+    };
+    for (from, targets) in &graph {
+        for to in targets {
+            assert!(
+                layer(to) <= layer(from),
+                "`{from}` imports `{to}`, a higher layer"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_orchestrator_has_no_import_cycle() {
+    let graph = imports(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("orchestrator/src")
+            .as_path(),
+    );
+    assert!(graph.contains_key("plan") && graph.contains_key("figure::scaling"));
+    assert_acyclic("orchestrator", &graph);
+    assert_acyclic("orchestrator (folders)", &folders(&graph));
+}
+
+#[test]
+fn the_checker_sees_a_cycle_through_a_parent_and_its_child() {
+    let dir = std::env::temp_dir().join(format!("architecture-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("a")).unwrap();
+    std::fs::write(dir.join("lib.rs"), "mod a;\nmod b;\n").unwrap();
+    std::fs::write(dir.join("a/mod.rs"), "mod c;\nfn f() { c::g(); }\n").unwrap();
+    std::fs::write(dir.join("a/c.rs"), "use super::*;\nuse crate::b::{x, y};\n").unwrap();
+    std::fs::write(dir.join("b.rs"), "// crate::a is named in a comment only\n").unwrap();
+    let graph = imports(&dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(graph["a"], BTreeSet::from(["a::c".to_string()]));
+    assert_eq!(
+        graph["a::c"],
+        BTreeSet::from(["a".to_string(), "b".to_string()])
+    );
+    assert!(graph["b"].is_empty());
+    assert!(!cycles(&graph).is_empty());
+}
+
+/// Module path ("" for lib.rs) → the modules it imports. Binaries are left out.
+fn imports(root: &Path) -> Graph {
+    let mut files = BTreeMap::new();
+    collect_files(root, root, &mut files);
+    let mut graph = Graph::new();
+    for (module, path) in &files {
+        let source = code_of(&std::fs::read_to_string(path).unwrap());
+        let here: Vec<&str> = module.split("::").filter(|s| !s.is_empty()).collect();
+        let is_folder = path.ends_with("mod.rs") || path.ends_with("lib.rs");
+        let parent = &here[..here.len().saturating_sub(1)];
+        let mut targets = BTreeSet::new();
+        for (anchor, rest) in paths_in(&source) {
+            let mut full: Vec<String> = match anchor.as_str() {
+                "crate" => Vec::new(),
+                "super" => parent.iter().map(|s| s.to_string()).collect(),
+                _ => here.iter().map(|s| s.to_string()).collect(),
+            };
+            full.extend(rest);
+            targets.insert(longest_module(&files, &full));
+        }
+        if is_folder {
+            for child in declared_children(&source) {
+                if mentions(&source, &format!("{child}::")) {
+                    let mut full: Vec<String> = here.iter().map(|s| s.to_string()).collect();
+                    full.push(child);
+                    targets.insert(full.join("::"));
+                }
+            }
+        }
+        targets.remove(module);
+        targets.remove("");
+        if !module.is_empty() {
+            graph.insert(module.clone(), targets);
+        }
+    }
+    graph
+}
+
+fn collect_files(root: &Path, dir: &Path, files: &mut BTreeMap<String, std::path::PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            if path.file_name().is_some_and(|n| n != "bin") {
+                collect_files(root, &path, files);
+            }
+            continue;
+        }
+        let Some(relative) = path.strip_prefix(root).unwrap().to_str() else {
+            continue;
+        };
+        let Some(stem) = relative.strip_suffix(".rs") else {
+            continue;
+        };
+        if stem == "main" {
+            continue;
+        }
+        let mut parts: Vec<&str> = stem.split('/').collect();
+        if matches!(parts.last(), Some(&"mod") | Some(&"lib")) {
+            parts.pop();
+        }
+        files.insert(parts.join("::"), path);
+    }
+}
+
+/// The source without comments and without its `#[cfg(test)]` module.
+fn code_of(source: &str) -> String {
+    let code = match source.find("#[cfg(test)]\nmod tests") {
+        Some(at) => &source[..at],
+        None => source,
+    };
+    code.lines()
+        .map(|line| match line.find("//") {
+            Some(at) => &line[..at],
+            None => line,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Every `crate::…`, `super::…` and `self::…` path, braces expanded one level, as (anchor, the
+/// segments after it). `super::*` is the parent itself.
+fn paths_in(code: &str) -> Vec<(String, Vec<String>)> {
+    let mut found = Vec::new();
+    for anchor in ["crate", "super", "self"] {
+        let needle = format!("{anchor}::");
+        for (at, _) in code.match_indices(&needle) {
+            let before = code[..at].chars().next_back();
+            if before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':') {
+                continue;
+            }
+            let rest = &code[at + needle.len()..];
+            let head = segments(rest);
+            let after = &rest[head_len(rest)..];
+            if after.starts_with('{') {
+                let inner = &after[1..after.find('}').unwrap_or(after.len())];
+                for item in inner.split(',') {
+                    let mut full = head.clone();
+                    full.extend(segments(item.trim()));
+                    found.push((anchor.to_string(), full));
+                }
+            } else {
+                found.push((anchor.to_string(), head));
+            }
+        }
+    }
+    found
+}
+
+/// The identifiers of `a::b::c…` at the start of `text`.
+fn segments(text: &str) -> Vec<String> {
+    text[..head_len(text)]
+        .split("::")
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty() && s != "self")
+        .collect()
+}
+
+fn head_len(text: &str) -> usize {
+    let mut end = 0;
+    let bytes = text.as_bytes();
+    while end < bytes.len() {
+        let c = bytes[end] as char;
+        if c.is_alphanumeric() || c == '_' {
+            end += 1;
+        } else if text[end..].starts_with("::") {
+            end += 2;
+        } else {
+            break;
+        }
+    }
+    end
+}
+
+fn longest_module(files: &BTreeMap<String, std::path::PathBuf>, full: &[String]) -> String {
+    (0..=full.len())
+        .rev()
+        .map(|k| full[..k].join("::"))
+        .find(|candidate| files.contains_key(candidate))
+        .unwrap_or_default()
+}
+
+fn declared_children(code: &str) -> Vec<String> {
+    code.lines()
+        .filter_map(|line| {
+            let line = line.trim();
+            let rest = line
+                .strip_prefix("pub mod ")
+                .or_else(|| line.strip_prefix("pub(crate) mod "))
+                .or_else(|| line.strip_prefix("mod "))?;
+            Some(rest.strip_suffix(';')?.to_string())
+        })
+        .collect()
+}
+
+/// Does `code` name `prefix` other than as the tail of a longer path?
+fn mentions(code: &str, prefix: &str) -> bool {
+    code.match_indices(prefix).any(|(at, _)| {
+        let before = code[..at].chars().next_back();
+        !before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':')
+    })
+}
+
+/// The graph of top-level modules (folders and the files beside them).
+fn folders(graph: &Graph) -> Graph {
+    let top = |m: &str| m.split("::").next().unwrap_or_default().to_string();
+    let mut folded = Graph::new();
+    for (from, targets) in graph {
+        let entry = folded.entry(top(from)).or_default();
+        entry.extend(targets.iter().map(|t| top(t)).filter(|t| *t != top(from)));
+    }
+    folded
+}
+
+fn assert_acyclic(what: &str, graph: &Graph) {
+    let found = cycles(graph);
+    assert!(found.is_empty(), "{what}: import cycles {found:?}");
+}
+
+/// The strongly connected components with more than one module (Tarjan).
+fn cycles(graph: &Graph) -> Vec<Vec<String>> {
+    struct State<'a> {
+        graph: &'a Graph,
+        index: BTreeMap<&'a str, usize>,
+        low: BTreeMap<&'a str, usize>,
+        stack: Vec<&'a str>,
+        found: Vec<Vec<String>>,
+    }
+    fn visit<'a>(s: &mut State<'a>, v: &'a str) {
+        let i = s.index.len();
+        s.index.insert(v, i);
+        s.low.insert(v, i);
+        s.stack.push(v);
+        for w in s.graph.get(v).into_iter().flatten() {
+            let w = w.as_str();
+            if !s.index.contains_key(w) {
+                visit(s, w);
+                let lw = s.low[w];
+                let lv = s.low.get_mut(v).unwrap();
+                *lv = (*lv).min(lw);
+            } else if s.stack.contains(&w) {
+                let iw = s.index[w];
+                let lv = s.low.get_mut(v).unwrap();
+                *lv = (*lv).min(iw);
+            }
+        }
+        if s.low[v] == s.index[v] {
+            let at = s.stack.iter().rposition(|x| *x == v).unwrap();
+            let component: Vec<String> = s.stack.drain(at..).map(String::from).collect();
+            if component.len() > 1 {
+                s.found.push(component);
+            }
+        }
+    }
+    let mut state = State {
+        graph,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        found: Vec::new(),
+    };
+    for v in graph.keys() {
+        if !state.index.contains_key(v.as_str()) {
+            visit(&mut state, v);
+        }
+    }
+    state.found
+}
