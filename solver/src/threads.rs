@@ -3,6 +3,11 @@
 
 use crate::case::CaseError;
 
+/// Nodes per unit of parallel work over a flat array (updates, 1D stencil segments, a rank's
+/// window): fixed, so every value, and every reduction over blocks, is computed the same way
+/// whatever the thread count. 4096 f64 are 32 KiB, an L1 cache's worth.
+pub const BLOCK: usize = 4096;
+
 /// The rayon pool a case runs on.
 pub fn pool(threads: usize) -> Result<rayon::ThreadPool, CaseError> {
     rayon::ThreadPoolBuilder::new()

@@ -13,12 +13,11 @@ use crate::output::field::{FieldSnapshot, Frame};
 use crate::output::outcome::{record, Measured, Outcome};
 use crate::output::record::{Distribution, Resolved};
 use crate::problem::{manufactured_solution, Source};
+use crate::threads::BLOCK;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::time::Instant;
 
-/// Update block; fixed so the update never depends on the thread count.
-const BLOCK: usize = 4096;
 /// Most step times kept for the median: longer runs time every k-th step.
 pub(crate) const MAX_TIMED_STEPS: usize = 1 << 20;
 

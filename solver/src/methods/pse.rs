@@ -40,6 +40,7 @@ use crate::methods::local::{self, initial_value};
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
+use crate::threads::BLOCK;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::f64::consts::{LN_10, PI};
@@ -78,8 +79,6 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 
 /// ln(1e16): exp(−r²/ε²) is dropped beyond r² = ε² · CUTOFF_LOG.
 const CUTOFF_LOG: f64 = 16.0 * LN_10;
-/// Update block; fixed so the update never depends on the thread count.
-const BLOCK: usize = 4096;
 
 /// Which rates a visited pair (i, j) changes: i's and j's (two particles), only i's (j is an
 /// image) or only j's (i is an image).

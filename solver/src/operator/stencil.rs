@@ -10,11 +10,9 @@ use super::interface::NonlocalOperator;
 use crate::discretization::grid::RowRun;
 use crate::discretization::grid::Window;
 use crate::discretization::stencil::Stencil;
+use crate::threads::BLOCK;
 use rayon::prelude::*;
 use std::sync::Mutex;
-
-/// Work unit in 1D, where there are no rows to split the work by.
-pub(crate) const SEGMENT_1D: usize = 4096;
 
 /// Outputs summed together in registers: enough independent accumulators to hide the latency of
 /// the additions (8 vectors of the widest unit the build targets).
@@ -87,10 +85,10 @@ impl NonlocalOperator for StencilOperator {
             .for_each(|(padded_row, u_row)| padded_row[reach..reach + n].copy_from_slice(u_row));
         let padded = &padded[..];
         if grid.dim == 1 {
-            out.par_chunks_mut(SEGMENT_1D)
+            out.par_chunks_mut(BLOCK)
                 .enumerate()
                 .for_each(|(b, segment)| {
-                    self.padded_segment(padded, 0, b * SEGMENT_1D, segment);
+                    self.padded_segment(padded, 0, b * BLOCK, segment);
                 });
             return;
         }
@@ -210,7 +208,7 @@ pub(crate) fn apply_on_runs(
     out: &mut [f64],
 ) {
     let Some(first) = runs.first() else { return };
-    if runs.len() == 1 || out.len() <= SEGMENT_1D {
+    if runs.len() == 1 || out.len() <= BLOCK {
         for run in runs {
             let at = run.offset - first.offset;
             row_segment(

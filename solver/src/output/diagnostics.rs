@@ -1,11 +1,9 @@
 //! Errors against an exact solution and the conserved-quantity diagnostics, reduced in a fixed
 //! order so that the numbers do not depend on the thread count.
 
+use crate::threads::BLOCK;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-
-/// Reduction block: partial sums over fixed index blocks, added in block order.
-const BLOCK: usize = 4096;
 
 /// Σᵢ term(i) for i < len, with the same rounding whatever the number of threads.
 pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {

@@ -13,8 +13,8 @@
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::grid::{RowRun, Window};
 use crate::discretization::stencil::Stencil;
-use crate::operator::stencil::SEGMENT_1D;
 use crate::parallel::partition::{self, Ownership};
+use crate::threads::BLOCK;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -165,7 +165,7 @@ fn grow(
     }
 }
 
-/// Maximal runs of cells of class `of`, row by row, cut into pieces of at most `SEGMENT_1D` (the
+/// Maximal runs of cells of class `of`, row by row, cut into pieces of at most `BLOCK` (the
 /// threads' work unit), with compact offsets counted from `first_offset`.
 fn runs_of(class: &[u8], window: &Window, of: u8, first_offset: usize) -> Vec<RowRun> {
     let mut runs = Vec::new();
@@ -178,7 +178,7 @@ fn runs_of(class: &[u8], window: &Window, of: u8, first_offset: usize) -> Vec<Ro
                 continue;
             }
             let start = x;
-            while x < row.len() && row[x] == of && x - start < SEGMENT_1D {
+            while x < row.len() && row[x] == of && x - start < BLOCK {
                 x += 1;
             }
             runs.push(RowRun {

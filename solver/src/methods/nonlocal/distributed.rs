@@ -26,15 +26,13 @@ use crate::parallel::partition::Ownership;
 use crate::parallel::subdomain::Subdomain;
 use crate::problem::source::PointwiseSource;
 use crate::problem::{self, manufactured_solution, Source};
+use crate::threads::BLOCK;
 use mpi::point_to_point::Source as _;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rayon::prelude::*;
 use rayon::ThreadPool;
 use std::time::Instant;
-
-/// Update chunk of a rank's window; fixed so the update never depends on the thread count.
-const CHUNK: usize = 4096;
 
 /// Runs a nonlocal case on the ranks of `world` (its size already checked against
 /// `case.ranks`). Rank 0 gets the outcome (with the whole field when `gather_field`), the other
@@ -313,10 +311,10 @@ fn update(
     dt: f64,
     rate: impl Fn(usize, f64) -> f64 + Sync,
 ) -> f64 {
-    u.par_chunks_mut(CHUNK)
+    u.par_chunks_mut(BLOCK)
         .enumerate()
         .map(|(c, chunk)| {
-            let (c0, c1) = (c * CHUNK, c * CHUNK + chunk.len());
+            let (c0, c1) = (c * BLOCK, c * BLOCK + chunk.len());
             let first = placed_runs.partition_point(|(place, run)| place + run.len() <= c0);
             let mut chunk_max: f64 = 0.0;
             for (place, run) in placed_runs[first..]
