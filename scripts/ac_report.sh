@@ -28,7 +28,7 @@ here, then this page). Every number below comes from the studies' summary tables
 
 A scheme is *asymptotically compatible* (AC, seed 002) when it converges to the nonlocal solution
 for fixed ε and to the local one when ε and h go to zero together, whatever the path. The three
-quadratures of the nonlocal operator (case field `quadrature`, see `solver/src/quadrature.rs`):
+quadratures of the nonlocal operator (case field `quadrature`, see `solver/src/discretization/quadrature.rs`):
 
 - `midpoint`: each node in the ball counts with its whole cell (seed 000, eq. 2.1);
 - `partial_volume`: each node counts with the part of its cell inside the ball (exact areas);

@@ -24,31 +24,31 @@ fn field_path() -> PathBuf {
 }
 
 /// One run: its record and final field.
-struct RowRun {
+struct Run {
     record: Value,
     field: Vec<f64>,
 }
 
-fn finished(output: &Output, path: &PathBuf, what: &str) -> RowRun {
+fn finished(output: &Output, path: &PathBuf, what: &str) -> Run {
     assert!(
         output.status.success(),
         "{what} failed: {}",
         String::from_utf8_lossy(&output.stderr)
     );
-    RowRun {
+    Run {
         record: record(output),
         field: read_field(path),
     }
 }
 
-fn serial(case: &[&str]) -> RowRun {
+fn serial(case: &[&str]) -> Run {
     let path = field_path();
     let mut args = vec!["run", "--write-field", path.to_str().unwrap()];
     args.extend(case);
     finished(&nlsolve(&args, None), &path, "serial run")
 }
 
-fn distributed(ranks: usize, partition: &str, threads: usize, case: &[&str]) -> RowRun {
+fn distributed(ranks: usize, partition: &str, threads: usize, case: &[&str]) -> Run {
     let path = field_path();
     let (ranks_text, threads_text) = (ranks.to_string(), threads.to_string());
     let exe = binary("nlsolve");
@@ -73,7 +73,7 @@ fn close(a: &Value, b: &Value) -> bool {
 }
 
 /// The distributed run reproduces the serial field and numbers, and reports its distribution.
-fn assert_agrees(serial: &RowRun, run: &RowRun, ranks: usize, partition: &str, what: &str) {
+fn assert_agrees(serial: &Run, run: &Run, ranks: usize, partition: &str, what: &str) {
     assert_eq!(serial.field.len(), run.field.len(), "{what}: field length");
     let difference = serial
         .field
@@ -456,7 +456,7 @@ fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
             difference < 1e-8 * scale,
             "{ranks} ranks {partition}: {difference:e}"
         );
-        let iterations = |r: &RowRun| r.record["iterations"].as_i64().unwrap();
+        let iterations = |r: &Run| r.record["iterations"].as_i64().unwrap();
         assert!((iterations(&one) - iterations(&many)).abs() <= 1);
     }
 }

@@ -255,6 +255,23 @@ fn help_documents_every_case_field() {
     ] {
         assert!(help.contains(flag), "help lacks {flag}");
     }
+    // Every method the solver accepts (serde lists them when refusing an unknown one) is named
+    // in the help of `--method`.
+    let refusal = nlsolve(
+        &["check"],
+        Some("{\"method\": \"no_such_method\", \"dim\": 1, \"n\": 8}\n"),
+    );
+    let refusal = String::from_utf8_lossy(&refusal.stdout).to_string();
+    let accepted = refusal
+        .split("expected one of ")
+        .nth(1)
+        .and_then(|list| list.split(';').next())
+        .unwrap_or_else(|| panic!("no list of methods in {refusal}"));
+    let methods: Vec<&str> = accepted.split('`').skip(1).step_by(2).collect();
+    assert!(methods.len() >= 6, "{refusal}");
+    for method in methods {
+        assert!(help.contains(method), "help of --method lacks {method}");
+    }
 }
 
 #[test]

@@ -28,7 +28,7 @@ struct Cli {
 enum Command {
     /// Run one case, given as a JSON file, as flags, or as a file with flags overriding its fields.
     /// With ranks > 1, start it as `mpirun -n <ranks> nlsolve run … --ranks <ranks>`.
-    RowRun(RunArgs),
+    Run(RunArgs),
     /// Report the partition and halo a distributed run of the case would use (ghost nodes, bytes
     /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
     Partition(CaseArgs),
@@ -63,7 +63,7 @@ struct CaseArgs {
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
     /// Method: nonlocal (forward Euler on eq. 2.1); fd_explicit, adi or pse (local diffusion,
-    /// seed 004).
+    /// seed 004); steady_cg or feti (the steady problem of seed 001).
     #[arg(long)]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
@@ -354,7 +354,7 @@ fn main() -> ExitCode {
     let world = universe.as_ref().map(|u| u.world());
     let rank0 = world.as_ref().is_none_or(|w| w.rank() == 0);
     let result = parse_command_line().and_then(|cli| match cli.command {
-        Command::RowRun(args) => run(&args, world.as_ref()),
+        Command::Run(args) => run(&args, world.as_ref()),
         Command::Partition(args) => partition_report(&args),
         Command::Check => check_cases(),
     });
