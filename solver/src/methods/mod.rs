@@ -6,7 +6,7 @@
 //! with a `match` on `Method` rather than through a trait object: the set of methods is closed
 //! (a case file names one of them), the compiler then checks that every method has a rule and a
 //! runner, and each arm is one call, so adding a method is one module and one arm in each of
-//! `validate`, `run` and `run_on_ranks`.
+//! `check`, `run` and `run_on_ranks`.
 //!
 //! A case reaches a runner only as a `ValidCase`, which outside this crate only `validate` (or
 //! `ValidCase::from_json`) builds: the runners' `expect`s on fields that validation guarantees

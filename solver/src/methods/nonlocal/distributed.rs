@@ -50,7 +50,7 @@ pub fn run(
     let subdomain = Subdomain::new(&ownership, &plan.stencil, rank);
     let mut rank_run = RankRun::new(world, &pool, case, &plan, &subdomain);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let measured = rank_run.step(case, setup_s, &ownership);
+    let measured = rank_run.integrate(case, setup_s, &ownership);
 
     let field = gather_field.then(|| rank_run.gather_field(&ownership));
     let grid = plan.stencil.grid;
@@ -140,7 +140,7 @@ impl<'a> RankRun<'a> {
     }
 
     /// The time loop, then the errors and diagnostics reduced over ranks.
-    fn step(&mut self, case: &Case, setup_s: f64, ownership: &Ownership) -> Measured {
+    fn integrate(&mut self, case: &Case, setup_s: f64, ownership: &Ownership) -> Measured {
         let (plan, subdomain, pool, world) = (self.plan, self.subdomain, self.pool, self.world);
         let stencil = &plan.stencil;
         let window = &subdomain.window;
