@@ -31,11 +31,6 @@ impl Method {
         matches!(self, Method::FdExplicit | Method::Adi | Method::Pse)
     }
 
-    /// Does the method need a horizon (`m` or `eps`)?
-    pub fn has_horizon(self) -> bool {
-        matches!(self, Method::Nonlocal | Method::Pse)
-    }
-
     /// Does the method solve the steady problem −L u = f of seed 001 (no time)?
     pub fn is_steady(self) -> bool {
         matches!(self, Method::SteadyCg | Method::Feti)

@@ -192,7 +192,7 @@ impl std::error::Error for CaseError {}
 
 impl Case {
     /// Parses a case from JSON, naming the offending field on any error. The fields' values are
-    /// not checked yet: `methods::ValidCase::from_json` parses and validates.
+    /// not checked yet: `ValidCase::from_json` (defined in `methods`) parses and validates.
     pub fn parse(value: serde_json::Value) -> Result<Case, CaseError> {
         let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {
             let path = e.path().to_string();
