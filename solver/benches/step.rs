@@ -10,8 +10,8 @@ use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stencil::Stencil;
 use solver::methods::local::{Adi, ExplicitFd, LocalGrid};
-use solver::methods::pse::Particles;
-use solver::operator::plan;
+use solver::methods::pse::{Particles, PseOperator};
+use solver::operator::{plan, LinearOperator};
 
 fn main() {
     divan::main();
@@ -39,9 +39,10 @@ fn nonlocal_step(bencher: Bencher, backend: Backend, n: usize, m: usize) {
     let operator = plan(backend, &stencil);
     let u = field(grid.nodes());
     let mut out = vec![0.0; grid.nodes()];
+    let mut workspace = operator.workspace();
     bencher
         .counter(ItemsCount::new(stencil.bonds()))
-        .bench_local(|| operator.apply(black_box(&u), &mut out));
+        .bench_local(|| operator.apply(black_box(&u), &mut out, &mut workspace));
 }
 
 /// 2D, linear kernel (constant at m = 1, where J = 1 − r has no bond), midpoint weights.
@@ -104,10 +105,11 @@ fn adi(bencher: Bencher, n: usize) {
 fn pse(bencher: Bencher, n: usize) {
     let length = 2.0;
     let particles = Particles::new(2, n, length, 4.0 * length / n as f64);
-    let mut phi = field(particles.slots());
+    let operator = PseOperator::new(&particles, 1.0);
+    let u = field(particles.count());
     let mut rate = vec![0.0; particles.count()];
-    let dt_factor = 1e-9 * particles.rate_factor(1.0);
+    let mut workspace = operator.workspace();
     bencher
         .counter(ItemsCount::new(particles.count()))
-        .bench_local(|| particles.step(black_box(&mut phi), &mut rate, dt_factor));
+        .bench_local(|| operator.apply(black_box(&u), &mut rate, &mut workspace));
 }

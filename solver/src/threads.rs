@@ -15,3 +15,11 @@ pub fn pool(threads: usize) -> Result<rayon::ThreadPool, CaseError> {
         .build()
         .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))
 }
+
+/// Runs `work` on `pool`, or where the caller is when None.
+pub fn on<T: Send>(pool: Option<&rayon::ThreadPool>, work: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Some(pool) => pool.install(work),
+        None => work(),
+    }
+}

@@ -7,7 +7,7 @@ use common::random_field;
 use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stencil::Stencil;
-use solver::operator::{plan, Cost, NonlocalOperator};
+use solver::operator::{plan, Cost, LinearOperator, Planned};
 
 /// The horizon of a test case, in cells or as a length.
 #[derive(Clone, Copy, Debug)]
@@ -22,7 +22,7 @@ fn operator_pair(
     reach: Reach,
     kernel: Kernel,
     quadrature: Quadrature,
-) -> (Stencil, [Box<dyn NonlocalOperator>; 3]) {
+) -> (Stencil, [Planned; 3]) {
     let grid = Grid::new(dim, n);
     let horizon = match reach {
         Reach::Cells(m) => Horizon::from_m(&grid, m),
@@ -66,12 +66,12 @@ fn fast_backends_equal_the_neighbour_list_on_random_fields() {
             let (stencil, [blocked, fft, oracle]) =
                 operator_pair(dim, n, reach, kernel, quadrature);
             let u = random_field(stencil.grid.nodes(), (dim * 100 + seed) as u64);
-            let apply = |operator: &dyn NonlocalOperator| {
+            let apply = |operator: &Planned| {
                 let mut out = vec![0.0; u.len()];
-                operator.apply(&u, &mut out);
+                operator.apply_once(&u, &mut out);
                 out
             };
-            let expected = apply(oracle.as_ref());
+            let expected = apply(&oracle);
             // The oracle sums one term of size ~c V |u_j − u_i| per bond, so its round-off scale
             // is c V · bonds. (Not W: for J = 1 − r and m = 1 every bond has J = 0 and W = 0,
             // while the oracle's J(1 − δ) is a round-off-sized number.) The FFT's error is
@@ -82,7 +82,7 @@ fn fast_backends_equal_the_neighbour_list_on_random_fields() {
                 ("stencil", &blocked, 1e-13 * bond_scale),
                 ("fft", &fft, 1e-11 * largest + 1e-13 * bond_scale),
             ] {
-                let worst = apply(operator.as_ref())
+                let worst = apply(operator)
                     .iter()
                     .zip(&expected)
                     .map(|(x, y)| (x - y).abs())
@@ -143,7 +143,7 @@ fn operators_kill_constants_away_from_the_collar() {
         let u = vec![1.0; grid.nodes()];
         for op in ops {
             let mut out = vec![0.0; u.len()];
-            op.apply(&u, &mut out);
+            op.apply_once(&u, &mut out);
             for (i, value) in out.iter().enumerate() {
                 let x = grid.position(i);
                 let interior = (0..dim).all(|a| x[a] > 3.0 * grid.h && x[a] < 1.0 - 3.0 * grid.h);
@@ -170,7 +170,9 @@ fn results_do_not_depend_on_the_thread_count() {
         let (stencil, ops) = operator_pair(dim, n, Reach::Cells(4), Kernel::Linear, Quadrature::Ac);
         let u = random_field(stencil.grid.nodes(), 7);
         for op in ops {
-            let outputs: Vec<Vec<f64>> = [1, 2, 3]
+            // One workspace for every pool: it is reused, and grows when a pool is larger.
+            let mut workspace = op.workspace();
+            let outputs: Vec<Vec<f64>> = [1, 3, 2, 1]
                 .iter()
                 .map(|&threads| {
                     let pool = rayon::ThreadPoolBuilder::new()
@@ -178,7 +180,7 @@ fn results_do_not_depend_on_the_thread_count() {
                         .build()
                         .unwrap();
                     let mut out = vec![0.0; u.len()];
-                    pool.install(|| op.apply(&u, &mut out));
+                    pool.install(|| op.apply(&u, &mut out, &mut workspace));
                     out
                 })
                 .collect();

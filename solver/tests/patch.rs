@@ -5,7 +5,7 @@
 use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stencil::Stencil;
-use solver::operator::plan;
+use solver::operator::{plan, LinearOperator};
 
 const DIFFUSIVITY: f64 = 0.7;
 
@@ -42,7 +42,7 @@ fn interior_values(stencil: &Stencil, u: &[f64]) -> Vec<Vec<f64>> {
         .iter()
         .map(|&backend| {
             let mut out = vec![0.0; u.len()];
-            plan(backend, stencil).apply(u, &mut out);
+            plan(backend, stencil).apply_once(u, &mut out);
             (0..u.len())
                 .filter(|&i| interior(i))
                 .map(|i| out[i])

@@ -8,7 +8,7 @@ use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stability::{forward_euler_dt_stable, Symbol};
 use solver::discretization::stencil::Stencil;
-use solver::operator::plan;
+use solver::operator::{plan, LinearOperator};
 use solver::output::record::Status;
 use solver::run;
 
@@ -36,7 +36,7 @@ fn largest_eigenvalue(stencil: &Stencil) -> f64 {
     for _ in 0..3000 {
         let norm = l2_norm(&v);
         v.iter_mut().for_each(|x| *x /= norm);
-        op.apply(&v, &mut w);
+        op.apply_once(&v, &mut w);
         lambda = -v.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>();
         v.iter_mut().zip(&w).for_each(|(x, y)| *x = -y);
     }

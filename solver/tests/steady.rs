@@ -9,7 +9,7 @@ use solver::case::Backend;
 use solver::linalg::cholesky::{symmetric_product, Cholesky};
 use solver::methods::steady::assembly::single_domain;
 use solver::methods::steady::problem::SteadyProblem;
-use solver::operator::{self};
+use solver::operator::{self, LinearOperator};
 
 /// A steady case on the L × L lattice.
 fn steady(
@@ -63,7 +63,7 @@ fn the_assembled_matrix_is_minus_the_stencil_operator_and_the_load_matches() {
         let mut au = vec![0.0; n * n];
         symmetric_product(a.as_ref(), &u, &mut au);
         let mut lu = vec![0.0; n * n];
-        operator::plan(Backend::Stencil, &problem.stencil).apply(&u, &mut lu);
+        operator::plan(Backend::Stencil, &problem.stencil).apply_once(&u, &mut lu);
         let scale = max_abs(&au);
         for i in 0..n * n {
             assert!(

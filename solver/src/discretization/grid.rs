@@ -144,6 +144,37 @@ impl Window {
     pub fn index(&self, x: usize, y: usize) -> usize {
         (y - self.y0) * self.nx + (x - self.x0)
     }
+
+    /// Column and row in D of storage index w: the inverse of `index`.
+    pub fn column_row(&self, w: usize) -> (usize, usize) {
+        (self.x0 + w % self.nx, self.y0 + w / self.nx)
+    }
+}
+
+/// A window stored with `pad` zero cells before and after each of its rows: a stencil whose bonds
+/// reach at most `pad` columns reads every bond of a window node without a bounds check (bonds
+/// that leave D along x land on the zeros of the collar; rows outside D are skipped).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PaddedWindow {
+    pub window: Window,
+    pub pad: usize,
+}
+
+impl PaddedWindow {
+    /// Distance between the starts of consecutive rows.
+    pub fn stride(&self) -> usize {
+        self.window.nx + 2 * self.pad
+    }
+
+    pub fn len(&self) -> usize {
+        self.stride() * self.window.ny
+    }
+
+    /// Storage index of the node in column x, row y of D (which must lie in the window).
+    #[inline]
+    pub fn index(&self, x: usize, y: usize) -> usize {
+        (y - self.window.y0) * self.stride() + (x - self.window.x0) + self.pad
+    }
 }
 
 /// A run of consecutive nodes in one row: columns x0..x1 of row y of D, stored from `offset` on

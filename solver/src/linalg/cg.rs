@@ -5,6 +5,7 @@
 //! The vector updates and the inner product split the vectors at fixed boundaries, so the
 //! iterates do not depend on the thread count.
 
+use crate::threads::on;
 use rayon::prelude::*;
 use rayon::ThreadPool;
 
@@ -70,14 +71,6 @@ pub fn conjugate_gradient(
     Convergence {
         iterations: 0,
         relative_residual: 1.0,
-    }
-}
-
-/// Runs `work` on `pool`, or where the caller is when None.
-pub fn on<T: Send>(pool: Option<&ThreadPool>, work: impl FnOnce() -> T + Send) -> T {
-    match pool {
-        Some(pool) => pool.install(work),
-        None => work(),
     }
 }
 

@@ -13,7 +13,7 @@
 use crate::case::ValidCase;
 use crate::case::{positive, refuse_given, Case, CaseError, Problem, SourceMode};
 use crate::discretization::grid::Lattice;
-use crate::integrate::euler::{timed_steps_observed, Stepping, Trajectory};
+use crate::integrate::timed::{timed_steps_observed, Stepping, Trajectory};
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
@@ -293,7 +293,7 @@ pub(crate) fn outcome(
         origin: position(0)[0],
         spacing: resolved.h,
     };
-    crate::integrate::euler::serial_outcome(
+    crate::integrate::measure::serial_outcome(
         case,
         resolved,
         setup_s,

@@ -34,15 +34,16 @@
 
 use crate::case::ValidCase;
 use crate::case::{Case, CaseError};
-use crate::integrate::euler::{timed_steps_observed, Stepping, Trajectory};
+use crate::integrate::euler::forward_euler;
 use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::integrate::timed::Stepping;
 use crate::methods::local::{self, initial_value};
+use crate::operator::LinearOperator;
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
-use crate::threads::BLOCK;
+use crate::parallel::exchange::Ranks;
 use rayon::prelude::*;
-use std::borrow::Cow;
 use std::f64::consts::{LN_10, PI};
 use std::ops::Range;
 use std::time::Instant;
@@ -285,23 +286,9 @@ impl Particles {
         (lambda_max > 0.0).then(|| 2.0 / lambda_max)
     }
 
-    /// The slot-ordered state of a lattice-ordered field (images are filled each step).
     /// Particles and their images.
     pub fn slots(&self) -> usize {
         self.position.len()
-    }
-
-    fn to_slots(&self, field: &[f64]) -> Vec<f64> {
-        let mut phi = vec![0.0; self.position.len()];
-        for (i, &value) in field.iter().enumerate() {
-            phi[self.slot_of[i]] = value;
-        }
-        phi
-    }
-
-    /// The lattice-ordered field of the real particles.
-    fn to_lattice(&self, phi: &[f64]) -> Vec<f64> {
-        self.slot_of.par_iter().map(|&slot| phi[slot]).collect()
     }
 
     /// The pairs started in strip s: `visit_cell_pair` for each of its cells and their forward
@@ -426,38 +413,6 @@ impl Particles {
         });
     }
 
-    /// One forward Euler step: φ += dt_factor · rate (see `rate_factor`); returns max |φ| over
-    /// the particles. φ has a slot per particle and image (`slots`), `rate` one per particle.
-    pub fn step(&self, phi: &mut [f64], rate: &mut [f64], dt_factor: f64) -> f64 {
-        self.fill_images(phi);
-        self.exchange(phi, rate);
-        phi[..self.count()]
-            .par_chunks_mut(BLOCK)
-            .zip(rate.par_chunks(BLOCK))
-            .map(|(phi_block, rate_block)| {
-                for (value, &r) in phi_block.iter_mut().zip(rate_block) {
-                    *value += dt_factor * r;
-                }
-                diagnostics::block_max_abs(phi_block)
-            })
-            .reduce(|| 0.0, f64::max)
-    }
-
-    /// Integrates the lattice-ordered field `u0` in the shared timed loop.
-    fn integrate(&self, u0: &[f64], diffusivity: f64, stepping: &Stepping) -> Trajectory {
-        let mut phi = self.to_slots(u0);
-        let mut rate = vec![0.0; self.count()];
-        let dt_factor = stepping.dt * self.rate_factor(diffusivity);
-        let (timing, observed) = timed_steps_observed(
-            &mut phi,
-            stepping,
-            |phi| Cow::Owned(self.to_lattice(phi)),
-            |phi, _| self.step(phi, &mut rate, dt_factor),
-            |_, _| {},
-        );
-        Trajectory::observed(self.to_lattice(&phi), timing, observed)
-    }
-
     /// The initial field of a local problem in lattice order.
     fn sample(&self, case: &Case) -> Vec<f64> {
         (0..self.count())
@@ -470,6 +425,52 @@ impl Particles {
                 )
             })
             .collect()
+    }
+}
+
+/// PSE's sum as an operator on lattice-ordered fields: (L u)_i = K Σ_j exp(−r_ij²/ε²)(u_j − u_i)
+/// over the particles and images within r_c (`rate_factor` gives K), D times PSE's Laplacian.
+pub struct PseOperator<'a> {
+    particles: &'a Particles,
+    factor: f64,
+}
+
+/// The field in slot order, images included, and the rates of the real slots.
+pub struct PseWorkspace {
+    phi: Vec<f64>,
+    rate: Vec<f64>,
+}
+
+impl<'a> PseOperator<'a> {
+    pub fn new(particles: &'a Particles, diffusivity: f64) -> Self {
+        PseOperator {
+            particles,
+            factor: particles.rate_factor(diffusivity),
+        }
+    }
+}
+
+impl LinearOperator for PseOperator<'_> {
+    type Workspace = PseWorkspace;
+
+    fn workspace(&self) -> PseWorkspace {
+        PseWorkspace {
+            phi: vec![0.0; self.particles.slots()],
+            rate: vec![0.0; self.particles.count()],
+        }
+    }
+
+    fn apply(&self, u: &[f64], out: &mut [f64], workspace: &mut PseWorkspace) {
+        let (particles, PseWorkspace { phi, rate }) = (self.particles, workspace);
+        for (&slot, &value) in particles.slot_of.iter().zip(u) {
+            phi[slot] = value;
+        }
+        particles.fill_images(phi);
+        particles.exchange(phi, rate);
+        let rate = &rate[..];
+        out.par_iter_mut()
+            .zip(&particles.slot_of)
+            .for_each(|(o, &slot)| *o = self.factor * rate[slot]);
     }
 }
 
@@ -517,7 +518,8 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let (pair_visits, bonds) = particles.count_pairs();
     let setup_s = setup_started.elapsed().as_secs_f64();
     let stepping = Stepping::of_case(case, dt, steps, divergence_bound, particles.volume());
-    let trajectory = particles.integrate(&u0, case.diffusivity, &stepping);
+    let operator = PseOperator::new(&particles, case.diffusivity);
+    let trajectory = forward_euler(&operator, Ranks::single(), u0, None, &stepping);
     let resolved = Resolved {
         h: particles.h,
         eps: Some(eps),
@@ -562,11 +564,8 @@ mod tests {
             let field: Vec<f64> = (0..particles.count())
                 .map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0)
                 .collect();
-            let mut phi = particles.to_slots(&field);
-            let mut rate = vec![0.0; particles.count()];
-            particles.fill_images(&mut phi);
-            particles.exchange(&phi, &mut rate);
-            let factor = particles.rate_factor(diffusivity);
+            let mut rates = vec![0.0; particles.count()];
+            PseOperator::new(&particles, diffusivity).apply_once(&field, &mut rates);
 
             let h = length / n as f64;
             let volume = h.powi(dim as i32);
@@ -595,7 +594,7 @@ mod tests {
                     }
                 }
                 literal *= diffusivity / (eps * eps);
-                let ours = factor * rate[particles.slot_of[i]];
+                let ours = rates[i];
                 largest = largest.max(literal.abs());
                 assert!(
                     (ours - literal).abs() <= 1e-12 * largest.max(1.0),

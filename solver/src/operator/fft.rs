@@ -7,20 +7,20 @@
 //! D: a neighbour index i + o with −r ≤ i + o < 0 wraps to P + i + o ≥ n, where u is zero.
 //! The weights are even in dx and in dy, so K's transform is real; it is computed once, scaled by
 //! 1/P^d, and each application is: real-to-complex transforms of the rows, complex transforms of
-//! the columns, one product, and the same back. Every buffer is made at planning time.
+//! the columns, one product, and the same back. Every buffer is in the workspace.
 //!
 //! In 2D the row spectra (n rows × P/2 + 1 frequencies) are regrouped into columns block by block:
 //! each task gathers `BLOCK` columns, transforms them zero-padded to P, multiplies and transforms
 //! back, and keeps their first n values; the final pass gathers `BLOCK` rows at a time. Each value
 //! is computed by one task whatever the thread count, so results do not depend on it.
 
-use super::interface::NonlocalOperator;
+use super::linear::LinearOperator;
 use crate::discretization::stencil::Stencil;
 use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 type C64 = Complex<f64>;
 
@@ -39,11 +39,10 @@ pub struct FftOperator {
     rows_inverse: Arc<dyn ComplexToReal<f64>>,
     columns_forward: Arc<dyn Fft<f64>>,
     columns_inverse: Arc<dyn Fft<f64>>,
-    work: Mutex<Work>,
 }
 
 /// The spectra between passes, and one set of scratch buffers per task.
-struct Work {
+pub struct Work {
     /// Row spectra, n × (P/2 + 1), row-major (1D: one row).
     rows: Vec<C64>,
     /// The filtered spectra by column, (P/2 + 1) × n, column-major (2D only).
@@ -76,14 +75,18 @@ impl FftOperator {
             rows_inverse: real_planner.plan_fft_inverse(size),
             columns_forward: planner.plan_fft_forward(size),
             columns_inverse: planner.plan_fft_inverse(size),
-            work: Mutex::new(Work {
-                rows: vec![C64::default(); grid.rows() * (size / 2 + 1)],
-                columns: vec![C64::default(); if dim == 2 { n * (size / 2 + 1) } else { 0 }],
-                lanes: Vec::new(),
-            }),
         };
         operator.symbol = operator.kernel_symbol(stencil, reach);
         operator
+    }
+
+    /// Tasks of a 2D application on the current pool (1D runs as one).
+    fn tasks(&self) -> usize {
+        if self.dim == 2 {
+            rayon::current_num_threads().min(self.n)
+        } else {
+            1
+        }
     }
 
     fn frequencies(&self) -> usize {
@@ -284,23 +287,27 @@ impl FftOperator {
     }
 }
 
-impl NonlocalOperator for FftOperator {
-    fn apply(&self, u: &[f64], out: &mut [f64]) {
-        let mut work = self
-            .work
-            .lock()
-            .unwrap_or_else(|poison| poison.into_inner());
+impl LinearOperator for FftOperator {
+    type Workspace = Work;
+
+    fn workspace(&self) -> Work {
+        let (n, k) = (self.n, self.frequencies());
+        let rows = if self.dim == 2 { n } else { 1 };
+        Work {
+            rows: vec![C64::default(); rows * k],
+            columns: vec![C64::default(); if self.dim == 2 { n * k } else { 0 }],
+            lanes: (0..self.tasks()).map(|_| self.new_lane()).collect(),
+        }
+    }
+
+    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut Work) {
         let Work {
             rows,
             columns,
             lanes,
-        } = &mut *work;
-        // One lane per task, made on the first application with this many threads.
-        let tasks = if self.dim == 2 {
-            rayon::current_num_threads().min(self.n)
-        } else {
-            1
-        };
+        } = work;
+        // One lane per task; more are made if the workspace moved to a larger pool.
+        let tasks = self.tasks();
         while lanes.len() < tasks {
             lanes.push(self.new_lane());
         }

@@ -6,13 +6,13 @@
 
 mod cost;
 mod fft;
-mod interface;
+mod linear;
 mod neighbour_list;
 pub(crate) mod stencil;
 
 pub use cost::{choose, Cost};
 pub use fft::FftOperator;
-pub use interface::NonlocalOperator;
+pub use linear::LinearOperator;
 pub use neighbour_list::NeighbourList;
 pub use stencil::StencilOperator;
 
@@ -29,13 +29,50 @@ impl Backend {
     }
 }
 
+/// The operator of one backend, planned for a case.
+pub enum Planned {
+    Stencil(StencilOperator),
+    Fft(FftOperator),
+    NeighbourList(NeighbourList),
+}
+
+/// The workspace of a `Planned` operator: its backend's.
+pub enum PlannedWorkspace {
+    Stencil(<StencilOperator as LinearOperator>::Workspace),
+    Fft(<FftOperator as LinearOperator>::Workspace),
+    NeighbourList,
+}
+
 /// Plans the operator of `backend` (`Auto` resolved first) for the case whose grid, horizon,
 /// kernel and weights `stencil` holds.
-pub fn plan(backend: Backend, stencil: &Stencil) -> Box<dyn NonlocalOperator> {
+pub fn plan(backend: Backend, stencil: &Stencil) -> Planned {
     match backend.resolve(stencil) {
         Backend::Auto => unreachable!("resolve makes the backend concrete"),
-        Backend::Stencil => Box::new(StencilOperator::new(stencil.clone())),
-        Backend::Fft => Box::new(FftOperator::new(stencil)),
-        Backend::NeighbourList => Box::new(NeighbourList::new(stencil)),
+        Backend::Stencil => Planned::Stencil(StencilOperator::new(stencil)),
+        Backend::Fft => Planned::Fft(FftOperator::new(stencil)),
+        Backend::NeighbourList => Planned::NeighbourList(NeighbourList::new(stencil)),
+    }
+}
+
+impl LinearOperator for Planned {
+    type Workspace = PlannedWorkspace;
+
+    fn workspace(&self) -> PlannedWorkspace {
+        match self {
+            Planned::Stencil(op) => PlannedWorkspace::Stencil(op.workspace()),
+            Planned::Fft(op) => PlannedWorkspace::Fft(op.workspace()),
+            Planned::NeighbourList(_) => PlannedWorkspace::NeighbourList,
+        }
+    }
+
+    fn apply(&self, u: &[f64], out: &mut [f64], workspace: &mut PlannedWorkspace) {
+        match (self, workspace) {
+            (Planned::Stencil(op), PlannedWorkspace::Stencil(ws)) => op.apply(u, out, ws),
+            (Planned::Fft(op), PlannedWorkspace::Fft(ws)) => op.apply(u, out, ws),
+            (Planned::NeighbourList(op), PlannedWorkspace::NeighbourList) => {
+                op.apply(u, out, &mut ())
+            }
+            _ => panic!("a workspace is applied with the operator that made it"),
+        }
     }
 }

@@ -5,7 +5,7 @@
 //! collar. Each application recomputes |x_j − x_i| and J for every bond and sums
 //! c J (U[j] − U[i]) V_ij, with U = 0 on the collar. This is the slow, obviously right oracle.
 
-use super::interface::NonlocalOperator;
+use super::linear::LinearOperator;
 use crate::case::{Kernel, Quadrature};
 use crate::discretization::grid::{Grid, Horizon};
 use crate::discretization::quadrature::{bond_influence, BondVolumes};
@@ -93,8 +93,13 @@ fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
-impl NonlocalOperator for NeighbourList {
-    fn apply(&self, u: &[f64], out: &mut [f64]) {
+impl LinearOperator for NeighbourList {
+    /// The oracle recomputes everything from the lists: no scratch.
+    type Workspace = ();
+
+    fn workspace(&self) {}
+
+    fn apply(&self, u: &[f64], out: &mut [f64], _: &mut ()) {
         let grid = &self.grid;
         let n = grid.n as i64;
         out.par_iter_mut().enumerate().for_each(|(i, out_i)| {

@@ -1,7 +1,8 @@
-//! The communication FETI's projected CG needs (seed 001, Algorithm 1): a swap of interface blocks
-//! with the ranks that own neighbouring subdomains (the R^D exchange) and sums over all ranks (the
-//! R^C gather and the reductions). `Serial` is one process owning every subdomain; `Mpi` is a
-//! communicator of ranks (MPI_Isend/MPI_Irecv and MPI_Allreduce, as in the seed).
+//! The communication every distributed solver needs: a swap of blocks with some other ranks (the
+//! halo exchange of seed 000's Algorithm 3, FETI's R^D exchange of seed 001's Algorithm 1), with
+//! computation overlapped while the messages fly, and sums and maxima over all ranks (FETI's R^C
+//! gather and the reductions). `Serial` is one process owning everything; `Mpi` is a communicator
+//! of ranks (MPI_Isend/MPI_Irecv and MPI_Allreduce, as in the seeds).
 
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
@@ -11,6 +12,7 @@ use crate::parallel::subdomain::Subdomain;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use rayon::ThreadPool;
 use std::cell::Cell;
 use std::time::Instant;
 
@@ -19,10 +21,25 @@ pub trait Exchange {
     fn ranks(&self) -> usize;
     /// values ← Σ over ranks of values, elementwise (the same result on every rank).
     fn all_sum(&self, values: &mut [f64]);
-    /// Sends send[i] to peers[i] and receives receive[i] from peers[i] (sizes agreed beforehand).
-    fn swap(&self, peers: &[usize], send: &[Vec<f64>], receive: &mut [Vec<f64>]);
-    /// Seconds spent communicating so far.
+    /// Σ over ranks of `local`.
+    fn sum(&self, local: f64) -> f64;
+    /// max over ranks of `local`.
+    fn max(&self, local: f64) -> f64;
+    /// Sends send[i] to peers[i] and receives receive[i] from peers[i] (sizes agreed beforehand),
+    /// running `overlap` while the messages are in flight.
+    fn swap_overlapped(
+        &self,
+        peers: &[usize],
+        send: &[Vec<f64>],
+        receive: &mut [Vec<f64>],
+        overlap: &mut dyn FnMut(),
+    );
+    /// Seconds spent communicating so far (overlapped computation excluded).
     fn seconds(&self) -> f64;
+
+    fn swap(&self, peers: &[usize], send: &[Vec<f64>], receive: &mut [Vec<f64>]) {
+        self.swap_overlapped(peers, send, receive, &mut || {});
+    }
 }
 
 /// One process: nothing to send, sums over one rank.
@@ -36,8 +53,21 @@ impl Exchange for Serial {
         1
     }
     fn all_sum(&self, _values: &mut [f64]) {}
-    fn swap(&self, peers: &[usize], _send: &[Vec<f64>], _receive: &mut [Vec<f64>]) {
-        assert!(peers.is_empty(), "one process owns every subdomain");
+    fn sum(&self, local: f64) -> f64 {
+        local
+    }
+    fn max(&self, local: f64) -> f64 {
+        local
+    }
+    fn swap_overlapped(
+        &self,
+        peers: &[usize],
+        _send: &[Vec<f64>],
+        _receive: &mut [Vec<f64>],
+        overlap: &mut dyn FnMut(),
+    ) {
+        assert!(peers.is_empty(), "one process owns everything");
+        overlap();
     }
     fn seconds(&self) -> f64 {
         0.0
@@ -56,6 +86,12 @@ impl<'a> Mpi<'a> {
             world,
             seconds: Cell::new(0.0),
         }
+    }
+
+    fn reduce(&self, local: f64, operation: SystemOperation) -> f64 {
+        let mut global = 0.0;
+        self.world.all_reduce_into(&local, &mut global, operation);
+        global
     }
 
     fn timed<T>(&self, work: impl FnOnce() -> T) -> T {
@@ -81,7 +117,20 @@ impl Exchange for Mpi<'_> {
                 .all_reduce_into(&local[..], values, SystemOperation::sum());
         })
     }
-    fn swap(&self, peers: &[usize], send: &[Vec<f64>], receive: &mut [Vec<f64>]) {
+    fn sum(&self, local: f64) -> f64 {
+        self.timed(|| self.reduce(local, SystemOperation::sum()))
+    }
+    fn max(&self, local: f64) -> f64 {
+        self.timed(|| self.reduce(local, SystemOperation::max()))
+    }
+    fn swap_overlapped(
+        &self,
+        peers: &[usize],
+        send: &[Vec<f64>],
+        receive: &mut [Vec<f64>],
+        overlap: &mut dyn FnMut(),
+    ) {
+        let mut overlap_s = 0.0;
         self.timed(|| {
             mpi::request::scope(|scope| {
                 let mut requests = Vec::with_capacity(2 * peers.len());
@@ -93,11 +142,15 @@ impl Exchange for Mpi<'_> {
                     let to = self.world.process_at_rank(peer as i32);
                     requests.push(to.immediate_send(scope, &buffer[..]));
                 }
+                let overlap_started = Instant::now();
+                overlap();
+                overlap_s = overlap_started.elapsed().as_secs_f64();
                 for request in requests {
                     request.wait();
                 }
             })
-        })
+        });
+        self.seconds.set(self.seconds.get() - overlap_s);
     }
     fn seconds(&self) -> f64 {
         self.seconds.get()
@@ -143,13 +196,13 @@ pub(crate) fn ownership(
 /// How a run was spread over the ranks of `world`: the partition, the ghosts summed over ranks
 /// and the communication seconds `comm_s` (this rank's) maximised over them.
 pub(crate) fn distribution(
-    world: &SimpleCommunicator,
+    mpi: &Mpi,
     case: &Case,
     ownership: &Ownership,
     subdomain: &Subdomain,
     comm_s: f64,
 ) -> Distribution {
-    let ghosts = all_sum(world, subdomain.ghosts() as f64) as usize;
+    let ghosts = mpi.sum(subdomain.ghosts() as f64) as usize;
     Distribution {
         ranks: ownership.ranks,
         partition: case.partition,
@@ -158,18 +211,46 @@ pub(crate) fn distribution(
         halo_nodes: ghosts,
         halo_bytes: ghosts * std::mem::size_of::<f64>(),
         imbalance: ownership.imbalance(),
-        comm_s: all_max(world, comm_s),
+        comm_s: mpi.max(comm_s),
     }
 }
 
-pub(crate) fn all_max(world: &SimpleCommunicator, local: f64) -> f64 {
-    let mut global = 0.0;
-    world.all_reduce_into(&local, &mut global, SystemOperation::max());
-    global
+/// The ranks a run's vectors are spread over, and the pool each rank computes on.
+#[derive(Clone, Copy)]
+pub struct Ranks<'a> {
+    pub exchange: &'a dyn Exchange,
+    /// None: the caller already runs on its pool. MPI runs call MPI from the main thread and
+    /// compute on this pool.
+    pool: Option<&'a ThreadPool>,
 }
 
-pub(crate) fn all_sum(world: &SimpleCommunicator, local: f64) -> f64 {
-    let mut global = 0.0;
-    world.all_reduce_into(&local, &mut global, SystemOperation::sum());
-    global
+impl<'a> Ranks<'a> {
+    /// One process, computing on the current pool.
+    pub fn single() -> Ranks<'static> {
+        Ranks {
+            exchange: &Serial,
+            pool: None,
+        }
+    }
+
+    /// The ranks of `mpi`, each computing on `pool`.
+    pub fn mpi(mpi: &'a Mpi<'a>, pool: &'a ThreadPool) -> Self {
+        Ranks {
+            exchange: mpi,
+            pool: Some(pool),
+        }
+    }
+
+    /// Runs `work` on the ranks' pool.
+    pub fn on<T: Send>(&self, work: impl FnOnce() -> T + Send) -> T {
+        crate::threads::on(self.pool, work)
+    }
+
+    pub fn sum(&self, local: f64) -> f64 {
+        self.exchange.sum(local)
+    }
+
+    pub fn max(&self, local: f64) -> f64 {
+        self.exchange.max(local)
+    }
 }

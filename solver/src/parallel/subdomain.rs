@@ -206,7 +206,7 @@ fn neighbours(
     let mut by_rank = BTreeMap::new();
     let mut needs = Vec::new(); // ranks owning a neighbour of the current boundary node
     for (w, &c) in class.iter().enumerate() {
-        let (x, y) = (window.x0 + w % window.nx, window.y0 + w / window.nx);
+        let (x, y) = window.column_row(w);
         match c {
             GHOST => {
                 let owner = ownership.owner[y * n + x] as usize;
@@ -309,8 +309,8 @@ mod tests {
 
     use super::*;
     use crate::case::Case;
-    use crate::operator::stencil::apply_on_runs;
-    use crate::operator::{NonlocalOperator, StencilOperator};
+    use crate::operator::stencil::WindowKernel;
+    use crate::operator::{LinearOperator, StencilOperator};
     use crate::parallel::partition::block_halo;
     use std::collections::BTreeSet;
 
@@ -386,8 +386,10 @@ mod tests {
                     expected_ghosts.extend(foreign);
                 }
                 let window = &sub.window;
-                let node_of =
-                    |w: usize| (window.y0 + w / window.nx) * case.n + window.x0 + w % window.nx;
+                let node_of = |w: usize| {
+                    let (x, y) = window.column_row(w);
+                    y * case.n + x
+                };
                 let ghosts: BTreeSet<usize> = sub
                     .neighbours
                     .iter()
@@ -404,9 +406,8 @@ mod tests {
                         .find(|o| o.rank == rank)
                         .expect("symmetric");
                     let other_node = |w: usize| {
-                        (other.window.y0 + w / other.window.nx) * case.n
-                            + other.window.x0
-                            + w % other.window.nx
+                        let (x, y) = other.window.column_row(w);
+                        y * case.n + x
                     };
                     let received: Vec<usize> = nb.receive.iter().map(|&w| node_of(w)).collect();
                     let sent: Vec<usize> = back.send.iter().map(|&w| other_node(w)).collect();
@@ -440,28 +441,39 @@ mod tests {
                 .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.4)
                 .collect();
             let mut serial = vec![0.0; nodes];
-            StencilOperator::new(stencil.clone()).apply(&u, &mut serial);
+            StencilOperator::new(&stencil).apply_once(&u, &mut serial);
             for rank in 0..case.ranks {
                 let sub = Subdomain::new(&ownership, &stencil, rank);
                 let window = &sub.window;
-                // Only owned values and received ghosts are filled; anything else read is NaN.
-                let mut local = vec![f64::NAN; window.len()];
+                let kernel = WindowKernel::new(&stencil, *window);
+                let layout = kernel.layout();
+                // Only owned values, received ghosts and the collar (zero) are filled; anything
+                // else read is NaN.
+                let mut local = vec![f64::NAN; layout.len()];
+                for row in local.chunks_mut(layout.stride()) {
+                    for (c, value) in row.iter_mut().enumerate() {
+                        let x = (window.x0 + c) as i64 - layout.pad as i64;
+                        if !(0..case.n as i64).contains(&x) {
+                            *value = 0.0;
+                        }
+                    }
+                }
                 for run in sub.runs() {
                     for x in run.x0..run.x1 {
-                        local[window.index(x, run.y)] = u[run.y * case.n + x];
+                        local[layout.index(x, run.y)] = u[run.y * case.n + x];
                     }
                 }
                 for nb in &sub.neighbours {
                     for &w in &nb.receive {
-                        let node = (window.y0 + w / window.nx) * case.n + window.x0 + w % window.nx;
-                        local[w] = u[node];
+                        let (x, y) = window.column_row(w);
+                        local[layout.index(x, y)] = u[y * case.n + x];
                     }
                 }
                 let mut out = vec![0.0; sub.owned()];
                 let interior = sub.interior.iter().map(RowRun::len).sum::<usize>();
                 let (inner, outer) = out.split_at_mut(interior);
-                apply_on_runs(&stencil, window, &sub.interior, &local, inner);
-                apply_on_runs(&stencil, window, &sub.boundary, &local, outer);
+                kernel.apply_on_runs(&sub.interior, &local, inner);
+                kernel.apply_on_runs(&sub.boundary, &local, outer);
                 for (k, i) in sub.node_indices(case.n).into_iter().enumerate() {
                     assert_eq!(
                         out[k].to_bits(),
@@ -480,14 +492,17 @@ mod tests {
         let ownership = partition::of(&case, &stencil).unwrap();
         for rank in 0..case.ranks {
             let sub = Subdomain::new(&ownership, &stencil, rank);
-            let mut local = vec![1.0; sub.window.len()];
+            let kernel = WindowKernel::new(&stencil, sub.window);
+            let layout = kernel.layout();
+            let mut local = vec![1.0; layout.len()];
             for nb in &sub.neighbours {
                 for &w in &nb.receive {
-                    local[w] = f64::NAN; // not yet arrived
+                    let (x, y) = sub.window.column_row(w);
+                    local[layout.index(x, y)] = f64::NAN; // not yet arrived
                 }
             }
             let mut out = vec![0.0; sub.interior.iter().map(RowRun::len).sum()];
-            apply_on_runs(&stencil, &sub.window, &sub.interior, &local, &mut out);
+            kernel.apply_on_runs(&sub.interior, &local, &mut out);
             assert!(out.iter().all(|v| v.is_finite()), "rank {rank}");
         }
     }

@@ -7,12 +7,15 @@ use crate::case::ValidCase;
 use crate::case::{Backend, Case, CaseError, Collar, Problem, SourceMode, MAX_EPS};
 use crate::discretization::stability::forward_euler_dt_stable;
 use crate::discretization::stencil::Stencil;
-use crate::integrate::euler::{forward_euler, serial_outcome, Stepping};
+use crate::integrate::euler::forward_euler;
+use crate::integrate::measure::serial_outcome;
 use crate::integrate::time_step::{divergence_bound, time_step};
-use crate::operator::{self, NonlocalOperator};
+use crate::integrate::timed::{Stepping, Trajectory};
+use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
+use crate::parallel::exchange::Ranks;
 use crate::problem::source::PointwiseSource;
 use crate::problem::{self, manufactured_solution, Source};
 use rayon::prelude::*;
@@ -134,33 +137,73 @@ impl Plan {
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();
     let plan = Plan::new(case)?;
-    let stencil = &plan.stencil;
-    let grid = stencil.grid;
-    let operator = operator::plan(plan.backend, stencil);
-    let (u0, source) = initial_state(case, stencil, operator.as_ref());
-    let setup_s = setup_started.elapsed().as_secs_f64();
-
-    let source_max = source
-        .as_ref()
-        .map(|s| (diagnostics::max_abs(&s.phi), diagnostics::max_abs(&s.psi)));
-    let divergence_bound = divergence_bound(case, diagnostics::max_abs(&u0), source_max);
-    let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, grid.volume());
-    let trajectory = forward_euler(operator.as_ref(), u0, source.as_ref(), &stepping);
-
-    let t_final = trajectory.timing.steps_done as f64 * plan.dt;
+    let operator = operator::plan(plan.backend, &plan.stencil);
+    let solved = solve(case, &plan, &operator, Ranks::single(), None, setup_started);
+    let t_final = solved.t_final();
+    let Solved {
+        setup_s,
+        stepping,
+        trajectory,
+        source,
+    } = solved;
     let exact = source
         .as_ref()
         .map(|source| manufactured_solution(&source.phi, t_final));
-    let lattice = grid.lattice();
     Ok(serial_outcome(
         case,
         plan.resolved(),
         setup_s,
         &stepping,
         trajectory,
-        lattice,
+        plan.stencil.grid.lattice(),
         exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
     ))
+}
+
+/// A case integrated on some ranks, each holding its own nodes.
+pub(crate) struct Solved {
+    pub setup_s: f64,
+    pub stepping: Stepping,
+    pub trajectory: Trajectory,
+    pub source: Option<Source>,
+}
+
+impl Solved {
+    pub fn t_final(&self) -> f64 {
+        self.trajectory.timing.steps_done as f64 * self.stepping.dt
+    }
+
+    /// The manufactured solution at the final time, on this rank's nodes.
+    pub fn exact(&self) -> Option<impl Fn(usize) -> f64 + Sync + '_> {
+        let source = self.source.as_ref()?;
+        Some(manufactured_solution(&source.phi, self.t_final()))
+    }
+}
+
+/// Samples the case's initial state and source on `nodes` (all of D when None), in their order,
+/// and integrates it with `operator` on `ranks`. Setup time counts from `setup_started`.
+pub(crate) fn solve<Op: LinearOperator>(
+    case: &Case,
+    plan: &Plan,
+    operator: &Op,
+    ranks: Ranks,
+    nodes: Option<&[usize]>,
+    setup_started: Instant,
+) -> Solved {
+    let (u0, source) = initial_state(case, &plan.stencil, operator, ranks, nodes);
+    let setup_s = setup_started.elapsed().as_secs_f64();
+    let max_abs = |values: &[f64]| ranks.max(ranks.on(|| diagnostics::max_abs(values)));
+    let source_max = source.as_ref().map(|s| (max_abs(&s.phi), max_abs(&s.psi)));
+    let divergence_bound = divergence_bound(case, max_abs(&u0), source_max);
+    let volume = plan.stencil.grid.volume();
+    let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
+    let trajectory = forward_euler(operator, ranks, u0, source.as_ref(), &stepping);
+    Solved {
+        setup_s,
+        stepping,
+        trajectory,
+        source,
+    }
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
@@ -211,29 +254,38 @@ fn check_neighbour_list_size(case: &Case, stencil: &Stencil) -> Result<(), CaseE
     Ok(())
 }
 
-/// u₀ and the source fields of the case's problem.
+/// u₀ and the source fields of the case's problem on `nodes` (all of D when None).
 fn initial_state(
     case: &Case,
     stencil: &Stencil,
-    operator: &dyn NonlocalOperator,
+    operator: &impl LinearOperator,
+    ranks: Ranks,
+    nodes: Option<&[usize]>,
 ) -> (Vec<f64>, Option<Source>) {
     let grid = &stencil.grid;
+    let count = nodes.map_or(grid.nodes(), <[usize]>::len);
+    let sample = |f: &(dyn Fn(usize) -> f64 + Sync)| -> Vec<f64> {
+        ranks.on(|| {
+            (0..count)
+                .into_par_iter()
+                .map(|k| f(nodes.map_or(k, |nodes| nodes[k])))
+                .collect()
+        })
+    };
+    let at = |f: fn(usize, [f64; 2]) -> f64| move |i: usize| f(grid.dim, grid.position(i));
     if case.problem == Problem::Bump {
-        return (problem::sample(grid, problem::bump), None);
+        return (sample(&at(problem::bump)), None);
     }
-    let phi = problem::sample(grid, problem::profile);
+    let phi = sample(&at(problem::profile));
     let psi = match case.source() {
         SourceMode::Discrete => {
             let mut psi = vec![0.0; phi.len()];
-            operator.apply(&phi, &mut psi);
+            operator.apply_once(&phi, &mut psi);
             psi
         }
         SourceMode::Continuum | SourceMode::Local => {
             let pointwise = PointwiseSource::new(case, stencil).expect("a pointwise mode");
-            (0..grid.nodes())
-                .into_par_iter()
-                .map(|i| pointwise.psi(i))
-                .collect()
+            sample(&|i| pointwise.psi(i))
         }
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };

@@ -647,7 +647,7 @@ pub fn run_on(
         }
     }
     exchange.all_sum(&mut g);
-    let setup_s = max_over_ranks(exchange, started.elapsed().as_secs_f64());
+    let setup_s = exchange.max(started.elapsed().as_secs_f64());
     let comm_before = exchange.seconds();
 
     let solve_started = Instant::now();
@@ -680,8 +680,8 @@ pub fn run_on(
             })
             .collect()
     });
-    let solve_s = max_over_ranks(exchange, solve_started.elapsed().as_secs_f64());
-    let comm_s = max_over_ranks(exchange, exchange.seconds() - comm_before);
+    let solve_s = exchange.max(solve_started.elapsed().as_secs_f64());
+    let comm_s = exchange.max(exchange.seconds() - comm_before);
 
     // The field on Ω: node x from the subdomain whose block Ω̃_n holds it, summed over ranks.
     let mut field = vec![0.0; grid.nodes()];
@@ -705,8 +705,7 @@ pub fn run_on(
         .map(|&(_, len)| len)
         .sum::<usize>() as f64];
     exchange.all_sum(&mut received);
-    let factor_nonzeros = max_over_ranks(
-        exchange,
+    let factor_nonzeros = exchange.max(
         feti.locals
             .iter()
             .map(|l| l.factor.nonzeros())
@@ -745,17 +744,6 @@ pub fn run_on(
         distribution,
         field,
     )))
-}
-
-fn max_over_ranks(exchange: &dyn Exchange, local: f64) -> f64 {
-    if exchange.ranks() == 1 {
-        return local;
-    }
-    // Max through a sum: every rank's value in its own slot.
-    let mut all = vec![0.0; exchange.ranks()];
-    all[exchange.rank()] = local;
-    exchange.all_sum(&mut all);
-    all.into_iter().fold(f64::NEG_INFINITY, f64::max)
 }
 
 #[cfg(test)]

@@ -41,7 +41,7 @@ use crate::case::{
     Quadrature,
 };
 use crate::linalg::cg;
-use crate::operator::{self};
+use crate::operator::{self, LinearOperator};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, SteadySolve};
 use crate::parallel::exchange;
@@ -197,6 +197,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     pool.install(|| {
         let backend = case.backend.resolve(&problem.stencil);
         let operator = operator::plan(backend, &problem.stencil);
+        let mut workspace = operator.workspace();
         let b = problem.loads();
         let mut u = vec![0.0; b.len()];
         let mut lu = vec![0.0; b.len()];
@@ -205,7 +206,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         let convergence = cg::conjugate_gradient(
             None,
             |p, ap| {
-                operator.apply(p, &mut lu);
+                operator.apply(p, &mut lu, &mut workspace);
                 negate_into(&lu, ap);
             },
             cg::dot,

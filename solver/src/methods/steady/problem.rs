@@ -6,7 +6,7 @@ use crate::case::{Backend, Case, Kernel, Quadrature};
 use crate::discretization::grid::{Grid, Horizon};
 use crate::discretization::stencil::Stencil;
 use crate::linalg::cg;
-use crate::operator::{self};
+use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, Provenance, Record, Resolved, Status, SteadySolve};
@@ -108,7 +108,7 @@ impl SteadyProblem {
     pub fn measure(&self, u: &[f64]) -> Fit {
         let operator = operator::plan(Backend::Stencil, &self.stencil);
         let mut lu = vec![0.0; u.len()];
-        operator.apply(u, &mut lu);
+        operator.apply_once(u, &mut lu);
         let (b, exact) = (self.loads(), self.exact_values());
         let residual2 = fixed_order_sum(u.len(), |i| (b[i] + lu[i]).powi(2));
         let load2 = fixed_order_sum(u.len(), |i| b[i] * b[i]);
