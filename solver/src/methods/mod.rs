@@ -20,7 +20,7 @@ pub mod steady;
 use crate::case::{Case, CaseError, Method, ValidCase};
 use crate::discretization::stencil::Stencil;
 use crate::output::outcome::Outcome;
-use crate::parallel::subdomain::HaloReport;
+use crate::parallel::share::HaloReport;
 use crate::threads;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;

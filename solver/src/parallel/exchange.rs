@@ -8,7 +8,7 @@ use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
 use crate::output::record::Distribution;
 use crate::parallel::partition::{self, Ownership};
-use crate::parallel::subdomain::Subdomain;
+use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -199,10 +199,10 @@ pub(crate) fn distribution(
     mpi: &Mpi,
     case: &Case,
     ownership: &Ownership,
-    subdomain: &Subdomain,
+    share: &RankShare,
     comm_s: f64,
 ) -> Distribution {
-    let ghosts = mpi.sum(subdomain.ghosts() as f64) as usize;
+    let ghosts = mpi.sum(share.ghosts() as f64) as usize;
     Distribution {
         ranks: ownership.ranks,
         partition: case.partition,

@@ -4,14 +4,14 @@
 //! nodes follow. The kernel is the serial stencil operator's, so every value equals the serial
 //! one bit for bit.
 //!
-//! Vectors are in the rank's compact order (`Subdomain::runs`): interior runs, then boundary runs.
+//! Vectors are in the rank's compact order (`RankShare::runs`): interior runs, then boundary runs.
 
 use crate::discretization::grid::RowRun;
 use crate::discretization::stencil::Stencil;
 use crate::operator::stencil::WindowKernel;
 use crate::operator::LinearOperator;
 use crate::parallel::exchange::Ranks;
-use crate::parallel::subdomain::Subdomain;
+use crate::parallel::share::RankShare;
 use rayon::prelude::*;
 
 pub struct DistributedOperator<'a> {
@@ -37,26 +37,26 @@ pub struct HaloWorkspace {
 }
 
 impl<'a> DistributedOperator<'a> {
-    pub fn new(stencil: &Stencil, subdomain: &'a Subdomain, ranks: Ranks<'a>) -> Self {
-        let kernel = WindowKernel::new(stencil, subdomain.window);
+    pub fn new(stencil: &Stencil, share: &'a RankShare, ranks: Ranks<'a>) -> Self {
+        let kernel = WindowKernel::new(stencil, share.window);
         let layout = *kernel.layout();
         let place = |w: usize| {
-            let (x, y) = subdomain.window.column_row(w);
+            let (x, y) = share.window.column_row(w);
             layout.index(x, y)
         };
-        let mut row_runs = vec![Vec::new(); subdomain.window.ny];
-        for run in subdomain.runs() {
+        let mut row_runs = vec![Vec::new(); share.window.ny];
+        for run in share.runs() {
             let start = layout.index(run.x0, run.y);
             let row = start / layout.stride();
             row_runs[row].push((start % layout.stride(), run.offset, run.len()));
         }
-        let neighbours = &subdomain.neighbours;
+        let neighbours = &share.neighbours;
         DistributedOperator {
-            interior: &subdomain.interior,
-            boundary: &subdomain.boundary,
+            interior: &share.interior,
+            boundary: &share.boundary,
             ranks,
             row_runs,
-            interior_nodes: subdomain.interior.iter().map(RowRun::len).sum(),
+            interior_nodes: share.interior.iter().map(RowRun::len).sum(),
             peers: neighbours.iter().map(|nb| nb.rank).collect(),
             sends: neighbours
                 .iter()

@@ -1,6 +1,6 @@
 //! The fully distributed solver (seed 000, section 3 and Algorithm 3) over MPI.
 //!
-//! Every rank plans its `Subdomain` once from the ownership map (a block partition each rank
+//! Every rank plans its `RankShare` once from the ownership map (a block partition each rank
 //! computes alike, or a METIS partition made on rank 0 and broadcast), then steps forward Euler
 //! on its own nodes with the `DistributedOperator`, which exchanges the halo while it computes
 //! the interior nodes. The time loop is the serial one (`nonlocal::solve`) and the per-node
@@ -17,7 +17,7 @@ use crate::integrate::measure::measure;
 use crate::output::outcome::{self, Outcome};
 use crate::parallel::exchange::{distribution, ownership, Mpi, Ranks};
 use crate::parallel::operator::DistributedOperator;
-use crate::parallel::subdomain::Subdomain;
+use crate::parallel::share::RankShare;
 use mpi::point_to_point::Source as _;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -36,19 +36,19 @@ pub fn run(
     let plan = pool.install(|| Plan::new(case))?;
     let ownership = ownership(world, case, &plan.stencil)?;
     let rank = world.rank() as usize;
-    let subdomain = Subdomain::new(&ownership, &plan.stencil, rank);
+    let share = RankShare::new(&ownership, &plan.stencil, rank);
     let mpi = Mpi::new(world);
     let ranks = Ranks::mpi(&mpi, &pool);
-    let operator = DistributedOperator::new(&plan.stencil, &subdomain, ranks);
+    let operator = DistributedOperator::new(&plan.stencil, &share, ranks);
     let grid = plan.stencil.grid;
-    let nodes = subdomain.node_indices(grid.n);
+    let nodes = share.node_indices(grid.n);
     let solved = solve(case, &plan, &operator, ranks, Some(&nodes), setup_started);
 
     let distribution = distribution(
         &mpi,
         case,
         &ownership,
-        &subdomain,
+        &share,
         solved.trajectory.step_comm_s,
     );
     let exact = solved.exact();

@@ -16,7 +16,7 @@ use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
 use crate::parallel::exchange::{distribution, ownership, Exchange, Mpi, Ranks};
 use crate::parallel::operator::DistributedOperator;
-use crate::parallel::subdomain::Subdomain;
+use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -35,12 +35,12 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let grid = stencil.grid;
     let ownership = ownership(world, case, stencil)?;
     let rank = world.rank() as usize;
-    let subdomain = Subdomain::new(&ownership, stencil, rank);
-    let nodes = subdomain.node_indices(grid.n);
+    let share = RankShare::new(&ownership, stencil, rank);
+    let nodes = share.node_indices(grid.n);
     let b: Vec<f64> = pool.install(|| nodes.par_iter().map(|&i| problem.load(i)).collect());
     let mpi = Mpi::new(world);
     let ranks = Ranks::mpi(&mpi, &pool);
-    let operator = DistributedOperator::new(stencil, &subdomain, ranks);
+    let operator = DistributedOperator::new(stencil, &share, ranks);
     let mut workspace = operator.workspace();
     let mut lp = vec![0.0; b.len()];
     let setup_s = started.elapsed().as_secs_f64();
@@ -70,7 +70,7 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     }
     let local = field.clone();
     world.all_reduce_into(&local[..], &mut field[..], SystemOperation::sum());
-    let distribution = distribution(&mpi, case, &ownership, &subdomain, comm_s);
+    let distribution = distribution(&mpi, case, &ownership, &share, comm_s);
     let timings = Timings {
         setup_s: mpi.max(setup_s),
         solve_s: mpi.max(solve_s),

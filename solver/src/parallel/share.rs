@@ -7,8 +7,8 @@
 //! operator runs on it unchanged. Owned nodes are kept as runs (pieces of rows), split in two
 //! classes: *interior* nodes, whose ball holds no ghost and can be computed while the exchange is
 //! in flight, and *boundary* nodes, which wait for it. Ghosts are found from the full ownership
-//! map, so a rank whose ball reaches past its neighbours (ε wider than a subdomain) simply
-//! exchanges with the ranks beyond: no assumption that halos come from adjacent subdomains.
+//! map, so a rank whose ball reaches past its neighbours (ε wider than a share) simply
+//! exchanges with the ranks beyond: no assumption that halos come from adjacent shares.
 
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::grid::{RowRun, Window};
@@ -30,7 +30,7 @@ pub struct Neighbour {
 }
 
 #[derive(Clone, Debug)]
-pub struct Subdomain {
+pub struct RankShare {
     pub rank: usize,
     pub window: Window,
     /// Owned nodes with no ghost within reach, at compact offsets 0 .. interior nodes.
@@ -40,13 +40,13 @@ pub struct Subdomain {
     pub neighbours: Vec<Neighbour>,
 }
 
-/// Class of a window cell while the subdomain is planned.
+/// Class of a window cell while the share is planned.
 const UNUSED: u8 = 0;
 const OWNED: u8 = 1;
 const GHOST: u8 = 2;
 const BOUNDARY: u8 = 3;
 
-impl Subdomain {
+impl RankShare {
     pub fn new(ownership: &Ownership, stencil: &Stencil, rank: usize) -> Self {
         let grid = ownership.grid;
         let (n, rows) = (grid.n, grid.rows());
@@ -103,7 +103,7 @@ impl Subdomain {
         let interior_nodes = interior.iter().map(RowRun::len).sum();
         let boundary = runs_of(&class, &window, BOUNDARY, interior_nodes);
         let neighbours = neighbours(ownership, stencil, &class, &window, rank);
-        Subdomain {
+        RankShare {
             rank,
             window,
             interior,
@@ -263,7 +263,7 @@ pub struct HaloReport {
     pub max_rank_halo_nodes: usize,
     pub max_rank_neighbours: usize,
     pub imbalance: f64,
-    /// Seconds to partition and to plan every rank's subdomain.
+    /// Seconds to partition and to plan every rank's share.
     pub partition_s: f64,
     pub plan_s: f64,
 }
@@ -275,11 +275,11 @@ impl HaloReport {
         let ownership = partition::of(case, stencil)?;
         let partition_s = started.elapsed().as_secs_f64();
         let started = std::time::Instant::now();
-        let subdomains: Vec<Subdomain> = (0..ownership.ranks)
-            .map(|rank| Subdomain::new(&ownership, stencil, rank))
+        let shares: Vec<RankShare> = (0..ownership.ranks)
+            .map(|rank| RankShare::new(&ownership, stencil, rank))
             .collect();
         let plan_s = started.elapsed().as_secs_f64();
-        let halo_nodes = subdomains.iter().map(Subdomain::ghosts).sum();
+        let halo_nodes = shares.iter().map(RankShare::ghosts).sum();
         Ok(HaloReport {
             ranks: ownership.ranks,
             partition: case.partition,
@@ -288,12 +288,8 @@ impl HaloReport {
             nodes: stencil.grid.nodes(),
             halo_nodes,
             halo_bytes: halo_nodes * std::mem::size_of::<f64>(),
-            max_rank_halo_nodes: subdomains.iter().map(Subdomain::ghosts).max().unwrap_or(0),
-            max_rank_neighbours: subdomains
-                .iter()
-                .map(|s| s.neighbours.len())
-                .max()
-                .unwrap_or(0),
+            max_rank_halo_nodes: shares.iter().map(RankShare::ghosts).max().unwrap_or(0),
+            max_rank_neighbours: shares.iter().map(|s| s.neighbours.len()).max().unwrap_or(0),
             imbalance: ownership.imbalance(),
             partition_s,
             plan_s,
@@ -338,7 +334,7 @@ mod tests {
         nodes
     }
 
-    /// The grids, horizons and rank counts covered: uneven splits, ε wider than a subdomain
+    /// The grids, horizons and rank counts covered: uneven splits, ε wider than a share
     /// (1D n = 40 on 6 ranks with m = 8 reaches two ranks away), and both partitions.
     fn layouts() -> Vec<Case> {
         let mut cases = Vec::new();
@@ -363,11 +359,11 @@ mod tests {
             let stencil = Stencil::of_case(&case);
             let ownership = partition::of(&case, &stencil).expect("partitionable");
             let owner = &ownership.owner;
-            let subdomains: Vec<Subdomain> = (0..case.ranks)
-                .map(|r| Subdomain::new(&ownership, &stencil, r))
+            let shares: Vec<RankShare> = (0..case.ranks)
+                .map(|r| RankShare::new(&ownership, &stencil, r))
                 .collect();
             let mut owned_anywhere = vec![0; stencil.grid.nodes()];
-            for sub in &subdomains {
+            for sub in &shares {
                 let rank = sub.rank;
                 let nodes = sub.node_indices(case.n);
                 let mut expected_ghosts = BTreeSet::new();
@@ -399,7 +395,7 @@ mod tests {
                 assert_eq!(ghosts.len(), sub.ghosts(), "{case:?}: a ghost listed twice");
                 // What r receives from q is what q sends to r, in the same order.
                 for nb in &sub.neighbours {
-                    let other = &subdomains[nb.rank];
+                    let other = &shares[nb.rank];
                     let back = other
                         .neighbours
                         .iter()
@@ -421,7 +417,7 @@ mod tests {
             );
             if case.partition == Partition::Block {
                 let (px, py) = ownership.blocks.expect("block shape");
-                let total: usize = subdomains.iter().map(Subdomain::ghosts).sum();
+                let total: usize = shares.iter().map(RankShare::ghosts).sum();
                 assert_eq!(
                     block_halo(&stencil, px, py),
                     total,
@@ -443,7 +439,7 @@ mod tests {
             let mut serial = vec![0.0; nodes];
             StencilOperator::new(&stencil).apply_once(&u, &mut serial);
             for rank in 0..case.ranks {
-                let sub = Subdomain::new(&ownership, &stencil, rank);
+                let sub = RankShare::new(&ownership, &stencil, rank);
                 let window = &sub.window;
                 let kernel = WindowKernel::new(&stencil, *window);
                 let layout = kernel.layout();
@@ -491,7 +487,7 @@ mod tests {
         let stencil = Stencil::of_case(&case);
         let ownership = partition::of(&case, &stencil).unwrap();
         for rank in 0..case.ranks {
-            let sub = Subdomain::new(&ownership, &stencil, rank);
+            let sub = RankShare::new(&ownership, &stencil, rank);
             let kernel = WindowKernel::new(&stencil, sub.window);
             let layout = kernel.layout();
             let mut local = vec![1.0; layout.len()];
