@@ -209,6 +209,41 @@ fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
     }
 }
 
+/// The explicit Runge–Kutta integrators run over ranks with the serial bits: each stage is one
+/// application of the distributed operator and passes over the rank's own nodes.
+#[test]
+fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
+    for integrator in ["heun", "rk4"] {
+        let case = [
+            "--dim",
+            "2",
+            "--n",
+            "40",
+            "--m",
+            "3",
+            "--kernel",
+            "linear",
+            "--t-end",
+            "0.001",
+            "--cfl",
+            "0.9",
+            "--integrator",
+            integrator,
+        ];
+        let reference = serial(&case);
+        for partition in ["block", "graph"] {
+            let run = distributed(2, partition, 1, &case);
+            assert_agrees(
+                &reference,
+                &run,
+                2,
+                partition,
+                &format!("{integrator}, {partition}"),
+            );
+        }
+    }
+}
+
 /// Every quadrature's weights, and the exact collar's source term, travel to the ranks.
 #[test]
 fn quadratures_and_the_exact_collar_equal_the_serial_run() {

@@ -109,9 +109,14 @@ struct CaseArgs {
     /// Time step (lowered to land on t_end); give --dt or --cfl.
     #[arg(long)]
     dt: Option<f64>,
-    /// Time step as a fraction of the stable step dt_stable.
+    /// Time step as a fraction of the stable step dt_stable (implicit integrators: of forward
+    /// Euler's).
     #[arg(long)]
     cfl: Option<f64>,
+    /// nonlocal: time integrator forward_euler (default, eq. 2.1), heun, rk4, backward_euler or
+    /// crank_nicolson (the last two solve by sine-preconditioned CG each step).
+    #[arg(long)]
+    integrator: Option<String>,
     /// Accept a time step above dt_stable (stability studies); the run may end `diverged`.
     #[arg(long)]
     allow_unstable: bool,
@@ -145,10 +150,12 @@ struct CaseArgs {
     /// Blocks along y of a block partition.
     #[arg(long)]
     py: Option<usize>,
-    /// Steady methods: relative tolerance of the iteration (default 1e-5).
+    /// Relative tolerance of the iteration: steady methods (default 1e-5) and the implicit
+    /// integrators' solves (default tied to the time error).
     #[arg(long)]
     rtol: Option<f64>,
-    /// Steady methods: iteration limit (default 100000); a solve stopped by it is `diverged`.
+    /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
+    /// the implicit integrators (default 1000 per step).
     #[arg(long)]
     max_iterations: Option<usize>,
     /// feti: subdomains per side, p (p × p in all).
@@ -196,6 +203,7 @@ impl CaseArgs {
         set("t_end", self.t_end.map(Value::from));
         set("dt", self.dt.map(Value::from));
         set("cfl", self.cfl.map(Value::from));
+        set("integrator", self.integrator.clone().map(Value::from));
         set(
             "allow_unstable",
             self.allow_unstable.then_some(Value::Bool(true)),
@@ -293,10 +301,18 @@ fn summary(record: &Record) -> String {
             record.message,
         );
     }
+    let solves = match record.implicit.solve_iterations_mean {
+        Some(mean) => format!(
+            ", {mean:.1} CG iterations per step (max {})",
+            record.implicit.solve_iterations_max.unwrap_or(0)
+        ),
+        None => String::new(),
+    };
     format!(
-        "nlsolve: {}D n={} {method}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}) in {:.3} s, {:.3e} s/step{errors}; status {} {}",
+        "nlsolve: {}D n={} {method} {}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}){solves} in {:.3} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
         case.n,
+        label(&case.integrator),
         case.ranks,
         case.threads,
         record.steps_done,

@@ -37,6 +37,51 @@ impl Method {
     }
 }
 
+/// The time integrator of the nonlocal method, for u' = L_h u + b(t).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// Seed 000's eq. 2.1: order 1, stable for dt ≤ 2/λ_max.
+    #[default]
+    ForwardEuler,
+    /// Heun's method (explicit trapezoidal RK2): order 2, stable for dt ≤ 2/λ_max.
+    Heun,
+    /// The classical Runge–Kutta method: order 4, stable for dt ≤ 2.785/λ_max.
+    Rk4,
+    /// The θ-scheme with θ = 1: order 1, unconditionally stable (L-stable).
+    BackwardEuler,
+    /// The θ-scheme with θ = ½: order 2, unconditionally stable (A-stable).
+    CrankNicolson,
+}
+
+impl Integrator {
+    pub const ALL: [Integrator; 5] = [
+        Integrator::ForwardEuler,
+        Integrator::Heun,
+        Integrator::Rk4,
+        Integrator::BackwardEuler,
+        Integrator::CrankNicolson,
+    ];
+
+    pub fn is_forward_euler(&self) -> bool {
+        *self == Integrator::ForwardEuler
+    }
+
+    /// Does a step solve a linear system?
+    pub fn is_implicit(self) -> bool {
+        matches!(self, Integrator::BackwardEuler | Integrator::CrankNicolson)
+    }
+
+    /// The order of accuracy in dt.
+    pub fn order(self) -> u32 {
+        match self {
+            Integrator::ForwardEuler | Integrator::BackwardEuler => 1,
+            Integrator::Heun | Integrator::CrankNicolson => 2,
+            Integrator::Rk4 => 4,
+        }
+    }
+}
+
 /// The preconditioner of FETI's projected CG (seed 001, section 3.1.1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

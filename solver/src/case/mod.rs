@@ -78,9 +78,13 @@ pub struct Case {
     /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dt: Option<f64>,
-    /// Time step as a fraction of dt_stable.
+    /// Time step as a fraction of dt_stable (for the implicit integrators, of forward Euler's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cfl: Option<f64>,
+    /// The nonlocal method's time integrator. Left out of the case's JSON when `forward_euler`,
+    /// so keys of earlier runs stay valid.
+    #[serde(default, skip_serializing_if = "Integrator::is_forward_euler")]
+    pub integrator: Integrator,
     /// Accept a dt above dt_stable (stability studies); the run may end `diverged`.
     #[serde(default)]
     pub allow_unstable: bool,
@@ -118,10 +122,12 @@ pub struct Case {
     /// Blocks along y of a `block` partition (2D).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub py: Option<usize>,
-    /// Steady methods: relative tolerance of the iteration (default 1e-5, seed 001's).
+    /// Relative tolerance of the iteration: steady methods (default 1e-5, seed 001's) and the
+    /// implicit integrators' solves (default: tied to the time error, see `integrate::theta`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rtol: Option<f64>,
-    /// Steady methods: most iterations before the solve stops as not converged (default 100000).
+    /// Most iterations before a solve stops as not converged (steady default 100000; implicit
+    /// integrators 1000 per step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_iterations: Option<usize>,
     /// `feti`: subdomains per side, p (p × p in all; p² may exceed the ranks).
@@ -353,16 +359,44 @@ impl Case {
 
 impl Case {
     /// The steady methods' fields, refused elsewhere.
+    /// The steady methods' fields, refused for a time-dependent case; `rtol` and `max_iterations`
+    /// are also the implicit integrators', whose steps solve linear systems.
     pub(crate) fn refuse_steady_fields(&self) -> Result<(), CaseError> {
+        let solves = self.integrator.is_implicit();
         refuse_given(
             &[
-                ("rtol", self.rtol.is_some()),
-                ("max_iterations", self.max_iterations.is_some()),
+                ("rtol", self.rtol.is_some() && !solves),
+                ("max_iterations", self.max_iterations.is_some() && !solves),
                 ("subdomains", self.subdomains.is_some()),
                 ("preconditioner", self.preconditioner.is_some()),
             ],
-            |_| "belongs to the steady methods `steady_cg` and `feti`; leave it out".into(),
-        )
+            |field| {
+                match field {
+                "rtol" | "max_iterations" => format!(
+                    "belongs to the steady methods and the implicit integrators (`backward_euler`, `crank_nicolson`); leave `{field}` out"
+                ),
+                _ => "belongs to the steady methods `steady_cg` and `feti`; leave it out".into(),
+            }
+            },
+        )?;
+        self.validate_iteration()
+    }
+
+    /// `rtol` in (0, 1) and at least one iteration, when given.
+    pub(crate) fn validate_iteration(&self) -> Result<(), CaseError> {
+        if self.max_iterations == Some(0) {
+            return Err(CaseError::new(
+                "max_iterations",
+                "must be at least 1 (got 0); leave it out for the default",
+            ));
+        }
+        match self.rtol {
+            Some(rtol) if !(rtol > 0.0 && rtol < 1.0) => Err(CaseError::new(
+                "rtol",
+                format!("must lie in (0, 1) (got {rtol}); seed 001 uses 1e-5"),
+            )),
+            _ => Ok(()),
+        }
     }
 
     pub(crate) fn validate_distribution(&self) -> Result<(), CaseError> {

@@ -1,4 +1,5 @@
-//! The stable time step of forward Euler for the nonlocal operator, from the stencil's symbol.
+//! The stable time step of the explicit integrators for the nonlocal operator, from the stencil's
+//! symbol.
 //!
 //! Forward Euler on u' = L_h u + b amplifies an eigenmode of −L_h with eigenvalue λ by 1 − Δt λ,
 //! so it is stable iff Δt ≤ 2/λ_max. On the infinite lattice, L_h is a convolution with the symbol
@@ -12,6 +13,7 @@
 //! the maximum is not at ξ = π (as it is for the local 5-point stencil), so we search: a grid fine
 //! enough to resolve the degree-m trigonometric polynomial, then repeated local zooming.
 
+use crate::case::Integrator;
 use crate::discretization::stencil::Stencil;
 use std::f64::consts::PI;
 
@@ -106,6 +108,28 @@ impl Symbol {
             .map(|&(value, xi1, xi2)| self.zoom(value, xi1, xi2, spacing))
             .fold(f64::NEG_INFINITY, f64::max)
     }
+
+    /// σ at the sine modes of D's nodes, θ_k = πk/(n + 1) for k = 1 ..= n along each axis (in 2D
+    /// at [k₂ − 1][k₁ − 1]): the eigenvalues of −L_h's τ approximation, the matrix of the
+    /// sine-transform preconditioner (`operator::sine`).
+    pub fn on_sine_modes(&self, n: usize) -> Vec<f64> {
+        let angle = |k: usize| PI * (k + 1) as f64 / (n + 1) as f64;
+        let cosines: Vec<Vec<f64>> = (0..n).map(|k| self.cosines(angle(k))).collect();
+        let rows = if self.dim == 2 { n } else { 1 };
+        let mut g = vec![0.0; self.reach + 1];
+        let mut values = Vec::with_capacity(rows * n);
+        for k2 in 0..rows {
+            let cos_xi2 = if self.dim == 2 {
+                &cosines[k2][..]
+            } else {
+                &[1.0][..]
+            };
+            self.column_sums(cos_xi2, &mut g);
+            values.extend(cosines.iter().map(|cos_xi1| self.value_with(cos_xi1, &g)));
+        }
+        values
+    }
+
     /// Hill-climbs from a coarse sample on ever finer 5 × 5 (or 5 in 1D) patterns.
     fn zoom(&self, mut best: f64, mut xi1: f64, mut xi2: f64, mut spacing: f64) -> f64 {
         let steps2: &[f64] = if self.dim == 2 {
@@ -134,4 +158,19 @@ impl Symbol {
 /// dt_stable = 2 / max σ for forward Euler.
 pub fn forward_euler_dt_stable(stencil: &Stencil) -> f64 {
     2.0 / Symbol::new(stencil).maximum()
+}
+
+/// Where the explicit Runge–Kutta methods' stability regions meet the negative real axis (the
+/// spectrum of L_h lies on it): |R(z)| ≤ 1 for z ∈ [−x, 0]. R(z) = 1 + z + z²/2 for Heun gives
+/// x = 2; RK4's R(z) = Σ_{j ≤ 4} z^j/j! gives x = 2.7852935634… (the root of R(z) = 1 on z < 0).
+const RK4_REAL_STABILITY: f64 = 2.785_293_563_405_282;
+
+/// The largest stable dt of `integrator` for L_h: x / λ_max, with [−x, 0] its real stability
+/// interval; None for the unconditionally stable implicit schemes.
+pub fn dt_stable(integrator: Integrator, forward_euler_dt_stable: f64) -> Option<f64> {
+    match integrator {
+        Integrator::ForwardEuler | Integrator::Heun => Some(forward_euler_dt_stable),
+        Integrator::Rk4 => Some(forward_euler_dt_stable * RK4_REAL_STABILITY / 2.0),
+        Integrator::BackwardEuler | Integrator::CrankNicolson => None,
+    }
 }

@@ -66,6 +66,7 @@ pub(crate) fn measure(
             .filter(|_| single)
             .map(|side| ranks.on(|| FieldSnapshot::of(lattice, u, exact, side))),
         distribution,
+        implicit: trajectory.implicit,
     }
 }
 

@@ -1,8 +1,12 @@
-//! Time integration of du/dt = L u + b: the timed loop every method shares (`timed`), forward
-//! Euler (`euler`), what a run measured (`measure`) and the time step a case runs with
+//! Time integration of du/dt = L u + b: the timed loop every method shares (`timed`), the
+//! right-hand side and the stepper interface (`stepper`), the integrators (`euler`,
+//! `runge_kutta`, `theta`), what a run measured (`measure`) and the time step a case runs with
 //! (`time_step`).
 
 pub mod euler;
 pub mod measure;
+pub mod runge_kutta;
+pub mod stepper;
+pub mod theta;
 pub mod time_step;
 pub mod timed;

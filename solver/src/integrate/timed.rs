@@ -5,6 +5,7 @@
 use crate::case::Case;
 use crate::output::diagnostics::{self, MassSeries, Schedule};
 use crate::output::field::Frame;
+use crate::output::record::ImplicitSolves;
 use std::borrow::Cow;
 use std::time::Instant;
 
@@ -50,6 +51,7 @@ pub struct Trajectory {
     pub frames: Vec<Frame>,
     /// Median seconds a step spent communicating (halo and reductions; 0 on one process).
     pub step_comm_s: f64,
+    pub implicit: ImplicitSolves,
 }
 
 impl Trajectory {
@@ -62,6 +64,7 @@ impl Trajectory {
             c_tot: observed.c_tot,
             frames: observed.frames,
             step_comm_s: 0.0,
+            implicit: ImplicitSolves::default(),
         }
     }
 }

@@ -61,6 +61,7 @@ pub(crate) fn validate_domain(case: &Case) -> Result<(), CaseError> {
         &[
             ("quadrature", !case.quadrature.is_midpoint()),
             ("collar", !case.collar.is_zero()),
+            ("integrator", !case.integrator.is_forward_euler()),
         ],
         |_| format!("belongs to the nonlocal method; method {method} has none, leave it out"),
     )?;

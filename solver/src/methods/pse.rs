@@ -34,7 +34,8 @@
 
 use crate::case::ValidCase;
 use crate::case::{Case, CaseError};
-use crate::integrate::euler::forward_euler;
+use crate::integrate::euler::ForwardEuler;
+use crate::integrate::stepper::integrate;
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::Stepping;
 use crate::methods::local::{self, initial_value};
@@ -519,7 +520,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let setup_s = setup_started.elapsed().as_secs_f64();
     let stepping = Stepping::of_case(case, dt, steps, divergence_bound, particles.volume());
     let operator = PseOperator::new(&particles, case.diffusivity);
-    let trajectory = forward_euler(&operator, Ranks::single(), u0, None, &stepping);
+    let ranks = Ranks::single();
+    let mut euler = ForwardEuler::new(&operator, None, ranks, u0.len());
+    let trajectory = integrate(&mut euler, ranks, u0, None, &stepping);
     let resolved = Resolved {
         h: particles.h,
         eps: Some(eps),

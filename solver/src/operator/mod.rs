@@ -8,12 +8,14 @@ mod cost;
 mod fft;
 mod linear;
 mod neighbour_list;
+mod sine;
 pub(crate) mod stencil;
 
 pub use cost::{choose, Cost};
 pub use fft::FftOperator;
 pub use linear::LinearOperator;
 pub use neighbour_list::NeighbourList;
+pub use sine::SinePreconditioner;
 pub use stencil::StencilOperator;
 
 use crate::case::Backend;

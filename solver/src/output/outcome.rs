@@ -4,7 +4,9 @@ use crate::case::Case;
 use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::{FieldSnapshot, Frame};
-use crate::output::record::{Distribution, Provenance, Record, Resolved, Status, SteadySolve};
+use crate::output::record::{
+    Distribution, ImplicitSolves, Provenance, Record, Resolved, Status, SteadySolve,
+};
 
 /// A finished run: its record, the final field on the nodes of D (empty when a distributed run
 /// did not gather it), where its values sit, and the frames the case asked for.
@@ -32,6 +34,7 @@ pub(crate) struct Measured {
     pub histogram: Option<Histogram>,
     pub field: Option<FieldSnapshot>,
     pub distribution: Distribution,
+    pub implicit: ImplicitSolves,
 }
 
 /// The record of a finished run.
@@ -72,6 +75,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         provenance: Provenance::here(case.threads, measured.distribution.ranks),
         distribution: measured.distribution,
         steady: SteadySolve::default(),
+        implicit: measured.implicit,
         peak_memory_bytes: crate::output::record::peak_memory_bytes(),
     }
 }

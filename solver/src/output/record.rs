@@ -54,6 +54,8 @@ pub struct Record {
     /// The steady methods' iteration: counts, residual and FETI's sizes (absent otherwise).
     #[serde(flatten)]
     pub steady: SteadySolve,
+    #[serde(flatten)]
+    pub implicit: ImplicitSolves,
     /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
     /// included; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -127,6 +129,22 @@ impl Resolved {
 }
 
 /// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
+/// The linear solves of an implicit integrator, one per step (absent for explicit ones).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ImplicitSolves {
+    /// Preconditioned CG iterations per step: mean and maximum.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_iterations_mean: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_iterations_max: Option<usize>,
+    /// Steps whose solve stopped at `max_iterations` above its tolerance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solves_unconverged: Option<usize>,
+    /// The solves' relative tolerance ‖r‖/‖b‖.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_rtol: Option<f64>,
+}
+
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SteadySolve {
     /// CG iterations (`steady_cg`) or projected-CG iterations on the multipliers (`feti`).

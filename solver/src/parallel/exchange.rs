@@ -241,6 +241,11 @@ impl<'a> Ranks<'a> {
         }
     }
 
+    /// The pool to run vector updates on: None when the caller already runs on it.
+    pub fn pool(&self) -> Option<&'a ThreadPool> {
+        self.pool
+    }
+
     /// Runs `work` on the ranks' pool.
     pub fn on<T: Send>(&self, work: impl FnOnce() -> T + Send) -> T {
         crate::threads::on(self.pool, work)

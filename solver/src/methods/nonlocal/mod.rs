@@ -4,14 +4,17 @@
 pub mod distributed;
 
 use crate::case::ValidCase;
-use crate::case::{Backend, Case, CaseError, Collar, Problem, SourceMode, MAX_EPS};
-use crate::discretization::stability::forward_euler_dt_stable;
+use crate::case::{Backend, Case, CaseError, Collar, Integrator, Problem, SourceMode, MAX_EPS};
+use crate::discretization::stability::{dt_stable, forward_euler_dt_stable};
 use crate::discretization::stencil::Stencil;
-use crate::integrate::euler::forward_euler;
+use crate::integrate::euler::ForwardEuler;
 use crate::integrate::measure::serial_outcome;
+use crate::integrate::runge_kutta::RungeKutta;
+use crate::integrate::stepper::{integrate, Stepper};
+use crate::integrate::theta::{default_rtol, theta, Theta, DEFAULT_MAX_ITERATIONS};
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
-use crate::operator::{self, LinearOperator};
+use crate::operator::{self, LinearOperator, SinePreconditioner};
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
@@ -33,6 +36,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "length",
             "the nonlocal method runs on D = [0,1]^d; leave `length` out",
+        ));
+    }
+    if case.integrator.is_implicit() && case.ranks > 1 {
+        return Err(CaseError::new(
+            "integrator",
+            "the implicit integrators run on one rank (their sine-transform preconditioner transforms all of D); use threads, or `forward_euler`, `heun` or `rk4` over ranks",
         ));
     }
     if case.collar == Collar::Exact && case.problem != Problem::Manufactured {
@@ -99,8 +108,12 @@ impl Plan {
     pub fn new(case: &Case) -> Result<Plan, CaseError> {
         let stencil = Stencil::of_case(case);
         check_operator_does_not_vanish(case, &stencil)?;
-        let dt_stable = forward_euler_dt_stable(&stencil);
-        let (dt, steps) = time_step(case, dt_stable, false)?;
+        // The implicit integrators are stable at any dt; `cfl` for them is relative to forward
+        // Euler's bound, which the record keeps as dt_stable.
+        let euler_dt_stable = forward_euler_dt_stable(&stencil);
+        let explicit_dt_stable = dt_stable(case.integrator, euler_dt_stable);
+        let dt_stable = explicit_dt_stable.unwrap_or(euler_dt_stable);
+        let (dt, steps) = time_step(case, dt_stable, explicit_dt_stable.is_none())?;
         check_neighbour_list_size(case, &stencil)?;
         let backend = if case.ranks > 1 {
             Backend::Stencil
@@ -197,7 +210,44 @@ pub(crate) fn solve<Op: LinearOperator>(
     let divergence_bound = divergence_bound(case, max_abs(&u0), source_max);
     let volume = plan.stencil.grid.volume();
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
-    let trajectory = forward_euler(operator, ranks, u0, source.as_ref(), &stepping);
+    let len = u0.len();
+    let preconditioner = case
+        .integrator
+        .is_implicit()
+        .then(|| SinePreconditioner::new(&plan.stencil, theta(case.integrator) * plan.dt));
+    let trajectory = {
+        let source = source.as_ref();
+        let mut stepper: Box<dyn Stepper> = match (case.integrator, &preconditioner) {
+            (Integrator::ForwardEuler, _) => {
+                Box::new(ForwardEuler::new(operator, source, ranks, len))
+            }
+            (Integrator::Heun | Integrator::Rk4, _) => Box::new(RungeKutta::new(
+                case.integrator,
+                operator,
+                source,
+                ranks,
+                len,
+            )),
+            (Integrator::BackwardEuler | Integrator::CrankNicolson, Some(preconditioner)) => {
+                Box::new(Theta::new(
+                    case.integrator,
+                    operator,
+                    preconditioner,
+                    source,
+                    ranks,
+                    len,
+                    plan.dt,
+                    case.rtol
+                        .unwrap_or_else(|| default_rtol(case.integrator, plan.dt, plan.steps)),
+                    case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
+                ))
+            }
+            (Integrator::BackwardEuler | Integrator::CrankNicolson, None) => {
+                unreachable!("made above for the implicit integrators")
+            }
+        };
+        integrate(stepper.as_mut(), ranks, u0, source, &stepping)
+    };
     Solved {
         setup_s,
         stepping,

@@ -93,6 +93,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             ("dt", case.dt.is_some()),
             ("cfl", case.cfl.is_some()),
             ("allow_unstable", case.allow_unstable),
+            ("integrator", !case.integrator.is_forward_euler()),
             ("error_total", case.error_total),
             ("source", case.source.is_some()),
             ("collar", case.collar != Collar::Zero),
@@ -105,20 +106,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         |field| format!("method {method} is steady (−L u = f, g = u on Γ); leave `{field}` out"),
     )?;
     positive("diffusivity", case.diffusivity)?;
-    if case.max_iterations == Some(0) {
-        return Err(CaseError::new(
-            "max_iterations",
-            "must be at least 1 (got 0); leave it out for the default 100000",
-        ));
-    }
-    if let Some(rtol) = case.rtol {
-        if !(rtol > 0.0 && rtol < 1.0) {
-            return Err(CaseError::new(
-                "rtol",
-                format!("must lie in (0, 1) (got {rtol}); seed 001 uses 1e-5"),
-            ));
-        }
-    }
+    case.validate_iteration()?;
     if case.threads < 1 {
         return Err(CaseError::new("threads", "must be at least 1 (got 0)"));
     }

@@ -9,7 +9,9 @@ use crate::linalg::cg;
 use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Distribution, Provenance, Record, Resolved, Status, SteadySolve};
+use crate::output::record::{
+    Distribution, ImplicitSolves, Provenance, Record, Resolved, Status, SteadySolve,
+};
 use rayon::prelude::*;
 
 /// The steady problem of a case: the square stencil of A = −L_h and the data.
@@ -222,6 +224,7 @@ pub(crate) fn outcome(
         histogram: None,
         field: None,
         steady: solve,
+        implicit: ImplicitSolves::default(),
         provenance: Provenance::here(case.threads, distribution.ranks),
         distribution,
         peak_memory_bytes: crate::output::record::peak_memory_bytes(),

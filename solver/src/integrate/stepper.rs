@@ -1,0 +1,122 @@
+//! What every time integrator of u' = L u + b(t) shares: the right-hand side with its operator
+//! workspace, the `Stepper` interface, and the timed run of a stepper with its error bookkeeping.
+
+use super::timed::{is_sampled, timed_steps_observed, Stepping, Trajectory, MAX_TIMED_STEPS};
+use crate::operator::LinearOperator;
+use crate::output::diagnostics;
+use crate::output::record::ImplicitSolves;
+use crate::parallel::exchange::Ranks;
+use crate::problem::{manufactured_solution, Source};
+use crate::threads::BLOCK;
+use rayon::prelude::*;
+use std::borrow::Cow;
+
+/// One step of a time integrator.
+pub trait Stepper {
+    /// u ← u(t + dt); returns max |u| after the step over all ranks (+∞ if any is NaN).
+    fn step(&mut self, u: &mut [f64], t: f64, dt: f64) -> f64;
+
+    /// What the linear solves of an implicit stepper took; nothing for explicit ones.
+    fn solves(&self) -> ImplicitSolves {
+        ImplicitSolves::default()
+    }
+}
+
+/// The right-hand side f(t, u) = L u + b(t) on some ranks, with b(t) = α(t) φ + β(t) ψ (the
+/// manufactured source; none for the bump).
+pub struct Rhs<'a, Op: LinearOperator> {
+    operator: &'a Op,
+    workspace: Op::Workspace,
+    pub source: Option<&'a Source>,
+    pub ranks: Ranks<'a>,
+}
+
+impl<'a, Op: LinearOperator> Rhs<'a, Op> {
+    pub fn new(operator: &'a Op, source: Option<&'a Source>, ranks: Ranks<'a>) -> Self {
+        Rhs {
+            workspace: operator.workspace(),
+            operator,
+            source,
+            ranks,
+        }
+    }
+
+    /// out = L v.
+    pub fn apply(&mut self, v: &[f64], out: &mut [f64]) {
+        self.operator.apply(v, out, &mut self.workspace);
+    }
+
+    /// out = L v + b(t).
+    pub fn rate(&mut self, t: f64, v: &[f64], out: &mut [f64]) {
+        self.apply(v, out);
+        self.add_source(&[(t, 1.0)], out);
+    }
+
+    /// out += Σ c·b(t) over the (t, c) of `terms`, in one pass.
+    pub fn add_source(&self, terms: &[(f64, f64)], out: &mut [f64]) {
+        let Some(source) = self.source else { return };
+        let (mut alpha, mut beta) = (0.0, 0.0);
+        for &(t, c) in terms {
+            let (a, b) = Source::coefficients(t);
+            (alpha, beta) = (alpha + c * a, beta + c * b);
+        }
+        self.ranks.on(|| {
+            out.par_chunks_mut(BLOCK)
+                .enumerate()
+                .for_each(|(b, block)| {
+                    let at = b * BLOCK;
+                    for (k, o) in block.iter_mut().enumerate() {
+                        *o += alpha * source.phi[at + k] + beta * source.psi[at + k];
+                    }
+                })
+        });
+    }
+
+    /// max |v| over all ranks.
+    pub fn max_abs(&self, v: &[f64]) -> f64 {
+        self.ranks.max(self.ranks.on(|| diagnostics::max_abs(v)))
+    }
+}
+
+/// The timed run of `stepper` over `stepping` from u, with the total error e = Σₖ eᵏ against the
+/// manufactured solution of `source` when the case tracks it (summed over ranks).
+pub fn integrate(
+    stepper: &mut dyn Stepper,
+    ranks: Ranks,
+    mut u: Vec<f64>,
+    source: Option<&Source>,
+    stepping: &Stepping,
+) -> Trajectory {
+    let (dt, volume) = (stepping.dt, stepping.volume);
+    let total_error_source = source.filter(|_| stepping.track_total_error);
+    let squared_error = |u: &[f64], t: f64| {
+        total_error_source.map_or(0.0, |s| {
+            let local = ranks
+                .on(|| diagnostics::squared_l2_error(manufactured_solution(&s.phi, t), u, volume));
+            ranks.sum(local)
+        })
+    };
+    let mut error_total = squared_error(&u, 0.0);
+    let mut comm_seconds = Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS));
+    let (timing, observed) = timed_steps_observed(
+        &mut u,
+        stepping,
+        |u| Cow::Borrowed(u),
+        |u, k| {
+            let comm_before = ranks.exchange.seconds();
+            let max_abs = stepper.step(u, k as f64 * dt, dt);
+            if is_sampled(stepping.steps, k) {
+                comm_seconds.push(ranks.exchange.seconds() - comm_before);
+            }
+            max_abs
+        },
+        |u, steps_done| error_total += squared_error(u, steps_done as f64 * dt),
+    );
+    let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
+    Trajectory {
+        error_total: tracked.then_some(error_total),
+        step_comm_s: diagnostics::median(comm_seconds),
+        implicit: stepper.solves(),
+        ..Trajectory::observed(u, timing, observed)
+    }
+}

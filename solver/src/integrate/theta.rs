@@ -1,0 +1,145 @@
+//! The θ-scheme for u' = L u + b(t): backward Euler (θ = 1, order 1, L-stable) and
+//! Crank–Nicolson (θ = ½, order 2, A-stable),
+//!     (I − θ dt L) uⁿ⁺¹ = (I + (1 − θ) dt L) uⁿ + dt (θ b(tⁿ⁺¹) + (1 − θ) b(tⁿ)).
+//! −L_h is symmetric positive definite, so each step solves an SPD system by preconditioned CG,
+//! matrix-free through the operator backend, warm-started from uⁿ. The preconditioner is the
+//! sine-transform inverse of I − θ dt τ(L_h) (`operator::SinePreconditioner`), which makes the
+//! iteration count nearly independent of n.
+//!
+//! **Tolerance.** The manufactured solution oscillates at angular frequency 2π, so its time error
+//! after N = T/dt steps is about (2π dt)^p (p the order). A solve stopped at ‖r‖ ≤ rtol ‖b‖ leaves
+//! an error of about rtol ‖u‖ per step, N rtol ‖u‖ in all; the default
+//!     rtol = 10⁻² (2π dt)^p / N,   clamped to [10⁻¹³, 10⁻⁶],
+//! keeps it a hundred times below the time error. A case's `rtol` overrides it.
+
+use super::stepper::{Rhs, Stepper};
+use crate::case::Integrator;
+use crate::linalg::cg::{self, combine, Pcg};
+use crate::operator::LinearOperator;
+use crate::output::record::ImplicitSolves;
+use crate::parallel::exchange::Ranks;
+use crate::problem::Source;
+use std::f64::consts::TAU;
+
+/// Iterations per step before a solve stops unconverged, unless the case sets `max_iterations`.
+pub const DEFAULT_MAX_ITERATIONS: usize = 1000;
+
+/// The default relative tolerance of the solves (module doc).
+pub fn default_rtol(integrator: Integrator, dt: f64, steps: usize) -> f64 {
+    let time_error = (TAU * dt).powi(integrator.order() as i32);
+    (1e-2 * time_error / steps as f64).clamp(1e-13, 1e-6)
+}
+
+pub struct Theta<'a, Op: LinearOperator, P: LinearOperator> {
+    rhs: Rhs<'a, Op>,
+    theta: f64,
+    /// The dt the preconditioner was made for.
+    dt: f64,
+    preconditioner: &'a P,
+    preconditioner_workspace: P::Workspace,
+    pcg: Pcg,
+    /// L uⁿ, then L p inside the solve; the right-hand side.
+    lu: Vec<f64>,
+    b: Vec<f64>,
+    rtol: f64,
+    max_iterations: usize,
+    solves: usize,
+    iterations: usize,
+    most_iterations: usize,
+    unconverged: usize,
+}
+
+impl<'a, Op: LinearOperator, P: LinearOperator> Theta<'a, Op, P> {
+    /// `integrator` is `BackwardEuler` or `CrankNicolson`; `preconditioner` approximates
+    /// (I − θ dt L)⁻¹ for this `dt`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        integrator: Integrator,
+        operator: &'a Op,
+        preconditioner: &'a P,
+        source: Option<&'a Source>,
+        ranks: Ranks<'a>,
+        len: usize,
+        dt: f64,
+        rtol: f64,
+        max_iterations: usize,
+    ) -> Self {
+        Theta {
+            rhs: Rhs::new(operator, source, ranks),
+            theta: theta(integrator),
+            dt,
+            preconditioner,
+            preconditioner_workspace: preconditioner.workspace(),
+            pcg: Pcg::new(len),
+            lu: vec![0.0; len],
+            b: vec![0.0; len],
+            rtol,
+            max_iterations,
+            solves: 0,
+            iterations: 0,
+            most_iterations: 0,
+            unconverged: 0,
+        }
+    }
+}
+
+/// θ of an implicit integrator.
+pub fn theta(integrator: Integrator) -> f64 {
+    match integrator {
+        Integrator::BackwardEuler => 1.0,
+        Integrator::CrankNicolson => 0.5,
+        other => panic!("{other:?} is not a θ-scheme"),
+    }
+}
+
+impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
+    fn step(&mut self, u: &mut [f64], t: f64, dt: f64) -> f64 {
+        assert_eq!(dt, self.dt, "the preconditioner was made for this dt");
+        let Theta {
+            rhs,
+            theta,
+            preconditioner,
+            preconditioner_workspace,
+            pcg,
+            lu,
+            b,
+            rtol,
+            max_iterations,
+            ..
+        } = self;
+        let (theta, ranks) = (*theta, rhs.ranks);
+        rhs.apply(u, lu);
+        ranks.on(|| combine(b, u, (1.0 - theta) * dt, lu));
+        rhs.add_source(&[(t + dt, theta * dt), (t, (1.0 - theta) * dt)], b);
+        let shift = theta * dt;
+        let convergence = pcg.solve(
+            ranks.pool(),
+            |p, ap| {
+                rhs.apply(p, lu);
+                ranks.on(|| combine(ap, p, -shift, lu));
+            },
+            |r, z| preconditioner.apply(r, z, preconditioner_workspace),
+            |x, y| ranks.sum(ranks.on(|| cg::dot(x, y))),
+            b,
+            u,
+            *rtol,
+            *max_iterations,
+        );
+        self.solves += 1;
+        self.iterations += convergence.iterations;
+        self.most_iterations = self.most_iterations.max(convergence.iterations);
+        if !(convergence.relative_residual <= self.rtol) {
+            self.unconverged += 1;
+        }
+        self.rhs.max_abs(u)
+    }
+
+    fn solves(&self) -> ImplicitSolves {
+        ImplicitSolves {
+            solve_iterations_mean: Some(self.iterations as f64 / self.solves.max(1) as f64),
+            solve_iterations_max: Some(self.most_iterations),
+            solves_unconverged: Some(self.unconverged),
+            solve_rtol: Some(self.rtol),
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! The time integrators of the nonlocal method: their orders in dt, measured with the discrete
+//! source (whose semi-discrete solution cos(2πt)φ is exact, so the error is the time error
+//! alone); thread independence bit for bit; the implicit solves' iteration counts, which the
+//! sine-transform preconditioner keeps small whatever n; and the refusals.
+
+mod common;
+
+use common::{case, observed_orders, scientific};
+use serde_json::json;
+use solver::run;
+
+/// The final-time L2 error of `integrator` at each time step of `dts` on a coarse grid (1D, n = 8,
+/// ε = 1/4: dt_stable = 0.0133, so every explicit step below is stable and large enough to keep
+/// RK4's error above round-off).
+fn time_errors(integrator: &str, dts: &[f64]) -> Vec<f64> {
+    dts.iter()
+        .map(|&dt| {
+            let outcome = run(&case(json!({
+                "dim": 1, "n": 8, "m": 2, "source": "discrete", "t_end": 0.5, "dt": dt,
+                "integrator": integrator,
+            })))
+            .expect("the case runs");
+            outcome.record.error_l2_norm.expect("a manufactured error")
+        })
+        .collect()
+}
+
+#[test]
+fn each_integrator_converges_at_its_order_in_dt() {
+    let dts = [0.005, 0.0025, 0.00125];
+    for (integrator, order) in [
+        ("forward_euler", 1.0),
+        ("heun", 2.0),
+        ("rk4", 4.0),
+        ("backward_euler", 1.0),
+        ("crank_nicolson", 2.0),
+    ] {
+        let errors = time_errors(integrator, &dts);
+        let orders = observed_orders(&errors);
+        assert!(
+            orders.iter().all(|p| (p - order).abs() < 0.2),
+            "{integrator}: errors {} give orders {orders:?}, expected {order}",
+            scientific(&errors)
+        );
+    }
+}
+
+#[test]
+fn every_integrator_gives_the_same_bits_on_any_thread_count() {
+    for integrator in ["heun", "rk4", "backward_euler", "crank_nicolson"] {
+        let fields: Vec<Vec<f64>> = [1, 3]
+            .iter()
+            .map(|&threads| {
+                run(&case(json!({
+                    "dim": 2, "n": 70, "m": 3, "kernel": "linear", "t_end": 0.01, "cfl": 0.9,
+                    "integrator": integrator, "threads": threads,
+                })))
+                .expect("the case runs")
+                .field
+            })
+            .collect();
+        assert!(
+            fields[0]
+                .iter()
+                .zip(&fields[1])
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "{integrator}"
+        );
+    }
+}
+
+/// At a step 20 times forward Euler's limit, preconditioned CG needs a handful of iterations per
+/// step, and no more on a grid 16 times finer (ε = 4h in 1D and 2D).
+#[test]
+fn implicit_solves_take_a_few_iterations_whatever_n() {
+    for (dim, sizes) in [(1, [256, 1024, 4096]), (2, [32, 64, 128])] {
+        for integrator in ["backward_euler", "crank_nicolson"] {
+            let most: Vec<usize> = sizes
+                .iter()
+                .map(|&n| {
+                    let outcome = run(&case(json!({
+                        "dim": dim, "n": n, "m": 4, "kernel": "linear", "source": "discrete",
+                        "t_end": 0.002, "cfl": 20, "integrator": integrator,
+                    })))
+                    .expect("the case runs");
+                    let implicit = outcome.record.implicit;
+                    assert_eq!(implicit.solves_unconverged, Some(0));
+                    implicit.solve_iterations_max.expect("implicit solves")
+                })
+                .collect();
+            assert!(
+                most.iter().all(|&k| k <= 6),
+                "{dim}D {integrator}: most iterations per step {most:?} for n = {sizes:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn integrators_are_refused_where_they_do_not_apply() {
+    let refused = |fields: serde_json::Value| {
+        let error = solver::ValidCase::from_json(fields).expect_err("refused");
+        error.field
+    };
+    assert_eq!(
+        refused(json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.1, "cfl": 1,
+                       "integrator": "crank_nicolson", "ranks": 2})),
+        "integrator"
+    );
+    assert_eq!(
+        refused(
+            json!({"method": "adi", "dim": 1, "n": 16, "problem": "eigenmode",
+                       "t_end": 0.1, "cfl": 1, "integrator": "rk4"})
+        ),
+        "integrator"
+    );
+    assert_eq!(
+        refused(json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.1, "cfl": 1, "rtol": 1e-8})),
+        "rtol"
+    );
+    // An explicit step beyond the integrator's own bound is refused when the stencil is known.
+    let beyond = run(&case(
+        json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.1, "cfl": 1.5,
+                                   "integrator": "rk4"}),
+    ));
+    assert_eq!(beyond.err().map(|e| e.field), Some("cfl".to_string()));
+    // The implicit ones take any step, and their solves' tolerance.
+    let outcome = run(&case(
+        json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.1, "cfl": 100,
+                                   "integrator": "backward_euler", "rtol": 1e-9}),
+    ))
+    .expect("runs");
+    assert_eq!(outcome.record.implicit.solve_rtol, Some(1e-9));
+}
