@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs
 
 setup:
 	@scripts/setup.sh
@@ -32,6 +32,13 @@ docs-figures: figures
 	cp results/convergence/figures/convergence.svg docs/figures/convergence.svg
 	cp results/work_precision/figures/work_precision.svg docs/figures/work_precision.svg
 	cp results/ranks/figures/strong.svg docs/figures/ranks_strong.svg
+
+# The integrators study (about 4 s) and the figures docs/integrators.md shows.
+integrators-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/integrators.json
+	mkdir -p docs/figures/integrators
+	cp results/integrators/figures/*.svg docs/figures/integrators/
 
 # The asymptotic-compatibility page docs/ac_limit.md and its figures, from the patch and ac_limit
 # studies (about 45 s for a first run).

@@ -265,6 +265,7 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
         collar: None,
         patch_error: None,
         backend: None,
+        integrator: None,
     };
     let position = |i: usize| grid.position(i);
     Ok(outcome(

@@ -538,6 +538,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         collar: None,
         patch_error: None,
         backend: None,
+        integrator: None,
     };
     let position = |i: usize| particles.lattice_position(i);
     Ok(local::outcome(

@@ -1,6 +1,6 @@
 //! The record: one JSON object per run, what the orchestrator stores and tabulates.
 
-use crate::case::{Backend, Case, Collar, Partition, Quadrature};
+use crate::case::{Backend, Case, Collar, Integrator, Partition, Quadrature};
 use crate::discretization::stencil::Stencil;
 use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::FieldSnapshot;
@@ -104,6 +104,9 @@ pub struct Resolved {
     /// Nonlocal method: the operator backend that ran (`auto` resolved by the cost model).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub backend: Option<Backend>,
+    /// Nonlocal method: the time integrator that ran (the case leaves out the default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrator: Option<Integrator>,
 }
 
 impl Resolved {
@@ -124,11 +127,11 @@ impl Resolved {
             collar: None,
             patch_error: None,
             backend: None,
+            integrator: None,
         }
     }
 }
 
-/// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
 /// The linear solves of an implicit integrator, one per step (absent for explicit ones).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ImplicitSolves {
@@ -145,6 +148,7 @@ pub struct ImplicitSolves {
     pub solve_rtol: Option<f64>,
 }
 
+/// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SteadySolve {
     /// CG iterations (`steady_cg`) or projected-CG iterations on the multipliers (`feti`).

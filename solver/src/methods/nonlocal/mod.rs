@@ -99,6 +99,7 @@ pub(crate) struct Plan {
     /// The backend that runs: `auto` resolved by the cost model; the distributed solver's stencil.
     pub backend: Backend,
     pub collar: Collar,
+    pub integrator: Integrator,
     pub dt_stable: f64,
     pub dt: f64,
     pub steps: usize,
@@ -124,6 +125,7 @@ impl Plan {
             stencil,
             backend,
             collar: case.collar,
+            integrator: case.integrator,
             dt_stable,
             dt,
             steps,
@@ -141,6 +143,7 @@ impl Plan {
             collar: Some(self.collar),
             patch_error: Some(stencil.patch_error()),
             backend: Some(self.backend),
+            integrator: Some(self.integrator),
             ..Resolved::of_stencil(stencil)
         }
     }
