@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
-    /// The nonlocal heat equation of seed 000, forward Euler in time (eq. 2.1).
+    /// The nonlocal heat equation of seed 000, in time by the case's `integrator` (forward Euler,
+    /// eq. 2.1, by default).
     #[default]
     Nonlocal,
     /// Local diffusion (seed 004): central differences, forward Euler.
@@ -55,14 +56,6 @@ pub enum Integrator {
 }
 
 impl Integrator {
-    pub const ALL: [Integrator; 5] = [
-        Integrator::ForwardEuler,
-        Integrator::Heun,
-        Integrator::Rk4,
-        Integrator::BackwardEuler,
-        Integrator::CrankNicolson,
-    ];
-
     pub fn is_forward_euler(&self) -> bool {
         *self == Integrator::ForwardEuler
     }
