@@ -23,3 +23,13 @@ pub fn on<T: Send>(pool: Option<&rayon::ThreadPool>, work: impl FnOnce() -> T + 
         None => work(),
     }
 }
+
+/// Tasks a transform-based operator splits the rows of a 2D field between on the current pool
+/// (one per thread, at most one per row); a 1D field is one row and one task.
+pub fn row_tasks(dim: usize, n: usize) -> usize {
+    if dim == 2 {
+        rayon::current_num_threads().min(n)
+    } else {
+        1
+    }
+}

@@ -55,7 +55,7 @@ pub(crate) fn measure(
         errors,
         error_total: *error_total,
         mass: ranks.sum(ranks.on(|| diagnostics::total_mass(u, stepping.volume))),
-        max_abs: ranks.max(ranks.on(|| diagnostics::max_abs(u))),
+        max_abs: ranks.max_abs(u),
         c_tot: c_tot.clone(),
         histogram: case
             .histogram_bins

@@ -80,7 +80,7 @@ impl<Op: LinearOperator> Stepper for RungeKutta<'_, Op> {
         }
         let sum = &self.sum;
         ranks.on(|| axpy(dt, sum, u));
-        self.rhs.max_abs(u)
+        self.rhs.ranks.max_abs(u)
     }
 }
 

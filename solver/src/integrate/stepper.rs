@@ -71,11 +71,6 @@ impl<'a, Op: LinearOperator> Rhs<'a, Op> {
                 })
         });
     }
-
-    /// max |v| over all ranks.
-    pub fn max_abs(&self, v: &[f64]) -> f64 {
-        self.ranks.max(self.ranks.on(|| diagnostics::max_abs(v)))
-    }
 }
 
 /// The timed run of `stepper` over `stepping` from u, with the total error e = Σₖ eᵏ against the

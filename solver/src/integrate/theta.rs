@@ -131,7 +131,7 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
         if !(convergence.relative_residual <= self.rtol) {
             self.unconverged += 1;
         }
-        self.rhs.max_abs(u)
+        self.rhs.ranks.max_abs(u)
     }
 
     fn solves(&self) -> ImplicitSolves {

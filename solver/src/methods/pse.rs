@@ -434,6 +434,9 @@ impl Particles {
 pub struct PseOperator<'a> {
     particles: &'a Particles,
     factor: f64,
+    /// The lattice index of each real slot (the real particles fill slots 0 .. N): `slot_of`
+    /// inverted, so the field is gathered into slot order in parallel.
+    lattice_of: Vec<usize>,
 }
 
 /// The field in slot order, images included, and the rates of the real slots.
@@ -444,9 +447,14 @@ pub struct PseWorkspace {
 
 impl<'a> PseOperator<'a> {
     pub fn new(particles: &'a Particles, diffusivity: f64) -> Self {
+        let mut lattice_of = vec![0; particles.count()];
+        for (i, &slot) in particles.slot_of.iter().enumerate() {
+            lattice_of[slot] = i;
+        }
         PseOperator {
             particles,
             factor: particles.rate_factor(diffusivity),
+            lattice_of,
         }
     }
 }
@@ -463,9 +471,10 @@ impl LinearOperator for PseOperator<'_> {
 
     fn apply(&self, u: &[f64], out: &mut [f64], workspace: &mut PseWorkspace) {
         let (particles, PseWorkspace { phi, rate }) = (self.particles, workspace);
-        for (&slot, &value) in particles.slot_of.iter().zip(u) {
-            phi[slot] = value;
-        }
+        phi[..particles.count()]
+            .par_iter_mut()
+            .zip(&self.lattice_of)
+            .for_each(|(value, &i)| *value = u[i]);
         particles.fill_images(phi);
         particles.exchange(phi, rate);
         let rate = &rate[..];

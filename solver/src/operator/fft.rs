@@ -16,6 +16,7 @@
 
 use super::linear::LinearOperator;
 use crate::discretization::stencil::Stencil;
+use crate::threads::row_tasks;
 use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
@@ -78,15 +79,6 @@ impl FftOperator {
         };
         operator.symbol = operator.kernel_symbol(stencil, reach);
         operator
-    }
-
-    /// Tasks of a 2D application on the current pool (1D runs as one).
-    fn tasks(&self) -> usize {
-        if self.dim == 2 {
-            rayon::current_num_threads().min(self.n)
-        } else {
-            1
-        }
     }
 
     fn frequencies(&self) -> usize {
@@ -296,7 +288,9 @@ impl LinearOperator for FftOperator {
         Work {
             rows: vec![C64::default(); rows * k],
             columns: vec![C64::default(); if self.dim == 2 { n * k } else { 0 }],
-            lanes: (0..self.tasks()).map(|_| self.new_lane()).collect(),
+            lanes: (0..row_tasks(self.dim, self.n))
+                .map(|_| self.new_lane())
+                .collect(),
         }
     }
 
@@ -307,7 +301,7 @@ impl LinearOperator for FftOperator {
             lanes,
         } = work;
         // One lane per task; more are made if the workspace moved to a larger pool.
-        let tasks = self.tasks();
+        let tasks = row_tasks(self.dim, self.n);
         while lanes.len() < tasks {
             lanes.push(self.new_lane());
         }

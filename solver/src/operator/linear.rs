@@ -1,5 +1,6 @@
 //! The interface every linear operator of the solver implements: the backends of L_h, the
-//! distributed operator over ranks, and PSE's particle sum.
+//! distributed operator over ranks, PSE's particle sum and the implicit integrators'
+//! preconditioner.
 //!
 //! Scratch space is the caller's (as with faer's `LinOp` or rustfft's scratch buffers): made once
 //! by `workspace`, passed to every `apply`, so an operator is shared freely between threads and

@@ -17,6 +17,7 @@
 use super::linear::LinearOperator;
 use crate::discretization::stability::Symbol;
 use crate::discretization::stencil::Stencil;
+use crate::threads::row_tasks;
 use rayon::prelude::*;
 use rustdct::{DctPlanner, Dst1};
 use std::sync::Arc;
@@ -57,14 +58,6 @@ impl SinePreconditioner {
         }
     }
 
-    fn tasks(&self) -> usize {
-        if self.dim == 2 {
-            rayon::current_num_threads().min(self.n)
-        } else {
-            1
-        }
-    }
-
     /// The DST-I of every row of `rows`, one task per block of rows.
     fn transform_rows(&self, rows: &mut [f64], scratch: &mut [Vec<f64>]) {
         let n = self.n;
@@ -98,7 +91,7 @@ impl LinearOperator for SinePreconditioner {
         let transposed = if self.dim == 2 { self.n * self.n } else { 0 };
         SineWork {
             transposed: vec![0.0; transposed],
-            scratch: (0..self.tasks())
+            scratch: (0..row_tasks(self.dim, self.n))
                 .map(|_| vec![0.0; self.dst.get_scratch_len()])
                 .collect(),
         }
@@ -109,7 +102,7 @@ impl LinearOperator for SinePreconditioner {
             transposed,
             scratch,
         } = work;
-        let tasks = self.tasks();
+        let tasks = row_tasks(self.dim, self.n);
         while scratch.len() < tasks {
             scratch.push(vec![0.0; self.dst.get_scratch_len()]);
         }

@@ -6,6 +6,7 @@
 
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
+use crate::output::diagnostics;
 use crate::output::record::Distribution;
 use crate::parallel::partition::{self, Ownership};
 use crate::parallel::share::RankShare;
@@ -257,5 +258,10 @@ impl<'a> Ranks<'a> {
 
     pub fn max(&self, local: f64) -> f64 {
         self.exchange.max(local)
+    }
+
+    /// max |vᵢ| over every rank's values (+∞ if any is NaN).
+    pub fn max_abs(&self, v: &[f64]) -> f64 {
+        self.max(self.on(|| diagnostics::max_abs(v)))
     }
 }

@@ -42,28 +42,22 @@ pub fn run(
     let operator = DistributedOperator::new(&plan.stencil, &share, ranks);
     let grid = plan.stencil.grid;
     let nodes = share.node_indices(grid.n);
-    let solved = solve(case, &plan, &operator, ranks, Some(&nodes), setup_started);
+    let (solved, trajectory) = solve(case, &plan, &operator, ranks, Some(&nodes), setup_started);
 
-    let distribution = distribution(
-        &mpi,
-        case,
-        &ownership,
-        &share,
-        solved.trajectory.step_comm_s,
-    );
-    let exact = solved.exact();
+    let distribution = distribution(&mpi, case, &ownership, &share, trajectory.step_comm_s);
+    let exact = solved.exact(trajectory.timing.steps_done);
     let measured = measure(
         ranks,
         case,
         solved.setup_s,
         &solved.stepping,
-        &solved.trajectory,
+        &trajectory,
         &grid.lattice(),
         exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
         distribution,
     );
     let field = gather_field
-        .then(|| gather(world, &nodes, &solved.trajectory.u, grid.nodes()))
+        .then(|| gather(world, &nodes, &trajectory.u, grid.nodes()))
         .flatten();
     Ok((rank == 0).then(|| Outcome {
         record: outcome::record(case, plan.resolved(), measured),

@@ -15,7 +15,6 @@ use crate::integrate::theta::{default_rtol, theta, Theta, DEFAULT_MAX_ITERATIONS
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
 use crate::operator::{self, LinearOperator, SinePreconditioner};
-use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
 use crate::parallel::exchange::Ranks;
@@ -154,45 +153,34 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();
     let plan = Plan::new(case)?;
     let operator = operator::plan(plan.backend, &plan.stencil);
-    let solved = solve(case, &plan, &operator, Ranks::single(), None, setup_started);
-    let t_final = solved.t_final();
-    let Solved {
-        setup_s,
-        stepping,
-        trajectory,
-        source,
-    } = solved;
-    let exact = source
-        .as_ref()
-        .map(|source| manufactured_solution(&source.phi, t_final));
+    let (solved, trajectory) = solve(case, &plan, &operator, Ranks::single(), None, setup_started);
+    let exact = solved.exact(trajectory.timing.steps_done);
     Ok(serial_outcome(
         case,
         plan.resolved(),
-        setup_s,
-        &stepping,
+        solved.setup_s,
+        &solved.stepping,
         trajectory,
         plan.stencil.grid.lattice(),
         exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
     ))
 }
 
-/// A case integrated on some ranks, each holding its own nodes.
+/// What a case's integration was set up with on some ranks, each holding its own nodes.
 pub(crate) struct Solved {
     pub setup_s: f64,
     pub stepping: Stepping,
-    pub trajectory: Trajectory,
     pub source: Option<Source>,
 }
 
 impl Solved {
-    pub fn t_final(&self) -> f64 {
-        self.trajectory.timing.steps_done as f64 * self.stepping.dt
-    }
-
-    /// The manufactured solution at the final time, on this rank's nodes.
-    pub fn exact(&self) -> Option<impl Fn(usize) -> f64 + Sync + '_> {
+    /// The manufactured solution after `steps_done` steps, on this rank's nodes.
+    pub fn exact(&self, steps_done: usize) -> Option<impl Fn(usize) -> f64 + Sync + '_> {
         let source = self.source.as_ref()?;
-        Some(manufactured_solution(&source.phi, self.t_final()))
+        Some(manufactured_solution(
+            &source.phi,
+            steps_done as f64 * self.stepping.dt,
+        ))
     }
 }
 
@@ -205,12 +193,13 @@ pub(crate) fn solve<Op: LinearOperator>(
     ranks: Ranks,
     nodes: Option<&[usize]>,
     setup_started: Instant,
-) -> Solved {
+) -> (Solved, Trajectory) {
     let (u0, source) = initial_state(case, &plan.stencil, operator, ranks, nodes);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let max_abs = |values: &[f64]| ranks.max(ranks.on(|| diagnostics::max_abs(values)));
-    let source_max = source.as_ref().map(|s| (max_abs(&s.phi), max_abs(&s.psi)));
-    let divergence_bound = divergence_bound(case, max_abs(&u0), source_max);
+    let source_max = source
+        .as_ref()
+        .map(|s| (ranks.max_abs(&s.phi), ranks.max_abs(&s.psi)));
+    let divergence_bound = divergence_bound(case, ranks.max_abs(&u0), source_max);
     let volume = plan.stencil.grid.volume();
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
     let len = u0.len();
@@ -251,12 +240,14 @@ pub(crate) fn solve<Op: LinearOperator>(
         };
         integrate(stepper.as_mut(), ranks, u0, source, &stepping)
     };
-    Solved {
-        setup_s,
-        stepping,
+    (
+        Solved {
+            setup_s,
+            stepping,
+            source,
+        },
         trajectory,
-        source,
-    }
+    )
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
