@@ -1,4 +1,4 @@
-//! The import graph of both crates has no cycle, between files or between folders, and the
+//! The import graph of the three crates has no cycle, between files or between folders, and the
 //! solver's layers import only the layers below them (the order of `solver/src/lib.rs`).
 //!
 //! A module's imports are the paths its non-test code names: `crate::a::b`, `super::a`,
@@ -63,6 +63,27 @@ fn the_orchestrator_has_no_import_cycle() {
     assert!(graph.contains_key("plan") && graph.contains_key("figure::scaling"));
     assert_acyclic("orchestrator", &graph);
     assert_acyclic("orchestrator (folders)", &folders(&graph));
+}
+
+/// The schema both binaries read is plain serde data: it links no numerics, tables or plots, so
+/// the orchestrator never compiles the solver to read a case or a record.
+#[test]
+fn the_schema_is_serde_only_and_acyclic() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema");
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let dependencies: Vec<&str> = manifest
+        .split("[dependencies]")
+        .nth(1)
+        .unwrap_or_default()
+        .lines()
+        .take_while(|line| !line.starts_with('['))
+        .filter_map(|line| line.split(['.', ' ', '=']).next())
+        .filter(|name| !name.is_empty() && !name.starts_with('#'))
+        .collect();
+    assert_eq!(dependencies, ["serde", "serde_json", "serde_path_to_error"]);
+    let graph = imports(root.join("src").as_path());
+    assert!(graph.contains_key("case") && graph.contains_key("record"));
+    assert_acyclic("schema", &graph);
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! input refused with exit code 2 and a sentence naming the field.
 
 use nonlocal_study::{nlsolve, record, RESULT_FIELDS};
+use schema::case::Case;
 use serde_json::Value;
 
 const BASE: &[&str] = &[
@@ -223,36 +224,27 @@ fn bad_input_exits_2_naming_the_field() {
 }
 
 #[test]
-fn help_documents_every_case_field() {
+fn help_and_readme_document_every_case_field() {
     let out = nlsolve(&["--help"], None);
     let help = String::from_utf8_lossy(&out.stdout);
-    for flag in [
-        "--case",
-        "--method",
-        "--dim",
-        "--n",
-        "--m",
-        "--eps",
-        "--kernel",
-        "--backend",
-        "--diffusivity",
-        "--problem",
-        "--source",
-        "--t-end",
-        "--dt",
-        "--cfl",
-        "--allow-unstable",
-        "--error-total",
-        "--threads",
-        "--ranks",
-        "--partition",
-        "--px",
-        "--py",
-        "--write-field",
-        "--diagnostics-every",
-        "--histogram-bins",
-        "--write-diagnostics",
-    ] {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let fields = Case::field_names();
+    assert!(fields.len() > 30, "{fields:?}");
+    for field in &fields {
+        let flag = format!("--{}", field.replace('_', "-"));
+        let named = help.match_indices(&flag).any(|(at, _)| {
+            !help[at + flag.len()..].starts_with(|c: char| c.is_alphanumeric() || c == '-')
+        });
+        assert!(named, "nlsolve --help lacks {flag}");
+        assert!(
+            readme.contains(&format!("| `{field}` |"))
+                || readme.contains(&format!("`{field}`, `"))
+                || readme.contains(&format!(", `{field}` |")),
+            "README's table of case fields lacks `{field}`"
+        );
+    }
+    for flag in ["--case", "--write-field", "--write-diagnostics"] {
         assert!(help.contains(flag), "help lacks {flag}");
     }
     // Every method the solver accepts (serde lists them when refusing an unknown one) is named
@@ -372,4 +364,29 @@ fn the_diagnostics_file_is_the_records_series_as_csv() {
         column("c_tot")
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The h the solver reports is the h `nlstudy` gives study expressions (`schema`'s
+/// `Method::grid_spacing`), for every method.
+#[test]
+fn every_method_reports_the_grid_spacing_of_the_schema() {
+    let cases = [
+        r#"{"method": "nonlocal", "dim": 1, "n": 24, "m": 2, "t_end": 0.001, "cfl": 0.5}"#,
+        r#"{"method": "fd_explicit", "problem": "eigenmode", "dim": 1, "n": 24, "length": 3, "t_end": 0.001, "cfl": 0.5}"#,
+        r#"{"method": "adi", "problem": "square", "dim": 2, "n": 24, "t_end": 0.001, "dt": 0.0005}"#,
+        r#"{"method": "pse", "problem": "eigenmode", "dim": 1, "n": 24, "m": 4, "length": 3, "t_end": 0.001, "cfl": 0.5}"#,
+        r#"{"method": "steady_cg", "dim": 2, "n": 16, "m": 2}"#,
+        r#"{"method": "feti", "dim": 2, "n": 16, "m": 2, "subdomains": 2}"#,
+    ];
+    for case in cases {
+        let out = nlsolve(&["run", "--case", "-"], Some(case));
+        assert!(
+            out.status.success(),
+            "{case}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let rec = record(&out);
+        let parsed = Case::parse(rec["case"].clone()).unwrap();
+        assert_eq!(rec["h"].as_f64(), Some(parsed.h()), "{case}");
+    }
 }

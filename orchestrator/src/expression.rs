@@ -5,6 +5,8 @@
 //! 64.0 unequal, so `1/n` or `n == 64` would silently give wrong points; here `1/n` is a
 //! fraction and `n == 64` holds for n = 64 however the file wrote it.
 
+use schema::case::DEFAULT_LENGTH;
+use schema::choices::Method;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 
@@ -41,16 +43,22 @@ impl Scope {
     }
 }
 
-/// h as the solver defines it: 1/n on D = [0, 1]^d (nonlocal), L/(n + 1) for the grid methods'
-/// interior nodes, L/n for PSE's particles.
+/// h as the solver defines it (`schema`'s `Method::grid_spacing`); none while the method is
+/// not one the solver knows (its check will say so).
 fn grid_spacing(fields: &Map<String, Value>) -> Option<f64> {
-    let n = fields.get("n")?.as_f64()?;
-    let length = fields.get("length").and_then(Value::as_f64).unwrap_or(2.0);
-    Some(match fields.get("method").and_then(Value::as_str) {
-        Some("fd_explicit") | Some("adi") => length / (n + 1.0),
-        Some("pse") => length / n,
-        _ => 1.0 / n,
-    })
+    let n = fields
+        .get("n")?
+        .as_f64()
+        .filter(|n| n.fract() == 0.0 && *n >= 1.0)?;
+    let method: Method = match fields.get("method") {
+        Some(name) => serde_json::from_value(name.clone()).ok()?,
+        None => Method::default(),
+    };
+    let length = fields
+        .get("length")
+        .and_then(Value::as_f64)
+        .unwrap_or(DEFAULT_LENGTH);
+    Some(method.grid_spacing(n as usize, length))
 }
 
 /// Evaluates a numeric expression; an integral result becomes a JSON integer.

@@ -2,9 +2,9 @@
 //! Parquet tables → SVG figures. Its modules, roughly lowest first (tests/architecture.rs
 //! checks that their imports have no cycle):
 //!
-//! - `record`, `expression`, `store`, `progress`, `draw`: the record fields nlstudy interprets
-//!   (status, timings), the study language, the record store, progress output, and SVG
-//!   drawing — no knowledge of studies;
+//! - `expression`, `store`, `progress`, `draw`: the study language, the record store, progress
+//!   output, and SVG drawing — no knowledge of studies (the record's status and timings and the
+//!   case's fields come from the `schema` crate, which `nlsolve` writes from);
 //! - `table`, `summary`: records as rows, and the per-point summary with speedups and orders;
 //! - `figure`, `pivot`: the figure kinds (one module each) and Markdown pivots over the summary;
 //! - `study`: a study file, expanded into points and cases, with its figures and resources;
@@ -24,7 +24,6 @@ pub mod plan;
 pub mod plot;
 pub mod pool;
 pub mod progress;
-pub mod record;
 pub mod solver;
 pub mod status;
 pub mod store;

@@ -1,9 +1,9 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
-use crate::record::Status;
 use crate::solver::Solver;
 use crate::store::{self, Store};
 use crate::study::{Point, Study, StudyError};
+use schema::record::Status;
 use serde_json::Value;
 use std::collections::HashSet;
 use std::fmt;

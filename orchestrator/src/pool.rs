@@ -3,9 +3,9 @@
 
 use crate::plan::Planned;
 use crate::progress::Progress;
-use crate::record::Status;
 use crate::solver::Solver;
 use crate::store::Store;
+use schema::record::Status;
 use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};

@@ -1,8 +1,8 @@
 //! Progress of a run: an indicatif bar on a terminal, one plain line per finished case
 //! otherwise (logs, CI), nothing with `--quiet`.
 
-use crate::record::Status;
 use indicatif::{ProgressBar, ProgressStyle};
+use schema::record::Status;
 use std::io::IsTerminal;
 
 pub enum Mode {

@@ -1,8 +1,8 @@
 //! `nlstudy status`: the stored records of a study counted by status, and the failures with the
 //! first line of their messages.
 
-use crate::record::Status;
 use crate::store::Store;
+use schema::record::Status;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 

@@ -13,9 +13,12 @@
 //!
 //! Derived values come only from points whose every repeat is `ok`.
 
-use crate::record::{Status, MIXED, TIMINGS};
 use crate::table::Row;
+use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
+
+/// The status of a summary row whose repeats ended differently.
+const MIXED: &str = "mixed";
 
 /// The errors whose observed orders are derived, and the order columns' names.
 const ORDERS: &[(&str, &str)] = &[("error_l2_norm", "order_l2"), ("error_max", "order_max")];

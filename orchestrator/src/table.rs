@@ -1,8 +1,8 @@
 //! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
 //! (booleans, integers, floats, else text; arrays are kept as JSON text).
 
-use crate::record::Status;
 use polars::prelude::*;
+use schema::record::Status;
 use serde_json::Value;
 use std::path::Path;
 

@@ -3,6 +3,7 @@
 use gauss_quad::legendre::GaussLegendre;
 use solver::case::Kernel;
 use solver::discretization::influence::scaling_constant;
+use solver::discretization::influence::Influence;
 use std::f64::consts::PI;
 
 /// M_i by composite Gauss–Legendre (64 panels × 20 points), independent of the closed forms.

@@ -234,12 +234,12 @@ fn auto_follows_the_cost_model() {
             };
             let (short, long) = (of(1), of(if dim == 1 { 400 } else { 32 }));
             assert_eq!(
-                Backend::Auto.resolve(&short),
+                solver::operator::resolve(Backend::Auto, &short),
                 Backend::Stencil,
                 "{dim}D n={n}, m=1"
             );
             assert_eq!(
-                Backend::Auto.resolve(&long),
+                solver::operator::resolve(Backend::Auto, &long),
                 Backend::Fft,
                 "{dim}D n={n}, long horizon"
             );
@@ -250,11 +250,11 @@ fn auto_follows_the_cost_model() {
                 } else {
                     Backend::Stencil
                 };
-                assert_eq!(Backend::Auto.resolve(&stencil), cheaper);
+                assert_eq!(solver::operator::resolve(Backend::Auto, &stencil), cheaper);
             }
             // Explicit choices are kept as they are.
             for backend in [Backend::Stencil, Backend::Fft, Backend::NeighbourList] {
-                assert_eq!(backend.resolve(&of(1)), backend);
+                assert_eq!(solver::operator::resolve(backend, &of(1)), backend);
             }
         }
     }

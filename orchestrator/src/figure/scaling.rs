@@ -2,8 +2,8 @@
 
 use super::series::*;
 use crate::draw::{self, Axis, Guide, Panel, Series};
-use crate::record::Status;
 use crate::table::Row;
+use schema::record::Status;
 use serde_json::Value;
 
 pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {

@@ -1,8 +1,8 @@
 //! Rows of the summary grouped into labelled series, and the words an axis shows for a column.
 
 use crate::draw::Series;
-use crate::record::Status;
 use crate::table::Row;
+use schema::record::Status;
 use serde_json::Value;
 
 /// How columns read on an axis.

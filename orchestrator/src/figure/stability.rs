@@ -2,7 +2,7 @@
 
 use super::series::*;
 use crate::draw::{Axis, Guide, Panel, Series};
-use crate::record::Status;
+use schema::record::Status;
 
 pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
     let lines: Vec<Series> = groups

@@ -7,18 +7,17 @@ use std::f64::consts::PI;
 /// erf(1), needed in closed form by the truncated Gaussian's even moments.
 const ERF_1: f64 = 0.842_700_792_949_714_9;
 
-impl Kernel {
-    pub const ALL: [Kernel; 4] = [
-        Kernel::Constant,
-        Kernel::Linear,
-        Kernel::Gaussian,
-        Kernel::InverseDistance,
-    ];
+/// What a kernel choice means: its influence function and moments.
+pub trait Influence {
+    fn influence(self, r: f64) -> f64;
+    fn moment(self, i: u32) -> f64;
+}
 
+impl Influence for Kernel {
     /// J(r) for 0 < r ≤ 1. Membership in the ball is the caller's decision, so that a bond at
     /// distance ε up to round-off is weighted by its formula rather than cut to zero.
     #[inline]
-    pub fn influence(self, r: f64) -> f64 {
+    fn influence(self, r: f64) -> f64 {
         match self {
             Kernel::Constant => 1.0,
             Kernel::Linear => 1.0 - r,
@@ -31,7 +30,7 @@ impl Kernel {
     ///
     /// Truncated Gaussian: with G_i = ∫₀¹ e^{−r²} rⁱ dr, integration by parts gives
     /// G_i = ((i − 1)/2) G_{i−2} − e^{−1}/2, from G_0 = (√π/2) erf(1) and G_1 = (1 − e^{−1})/2.
-    pub fn moment(self, i: u32) -> f64 {
+    fn moment(self, i: u32) -> f64 {
         let fi = f64::from(i);
         match self {
             Kernel::Constant => 1.0 / (fi + 1.0),

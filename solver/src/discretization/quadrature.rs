@@ -26,6 +26,7 @@
 
 use crate::case::{Kernel, Quadrature};
 use crate::discretization::grid::{Grid, Horizon};
+use crate::discretization::influence::Influence;
 use std::f64::consts::PI;
 
 /// J of a bond at distance r·ε: cells cut by the sphere may have their node just outside the

@@ -17,6 +17,7 @@ pub mod nonlocal;
 pub mod pse;
 pub mod steady;
 
+use crate::case::Rules;
 use crate::case::{Case, CaseError, Method, ValidCase};
 use crate::discretization::stencil::Stencil;
 use crate::output::outcome::Outcome;

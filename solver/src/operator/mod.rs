@@ -21,13 +21,11 @@ pub use stencil::StencilOperator;
 use crate::case::Backend;
 use crate::discretization::stencil::Stencil;
 
-impl Backend {
-    /// The backend that runs: `Auto` made concrete by the cost model, the others as they are.
-    pub fn resolve(self, stencil: &Stencil) -> Backend {
-        match self {
-            Backend::Auto => choose(stencil),
-            concrete => concrete,
-        }
+/// The backend that runs: `Auto` made concrete by the cost model, the others as they are.
+pub fn resolve(backend: Backend, stencil: &Stencil) -> Backend {
+    match backend {
+        Backend::Auto => choose(stencil),
+        concrete => concrete,
     }
 }
 
@@ -48,7 +46,7 @@ pub enum PlannedWorkspace {
 /// Plans the operator of `backend` (`Auto` resolved first) for the case whose grid, horizon,
 /// kernel and weights `stencil` holds.
 pub fn plan(backend: Backend, stencil: &Stencil) -> Planned {
-    match backend.resolve(stencil) {
+    match resolve(backend, stencil) {
         Backend::Auto => unreachable!("resolve makes the backend concrete"),
         Backend::Stencil => Planned::Stencil(StencilOperator::new(stencil)),
         Backend::Fft => Planned::Fft(FftOperator::new(stencil)),

@@ -6,13 +6,7 @@ use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::FieldSnapshot;
 use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    Ok,
-    Diverged,
-    Failed,
-}
+pub use schema::record::Status;
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Record {

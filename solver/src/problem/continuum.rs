@@ -17,6 +17,7 @@
 
 use crate::case::Kernel;
 use crate::discretization::grid::{Grid, Horizon};
+use crate::discretization::influence::Influence;
 use crate::problem::{profile, WAVENUMBER};
 use gauss_quad::legendre::GaussLegendre;
 use rayon::prelude::*;

@@ -118,7 +118,7 @@ impl Plan {
         let backend = if case.ranks > 1 {
             Backend::Stencil
         } else {
-            case.backend.resolve(&stencil)
+            operator::resolve(case.backend, &stencil)
         };
         Ok(Plan {
             stencil,

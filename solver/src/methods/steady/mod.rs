@@ -35,6 +35,7 @@ pub mod distributed;
 pub mod feti;
 pub mod problem;
 
+use crate::case::Rules;
 use crate::case::ValidCase;
 use crate::case::{
     positive, refuse_given, Backend, Case, CaseError, Collar, Kernel, Method, Partition, Problem,
@@ -183,7 +184,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         return Ok(outcome.expect("the only rank gets the outcome"));
     }
     pool.install(|| {
-        let backend = case.backend.resolve(&problem.stencil);
+        let backend = operator::resolve(case.backend, &problem.stencil);
         let operator = operator::plan(backend, &problem.stencil);
         let mut workspace = operator.workspace();
         let b = problem.loads();

@@ -4,6 +4,7 @@
 use crate::case::ValidCase;
 use crate::case::{Backend, Case, Kernel, Quadrature};
 use crate::discretization::grid::{Grid, Horizon};
+use crate::discretization::influence::Influence;
 use crate::discretization::stencil::Stencil;
 use crate::linalg::cg;
 use crate::operator::{self, LinearOperator};

@@ -1,8 +1,8 @@
 //! The choices a case makes: one enum per field with named values, serialised in snake_case.
 //!
-//! They are plain data here, at the bottom of the crate, so that every layer can read a case;
-//! what a choice means numerically lives with the numerics (`impl Kernel` in
-//! `discretization::influence`, `impl Backend` in `operator`, …).
+//! They are plain data here, shared by the solver and the orchestrator; what a choice means
+//! numerically lives with the solver's numerics (`impl Kernel` in `discretization::influence`,
+//! `impl Backend` in `operator`, …).
 
 use serde::{Deserialize, Serialize};
 
@@ -27,6 +27,17 @@ pub enum Method {
 }
 
 impl Method {
+    /// h, the spacing of the method's nodes: 1/n on D = [0, 1]^d (the nonlocal and steady
+    /// methods, nodes at cell centres), L/(n + 1) for the grid methods' interior nodes of
+    /// (−L/2, L/2)^d, L/n for PSE's particles. Study files' `h` is this value.
+    pub fn grid_spacing(self, n: usize, length: f64) -> f64 {
+        match self {
+            Method::FdExplicit | Method::Adi => length / (n + 1) as f64,
+            Method::Pse => length / n as f64,
+            Method::Nonlocal | Method::SteadyCg | Method::Feti => 1.0 / n as f64,
+        }
+    }
+
     /// Does the method solve the local equation ∂c/∂t = D∇²c on (−L/2, L/2)^d?
     pub fn is_local(self) -> bool {
         matches!(self, Method::FdExplicit | Method::Adi | Method::Pse)
@@ -104,6 +115,15 @@ pub enum Kernel {
     Gaussian,
     /// J = 1/r: singular at the origin, integrable in the moments used by c (seed 001's kernel).
     InverseDistance,
+}
+
+impl Kernel {
+    pub const ALL: [Kernel; 4] = [
+        Kernel::Constant,
+        Kernel::Linear,
+        Kernel::Gaussian,
+        Kernel::InverseDistance,
+    ];
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -1,0 +1,274 @@
+//! The case: every field that determines a run's result, its defaults, and the error that names a
+//! bad field.
+//!
+//! A case is read from JSON with unknown fields refused, so a misspelt field is an error rather
+//! than a silently ignored setting. What values a field may take is the solver's business (its
+//! `methods::validate`); this module only says what the fields are, so that `nlsolve` and
+//! `nlstudy` read the same case.
+
+use crate::choices::*;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Seed 001's relative tolerance for the steady solvers.
+pub const DEFAULT_RTOL: f64 = 1e-5;
+
+/// Default iteration limit of a steady solve: far beyond the L/m that CG needs.
+pub const MAX_ITERATIONS: usize = 100_000;
+
+/// Default side L of the local methods' domain (seed 004's).
+pub const DEFAULT_LENGTH: f64 = 2.0;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    #[serde(default)]
+    pub method: Method,
+    /// Dimension d of D = [0,1]^d: 1 or 2.
+    pub dim: usize,
+    /// Nodes per side; h = 1/n.
+    pub n: usize,
+    /// Horizon in cells, ε = m·h (for `pse`, the kernel width in particle spacings). Give `m`
+    /// or `eps`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub m: Option<usize>,
+    /// Horizon as a length; then m = ⌈ε/h⌉ (for `pse`, ε itself).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eps: Option<f64>,
+    #[serde(default = "default_kernel")]
+    pub kernel: Kernel,
+    /// The nonlocal operator's quadrature: `midpoint` (seed 000), `partial_volume` or `ac`.
+    /// Left out of the case's JSON when `midpoint`, so keys of earlier runs stay valid.
+    #[serde(default, skip_serializing_if = "Quadrature::is_midpoint")]
+    pub quadrature: Quadrature,
+    #[serde(default)]
+    pub backend: Backend,
+    /// k of the local limit kΔ (eq. 1.4).
+    #[serde(default = "one")]
+    pub diffusivity: f64,
+    #[serde(default)]
+    pub problem: Problem,
+    /// The collar's values: `zero` (eq. 2.2) or `exact` (the manufactured solution continued,
+    /// a nonhomogeneous volume constraint). Left out of the case's JSON when `zero`.
+    #[serde(default, skip_serializing_if = "Collar::is_zero")]
+    pub collar: Collar,
+    /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourceMode>,
+    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in seed 004).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<f64>,
+    /// Final time T (time-dependent methods).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_end: Option<f64>,
+    /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt: Option<f64>,
+    /// Time step as a fraction of dt_stable (for the implicit integrators, of forward Euler's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cfl: Option<f64>,
+    /// The nonlocal method's time integrator. Left out of the case's JSON when `forward_euler`,
+    /// so keys of earlier runs stay valid.
+    #[serde(default, skip_serializing_if = "Integrator::is_forward_euler")]
+    pub integrator: Integrator,
+    /// Accept a dt above dt_stable (stability studies); the run may end `diverged`.
+    #[serde(default)]
+    pub allow_unstable: bool,
+    /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
+    #[serde(default)]
+    pub error_total: bool,
+    /// Time between samples of c_tot(t) = h^d Σ c (seed 004's diagnostics.dat), rounded to whole
+    /// steps; the series goes into the record. Absent: no series.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnostics_every: Option<f64>,
+    /// Bins of a histogram of the final field's values over [min, max] (seed 004's
+    /// compute_histogram). Absent: no histogram.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub histogram_bins: Option<usize>,
+    /// Blocks per side of a coarse copy of the final field (and of its error, when the problem
+    /// has an exact solution) put into the record for heat maps: block means, at most 256.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field_snapshot: Option<usize>,
+    /// Time between frames of the field kept for `nlsolve run --write-vtk DIR` (t = 0, each
+    /// output time, the end). Absent: --write-vtk writes the final field only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vtk_every: Option<f64>,
+    /// Threads of the rayon pool that runs the case (on each rank).
+    #[serde(default = "one_thread")]
+    pub threads: usize,
+    /// MPI ranks: the run must be started by `mpirun -n ranks`.
+    #[serde(default = "one_thread")]
+    pub ranks: usize,
+    /// How the grid is divided among ranks.
+    #[serde(default)]
+    pub partition: Partition,
+    /// Blocks along x of a `block` partition; chosen to minimise the halo when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub px: Option<usize>,
+    /// Blocks along y of a `block` partition (2D).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub py: Option<usize>,
+    /// Relative tolerance of the iteration: steady methods (default 1e-5, seed 001's) and the
+    /// implicit integrators' solves (default: tied to the time error, see `integrate::theta`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rtol: Option<f64>,
+    /// Most iterations before a solve stops as not converged (steady default 100000; implicit
+    /// integrators 1000 per step).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_iterations: Option<usize>,
+    /// `feti`: subdomains per side, p (p × p in all; p² may exceed the ranks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subdomains: Option<usize>,
+    /// `feti`: the preconditioner (default `dirichlet`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preconditioner: Option<FetiPreconditioner>,
+}
+
+fn default_kernel() -> Kernel {
+    Kernel::Constant
+}
+fn one() -> f64 {
+    1.0
+}
+fn one_thread() -> usize {
+    1
+}
+
+/// Bad input: the field at fault and one sentence saying what is wrong and how to fix it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseError {
+    pub field: String,
+    pub message: String,
+}
+
+impl CaseError {
+    pub fn new(field: &str, message: impl Into<String>) -> Self {
+        CaseError {
+            field: field.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for CaseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "case field `{}`: {}", self.field, self.message)
+    }
+}
+
+impl std::error::Error for CaseError {}
+
+impl Case {
+    /// Parses a case from JSON, naming the offending field on any error. The fields' values are
+    /// not checked yet: the solver's `ValidCase::from_json` parses and validates.
+    pub fn parse(value: serde_json::Value) -> Result<Case, CaseError> {
+        let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            // serde reports an unknown or missing field at the parent; name the field itself.
+            let field = field_named_in(&inner).unwrap_or(path);
+            CaseError::new(
+                &field,
+                format!("{inner}; see `nlsolve run --help` for the fields"),
+            )
+        })?;
+        Ok(case)
+    }
+
+    /// The names of every field, in the order of the struct: read from serde's refusal of an
+    /// unknown field, which lists them, so the list cannot drift from the struct.
+    pub fn field_names() -> Vec<String> {
+        let refusal = serde_json::from_value::<Case>(serde_json::json!({ "": 0 }))
+            .expect_err("an empty field name is unknown")
+            .to_string();
+        let expected = refusal.split("expected one of ").nth(1).unwrap_or_default();
+        expected
+            .split('`')
+            .skip(1)
+            .step_by(2)
+            .map(String::from)
+            .collect()
+    }
+
+    /// L of the local methods' domain.
+    pub fn length(&self) -> f64 {
+        self.length.unwrap_or(DEFAULT_LENGTH)
+    }
+
+    /// T, 0 for the steady methods.
+    pub fn t_end(&self) -> f64 {
+        self.t_end.unwrap_or(0.0)
+    }
+
+    /// The steady methods' relative tolerance.
+    pub fn rtol(&self) -> f64 {
+        self.rtol.unwrap_or(DEFAULT_RTOL)
+    }
+
+    /// The steady methods' iteration limit.
+    pub fn max_iterations(&self) -> usize {
+        self.max_iterations.unwrap_or(MAX_ITERATIONS)
+    }
+
+    pub fn preconditioner(&self) -> FetiPreconditioner {
+        self.preconditioner.unwrap_or_default()
+    }
+
+    pub fn source(&self) -> SourceMode {
+        self.source.unwrap_or(self.problem.default_source())
+    }
+
+    /// The case's grid spacing h (see `Method::grid_spacing`).
+    pub fn h(&self) -> f64 {
+        self.method.grid_spacing(self.n, self.length())
+    }
+}
+
+/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
+fn field_named_in(message: &str) -> Option<String> {
+    ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|prefix| {
+            let rest = message.strip_prefix(prefix)?;
+            Some(rest[..rest.find('`')?].to_string())
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_field_names_are_the_structs() {
+        let names = Case::field_names();
+        assert_eq!(names.first().map(String::as_str), Some("method"));
+        assert_eq!(names.last().map(String::as_str), Some("preconditioner"));
+        for name in [
+            "dim",
+            "n",
+            "eps",
+            "integrator",
+            "threads",
+            "ranks",
+            "subdomains",
+        ] {
+            assert!(
+                names.iter().any(|f| f == name),
+                "{name} missing from {names:?}"
+            );
+        }
+        assert_eq!(names.len(), 32, "{names:?}");
+    }
+
+    #[test]
+    fn h_is_each_methods_node_spacing() {
+        let case = |method: &str, length: f64| {
+            Case::parse(serde_json::json!({"method": method, "dim": 1, "n": 7, "length": length}))
+                .unwrap()
+        };
+        assert_eq!(case("nonlocal", 2.0).h(), 1.0 / 7.0);
+        assert_eq!(case("feti", 2.0).h(), 1.0 / 7.0);
+        assert_eq!(case("adi", 4.0).h(), 0.5);
+        assert_eq!(case("pse", 3.5).h(), 0.5);
+    }
+}

@@ -1,0 +1,8 @@
+//! The contract between the solver (`nlsolve`) and the orchestrator (`nlstudy`): the case's
+//! fields and choices, the grid spacing h each method defines, and a record's status and timings.
+//! Plain serde data, so that the orchestrator reads what the solver writes without linking the
+//! numerics.
+
+pub mod case;
+pub mod choices;
+pub mod record;
