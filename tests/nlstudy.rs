@@ -1,78 +1,11 @@
 //! `nlstudy` as a process: make-style runs, failures stored and re-run on request, a changed
 //! solver version explained, and an interrupted run resumed with nothing lost or duplicated.
 
-use nonlocal_study::binary;
+use nonlocal_study::{binary, records, text, Scratch};
 use polars::prelude::{DataFrame, DataType, ParquetReader, SerReader};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-/// A scratch directory with a study file; removed when dropped.
-struct Scratch {
-    dir: PathBuf,
-}
-
-impl Scratch {
-    fn new(name: &str, study: &Value) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("nlstudy-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("scratch directory");
-        let scratch = Scratch { dir };
-        scratch.write_study(study);
-        scratch
-    }
-
-    fn write_study(&self, study: &Value) {
-        std::fs::write(self.study(), study.to_string()).expect("study file");
-    }
-
-    fn study(&self) -> PathBuf {
-        self.dir.join("study.json")
-    }
-
-    fn runs(&self, name: &str) -> PathBuf {
-        self.dir.join("results").join(name).join("runs")
-    }
-
-    /// `nlstudy <verb> study.json --results <scratch>/results <extra…>`.
-    fn nlstudy(&self, verb: &str, extra: &[&str]) -> Output {
-        Command::new(binary("nlstudy"))
-            .arg(verb)
-            .arg(self.study())
-            .arg("--results")
-            .arg(self.dir.join("results"))
-            .args(extra)
-            .output()
-            .expect("nlstudy starts")
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
-fn text(output: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    )
-}
-
-/// The stored records, by file name.
-fn records(runs: &Path) -> Vec<Value> {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
-        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
-        .unwrap_or_default();
-    paths.retain(|p| p.extension().is_some_and(|x| x == "json"));
-    paths.sort();
-    paths
-        .iter()
-        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("whole JSON"))
-        .collect()
-}
+use std::process::Command;
 
 fn small_study(sizes: &[u64]) -> Value {
     json!({

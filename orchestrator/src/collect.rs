@@ -80,6 +80,9 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, 
         return Ok(None);
     }
     let summary_rows = summary::summarize(&rows);
+    let _outputs = store
+        .lock_outputs()
+        .map_err(|e| format!("cannot lock the tables of {}: {e}", store.study))?;
     let runs = store.table(&format!("{}.parquet", store.study));
     let summary = store.table(&format!("{}-summary.parquet", store.study));
     let mut frames = table::write_parquet(&[(&runs, &rows), (&summary, &summary_rows)])?;

@@ -176,7 +176,11 @@ fn planned(
     let study = Study::read(&args.study).map_err(|e| e.to_string())?;
     let solver = Solver::locate(args.solver.as_deref())?;
     let store = Store::open(&args.results, &study.name);
-    let planned = crate::plan::plan(&study, &solver, &store, options).map_err(|e| e.to_string())?;
+    let index = store.index();
+    for unreadable in &index.unreadable {
+        eprintln!("nlstudy: warning: {unreadable}");
+    }
+    let planned = crate::plan::plan(&study, &solver, &index, options).map_err(|e| e.to_string())?;
     Ok((study, solver, store, planned))
 }
 
@@ -231,8 +235,12 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         .map_err(|e| format!("cannot run the study: {e}"))?;
     progress.close();
     if !args.quiet {
+        let passed = match tally.passed {
+            0 => String::new(),
+            n => format!(", {n} run by another nlstudy"),
+        };
         eprintln!(
-            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored",
+            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored{passed}",
             study.name,
             tally.ok + tally.diverged + tally.failed,
             tally.ok,

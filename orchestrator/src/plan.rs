@@ -1,7 +1,7 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
 use crate::solver::Solver;
-use crate::store::{self, Store};
+use crate::store::{self, Index};
 use crate::study::{Point, Study, StudyError};
 use schema::record::Status;
 use serde_json::Value;
@@ -63,18 +63,17 @@ impl fmt::Display for Reason {
     }
 }
 
-/// Plans every point of `study` against `store`.
+/// Plans every point of `study` against what the store holds (`index`).
 pub fn plan(
     study: &Study,
     solver: &Solver,
-    store: &Store,
+    index: &Index,
     options: &Options,
 ) -> Result<Vec<Planned>, StudyError> {
     let points = study.expand()?;
     let cases = solver
         .check(&points)
         .map_err(|e| StudyError::new("solver", e))?;
-    let index = store.index();
     Ok(points
         .into_iter()
         .zip(cases)
@@ -97,10 +96,8 @@ pub fn plan(
                     }
                     _ => Decision::Run(Reason::Missing),
                 },
-                Some(status) if status == Status::Failed.as_str() && options.rerun_failed => {
-                    Decision::Run(Reason::FailedBefore)
-                }
-                Some(status) => Decision::Skip(status.clone()),
+                Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
+                Some(status) => Decision::Skip(status.to_string()),
             };
             Planned {
                 point,

@@ -17,6 +17,9 @@ pub struct Drawn {
 
 /// Draws the figures whose stamps are stale; the summary table must exist.
 pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Drawn>, String> {
+    let _outputs = store
+        .lock_outputs()
+        .map_err(|e| format!("cannot lock the figures of {}: {e}", store.study))?;
     let table_path = store.table(&format!("{}-summary.parquet", store.study));
     let table = std::fs::read(&table_path).map_err(|e| {
         format!(

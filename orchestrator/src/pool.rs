@@ -1,12 +1,19 @@
 //! The worker pool: `nlsolve` processes within a core budget, MPI cases through a launcher, a
 //! timeout per case, failures stored with the tail of stderr, and a clean stop on Ctrl-C.
+//!
+//! Each case runs under its key's lock in the store, so processes sharing a store never run a
+//! point at the same time; a point another process holds, or has stored meanwhile, is passed.
+//! A solver process dies with this one (its parent-death signal), so a killed `nlstudy` leaves
+//! no case running unowned.
 
-use crate::plan::Planned;
+use crate::plan::{Decision, Planned, Reason};
 use crate::progress::Progress;
 use crate::solver::Solver;
 use crate::store::Store;
 use schema::record::Status;
 use serde_json::{json, Value};
+use std::fs::File;
+use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -34,6 +41,8 @@ pub struct Tally {
     pub ok: usize,
     pub diverged: usize,
     pub failed: usize,
+    /// Planned cases another process ran, or was running, meanwhile.
+    pub passed: usize,
     pub interrupted: bool,
 }
 
@@ -45,6 +54,8 @@ struct Running {
     stdout: PathBuf,
     stderr: PathBuf,
     case_file: PathBuf,
+    /// The key's lock in the store, held until the record is stored.
+    _lock: File,
 }
 
 /// Runs the planned points that run; stores each record as it finishes.
@@ -85,14 +96,28 @@ pub fn run(
                 break;
             }
             queue.pop();
+            let Some(lock) = store.lock(&planned.key)? else {
+                progress.passed(&planned.point.label(), "another nlstudy is running it");
+                tally.passed += 1;
+                continue;
+            };
+            let forced = planned.decision == Decision::Run(Reason::Forced);
+            if let Some(status) = store.status(&planned.key).filter(|s| *s != Status::Failed) {
+                if !forced {
+                    let why = format!("another nlstudy has stored it meanwhile ({status})");
+                    progress.passed(&planned.point.label(), &why);
+                    tally.passed += 1;
+                    continue;
+                }
+            }
             match &planned.case {
                 Err(message) => {
                     let record = failed_record(planned, solver, message.clone());
                     finish(store, planned, record, &mut tally, progress)?;
                 }
-                Ok(case) => {
-                    running.push(start(next, case, planned, solver, store, options, cores)?)
-                }
+                Ok(case) => running.push(start(
+                    next, case, planned, solver, store, options, cores, lock,
+                )?),
             }
         }
         if running.is_empty() && queue.is_empty() {
@@ -166,6 +191,7 @@ fn start(
     store: &Store,
     options: &PoolOptions,
     cores: usize,
+    lock: File,
 ) -> std::io::Result<Running> {
     let work = store.work_dir();
     let case_file = work.join(format!("{}.case.json", planned.key));
@@ -194,8 +220,18 @@ fn start(
     }
     command
         .stdin(Stdio::null())
-        .stdout(std::fs::File::create(&stdout)?)
-        .stderr(std::fs::File::create(&stderr)?);
+        .stdout(File::create(&stdout)?)
+        .stderr(File::create(&stderr)?);
+    // SAFETY: prctl is async-signal-safe and touches no memory of the parent.
+    unsafe {
+        command.pre_exec(|| {
+            // The case dies with this process (SIGKILL included), not run on unowned.
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == -1 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
     let child = command.spawn()?;
     Ok(Running {
         index,
@@ -205,6 +241,7 @@ fn start(
         stdout,
         stderr,
         case_file,
+        _lock: lock,
     })
 }
 
@@ -279,14 +316,20 @@ fn finish(
     progress: &mut Progress,
 ) -> std::io::Result<()> {
     let status = Status::of(&record).unwrap_or(Status::Failed);
-    store.save(&planned.key, &record)?;
+    let mut message = record
+        .get("message")
+        .and_then(Value::as_str)
+        .unwrap_or("")
+        .to_string();
+    if !store.save(&planned.key, &record)? {
+        message.push_str("; the stored result of an earlier run is kept");
+    }
     match status {
         Status::Ok => tally.ok += 1,
         Status::Diverged => tally.diverged += 1,
         Status::Failed => tally.failed += 1,
     }
-    let message = record.get("message").and_then(Value::as_str).unwrap_or("");
-    progress.finished(&planned.point.label(), status, message);
+    progress.finished(&planned.point.label(), status, &message);
     Ok(())
 }
 

@@ -79,6 +79,22 @@ impl Progress {
         }
     }
 
+    /// A planned case that this process did not run: another one runs it or just ran it.
+    pub fn passed(&mut self, label: &str, why: &str) {
+        self.done += 1;
+        self.skipped += 1;
+        match self.mode {
+            Mode::Bar => {
+                let bar = self.bar.as_ref().expect("bar mode has a bar");
+                bar.println(format!("skipped: {label}: {why}"));
+                bar.inc(1);
+                self.update_message();
+            }
+            Mode::Lines => eprintln!("[{}/{}] skipped {label}: {why}", self.done, self.total),
+            Mode::Quiet => {}
+        }
+    }
+
     fn update_message(&mut self) {
         if let Some(bar) = &self.bar {
             bar.set_message(format!(

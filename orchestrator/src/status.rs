@@ -1,5 +1,5 @@
-//! `nlstudy status`: the stored records of a study counted by status, and the failures with the
-//! first line of their messages.
+//! `nlstudy status`: the stored records of a study counted by status, the failures with the
+//! first line of their messages, and the files of the store that are not whole records.
 
 use crate::store::Store;
 use schema::record::Status;
@@ -8,7 +8,8 @@ use std::fmt::Write as _;
 
 /// The report, one line of counts and one line per failed run.
 pub fn report(study: &str, store: &Store) -> String {
-    let records = store.records();
+    let scan = store.scan();
+    let records = scan.records;
     let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
     for record in &records {
         let status = record["status"].as_str().unwrap_or("unknown");
@@ -38,6 +39,9 @@ pub fn report(study: &str, store: &Store) -> String {
             record["key"].as_str().unwrap_or("?"),
             message.lines().next().unwrap_or("")
         );
+    }
+    for unreadable in &scan.unreadable {
+        let _ = writeln!(out, "unreadable: {unreadable}");
     }
     out
 }

@@ -1,9 +1,16 @@
 //! The record store of a study, `results/<study>/runs/<key>.json`: one file per run, written
 //! through a temporary file and a rename, so that a file is either whole or absent.
+//!
+//! Several `nlstudy` processes may share a store (two terminals, a workstation and a cluster
+//! job): a point runs only under its key's lock (`runs/.work/<key>.lock`, an advisory file lock
+//! the kernel drops when its holder exits, however it exits), a `failed` record never replaces a
+//! result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
+use schema::record::Status;
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
+use std::fs::{File, TryLockError};
 use std::io;
 use std::path::{Path, PathBuf};
 
@@ -82,38 +89,127 @@ impl Store {
         self.runs.join(".work")
     }
 
-    pub fn save(&self, key: &str, record: &Value) -> io::Result<()> {
+    /// Stores `record` as the record of `key`, unless it is `failed` and the stored one is a
+    /// result (`ok`, `diverged`): a run's fault does not erase what an earlier run computed.
+    /// Returns whether it was stored. Call it holding the key's lock.
+    pub fn save(&self, key: &str, record: &Value) -> io::Result<bool> {
+        let failed = Status::of(record).is_none_or(|s| s == Status::Failed);
+        if failed && self.status(key).is_some_and(|s| s != Status::Failed) {
+            return Ok(false);
+        }
         std::fs::create_dir_all(&self.runs)?;
-        write_atomically(&self.path(key), format!("{record}\n").as_bytes())
+        write_atomically(&self.path(key), format!("{record}\n").as_bytes())?;
+        Ok(true)
     }
 
-    /// Every stored record.
-    pub fn records(&self) -> Vec<Value> {
+    /// The status of the stored record of `key`, read now; `None` when absent or not whole.
+    pub fn status(&self, key: &str) -> Option<Status> {
+        let path = self.path(key);
+        let record = read_record(&path, &std::fs::read_to_string(&path).ok()?).ok()?;
+        Status::of(&record)
+    }
+
+    /// Takes the lock of `key` for this process: `None` when another process holds it (that
+    /// process is running the point). Taking it clears what an earlier holder killed midway
+    /// left behind: its scratch files and its partly written record.
+    pub fn lock(&self, key: &str) -> io::Result<Option<File>> {
+        let work = self.work_dir();
+        std::fs::create_dir_all(&work)?;
+        let file = File::options()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(work.join(format!("{key}.lock")))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(TryLockError::WouldBlock) => return Ok(None),
+            Err(TryLockError::Error(e)) => return Err(e),
+        }
+        let leftover = |dir: &Path, prefix: &str| -> Vec<PathBuf> {
+            let Ok(entries) = std::fs::read_dir(dir) else {
+                return Vec::new();
+            };
+            entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| {
+                    let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+                    name.is_some_and(|n| n.starts_with(prefix) && !n.ends_with(".lock"))
+                })
+                .collect()
+        };
+        let mut stale = leftover(&work, &format!("{key}."));
+        stale.extend(leftover(&self.runs, &format!(".{key}.json.")));
+        for path in stale {
+            let _ = std::fs::remove_file(path);
+        }
+        Ok(Some(file))
+    }
+
+    /// Takes the lock of the study's tables and figures, waiting while another process writes
+    /// them, and clears the partial files a writer killed midway left behind.
+    pub fn lock_outputs(&self) -> io::Result<File> {
+        let study = self.runs.parent().unwrap_or(Path::new(".")).to_path_buf();
+        std::fs::create_dir_all(&study)?;
+        let file = File::options()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(study.join(".outputs.lock"))?;
+        file.lock()?;
+        for dir in [study.clone(), self.table("figures")] {
+            let Ok(entries) = std::fs::read_dir(&dir) else {
+                continue;
+            };
+            for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
+                let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+                if name.is_some_and(|n| n.starts_with('.') && n.ends_with(".partial")) {
+                    let _ = std::fs::remove_file(path);
+                }
+            }
+        }
+        Ok(file)
+    }
+
+    /// Every stored record, and the files of the store that are not whole records.
+    pub fn scan(&self) -> Scan {
+        let mut scan = Scan::default();
         let Ok(entries) = std::fs::read_dir(&self.runs) else {
-            return Vec::new();
+            return scan;
         };
         let mut paths: Vec<PathBuf> = entries
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "json"))
             .filter(|p| {
                 !p.file_name()
                     .is_some_and(|n| n.to_string_lossy().starts_with('.'))
             })
             .collect();
         paths.sort();
-        paths
-            .iter()
-            .filter_map(|p| serde_json::from_str(&std::fs::read_to_string(p).ok()?).ok())
-            .collect()
+        for path in paths {
+            let read = std::fs::read_to_string(&path).map_err(|e| e.to_string());
+            match read.and_then(|text| read_record(&path, &text)) {
+                Ok(record) => scan.records.push(record),
+                Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
+            }
+        }
+        scan
+    }
+
+    /// Every stored record.
+    pub fn records(&self) -> Vec<Value> {
+        self.scan().records
     }
 
     /// What the stored records say, read once: the status of each key and the solver version
-    /// each case id was run with. An unreadable file counts as absent (it is rewritten).
+    /// each case id was run with. An unreadable file counts as absent (its point runs again).
     pub fn index(&self) -> Index {
-        let mut index = Index::default();
-        for record in self.records() {
+        let scan = self.scan();
+        let mut index = Index {
+            unreadable: scan.unreadable,
+            ..Index::default()
+        };
+        for record in scan.records {
             let text = |field: &str| record.get(field)?.as_str().map(str::to_string);
-            if let (Some(key), Some(status)) = (text("key"), text("status")) {
+            if let (Some(key), Some(status)) = (text("key"), Status::of(&record)) {
                 index.status.insert(key, status);
             }
             if let (Some(id), Some(version)) = (text("case_id"), text("solver_version")) {
@@ -124,8 +220,94 @@ impl Store {
     }
 }
 
+/// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and
+/// whose `status` is one the schema knows. Anything else is named in the error.
+fn read_record(path: &Path, text: &str) -> Result<Value, String> {
+    if path.extension().is_none_or(|x| x != "json") {
+        return Err("not a record (records are <key>.json)".into());
+    }
+    let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+    if record.get("key").and_then(Value::as_str) != stem.as_deref() {
+        return Err("its `key` is not its file name".into());
+    }
+    if Status::of(&record).is_none() {
+        return Err("it has no known `status`".into());
+    }
+    Ok(record)
+}
+
+/// A file of the store that is not a whole record: truncated, garbage, or not a record at all.
+#[derive(Clone, Debug)]
+pub struct Unreadable {
+    pub path: PathBuf,
+    pub problem: String,
+}
+
+impl std::fmt::Display for Unreadable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} is not a whole record ({}); its point counts as not run",
+            self.path.display(),
+            self.problem
+        )
+    }
+}
+
+#[derive(Default)]
+pub struct Scan {
+    pub records: Vec<Value>,
+    pub unreadable: Vec<Unreadable>,
+}
+
 #[derive(Default)]
 pub struct Index {
-    pub status: HashMap<String, String>,
+    pub status: HashMap<String, Status>,
     pub version_by_case: HashMap<String, String>,
+    pub unreadable: Vec<Unreadable>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn scratch(name: &str) -> Store {
+        let dir = std::env::temp_dir().join(format!("store-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        Store::open(&dir, "s")
+    }
+
+    #[test]
+    fn a_failed_record_never_replaces_a_result_but_a_result_replaces_a_failure() {
+        let store = scratch("replace");
+        let record = |status: &str| json!({"key": "k", "status": status, "message": status});
+        assert!(store.save("k", &record("failed")).unwrap());
+        assert!(store.save("k", &record("ok")).unwrap());
+        assert!(!store.save("k", &record("failed")).unwrap());
+        assert_eq!(store.status("k"), Some(Status::Ok));
+        assert!(
+            store.save("k", &record("diverged")).unwrap(),
+            "a result replaces a result"
+        );
+        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+    }
+
+    #[test]
+    fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
+        let store = scratch("lock");
+        std::fs::create_dir_all(store.work_dir()).unwrap();
+        let leftover = store.work_dir().join("k.out");
+        let partial = store.runs.join(".k.json.999.partial");
+        std::fs::write(&leftover, "half").unwrap();
+        std::fs::write(&partial, "{").unwrap();
+        let held = store.lock("k").unwrap().expect("free");
+        assert!(!leftover.exists() && !partial.exists());
+        assert!(store.lock("k").unwrap().is_none(), "a held key is refused");
+        assert!(store.lock("other").unwrap().is_some());
+        drop(held);
+        assert!(store.lock("k").unwrap().is_some(), "released with its file");
+        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+    }
 }

@@ -1,8 +1,9 @@
 //! Shared helpers of the end-to-end tests: locate the workspace's binaries and run them as a user
 //! or a cluster job would.
 
+use serde_json::Value;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
 /// The record's fields that describe the result (timings and provenance left out).
@@ -113,5 +114,87 @@ pub fn read_field(path: &std::path::Path) -> Vec<f64> {
         .unwrap_or_else(|e| panic!("cannot read field {}: {e}", path.display()))
         .chunks_exact(8)
         .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}
+
+/// A scratch directory with a study file; removed when dropped.
+pub struct Scratch {
+    pub dir: PathBuf,
+}
+
+impl Scratch {
+    pub fn new(name: &str, study: &Value) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("nlstudy-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch directory");
+        let scratch = Scratch { dir };
+        scratch.write_study(study);
+        scratch
+    }
+
+    pub fn write_study(&self, study: &Value) {
+        std::fs::write(self.study(), study.to_string()).expect("study file");
+    }
+
+    pub fn study(&self) -> PathBuf {
+        self.dir.join("study.json")
+    }
+
+    pub fn runs(&self, name: &str) -> PathBuf {
+        self.dir.join("results").join(name).join("runs")
+    }
+
+    /// `nlstudy <verb> study.json --results <scratch>/results <extra…>`.
+    pub fn nlstudy(&self, verb: &str, extra: &[&str]) -> Output {
+        Command::new(binary("nlstudy"))
+            .arg(verb)
+            .arg(self.study())
+            .arg("--results")
+            .arg(self.dir.join("results"))
+            .args(extra)
+            .output()
+            .expect("nlstudy starts")
+    }
+
+    /// `nlstudy <verb> …` started in the background, its output captured.
+    pub fn spawn(&self, verb: &str, extra: &[&str]) -> std::process::Child {
+        Command::new(binary("nlstudy"))
+            .arg(verb)
+            .arg(self.study())
+            .arg("--results")
+            .arg(self.dir.join("results"))
+            .args(extra)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("nlstudy starts")
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+pub fn text(output: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    )
+}
+
+/// The stored records, by file name.
+pub fn records(runs: &Path) -> Vec<Value> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    paths.retain(|p| p.extension().is_some_and(|x| x == "json"));
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("whole JSON"))
         .collect()
 }
