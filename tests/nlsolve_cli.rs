@@ -138,6 +138,32 @@ fn bad_input_exits_2_naming_the_field() {
         ),
         (r#"{"n": 16, "m": 2, "t_end": 0.1, "cfl": 0.5}"#, "dim"),
         ("{not json", "not valid JSON"),
+        (
+            r#"{"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "dim": 1}"#,
+            "the key `dim` is given twice",
+        ),
+        (
+            r#"{"method": "pse", "problem": "eigenmode", "dim": 1, "n": 8, "m": 2, "t_end": 0.01, "cfl": 0.5, "length": -2}"#,
+            "`length`",
+        ),
+        (
+            r#"{"dim": 2, "n": 8, "eps": 1e-300, "t_end": 0.01, "cfl": 0.5}"#,
+            "ε = 1e-300 is below h",
+        ),
+        (
+            r#"{"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "threads": 5000}"#,
+            "`threads`: must lie in 1 ..= 1024",
+        ),
+        // Over 4 threads per core on any machine of fewer than 250 cores: refused by `run`.
+        (
+            r#"{"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "threads": 1000}"#,
+            "at most 4 per core",
+        ),
+        // 3.6·10⁹ nodes: more than 100 GiB of fields, refused before any is allocated.
+        (
+            r#"{"dim": 2, "n": 60000, "m": 2, "t_end": 0.01, "cfl": 0.5}"#,
+            "`n`: the run needs at least",
+        ),
     ];
     for (case, field) in by_file {
         assert_refused(&["run", "--case", "-"], Some(case), field);

@@ -217,6 +217,8 @@ impl Study {
     }
 
     pub fn parse(text: &str) -> Result<Study, StudyError> {
+        // Typed fields refuse a repeated key themselves; maps such as `base` would keep the last.
+        schema::json::parse(text).map_err(|e| StudyError::new("file", e.to_string()))?;
         let mut deserializer = serde_json::Deserializer::from_str(text);
         let study: Study = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
             let path = e.path().to_string();
@@ -761,6 +763,14 @@ mod tests {
                 json!({"name": "s", "base": {}, "sweep": [{"path": {"kind": "fixed_m", "m": 2, "n": [0]}}]})
             ),
             "sweep[0].path.n"
+        );
+        // JSON text, not a Value: a key given twice in a map (`base`) would keep the last.
+        let twice = Study::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);
+        let error = twice.map(|_| ()).unwrap_err();
+        assert_eq!(error.place, "file");
+        assert!(
+            error.message.contains("the key `dim` is given twice"),
+            "{error}"
         );
     }
 }

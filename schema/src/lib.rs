@@ -5,4 +5,5 @@
 
 pub mod case;
 pub mod choices;
+pub mod json;
 pub mod record;

@@ -244,7 +244,7 @@ fn read_case_file(path: &PathBuf) -> Result<Map<String, Value>, BadInput> {
             ))
         })?
     };
-    match serde_json::from_str(&text) {
+    match schema::json::parse(&text) {
         Ok(Value::Object(fields)) => Ok(fields),
         Ok(_) => Err(BadInput(format!(
             "case file {name} must hold one JSON object of case fields"
@@ -488,7 +488,7 @@ fn check_cases() -> Result<(), BadInput> {
         if line.trim().is_empty() {
             continue;
         }
-        let verdict = match serde_json::from_str::<Value>(&line) {
+        let verdict = match schema::json::parse(&line) {
             Ok(fields) => match ValidCase::from_json(fields) {
                 Ok(case) => serde_json::json!({ "case": *case }),
                 Err(e) => serde_json::json!({ "error": e.to_string() }),

@@ -19,6 +19,21 @@ pub const MAX_EPS: f64 = 0.5;
 /// Most points per side of a record's field snapshot: 256² values keep a record near 10 MB.
 pub const MAX_SNAPSHOT_SIDE: usize = 256;
 
+/// Most threads a case may ask for, on any machine (`nlsolve run` also refuses more than
+/// `methods::resources::OVERSUBSCRIPTION` × this machine's cores).
+pub const MAX_THREADS: usize = 1024;
+
+/// A number as a message shows it: plain between 10⁻⁴ and 10⁶, else in scientific notation
+/// (so 1e-300 reads as `1e-300`, not as 300 digits).
+pub fn readable(x: f64) -> String {
+    let magnitude = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&magnitude) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// A case whose fields passed the rules of every case and of its method. Only
 /// `methods::validate` makes one (`ValidCase::new` and `ValidCase::from_json`, defined there,
 /// call it); it reads as a `Case`.
@@ -117,7 +132,10 @@ impl Rules for Case {
         match self.rtol {
             Some(rtol) if !(rtol > 0.0 && rtol < 1.0) => Err(CaseError::new(
                 "rtol",
-                format!("must lie in (0, 1) (got {rtol}); seed 001 uses 1e-5"),
+                format!(
+                    "must lie in (0, 1) (got {}); seed 001 uses 1e-5",
+                    readable(rtol)
+                ),
             )),
             _ => Ok(()),
         }
@@ -231,8 +249,14 @@ fn validate_time_and_threads(case: &Case) -> Result<(), CaseError> {
         (Some(dt), None) => positive("dt", dt)?,
         (None, Some(cfl)) => positive("cfl", cfl)?,
     }
-    if case.threads < 1 {
-        return Err(CaseError::new("threads", "must be at least 1 (got 0)"));
+    if !(1..=MAX_THREADS).contains(&case.threads) {
+        return Err(CaseError::new(
+            "threads",
+            format!(
+                "must lie in 1 ..= {MAX_THREADS} (got {}); a thread per core is the usual choice",
+                case.threads
+            ),
+        ));
     }
     case.validate_distribution()?;
     match (case.problem, case.source()) {
@@ -265,7 +289,7 @@ pub(crate) fn positive(field: &str, value: f64) -> Result<(), CaseError> {
     } else {
         Err(CaseError::new(
             field,
-            format!("must be a positive number (got {value})"),
+            format!("must be a positive number (got {})", readable(value)),
         ))
     }
 }

@@ -15,6 +15,7 @@
 pub mod local;
 pub mod nonlocal;
 pub mod pse;
+pub mod resources;
 pub mod steady;
 
 use crate::case::Rules;
@@ -64,6 +65,7 @@ fn check(case: &Case) -> Result<(), CaseError> {
 /// Runs `case` in this process, on a rayon pool of `case.threads` threads.
 pub fn run(case: &Case) -> Result<Outcome, CaseError> {
     let case = validate(case.clone())?;
+    resources::fit_machine(&case)?;
     if case.ranks > 1 {
         return Err(CaseError::new(
             "ranks",
@@ -94,6 +96,7 @@ fn in_pool(
 /// What a distributed run of `case` would exchange, found without running it.
 pub fn partition_report(case: &Case) -> Result<HaloReport, CaseError> {
     let case = validate(case.clone())?;
+    resources::fit_machine(&case)?;
     if case.method.is_local() {
         return Err(CaseError::new(
             "method",
@@ -111,6 +114,7 @@ pub fn run_on_ranks(
     gather_field: bool,
 ) -> Result<Option<Outcome>, CaseError> {
     let case = validate(case.clone())?;
+    resources::fit_machine(&case)?;
     if case.method.is_local() {
         return Err(CaseError::new(
             "method",

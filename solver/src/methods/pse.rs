@@ -33,7 +33,7 @@
 //! extension keeps the Dirichlet modes among these Fourier modes.
 
 use crate::case::ValidCase;
-use crate::case::{Case, CaseError};
+use crate::case::{readable, Case, CaseError};
 use crate::integrate::euler::ForwardEuler;
 use crate::integrate::stepper::integrate;
 use crate::integrate::time_step::{divergence_bound, time_step};
@@ -52,6 +52,8 @@ use std::time::Instant;
 /// PSE's rules: a kernel width of `m` particle spacings or a length `eps`, at most L/2, and
 /// those of every local method.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
+    // L first: the kernel width is judged against it.
+    local::validate_domain(case)?;
     let spacing = case.length() / case.n as f64;
     let (field, eps) = match (case.m, case.eps) {
         (Some(_), Some(_)) => return Err(CaseError::new(
@@ -72,11 +74,13 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             field,
             format!(
-                "gives ε = {eps}, outside (0, L/2 = {half}]; the kernel must be narrower than D"
+                "gives ε = {}, outside (0, L/2 = {}]; the kernel must be narrower than D",
+                readable(eps),
+                readable(half)
             ),
         ));
     }
-    local::validate_domain(case)
+    Ok(())
 }
 
 /// ln(1e16): exp(−r²/ε²) is dropped beyond r² = ε² · CUTOFF_LOG.
@@ -516,8 +520,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         CaseError::new(
             field,
             format!(
-                "ε = {eps} is so small next to h = {} that no particle lies within the kernel's cutoff {:.2}ε; use ε ≥ h/6",
-                particles.h,
+                "ε = {} is so small next to h = {} that no particle lies within the kernel's cutoff {:.2}ε; use ε ≥ h/6",
+                readable(eps),
+                readable(particles.h),
                 CUTOFF_LOG.sqrt()
             ),
         )

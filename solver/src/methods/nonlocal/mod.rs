@@ -4,7 +4,9 @@
 pub mod distributed;
 
 use crate::case::ValidCase;
-use crate::case::{Backend, Case, CaseError, Collar, Integrator, Problem, SourceMode, MAX_EPS};
+use crate::case::{
+    readable, Backend, Case, CaseError, Collar, Integrator, Problem, SourceMode, MAX_EPS,
+};
 use crate::discretization::stability::{dt_stable, forward_euler_dt_stable};
 use crate::discretization::stencil::Stencil;
 use crate::integrate::euler::ForwardEuler;
@@ -74,8 +76,9 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
                 return Err(CaseError::new(
                     "m",
                     format!(
-                        "m = {m} with n = {} gives ε = m/n = {eps} above {MAX_EPS}; use m ≤ n/2",
-                        case.n
+                        "m = {m} with n = {} gives ε = m/n = {} above {MAX_EPS}; use m ≤ n/2",
+                        case.n,
+                        readable(eps)
                     ),
                 ));
             }
@@ -85,9 +88,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     };
     if !(eps > 0.0 && eps <= MAX_EPS) {
         return Err(CaseError::new(
-                "eps",
-                format!("must lie in (0, {MAX_EPS}] (got {eps}); the collar of width ε surrounds D = [0,1]^d"),
-            ));
+            "eps",
+            format!(
+                "must lie in (0, {MAX_EPS}] (got {}); the collar of width ε surrounds D = [0,1]^d",
+                readable(eps)
+            ),
+        ));
     }
     Ok(())
 }
@@ -259,8 +265,9 @@ fn check_operator_does_not_vanish(case: &Case, stencil: &Stencil) -> Result<(), 
         return Err(CaseError::new(
             field,
             format!(
-                "ε = {} is below h = {h}, so the ball holds no neighbour; use ε ≥ h",
-                stencil.horizon.eps
+                "ε = {} is below h = {}, so the ball holds no neighbour; use ε ≥ h",
+                readable(stencil.horizon.eps),
+                readable(h)
             ),
         ));
     }
