@@ -329,3 +329,30 @@ fn a_rank_killed_mid_run_ends_the_job_and_its_point_is_stored_failed() {
     let message = stored[0]["message"].as_str().unwrap();
     assert!(message.contains("nlsolve exited with"), "{message}");
 }
+
+#[test]
+fn a_case_past_its_timeout_is_killed_and_stored_failed() {
+    let study = json!({
+        "name": "slow",
+        "timeout_s": 1,
+        "base": {"dim": 2, "n": 512, "m": 4, "t_end": 0.05, "cfl": 0.5}
+    });
+    let scratch = Scratch::new("timeout", &study);
+    let out = scratch.nlstudy("run", &["--no-collect"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let stored = records(&scratch.runs("slow"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0]["status"], "failed");
+    assert!(
+        stored[0]["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("timed out after"),
+        "{}",
+        stored[0]
+    );
+    assert!(
+        solvers_of(&scratch).is_empty(),
+        "the timed-out solver still runs"
+    );
+}
