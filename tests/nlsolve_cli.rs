@@ -241,6 +241,22 @@ fn bad_input_exits_2_naming_the_field() {
             "--dim 2 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --ranks 2 --field-snapshot 8",
             "`field_snapshot`",
         ),
+        ("--method patch_test --dim 2 --n 64 --eps 0.1", "`dim`"),
+        ("--method patch_test --dim 1 --n 64 --eps 0.1 --t-end 1", "`t_end`"),
+        ("--method patch_test --dim 1 --n 64", "`eps`"),
+        (
+            r#"--method patch_test --dim 1 --n 64 --horizon-profile {"kind":"transition","left":0.1,"right":0.05,"start":0.7,"end":0.3}"#,
+            "`horizon_profile`",
+        ),
+        (
+            r#"--method patch_test --dim 1 --n 64 --horizon-profile {"kind":"linear","left":0.6,"right":0.1}"#,
+            "`horizon_profile`",
+        ),
+        (
+            r#"--method patch_test --dim 1 --n 64 --eps 0.1 --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#,
+            "`eps`",
+        ),
+        ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --formulation partial_stress", "`formulation`"),
     ];
     for (flags, field) in by_flags {
         let mut args = vec!["run"];

@@ -122,6 +122,15 @@ pub struct Case {
     /// `feti`: the preconditioner (default `dirichlet`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preconditioner: Option<FetiPreconditioner>,
+    /// `patch_test`: how ε varies along D (default `constant`, from `eps` or `m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizon_profile: Option<HorizonProfile>,
+    /// `patch_test`: `standard` (default) or `partial_stress`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub formulation: Option<Formulation>,
+    /// `patch_test`: the prescribed field, `linear` (default) or `quadratic`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch: Option<PatchField>,
 }
 
 fn default_kernel() -> Kernel {
@@ -242,7 +251,7 @@ mod tests {
     fn the_field_names_are_the_structs() {
         let names = Case::field_names();
         assert_eq!(names.first().map(String::as_str), Some("method"));
-        assert_eq!(names.last().map(String::as_str), Some("preconditioner"));
+        assert_eq!(names.last().map(String::as_str), Some("patch"));
         for name in [
             "dim",
             "n",
@@ -257,7 +266,7 @@ mod tests {
                 "{name} missing from {names:?}"
             );
         }
-        assert_eq!(names.len(), 32, "{names:?}");
+        assert_eq!(names.len(), 35, "{names:?}");
     }
 
     #[test]

@@ -24,6 +24,9 @@ pub enum Method {
     /// Steady nonlocal diffusion (seed 001): FETI with p × p subdomains, projected CG on the
     /// Lagrange multipliers.
     Feti,
+    /// Seed 003's patch tests: L_h of a variable horizon (`horizon_profile`, `formulation`)
+    /// applied to a prescribed linear or quadratic field (`patch`), 1D; no time.
+    PatchTest,
 }
 
 impl Method {
@@ -34,7 +37,9 @@ impl Method {
         match self {
             Method::FdExplicit | Method::Adi => length / (n + 1) as f64,
             Method::Pse => length / n as f64,
-            Method::Nonlocal | Method::SteadyCg | Method::Feti => 1.0 / n as f64,
+            Method::Nonlocal | Method::SteadyCg | Method::Feti | Method::PatchTest => {
+                1.0 / n as f64
+            }
         }
     }
 
@@ -231,4 +236,45 @@ impl Problem {
             Problem::Bump | Problem::Eigenmode | Problem::Square => SourceMode::None,
         }
     }
+}
+
+/// How the horizon varies along D = [0, 1] (seed 003); outside D it keeps its value at the
+/// nearer end.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum HorizonProfile {
+    /// The case's `eps` (or m·h) everywhere.
+    Constant,
+    /// ε(x) = left + (right − left) x.
+    Linear { left: f64, right: f64 },
+    /// ε = left up to `start`, right from `end`, and a C¹ cubic step between.
+    Transition {
+        left: f64,
+        right: f64,
+        start: f64,
+        end: f64,
+    },
+}
+
+/// How a variable horizon enters the nonlocal operator (seed 003).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Formulation {
+    /// Pairwise bonds, each node's state on its own horizon: conservative, ghost forces where ε
+    /// varies.
+    #[default]
+    Standard,
+    /// The divergence of the peridynamic partial stress: passes the patch tests for any ε(x).
+    PartialStress,
+}
+
+/// The field a patch test prescribes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PatchField {
+    /// u = x: L u = 0.
+    #[default]
+    Linear,
+    /// u = x²: L u = 2k.
+    Quadratic,
 }

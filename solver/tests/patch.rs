@@ -4,6 +4,7 @@
 
 use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
+use solver::discretization::influence::Influence;
 use solver::discretization::stencil::Stencil;
 use solver::operator::{plan, LinearOperator};
 
@@ -167,4 +168,165 @@ fn patch_errors_match_their_closed_forms_and_only_ac_is_exact_in_2d() {
             error(20)
         );
     }
+}
+
+// ---- A horizon that varies along the bar (seed 003): standard and partial-stress forms ----
+
+use solver::case::{Formulation, HorizonProfile};
+use solver::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
+
+const TRANSITION: HorizonProfile = HorizonProfile::Transition {
+    left: 0.1,
+    right: 0.025,
+    start: 0.4,
+    end: 0.6,
+};
+const RAMP: HorizonProfile = HorizonProfile::Linear {
+    left: 0.1,
+    right: 0.05,
+};
+
+/// max |L_h u − k u''| over D's nodes farther than the largest ε from the ends, for u = x^power.
+fn ghost_force(op: &VariableHorizonOperator, power: i32) -> f64 {
+    let u: Vec<f64> = (0..op.bar_nodes()).map(|k| op.x(k).powi(power)).collect();
+    let expected = if power == 2 { 2.0 * DIFFUSIVITY } else { 0.0 };
+    let eps_max = op.eps.iter().copied().fold(0.0, f64::max);
+    op.apply(&u)
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            let x = op.x(op.collar + i);
+            x > eps_max && x < 1.0 - eps_max
+        })
+        .map(|(_, v)| (v - expected).abs())
+        .fold(0.0, f64::max)
+}
+
+fn operator(
+    n: usize,
+    profile: HorizonProfile,
+    kernel: Kernel,
+    formulation: Formulation,
+) -> VariableHorizonOperator {
+    VariableHorizonOperator::new(n, profile, 0.08, kernel, DIFFUSIVITY, formulation)
+}
+
+#[test]
+fn both_formulations_pass_the_patch_tests_with_a_constant_horizon() {
+    for kernel in [Kernel::Constant, Kernel::Linear, Kernel::Gaussian] {
+        for formulation in [Formulation::Standard, Formulation::PartialStress] {
+            let op = operator(200, HorizonProfile::Constant, kernel, formulation);
+            for power in [0, 1, 2] {
+                let ghost = ghost_force(&op, power);
+                assert!(
+                    ghost < 1e-10,
+                    "{kernel:?} {formulation:?} u = x^{power}: {ghost:e}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn only_the_partial_stress_passes_them_where_the_horizon_varies() {
+    for kernel in [Kernel::Constant, Kernel::Linear] {
+        for profile in [RAMP, TRANSITION] {
+            let partial = operator(400, profile, kernel, Formulation::PartialStress);
+            for power in [0, 1, 2] {
+                let ghost = ghost_force(&partial, power);
+                assert!(
+                    ghost < 1e-10,
+                    "{kernel:?} {profile:?} u = x^{power}: {ghost:e}"
+                );
+            }
+            let standard = operator(400, profile, kernel, Formulation::Standard);
+            assert!(ghost_force(&standard, 0) < 1e-10, "L_h 1 = 0 in any form");
+            assert!(
+                ghost_force(&standard, 1) > 1e-3,
+                "{kernel:?} {profile:?}: no ghost force?"
+            );
+        }
+    }
+}
+
+/// The ghost force of the standard form: where ε'' ≠ 0 (the transition) it stays as h → 0 (the
+/// seed: proportional to ε''); on a linear ramp (ε'' = 0) only the discrete ball's steps leave
+/// one, and it shrinks with h.
+#[test]
+fn the_standard_forms_ghost_force_follows_the_second_derivative_of_the_horizon() {
+    let ghost = |n, profile| {
+        ghost_force(
+            &operator(n, profile, Kernel::Linear, Formulation::Standard),
+            1,
+        )
+    };
+    let (ramp_coarse, ramp_fine) = (ghost(200, RAMP), ghost(800, RAMP));
+    assert!(
+        ramp_fine < 0.5 * ramp_coarse,
+        "ramp: {ramp_coarse:e} → {ramp_fine:e}"
+    );
+    let (step_coarse, step_fine) = (ghost(200, TRANSITION), ghost(800, TRANSITION));
+    assert!(
+        step_fine > 0.5 * step_coarse && step_fine > 10.0 * ramp_fine,
+        "transition: {step_coarse:e} → {step_fine:e}"
+    );
+}
+
+/// The standard form's rows against its definition, node by node:
+/// Σ_y ½ (w_x(y − x) + w_y(x − y)) (u_y − u_x) with w_x(ξ) = 2k J(|ξ|/ε(x)) / Σ_ξ' J ξ'².
+#[test]
+fn the_standard_form_is_the_pairwise_sum_of_its_definition() {
+    let n = 60;
+    let op = operator(n, TRANSITION, Kernel::Linear, Formulation::Standard);
+    let h = 1.0 / n as f64;
+    let weight = |k: usize, offset: i64| -> f64 {
+        let eps = op.eps[k];
+        let reach = (eps / h * (1.0 + 1e-12)).floor() as i64;
+        if offset == 0 || offset.abs() > reach {
+            return 0.0;
+        }
+        let j = |o: i64| Kernel::Linear.influence(((o.abs() as f64) * h / eps).min(1.0));
+        let moment: f64 = (-reach..=reach)
+            .map(|o| j(o) * (o as f64 * h).powi(2))
+            .sum();
+        2.0 * DIFFUSIVITY * j(offset) / moment
+    };
+    let u: Vec<f64> = (0..op.bar_nodes()).map(|k| (3.0 * op.x(k)).sin()).collect();
+    let applied = op.apply(&u);
+    for i in 0..n {
+        let k = op.collar + i;
+        let mut expected = 0.0;
+        for l in 0..op.bar_nodes() {
+            let offset = l as i64 - k as i64;
+            let w = 0.5 * (weight(k, offset) + weight(l, -offset));
+            expected += w * (u[l] - u[k]);
+        }
+        assert!(
+            (applied[i] - expected).abs() <= 1e-12 * expected.abs().max(1.0),
+            "node {i}: {} vs {expected}",
+            applied[i]
+        );
+    }
+    assert_eq!(
+        horizon_at(TRANSITION, 0.0, -1.0),
+        0.1,
+        "the collar keeps the end's ε"
+    );
+}
+
+/// A horizon that shrinks where nonlocality is not needed cuts the bonds, and its smallest ε
+/// sets a smaller stable step (the seed's performance slide).
+#[test]
+fn a_varying_horizon_has_fewer_bonds_and_a_smaller_stable_step() {
+    let constant = VariableHorizonOperator::new(
+        400,
+        HorizonProfile::Constant,
+        0.1,
+        Kernel::Constant,
+        DIFFUSIVITY,
+        Formulation::Standard,
+    );
+    let varying = operator(400, TRANSITION, Kernel::Constant, Formulation::Standard);
+    assert!(varying.bonds < constant.bonds);
+    assert!(varying.lambda_bound() > 4.0 * constant.lambda_bound());
 }

@@ -63,7 +63,8 @@ struct CaseArgs {
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
     /// Method: nonlocal (forward Euler on eq. 2.1); fd_explicit, adi or pse (local diffusion,
-    /// seed 004); steady_cg or feti (the steady problem of seed 001).
+    /// seed 004); steady_cg or feti (the steady problem of seed 001); patch_test (a variable
+    /// horizon's patch tests, seed 003).
     #[arg(long)]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
@@ -165,6 +166,17 @@ struct CaseArgs {
     /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
     #[arg(long)]
     preconditioner: Option<String>,
+    /// patch_test: how ε varies along D, as JSON: {"kind": "constant"} (from --eps or --m),
+    /// {"kind": "linear", "left": a, "right": b} or {"kind": "transition", "left": a, "right":
+    /// b, "start": s, "end": e}.
+    #[arg(long, value_name = "JSON")]
+    horizon_profile: Option<String>,
+    /// patch_test: standard (pairwise bonds; ghost forces where ε varies) or partial_stress.
+    #[arg(long)]
+    formulation: Option<String>,
+    /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²).
+    #[arg(long)]
+    patch: Option<String>,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -225,6 +237,13 @@ impl CaseArgs {
             "preconditioner",
             self.preconditioner.clone().map(Value::from),
         );
+        let profile = self.horizon_profile.as_deref().map(|text| {
+            schema::json::parse(text)
+                .map_err(|e| BadInput(format!("--horizon-profile is not valid JSON: {e}")))
+        });
+        set("horizon_profile", profile.transpose()?);
+        set("formulation", self.formulation.clone().map(Value::from));
+        set("patch", self.patch.clone().map(Value::from));
         Ok(fields)
     }
 }
@@ -280,6 +299,21 @@ fn summary(record: &Record) -> String {
         ),
         _ => label(&case.method),
     };
+    if let Some(patch) = &record.patch {
+        return format!(
+            "nlsolve: patch test n={} {} {} field, {}, ε from {:.4} to {:.4}: max |L_h u − k u''| = {:.3e} over {} bonds; dt_stable {:.3e}; status {}",
+            case.n,
+            label(&case.kernel),
+            label(&case.patch.unwrap_or_default()),
+            label(&case.formulation.unwrap_or_default()),
+            patch.eps_min,
+            resolved.eps.unwrap_or(f64::NAN),
+            patch.ghost_force,
+            resolved.bonds,
+            resolved.dt_stable,
+            label(&record.status),
+        );
+    }
     if let Some(iterations) = record.steady.iterations {
         let solver = match case.subdomains {
             Some(p) => format!(

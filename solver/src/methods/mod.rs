@@ -14,12 +14,13 @@
 
 pub mod local;
 pub mod nonlocal;
+pub mod patch_test;
 pub mod pse;
 pub mod resources;
 pub mod steady;
 
 use crate::case::Rules;
-use crate::case::{Case, CaseError, Method, ValidCase};
+use crate::case::{refuse_given, Case, CaseError, Method, ValidCase};
 use crate::discretization::stencil::Stencil;
 use crate::output::outcome::Outcome;
 use crate::parallel::share::HaloReport;
@@ -54,11 +55,22 @@ fn check(case: &Case) -> Result<(), CaseError> {
         own_rules(case)?;
         case.validate_time_dependent()
     };
+    if case.method != Method::PatchTest {
+        refuse_given(
+            &[
+                ("horizon_profile", case.horizon_profile.is_some()),
+                ("formulation", case.formulation.is_some()),
+                ("patch", case.patch.is_some()),
+            ],
+            |_| "belongs to the variable-horizon `patch_test` method; leave it out".into(),
+        )?;
+    }
     match case.method {
         Method::Nonlocal => time_dependent(nonlocal::validate),
         Method::FdExplicit | Method::Adi => time_dependent(local::validate),
         Method::Pse => time_dependent(pse::validate),
         Method::SteadyCg | Method::Feti => steady::validate(case),
+        Method::PatchTest => patch_test::validate(case),
     }
 }
 
@@ -82,6 +94,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         Method::Pse => in_pool(&case, pse::run),
         // The steady methods start their pool inside their setup timing.
         Method::SteadyCg | Method::Feti => steady::run(&case),
+        Method::PatchTest => in_pool(&case, patch_test::run),
     }
 }
 
@@ -115,10 +128,10 @@ pub fn run_on_ranks(
 ) -> Result<Option<Outcome>, CaseError> {
     let case = validate(case.clone())?;
     resources::fit_machine(&case)?;
-    if case.method.is_local() {
+    if case.method.is_local() || case.method == Method::PatchTest {
         return Err(CaseError::new(
             "method",
-            "fd_explicit and adi run on one process; start them without mpirun",
+            "fd_explicit, adi, pse and patch_test run on one process; start them without mpirun",
         ));
     }
     let ranks = world.size() as usize;
@@ -134,6 +147,8 @@ pub fn run_on_ranks(
     match case.method {
         Method::Nonlocal => nonlocal::distributed::run(world, &case, gather_field),
         Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case),
-        Method::FdExplicit | Method::Adi | Method::Pse => unreachable!("refused above"),
+        Method::FdExplicit | Method::Adi | Method::Pse | Method::PatchTest => {
+            unreachable!("refused above")
+        }
     }
 }

@@ -69,6 +69,8 @@ fn fields_kept(case: &ValidCase) -> usize {
         Method::Pse => case.dim + 2,
         Method::SteadyCg => 5,
         Method::Feti => 6,
+        // u on the bar and L_h u.
+        Method::PatchTest => 2,
     }
 }
 

@@ -76,6 +76,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         distribution: measured.distribution,
         steady: SteadySolve::default(),
         implicit: measured.implicit,
+        patch: None,
         peak_memory_bytes: crate::output::record::peak_memory_bytes(),
     }
 }

@@ -50,6 +50,9 @@ pub struct Record {
     pub steady: SteadySolve,
     #[serde(flatten)]
     pub implicit: ImplicitSolves,
+    /// `patch_test`: L_h u along the bar and the ghost force.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patch: Option<PatchTest>,
     /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
     /// included; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -140,6 +143,24 @@ pub struct ImplicitSolves {
     /// The solves' relative tolerance ‖r‖/‖b‖.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solve_rtol: Option<f64>,
+}
+
+/// A patch test (seed 003): L_h of a variable horizon applied to a prescribed field.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PatchTest {
+    /// max |L_h u − k u''| over D's nodes farther than the largest ε from both ends (the seed
+    /// leaves the nodes near the ends out): zero to round-off when the formulation passes.
+    pub ghost_force: f64,
+    /// The same over every node of D.
+    pub ghost_force_all: f64,
+    /// k u'', what L_h u should be (0 for a linear field, 2k for u = x²).
+    pub expected: f64,
+    /// The smallest ε over D (`eps` of the record is the largest).
+    pub eps_min: f64,
+    /// D's nodes, L_h u at them, and ε(x) there.
+    pub x: Vec<f64>,
+    pub l_u: Vec<f64>,
+    pub eps_x: Vec<f64>,
 }
 
 /// What a steady solve (seed 001) did; every field absent for the time-dependent methods.

@@ -226,6 +226,7 @@ pub(crate) fn outcome(
         field: None,
         steady: solve,
         implicit: ImplicitSolves::default(),
+        patch: None,
         provenance: Provenance::here(case.threads, distribution.ranks),
         distribution,
         peak_memory_bytes: crate::output::record::peak_memory_bytes(),

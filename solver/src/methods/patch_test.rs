@@ -1,0 +1,221 @@
+//! Seed 003's patch tests of a variable horizon: the operator L_h of a formulation (`standard` or
+//! `partial_stress`, `discretization::variable_horizon`) applied to a prescribed linear or
+//! quadratic field on D = [0, 1] with its collars, in 1D. A linear field must give L_h u = 0 and
+//! u = x² the constant 2k; what is left is the ghost force.
+//!
+//! The record carries L_h u along the bar (the seed's "acceleration over the length of the bar"),
+//! its largest deviation (`ghost_force`), the bonds and the forward-Euler stable step of the
+//! operator (the seed's performance slide compares both for a constant and a varying horizon).
+
+use crate::case::{
+    readable, refuse_given, Case, CaseError, HorizonProfile, Method, PatchField, Rules, ValidCase,
+    MAX_EPS,
+};
+use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
+use crate::output::outcome::Outcome;
+use crate::output::record::{
+    Distribution, ImplicitSolves, PatchTest, Provenance, Record, Resolved, Status, SteadySolve,
+};
+use std::time::Instant;
+
+/// The rules of a patch-test case.
+pub fn validate(case: &Case) -> Result<(), CaseError> {
+    if case.dim != 1 {
+        return Err(CaseError::new(
+            "dim",
+            format!(
+                "the variable-horizon patch test is 1D (got {}); use dim = 1",
+                case.dim
+            ),
+        ));
+    }
+    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let constant = match (profile, case.m, case.eps) {
+        (HorizonProfile::Constant, Some(m), None) => m as f64 / case.n as f64,
+        (HorizonProfile::Constant, None, Some(eps)) => eps,
+        (HorizonProfile::Constant, _, _) => {
+            return Err(CaseError::new(
+                "eps",
+                "a constant horizon needs `eps` or `m` (one of them); or give a varying `horizon_profile`",
+            ))
+        }
+        (_, None, None) => 0.0,
+        (_, _, _) => {
+            return Err(CaseError::new(
+                if case.m.is_some() { "m" } else { "eps" },
+                "the horizon_profile gives ε(x); leave `m` and `eps` out",
+            ))
+        }
+    };
+    if let HorizonProfile::Transition { start, end, .. } = profile {
+        if !(0.0..=1.0).contains(&start) || !(start < end && end <= 1.0) {
+            return Err(CaseError::new(
+                "horizon_profile",
+                format!(
+                    "the transition must lie in D = [0, 1] with start < end (got start = {}, end = {})",
+                    readable(start),
+                    readable(end)
+                ),
+            ));
+        }
+    }
+    let h = 1.0 / case.n as f64;
+    for x in [0.0, 0.5, 1.0] {
+        let eps = horizon_at(profile, constant, x);
+        if !(eps >= h && eps <= MAX_EPS) {
+            return Err(CaseError::new(
+                if profile == HorizonProfile::Constant { "eps" } else { "horizon_profile" },
+                format!(
+                    "ε = {} at x = {x} lies outside [h, {MAX_EPS}] = [{}, {MAX_EPS}]; every node needs a neighbour and the collar must stay narrower than D",
+                    readable(eps),
+                    readable(h)
+                ),
+            ));
+        }
+    }
+    case.refuse_steady_fields()?;
+    refuse_given(
+        &[
+            ("t_end", case.t_end.is_some()),
+            ("dt", case.dt.is_some()),
+            ("cfl", case.cfl.is_some()),
+            ("ranks", case.ranks > 1),
+            ("integrator", !case.integrator.is_forward_euler()),
+            ("quadrature", !case.quadrature.is_midpoint()),
+            ("collar", !case.collar.is_zero()),
+            ("source", case.source.is_some()),
+            ("diagnostics_every", case.diagnostics_every.is_some()),
+            ("histogram_bins", case.histogram_bins.is_some()),
+            ("field_snapshot", case.field_snapshot.is_some()),
+            ("vtk_every", case.vtk_every.is_some()),
+        ],
+        |field| {
+            format!("a patch test evaluates L_h once, on one rank, with its own weights; leave `{field}` out")
+        },
+    )
+}
+
+/// Evaluates L_h on the prescribed field and measures the ghost force.
+pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
+    debug_assert_eq!(case.method, Method::PatchTest);
+    let started = Instant::now();
+    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let constant = case
+        .eps
+        .or(case.m.map(|m| m as f64 / case.n as f64))
+        .unwrap_or(0.0);
+    let field = case.patch.unwrap_or_default();
+    let formulation = case.formulation.unwrap_or_default();
+    let operator = VariableHorizonOperator::new(
+        case.n,
+        profile,
+        constant,
+        case.kernel,
+        case.diffusivity,
+        formulation,
+    );
+    let setup_s = started.elapsed().as_secs_f64();
+    let applied = Instant::now();
+    let u: Vec<f64> = (0..operator.bar_nodes())
+        .map(|k| field.value(operator.x(k)))
+        .collect();
+    let l_u = operator.apply(&u);
+    let solve_s = applied.elapsed().as_secs_f64();
+    let expected = field.second_derivative() * case.diffusivity;
+    let x: Vec<f64> = (0..case.n)
+        .map(|i| operator.x(operator.collar + i))
+        .collect();
+    let eps_d = &operator.eps[operator.collar..operator.collar + case.n];
+    let eps_max = eps_d.iter().copied().fold(0.0, f64::max);
+    // As the seed plots it: the nodes within the largest horizon of an end left out (there ε
+    // meets its constant continuation into the collar).
+    let ghost_force = x
+        .iter()
+        .zip(&l_u)
+        .filter(|(x, _)| **x > eps_max && **x < 1.0 - eps_max)
+        .map(|(_, v)| (v - expected).abs())
+        .fold(0.0, f64::max);
+    let ghost_force_all = l_u.iter().map(|v| (v - expected).abs()).fold(0.0, f64::max);
+    let lambda = operator.lambda_bound();
+    let resolved = Resolved {
+        h: operator.h,
+        eps: Some(eps_max),
+        m: None,
+        c: None,
+        dt: 0.0,
+        dt_stable: 2.0 / lambda,
+        steps: 0,
+        nodes: case.n,
+        bonds: operator.bonds,
+        pair_visits: None,
+        quadrature: None,
+        collar: None,
+        patch_error: None,
+        backend: None,
+        integrator: None,
+    };
+    let record = Record {
+        case: (**case).clone(),
+        status: Status::Ok,
+        message: String::new(),
+        resolved,
+        steps_done: 0,
+        setup_s,
+        solve_s,
+        step_s: solve_s,
+        error_l2: None,
+        error_l2_norm: None,
+        error_max: None,
+        error_total: None,
+        mass: None,
+        max_abs: None,
+        diverged_step: None,
+        diverged_time: None,
+        c_tot: None,
+        histogram: None,
+        field: None,
+        distribution: Distribution::serial(case),
+        steady: SteadySolve::default(),
+        implicit: ImplicitSolves::default(),
+        patch: Some(PatchTest {
+            ghost_force,
+            ghost_force_all,
+            expected,
+            eps_min: eps_d.iter().copied().fold(f64::INFINITY, f64::min),
+            x,
+            l_u: l_u.clone(),
+            eps_x: eps_d.to_vec(),
+        }),
+        peak_memory_bytes: crate::output::record::peak_memory_bytes(),
+        provenance: Provenance::here(case.threads, 1),
+    };
+    let lattice = crate::discretization::grid::Grid::new(1, case.n).lattice();
+    Ok(Outcome {
+        record,
+        field: l_u,
+        lattice,
+        frames: Vec::new(),
+    })
+}
+
+impl PatchFieldValues for PatchField {
+    fn value(self, x: f64) -> f64 {
+        match self {
+            PatchField::Linear => x,
+            PatchField::Quadratic => x * x,
+        }
+    }
+
+    fn second_derivative(self) -> f64 {
+        match self {
+            PatchField::Linear => 0.0,
+            PatchField::Quadratic => 2.0,
+        }
+    }
+}
+
+/// The prescribed field u(x) and u''.
+trait PatchFieldValues {
+    fn value(self, x: f64) -> f64;
+    fn second_derivative(self) -> f64;
+}
