@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs variable-horizon-docs
 
 setup:
 	@scripts/setup.sh
@@ -39,6 +39,13 @@ integrators-docs: setup
 	target/release/nlstudy run studies/integrators.json
 	mkdir -p docs/figures/integrators
 	cp results/integrators/figures/*.svg docs/figures/integrators/
+
+# docs/variable_horizon.md's figures and tables (seed 003's patch tests), a few seconds.
+variable-horizon-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/variable_horizon.json
+	mkdir -p docs/figures/variable_horizon
+	cp results/variable_horizon/figures/*.svg docs/figures/variable_horizon/
 
 # The asymptotic-compatibility page docs/ac_limit.md and its figures, from the patch and ac_limit
 # studies (about 45 s for a first run).

@@ -381,3 +381,63 @@ fn runs_beyond_the_core_count_are_marked_oversubscribed() {
     marks.sort();
     assert_eq!(marks, [(1, false), (cores as u64 + 1, true)]);
 }
+
+/// Every study the project ships plans: its file parses and the solver accepts all its points.
+#[test]
+fn every_shipped_study_plans_without_a_refused_point() {
+    let studies = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies");
+    let results = std::env::temp_dir().join(format!("nlstudy-shipped-{}", std::process::id()));
+    let mut planned = 0;
+    for entry in std::fs::read_dir(&studies).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|x| x != "json") {
+            continue;
+        }
+        let out = Command::new(binary("nlstudy"))
+            .arg("plan")
+            .arg(&path)
+            .arg("--results")
+            .arg(&results)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}: {}", path.display(), text(&out));
+        assert!(
+            !text(&out).contains("refused:"),
+            "{}: {}",
+            path.display(),
+            text(&out)
+        );
+        planned += 1;
+    }
+    let _ = std::fs::remove_dir_all(&results);
+    assert!(planned >= 10, "{planned} studies");
+}
+
+/// Two branches that hold the same case run it once, and each keeps its row in the tables.
+#[test]
+fn a_case_shared_by_two_branches_runs_once_and_keeps_a_row_per_branch() {
+    let study = json!({
+        "name": "shared",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"branches": {
+            "coarse": [{"product": {"n": [16, 32]}}],
+            "fine": [{"product": {"n": [32, 64]}}]
+        }}]
+    });
+    let scratch = Scratch::new("shared", &study);
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    assert!(
+        plan.contains("3 to run, 0 stored, 1 the same case as an earlier point"),
+        "{plan}"
+    );
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    assert!(text(&run).contains("3 ran (3 ok"), "{}", text(&run));
+    assert_eq!(records(&scratch.runs("shared")).len(), 3);
+    let summary = read_parquet(&scratch.dir.join("results/shared/shared-summary.parquet"));
+    assert_eq!(
+        summary.height(),
+        4,
+        "a row per point, the shared case in both branches"
+    );
+}

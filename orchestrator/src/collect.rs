@@ -9,7 +9,7 @@ use crate::summary;
 use crate::table::{self, Row};
 use polars::prelude::DataFrame;
 use serde_json::{json, Value};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 
 pub struct Collected {
@@ -62,20 +62,25 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
 
 /// Writes the tables; `None` when no run of the study is stored yet.
 pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, String> {
-    let mut records: HashMap<String, Value> = store
+    let records: HashMap<String, Value> = store
         .records()
         .into_iter()
         .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
         .collect();
-    let stored = records.len();
     let mut rows = Vec::new();
     let mut missing = 0;
+    // Points of different branches may be one case: each gets its row from the one record.
     for p in planned {
-        match records.remove(&p.key) {
-            Some(record) => rows.push(run_row(p, &record)),
+        match records.get(&p.key) {
+            Some(record) => rows.push(run_row(p, record)),
             None => missing += 1,
         }
     }
+    let used: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
+    let left_out = records
+        .keys()
+        .filter(|k| !used.contains(k.as_str()))
+        .count();
     if rows.is_empty() {
         return Ok(None);
     }
@@ -92,7 +97,7 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, 
         rows: rows.len(),
         points: summary_rows.len(),
         missing,
-        left_out: stored - rows.len(),
+        left_out,
         table: frames.pop().expect("two tables written"),
     }))
 }

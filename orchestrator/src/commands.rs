@@ -199,6 +199,7 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
         let what = match &p.decision {
             Decision::Run(reason) => format!("run   ({reason})"),
             Decision::Skip(status) => format!("skip  ({status})"),
+            Decision::Duplicate => "skip  (the same case as an earlier point)".into(),
         };
         let refused = match &p.case {
             Err(message) => format!("  refused: {message}"),
@@ -207,7 +208,18 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, String> {
         println!("{}  {what:<40} {}{refused}", p.key, p.point.label());
     }
     let runs = planned.iter().filter(|p| p.runs()).count();
-    println!("{runs} to run, {} stored", planned.len() - runs);
+    let duplicates = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    let shared = match duplicates {
+        0 => String::new(),
+        n => format!(", {n} the same case as an earlier point"),
+    };
+    println!(
+        "{runs} to run, {} stored{shared}",
+        planned.len() - runs - duplicates
+    );
     Ok(ExitCode::SUCCESS)
 }
 
@@ -229,7 +241,11 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
     ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))
         .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
     let to_run = planned.iter().filter(|p| p.runs()).count();
-    let skipped = planned.len() - to_run;
+    let duplicates = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    let skipped = planned.len() - to_run - duplicates;
     let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
     let tally = crate::pool::run(&planned, &solver, &store, &options, &stop, &mut progress)
         .map_err(|e| format!("cannot run the study: {e}"))?;
@@ -238,6 +254,9 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         let passed = match tally.passed {
             0 => String::new(),
             n => format!(", {n} run by another nlstudy"),
+        } + &match duplicates {
+            0 => String::new(),
+            n => format!(", {n} the same case as an earlier point"),
         };
         eprintln!(
             "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored{passed}",

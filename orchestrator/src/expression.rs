@@ -118,8 +118,9 @@ fn tokenize(text: &str) -> Result<Vec<Token>, String> {
             tokens.push(Token::Num(x));
             end
         } else if c.is_alphabetic() || c == '_' {
+            // A dotted name is a nested field as the tables flatten it (`horizon_profile.kind`).
             let end = rest
-                .find(|ch: char| !(ch.is_alphanumeric() || ch == '_'))
+                .find(|ch: char| !(ch.is_alphanumeric() || ch == '_' || ch == '.'))
                 .unwrap_or(rest.len());
             tokens.push(Token::Name(rest[..end].to_string()));
             end
@@ -327,6 +328,12 @@ mod tests {
             Ok(true)
         );
         assert_eq!(condition("!(n > 32) || method != 'adi'", &s), Ok(false));
+        let nested = scope(json!({"horizon_profile.kind": "linear", "patch.ghost_force": 1e-13}));
+        assert_eq!(
+            condition("horizon_profile.kind == 'linear'", &nested),
+            Ok(true)
+        );
+        assert_eq!(condition("patch.ghost_force < 1e-12", &nested), Ok(true));
         // h of a grid method: L/(n + 1) with L = 2.
         assert_eq!(number("h", &s), Ok(json!(2.0 / 65.0)));
     }

@@ -34,6 +34,8 @@ pub enum Decision {
     /// Stored with this status (`ok` or `diverged`: results, not failures), or failed and not
     /// asked to run again, or not among `--only`.
     Skip(String),
+    /// The same case as an earlier point (of another branch): it runs once, for both.
+    Duplicate,
 }
 
 /// A point, its case as the solver resolved it (or why the solver refused it), its key and
@@ -74,6 +76,7 @@ pub fn plan(
     let cases = solver
         .check(&points)
         .map_err(|e| StudyError::new("solver", e))?;
+    let mut seen = HashSet::new();
     Ok(points
         .into_iter()
         .zip(cases)
@@ -87,8 +90,11 @@ pub fn plan(
             let key = store::key(&identity, &solver.version, point.repeat);
             let stored = index.status.get(&key);
             let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
+            let first = seen.insert(key.clone());
             let decision = match stored {
                 _ if !selected => Decision::Skip("not among --only".into()),
+                // Another point (of another branch) is the same case: it runs once.
+                _ if !first => Decision::Duplicate,
                 _ if options.force => Decision::Run(Reason::Forced),
                 None => match index.version_by_case.get(&case_id) {
                     Some(from) if *from != solver.version => {

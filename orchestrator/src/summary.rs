@@ -23,9 +23,11 @@ const MIXED: &str = "mixed";
 /// The errors whose observed orders are derived, and the order columns' names.
 const ORDERS: &[(&str, &str)] = &[("error_l2_norm", "order_l2"), ("error_max", "order_max")];
 
-/// One summary row per point (rows sharing a `case_id`), in the order points first appear.
+/// One summary row per point (its repeats: rows sharing the `point` label, or the `case_id`
+/// where rows have no label), in the order points first appear. Points of different branches
+/// that are one case share its records but keep a row each.
 pub fn summarize(runs: &[Row]) -> Vec<Row> {
-    let mut summary: Vec<Row> = groups(runs, |r| r.text("case_id"))
+    let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text("case_id")))
         .iter()
         .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
         .collect();

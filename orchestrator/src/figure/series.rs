@@ -21,6 +21,12 @@ pub(super) fn describe(column: &str) -> String {
         ("c_tot.c_tot", "total concentration c_tot(t)"),
         ("subdomains", "subdomains p²"),
         ("iterations", "iterations"),
+        ("patch.x", "x along the bar"),
+        ("patch.l_u", "L_h u"),
+        (
+            "patch.ghost_force",
+            "ghost force max |L_h u − k u''| away from the ends",
+        ),
     ];
     if let Some((_, text)) = known.iter().find(|(c, _)| *c == column) {
         return text.to_string();

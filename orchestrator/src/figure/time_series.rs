@@ -1,4 +1,5 @@
-//! Time series: a per-run series of the record (such as c_tot(t)) against time.
+//! Time series: a per-run series of the record (such as c_tot(t)) against time, or any
+//! per-run series against another (such as a patch test's L_h u against x).
 
 use super::series::*;
 use crate::draw::{Axis, Panel, Series};
