@@ -102,13 +102,12 @@ pub fn run(
                 continue;
             };
             let forced = planned.decision == Decision::Run(Reason::Forced);
-            if let Some(status) = store.status(&planned.key).filter(|s| *s != Status::Failed) {
-                if !forced {
-                    let why = format!("another nlstudy has stored it meanwhile ({status})");
-                    progress.passed(&planned.point.label(), &why);
-                    tally.passed += 1;
-                    continue;
-                }
+            let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
+            if let Some(status) = stored.filter(|_| !forced) {
+                let why = format!("another nlstudy has stored it meanwhile ({status})");
+                progress.passed(&planned.point.label(), &why);
+                tally.passed += 1;
+                continue;
             }
             match &planned.case {
                 Err(message) => {

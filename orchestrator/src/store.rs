@@ -114,34 +114,16 @@ impl Store {
     /// left behind: its scratch files and its partly written record.
     pub fn lock(&self, key: &str) -> io::Result<Option<File>> {
         let work = self.work_dir();
-        std::fs::create_dir_all(&work)?;
-        let file = File::options()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(work.join(format!("{key}.lock")))?;
+        let file = lock_file(&work, &format!("{key}.lock"))?;
         match file.try_lock() {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => return Ok(None),
             Err(TryLockError::Error(e)) => return Err(e),
         }
-        let leftover = |dir: &Path, prefix: &str| -> Vec<PathBuf> {
-            let Ok(entries) = std::fs::read_dir(dir) else {
-                return Vec::new();
-            };
-            entries
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
-                    name.is_some_and(|n| n.starts_with(prefix) && !n.ends_with(".lock"))
-                })
-                .collect()
-        };
-        let mut stale = leftover(&work, &format!("{key}."));
-        stale.extend(leftover(&self.runs, &format!(".{key}.json.")));
-        for path in stale {
-            let _ = std::fs::remove_file(path);
-        }
+        let scratch = format!("{key}.");
+        remove_where(&work, |n| n.starts_with(&scratch) && !n.ends_with(".lock"));
+        let partial = format!(".{key}.json.");
+        remove_where(&self.runs, |n| n.starts_with(&partial));
         Ok(Some(file))
     }
 
@@ -149,24 +131,11 @@ impl Store {
     /// them, and clears the partial files a writer killed midway left behind.
     pub fn lock_outputs(&self) -> io::Result<File> {
         let study = self.runs.parent().unwrap_or(Path::new(".")).to_path_buf();
-        std::fs::create_dir_all(&study)?;
-        let file = File::options()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(study.join(".outputs.lock"))?;
+        let file = lock_file(&study, ".outputs.lock")?;
         file.lock()?;
-        for dir in [study.clone(), self.table("figures")] {
-            let Ok(entries) = std::fs::read_dir(&dir) else {
-                continue;
-            };
-            for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
-                let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-                if name.is_some_and(|n| n.starts_with('.') && n.ends_with(".partial")) {
-                    let _ = std::fs::remove_file(path);
-                }
-            }
-        }
+        let partial = |n: &str| n.starts_with('.') && n.ends_with(".partial");
+        remove_where(&study, partial);
+        remove_where(&self.table("figures"), partial);
         Ok(file)
     }
 
@@ -217,6 +186,31 @@ impl Store {
             }
         }
         index
+    }
+}
+
+/// The lock file `name` in `dir` (both made when missing), not yet locked.
+fn lock_file(dir: &Path, name: &str) -> io::Result<File> {
+    std::fs::create_dir_all(dir)?;
+    File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(dir.join(name))
+}
+
+/// Removes the files of `dir` whose names `stale` picks (a missing `dir` has none).
+fn remove_where(dir: &Path, stale: impl Fn(&str) -> bool) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for path in entries.filter_map(|e| e.ok().map(|e| e.path())) {
+        if path
+            .file_name()
+            .is_some_and(|n| stale(&n.to_string_lossy()))
+        {
+            let _ = std::fs::remove_file(path);
+        }
     }
 }
 

@@ -145,25 +145,25 @@ impl Scratch {
     }
 
     /// `nlstudy <verb> study.json --results <scratch>/results <extra…>`.
-    pub fn nlstudy(&self, verb: &str, extra: &[&str]) -> Output {
-        Command::new(binary("nlstudy"))
+    fn command(&self, verb: &str, extra: &[&str]) -> Command {
+        let mut command = Command::new(binary("nlstudy"));
+        command
             .arg(verb)
             .arg(self.study())
             .arg("--results")
             .arg(self.dir.join("results"))
-            .args(extra)
-            .output()
-            .expect("nlstudy starts")
+            .args(extra);
+        command
     }
 
-    /// `nlstudy <verb> …` started in the background, its output captured.
+    /// That command, run to its end.
+    pub fn nlstudy(&self, verb: &str, extra: &[&str]) -> Output {
+        self.command(verb, extra).output().expect("nlstudy starts")
+    }
+
+    /// That command started in the background, its output captured.
     pub fn spawn(&self, verb: &str, extra: &[&str]) -> std::process::Child {
-        Command::new(binary("nlstudy"))
-            .arg(verb)
-            .arg(self.study())
-            .arg("--results")
-            .arg(self.dir.join("results"))
-            .args(extra)
+        self.command(verb, extra)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())

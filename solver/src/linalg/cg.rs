@@ -61,11 +61,7 @@ pub fn conjugate_gradient(
             };
         }
         let beta = rr_next / rr;
-        on(pool, || {
-            p.par_chunks_mut(CHUNK)
-                .zip(r.par_chunks(CHUNK))
-                .for_each(|(p, r)| p.iter_mut().zip(r).for_each(|(p, &r)| *p = r + beta * *p))
-        });
+        on(pool, || xpby(&r, beta, &mut p));
         rr = rr_next;
     }
     Convergence {
@@ -149,11 +145,7 @@ impl Pcg {
             precondition(r, z);
             let rz_next = dot(r, z);
             let beta = rz_next / rz;
-            on(pool, || {
-                p.par_chunks_mut(CHUNK)
-                    .zip(z.par_chunks(CHUNK))
-                    .for_each(|(p, z)| p.iter_mut().zip(z).for_each(|(p, &z)| *p = z + beta * *p))
-            });
+            on(pool, || xpby(z, beta, p));
             rz = rz_next;
         }
         Convergence {
@@ -179,6 +171,13 @@ pub fn combine(out: &mut [f64], x: &[f64], a: f64, y: &[f64]) {
                 *o = x + a * y;
             }
         });
+}
+
+/// p ← x + β p, the new search direction of (preconditioned) CG.
+fn xpby(x: &[f64], beta: f64, p: &mut [f64]) {
+    p.par_chunks_mut(CHUNK)
+        .zip(x.par_chunks(CHUNK))
+        .for_each(|(p, x)| p.iter_mut().zip(x).for_each(|(p, &x)| *p = x + beta * *p));
 }
 
 /// Σ aᵢ bᵢ, summed in a fixed tree of fixed chunks (the same rounding on any thread count).

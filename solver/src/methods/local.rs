@@ -252,20 +252,12 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
     };
     let resolved = Resolved {
         h: grid.h,
-        eps: None,
-        m: None,
-        c: None,
         dt,
         dt_stable,
         steps,
         nodes: grid.nodes(),
         bonds: 2 * grid.dim * grid.nodes(),
-        pair_visits: None,
-        quadrature: None,
-        collar: None,
-        patch_error: None,
-        backend: None,
-        integrator: None,
+        ..Resolved::default()
     };
     let position = |i: usize| grid.position(i);
     Ok(outcome(

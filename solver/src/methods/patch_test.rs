@@ -30,23 +30,23 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         ));
     }
     let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
-    let constant = match (profile, case.m, case.eps) {
-        (HorizonProfile::Constant, Some(m), None) => m as f64 / case.n as f64,
-        (HorizonProfile::Constant, None, Some(eps)) => eps,
+    match (profile, case.m, case.eps) {
+        (HorizonProfile::Constant, Some(_), None) | (HorizonProfile::Constant, None, Some(_)) => {}
         (HorizonProfile::Constant, _, _) => {
             return Err(CaseError::new(
                 "eps",
                 "a constant horizon needs `eps` or `m` (one of them); or give a varying `horizon_profile`",
             ))
         }
-        (_, None, None) => 0.0,
+        (_, None, None) => {}
         (_, _, _) => {
             return Err(CaseError::new(
                 if case.m.is_some() { "m" } else { "eps" },
                 "the horizon_profile gives ε(x); leave `m` and `eps` out",
             ))
         }
-    };
+    }
+    let constant = constant_horizon(case);
     if let HorizonProfile::Transition { start, end, .. } = profile {
         if !(0.0..=1.0).contains(&start) || !(start < end && end <= 1.0) {
             return Err(CaseError::new(
@@ -95,15 +95,19 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     )
 }
 
+/// The constant horizon `eps` or m·h (unused by a varying profile, which gives neither).
+fn constant_horizon(case: &Case) -> f64 {
+    case.eps
+        .or(case.m.map(|m| m as f64 / case.n as f64))
+        .unwrap_or(0.0)
+}
+
 /// Evaluates L_h on the prescribed field and measures the ghost force.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::PatchTest);
     let started = Instant::now();
     let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
-    let constant = case
-        .eps
-        .or(case.m.map(|m| m as f64 / case.n as f64))
-        .unwrap_or(0.0);
+    let constant = constant_horizon(case);
     let field = case.patch.unwrap_or_default();
     let formulation = case.formulation.unwrap_or_default();
     let operator = VariableHorizonOperator::new(
@@ -140,19 +144,10 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let resolved = Resolved {
         h: operator.h,
         eps: Some(eps_max),
-        m: None,
-        c: None,
-        dt: 0.0,
         dt_stable: 2.0 / lambda,
-        steps: 0,
         nodes: case.n,
         bonds: operator.bonds,
-        pair_visits: None,
-        quadrature: None,
-        collar: None,
-        patch_error: None,
-        backend: None,
-        integrator: None,
+        ..Resolved::default()
     };
     let record = Record {
         case: (**case).clone(),

@@ -75,7 +75,7 @@ fn fields_kept(case: &ValidCase) -> usize {
 }
 
 /// A lower bound of the bytes the run allocates over all ranks.
-pub fn bytes_at_least(case: &ValidCase) -> f64 {
+fn bytes_at_least(case: &ValidCase) -> f64 {
     let nodes = (case.n as f64).powi(case.dim as i32);
     let mut bytes = fields_kept(case) as f64 * nodes * 8.0;
     if case.method == Method::Nonlocal {

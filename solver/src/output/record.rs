@@ -69,7 +69,7 @@ pub fn peak_memory_bytes() -> Option<u64> {
 }
 
 /// What the case resolved to.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Resolved {
     pub h: f64,
     /// The horizon and the constant c of eq. 1.5 (nonlocal method only).
@@ -114,17 +114,10 @@ impl Resolved {
             eps: Some(stencil.horizon.eps),
             m: Some(stencil.horizon.m),
             c: Some(stencil.c),
-            dt: 0.0,
-            dt_stable: 0.0,
-            steps: 0,
             nodes: stencil.grid.nodes(),
             bonds: stencil.bonds(),
-            pair_visits: None,
             quadrature: Some(stencil.quadrature),
-            collar: None,
-            patch_error: None,
-            backend: None,
-            integrator: None,
+            ..Resolved::default()
         }
     }
 }
