@@ -41,8 +41,9 @@ pub enum Command {
     Plot(CommonArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
-    /// Print one value of the summary table as a Markdown table: rows by some fields, columns
-    /// by another (e.g. `--rows branch,quadrature --column n --value order_l2_norm`).
+    /// Print values of the summary table as a Markdown table: rows by some fields, columns by
+    /// another (e.g. `--rows branch,quadrature --column n --value order_l2`), or one column per
+    /// value (e.g. `--rows n --value error_l2_norm,order_l2`).
     Table(TableArgs),
     /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
     Submit(SubmitArgs),
@@ -83,12 +84,13 @@ pub struct TableArgs {
     /// The fields that name a line (comma-separated), e.g. `dim,quadrature`.
     #[arg(long, value_delimiter = ',')]
     rows: Vec<String>,
-    /// The field whose values head the columns, e.g. `n`.
+    /// The field whose values head the columns, e.g. `n`; without it, one column per value.
     #[arg(long)]
-    column: String,
-    /// The column of the summary table in the cells, e.g. `error_l2_norm_median`.
-    #[arg(long)]
-    value: String,
+    column: Option<String>,
+    /// The columns of the summary table in the cells (comma-separated, side by side), e.g.
+    /// `error_l2_norm,order_l2`.
+    #[arg(long, value_delimiter = ',', required = true)]
+    value: Vec<String>,
     /// Conditions a point must meet, in the study language (repeatable).
     #[arg(long = "where")]
     filter: Vec<String>,
@@ -337,7 +339,7 @@ fn table_command(args: &TableArgs) -> Result<ExitCode, String> {
     let spec = crate::pivot::PivotSpec {
         rows: args.rows.clone(),
         column: args.column.clone(),
-        value: args.value.clone(),
+        values: args.value.clone(),
         filter: args.filter.clone(),
     };
     print!(
