@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs variable-horizon-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs variable-horizon-docs coupling-docs
 
 setup:
 	@scripts/setup.sh
@@ -21,7 +21,7 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong
+STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong integrators variable_horizon coupling
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
@@ -46,6 +46,13 @@ variable-horizon-docs: setup
 	target/release/nlstudy run studies/variable_horizon.json
 	mkdir -p docs/figures/variable_horizon
 	cp results/variable_horizon/figures/*.svg docs/figures/variable_horizon/
+
+# docs/coupling.md's figures and tables (seed 003's local–nonlocal coupling), under a second.
+coupling-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/coupling.json
+	mkdir -p docs/figures/coupling
+	cp results/coupling/figures/*.svg docs/figures/coupling/
 
 # The asymptotic-compatibility page docs/ac_limit.md and its figures, from the patch and ac_limit
 # studies (about 45 s for a first run).

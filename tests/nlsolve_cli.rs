@@ -257,6 +257,17 @@ fn bad_input_exits_2_naming_the_field() {
             "`eps`",
         ),
         ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --formulation partial_stress", "`formulation`"),
+        ("--method patch_test --dim 1 --n 64 --eps 0.1 --patch quartic", "`patch`"),
+        ("--method coupled_1d --dim 2 --n 16 --eps 0.065", "`dim`"),
+        ("--method coupled_1d --dim 1 --n 16", "`eps`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0", "`eps`"),
+        ("--method coupled_1d --dim 1 --n 1 --eps 0.065", "`n`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain 1.2,2", "`local_domain`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain -0.1,1.75", "`local_domain`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain 0.75,1.03", "`local_domain`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --t-end 1", "`t_end`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --ranks 2", "`ranks`"),
+        ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --local-domain 0.75,1.75", "`local_domain`"),
     ];
     for (flags, field) in by_flags {
         let mut args = vec!["run"];
@@ -419,6 +430,8 @@ fn every_method_reports_the_grid_spacing_of_the_schema() {
         r#"{"method": "pse", "problem": "eigenmode", "dim": 1, "n": 24, "m": 4, "length": 3, "t_end": 0.001, "cfl": 0.5}"#,
         r#"{"method": "steady_cg", "dim": 2, "n": 16, "m": 2}"#,
         r#"{"method": "feti", "dim": 2, "n": 16, "m": 2, "subdomains": 2}"#,
+        r#"{"method": "patch_test", "dim": 1, "n": 24, "eps": 0.1}"#,
+        r#"{"method": "coupled_1d", "dim": 1, "n": 24, "eps": 0.065}"#,
     ];
     for case in cases {
         let out = nlsolve(&["run", "--case", "-"], Some(case));

@@ -20,8 +20,14 @@ use serde_json::{json, Value};
 /// The status of a summary row whose repeats ended differently.
 const MIXED: &str = "mixed";
 
-/// The errors whose observed orders are derived, and the order columns' names.
-const ORDERS: &[(&str, &str)] = &[("error_l2_norm", "order_l2"), ("error_max", "order_max")];
+/// The errors whose observed orders are derived, and the order columns' names (`coupled_1d`'s
+/// two models each have their own).
+const ORDERS: &[(&str, &str)] = &[
+    ("error_l2_norm", "order_l2"),
+    ("error_max", "order_max"),
+    ("coupling.error_nonlocal", "order_nonlocal"),
+    ("coupling.error_local", "order_local"),
+];
 
 /// One summary row per point (its repeats: rows sharing the `point` label, or the `case_id`
 /// where rows have no label), in the order points first appear. Points of different branches

@@ -128,9 +128,14 @@ pub struct Case {
     /// `patch_test`: `standard` (default) or `partial_stress`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub formulation: Option<Formulation>,
-    /// `patch_test`: the prescribed field, `linear` (default) or `quadratic`.
+    /// `patch_test`: the prescribed field, `linear` (default) or `quadratic`; `coupled_1d`: the
+    /// exact solution, also `quartic` (u = x² − x⁴).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch: Option<PatchField>,
+    /// `coupled_1d`: the local problem's interval [Γ_c, Γ_i] (default [0.75, 1.75]); it overlaps
+    /// Ω_n = (0, 1) on Ω_b = (Γ_c, 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub local_domain: Option<[f64; 2]>,
 }
 
 fn default_kernel() -> Kernel {
@@ -251,7 +256,7 @@ mod tests {
     fn the_field_names_are_the_structs() {
         let names = Case::field_names();
         assert_eq!(names.first().map(String::as_str), Some("method"));
-        assert_eq!(names.last().map(String::as_str), Some("patch"));
+        assert_eq!(names.last().map(String::as_str), Some("local_domain"));
         for name in [
             "dim",
             "n",
@@ -266,7 +271,7 @@ mod tests {
                 "{name} missing from {names:?}"
             );
         }
-        assert_eq!(names.len(), 35, "{names:?}");
+        assert_eq!(names.len(), 36, "{names:?}");
     }
 
     #[test]

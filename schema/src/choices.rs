@@ -27,6 +27,11 @@ pub enum Method {
     /// Seed 003's patch tests: L_h of a variable horizon (`horizon_profile`, `formulation`)
     /// applied to a prescribed linear or quadratic field (`patch`), 1D; no time.
     PatchTest,
+    /// Seed 003's optimization-based local–nonlocal coupling in 1D (D'Elia, Perego, Bochev): a
+    /// steady nonlocal problem on Ω_n = (0, 1) and a Poisson problem on `local_domain`, their
+    /// mismatch on the overlap minimised over the interface controls; exact field `patch`.
+    #[serde(rename = "coupled_1d")]
+    Coupled1d,
 }
 
 impl Method {
@@ -37,9 +42,11 @@ impl Method {
         match self {
             Method::FdExplicit | Method::Adi => length / (n + 1) as f64,
             Method::Pse => length / n as f64,
-            Method::Nonlocal | Method::SteadyCg | Method::Feti | Method::PatchTest => {
-                1.0 / n as f64
-            }
+            Method::Nonlocal
+            | Method::SteadyCg
+            | Method::Feti
+            | Method::PatchTest
+            | Method::Coupled1d => 1.0 / n as f64,
         }
     }
 
@@ -268,7 +275,7 @@ pub enum Formulation {
     PartialStress,
 }
 
-/// The field a patch test prescribes.
+/// The field a patch test prescribes, or the exact solution of a coupled problem.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PatchField {
@@ -277,4 +284,6 @@ pub enum PatchField {
     Linear,
     /// u = x²: L u = 2k.
     Quadratic,
+    /// u = x² − x⁴ (`coupled_1d` only, seed 003's Example 2): L u = 2k − 12k x² − 2k ε² M₄/M₂.
+    Quartic,
 }

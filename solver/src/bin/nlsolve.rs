@@ -64,7 +64,8 @@ struct CaseArgs {
     case: Option<PathBuf>,
     /// Method: nonlocal (forward Euler on eq. 2.1); fd_explicit, adi or pse (local diffusion,
     /// seed 004); steady_cg or feti (the steady problem of seed 001); patch_test (a variable
-    /// horizon's patch tests, seed 003).
+    /// horizon's patch tests, seed 003); coupled_1d (seed 003's optimization-based local–nonlocal
+    /// coupling).
     #[arg(long)]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
@@ -174,9 +175,19 @@ struct CaseArgs {
     /// patch_test: standard (pairwise bonds; ghost forces where ε varies) or partial_stress.
     #[arg(long)]
     formulation: Option<String>,
-    /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²).
+    /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²); coupled_1d: the
+    /// exact solution, also quartic (u = x² − x⁴).
     #[arg(long)]
     patch: Option<String>,
+    /// coupled_1d: the local problem's interval a,b (default 0.75,1.75): Γ_c = a inside (0, 1),
+    /// Γ_i = b ≥ 1 + ε.
+    #[arg(
+        long,
+        value_name = "A,B",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    local_domain: Option<Vec<f64>>,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -244,6 +255,7 @@ impl CaseArgs {
         set("horizon_profile", profile.transpose()?);
         set("formulation", self.formulation.clone().map(Value::from));
         set("patch", self.patch.clone().map(Value::from));
+        set("local_domain", self.local_domain.clone().map(Value::from));
         Ok(fields)
     }
 }
@@ -311,6 +323,23 @@ fn summary(record: &Record) -> String {
             patch.ghost_force,
             resolved.bonds,
             resolved.dt_stable,
+            label(&record.status),
+        );
+    }
+    if let Some(coupled) = &record.coupling {
+        return format!(
+            "nlsolve: coupled_1d n={} ε={} {} {} field, local domain [{}, {}]: e(u_n) {:.3e}, e(u_l) {:.3e}, overlap mismatch {:.3e}, ‖∇J‖/‖∇J(0)‖ {:.1e} over {} controls; status {}",
+            case.n,
+            resolved.eps.unwrap_or(f64::NAN),
+            label(&case.kernel),
+            label(&case.patch.unwrap_or_default()),
+            coupled.local_domain[0],
+            coupled.local_domain[1],
+            coupled.error_nonlocal,
+            coupled.error_local,
+            coupled.mismatch,
+            coupled.gradient,
+            coupled.controls_nonlocal.len() + 1,
             label(&record.status),
         );
     }

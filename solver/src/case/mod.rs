@@ -66,6 +66,7 @@ pub(crate) trait Rules {
     fn refuse_steady_fields(&self) -> Result<(), CaseError>;
     fn validate_iteration(&self) -> Result<(), CaseError>;
     fn validate_distribution(&self) -> Result<(), CaseError>;
+    fn refuse_time_loop_fields(&self, why: &str) -> Result<(), CaseError>;
 }
 
 impl Rules for Case {
@@ -139,6 +140,29 @@ impl Rules for Case {
             )),
             _ => Ok(()),
         }
+    }
+
+    /// For a one-shot method on one rank (seed 003's): refuses the fields of a time loop, of the
+    /// lattice operator's choices, of ranks and of the outputs a time loop makes; `why` says
+    /// what the method does instead.
+    fn refuse_time_loop_fields(&self, why: &str) -> Result<(), CaseError> {
+        refuse_given(
+            &[
+                ("t_end", self.t_end.is_some()),
+                ("dt", self.dt.is_some()),
+                ("cfl", self.cfl.is_some()),
+                ("ranks", self.ranks > 1),
+                ("integrator", !self.integrator.is_forward_euler()),
+                ("quadrature", !self.quadrature.is_midpoint()),
+                ("collar", !self.collar.is_zero()),
+                ("source", self.source.is_some()),
+                ("diagnostics_every", self.diagnostics_every.is_some()),
+                ("histogram_bins", self.histogram_bins.is_some()),
+                ("field_snapshot", self.field_snapshot.is_some()),
+                ("vtk_every", self.vtk_every.is_some()),
+            ],
+            |field| format!("{why}; leave `{field}` out"),
+        )
     }
 
     fn validate_distribution(&self) -> Result<(), CaseError> {

@@ -3,6 +3,7 @@
 //! stencil of weights they make, and the stable time step its symbol gives; and a horizon that
 //! varies along D (seed 003) with its two formulations.
 
+pub mod finite_element;
 pub mod grid;
 pub mod influence;
 pub mod quadrature;

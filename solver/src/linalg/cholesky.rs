@@ -4,7 +4,7 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
-use faer::sparse::SparseColMatRef;
+use faer::sparse::{SparseColMat, SparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 /// L Lᵀ = A for a symmetric positive definite sparse A.
@@ -80,19 +80,18 @@ pub fn symmetric_product(a: SparseColMatRef<'_, usize, f64>, x: &[f64], y: &mut 
     }
 }
 
+/// An n × n sparse matrix from (row, column, value) entries, duplicates summed.
+pub fn sparse_matrix(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
+    let triplets: Vec<faer::sparse::Triplet<usize, usize, f64>> = entries
+        .iter()
+        .map(|&(i, j, v)| faer::sparse::Triplet::new(i, j, v))
+        .collect();
+    SparseColMat::try_new_from_triplets(n, n, &triplets).expect("entries lie inside the matrix")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use faer::sparse::SparseColMat;
-
-    /// A symmetric sparse matrix from (row, column, value) entries, duplicates summed.
-    fn symmetric_matrix(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
-        let triplets: Vec<faer::sparse::Triplet<usize, usize, f64>> = entries
-            .iter()
-            .map(|&(i, j, v)| faer::sparse::Triplet::new(i, j, v))
-            .collect();
-        SparseColMat::try_new_from_triplets(n, n, &triplets).expect("entries lie inside the matrix")
-    }
 
     #[test]
     fn solves_a_small_spd_system() {
@@ -106,7 +105,7 @@ mod tests {
                 entries.push((i + 1, i, -1.0));
             }
         }
-        let a = symmetric_matrix(n, &entries);
+        let a = sparse_matrix(n, &entries);
         let x: Vec<f64> = (0..n).map(|i| i as f64 - 2.5).collect();
         let mut b = vec![0.0; n];
         symmetric_product(a.as_ref(), &x, &mut b);
@@ -120,7 +119,7 @@ mod tests {
 
     #[test]
     fn refuses_an_indefinite_matrix() {
-        let a = symmetric_matrix(2, &[(0, 0, 1.0), (1, 1, -1.0)]);
+        let a = sparse_matrix(2, &[(0, 0, 1.0), (1, 1, -1.0)]);
         assert!(Cholesky::new(a.as_ref()).is_err());
     }
 }

@@ -12,6 +12,7 @@
 //! `ValidCase::from_json`) builds: the runners' `expect`s on fields that validation guarantees
 //! cannot fire through the library's API.
 
+pub mod coupled;
 pub mod local;
 pub mod nonlocal;
 pub mod patch_test;
@@ -60,10 +61,19 @@ fn check(case: &Case) -> Result<(), CaseError> {
             &[
                 ("horizon_profile", case.horizon_profile.is_some()),
                 ("formulation", case.formulation.is_some()),
-                ("patch", case.patch.is_some()),
+                (
+                    "patch",
+                    case.patch.is_some() && case.method != Method::Coupled1d,
+                ),
             ],
             |_| "belongs to the variable-horizon `patch_test` method; leave it out".into(),
         )?;
+    }
+    if case.method != Method::Coupled1d && case.local_domain.is_some() {
+        return Err(CaseError::new(
+            "local_domain",
+            "belongs to the local–nonlocal coupling `coupled_1d`; leave it out",
+        ));
     }
     match case.method {
         Method::Nonlocal => time_dependent(nonlocal::validate),
@@ -71,6 +81,7 @@ fn check(case: &Case) -> Result<(), CaseError> {
         Method::Pse => time_dependent(pse::validate),
         Method::SteadyCg | Method::Feti => steady::validate(case),
         Method::PatchTest => patch_test::validate(case),
+        Method::Coupled1d => coupled::validate(case),
     }
 }
 
@@ -95,6 +106,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         // The steady methods start their pool inside their setup timing.
         Method::SteadyCg | Method::Feti => steady::run(&case),
         Method::PatchTest => in_pool(&case, patch_test::run),
+        Method::Coupled1d => in_pool(&case, coupled::run),
     }
 }
 
@@ -128,10 +140,10 @@ pub fn run_on_ranks(
 ) -> Result<Option<Outcome>, CaseError> {
     let case = validate(case.clone())?;
     resources::fit_machine(&case)?;
-    if case.method.is_local() || case.method == Method::PatchTest {
+    if case.method.is_local() || matches!(case.method, Method::PatchTest | Method::Coupled1d) {
         return Err(CaseError::new(
             "method",
-            "fd_explicit, adi, pse and patch_test run on one process; start them without mpirun",
+            "fd_explicit, adi, pse, patch_test and coupled_1d run on one process; start them without mpirun",
         ));
     }
     let ranks = world.size() as usize;
@@ -147,7 +159,7 @@ pub fn run_on_ranks(
     match case.method {
         Method::Nonlocal => nonlocal::distributed::run(world, &case, gather_field),
         Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case),
-        Method::FdExplicit | Method::Adi | Method::Pse | Method::PatchTest => {
+        Method::FdExplicit | Method::Adi | Method::Pse | Method::PatchTest | Method::Coupled1d => {
             unreachable!("refused above")
         }
     }

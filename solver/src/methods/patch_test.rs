@@ -8,14 +8,12 @@
 //! operator (the seed's performance slide compares both for a constant and a varying horizon).
 
 use crate::case::{
-    readable, refuse_given, Case, CaseError, HorizonProfile, Method, PatchField, Rules, ValidCase,
-    MAX_EPS,
+    readable, Case, CaseError, HorizonProfile, Method, PatchField, Rules, ValidCase, MAX_EPS,
 };
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::outcome::Outcome;
-use crate::output::record::{
-    Distribution, ImplicitSolves, PatchTest, Provenance, Record, Resolved, Status, SteadySolve,
-};
+use crate::output::record::{Distribution, PatchTest, Record, Resolved};
+use crate::problem::polynomial::PolynomialField;
 use std::time::Instant;
 
 /// The rules of a patch-test case.
@@ -27,6 +25,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
                 "the variable-horizon patch test is 1D (got {}); use dim = 1",
                 case.dim
             ),
+        ));
+    }
+    if case.patch == Some(PatchField::Quartic) {
+        return Err(CaseError::new(
+            "patch",
+            "a patch test prescribes `linear` or `quadratic`; `quartic` is coupled_1d's Example 2",
         ));
     }
     let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
@@ -74,24 +78,8 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         }
     }
     case.refuse_steady_fields()?;
-    refuse_given(
-        &[
-            ("t_end", case.t_end.is_some()),
-            ("dt", case.dt.is_some()),
-            ("cfl", case.cfl.is_some()),
-            ("ranks", case.ranks > 1),
-            ("integrator", !case.integrator.is_forward_euler()),
-            ("quadrature", !case.quadrature.is_midpoint()),
-            ("collar", !case.collar.is_zero()),
-            ("source", case.source.is_some()),
-            ("diagnostics_every", case.diagnostics_every.is_some()),
-            ("histogram_bins", case.histogram_bins.is_some()),
-            ("field_snapshot", case.field_snapshot.is_some()),
-            ("vtk_every", case.vtk_every.is_some()),
-        ],
-        |field| {
-            format!("a patch test evaluates L_h once, on one rank, with its own weights; leave `{field}` out")
-        },
+    case.refuse_time_loop_fields(
+        "a patch test evaluates L_h once, on one rank, with its own weights",
     )
 }
 
@@ -125,7 +113,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         .collect();
     let l_u = operator.apply(&u);
     let solve_s = applied.elapsed().as_secs_f64();
-    let expected = field.second_derivative() * case.diffusivity;
+    let expected = field.local_operator(0.0, case.diffusivity);
     let x: Vec<f64> = (0..case.n)
         .map(|i| operator.x(operator.collar + i))
         .collect();
@@ -150,28 +138,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         ..Resolved::default()
     };
     let record = Record {
-        case: (**case).clone(),
-        status: Status::Ok,
-        message: String::new(),
-        resolved,
-        steps_done: 0,
         setup_s,
         solve_s,
         step_s: solve_s,
-        error_l2: None,
-        error_l2_norm: None,
-        error_max: None,
-        error_total: None,
-        mass: None,
-        max_abs: None,
-        diverged_step: None,
-        diverged_time: None,
-        c_tot: None,
-        histogram: None,
-        field: None,
-        distribution: Distribution::serial(case),
-        steady: SteadySolve::default(),
-        implicit: ImplicitSolves::default(),
         patch: Some(PatchTest {
             ghost_force,
             ghost_force_all,
@@ -181,8 +150,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             l_u: l_u.clone(),
             eps_x: eps_d.to_vec(),
         }),
-        peak_memory_bytes: crate::output::record::peak_memory_bytes(),
-        provenance: Provenance::here(case.threads, 1),
+        ..Record::new(case, resolved, Distribution::serial(case))
     };
     let lattice = crate::discretization::grid::Grid::new(1, case.n).lattice();
     Ok(Outcome {
@@ -191,26 +159,4 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         lattice,
         frames: Vec::new(),
     })
-}
-
-impl PatchFieldValues for PatchField {
-    fn value(self, x: f64) -> f64 {
-        match self {
-            PatchField::Linear => x,
-            PatchField::Quadratic => x * x,
-        }
-    }
-
-    fn second_derivative(self) -> f64 {
-        match self {
-            PatchField::Linear => 0.0,
-            PatchField::Quadratic => 2.0,
-        }
-    }
-}
-
-/// The prescribed field u(x) and u''.
-trait PatchFieldValues {
-    fn value(self, x: f64) -> f64;
-    fn second_derivative(self) -> f64;
 }

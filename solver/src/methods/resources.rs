@@ -71,7 +71,17 @@ fn fields_kept(case: &ValidCase) -> usize {
         Method::Feti => 6,
         // u on the bar and L_h u.
         Method::PatchTest => 2,
+        // The nonlocal stiffness matrix's band, 2ε/h + 3 values per node, and its factor.
+        Method::Coupled1d => 2 * (2 * reach(case) as usize + 3),
     }
+}
+
+/// The horizon in cells, ⌈ε/h⌉.
+fn reach(case: &ValidCase) -> f64 {
+    case.m.map_or_else(
+        || (case.eps.unwrap_or(0.0) * case.n as f64).ceil(),
+        |m| m as f64,
+    )
 }
 
 /// A lower bound of the bytes the run allocates over all ranks.
@@ -81,11 +91,7 @@ fn bytes_at_least(case: &ValidCase) -> f64 {
     if case.method == Method::Nonlocal {
         // The operator's copy of u with its collar (the stencil's padded window; the FFT's real
         // input and its half spectrum of complex values).
-        let reach = case.m.map_or_else(
-            || (case.eps.unwrap_or(0.0) * case.n as f64).ceil(),
-            |m| m as f64,
-        );
-        let padded = (case.n as f64 + 2.0 * reach).powi(case.dim as i32);
+        let padded = (case.n as f64 + 2.0 * reach(case)).powi(case.dim as i32);
         bytes += match case.backend {
             Backend::Fft => padded * 8.0 * 2.0,
             _ => padded * 8.0,

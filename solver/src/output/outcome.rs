@@ -4,9 +4,7 @@ use crate::case::Case;
 use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::{FieldSnapshot, Frame};
-use crate::output::record::{
-    Distribution, ImplicitSolves, Provenance, Record, Resolved, Status, SteadySolve,
-};
+use crate::output::record::{Distribution, ImplicitSolves, Record, Resolved, Status};
 
 /// A finished run: its record, the final field on the nodes of D (empty when a distributed run
 /// did not gather it), where its values sit, and the frames the case asked for.
@@ -53,10 +51,8 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
     };
     let errors = measured.errors;
     Record {
-        case: case.clone(),
         status,
         message,
-        resolved,
         steps_done: measured.steps_done,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
@@ -72,12 +68,8 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         c_tot: measured.c_tot,
         histogram: measured.histogram,
         field: measured.field,
-        provenance: Provenance::here(case.threads, measured.distribution.ranks),
-        distribution: measured.distribution,
-        steady: SteadySolve::default(),
         implicit: measured.implicit,
-        patch: None,
-        peak_memory_bytes: crate::output::record::peak_memory_bytes(),
+        ..Record::new(case, resolved, measured.distribution)
     }
 }
 

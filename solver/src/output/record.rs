@@ -53,11 +53,48 @@ pub struct Record {
     /// `patch_test`: L_h u along the bar and the ghost force.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch: Option<PatchTest>,
+    /// `coupled_1d`: both models' errors, the controls and the optimality system.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<Coupling>,
     /// The solver process's peak resident memory (VmHWM; rank 0's when distributed), setup
     /// included; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_memory_bytes: Option<u64>,
     pub provenance: Provenance,
+}
+
+impl Record {
+    /// An `ok` record with nothing measured yet: each method fills in what it measured.
+    pub fn new(case: &Case, resolved: Resolved, distribution: Distribution) -> Self {
+        Record {
+            case: case.clone(),
+            status: Status::Ok,
+            message: String::new(),
+            resolved,
+            steps_done: 0,
+            setup_s: 0.0,
+            solve_s: 0.0,
+            step_s: 0.0,
+            error_l2: None,
+            error_l2_norm: None,
+            error_max: None,
+            error_total: None,
+            mass: None,
+            max_abs: None,
+            diverged_step: None,
+            diverged_time: None,
+            c_tot: None,
+            histogram: None,
+            field: None,
+            provenance: Provenance::here(case.threads, distribution.ranks),
+            distribution,
+            steady: SteadySolve::default(),
+            implicit: ImplicitSolves::default(),
+            patch: None,
+            coupling: None,
+            peak_memory_bytes: peak_memory_bytes(),
+        }
+    }
 }
 
 /// VmHWM of /proc/self/status: the most resident memory this process has held.
@@ -154,6 +191,35 @@ pub struct PatchTest {
     pub x: Vec<f64>,
     pub l_u: Vec<f64>,
     pub eps_x: Vec<f64>,
+}
+
+/// A coupled local–nonlocal solve (seed 003): the errors of both models against the exact
+/// solution, the optimal controls, and the optimality system's residual and conditioning.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Coupling {
+    /// e(u_n) = ‖u_n − u‖ in L²(Ω_n) and e(u_l) = ‖u_l − u‖ in L²(Ω_l), the seed's columns.
+    pub error_nonlocal: f64,
+    pub error_local: f64,
+    /// ‖u_n − u_l‖ in L²(Ω_b) at the optimum, √(2J).
+    pub mismatch: f64,
+    /// ‖∇J(θ)‖/‖∇J(0)‖: the first-order condition's residual at the controls returned.
+    pub gradient: f64,
+    /// cond₂ of the reduced Hessian solved, ΨᵀWΨ plus the smoothness term that decides the
+    /// directions J cannot resolve (see `methods::coupled`).
+    pub hessian_condition: f64,
+    /// The directions of the controls J resolves (σᵢ > ε_mach^¼ σ₁), of `control_nodes` + 1.
+    pub controls_resolved: usize,
+    /// The nodes of the nonlocal control collar [1, 1 + ε], and θ_n there.
+    pub control_nodes: Vec<f64>,
+    pub controls_nonlocal: Vec<f64>,
+    /// θ_l, u_l at Γ_c.
+    pub control_local: f64,
+    /// max |θ − u| over every control: how far the controls are from the exact solution's values.
+    pub control_error: f64,
+    pub nonlocal_nodes: usize,
+    pub local_nodes: usize,
+    /// Ω_l = (Γ_c, Γ_i).
+    pub local_domain: [f64; 2],
 }
 
 /// What a steady solve (seed 001) did; every field absent for the time-dependent methods.

@@ -9,6 +9,7 @@
 //! - `local`: kΔ, so ψ = −d (2π)² k φ (the error is the distance to the local limit, Appendix B).
 
 pub mod continuum;
+pub mod polynomial;
 pub(crate) mod source;
 
 use crate::discretization::grid::Grid;

@@ -10,9 +10,7 @@ use crate::linalg::cg;
 use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
 use crate::output::outcome::Outcome;
-use crate::output::record::{
-    Distribution, ImplicitSolves, Provenance, Record, Resolved, Status, SteadySolve,
-};
+use crate::output::record::{Distribution, Record, Resolved, Status, SteadySolve};
 use rayon::prelude::*;
 
 /// The steady problem of a case: the square stencil of A = −L_h and the data.
@@ -205,31 +203,18 @@ pub(crate) fn outcome(
         (Status::Ok, String::new())
     };
     let record = Record {
-        case: case.clone(),
         status,
         message,
-        resolved: problem.resolved(backend),
-        steps_done: 0,
         setup_s: timings.setup_s,
         solve_s: timings.solve_s,
         step_s: timings.solve_s / iterations.max(1) as f64,
         error_l2: Some(error_l2),
         error_l2_norm: Some(error_l2.sqrt()),
         error_max: Some(error_max),
-        error_total: None,
         mass: Some(crate::output::diagnostics::total_mass(&u, grid.volume())),
         max_abs: Some(crate::output::diagnostics::max_abs(&u)),
-        diverged_step: None,
-        diverged_time: None,
-        c_tot: None,
-        histogram: None,
-        field: None,
         steady: solve,
-        implicit: ImplicitSolves::default(),
-        patch: None,
-        provenance: Provenance::here(case.threads, distribution.ranks),
-        distribution,
-        peak_memory_bytes: crate::output::record::peak_memory_bytes(),
+        ..Record::new(case, problem.resolved(backend), distribution)
     };
     Outcome {
         record,
