@@ -16,7 +16,7 @@ pub use fft::FftOperator;
 pub use linear::LinearOperator;
 pub use neighbour_list::NeighbourList;
 pub use sine::SinePreconditioner;
-pub use stencil::StencilOperator;
+pub use stencil::{InstructionSet, StencilOperator};
 
 use crate::case::Backend;
 use crate::discretization::stencil::Stencil;

@@ -5,6 +5,12 @@
 //! consecutive outputs of a row stays in registers while every bond of the stencil is added to it
 //! (one load, one multiply and one add per bond and lane, no store). The distributed operator runs
 //! the same `WindowKernel` on each rank's window, so both agree bit for bit.
+//!
+//! The kernel is compiled three times: portable (SSE2 on x86-64, the default build's target), for
+//! AVX2 and for AVX-512, and the widest the processor has runs (`InstructionSet::detected`), so
+//! the default binary runs at the host's speed. The three do the same operations in the same
+//! order per output (wider blocks of outputs, no fused multiply–add, which Rust never forms
+//! unasked), so they give the same bits; a test checks it on random fields.
 
 use super::linear::LinearOperator;
 use crate::discretization::grid::{Grid, PaddedWindow, RowRun, Window};
@@ -12,8 +18,8 @@ use crate::discretization::stencil::Stencil;
 use crate::threads::BLOCK;
 use rayon::prelude::*;
 
-/// Outputs summed together in registers: enough independent accumulators to hide the latency of
-/// the additions (8 vectors of the widest unit the build targets).
+/// Outputs summed together in registers by the portable kernel: enough independent accumulators
+/// to hide the latency of the additions (8 vectors of the widest unit the build targets).
 const LANES: usize = if cfg!(target_feature = "avx512f") {
     64
 } else if cfg!(target_feature = "avx") {
@@ -21,6 +27,53 @@ const LANES: usize = if cfg!(target_feature = "avx512f") {
 } else {
     16
 };
+
+/// The code the stencil kernel runs: compiled for the build's target, or for a wider vector unit
+/// the processor has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InstructionSet {
+    Portable,
+    Avx2,
+    Avx512,
+}
+
+impl InstructionSet {
+    /// The widest this processor runs.
+    pub fn detected() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx512f") {
+                return InstructionSet::Avx512;
+            }
+            if std::is_x86_feature_detected!("avx2") {
+                return InstructionSet::Avx2;
+            }
+        }
+        InstructionSet::Portable
+    }
+
+    /// Every instruction set this processor runs, the portable one first.
+    pub fn available() -> Vec<Self> {
+        let detected = Self::detected();
+        [
+            InstructionSet::Portable,
+            InstructionSet::Avx2,
+            InstructionSet::Avx512,
+        ]
+        .into_iter()
+        .filter(|&isa| isa == InstructionSet::Portable || isa as u8 <= detected as u8)
+        .collect()
+    }
+
+    /// Its name in the record's provenance.
+    pub fn name(self) -> &'static str {
+        match self {
+            InstructionSet::Portable => "portable",
+            InstructionSet::Avx2 => "avx2",
+            InstructionSet::Avx512 => "avx512f",
+        }
+    }
+}
 
 /// Rows per task in 2D, and the width of the column tiles each task sweeps its rows by.
 const BAND: usize = 16;
@@ -37,11 +90,26 @@ pub(crate) struct WindowKernel {
     total_weight: f64,
     /// Rows of D.
     rows: i64,
+    isa: InstructionSet,
 }
 
 impl WindowKernel {
-    /// The kernel of `stencil` on `window`, padded by the stencil's reach.
+    /// The kernel of `stencil` on `window`, padded by the stencil's reach, running the widest
+    /// instruction set the processor has.
     pub(crate) fn new(stencil: &Stencil, window: Window) -> Self {
+        Self::with_instruction_set(stencil, window, InstructionSet::detected())
+    }
+
+    /// The same, running `isa` (which the processor must have: see `InstructionSet::available`).
+    pub(crate) fn with_instruction_set(
+        stencil: &Stencil,
+        window: Window,
+        isa: InstructionSet,
+    ) -> Self {
+        assert!(
+            InstructionSet::available().contains(&isa),
+            "{isa:?} is not available here"
+        );
         let layout = PaddedWindow {
             window,
             pad: stencil.reach(),
@@ -62,6 +130,7 @@ impl WindowKernel {
             bond_dy,
             total_weight: stencil.total_weight,
             rows: stencil.grid.rows() as i64,
+            isa,
         }
     }
 
@@ -71,9 +140,36 @@ impl WindowKernel {
 
     /// out[k] = (L_h u) at node (x0 + k, y) of D, from the padded copy of u on the window, which
     /// must hold every node of D within reach of the segment. Each value is summed in the same
-    /// order (−W uᵢ first, then the bonds in order) whatever the window or segment, so serial,
-    /// threaded and distributed runs agree bit for bit.
+    /// order (−W uᵢ first, then the bonds in order) whatever the window, segment or instruction
+    /// set, so serial, threaded and distributed runs agree bit for bit.
     pub(crate) fn segment(&self, padded: &[f64], y: usize, x0: usize, out: &mut [f64]) {
+        match self.isa {
+            // SAFETY: `with_instruction_set` admits only the instruction sets the processor has.
+            #[cfg(target_arch = "x86_64")]
+            InstructionSet::Avx512 => unsafe { self.segment_avx512(padded, y, x0, out) },
+            #[cfg(target_arch = "x86_64")]
+            InstructionSet::Avx2 => unsafe { self.segment_avx2(padded, y, x0, out) },
+            _ => self.blocked::<LANES>(padded, y, x0, out),
+        }
+    }
+
+    /// `blocked` compiled for AVX-512: 8 vectors of 8 lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn segment_avx512(&self, padded: &[f64], y: usize, x0: usize, out: &mut [f64]) {
+        self.blocked::<64>(padded, y, x0, out)
+    }
+
+    /// `blocked` compiled for AVX2: 8 vectors of 4 lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn segment_avx2(&self, padded: &[f64], y: usize, x0: usize, out: &mut [f64]) {
+        self.blocked::<32>(padded, y, x0, out)
+    }
+
+    /// The register-blocked sum of `segment`, `B` outputs at a time.
+    #[inline(always)]
+    fn blocked<const B: usize>(&self, padded: &[f64], y: usize, x0: usize, out: &mut [f64]) {
         // The bonds whose row lies in D (collar rows add nothing); bonds are sorted by dy.
         let in_d = |dy: &i64| (0..self.rows).contains(&(y as i64 + dy));
         let first = self.bond_dy.partition_point(|dy| !in_d(dy) && *dy < 0);
@@ -82,21 +178,21 @@ impl WindowKernel {
         let centre = self.layout.index(x0, y);
         let total_weight = self.total_weight;
         let mut x = 0;
-        while x + LANES <= out.len() {
+        while x + B <= out.len() {
             let own = centre + x;
-            let mut acc = [0.0; LANES];
-            for (a, &ui) in acc.iter_mut().zip(&padded[own..own + LANES]) {
+            let mut acc = [0.0; B];
+            for (a, &ui) in acc.iter_mut().zip(&padded[own..own + B]) {
                 *a = -total_weight * ui;
             }
             for (&w, &shift) in weights.iter().zip(shifts) {
                 let from = own.wrapping_add_signed(shift);
-                let s: &[f64; LANES] = padded[from..from + LANES].try_into().unwrap();
-                for l in 0..LANES {
+                let s: &[f64; B] = padded[from..from + B].try_into().unwrap();
+                for l in 0..B {
                     acc[l] += w * s[l];
                 }
             }
-            out[x..x + LANES].copy_from_slice(&acc);
-            x += LANES;
+            out[x..x + B].copy_from_slice(&acc);
+            x += B;
         }
         // The last partial block, one output at a time in the same order.
         for (k, o) in out.iter_mut().enumerate().skip(x) {
@@ -138,9 +234,14 @@ pub struct StencilOperator {
 
 impl StencilOperator {
     pub fn new(stencil: &Stencil) -> Self {
+        Self::with_instruction_set(stencil, InstructionSet::detected())
+    }
+
+    /// The operator running `isa`'s kernel; panics unless the processor has it.
+    pub fn with_instruction_set(stencil: &Stencil, isa: InstructionSet) -> Self {
         StencilOperator {
             grid: stencil.grid,
-            kernel: WindowKernel::new(stencil, Window::whole(&stencil.grid)),
+            kernel: WindowKernel::with_instruction_set(stencil, Window::whole(&stencil.grid), isa),
         }
     }
 }

@@ -302,6 +302,10 @@ pub struct Provenance {
     pub threads: usize,
     pub ranks: usize,
     pub timestamp: String,
+    /// The instruction set the stencil kernel ran (`portable`, `avx2`, `avx512f`), detected at
+    /// start-up; absent from records made before the kernel dispatched.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub instruction_set: String,
 }
 
 impl Provenance {
@@ -314,6 +318,9 @@ impl Provenance {
             threads,
             ranks,
             timestamp: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+            instruction_set: crate::operator::InstructionSet::detected()
+                .name()
+                .to_string(),
         }
     }
 }
