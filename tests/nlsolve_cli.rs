@@ -265,6 +265,7 @@ fn bad_input_exits_2_naming_the_field() {
         ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain 1.2,2", "`local_domain`"),
         ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain -0.1,1.75", "`local_domain`"),
         ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain 0.75,1.03", "`local_domain`"),
+        ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --local-domain 0.75,1e12", "`local_domain`"),
         ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --t-end 1", "`t_end`"),
         ("--method coupled_1d --dim 1 --n 16 --eps 0.065 --ranks 2", "`ranks`"),
         ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --local-domain 0.75,1.75", "`local_domain`"),

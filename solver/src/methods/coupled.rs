@@ -43,6 +43,10 @@ use std::time::Instant;
 /// Seed 003's local domain (Γ_c, Γ_i).
 pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
 
+/// Most elements of the local mesh (a few GB of vectors), so that a runaway `local_domain` is
+/// refused rather than allocated.
+const MAX_LOCAL_ELEMENTS: f64 = 1e8;
+
 /// The rules of a coupled case.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.dim != 1 {
@@ -97,6 +101,14 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             "the nonlocal control collar [1, 1 + ε] = [1, {}] must lie inside the local domain (b = {}); use b ≥ 1 + ε, e.g. 1.75",
             readable(1.0 + eps),
             readable(b)
+        ))
+    } else if (b - a) * case.n as f64 > MAX_LOCAL_ELEMENTS {
+        Some(format!(
+            "meshing [a, b] = [{}, {}] at h = 1/{} takes {:.1e} elements, above {MAX_LOCAL_ELEMENTS:e}; shorten the local domain",
+            readable(a),
+            readable(b),
+            case.n,
+            (b - a) * case.n as f64
         ))
     } else {
         None
