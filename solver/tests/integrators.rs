@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{case, observed_orders, scientific};
+use common::{case, observed_orders, same_bits, scientific};
 use serde_json::json;
 use solver::run;
 
@@ -59,13 +59,7 @@ fn every_integrator_gives_the_same_bits_on_any_thread_count() {
                 .field
             })
             .collect();
-        assert!(
-            fields[0]
-                .iter()
-                .zip(&fields[1])
-                .all(|(a, b)| a.to_bits() == b.to_bits()),
-            "{integrator}"
-        );
+        assert!(same_bits(&fields[0], &fields[1]), "{integrator}");
     }
 }
 

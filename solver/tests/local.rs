@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{case, observed_orders, scientific};
+use common::{case, observed_orders, same_bits, scientific};
 use serde_json::json;
 use solver::output::record::Status;
 use solver::{run, Outcome};
@@ -360,13 +360,7 @@ fn one_and_two_threads_give_identical_fields() {
                     .field
                 })
                 .collect();
-            assert!(
-                fields[0]
-                    .iter()
-                    .zip(&fields[1])
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                "{method} {dim}D"
-            );
+            assert!(same_bits(&fields[0], &fields[1]), "{method} {dim}D");
         }
     }
 }

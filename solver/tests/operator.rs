@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::random_field;
+use common::{random_field, same_bits};
 use solver::case::{Backend, Kernel, Quadrature};
 use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stencil::Stencil;
@@ -185,10 +185,7 @@ fn results_do_not_depend_on_the_thread_count() {
                 })
                 .collect();
             for out in &outputs[1..] {
-                assert!(out
-                    .iter()
-                    .zip(&outputs[0])
-                    .all(|(a, b)| a.to_bits() == b.to_bits()));
+                assert!(same_bits(out, &outputs[0]));
             }
         }
     }
@@ -294,10 +291,7 @@ fn every_instruction_set_gives_the_portable_kernels_bits() {
         let portable = out(InstructionSet::Portable);
         for &isa in &available[1..] {
             let dispatched = out(isa);
-            let same = portable
-                .iter()
-                .zip(&dispatched)
-                .all(|(a, b)| a.to_bits() == b.to_bits());
+            let same = same_bits(&portable, &dispatched);
             assert!(
                 same,
                 "{isa:?} differs from the portable kernel (dim {dim}, n {n}, m {m})"

@@ -23,6 +23,14 @@ pub const MAX_SNAPSHOT_SIDE: usize = 256;
 /// `methods::resources::OVERSUBSCRIPTION` × this machine's cores).
 pub const MAX_THREADS: usize = 1024;
 
+/// The horizon as a length: `eps`, or m·h with h = 1/n; 0 when the case gives neither (a
+/// varying `horizon_profile`, or a case validation refuses).
+pub fn horizon_length(case: &Case) -> f64 {
+    case.eps
+        .or(case.m.map(|m| m as f64 / case.n as f64))
+        .unwrap_or(0.0)
+}
+
 /// A number as a message shows it: plain between 10⁻⁴ and 10⁶, else in scientific notation
 /// (so 1e-300 reads as `1e-300`, not as 300 digits).
 pub fn readable(x: f64) -> String {

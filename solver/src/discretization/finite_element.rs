@@ -145,10 +145,6 @@ impl BandMatrix {
         }
     }
 
-    pub fn order(&self) -> usize {
-        self.n
-    }
-
     fn slot(&self, i: usize, j: usize) -> Option<usize> {
         let offset = j as isize - i as isize + self.w as isize;
         (0..=2 * self.w as isize)

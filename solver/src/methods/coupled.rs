@@ -26,7 +26,7 @@
 //! tiny smoothness term that is exact on linear data (see `least_squares`).
 //! The record carries ‖∇J(θ)‖/‖∇J(0)‖, the first-order condition's residual.
 
-use crate::case::{readable, Case, CaseError, Method, Rules, ValidCase, MAX_EPS};
+use crate::case::{horizon_length, readable, Case, CaseError, Method, Rules, ValidCase, MAX_EPS};
 use crate::discretization::finite_element::{
     laplace_stiffness, nonlocal_stiffness, BandMatrix, Mesh,
 };
@@ -64,16 +64,13 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             ),
         ));
     }
-    let eps = match (case.m, case.eps) {
-        (Some(m), None) => m as f64 / case.n as f64,
-        (None, Some(eps)) => eps,
-        _ => {
-            return Err(CaseError::new(
-                "eps",
-                "give the horizon as `eps` or `m` (one of them)",
-            ))
-        }
-    };
+    if case.m.is_some() == case.eps.is_some() {
+        return Err(CaseError::new(
+            "eps",
+            "give the horizon as `eps` or `m` (one of them)",
+        ));
+    }
+    let eps = horizon_length(case);
     if !(eps > 0.0 && eps <= MAX_EPS) {
         return Err(CaseError::new(
             if case.m.is_some() { "m" } else { "eps" },
@@ -131,12 +128,6 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 
 fn local_domain(case: &Case) -> [f64; 2] {
     case.local_domain.unwrap_or(DEFAULT_LOCAL_DOMAIN)
-}
-
-/// The horizon: `eps`, or m·h.
-fn horizon(case: &Case) -> f64 {
-    case.eps
-        .unwrap_or_else(|| case.m.unwrap_or(0) as f64 / case.n as f64)
 }
 
 /// One model's discrete problem, reduced to its controls: the state with zero controls and
@@ -218,7 +209,10 @@ fn reduce(
 
 /// The minimiser of J_δ(θ) = ½‖d⁰ + Ψ θ‖² + ½δ²‖D₂ θ_n‖², and what conditions it.
 struct Optimum {
-    theta: Mat<f64>,
+    /// (θ_n, θ_l).
+    theta: Vec<f64>,
+    /// ‖∇J(θ)‖/‖∇J(0)‖ = ‖ΨᵀW(d⁰ + Ψθ)‖/‖ΨᵀWd⁰‖, the first-order condition's residual.
+    gradient: f64,
     /// Singular directions of Ψ that J resolves (σᵢ > δ).
     resolved: usize,
     /// cond₂ of the Hessian ΨᵀΨ + δ² D₂ᵀD₂ of the problem solved.
@@ -270,8 +264,11 @@ fn least_squares(
         .fold((0.0f64, f64::INFINITY), |(hi, lo), &s| {
             (hi.max(s), lo.min(s))
         });
+    let residual = d0 + psi * &theta;
+    let gradient = (psi.transpose() * &residual).norm_l2() / (psi.transpose() * d0).norm_l2();
     Ok(Optimum {
-        theta,
+        theta: (0..psi.ncols()).map(|j| theta[(j, 0)]).collect(),
+        gradient,
         resolved: sigma.iter().filter(|&&s| s > delta).count(),
         condition: (most / least).powi(2),
     })
@@ -307,7 +304,7 @@ impl Coupled {
     /// Assembles and reduces both models (the factorisations and control responses included).
     fn new(case: &Case) -> Result<Coupled, CaseError> {
         let field = case.patch.unwrap_or_default();
-        let (k, kernel, eps) = (case.diffusivity, case.kernel, horizon(case));
+        let (k, kernel, eps) = (case.diffusivity, case.kernel, horizon_length(case));
         let [a, b] = local_domain(case);
         let h = 1.0 / case.n as f64;
 
@@ -363,13 +360,25 @@ impl Coupled {
         (psi, d0)
     }
 
-    /// ‖u_n − u_l‖ in L²(Ω_b) for the controls θ_n, θ_l: √(2J).
-    fn mismatch(&self, theta_n: &[f64], theta_l: f64) -> f64 {
-        let (u_n, u_l) = (self.nonlocal.state(theta_n), self.local.state(&[theta_l]));
+    /// The controls minimising J_δ (see `least_squares`).
+    fn optimum(&self) -> Result<Optimum, CaseError> {
+        let (psi, d0) = self.reduced();
+        let smoothing = second_differences(&self.nonlocal.control_nodes, self.h, psi.ncols());
+        least_squares(&psi, &d0, &smoothing)
+    }
+
+    /// u_n and u_l for the controls θ = (θ_n, θ_l).
+    fn states(&self, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (theta_n, theta_l) = theta.split_at(theta.len() - 1);
+        (self.nonlocal.state(theta_n), self.local.state(theta_l))
+    }
+
+    /// ‖u_n − u_l‖ in L²(Ω_b): √(2J).
+    fn mismatch(&self, (u_n, u_l): &(Vec<f64>, Vec<f64>)) -> f64 {
         self.overlap
             .iter()
             .map(|&(x, w)| {
-                w * (self.nonlocal.mesh.value(&u_n, x) - self.local.mesh.value(&u_l, x)).powi(2)
+                w * (self.nonlocal.mesh.value(u_n, x) - self.local.mesh.value(u_l, x)).powi(2)
             })
             .sum::<f64>()
             .sqrt()
@@ -383,17 +392,11 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let problem = Coupled::new(case)?;
     let setup_s = started.elapsed().as_secs_f64();
     let solving = Instant::now();
-    let (psi, d0) = problem.reduced();
-    let columns = psi.ncols();
-    let smoothing = second_differences(&problem.nonlocal.control_nodes, problem.h, columns);
-    let optimum = least_squares(&psi, &d0, &smoothing)?;
-    let residual = &d0 + &psi * &optimum.theta;
-    let gradient = (psi.transpose() * &residual).norm_l2() / (psi.transpose() * &d0).norm_l2();
-    let theta: Vec<f64> = (0..columns).map(|j| optimum.theta[(j, 0)]).collect();
-    let (theta_n, theta_l) = theta.split_at(columns - 1);
+    let optimum = problem.optimum()?;
+    let (theta_n, theta_l) = optimum.theta.split_at(optimum.theta.len() - 1);
+    let states = problem.states(&optimum.theta);
     let (nonlocal, local) = (&problem.nonlocal, &problem.local);
-    let u_n = nonlocal.state(theta_n);
-    let u_l = local.state(theta_l);
+    let (u_n, u_l) = (&states.0, &states.1);
     let solve_s = solving.elapsed().as_secs_f64();
 
     let field = case.patch.unwrap_or_default();
@@ -406,10 +409,10 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         .map(|(&x, t)| (t - exact(x)).abs())
         .fold((theta_l[0] - exact(a)).abs(), f64::max);
     let coupling = Coupling {
-        error_nonlocal: nonlocal.mesh.l2_distance(&u_n, 0.0, 1.0, exact),
-        error_local: local.mesh.l2_distance(&u_l, a, b, exact),
-        mismatch: problem.mismatch(theta_n, theta_l[0]),
-        gradient,
+        error_nonlocal: nonlocal.mesh.l2_distance(u_n, 0.0, 1.0, exact),
+        error_local: local.mesh.l2_distance(u_l, a, b, exact),
+        mismatch: problem.mismatch(&states),
+        gradient: optimum.gradient,
         hessian_condition: optimum.condition,
         controls_resolved: optimum.resolved,
         control_nodes: nonlocal.control_nodes.clone(),
@@ -464,17 +467,6 @@ mod tests {
         .unwrap()
     }
 
-    /// θ* and the mismatch there, as `run` finds them.
-    fn optimum(problem: &Coupled) -> (Vec<f64>, f64) {
-        let (psi, d0) = problem.reduced();
-        let smoothing = second_differences(&problem.nonlocal.control_nodes, problem.h, psi.ncols());
-        let theta = least_squares(&psi, &d0, &smoothing).unwrap().theta;
-        let theta: Vec<f64> = (0..psi.ncols()).map(|j| theta[(j, 0)]).collect();
-        let (theta_n, theta_l) = theta.split_at(theta.len() - 1);
-        let mismatch = problem.mismatch(theta_n, theta_l[0]);
-        (theta, mismatch)
-    }
-
     #[test]
     fn the_default_layout_is_the_seeds() {
         assert_eq!(DEFAULT_LOCAL_DOMAIN, [0.75, 1.75]);
@@ -496,16 +488,18 @@ mod tests {
         for field in ["quadratic", "quartic"] {
             for n in [8, 16, 64] {
                 let problem = Coupled::new(&case(n, field)).unwrap();
-                let (theta, best) = optimum(&problem);
+                let theta = problem.optimum().unwrap().theta;
+                let best = problem.mismatch(&problem.states(&theta));
                 let exact = case(n, field).patch.unwrap();
                 let u = |x: f64| exact.value(x);
-                let exact_n: Vec<f64> = problem
+                let mut exact_controls: Vec<f64> = problem
                     .nonlocal
                     .control_nodes
                     .iter()
                     .map(|&x| u(x))
                     .collect();
-                let at_exact = problem.mismatch(&exact_n, u(0.75));
+                exact_controls.push(u(0.75));
+                let at_exact = problem.mismatch(&problem.states(&exact_controls));
                 assert!(
                     best <= at_exact,
                     "{field} n={n}: {best:e} > {at_exact:e} at u's values"
@@ -517,8 +511,7 @@ mod tests {
                     for step in [-1e-4, 1e-4] {
                         let mut moved = theta.clone();
                         moved[j] += step;
-                        let (theta_n, theta_l) = moved.split_at(moved.len() - 1);
-                        let there = problem.mismatch(theta_n, theta_l[0]);
+                        let there = problem.mismatch(&problem.states(&moved));
                         assert!(
                             there >= best * (1.0 - 1e-12),
                             "{field} n={n} control {j}: {there:e} < {best:e}"

@@ -8,7 +8,8 @@
 //! operator (the seed's performance slide compares both for a constant and a varying horizon).
 
 use crate::case::{
-    readable, Case, CaseError, HorizonProfile, Method, PatchField, Rules, ValidCase, MAX_EPS,
+    horizon_length, readable, Case, CaseError, HorizonProfile, Method, PatchField, Rules,
+    ValidCase, MAX_EPS,
 };
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::outcome::Outcome;
@@ -50,7 +51,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             ))
         }
     }
-    let constant = constant_horizon(case);
+    let constant = horizon_length(case);
     if let HorizonProfile::Transition { start, end, .. } = profile {
         if !(0.0..=1.0).contains(&start) || !(start < end && end <= 1.0) {
             return Err(CaseError::new(
@@ -83,19 +84,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     )
 }
 
-/// The constant horizon `eps` or m·h (unused by a varying profile, which gives neither).
-fn constant_horizon(case: &Case) -> f64 {
-    case.eps
-        .or(case.m.map(|m| m as f64 / case.n as f64))
-        .unwrap_or(0.0)
-}
-
 /// Evaluates L_h on the prescribed field and measures the ghost force.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::PatchTest);
     let started = Instant::now();
     let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
-    let constant = constant_horizon(case);
+    let constant = horizon_length(case);
     let field = case.patch.unwrap_or_default();
     let formulation = case.formulation.unwrap_or_default();
     let operator = VariableHorizonOperator::new(

@@ -4,6 +4,11 @@
 use solver::case::Case;
 use solver::ValidCase;
 
+/// Do two fields hold the same values bit for bit (and as many)?
+pub fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// A deterministic pseudo-random field in [−1, 1) (xorshift64*), so failures reproduce.
 pub fn random_field(len: usize, seed: u64) -> Vec<f64> {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
