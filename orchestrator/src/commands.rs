@@ -238,6 +238,9 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         timeout: timeout.map(Duration::from_secs_f64),
         launcher: args.launcher.clone(),
     };
+    store
+        .clear_abandoned_outputs()
+        .map_err(|e| format!("cannot reach the study's outputs: {e}"))?;
     let stop = Arc::new(AtomicBool::new(false));
     let handler_flag = Arc::clone(&stop);
     ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))

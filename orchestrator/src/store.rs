@@ -130,13 +130,32 @@ impl Store {
     /// Takes the lock of the study's tables and figures, waiting while another process writes
     /// them, and clears the partial files a writer killed midway left behind.
     pub fn lock_outputs(&self) -> io::Result<File> {
-        let study = self.runs.parent().unwrap_or(Path::new(".")).to_path_buf();
-        let file = lock_file(&study, ".outputs.lock")?;
+        let file = lock_file(&self.study_dir(), ".outputs.lock")?;
         file.lock()?;
-        let partial = |n: &str| n.starts_with('.') && n.ends_with(".partial");
-        remove_where(&study, partial);
-        remove_where(&self.table("figures"), partial);
+        self.clear_output_partials();
         Ok(file)
+    }
+
+    /// Clears the partial tables and figures a writer killed midway left behind, when no
+    /// process writes the outputs now (a run that does not collect still leaves a whole store).
+    pub fn clear_abandoned_outputs(&self) -> io::Result<()> {
+        let file = lock_file(&self.study_dir(), ".outputs.lock")?;
+        match file.try_lock() {
+            Ok(()) => self.clear_output_partials(),
+            Err(TryLockError::WouldBlock) => {}
+            Err(TryLockError::Error(e)) => return Err(e),
+        }
+        Ok(())
+    }
+
+    fn study_dir(&self) -> PathBuf {
+        self.runs.parent().unwrap_or(Path::new(".")).to_path_buf()
+    }
+
+    fn clear_output_partials(&self) {
+        let partial = |n: &str| n.starts_with('.') && n.ends_with(".partial");
+        remove_where(&self.study_dir(), partial);
+        remove_where(&self.table("figures"), partial);
     }
 
     /// Every stored record, and the files of the store that are not whole records.
@@ -302,6 +321,22 @@ mod tests {
         assert!(store.lock("other").unwrap().is_some());
         drop(held);
         assert!(store.lock("k").unwrap().is_some(), "released with its file");
+        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+    }
+
+    #[test]
+    fn abandoned_output_partials_are_cleared_only_while_no_writer_holds_the_outputs() {
+        let store = scratch("outputs");
+        std::fs::create_dir_all(&store.runs).unwrap();
+        let partial = store.table(".t.parquet.999.partial");
+        std::fs::write(&partial, "PAR1").unwrap();
+        let writer = store.lock_outputs().unwrap();
+        std::fs::write(&partial, "PAR1").unwrap();
+        store.clear_abandoned_outputs().unwrap();
+        assert!(partial.exists(), "a live writer's partial file is kept");
+        drop(writer);
+        store.clear_abandoned_outputs().unwrap();
+        assert!(!partial.exists(), "an abandoned partial file is cleared");
         let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
     }
 }
