@@ -244,6 +244,47 @@ fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
     }
 }
 
+/// The implicit integrators run over ranks: CG applies the distributed operator, and each rank
+/// applies the sine-transform preconditioner to the gathered whole residual. The inner products
+/// are summed over ranks in another order, so the fields agree to the solves' tolerance (here
+/// 1e-13), not bit for bit.
+#[test]
+fn implicit_integrators_over_ranks_equal_the_serial_run() {
+    for integrator in ["backward_euler", "crank_nicolson"] {
+        let case = [
+            "--dim",
+            "2",
+            "--n",
+            "40",
+            "--m",
+            "3",
+            "--kernel",
+            "linear",
+            "--t-end",
+            "0.05",
+            "--cfl",
+            "20",
+            "--rtol",
+            "1e-13",
+            "--integrator",
+            integrator,
+        ];
+        let reference = serial(&case);
+        let iterations = |r: &Run| r.record["solve_iterations_max"].as_u64().unwrap();
+        assert!(iterations(&reference) >= 2, "{integrator}: a real solve");
+        for (ranks, partition) in [(2, "block"), (3, "graph")] {
+            let run = distributed(ranks, partition, 1, &case);
+            let what = format!("{integrator}, {ranks} ranks, {partition}");
+            assert_agrees(&reference, &run, ranks, partition, &what);
+            assert_eq!(run.record["solves_unconverged"], 0, "{what}");
+            assert!(
+                iterations(&run).abs_diff(iterations(&reference)) <= 1,
+                "{what}"
+            );
+        }
+    }
+}
+
 /// Every quadrature's weights, and the exact collar's source term, travel to the ranks.
 #[test]
 fn quadratures_and_the_exact_collar_equal_the_serial_run() {

@@ -17,8 +17,6 @@ use crate::case::Integrator;
 use crate::linalg::cg::{self, combine, Pcg};
 use crate::operator::LinearOperator;
 use crate::output::record::ImplicitSolves;
-use crate::parallel::exchange::Ranks;
-use crate::problem::Source;
 use std::f64::consts::TAU;
 
 /// Iterations per step before a solve stops unconverged, unless the case sets `max_iterations`.
@@ -52,20 +50,17 @@ pub struct Theta<'a, Op: LinearOperator, P: LinearOperator> {
 impl<'a, Op: LinearOperator, P: LinearOperator> Theta<'a, Op, P> {
     /// `integrator` is `BackwardEuler` or `CrankNicolson`; `preconditioner` approximates
     /// (I − θ dt L)⁻¹ for this `dt`.
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         integrator: Integrator,
-        operator: &'a Op,
+        rhs: Rhs<'a, Op>,
         preconditioner: &'a P,
-        source: Option<&'a Source>,
-        ranks: Ranks<'a>,
         len: usize,
         dt: f64,
         rtol: f64,
         max_iterations: usize,
     ) -> Self {
         Theta {
-            rhs: Rhs::new(operator, source, ranks),
+            rhs,
             theta: theta(integrator),
             dt,
             preconditioner,

@@ -1,8 +1,10 @@
 //! Running one case over MPI ranks: how the nodes are divided (`partition`), what each rank
-//! holds (`share`: its window, row runs and neighbours), the collectives and partner swaps the methods need (`exchange`), and L_h
-//! on a rank's nodes with its ghost exchange (`operator`).
+//! holds (`share`: its window, row runs and neighbours), the collectives and partner swaps the
+//! methods need (`exchange`), L_h on a rank's nodes with its ghost exchange (`operator`), and a
+//! whole-grid operator on a spread vector (`gathered`).
 
 pub mod exchange;
+pub mod gathered;
 pub mod operator;
 pub mod partition;
 pub mod share;

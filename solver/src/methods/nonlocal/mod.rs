@@ -12,7 +12,7 @@ use crate::discretization::stencil::Stencil;
 use crate::integrate::euler::ForwardEuler;
 use crate::integrate::measure::serial_outcome;
 use crate::integrate::runge_kutta::RungeKutta;
-use crate::integrate::stepper::{integrate, Stepper};
+use crate::integrate::stepper::{integrate, Rhs, Stepper};
 use crate::integrate::theta::{default_rtol, theta, Theta, DEFAULT_MAX_ITERATIONS};
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
@@ -20,6 +20,7 @@ use crate::operator::{self, LinearOperator, SinePreconditioner};
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
 use crate::parallel::exchange::Ranks;
+use crate::parallel::gathered::Gathered;
 use crate::problem::source::PointwiseSource;
 use crate::problem::{self, manufactured_solution, Source};
 use rayon::prelude::*;
@@ -37,12 +38,6 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "length",
             "the nonlocal method runs on D = [0,1]^d; leave `length` out",
-        ));
-    }
-    if case.integrator.is_implicit() && case.ranks > 1 {
-        return Err(CaseError::new(
-            "integrator",
-            "the implicit integrators run on one rank (their sine-transform preconditioner transforms all of D); use threads, or `forward_euler`, `heun` or `rk4` over ranks",
         ));
     }
     if case.collar == Collar::Exact && case.problem != Problem::Manufactured {
@@ -213,6 +208,11 @@ pub(crate) fn solve<Op: LinearOperator>(
         .integrator
         .is_implicit()
         .then(|| SinePreconditioner::new(&plan.stencil, theta(case.integrator) * plan.dt));
+    // Over ranks each rank applies it to the gathered whole vector.
+    let gathered = preconditioner
+        .as_ref()
+        .zip(nodes)
+        .map(|(whole, nodes)| Gathered::new(whole, nodes, plan.stencil.grid.nodes(), ranks));
     let trajectory = {
         let source = source.as_ref();
         let mut stepper: Box<dyn Stepper> = match (case.integrator, &preconditioner) {
@@ -227,18 +227,11 @@ pub(crate) fn solve<Op: LinearOperator>(
                 len,
             )),
             (Integrator::BackwardEuler | Integrator::CrankNicolson, Some(preconditioner)) => {
-                Box::new(Theta::new(
-                    case.integrator,
-                    operator,
-                    preconditioner,
-                    source,
-                    ranks,
-                    len,
-                    plan.dt,
-                    case.rtol
-                        .unwrap_or_else(|| default_rtol(case.integrator, plan.dt, plan.steps)),
-                    case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
-                ))
+                let rhs = Rhs::new(operator, source, ranks);
+                match &gathered {
+                    Some(gathered) => theta_stepper(case, plan, rhs, gathered, len),
+                    None => theta_stepper(case, plan, rhs, preconditioner, len),
+                }
             }
             (Integrator::BackwardEuler | Integrator::CrankNicolson, None) => {
                 unreachable!("made above for the implicit integrators")
@@ -254,6 +247,29 @@ pub(crate) fn solve<Op: LinearOperator>(
         },
         trajectory,
     )
+}
+
+/// The θ-scheme of the case's implicit integrator with `preconditioner`.
+fn theta_stepper<'a, Op: LinearOperator, P: LinearOperator>(
+    case: &Case,
+    plan: &Plan,
+    rhs: Rhs<'a, Op>,
+    preconditioner: &'a P,
+    len: usize,
+) -> Box<dyn Stepper + 'a> {
+    let rtol = case
+        .rtol
+        .unwrap_or_else(|| default_rtol(case.integrator, plan.dt, plan.steps));
+    let max_iterations = case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS);
+    Box::new(Theta::new(
+        case.integrator,
+        rhs,
+        preconditioner,
+        len,
+        plan.dt,
+        rtol,
+        max_iterations,
+    ))
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
