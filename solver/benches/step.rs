@@ -11,7 +11,7 @@ use solver::discretization::grid::{Grid, Horizon};
 use solver::discretization::stencil::Stencil;
 use solver::methods::local::{Adi, ExplicitFd, LocalGrid};
 use solver::methods::pse::{Particles, PseOperator};
-use solver::operator::{plan, LinearOperator};
+use solver::operator::{plan, LinearOperator, SinePreconditioner};
 
 fn main() {
     divan::main();
@@ -112,4 +112,25 @@ fn pse(bencher: Bencher, n: usize) {
     bencher
         .counter(ItemsCount::new(particles.count()))
         .bench_local(|| operator.apply(black_box(&u), &mut rate, &mut workspace));
+}
+
+/// The implicit integrators' sine-transform preconditioner (2D, m = 8): n = 2^k, whose DST-I
+/// length n + 1 has large prime factors, against n = 2^k − 1.
+#[divan::bench(args = [127, 128, 255, 256, 511, 512])]
+fn sine_preconditioner(bencher: Bencher, n: usize) {
+    let grid = Grid::new(2, n);
+    let stencil = Stencil::new(
+        grid,
+        Horizon::from_m(&grid, 8),
+        Kernel::Linear,
+        Quadrature::Midpoint,
+        1.0,
+    );
+    let preconditioner = SinePreconditioner::new(&stencil, 1e-4);
+    let r = field(grid.nodes());
+    let mut out = vec![0.0; grid.nodes()];
+    let mut workspace = preconditioner.workspace();
+    bencher
+        .counter(ItemsCount::new(grid.nodes()))
+        .bench_local(|| preconditioner.apply(black_box(&r), &mut out, &mut workspace));
 }

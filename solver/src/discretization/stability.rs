@@ -109,11 +109,12 @@ impl Symbol {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
-    /// σ at the sine modes of D's nodes, θ_k = πk/(n + 1) for k = 1 ..= n along each axis (in 2D
-    /// at [k₂ − 1][k₁ − 1]): the eigenvalues of −L_h's τ approximation, the matrix of the
-    /// sine-transform preconditioner (`operator::sine`).
-    pub fn on_sine_modes(&self, n: usize) -> Vec<f64> {
-        let angle = |k: usize| PI * (k + 1) as f64 / (n + 1) as f64;
+    /// σ at the n sine modes θ_k = πk/period for k = 1 ..= n along each axis (in 2D at
+    /// [k₂ − 1][k₁ − 1]): with period n + 1 the eigenvalues of −L_h's τ approximation (DST-I),
+    /// with period n those of its DST-II approximation; the sine-transform preconditioner's
+    /// (`operator::sine`).
+    pub fn on_sine_modes(&self, n: usize, period: usize) -> Vec<f64> {
+        let angle = |k: usize| PI * (k + 1) as f64 / period as f64;
         let cosines: Vec<Vec<f64>> = (0..n).map(|k| self.cosines(angle(k))).collect();
         let rows = if self.dim == 2 { n } else { 1 };
         let mut g = vec![0.0; self.reach + 1];
