@@ -187,10 +187,10 @@ impl Rules for Case {
                 ),
             ));
         }
-        if self.ranks > 1 && !matches!(self.backend, Backend::Stencil | Backend::Auto) {
+        if self.ranks > 1 && self.backend == Backend::NeighbourList {
             return Err(CaseError::new(
                 "backend",
-                "the distributed solver runs the `stencil` backend; use `stencil` or `auto` with ranks > 1",
+                "`neighbour_list` is the one-process oracle; use `stencil`, `fft` or `auto` with ranks > 1",
             ));
         }
         for (field, value) in [("px", self.px), ("py", self.py)] {

@@ -4,12 +4,19 @@
 //! nodes follow. The kernel is the serial stencil operator's, so every value equals the serial
 //! one bit for bit.
 //!
+//! With the FFT backend the rank convolves its whole window (owned nodes and ghosts, zero
+//! elsewhere) once the ghosts are in, by a local zero-padded FFT (`FftOperator::on_window`): a
+//! node's ball lies inside the window, so the window's linear convolution is L_h at the owned
+//! nodes. The transform lengths differ from the serial run's, so values agree with it to
+//! rounding, not bit for bit.
+//!
 //! Vectors are in the rank's compact order (`RankShare::runs`): interior runs, then boundary runs.
 
+use crate::case::Backend;
 use crate::discretization::grid::RowRun;
 use crate::discretization::stencil::Stencil;
 use crate::operator::stencil::WindowKernel;
-use crate::operator::LinearOperator;
+use crate::operator::{FftOperator, LinearOperator};
 use crate::parallel::exchange::Ranks;
 use crate::parallel::share::RankShare;
 use rayon::prelude::*;
@@ -27,17 +34,33 @@ pub struct DistributedOperator<'a> {
     peers: Vec<usize>,
     sends: Vec<Vec<usize>>,
     receives: Vec<Vec<usize>>,
+    /// With the FFT backend, the window's convolution.
+    fft: Option<FftOperator>,
 }
 
-/// The padded window and the message buffers of one rank.
+/// The padded window and the message buffers of one rank, and the FFT backend's window values
+/// and workspace.
 pub struct HaloWorkspace {
     padded: Vec<f64>,
     send: Vec<Vec<f64>>,
     receive: Vec<Vec<f64>>,
+    fft: Option<FftWork>,
+}
+
+pub struct FftWork {
+    window: Vec<f64>,
+    convolved: Vec<f64>,
+    work: <FftOperator as LinearOperator>::Workspace,
 }
 
 impl<'a> DistributedOperator<'a> {
-    pub fn new(stencil: &Stencil, share: &'a RankShare, ranks: Ranks<'a>) -> Self {
+    /// L_h on the rank's nodes by `backend`: `Fft` convolves the window, any other the stencil.
+    pub fn new(
+        stencil: &Stencil,
+        share: &'a RankShare,
+        ranks: Ranks<'a>,
+        backend: Backend,
+    ) -> Self {
         let kernel = WindowKernel::new(stencil, share.window);
         let layout = *kernel.layout();
         let place = |w: usize| {
@@ -67,7 +90,40 @@ impl<'a> DistributedOperator<'a> {
                 .map(|nb| nb.receive.iter().map(|&w| place(w)).collect())
                 .collect(),
             kernel,
+            fft: (backend == Backend::Fft)
+                .then(|| ranks.on(|| FftOperator::on_window(stencil, share.window))),
         }
+    }
+
+    /// L_h at the owned nodes by the FFT of the whole window, whose ghosts are in `padded`.
+    fn convolve_window(
+        &self,
+        fft: &FftOperator,
+        padded: &[f64],
+        out: &mut [f64],
+        work: &mut FftWork,
+    ) {
+        let FftWork {
+            window,
+            convolved,
+            work,
+        } = work;
+        let layout = self.kernel.layout();
+        let (nx, pad, stride) = (layout.window.nx, layout.pad, layout.stride());
+        let row_runs = &self.row_runs;
+        self.ranks.on(|| {
+            window
+                .par_chunks_mut(nx)
+                .zip(padded.par_chunks(stride))
+                .for_each(|(row, padded_row)| row.copy_from_slice(&padded_row[pad..pad + nx]));
+            fft.apply(window, convolved, work);
+            for (y, runs) in row_runs.iter().enumerate() {
+                for &(column, offset, len) in runs {
+                    let at = y * nx + column - pad;
+                    out[offset..offset + len].copy_from_slice(&convolved[at..at + len]);
+                }
+            }
+        });
     }
 }
 
@@ -76,10 +132,16 @@ impl LinearOperator for DistributedOperator<'_> {
 
     fn workspace(&self) -> HaloWorkspace {
         let buffers = |lists: &[Vec<usize>]| lists.iter().map(|l| vec![0.0; l.len()]).collect();
+        let window = self.kernel.layout().window.len();
         HaloWorkspace {
             padded: vec![0.0; self.kernel.layout().len()],
             send: buffers(&self.sends),
             receive: buffers(&self.receives),
+            fft: self.fft.as_ref().map(|fft| FftWork {
+                window: vec![0.0; window],
+                convolved: vec![0.0; window],
+                work: self.ranks.on(|| fft.workspace()),
+            }),
         }
     }
 
@@ -88,6 +150,7 @@ impl LinearOperator for DistributedOperator<'_> {
             padded,
             send,
             receive,
+            fft: fft_work,
         } = workspace;
         let (ranks, kernel, row_runs) = (self.ranks, &self.kernel, &self.row_runs);
         let stride = kernel.layout().stride();
@@ -107,6 +170,12 @@ impl LinearOperator for DistributedOperator<'_> {
                 *b = padded[place];
             }
         }
+        if let (Some(fft), Some(fft_work)) = (&self.fft, fft_work) {
+            ranks.exchange.swap(&self.peers, send, receive);
+            place_ghosts(padded, receive, &self.receives);
+            self.convolve_window(fft, padded, out, fft_work);
+            return;
+        }
         let (out_interior, out_boundary) = out.split_at_mut(self.interior_nodes);
         {
             let (padded, interior) = (&padded[..], self.interior);
@@ -116,12 +185,17 @@ impl LinearOperator for DistributedOperator<'_> {
                     ranks.on(|| kernel.apply_on_runs(interior, padded, out_interior))
                 });
         }
-        for (buffer, places) in receive.iter().zip(&self.receives) {
-            for (&b, &place) in buffer.iter().zip(places) {
-                padded[place] = b;
-            }
-        }
+        place_ghosts(padded, receive, &self.receives);
         let (padded, boundary) = (&padded[..], self.boundary);
         ranks.on(|| kernel.apply_on_runs(boundary, padded, out_boundary));
+    }
+}
+
+/// The received ghosts into their places in the padded window.
+fn place_ghosts(padded: &mut [f64], receive: &[Vec<f64>], places: &[Vec<usize>]) {
+    for (buffer, places) in receive.iter().zip(places) {
+        for (&b, &place) in buffer.iter().zip(places) {
+            padded[place] = b;
+        }
     }
 }

@@ -1,11 +1,13 @@
 //! The fully distributed solver (seed 000, section 3 and Algorithm 3) over MPI.
 //!
 //! Every rank plans its `RankShare` once from the ownership map (a block partition each rank
-//! computes alike, or a METIS partition made on rank 0 and broadcast), then steps forward Euler
-//! on its own nodes with the `DistributedOperator`, which exchanges the halo while it computes
-//! the interior nodes. The time loop is the serial one (`nonlocal::solve`) and the per-node
-//! arithmetic the serial stencil's, in the same order, so the distributed field equals the
-//! serial one bit for bit; errors and mass are sums over ranks and agree to rounding.
+//! computes alike, or a METIS partition made on rank 0 and broadcast), then runs the case's
+//! integrator on its own nodes with the `DistributedOperator`, which exchanges the halo while it
+//! computes the interior nodes. The time loop is the serial one (`nonlocal::solve`). With the
+//! stencil backend the per-node arithmetic is the serial stencil's, in the same order, so the
+//! explicit integrators' fields equal the serial ones bit for bit; with the FFT backend each rank
+//! convolves its window by a local FFT and the fields agree to rounding. Errors and mass are sums
+//! over ranks and agree to rounding.
 //!
 //! MPI is called from the main thread only (`Threading::Funneled`); the computing runs on the
 //! case's rayon pool.
@@ -39,7 +41,7 @@ pub fn run(
     let share = RankShare::new(&ownership, &plan.stencil, rank);
     let mpi = Mpi::new(world);
     let ranks = Ranks::mpi(&mpi, &pool);
-    let operator = DistributedOperator::new(&plan.stencil, &share, ranks);
+    let operator = DistributedOperator::new(&plan.stencil, &share, ranks, plan.backend);
     let grid = plan.stencil.grid;
     let nodes = share.node_indices(grid.n);
     let (solved, trajectory) = solve(case, &plan, &operator, ranks, Some(&nodes), setup_started);

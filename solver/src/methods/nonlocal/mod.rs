@@ -96,7 +96,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
 pub(crate) struct Plan {
     pub stencil: Stencil,
-    /// The backend that runs: `auto` resolved by the cost model; the distributed solver's stencil.
+    /// The backend that runs: `auto` resolved by the cost model.
     pub backend: Backend,
     pub collar: Collar,
     pub integrator: Integrator,
@@ -116,11 +116,7 @@ impl Plan {
         let dt_stable = explicit_dt_stable.unwrap_or(euler_dt_stable);
         let (dt, steps) = time_step(case, dt_stable, explicit_dt_stable.is_none())?;
         check_neighbour_list_size(case, &stencil)?;
-        let backend = if case.ranks > 1 {
-            Backend::Stencil
-        } else {
-            operator::resolve(case.backend, &stencil)
-        };
+        let backend = operator::resolve(case.backend, &stencil);
         Ok(Plan {
             stencil,
             backend,

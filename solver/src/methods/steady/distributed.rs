@@ -9,9 +9,9 @@ use super::feti;
 use super::problem::negate_into;
 use super::problem::{outcome, SteadyProblem, Stop, Timings};
 use crate::case::ValidCase;
-use crate::case::{Backend, CaseError, Method};
+use crate::case::{CaseError, Method};
 use crate::linalg::cg::{self, conjugate_gradient};
-use crate::operator::LinearOperator;
+use crate::operator::{self, LinearOperator};
 use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
 use crate::parallel::exchange::{distribution, ownership, Exchange, Mpi, Ranks};
@@ -40,7 +40,8 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let b: Vec<f64> = pool.install(|| nodes.par_iter().map(|&i| problem.load(i)).collect());
     let mpi = Mpi::new(world);
     let ranks = Ranks::mpi(&mpi, &pool);
-    let operator = DistributedOperator::new(stencil, &share, ranks);
+    let backend = pool.install(|| operator::resolve(case.backend, stencil));
+    let operator = DistributedOperator::new(stencil, &share, ranks, backend);
     let mut workspace = operator.workspace();
     let mut lp = vec![0.0; b.len()];
     let setup_s = started.elapsed().as_secs_f64();
@@ -82,7 +83,7 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
         outcome(
             case,
             &problem,
-            Some(Backend::Stencil),
+            Some(backend),
             timings,
             Stop::of_cg(&convergence, problem.rtol),
             SteadySolve::cg(convergence.iterations),
