@@ -252,8 +252,8 @@ fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
 fn the_fft_backend_over_ranks_equals_the_serial_fft_run() {
     for (dim, n, m, integrator, cfl, t_end) in [
         (1, "101", "3", "forward_euler", "0.9", "0.002"),
-        (2, "48", "6", "forward_euler", "0.9", "0.002"),
-        (2, "40", "15", "rk4", "0.9", "0.002"),
+        (2, "48", "6", "forward_euler", "0.9", "0.01"),
+        (2, "40", "15", "rk4", "0.9", "0.1"),
         (2, "40", "3", "crank_nicolson", "20", "0.05"),
     ] {
         let dim_text = dim.to_string();
