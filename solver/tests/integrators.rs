@@ -96,6 +96,47 @@ fn implicit_solves_take_a_few_iterations_whatever_n() {
     }
 }
 
+/// At 100 times forward Euler's stable step, 40 steps, the implicit schemes stay bounded where
+/// forward Euler would blow up within a few steps: without a source, the bump's L2 norm never
+/// grows (both are contractive in the 2-norm, −L_h being symmetric positive semi-definite), and
+/// backward Euler's maximum never grows either ((I − dt L_h)⁻¹ is an M-matrix inverse with row
+/// sums ≤ 1).
+#[test]
+fn implicit_schemes_stay_bounded_at_a_hundred_stable_steps() {
+    let fields = |integrator: &str, t_end: f64, cfl: f64| {
+        let mut fields = json!({
+            "dim": 2, "n": 40, "m": 4, "kernel": "linear", "problem": "bump",
+            "t_end": t_end, "cfl": cfl, "integrator": integrator,
+        });
+        if integrator != "forward_euler" {
+            fields["rtol"] = json!(1e-12);
+        }
+        fields
+    };
+    let norm = |field: &[f64]| field.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let start = run(&case(fields("forward_euler", 1e-12, 1.0))).expect("runs");
+    let dt_stable = start.record.resolved.dt_stable;
+    let (norm_0, max_0) = (norm(&start.field), start.record.max_abs.unwrap());
+    for integrator in ["backward_euler", "crank_nicolson"] {
+        let outcome = run(&case(fields(integrator, 4000.0 * dt_stable, 100.0))).expect("runs");
+        assert_eq!(outcome.record.resolved.steps, 40);
+        assert_eq!(
+            outcome.record.status,
+            solver::output::record::Status::Ok,
+            "{integrator}"
+        );
+        let (norm_t, max_t) = (norm(&outcome.field), outcome.record.max_abs.unwrap());
+        assert!(
+            norm_t <= norm_0,
+            "{integrator}: L2 norm {norm_0} → {norm_t}"
+        );
+        assert!(norm_t > 0.0 && max_t.is_finite(), "{integrator}");
+        if integrator == "backward_euler" {
+            assert!(max_t <= max_0, "backward Euler: max {max_0} → {max_t}");
+        }
+    }
+}
+
 #[test]
 fn integrators_are_refused_where_they_do_not_apply() {
     let refused = |fields: serde_json::Value| {
