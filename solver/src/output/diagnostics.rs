@@ -40,7 +40,9 @@ pub fn max_abs(u: &[f64]) -> f64 {
 }
 
 /// maxᵢ |uᵢ| of a block, NaN counted as +∞, in one pass the compiler vectorises: eight running
-/// maxima side by side, and NaNs tracked apart (a running `f64::max` is a serial chain).
+/// maxima side by side, and NaNs tracked apart (a running `f64::max` is a serial chain). Inlined
+/// always, so a caller compiled for a wider instruction set runs it at that width.
+#[inline(always)]
 pub fn block_max_abs(u: &[f64]) -> f64 {
     const LANES: usize = 8;
     let mut lanes = [0.0f64; LANES];
