@@ -182,10 +182,17 @@ mod tests {
             let sine = SinePreconditioner::new(&stencil, theta(integrator) * dt);
             let (mut with, mut without) = (u0.clone(), u0.clone());
             let iterations = |solves: ImplicitSolves| solves.solve_iterations_max.unwrap();
-            let with_iterations =
-                iterations(sine.step_with(&operator, &mut with, integrator, dt, rtol));
-            let without_iterations =
-                iterations(Identity.step_with(&operator, &mut without, integrator, dt, rtol));
+            let with_iterations = iterations(theta_step(
+                &sine, &operator, &mut with, integrator, dt, rtol,
+            ));
+            let without_iterations = iterations(theta_step(
+                &Identity,
+                &operator,
+                &mut without,
+                integrator,
+                dt,
+                rtol,
+            ));
             let scale = u0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             let difference = with
                 .iter()
@@ -202,31 +209,18 @@ mod tests {
         }
     }
 
-    /// One θ-step with a preconditioner of any type.
-    trait StepWith {
-        fn step_with(
-            &self,
-            operator: &StencilOperator,
-            u: &mut [f64],
-            integrator: Integrator,
-            dt: f64,
-            rtol: f64,
-        ) -> ImplicitSolves;
-    }
-
-    impl<P: LinearOperator> StepWith for P {
-        fn step_with(
-            &self,
-            operator: &StencilOperator,
-            u: &mut [f64],
-            integrator: Integrator,
-            dt: f64,
-            rtol: f64,
-        ) -> ImplicitSolves {
-            let rhs = Rhs::new(operator, None, Ranks::single());
-            let mut theta = Theta::new(integrator, rhs, self, u.len(), dt, rtol, 100_000);
-            theta.step(u, 0.0, dt);
-            theta.solves()
-        }
+    /// One θ-step from u with `preconditioner`, and what its solve took.
+    fn theta_step<P: LinearOperator>(
+        preconditioner: &P,
+        operator: &StencilOperator,
+        u: &mut [f64],
+        integrator: Integrator,
+        dt: f64,
+        rtol: f64,
+    ) -> ImplicitSolves {
+        let rhs = Rhs::new(operator, None, Ranks::single());
+        let mut theta = Theta::new(integrator, rhs, preconditioner, u.len(), dt, rtol, 100_000);
+        theta.step(u, 0.0, dt);
+        theta.solves()
     }
 }

@@ -2,17 +2,20 @@
 //! convolution of u with the stencil's weights K (w_o at offset o), which costs O(P^d log P)
 //! whatever the horizon, against O(N m^d) for the stencil.
 //!
-//! u is zero-padded to P ≥ n + r per side (r the stencil's reach, capped at n − 1 since longer
-//! bonds only reach the collar), so the circular convolution of size P equals the linear one on
-//! D: a neighbour index i + o with −r ≤ i + o < 0 wraps to P + i + o ≥ n, where u is zero.
-//! The weights are even in dx and in dy, so K's transform is real; it is computed once, scaled by
-//! 1/P^d, and each application is: real-to-complex transforms of the rows, complex transforms of
-//! the columns, one product, and the same back. Every buffer is in the workspace.
+//! It runs on a window of D, nx × ny nodes: all of D, or a rank's owned nodes and ghosts (zero
+//! outside the window). Each axis is zero-padded to P ≥ nx + r (r the stencil's reach, capped at
+//! nx − 1 since longer bonds join no two window nodes), so the circular convolution of size P
+//! equals the linear one on the window: a neighbour index i + o with −r ≤ i + o < 0 wraps to
+//! P + i + o ≥ nx, where u is zero. The weights are even in dx and in dy, so K's transform is
+//! real; it is computed once, scaled by 1/(px py), and each application is: real-to-complex
+//! transforms of the rows, complex transforms of the columns, one product, and the same back.
+//! Every buffer is in the workspace.
 //!
-//! In 2D the row spectra (n rows × P/2 + 1 frequencies) are regrouped into columns block by block:
-//! each task gathers `BLOCK` columns, transforms them zero-padded to P, multiplies and transforms
-//! back, and keeps their first n values; the final pass gathers `BLOCK` rows at a time. Each value
-//! is computed by one task whatever the thread count, so results do not depend on it.
+//! In 2D the row spectra (ny rows × px/2 + 1 frequencies) are regrouped into columns block by
+//! block: each task gathers `BLOCK` columns, transforms them zero-padded to py, multiplies and
+//! transforms back, and keeps their first ny values; the final pass gathers `BLOCK` rows at a
+//! time. Each value is computed by one task whatever the thread count, so results do not depend on
+//! it.
 
 use super::linear::LinearOperator;
 use crate::discretization::grid::Window;

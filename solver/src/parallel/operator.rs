@@ -47,6 +47,7 @@ pub struct HaloWorkspace {
     fft: Option<FftWork>,
 }
 
+/// The FFT backend's window values, before and after the convolution, and its workspace.
 pub struct FftWork {
     window: Vec<f64>,
     convolved: Vec<f64>,
