@@ -24,6 +24,12 @@ use std::time::{Duration, Instant};
 pub const DEFAULT_LAUNCHER: &str = "mpirun --oversubscribe -n {ranks}";
 /// Lines of stderr kept in a failed record.
 const STDERR_TAIL: usize = 20;
+/// How long an MPI launcher may leave an exited rank unreaped before its job is ended: Open MPI
+/// 4.1's `mpirun` can hang for good, ignoring SIGTERM, when a rank dies early (the dead rank
+/// stays a zombie, the launcher waits on a futex), which would stall the study.
+const UNREAPED_RANK_GRACE: Duration = Duration::from_secs(10);
+/// How often a running MPI job's ranks are looked at.
+const RANK_CHECK_EVERY: Duration = Duration::from_secs(1);
 
 pub struct PoolOptions {
     /// Cores the running cases may use together (threads × ranks each).
@@ -56,6 +62,50 @@ struct Running {
     case_file: PathBuf,
     /// The key's lock in the store, held until the record is stored.
     _lock: File,
+    /// MPI jobs: when a rank was first seen exited and not reaped by the launcher.
+    launcher_watch: Option<LauncherWatch>,
+}
+
+/// What is known of an MPI launcher's ranks.
+struct LauncherWatch {
+    checked: Instant,
+    unreaped_since: Option<Instant>,
+}
+
+impl LauncherWatch {
+    /// Has a rank of `launcher` been dead and unreaped for longer than the grace period?
+    fn hung(&mut self, launcher: u32) -> bool {
+        if self.checked.elapsed() < RANK_CHECK_EVERY {
+            return false;
+        }
+        self.checked = Instant::now();
+        if !has_zombie_child(launcher) {
+            self.unreaped_since = None;
+            return false;
+        }
+        let since = *self.unreaped_since.get_or_insert_with(Instant::now);
+        since.elapsed() > UNREAPED_RANK_GRACE
+    }
+}
+
+/// Does process `parent` have a child that has exited and not been reaped (state Z)?
+fn has_zombie_child(parent: u32) -> bool {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return false;
+    };
+    entries.flatten().any(|entry| {
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            return false;
+        };
+        // After the command name's closing parenthesis: state, then the parent's pid.
+        let Some((_, rest)) = stat.rsplit_once(')') else {
+            return false;
+        };
+        let mut fields = rest.split_whitespace();
+        let state = fields.next();
+        let ppid = fields.next().and_then(|p| p.parse::<u32>().ok());
+        state == Some("Z") && ppid == Some(parent)
+    })
 }
 
 /// Runs the planned points that run; stores each record as it finishes.
@@ -129,7 +179,12 @@ pub fn run(
             let timed_out = options
                 .timeout
                 .is_some_and(|limit| job.started.elapsed() > limit);
-            let exit = if timed_out {
+            let launcher_hung = !timed_out
+                && job.launcher_watch.as_mut().is_some_and(|watch| {
+                    let pid = job.child.id();
+                    watch.hung(pid)
+                });
+            let exit = if timed_out || launcher_hung {
                 let _ = job.child.kill();
                 Some(job.child.wait()?)
             } else {
@@ -146,8 +201,8 @@ pub fn run(
                 continue;
             }
             let planned = &planned[job.index];
-            let record = match timed_out {
-                true => failed_record(
+            let record = if timed_out {
+                failed_record(
                     planned,
                     solver,
                     format!(
@@ -155,8 +210,19 @@ pub fn run(
                         job.started.elapsed().as_secs_f64(),
                         job.stderr_tail()
                     ),
-                ),
-                false => job.record(planned, solver, exit),
+                )
+            } else if launcher_hung {
+                failed_record(
+                    planned,
+                    solver,
+                    format!(
+                        "a rank exited and the MPI launcher had not ended {} s later, so it was killed; {}",
+                        UNREAPED_RANK_GRACE.as_secs(),
+                        job.stderr_tail()
+                    ),
+                )
+            } else {
+                job.record(planned, solver, exit)
             };
             job.remove_files();
             finish(store, planned, record, &mut tally, progress)?;
@@ -241,6 +307,10 @@ fn start(
         stderr,
         case_file,
         _lock: lock,
+        launcher_watch: (ranks > 1).then(|| LauncherWatch {
+            checked: Instant::now(),
+            unreaped_since: None,
+        }),
     })
 }
 
