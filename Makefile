@@ -21,7 +21,7 @@ test: setup
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong integrators variable_horizon coupling
+STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong feti_projection integrators variable_horizon coupling
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
@@ -78,6 +78,7 @@ feti-docs: setup
 	cargo build --release --workspace
 	target/release/nlstudy run studies/feti_weak.json
 	target/release/nlstudy run studies/feti_strong.json
+	target/release/nlstudy run studies/feti_projection.json
 	mkdir -p docs/figures/feti
 	cp results/feti_weak/figures/comparison.svg docs/figures/feti/weak.svg
 	cp results/feti_strong/figures/comparison.svg docs/figures/feti/strong.svg

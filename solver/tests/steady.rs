@@ -194,6 +194,22 @@ fn feti_reconstructs_the_single_domain_solution() {
                 );
                 assert!(difference < 1e-6, "p {p} {preconditioner}: {difference:e}");
                 assert_eq!(solve.floating_subdomains, Some((p - 2) * (p - 2)));
+                // The phase clocks cover the iterations and name only what ran.
+                let phases = solve.feti_phases.as_ref().unwrap();
+                let per_iteration = phases.subdomain_solves_s
+                    + phases.preconditioner_s
+                    + phases.interface_sum_s
+                    + phases.coarse_s
+                    + phases.other_s;
+                let iterations = solve.iterations.unwrap() as f64;
+                assert!(per_iteration * iterations <= outcome.record.solve_s);
+                assert!(phases.subdomain_k_s > 0.0);
+                assert_eq!(phases.subdomain_q_s == 0.0, preconditioner == "none");
+                assert_eq!(
+                    phases.coarse_s == 0.0,
+                    p == 2,
+                    "only p = 2 has no coarse space"
+                );
             }
         }
     }

@@ -245,6 +245,31 @@ pub struct SteadySolve {
     /// FETI: the non-zeros of the largest subdomain's Cholesky factor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub factor_nonzeros_max: Option<usize>,
+    /// FETI: where an iteration's time goes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feti_phases: Option<FetiPhases>,
+}
+
+/// Where one projected-CG iteration of FETI spends its time: wall seconds per iteration on a rank
+/// (max over ranks), and the cost of one subdomain's products (mean over all subdomains), the
+/// numbers a projection to one core per subdomain starts from.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FetiPhases {
+    /// K's local products: the subdomain solves A_n^† (two triangular solves each).
+    pub subdomain_solves_s: f64,
+    /// Q's local products (the Dirichlet preconditioner: S_n through A_II's solves).
+    pub preconditioner_s: f64,
+    /// The interface sums after each product: local pairs and the exchange with other ranks
+    /// (waiting for a slower rank included).
+    pub interface_sum_s: f64,
+    /// The coarse projections P₀: Gᵀx summed over ranks, (GᵀG)⁻¹, G β.
+    pub coarse_s: f64,
+    /// The rest: inner products summed over ranks and the vector updates.
+    pub other_s: f64,
+    /// One subdomain's K_n product, on one thread.
+    pub subdomain_k_s: f64,
+    /// One subdomain's Q_n product, on one thread (0 without a preconditioner).
+    pub subdomain_q_s: f64,
 }
 
 impl SteadySolve {

@@ -18,6 +18,9 @@
 //! shared nodes are exactly Γ̂_n ∩ Γ̂_n'; for odd m the strips between the Ω_n are m − 1 wide and
 //! Λ_n ∩ Λ_n' also holds a line of Ω_n, which we constrain too.
 
+use faer::linalg::cholesky::llt::factor::LltError;
+use faer::linalg::solvers::Llt;
+use faer::{Mat, Side};
 use std::ops::Range;
 
 /// One axis: the blocks, their Ω and E intervals, and the counts c(a, b).
@@ -245,7 +248,7 @@ impl Decomposition {
     /// GᵀG (floating × floating, column-major): G = M Z has, in the column of floating
     /// subdomain a, the sign of a's M row on each of a's multipliers; so (GᵀG)_aa = q_a and
     /// (GᵀG)_ab = −|Λ_a ∩ Λ_b|.
-    pub fn coarse_matrix(&self) -> Vec<f64> {
+    fn coarse_matrix(&self) -> Vec<f64> {
         let nf = self.floating.len();
         let mut gtg = vec![0.0; nf * nf];
         for (a, &index) in self.floating.iter().enumerate() {
@@ -258,6 +261,15 @@ impl Decomposition {
             }
         }
         gtg
+    }
+
+    /// GᵀG's Cholesky factor (dense, on every rank); None when no subdomain floats.
+    pub fn coarse_factor(&self) -> Option<Result<Llt<f64>, LltError>> {
+        let nf = self.floating.len();
+        (nf > 0).then(|| {
+            let gtg = self.coarse_matrix();
+            Mat::from_fn(nf, nf, |i, j| gtg[j * nf + i]).llt(Side::Lower)
+        })
     }
 }
 

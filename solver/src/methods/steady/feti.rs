@@ -30,11 +30,11 @@ use crate::case::{CaseError, FetiPreconditioner};
 use crate::linalg::cg::{conjugate_gradient, dot_serial};
 use crate::linalg::cholesky::{symmetric_product, Cholesky};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Distribution, SteadySolve};
+use crate::output::record::{Distribution, FetiPhases, SteadySolve};
 use crate::parallel::exchange::Exchange;
 use faer::linalg::solvers::Solve;
 use faer::sparse::SparseColMat;
-use faer::{Mat, MatMut, Side};
+use faer::MatMut;
 use rayon::prelude::*;
 use rayon::ThreadPool;
 use std::ops::Range;
@@ -70,6 +70,17 @@ struct Local<'d> {
     interior_solution: Vec<f64>,
     /// `dirichlet_scaled`: 1/(subdomains whose Λ holds the node), per node of Λ_n.
     multiplicity_scale: Option<Vec<f64>>,
+    /// Seconds and counts of this subdomain's K_n and Q_n products.
+    clock: ProductClock,
+}
+
+/// Time spent in one subdomain's products, on whichever thread ran them.
+#[derive(Clone, Copy, Default)]
+struct ProductClock {
+    k_s: f64,
+    k_products: usize,
+    q_s: f64,
+    q_products: usize,
 }
 
 impl<'d> Local<'d> {
@@ -126,6 +137,7 @@ impl<'d> Local<'d> {
             interior_load: vec![0.0; ni],
             interior_solution: vec![0.0; ni],
             multiplicity_scale,
+            clock: ProductClock::default(),
         })
     }
 
@@ -163,9 +175,12 @@ impl<'d> Local<'d> {
 
     /// out ← K_n λ_n = M_n A_n^† M_nᵀ λ_n.
     fn apply_k(&mut self, lambda: &[f64], out: &mut [f64]) {
+        let started = Instant::now();
         Self::scatter(self.geometry, lambda, &mut self.u);
         Self::pseudo_solve(&mut self.factor, self.geometry.floating, &mut self.u);
         Self::gather(self.geometry, &self.u, out);
+        self.clock.k_s += started.elapsed().as_secs_f64();
+        self.clock.k_products += 1;
     }
 
     /// out ← M_n A_n^† f_n.
@@ -179,6 +194,7 @@ impl<'d> Local<'d> {
     /// A_n v − A_n (A_II⁻¹ (A_n v)_I) on B, for v = M_nᵀ r_n (zero on I); with multiplicity
     /// scaling, M_n D_n S_n D_n M_nᵀ r_n.
     fn apply_dirichlet(&mut self, residual: &[f64], out: &mut [f64]) {
+        let started = Instant::now();
         Self::scatter(self.geometry, residual, &mut self.u);
         if let Some(scale) = &self.multiplicity_scale {
             self.u.iter_mut().zip(scale).for_each(|(u, d)| *u *= d);
@@ -225,6 +241,8 @@ impl<'d> Local<'d> {
             self.w.iter_mut().zip(scale).for_each(|(w, d)| *w *= d);
         }
         Self::gather(self.geometry, &self.w, out);
+        self.clock.q_s += started.elapsed().as_secs_f64();
+        self.clock.q_products += 1;
     }
 
     /// u_n = A_n^†(f_n − M_nᵀ λ_n) + α_n 1.
@@ -392,6 +410,16 @@ struct Feti<'d> {
     coarse: Option<faer::linalg::solvers::Llt<f64>>,
     preconditioner: FetiPreconditioner,
     pool: &'d ThreadPool,
+    /// This rank's wall seconds per phase since the clocks were last reset.
+    phases: PhaseSeconds,
+}
+
+#[derive(Default)]
+struct PhaseSeconds {
+    subdomain_solves: f64,
+    preconditioner: f64,
+    interface_sum: f64,
+    coarse: f64,
 }
 
 impl<'d> Feti<'d> {
@@ -417,7 +445,9 @@ impl<'d> Feti<'d> {
 
     /// out ← K x.
     fn apply_k(&mut self, exchange: &dyn Exchange, x: &[f64], out: &mut [f64]) {
-        self.interface_assembled(exchange, out, |local, own, out| local.apply_k(&x[own], out));
+        let products_s =
+            self.interface_assembled(exchange, out, |local, own, out| local.apply_k(&x[own], out));
+        self.phases.subdomain_solves += products_s;
     }
 
     /// out ← Q r.
@@ -426,19 +456,22 @@ impl<'d> Feti<'d> {
             out.copy_from_slice(r);
             return;
         }
-        self.interface_assembled(exchange, out, |local, own, out| {
+        let products_s = self.interface_assembled(exchange, out, |local, own, out| {
             local.apply_dirichlet(&r[own], out)
         });
+        self.phases.preconditioner += products_s;
     }
 
     /// out ← Σ_n R_nᵀ product_n: every owned subdomain's local product in parallel, as
     /// `product(local, its range in the dual vectors, its part of out)`, then the interface sum.
+    /// Returns the products' wall seconds; the sum's go to the phase clock.
     fn interface_assembled(
         &mut self,
         exchange: &dyn Exchange,
         out: &mut [f64],
         product: impl Fn(&mut Local<'d>, Range<usize>, &mut [f64]) + Sync,
-    ) {
+    ) -> f64 {
+        let started = Instant::now();
         let parts = self.layout.split(out);
         let offsets = &self.layout.offsets;
         let locals = &mut self.locals;
@@ -449,7 +482,11 @@ impl<'d> Feti<'d> {
                 .enumerate()
                 .for_each(|(k, (local, out))| product(local, offsets[k]..offsets[k + 1], out))
         });
+        let products_s = started.elapsed().as_secs_f64();
+        let summing = Instant::now();
         self.layout.interface_sum(exchange, out);
+        self.phases.interface_sum += summing.elapsed().as_secs_f64();
+        products_s
     }
 
     /// Gᵀ x, summed over ranks: per floating subdomain a, Σ over a's multipliers of sign · x.
@@ -503,14 +540,56 @@ impl<'d> Feti<'d> {
     }
 
     /// x ← P₀ x = x − G (GᵀG)⁻¹ Gᵀ x.
-    fn project(&self, exchange: &dyn Exchange, x: &mut [f64]) {
+    fn project(&mut self, exchange: &dyn Exchange, x: &mut [f64]) {
         if self.coarse.is_none() {
             return;
         }
+        let started = Instant::now();
         let mut beta = self.g_transpose(exchange, x);
         self.coarse_solve(&mut beta);
         beta.iter_mut().for_each(|b| *b = -*b);
         self.add_g(&beta, x);
+        self.phases.coarse += started.elapsed().as_secs_f64();
+    }
+
+    /// Starts the phase clocks and the subdomains' product clocks from zero.
+    fn reset_clocks(&mut self) {
+        self.phases = PhaseSeconds::default();
+        self.locals
+            .iter_mut()
+            .for_each(|l| l.clock = ProductClock::default());
+    }
+
+    /// Seconds per iteration of each phase over `iterations` taking `loop_s` (max over ranks),
+    /// and the mean product times of one subdomain (over every rank's subdomains).
+    fn phases(&self, exchange: &dyn Exchange, iterations: usize, loop_s: f64) -> FetiPhases {
+        let per_iteration = |s: f64| exchange.max(s) / iterations.max(1) as f64;
+        let clocks = self.locals.iter().map(|l| l.clock);
+        let mut sums = clocks.fold([0.0; 4], |[k, nk, q, nq], c| {
+            [
+                k + c.k_s,
+                nk + c.k_products as f64,
+                q + c.q_s,
+                nq + c.q_products as f64,
+            ]
+        });
+        exchange.all_sum(&mut sums);
+        let mean = |s: f64, count: f64| if count > 0.0 { s / count } else { 0.0 };
+        let phases = &self.phases;
+        let other = loop_s
+            - phases.subdomain_solves
+            - phases.preconditioner
+            - phases.interface_sum
+            - phases.coarse;
+        FetiPhases {
+            subdomain_solves_s: per_iteration(phases.subdomain_solves),
+            preconditioner_s: per_iteration(phases.preconditioner),
+            interface_sum_s: per_iteration(phases.interface_sum),
+            coarse_s: per_iteration(phases.coarse),
+            other_s: per_iteration(other.max(0.0)),
+            subdomain_k_s: mean(sums[0], sums[1]),
+            subdomain_q_s: mean(sums[2], sums[3]),
+        }
     }
 }
 
@@ -519,6 +598,7 @@ struct DualSolve {
     lambda: Vec<f64>,
     iterations: usize,
     dual_residual: f64,
+    phases: FetiPhases,
 }
 
 /// Algorithm 1: preconditioned projected CG on P₀ K λ = P₀ e, Gᵀλ = g.
@@ -548,6 +628,9 @@ fn projected_cg(
     let alpha0 = alpha;
     let mut dual_residual = if alpha0 > 0.0 { 1.0 } else { 0.0 };
     let mut iterations = 0;
+    // The phases are timed over the iterations only, not the start-up products above.
+    feti.reset_clocks();
+    let loop_started = Instant::now();
     while dual_residual > rtol && iterations < max_iterations {
         iterations += 1;
         feti.apply_k(exchange, &p, &mut x);
@@ -570,10 +653,12 @@ fn projected_cg(
         }
         alpha = alpha_next;
     }
+    let phases = feti.phases(exchange, iterations, loop_started.elapsed().as_secs_f64());
     DualSolve {
         lambda,
         iterations,
         dual_residual,
+        phases,
     }
 }
 
@@ -615,18 +700,12 @@ pub fn run_on(
             )
         })?;
     let nf = decomposition.floating.len();
-    let coarse = (nf > 0)
-        .then(|| {
-            let gtg = decomposition.coarse_matrix();
-            Mat::from_fn(nf, nf, |i, j| gtg[j * nf + i]).llt(Side::Lower)
-        })
-        .transpose()
-        .map_err(|e| {
-            CaseError::new(
-                "subdomains",
-                format!("the coarse problem GᵀG is singular ({e:?}); report this case"),
-            )
-        })?;
+    let coarse = decomposition.coarse_factor().transpose().map_err(|e| {
+        CaseError::new(
+            "subdomains",
+            format!("the coarse problem GᵀG is singular ({e:?}); report this case"),
+        )
+    })?;
     let layout = DualLayout::new(&decomposition, &owned, rank, ranks);
     let mut feti = Feti {
         decomposition: &decomposition,
@@ -636,6 +715,7 @@ pub fn run_on(
         coarse,
         preconditioner,
         pool,
+        phases: PhaseSeconds::default(),
     };
     // e = M A^† f and g = Zᵀ f.
     let mut e = vec![0.0; feti.layout.len()];
@@ -723,6 +803,7 @@ pub fn run_on(
         floating_subdomains: Some(nf),
         multipliers: Some(decomposition.multipliers()),
         factor_nonzeros_max: Some(factor_nonzeros as usize),
+        feti_phases: Some(dual.phases),
     };
     let mut distribution = Distribution::serial(case);
     distribution.ranks = ranks;
