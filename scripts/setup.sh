@@ -1,11 +1,22 @@
 #!/usr/bin/env bash
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
-# the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen), and
-# Python's vtk, whose readers the tests use to open the solver's VTK files.
+# the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
+# With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
+# a person would, and Python's vtk, whose readers open the solver's VTK files.
 # Cheap when everything is there, so `make run` and `make test` call it every time.
 set -euo pipefail
 
+for_tests=false
+case "${1:-}" in
+  --tests) for_tests=true ;;
+  "") ;;
+  *) echo "setup: unknown option $1 (the one option is --tests)" >&2; exit 2 ;;
+esac
+
 packages=(openmpi-bin libopenmpi-dev libclang-dev pkg-config)
+if $for_tests; then
+  packages+=(chromium)
+fi
 missing=()
 for package in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then
@@ -24,7 +35,7 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
-if ! python3 -c "import vtkmodules.vtkIOXML" 2>/dev/null; then
+if $for_tests && ! python3 -c "import vtkmodules.vtkIOXML" 2>/dev/null; then
   command -v python3 >/dev/null || { echo "setup: python3 not found; the tests read VTK files with Python's vtk" >&2; exit 1; }
   echo "setup: installing Python's vtk (pip)" >&2
   python3 -m pip install --quiet --root-user-action=ignore vtk

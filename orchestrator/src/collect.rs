@@ -120,9 +120,9 @@ pub fn set_display_defaults() {
     }
 }
 
-/// The summary at a glance, for the terminal: the swept fields, then the headline results
-/// (those the study has), every row.
-pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
+/// The summary's headline columns: the swept fields (as `(column, shown name)`: from the case,
+/// or derived by the solver), then the headline results the study has.
+pub fn headline_columns(has: impl Fn(&str) -> bool, swept: &[String]) -> Vec<(String, String)> {
     const RESULTS: &[&str] = &[
         "status",
         "solve_s_median",
@@ -132,8 +132,6 @@ pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
         "speedup",
         "efficiency",
     ];
-    let has = |name: &str| summary.column(name).is_ok();
-    // A swept field is shown under its own name: from the case, or derived by the solver.
     let mut shown: Vec<(String, String)> = swept
         .iter()
         .filter_map(|field| {
@@ -149,6 +147,12 @@ pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
             .filter(|name| has(name))
             .map(|name| (name.to_string(), name.to_string())),
     );
+    shown
+}
+
+/// The summary at a glance, for the terminal: the headline columns, every row.
+pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
+    let shown = headline_columns(|name| summary.column(name).is_ok(), swept);
     let selected = summary.select(shown.iter().map(|(column, _)| column.as_str()));
     let renamed = selected.and_then(|mut frame| {
         for (column, name) in &shown {

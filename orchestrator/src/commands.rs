@@ -41,6 +41,9 @@ pub enum Command {
     Plot(CommonArgs),
     /// Count the stored records by status and list the failures.
     Status(CommonArgs),
+    /// Write <results>/<study>/report.html: one self-contained page with the study's description,
+    /// its figures, the summary table, the runs by status, the failures and the provenance.
+    Report(CommonArgs),
     /// Print values of the summary table as a Markdown table: rows by some fields, columns by
     /// another (e.g. `--rows branch,quadrature --column n --value order_l2`), or one column per
     /// value (e.g. `--rows n --value error_l2_norm,order_l2`).
@@ -152,6 +155,7 @@ pub fn execute(cli: Cli) -> Result<ExitCode, String> {
         Command::Collect(args) => collect_command(&args),
         Command::Plot(args) => plot_command(&args),
         Command::Status(args) => status_command(&args),
+        Command::Report(args) => report_command(&args),
         Command::Table(args) => table_command(&args),
         Command::Submit(args) => submit_command(&args),
     }
@@ -281,9 +285,12 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
             crate::collect::collect(&planned, &store).and_then(|collected| match collected {
                 Some(collected) => {
                     let figures = crate::plot::plot(&study.figures, &store)?;
+                    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+                    let page = crate::report::write(&study, &store, swept)?;
                     if !args.quiet {
                         report(&collected);
                         report_figures(&figures);
+                        eprintln!("report: {}", page.display());
                     }
                     Ok(())
                 }
@@ -383,6 +390,14 @@ fn report(collected: &crate::collect::Collected) {
             collected.left_out
         );
     }
+}
+
+fn report_command(args: &CommonArgs) -> Result<ExitCode, String> {
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    let page = crate::report::write(&study, &store, swept)?;
+    println!("report: {}", page.display());
+    Ok(ExitCode::SUCCESS)
 }
 
 fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {

@@ -24,6 +24,7 @@ pub mod plan;
 pub mod plot;
 pub mod pool;
 pub mod progress;
+pub mod report;
 pub mod solver;
 pub mod status;
 pub mod store;

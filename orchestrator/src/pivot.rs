@@ -121,7 +121,7 @@ fn header(spec: &PivotSpec, (heading, v): &(Value, usize)) -> String {
 }
 
 /// A cell's text: numbers to three significant digits, null as empty.
-fn text(value: &Value) -> String {
+pub(crate) fn text(value: &Value) -> String {
     match value {
         Value::Null => String::new(),
         Value::String(s) => s.clone(),

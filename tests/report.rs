@@ -1,0 +1,165 @@
+//! The study report as a person sees it: `nlstudy run` writes `results/<study>/report.html`, and
+//! a real headless Chromium (Debian's, installed by `scripts/setup.sh --tests`, which `make test`
+//! runs) loads it: every figure must render at a non-zero size, no console message may appear,
+//! and a screenshot is saved beside the study.
+
+use nonlocal_study::{text, Scratch};
+use serde_json::{json, Value};
+use std::path::Path;
+use std::process::{Command, Output};
+
+const CHROMIUM: &str = "/usr/bin/chromium";
+
+/// Headless Chromium on `page` with `extra` flags, as root on a machine without a network or a
+/// session bus: no sandbox, no GPU, no background connections, a profile of its own.
+fn chromium(scratch: &Scratch, page: &Path, extra: &[&str]) -> Output {
+    let profile = scratch.dir.join("chromium-profile");
+    Command::new(CHROMIUM)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--enable-logging=stderr",
+            "--v=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .args(extra)
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .expect("chromium starts")
+}
+
+#[test]
+fn the_report_opens_in_a_browser_with_every_figure_drawn() {
+    assert!(
+        Path::new(CHROMIUM).exists(),
+        "{CHROMIUM} is missing: `scripts/setup.sh --tests` (run by `make test`) installs Debian's chromium"
+    );
+    // Three grids converge; n = 3 is refused (ε = 2h above 1/2), so the report has a failure.
+    let study = json!({
+        "name": "report",
+        "description": "The nonlocal solver in 1D at fixed m against h, for the report's test.",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5, "source": "local"},
+        "sweep": [{"product": {"n": [16, 32, 64, 3]}}],
+        "figures": [
+            {"name": "convergence", "kind": "convergence", "title": "Error against h at m = 2",
+             "where": ["n > 3"]},
+            {"name": "scaling", "kind": "strong_scaling", "title": "Time against threads",
+             "where": ["n > 3"]}
+        ]
+    });
+    let scratch = Scratch::new("report", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert_eq!(
+        run.status.code(),
+        Some(1),
+        "one point fails: {}",
+        text(&run)
+    );
+    let report = scratch.dir.join("results/report/report.html");
+    assert!(
+        text(&run).contains(&format!("report: {}", report.display())),
+        "{}",
+        text(&run)
+    );
+    let page = std::fs::read_to_string(&report).expect("the run wrote its report");
+    for expected in [
+        "The nonlocal solver in 1D at fixed m against h",
+        "4 stored runs:",
+        "3 ok",
+        "1 failed",
+        "ε = m/n",
+        "Provenance",
+    ] {
+        assert!(page.contains(expected), "the report lacks {expected:?}");
+    }
+
+    // The page loaded in a frame of a harness that measures each figure once it has loaded
+    // (the frame shares the harness's file origin with --allow-file-access-from-files).
+    let harness = scratch.dir.join("harness.html");
+    std::fs::write(
+        &harness,
+        r#"<!DOCTYPE html><html><body>
+<iframe id="report" src="results/report/report.html" style="width:1200px;height:3000px"></iframe>
+<pre id="measured">not loaded</pre>
+<script>
+const frame = document.getElementById('report');
+frame.addEventListener('load', () => {
+  const doc = frame.contentDocument;
+  const figures = [...doc.querySelectorAll('figure')].map(figure => {
+    const svg = figure.querySelector('svg');
+    const box = svg ? svg.getBoundingClientRect() : {width: 0, height: 0};
+    const caption = figure.querySelector('figcaption');
+    return {id: figure.id, width: box.width, height: box.height,
+            caption: caption ? caption.textContent : ''};
+  });
+  const rows = doc.querySelectorAll('tr').length;
+  document.getElementById('measured').textContent =
+    JSON.stringify({title: doc.title, figures: figures, rows: rows});
+});
+</script></body></html>"#,
+    )
+    .unwrap();
+    let loaded = chromium(
+        &scratch,
+        &harness,
+        &[
+            "--allow-file-access-from-files",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+        ],
+    );
+    let dom = String::from_utf8_lossy(&loaded.stdout);
+    let log = String::from_utf8_lossy(&loaded.stderr);
+    assert!(loaded.status.success(), "chromium failed: {log}");
+    let measured = dom
+        .split("<pre id=\"measured\">")
+        .nth(1)
+        .and_then(|rest| rest.split("</pre>").next())
+        .unwrap_or_else(|| panic!("no measurement in the page: {dom}"))
+        .replace("&amp;", "&")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">");
+    let measured: Value = serde_json::from_str(&measured)
+        .unwrap_or_else(|e| panic!("the harness measured nothing ({e}): {measured}"));
+    eprintln!("measured in chromium: {measured}");
+    assert_eq!(measured["title"], "Study report");
+    let figures = measured["figures"].as_array().unwrap();
+    assert_eq!(figures.len(), 2, "{measured}");
+    for figure in figures {
+        assert!(
+            figure["width"].as_f64().unwrap() > 100.0 && figure["height"].as_f64().unwrap() > 100.0,
+            "a figure did not render: {figure}"
+        );
+    }
+    assert_eq!(figures[0]["caption"], "Error against h at m = 2");
+    assert!(measured["rows"].as_u64().unwrap() > 4, "{measured}");
+    let console: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE")).collect();
+    assert!(console.is_empty(), "console messages: {console:?}");
+
+    let screenshot = scratch.dir.join("report.png");
+    let shot = chromium(
+        &scratch,
+        &report,
+        &[
+            &format!("--screenshot={}", screenshot.display()),
+            "--window-size=1200,2400",
+        ],
+    );
+    assert!(
+        shot.status.success(),
+        "{}",
+        String::from_utf8_lossy(&shot.stderr)
+    );
+    let bytes = std::fs::read(&screenshot).expect("the screenshot was saved");
+    assert!(
+        bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
+        "{} bytes",
+        bytes.len()
+    );
+}
