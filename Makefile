@@ -4,18 +4,22 @@
 setup:
 	@scripts/setup.sh
 
-# The main job: the quick study (make-style: a second `make run` runs only what is missing),
-# then its records by status and its summary table.
+# The main job: the quick study (make-style: a second `make run` runs only what is missing), its
+# tables and figures, then its records by status, its summary table and the path of its report
+# (results/quick/report.html, one page with the figures and tables).
 run: setup
 	cargo build --release --workspace
-	target/release/nlstudy run studies/quick.json --no-collect
+	target/release/nlstudy run studies/quick.json
 	target/release/nlstudy status studies/quick.json
 	target/release/nlstudy collect studies/quick.json
+	target/release/nlstudy report studies/quick.json
 
-# Tests and runs share the release profile, so dependencies compile once.
+# Tests and runs share the release profile and the features of every dependency (see clap in
+# Cargo.toml), so after `make run` the tests compile only the project's crates, and the reverse.
 # The binaries are built first: the end-to-end tests drive nlstudy, whose package has no
 # integration test of its own to make cargo build it.
-test: setup
+test:
+	@scripts/setup.sh --tests
 	cargo build --release --workspace --bins
 	cargo test --release --workspace
 
