@@ -2,21 +2,22 @@
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
-# a person would, and Python's vtk, whose readers open the solver's VTK files.
+# a person would, and Python's vtk, whose readers open the solver's VTK files. With --slurm, the
+# packages of a single-node Slurm (scripts/slurm-local).
 # Cheap when everything is there, so `make run` and `make test` call it every time.
 set -euo pipefail
 
 for_tests=false
-case "${1:-}" in
-  --tests) for_tests=true ;;
-  "") ;;
-  *) echo "setup: unknown option $1 (the one option is --tests)" >&2; exit 2 ;;
-esac
-
 packages=(openmpi-bin libopenmpi-dev libclang-dev pkg-config)
-if $for_tests; then
-  packages+=(chromium)
-fi
+for option in "$@"; do
+  case "$option" in
+    --tests) for_tests=true; packages+=(chromium) ;;
+    # A single-node Slurm (scripts/slurm-local).
+    --slurm) packages+=(munge slurmctld slurmd slurm-client) ;;
+    *) echo "setup: unknown option $option (the options are --tests and --slurm)" >&2; exit 2 ;;
+  esac
+done
+
 missing=()
 for package in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed"; then

@@ -6,6 +6,9 @@ fn main() {
     let git = |args: &[&str]| {
         Command::new("git")
             .args(args)
+            // `git status` would otherwise refresh .git/index, which this script watches: the
+            // next build would then compile the solver again for nothing.
+            .env("GIT_OPTIONAL_LOCKS", "0")
             .output()
             .ok()
             .filter(|out| out.status.success())

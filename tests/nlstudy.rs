@@ -287,7 +287,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         "#!/bin/bash\n#SBATCH --job-name=nlstudy-two-0\n#SBATCH --nodes=1\n#SBATCH --ntasks=2\n\
          #SBATCH --cpus-per-task=2\n#SBATCH --time=01:30:00\n#SBATCH --partition=normal\n\
          #SBATCH --account=nonlocal\n#SBATCH --output={jobs}/nlstudy-two-0.%j.out\n{}",
-        command("srun -n {ranks}")
+        command("srun --mpi=pmix -n {ranks}")
     );
     assert_eq!(script, expected);
 

@@ -37,7 +37,7 @@ pub struct PoolOptions {
     /// One case at a time, so that timings are not disturbed.
     pub exclusive: bool,
     pub timeout: Option<Duration>,
-    /// Command prefix of MPI cases, e.g. `srun -n {ranks}`.
+    /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
     pub launcher: String,
 }
 

@@ -173,7 +173,8 @@ fn slurm(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths
         "--output={}",
         paths.jobs.join(format!("{name}.%j.out")).display()
     ));
-    s + &body(keys, shape, "srun -n {ranks}", paths)
+    // Debian's Open MPI 4.1 starts under srun through PMIx (PMI-2 aborts in MPI_Init).
+    s + &body(keys, shape, "srun --mpi=pmix -n {ranks}", paths)
 }
 
 fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) -> String {
