@@ -175,7 +175,47 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     scratch.write_study(&study);
     let out = submit(&scratch, &slurm, &["--time", "00:01:00"]);
     assert!(out.status.success(), "{}", text(&out));
+    // While the slow point runs: the job is running, and a second submit packs nothing.
+    let waiting = Instant::now();
+    while records(&scratch.runs("limit")).len() < 2 {
+        assert!(
+            waiting.elapsed() < Duration::from_secs(60),
+            "the quick points never ran: {}",
+            logs()
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let status = |scratch: &Scratch| {
+        let out = Command::new(binary("nlstudy"))
+            .arg("status")
+            .arg(scratch.study())
+            .arg("--results")
+            .arg(scratch.dir.join("results"))
+            .env("SLURM_CONF", slurm.conf())
+            .output()
+            .unwrap();
+        text(&out)
+    };
+    let running = status(&scratch);
+    assert!(
+        running.contains("nlstudy-limit-0: running, 2 of 3 points stored"),
+        "{running}"
+    );
+    let twice = submit(&scratch, &slurm, &["--time", "00:01:00"]);
+    assert!(twice.status.success(), "{}", text(&twice));
+    assert!(
+        text(&twice).contains("1 points are in jobs still queued or running")
+            && text(&twice).contains("nothing to submit"),
+        "{}",
+        text(&twice)
+    );
     slurm.wait_for_jobs(Duration::from_secs(300));
+    let ended = status(&scratch);
+    assert!(
+        ended.contains("nlstudy-limit-0: ended, 2 of 3 points stored")
+            && ended.contains("1 of 3 points to run"),
+        "{ended}"
+    );
     let runs = scratch.runs("limit");
     let stored = records(&runs);
     assert_eq!(

@@ -401,14 +401,13 @@ fn report_command(args: &CommonArgs) -> Result<ExitCode, String> {
 }
 
 fn status_command(args: &CommonArgs) -> Result<ExitCode, String> {
-    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
-    let store = Store::open(&args.results, &study.name);
-    print!("{}", status::report(&study.name, &store));
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    print!("{}", status::report(&study.name, &store, &planned));
     Ok(ExitCode::SUCCESS)
 }
 
 fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
-    let (study, solver, _, planned) = planned(&args.common, &Options::default())?;
+    let (study, solver, store, planned) = planned(&args.common, &Options::default())?;
     let overrides = Resources {
         nodes: args.nodes,
         tasks: args.tasks,
@@ -424,6 +423,6 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
         study_file: args.common.study.clone(),
         dry_run: args.dry_run,
     };
-    submit::submit_study(&study, &solver, &planned, &target)?;
+    submit::submit_study(&study, &solver, &planned, &store, &target)?;
     Ok(ExitCode::SUCCESS)
 }

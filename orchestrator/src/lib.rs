@@ -19,6 +19,7 @@ pub mod commands;
 pub mod draw;
 pub mod expression;
 pub mod figure;
+pub mod jobs;
 pub mod pivot;
 pub mod plan;
 pub mod plot;

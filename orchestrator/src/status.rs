@@ -1,13 +1,17 @@
 //! `nlstudy status`: the stored records of a study counted by status, the failures with the
-//! first line of their messages, and the files of the store that are not whole records.
+//! first line of their messages, the files of the store that are not whole records, the points
+//! still missing, and, for a submitted study, each job's state and how many of its points are
+//! stored.
 
+use crate::jobs;
+use crate::plan::Planned;
 use crate::store::Store;
 use schema::record::Status;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-/// The report, one line of counts and one line per failed run.
-pub fn report(study: &str, store: &Store) -> String {
+/// The report: one line of counts, one line per failed run, the missing points, the jobs.
+pub fn report(study: &str, store: &Store, planned: &[Planned]) -> String {
     let scan = store.scan();
     let records = scan.records;
     let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
@@ -43,5 +47,41 @@ pub fn report(study: &str, store: &Store) -> String {
     for unreadable in &scan.unreadable {
         let _ = writeln!(out, "unreadable: {unreadable}");
     }
+    let missing = planned.iter().filter(|p| p.runs()).count();
+    let _ = writeln!(out, "{missing} of {} points to run", planned.len());
+    jobs_report(&mut out, store);
     out
+}
+
+/// One line per job of the ledger: its id, name, state and stored points.
+fn jobs_report(out: &mut String, store: &Store) {
+    let entries = jobs::entries(store);
+    let Some(scheduler) = entries.first().map(|e| e.scheduler) else {
+        return;
+    };
+    let live = jobs::live_jobs(scheduler);
+    if let Err(message) = &live {
+        let _ = writeln!(out, "jobs: cannot ask the scheduler ({message})");
+    }
+    for entry in &entries {
+        let state = match &live {
+            Ok(live) => live
+                .get(&entry.id)
+                .map_or("ended", String::as_str)
+                .to_lowercase(),
+            Err(_) => "unknown".to_string(),
+        };
+        let stored = entry
+            .keys
+            .iter()
+            .filter(|k| store.status(k).is_some_and(|s| s != Status::Failed))
+            .count();
+        let _ = writeln!(
+            out,
+            "job {} {}: {state}, {stored} of {} points stored",
+            entry.id,
+            entry.name,
+            entry.keys.len()
+        );
+    }
 }

@@ -2,14 +2,20 @@
 //! several cases into one allocation and runs `nlstudy run --only KEYS` inside it, so the same
 //! record store and the same make-style skipping serve the cluster and the workstation.
 
+use crate::jobs::{self, LedgerEntry};
 use crate::plan::Planned;
 use crate::solver::Solver;
+use crate::store::Store;
 use crate::study::{Resources, Study};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::{SystemTime, UNIX_EPOCH};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Scheduler {
     Slurm,
     Lsf,
@@ -27,17 +33,33 @@ pub struct Target {
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
-/// and left out), prints one line per job, and submits them unless `dry_run`.
+/// and left out, and so are those of jobs the scheduler still holds), prints one line per job,
+/// and submits them unless `dry_run`, recording each job in the study's ledger.
 pub fn submit_study(
     study: &Study,
     solver: &Solver,
     planned: &[Planned],
+    store: &Store,
     target: &Target,
 ) -> Result<(), String> {
+    let in_flight = in_flight(store, target.scheduler);
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
         .iter()
-        .filter(|p| p.runs())
+        .filter(|p| p.runs() && !in_flight.contains_key(&p.key))
         .partition(|p| p.case.is_ok());
+    let mut holding: Vec<&str> = in_flight.values().map(String::as_str).collect();
+    holding.sort_unstable();
+    holding.dedup();
+    if !holding.is_empty() {
+        eprintln!(
+            "nlstudy: {} points are in jobs still queued or running ({}); not submitted again",
+            planned
+                .iter()
+                .filter(|p| p.runs() && in_flight.contains_key(&p.key))
+                .count(),
+            holding.join(", ")
+        );
+    }
     for p in &refused {
         eprintln!(
             "nlstudy: not submitted, the solver refuses {}: {}",
@@ -46,10 +68,11 @@ pub fn submit_study(
         );
     }
     if runnable.is_empty() {
-        println!(
-            "study {}: nothing to submit, every point is stored",
-            study.name
-        );
+        let why = match holding.is_empty() {
+            true => "every point is stored",
+            false => "every point is stored or in a job still queued or running",
+        };
+        println!("study {}: nothing to submit, {why}", study.name);
         return Ok(());
     }
     std::fs::create_dir_all(&target.results)
@@ -81,10 +104,44 @@ pub fn submit_study(
             job.script.display()
         );
         if !target.dry_run {
-            submit(target.scheduler, &job.script)?;
+            let id = submit(target.scheduler, &job.script)?;
+            let submitted = SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            jobs::record(
+                store,
+                &LedgerEntry {
+                    scheduler: target.scheduler,
+                    id,
+                    name: job.name.clone(),
+                    keys: job.keys.clone(),
+                    submitted,
+                },
+            )?;
         }
     }
     Ok(())
+}
+
+/// The keys of the ledger's jobs that the scheduler still holds, each with its job's id. Where
+/// the scheduler cannot be asked (a workstation writing scripts), nothing is held.
+fn in_flight(store: &Store, scheduler: Scheduler) -> HashMap<String, String> {
+    let entries = jobs::entries(store);
+    if entries.is_empty() {
+        return HashMap::new();
+    }
+    let live = match jobs::live_jobs(scheduler) {
+        Ok(live) => live,
+        Err(message) => {
+            eprintln!("nlstudy: warning: cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
+            return HashMap::new();
+        }
+    };
+    entries
+        .into_iter()
+        .filter(|e| e.scheduler == scheduler && live.contains_key(&e.id))
+        .flat_map(|e| e.keys.into_iter().map(move |k| (k, e.id.clone())))
+        .collect()
 }
 
 /// The absolute paths a job needs, since it starts in the scheduler's working directory.
@@ -230,8 +287,8 @@ fn quote(path: &Path) -> String {
     format!("'{}'", path.display().to_string().replace('\'', r"'\''"))
 }
 
-/// Hands a script to the scheduler: `sbatch SCRIPT` or `bsub < SCRIPT`.
-pub fn submit(scheduler: Scheduler, script: &Path) -> Result<(), String> {
+/// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`) and returns the job's id.
+pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
     let (program, output) = match scheduler {
         Scheduler::Slurm => ("sbatch", Command::new("sbatch").arg(script).output()),
         Scheduler::Lsf => (
@@ -242,7 +299,8 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<(), String> {
     let output = output.map_err(|e| {
         format!("cannot run {program}: {e}; on a machine without the scheduler use --dry-run to write the scripts only")
     })?;
-    print!("{}", String::from_utf8_lossy(&output.stdout));
+    let printed = String::from_utf8_lossy(&output.stdout);
+    print!("{printed}");
     if !output.status.success() {
         return Err(format!(
             "{program} refused {}: {}",
@@ -250,5 +308,10 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<(), String> {
             String::from_utf8_lossy(&output.stderr).trim()
         ));
     }
-    Ok(())
+    jobs::submitted_id(scheduler, &printed).ok_or_else(|| {
+        format!(
+            "{program} accepted {} but printed no job id: {printed}",
+            script.display()
+        )
+    })
 }
