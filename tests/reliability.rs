@@ -394,3 +394,63 @@ fn a_case_past_its_timeout_is_killed_and_stored_failed() {
         "the timed-out solver still runs"
     );
 }
+
+/// `--retries`: a case whose process was killed from outside runs again and its record keeps the
+/// attempt; a case past its timeout is tried once more and then stored failed; a diverged case is
+/// a result and never runs again.
+#[test]
+fn failures_outside_the_case_are_retried_and_results_are_not() {
+    let study = json!({
+        "name": "retry",
+        "base": {"dim": 2, "n": 32, "m": 2, "t_end": 0.001, "cfl": 0.5, "ranks": 2}
+    });
+    let scratch = Scratch::new("retries", &study);
+    // A launcher whose first start is killed (as by an out-of-memory killer or a node failure).
+    let launcher = scratch.dir.join("flaky-launcher");
+    std::fs::write(
+        &launcher,
+        "#!/bin/sh\nmarker=\"$(dirname \"$0\")/killed-once\"\n\
+         if [ ! -e \"$marker\" ]; then touch \"$marker\"; kill -9 $$; fi\n\
+         exec mpirun --oversubscribe -n 2 \"$@\"\n",
+    )
+    .unwrap();
+    Command::new("chmod")
+        .args(["+x", &launcher.to_string_lossy()])
+        .status()
+        .unwrap();
+    let launcher = launcher.to_string_lossy().into_owned();
+    let out = scratch.nlstudy(
+        "run",
+        &["--no-collect", "--launcher", &launcher, "--retries", "1"],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("(attempt 2)"), "{}", text(&out));
+    let stored = records(&scratch.runs("retry"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0]["status"], "ok");
+    assert_eq!(stored[0]["attempt"], 2);
+
+    scratch.write_study(&json!({
+        "name": "slow",
+        "timeout_s": 1,
+        "base": {"dim": 2, "n": 512, "m": 4, "t_end": 0.05, "cfl": 0.5}
+    }));
+    let out = scratch.nlstudy("run", &["--no-collect", "--retries", "1"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert_eq!(text(&out).matches("retrying").count(), 1, "{}", text(&out));
+    let stored = records(&scratch.runs("slow"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0]["status"], "failed");
+    assert_eq!(stored[0]["attempt"], 2);
+
+    scratch.write_study(&json!({
+        "name": "unstable",
+        "base": {"dim": 1, "n": 64, "m": 2, "t_end": 0.05, "cfl": 1.5, "allow_unstable": true}
+    }));
+    let out = scratch.nlstudy("run", &["--no-collect", "--retries", "3"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(!text(&out).contains("retrying"), "{}", text(&out));
+    let stored = records(&scratch.runs("unstable"));
+    assert_eq!(stored[0]["status"], "diverged");
+    assert_eq!(stored[0]["attempt"], 1);
+}

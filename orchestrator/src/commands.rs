@@ -139,6 +139,11 @@ pub struct RunArgs {
     /// Command prefix of MPI cases; `{ranks}` becomes the case's rank count.
     #[arg(long, default_value = DEFAULT_LAUNCHER)]
     launcher: String,
+    /// Run a case again, up to N more times, when it failed for a reason outside it (past its
+    /// timeout, killed by a signal, its MPI launcher hung); the record keeps its `attempt`.
+    /// Divergence and refused input are results and never run again.
+    #[arg(long, default_value_t = 0)]
+    retries: usize,
     /// No progress output.
     #[arg(long, short)]
     quiet: bool,
@@ -241,6 +246,7 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, String> {
         exclusive: !study.share_machine,
         timeout: timeout.map(Duration::from_secs_f64),
         launcher: args.launcher.clone(),
+        retries: args.retries,
     };
     store
         .clear_abandoned_outputs()

@@ -13,7 +13,7 @@ use crate::store::Store;
 use schema::record::Status;
 use serde_json::{json, Value};
 use std::fs::File;
-use std::os::unix::process::CommandExt;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,6 +39,10 @@ pub struct PoolOptions {
     pub timeout: Option<Duration>,
     /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
     pub launcher: String,
+    /// Further attempts at a case that failed for a reason outside it: past its timeout, killed
+    /// by a signal, or its MPI launcher hung. A case that diverges or is refused is a result and
+    /// never runs again.
+    pub retries: usize,
 }
 
 /// Counts of a pool's work.
@@ -54,6 +58,8 @@ pub struct Tally {
 
 struct Running {
     index: usize,
+    /// 1 for the first run of the point, 2 for its first retry, …
+    attempt: usize,
     child: Child,
     started: Instant,
     cores: usize,
@@ -118,8 +124,12 @@ pub fn run(
     progress: &mut Progress,
 ) -> std::io::Result<Tally> {
     let mut tally = Tally::default();
-    let mut queue: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
-    queue.reverse(); // pop from the back in plan order
+    // (point, attempt), popped from the back in plan order.
+    let mut queue: Vec<(usize, usize)> = (0..planned.len())
+        .filter(|&i| planned[i].runs())
+        .map(|i| (i, 1))
+        .collect();
+    queue.reverse();
     let mut running: Vec<Running> = Vec::new();
     std::fs::create_dir_all(store.work_dir())?;
     loop {
@@ -133,7 +143,7 @@ pub fn run(
             return Ok(tally);
         }
         // Start what fits; a case larger than the budget runs alone.
-        while let Some(&next) = queue.last() {
+        while let Some(&(next, attempt)) = queue.last() {
             let planned = &planned[next];
             let cores = cores_of(planned);
             let used: usize = running.iter().map(|r| r.cores).sum();
@@ -151,7 +161,8 @@ pub fn run(
                 tally.passed += 1;
                 continue;
             };
-            let forced = planned.decision == Decision::Run(Reason::Forced);
+            // A retry follows this process's own failed attempt, not a stored result.
+            let forced = planned.decision == Decision::Run(Reason::Forced) || attempt > 1;
             let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
             if let Some(status) = stored.filter(|_| !forced) {
                 let why = format!("another nlstudy has stored it meanwhile ({status})");
@@ -164,9 +175,11 @@ pub fn run(
                     let record = failed_record(planned, solver, message.clone());
                     finish(store, planned, record, &mut tally, progress)?;
                 }
-                Ok(case) => running.push(start(
-                    next, case, planned, solver, store, options, cores, lock,
-                )?),
+                Ok(case) => {
+                    let mut job = start(next, case, planned, solver, store, options, cores, lock)?;
+                    job.attempt = attempt;
+                    running.push(job);
+                }
             }
         }
         if running.is_empty() && queue.is_empty() {
@@ -201,6 +214,8 @@ pub fn run(
                 continue;
             }
             let planned = &planned[job.index];
+            let killed = exit.signal().is_some() && !exit.success();
+            let outside_the_case = timed_out || launcher_hung || killed;
             let record = if timed_out {
                 failed_record(
                     planned,
@@ -225,6 +240,16 @@ pub fn run(
                 job.record(planned, solver, exit)
             };
             job.remove_files();
+            let failed = Status::of(&record) != Some(Status::Ok)
+                && Status::of(&record) != Some(Status::Diverged);
+            if failed && outside_the_case && job.attempt <= options.retries {
+                let message = record["message"].as_str().unwrap_or("");
+                progress.retrying(&planned.point.label(), job.attempt + 1, message);
+                queue.push((job.index, job.attempt + 1));
+                continue;
+            }
+            let mut record = record;
+            record["attempt"] = json!(job.attempt);
             finish(store, planned, record, &mut tally, progress)?;
         }
     }
@@ -300,6 +325,7 @@ fn start(
     let child = command.spawn()?;
     Ok(Running {
         index,
+        attempt: 1,
         child,
         started: Instant::now(),
         cores,

@@ -79,6 +79,19 @@ impl Progress {
         }
     }
 
+    /// A case that failed for a reason outside it (timeout, a killed process) starts again.
+    pub fn retrying(&mut self, label: &str, attempt: usize, message: &str) {
+        let line = format!(
+            "retrying {label} (attempt {attempt}): {}",
+            first_line(message)
+        );
+        match self.mode {
+            Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
+            Mode::Lines => eprintln!("{line}"),
+            Mode::Quiet => {}
+        }
+    }
+
     /// A planned case that this process did not run: another one runs it or just ran it.
     pub fn passed(&mut self, label: &str, why: &str) {
         self.done += 1;
