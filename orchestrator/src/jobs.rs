@@ -1,14 +1,20 @@
-//! The jobs ledger of a study, `results/<study>/jobs/ledger/<id>.json`: one entry per job
+//! The cluster schedulers, and the jobs ledger of a study, `results/<study>/jobs/ledger/<id>.json`: one entry per job
 //! `nlstudy submit` handed to the scheduler (its id, name and keys), and what the scheduler says
 //! of those jobs now (`squeue`, `bjobs`). `submit` leaves out the points of jobs still queued or
 //! running; `status` shows each job's state and how many of its points are stored.
 
 use crate::store::{write_atomically, Store};
-use crate::submit::Scheduler;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::process::Command;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scheduler {
+    Slurm,
+    Lsf,
+}
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LedgerEntry {

@@ -2,24 +2,17 @@
 //! several cases into one allocation and runs `nlstudy run --only KEYS` inside it, so the same
 //! record store and the same make-style skipping serve the cluster and the workstation.
 
-use crate::jobs::{self, LedgerEntry};
+use crate::jobs::{self, LedgerEntry, Scheduler};
 use crate::plan::Planned;
 use crate::solver::Solver;
 use crate::store::Store;
 use crate::study::{Resources, Study};
-use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Scheduler {
-    Slurm,
-    Lsf,
-}
 
 /// Where and how `nlstudy submit` sends a study: the scheduler, the resources (the study's,
 /// overridden by flags), the results directory and study file as given, and whether to stop
