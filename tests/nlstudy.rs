@@ -311,6 +311,12 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         command("mpirun -n {ranks}")
     );
     assert_eq!(script, expected);
+    // The structure both schedulers' scripts share (Slurm's also runs under a real sbatch in
+    // tests/slurm.rs; LSF's can only be read here).
+    for (extension, directive) in [("sbatch", "#SBATCH"), ("bsub", "#BSUB")] {
+        let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.{extension}")).unwrap();
+        check_job_structure(&script, directive, &keys);
+    }
 
     // One case per job: two scripts, one key each.
     let packed = scratch.nlstudy(
@@ -440,4 +446,73 @@ fn a_case_shared_by_two_branches_runs_once_and_keeps_a_row_per_branch() {
         4,
         "a row per point, the shared case in both branches"
     );
+}
+
+/// A job script's structure: the shebang, then only scheduler directives (each an option with a
+/// value), then strict shell mode and one `nlstudy run` of exactly the job's keys, with
+/// absolute paths that exist, no tables written, the MPI launcher taking `{ranks}`, and a core
+/// budget equal to the slots the directives ask for (Slurm: tasks × CPUs per task; LSF: -n).
+fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
+    let mut lines = script.lines();
+    assert_eq!(lines.next(), Some("#!/bin/bash"), "{script}");
+    let lines: Vec<&str> = lines.collect();
+    let directives = lines.iter().take_while(|l| l.starts_with('#')).count();
+    assert!(directives >= 4, "{script}");
+    for line in &lines[..directives] {
+        let rest = line
+            .strip_prefix(directive)
+            .unwrap_or_else(|| panic!("{line}: not {directive}"));
+        assert!(
+            rest.starts_with(' ') && rest.trim().starts_with('-'),
+            "{line}"
+        );
+        let option = rest.trim();
+        assert!(
+            option.contains(' ') || option.contains('='),
+            "{line}: an option without a value"
+        );
+    }
+    let body = &lines[directives..];
+    assert_eq!(body.len(), 2, "{script}");
+    assert_eq!(body[0], "set -euo pipefail");
+    let words: Vec<&str> = body[1].split_whitespace().collect();
+    let value_of = |flag: &str| {
+        let at = words
+            .iter()
+            .position(|w| *w == flag)
+            .unwrap_or_else(|| panic!("no {flag}"));
+        words[at + 1]
+    };
+    for path in [
+        words[0],
+        words[2],
+        value_of("--results"),
+        value_of("--solver"),
+    ] {
+        let path = path.trim_matches('\'');
+        assert!(
+            Path::new(path).is_absolute() && Path::new(path).exists(),
+            "{path}"
+        );
+    }
+    assert_eq!(words[1], "run");
+    assert!(words.contains(&"--no-collect"));
+    assert!(
+        body[1].contains("--launcher '") && body[1].contains("{ranks}'"),
+        "{}",
+        body[1]
+    );
+    assert_eq!(value_of("--only"), keys.join(","));
+    let asked = |option: &str| -> usize {
+        let line = lines[..directives]
+            .iter()
+            .find_map(|l| l.strip_prefix(&format!("{directive} {option}")))
+            .unwrap_or_else(|| panic!("no {option} in {script}"));
+        line.trim_start_matches('=').trim().parse().unwrap()
+    };
+    let slots = match directive {
+        "#SBATCH" => asked("--ntasks") * asked("--cpus-per-task"),
+        _ => asked("-n"),
+    };
+    assert_eq!(value_of("-j"), slots.to_string(), "{script}");
 }

@@ -1,6 +1,7 @@
 //! The `nlstudy` command line: its commands and flags, and what each command does with the
 //! library's parts (study → plan → pool → store → collect → plot).
 
+use crate::jobs::Scheduler;
 use crate::plan::{Decision, Options, Planned};
 use crate::pool::{PoolOptions, DEFAULT_LAUNCHER};
 use crate::progress::{Mode, Progress};
@@ -8,7 +9,6 @@ use crate::solver::Solver;
 use crate::status;
 use crate::store::Store;
 use crate::study::{Resources, Study};
-use crate::jobs::Scheduler;
 use crate::submit;
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;

@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-
 /// Where and how `nlstudy submit` sends a study: the scheduler, the resources (the study's,
 /// overridden by flags), the results directory and study file as given, and whether to stop
 /// after writing the scripts.
