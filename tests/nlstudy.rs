@@ -318,6 +318,15 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         check_job_structure(&script, directive, &keys);
     }
 
+    // Retries pass on to each job's nlstudy run.
+    let retrying = scratch.nlstudy(
+        "submit",
+        &["--scheduler", "slurm", "--dry-run", "--retries", "2"],
+    );
+    assert!(retrying.status.success(), "{}", text(&retrying));
+    let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.sbatch")).unwrap();
+    assert!(script.contains("--no-collect --retries 2 -j 4"), "{script}");
+
     // One case per job: two scripts, one key each.
     let packed = scratch.nlstudy(
         "submit",

@@ -344,18 +344,10 @@ fn a_launcher_that_leaves_a_dead_rank_unreaped_is_killed_and_its_point_stored_fa
         "base": {"dim": 2, "n": 64, "m": 2, "t_end": 0.001, "cfl": 0.5, "ranks": 2}
     });
     let scratch = Scratch::new("hung-launcher", &study);
-    let launcher = scratch.dir.join("hanging-launcher");
     // The subshell exits at once; `exec` keeps the pid, and sleep never waits for children.
-    std::fs::write(&launcher, "#!/bin/sh\n(exit 1) &\nexec sleep 600\n").unwrap();
-    Command::new("chmod")
-        .args(["+x", &launcher.to_string_lossy()])
-        .status()
-        .unwrap();
+    let launcher = launcher_script(&scratch, "hanging-launcher", "(exit 1) &\nexec sleep 600\n");
     let started = Instant::now();
-    let out = scratch.nlstudy(
-        "run",
-        &["--no-collect", "--launcher", &launcher.to_string_lossy()],
-    );
+    let out = scratch.nlstudy("run", &["--no-collect", "--launcher", &launcher]);
     eprintln!("the hung launcher was ended after {:?}", started.elapsed());
     assert_eq!(out.status.code(), Some(1), "{}", text(&out));
     let stored = records(&scratch.runs("hang"));
@@ -406,19 +398,13 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
     });
     let scratch = Scratch::new("retries", &study);
     // A launcher whose first start is killed (as by an out-of-memory killer or a node failure).
-    let launcher = scratch.dir.join("flaky-launcher");
-    std::fs::write(
-        &launcher,
-        "#!/bin/sh\nmarker=\"$(dirname \"$0\")/killed-once\"\n\
+    let launcher = launcher_script(
+        &scratch,
+        "flaky-launcher",
+        "marker=\"$(dirname \"$0\")/killed-once\"\n\
          if [ ! -e \"$marker\" ]; then touch \"$marker\"; kill -9 $$; fi\n\
          exec mpirun --oversubscribe -n 2 \"$@\"\n",
-    )
-    .unwrap();
-    Command::new("chmod")
-        .args(["+x", &launcher.to_string_lossy()])
-        .status()
-        .unwrap();
-    let launcher = launcher.to_string_lossy().into_owned();
+    );
     let out = scratch.nlstudy(
         "run",
         &["--no-collect", "--launcher", &launcher, "--retries", "1"],
@@ -453,4 +439,14 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
     let stored = records(&scratch.runs("unstable"));
     assert_eq!(stored[0]["status"], "diverged");
     assert_eq!(stored[0]["attempt"], 1);
+}
+
+/// An executable shell script in the scratch directory, to stand in for an MPI launcher that
+/// misbehaves the way a real one can; returns its path.
+fn launcher_script(scratch: &Scratch, name: &str, body: &str) -> String {
+    use std::os::unix::fs::PermissionsExt;
+    let path = scratch.dir.join(name);
+    std::fs::write(&path, format!("#!/bin/sh\n{body}")).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path.to_string_lossy().into_owned()
 }

@@ -79,6 +79,9 @@ pub struct SubmitArgs {
     /// Cases packed into one job (default: all).
     #[arg(long)]
     cases_per_job: Option<usize>,
+    /// Each job's `nlstudy run --retries N`: a case that failed for a reason outside it runs again.
+    #[arg(long, default_value_t = 0)]
+    retries: usize,
 }
 
 #[derive(Args)]
@@ -429,6 +432,7 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, String> {
         results: args.common.results.clone(),
         study_file: args.common.study.clone(),
         dry_run: args.dry_run,
+        retries: args.retries,
     };
     submit::submit_study(&study, &solver, &planned, &store, &target)?;
     Ok(ExitCode::SUCCESS)

@@ -22,6 +22,8 @@ pub struct Target {
     pub results: PathBuf,
     pub study_file: PathBuf,
     pub dry_run: bool,
+    /// `nlstudy run --retries` inside each job.
+    pub retries: usize,
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
@@ -73,19 +75,20 @@ pub fn submit_study(
         std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", path.display()))
     };
     let results = absolute(&target.results)?;
-    let paths = Paths {
+    let command = JobCommand {
         nlstudy: std::env::current_exe().map_err(|e| format!("cannot find nlstudy: {e}"))?,
         nlsolve: absolute(&solver.binary)?,
         study: absolute(&target.study_file)?,
         jobs: results.join(&study.name).join("jobs"),
         results,
+        retries: target.retries,
     };
     let jobs = write_jobs(
         &study.name,
         &runnable,
         target.scheduler,
         &target.resources,
-        &paths,
+        &command,
     )
     .map_err(|e| format!("cannot write the job scripts: {e}"))?;
     for job in &jobs {
@@ -136,13 +139,15 @@ fn in_flight(store: &Store, scheduler: Scheduler) -> HashMap<String, String> {
         .collect()
 }
 
-/// The absolute paths a job needs, since it starts in the scheduler's working directory.
-pub struct Paths {
+/// What a job runs: the absolute paths it needs (it starts in the scheduler's working
+/// directory) and the options of its `nlstudy run`.
+pub struct JobCommand {
     pub nlstudy: PathBuf,
     pub nlsolve: PathBuf,
     pub study: PathBuf,
     pub results: PathBuf,
     pub jobs: PathBuf,
+    pub retries: usize,
 }
 
 /// A written job script.
@@ -152,15 +157,15 @@ pub struct Job {
     pub keys: Vec<String>,
 }
 
-/// Writes one script per pack of runnable points into `paths.jobs`.
+/// Writes one script per pack of runnable points into `command.jobs`.
 pub fn write_jobs(
     study_name: &str,
     runnable: &[&Planned],
     scheduler: Scheduler,
     resources: &Resources,
-    paths: &Paths,
+    command: &JobCommand,
 ) -> std::io::Result<Vec<Job>> {
-    std::fs::create_dir_all(&paths.jobs)?;
+    std::fs::create_dir_all(&command.jobs)?;
     let per_job = resources.cases_per_job.unwrap_or(runnable.len()).max(1);
     let mut jobs = Vec::new();
     for (k, pack) in runnable.chunks(per_job).enumerate() {
@@ -177,14 +182,14 @@ pub fn write_jobs(
             threads: largest("threads"),
         };
         let script = match scheduler {
-            Scheduler::Slurm => slurm(&name, &keys, shape, resources, paths),
-            Scheduler::Lsf => lsf(&name, &keys, shape, resources, paths),
+            Scheduler::Slurm => slurm(&name, &keys, shape, resources, command),
+            Scheduler::Lsf => lsf(&name, &keys, shape, resources, command),
         };
         let extension = match scheduler {
             Scheduler::Slurm => "sbatch",
             Scheduler::Lsf => "bsub",
         };
-        let path = paths.jobs.join(format!("{name}.{extension}"));
+        let path = command.jobs.join(format!("{name}.{extension}"));
         crate::store::write_atomically(&path, script.as_bytes())?;
         jobs.push(Job {
             name,
@@ -202,7 +207,7 @@ struct Shape {
     threads: usize,
 }
 
-fn slurm(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) -> String {
+fn slurm(name: &str, keys: &[String], shape: Shape, r: &Resources, command: &JobCommand) -> String {
     let mut s = String::from("#!/bin/bash\n");
     let mut directive = |text: String| writeln!(s, "#SBATCH {text}").expect("a String");
     directive(format!("--job-name={name}"));
@@ -220,13 +225,13 @@ fn slurm(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths
     }
     directive(format!(
         "--output={}",
-        paths.jobs.join(format!("{name}.%j.out")).display()
+        command.jobs.join(format!("{name}.%j.out")).display()
     ));
     // Debian's Open MPI 4.1 starts under srun through PMIx (PMI-2 aborts in MPI_Init).
-    s + &body(keys, shape, "srun --mpi=pmix -n {ranks}", paths)
+    s + &body(keys, shape, "srun --mpi=pmix -n {ranks}", command)
 }
 
-fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) -> String {
+fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, command: &JobCommand) -> String {
     let mut s = String::from("#!/bin/bash\n");
     let mut directive = |text: String| writeln!(s, "#BSUB {text}").expect("a String");
     directive(format!("-J {name}"));
@@ -255,20 +260,24 @@ fn lsf(name: &str, keys: &[String], shape: Shape, r: &Resources, paths: &Paths) 
     }
     directive(format!(
         "-o {}",
-        paths.jobs.join(format!("{name}.%J.out")).display()
+        command.jobs.join(format!("{name}.%J.out")).display()
     ));
-    s + &body(keys, shape, "mpirun -n {ranks}", paths)
+    s + &body(keys, shape, "mpirun -n {ranks}", command)
 }
 
 /// The commands of a job: run its keys of the study inside the allocation. Jobs of one study
 /// may run at once, so none writes the study's tables: `nlstudy collect` does, once they are done.
-fn body(keys: &[String], shape: Shape, launcher: &str, paths: &Paths) -> String {
+fn body(keys: &[String], shape: Shape, launcher: &str, command: &JobCommand) -> String {
+    let retries = match command.retries {
+        0 => String::new(),
+        n => format!(" --retries {n}"),
+    };
     format!(
-        "set -euo pipefail\n{} run {} --results {} --solver {} --launcher '{launcher}' --no-collect -j {} --only {}\n",
-        quote(&paths.nlstudy),
-        quote(&paths.study),
-        quote(&paths.results),
-        quote(&paths.nlsolve),
+        "set -euo pipefail\n{} run {} --results {} --solver {} --launcher '{launcher}' --no-collect{retries} -j {} --only {}\n",
+        quote(&command.nlstudy),
+        quote(&command.study),
+        quote(&command.results),
+        quote(&command.nlsolve),
         shape.tasks * shape.threads,
         keys.join(","),
     )
