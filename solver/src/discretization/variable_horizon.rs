@@ -146,6 +146,18 @@ impl VariableHorizonOperator {
             .collect()
     }
 
+    /// The rows of L_h on D's nodes with u = 0 on the collar (eq. 2.2's volume constraint), for
+    /// the time-dependent problem: the collar's columns dropped, D's renumbered from 0.
+    pub fn rows_with_zero_collar(&self) -> impl Iterator<Item = Vec<(usize, f64)>> + '_ {
+        let d = self.collar..self.collar + self.n;
+        self.rows.iter().map(move |row| {
+            row.iter()
+                .filter(|(l, _)| d.contains(l))
+                .map(|&(l, a)| (l - self.collar, a))
+                .collect()
+        })
+    }
+
     /// Gershgorin's bound on the largest |eigenvalue| of L_h: max over rows of Σ_l |a_il|.
     pub fn lambda_bound(&self) -> f64 {
         self.rows

@@ -149,17 +149,6 @@ mod tests {
     use crate::operator::{SinePreconditioner, StencilOperator};
     use crate::parallel::exchange::Ranks;
 
-    /// No preconditioning: z = r.
-    struct Identity;
-
-    impl LinearOperator for Identity {
-        type Workspace = ();
-        fn workspace(&self) {}
-        fn apply(&self, r: &[f64], z: &mut [f64], _: &mut ()) {
-            z.copy_from_slice(r);
-        }
-    }
-
     /// Preconditioned and plain CG solve the same θ-step to the tolerance, and the sine
     /// transform saves most of the iterations (2D, ε = 4h, dt = 100 dt_stable).
     #[test]

@@ -57,16 +57,23 @@ fn check(case: &Case) -> Result<(), CaseError> {
         case.validate_time_dependent()
     };
     if case.method != Method::PatchTest {
+        let varying = case.method == Method::Nonlocal;
         refuse_given(
             &[
-                ("horizon_profile", case.horizon_profile.is_some()),
-                ("formulation", case.formulation.is_some()),
+                (
+                    "horizon_profile",
+                    case.horizon_profile.is_some() && !varying,
+                ),
+                ("formulation", case.formulation.is_some() && !varying),
                 (
                     "patch",
                     case.patch.is_some() && case.method != Method::Coupled1d,
                 ),
             ],
-            |_| "belongs to the variable-horizon `patch_test` method; leave it out".into(),
+            |_| {
+                "belongs to a variable horizon (`patch_test`, or `nonlocal` in 1D); leave it out"
+                    .into()
+            },
         )?;
     }
     if case.method != Method::Coupled1d && case.local_domain.is_some() {

@@ -13,9 +13,13 @@ use crate::case::{
 };
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Distribution, PatchTest, Record, Resolved};
+use crate::output::record::{Distribution, PatchTest, Record, Resolved, Spectrum};
 use crate::problem::polynomial::PolynomialField;
+use faer::Mat;
 use std::time::Instant;
+
+/// Above this many nodes the dense eigenvalues (O(n³)) are left out of the record.
+pub const SPECTRUM_MAX_NODES: usize = 2000;
 
 /// The rules of a patch-test case.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
@@ -34,6 +38,17 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             "a patch test prescribes `linear` or `quadratic`; `quartic` is coupled_1d's Example 2",
         ));
     }
+    validate_horizon(case)?;
+    case.refuse_steady_fields()?;
+    case.refuse_time_loop_fields(
+        "a patch test evaluates L_h once, on one rank, with its own weights",
+    )
+}
+
+/// A variable horizon's rules, for the patch test and the time-dependent nonlocal method: ε(x)
+/// from a varying `horizon_profile` (then no `m` or `eps`) or a constant one (then one of
+/// them), a transition inside D, and ε within [h, 1/2] along the bar.
+pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
     let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
     match (profile, case.m, case.eps) {
         (HorizonProfile::Constant, Some(_), None) | (HorizonProfile::Constant, None, Some(_)) => {}
@@ -78,10 +93,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             ));
         }
     }
-    case.refuse_steady_fields()?;
-    case.refuse_time_loop_fields(
-        "a patch test evaluates L_h once, on one rank, with its own weights",
-    )
+    Ok(())
 }
 
 /// Evaluates L_h on the prescribed field and measures the ghost force.
@@ -143,6 +155,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             x,
             l_u: l_u.clone(),
             eps_x: eps_d.to_vec(),
+            spectrum: (case.n <= SPECTRUM_MAX_NODES).then(|| spectrum(&operator)),
         }),
         ..Record::new(case, resolved, Distribution::serial(case))
     };
@@ -153,4 +166,37 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         lattice,
         frames: Vec::new(),
     })
+}
+
+/// The eigenvalues of L_h on D with a zero collar, dense: the partial-stress form is not
+/// symmetric, and with a varying horizon some of its eigenvalues have Re λ > 0.
+pub fn spectrum(operator: &VariableHorizonOperator) -> Spectrum {
+    let n = operator.n;
+    let mut a = Mat::<f64>::zeros(n, n);
+    for (i, row) in operator.rows_with_zero_collar().enumerate() {
+        for (j, value) in row {
+            a[(i, j)] += value;
+        }
+    }
+    let eigenvalues = a
+        .eigenvalues()
+        .expect("the eigenvalues of a finite dense matrix");
+    let fold =
+        |f: fn(&faer::c64) -> f64, start: f64| eigenvalues.iter().map(f).fold(start, f64::max);
+    let max_real = fold(|z| z.re, f64::NEG_INFINITY);
+    let dt_forward_euler = (max_real <= 0.0).then(|| {
+        eigenvalues
+            .iter()
+            .map(|z| z.re * z.re + z.im * z.im)
+            .zip(&eigenvalues)
+            .filter(|(modulus2, _)| *modulus2 > 0.0)
+            .map(|(modulus2, z)| -2.0 * z.re / modulus2)
+            .fold(f64::INFINITY, f64::min)
+    });
+    Spectrum {
+        max_real,
+        max_imaginary: fold(|z| z.im.abs(), 0.0),
+        max_abs: fold(|z| (z.re * z.re + z.im * z.im).sqrt(), 0.0),
+        dt_forward_euler,
+    }
 }

@@ -20,3 +20,16 @@ pub trait LinearOperator {
         self.apply(u, out, &mut self.workspace());
     }
 }
+
+/// No operator at all, z = r: the preconditioner of a CG with none.
+pub struct Identity;
+
+impl LinearOperator for Identity {
+    type Workspace = ();
+
+    fn workspace(&self) {}
+
+    fn apply(&self, r: &[f64], z: &mut [f64], _: &mut ()) {
+        z.copy_from_slice(r);
+    }
+}

@@ -8,13 +8,15 @@ mod cost;
 mod fft;
 mod linear;
 mod neighbour_list;
+mod rows;
 mod sine;
 pub(crate) mod stencil;
 
 pub use cost::{choose, Cost};
 pub use fft::FftOperator;
-pub use linear::LinearOperator;
+pub use linear::{Identity, LinearOperator};
 pub use neighbour_list::NeighbourList;
+pub use rows::RowOperator;
 pub use sine::SinePreconditioner;
 pub use stencil::{InstructionSet, StencilOperator};
 

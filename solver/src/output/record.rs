@@ -191,6 +191,23 @@ pub struct PatchTest {
     pub x: Vec<f64>,
     pub l_u: Vec<f64>,
     pub eps_x: Vec<f64>,
+    /// The spectrum of L_h on D with u = 0 on the collar, the operator a time-dependent run
+    /// steps (dense eigenvalues, computed up to `SPECTRUM_MAX_NODES`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectrum: Option<Spectrum>,
+}
+
+/// Where the eigenvalues λ of a (possibly non-symmetric) L_h lie, and what that means for time
+/// stepping: with some Re λ > 0, u' = L_h u grows like e^{t·max Re λ} and no step is stable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Spectrum {
+    pub max_real: f64,
+    pub max_imaginary: f64,
+    pub max_abs: f64,
+    /// The largest stable forward-Euler step, min over λ of −2 Re λ/|λ|² (|1 + dt λ| ≤ 1 for every
+    /// λ); absent when some Re λ > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt_forward_euler: Option<f64>,
 }
 
 /// A coupled local–nonlocal solve (seed 003): the errors of both models against the exact

@@ -2,6 +2,7 @@
 //! forward Euler (eq. 2.1) on one process (`run`) or over MPI ranks (`distributed`), measure.
 
 pub mod distributed;
+pub mod variable_horizon;
 
 use crate::case::ValidCase;
 use crate::case::{
@@ -38,6 +39,15 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "length",
             "the nonlocal method runs on D = [0,1]^d; leave `length` out",
+        ));
+    }
+    if case.horizon_profile.is_some() {
+        return variable_horizon::validate(case);
+    }
+    if case.formulation.is_some() {
+        return Err(CaseError::new(
+            "formulation",
+            "chooses how a varying horizon enters L_h; give a `horizon_profile` with it, or leave it out",
         ));
     }
     if case.collar == Collar::Exact && case.problem != Problem::Manufactured {
@@ -147,6 +157,9 @@ impl Plan {
 
 /// Runs a case of the nonlocal method on the current rayon pool.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
+    if case.horizon_profile.is_some() {
+        return variable_horizon::run(case);
+    }
     let setup_started = Instant::now();
     let plan = Plan::new(case)?;
     let operator = operator::plan(plan.backend, &plan.stencil);

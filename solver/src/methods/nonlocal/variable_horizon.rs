@@ -1,0 +1,178 @@
+//! The nonlocal heat equation with a horizon that varies along the bar (seed 003), in 1D on one
+//! process: the rows of `VariableHorizonOperator` with u = 0 on the collar (eq. 2.2), stepped by
+//! any of the method's integrators (the implicit ones by CG without a preconditioner: the sine
+//! transform diagonalises only a constant horizon).
+//!
+//! The standard formulation is symmetric and negative definite, so every integrator is stable
+//! within its usual bound. The partial stress is not symmetric, and where the horizon varies its
+//! eigenvalues reach Re λ > 0 (docs/variable_horizon.md): u grows whatever dt, so such a case
+//! runs only with `allow_unstable`, as a probe.
+
+use crate::case::{
+    horizon_length, Backend, Case, CaseError, Collar, Formulation, HorizonProfile, Integrator,
+    Problem, SourceMode, ValidCase,
+};
+use crate::discretization::grid::Grid;
+use crate::discretization::stability::dt_stable;
+use crate::discretization::variable_horizon::VariableHorizonOperator;
+use crate::integrate::euler::ForwardEuler;
+use crate::integrate::measure::serial_outcome;
+use crate::integrate::runge_kutta::RungeKutta;
+use crate::integrate::stepper::{integrate, Rhs, Stepper};
+use crate::integrate::theta::{default_rtol, Theta, DEFAULT_MAX_ITERATIONS};
+use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::integrate::timed::Stepping;
+use crate::methods::patch_test::validate_horizon;
+use crate::operator::{Identity, LinearOperator, RowOperator};
+use crate::output::outcome::Outcome;
+use crate::output::record::Resolved;
+use crate::parallel::exchange::Ranks;
+use crate::problem::{self, manufactured_solution, Source};
+use std::time::Instant;
+
+/// The rules of a nonlocal case with a `horizon_profile`.
+pub fn validate(case: &Case) -> Result<(), CaseError> {
+    if case.dim != 1 {
+        return Err(CaseError::new(
+            "dim",
+            format!(
+                "a horizon_profile runs in 1D (got dim = {}); use dim = 1",
+                case.dim
+            ),
+        ));
+    }
+    if case.ranks > 1 {
+        return Err(CaseError::new(
+            "ranks",
+            "a varying horizon runs on one process (its rows are not partitioned); use ranks = 1 and `threads`",
+        ));
+    }
+    if !matches!(case.backend, Backend::Auto | Backend::NeighbourList) {
+        return Err(CaseError::new(
+            "backend",
+            "a varying horizon gives every node its own weights, which only its neighbour lists hold; leave `backend` out",
+        ));
+    }
+    if case.collar == Collar::Exact {
+        return Err(CaseError::new(
+            "collar",
+            "a varying horizon runs with the zero collar of eq. 2.2; leave `collar` out",
+        ));
+    }
+    if matches!(case.problem, Problem::Manufactured) && case.source() == SourceMode::Continuum {
+        return Err(CaseError::new(
+            "source",
+            "`continuum` integrates the operator of a constant horizon; use `discrete` (the time error alone) or `local` (the distance to kΔ)",
+        ));
+    }
+    if case.formulation == Some(Formulation::PartialStress)
+        && case.horizon_profile != Some(HorizonProfile::Constant)
+        && !case.allow_unstable
+    {
+        return Err(CaseError::new(
+            "formulation",
+            "the partial stress has eigenvalues with Re λ > 0 where the horizon varies, so u grows whatever dt (docs/variable_horizon.md); use `standard`, or set `allow_unstable: true` to watch it grow",
+        ));
+    }
+    validate_horizon(case)
+}
+
+/// Plans, integrates and measures a nonlocal case with a `horizon_profile`.
+pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
+    let setup_started = Instant::now();
+    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let variable = VariableHorizonOperator::new(
+        case.n,
+        profile,
+        horizon_length(case),
+        case.kernel,
+        case.diffusivity,
+        case.formulation.unwrap_or_default(),
+    );
+    let operator = RowOperator::new(variable.rows_with_zero_collar());
+    // Gershgorin's bound: the exact step of the symmetric standard form is about twice this.
+    let euler_dt_stable = 2.0 / operator.lambda_bound();
+    let explicit_dt_stable = dt_stable(case.integrator, euler_dt_stable);
+    let dt_stable = explicit_dt_stable.unwrap_or(euler_dt_stable);
+    let (dt, steps) = time_step(case, dt_stable, explicit_dt_stable.is_none())?;
+
+    let grid = Grid::new(1, case.n);
+    let x = |i: usize| grid.position(i);
+    let (u0, source) = match case.problem {
+        Problem::Bump => ((0..case.n).map(|i| problem::bump(1, x(i))).collect(), None),
+        _ => {
+            let phi: Vec<f64> = (0..case.n).map(|i| problem::profile(1, x(i))).collect();
+            let psi = match case.source() {
+                SourceMode::Discrete => {
+                    let mut psi = vec![0.0; case.n];
+                    operator.apply_once(&phi, &mut psi);
+                    psi
+                }
+                _ => {
+                    let factor = problem::local_laplacian_factor(1, case.diffusivity);
+                    phi.iter().map(|p| factor * p).collect()
+                }
+            };
+            (phi.clone(), Some(Source { phi, psi }))
+        }
+    };
+    let ranks = Ranks::single();
+    let source_max = source
+        .as_ref()
+        .map(|s| (ranks.max_abs(&s.phi), ranks.max_abs(&s.psi)));
+    let bound = divergence_bound(case, ranks.max_abs(&u0), source_max);
+    let stepping = Stepping::of_case(case, dt, steps, bound, 1.0);
+    let setup_s = setup_started.elapsed().as_secs_f64();
+    let len = case.n;
+    let trajectory = {
+        let source = source.as_ref();
+        let mut stepper: Box<dyn Stepper> = match case.integrator {
+            Integrator::ForwardEuler => Box::new(ForwardEuler::new(&operator, source, ranks, len)),
+            Integrator::Heun | Integrator::Rk4 => Box::new(RungeKutta::new(
+                case.integrator,
+                &operator,
+                source,
+                ranks,
+                len,
+            )),
+            Integrator::BackwardEuler | Integrator::CrankNicolson => Box::new(Theta::new(
+                case.integrator,
+                Rhs::new(&operator, source, ranks),
+                &Identity,
+                len,
+                dt,
+                case.rtol
+                    .unwrap_or_else(|| default_rtol(case.integrator, dt, steps)),
+                case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
+            )),
+        };
+        integrate(stepper.as_mut(), ranks, u0, source, &stepping)
+    };
+    let eps_max = variable.eps.iter().copied().fold(0.0, f64::max);
+    let resolved = Resolved {
+        h: grid.h,
+        eps: Some(eps_max),
+        dt,
+        dt_stable,
+        steps,
+        nodes: case.n,
+        bonds: variable.bonds,
+        collar: Some(Collar::Zero),
+        backend: Some(Backend::NeighbourList),
+        integrator: Some(case.integrator),
+        ..Resolved::default()
+    };
+    let t_end = trajectory.timing.steps_done as f64 * dt;
+    let exact = source
+        .as_ref()
+        .map(|s| manufactured_solution(&s.phi, t_end));
+    Ok(serial_outcome(
+        case,
+        resolved,
+        setup_s,
+        &stepping,
+        trajectory,
+        grid.lattice(),
+        exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
+    ))
+}
