@@ -161,8 +161,7 @@ pub fn run(
                 tally.passed += 1;
                 continue;
             };
-            // A retry follows this process's own failed attempt, not a stored result.
-            let forced = planned.decision == Decision::Run(Reason::Forced) || attempt > 1;
+            let forced = planned.decision == Decision::Run(Reason::Forced);
             let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
             if let Some(status) = stored.filter(|_| !forced) {
                 let why = format!("another nlstudy has stored it meanwhile ({status})");

@@ -146,7 +146,7 @@ mod tests {
     use crate::discretization::grid::{Grid, Horizon};
     use crate::discretization::stability::forward_euler_dt_stable;
     use crate::discretization::stencil::Stencil;
-    use crate::operator::{SinePreconditioner, StencilOperator};
+    use crate::operator::{Identity, SinePreconditioner, StencilOperator};
     use crate::parallel::exchange::Ranks;
 
     /// Preconditioned and plain CG solve the same θ-step to the tolerance, and the sine

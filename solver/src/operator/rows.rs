@@ -31,10 +31,6 @@ impl RowOperator {
         operator
     }
 
-    pub fn rows(&self) -> usize {
-        self.starts.len() - 1
-    }
-
     /// Gershgorin's bound on the largest |eigenvalue|: max over rows of Σ_j |a_ij|.
     pub fn lambda_bound(&self) -> f64 {
         self.starts
