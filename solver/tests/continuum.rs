@@ -155,3 +155,35 @@ fn constant_kernel_matches_an_independent_integral_up_to_the_boundary() {
         );
     }
 }
+
+/// Along an edge, L φ = sin(a x_∥) G(x_⊥): the tabulated edge profile gives, at every node whose
+/// ball crosses one side, the value the node-by-node quadrature gives.
+#[test]
+fn the_edge_profile_equals_the_quadrature_node_by_node() {
+    for kernel in Kernel::ALL {
+        for (n, eps) in [(64, 0.125), (60, 0.25), (40, 0.05)] {
+            let grid = Grid::new(2, n);
+            let horizon = Horizon::from_eps(&grid, eps);
+            let c = scaling_constant(2, kernel, eps, 1.0);
+            let direct = ContinuumOperator::new(2, &horizon, kernel, c, DEFAULT_ORDER);
+            let tabulated =
+                ContinuumOperator::new(2, &horizon, kernel, c, DEFAULT_ORDER).for_grid(&grid);
+            let scale = direct.eigenvalue().abs();
+            let mut edge_nodes = 0;
+            for i in 0..grid.nodes() {
+                let x = grid.position(i);
+                let clear = |a: usize| x[a].min(1.0 - x[a]) >= eps;
+                if clear(0) == clear(1) {
+                    continue;
+                }
+                edge_nodes += 1;
+                let (a, b) = (tabulated.at_node(&grid, i), direct.at(x));
+                assert!(
+                    (a - b).abs() <= 1e-11 * scale,
+                    "{kernel:?} n={n} ε={eps} at {x:?}: {a} against {b}"
+                );
+            }
+            assert!(edge_nodes > 0);
+        }
+    }
+}

@@ -14,6 +14,12 @@
 //! translation-invariant operator: averaging over ±z leaves φ(x + z) → φ(x) cos(a z₁) cos(a z₂),
 //! so L φ = λ φ with λ = c ∫_{|z|≤ε} J(|z|/ε)(cos(a z₁) cos(a z₂) − 1) dz (cos(a z) − 1 in 1D),
 //! computed once.
+//!
+//! Along an edge of the square, where the ball crosses one side only, the same averaging over
+//! ±z along that side (the cut ball is symmetric in it) gives L φ(x) = sin(a x_∥) G(x_⊥): G
+//! depends on the distance to the side alone. `for_grid` computes G once per grid line near a
+//! side, by the quadrature at x_∥ = 1/4 (where sin(a x_∥) = 1), so only the corner squares need
+//! the quadrature node by node: at n = 2048, m = 32, 4096 nodes instead of 262 144.
 
 use crate::case::Kernel;
 use crate::discretization::grid::{Grid, Horizon};
@@ -37,6 +43,8 @@ pub struct ContinuumOperator {
     rule: GaussLegendre,
     /// L φ = (this) · φ wherever the ball lies inside D.
     interior_multiplier: f64,
+    /// 2D, from `for_grid`: G at each grid line's coordinate (NaN away from the sides).
+    edge_profile: Option<Vec<f64>>,
 }
 
 impl ContinuumOperator {
@@ -49,6 +57,7 @@ impl ContinuumOperator {
             c,
             rule: GaussLegendre::new(order),
             interior_multiplier: 0.0,
+            edge_profile: None,
         };
         operator.interior_multiplier = operator.compute_interior_multiplier();
         operator
@@ -67,17 +76,43 @@ impl ContinuumOperator {
             .collect()
     }
 
-    /// L φ at node i of the grid: the closed form where the ball lies inside D, else quadrature.
+    /// The operator with G of the edge strips tabulated for `grid`'s lines (2D, ε ≤ 1/4, so
+    /// that x_∥ = 1/4 is clear of the other sides); `at_node` then uses it on this grid.
+    pub fn for_grid(mut self, grid: &Grid) -> Self {
+        if self.dim != 2 || self.eps > 0.25 {
+            return self;
+        }
+        let table = (0..grid.n)
+            .into_par_iter()
+            .map(|k| {
+                let x = grid.coord(k as i64);
+                match x.min(1.0 - x) < self.eps {
+                    true => self.at([0.25, x]),
+                    false => f64::NAN,
+                }
+            })
+            .collect();
+        self.edge_profile = Some(table);
+        self
+    }
+
+    /// L φ at node i of the grid: the closed form where the ball lies inside D, the edge
+    /// profile where it crosses one side (after `for_grid`), else quadrature.
     pub fn at_node(&self, grid: &Grid, i: usize) -> f64 {
         let x = grid.position(i);
-        let clearance = (0..self.dim)
-            .map(|a| x[a].min(1.0 - x[a]))
-            .fold(f64::INFINITY, f64::min);
-        if clearance >= self.eps {
-            self.interior_multiplier * profile(self.dim, x)
-        } else {
-            self.at(x)
+        let clear = |a: usize| x[a].min(1.0 - x[a]) >= self.eps;
+        if (0..self.dim).all(clear) {
+            return self.interior_multiplier * profile(self.dim, x);
         }
+        if let Some(edge) = self.edge_profile.as_ref().filter(|e| e.len() == grid.n) {
+            let (ix, iy) = (i % grid.n, i / grid.n);
+            match (clear(0), clear(1)) {
+                (true, false) => return (WAVENUMBER * x[0]).sin() * edge[iy],
+                (false, true) => return (WAVENUMBER * x[1]).sin() * edge[ix],
+                _ => {}
+            }
+        }
+        self.at(x)
     }
 
     /// L φ(x) by the split quadrature, valid at any x in D.

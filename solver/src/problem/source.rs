@@ -25,13 +25,16 @@ impl<'a> PointwiseSource<'a> {
     /// None for the modes that are not computed node by node (`discrete`, `none`).
     pub fn new(case: &Case, stencil: &'a Stencil) -> Option<Self> {
         let continuum = match case.source() {
-            SourceMode::Continuum => Some(ContinuumOperator::new(
-                case.dim,
-                &stencil.horizon,
-                case.kernel,
-                stencil.c,
-                DEFAULT_ORDER,
-            )),
+            SourceMode::Continuum => Some(
+                ContinuumOperator::new(
+                    case.dim,
+                    &stencil.horizon,
+                    case.kernel,
+                    stencil.c,
+                    DEFAULT_ORDER,
+                )
+                .for_grid(&stencil.grid),
+            ),
             SourceMode::Local => None,
             SourceMode::Discrete | SourceMode::None => return None,
         };
