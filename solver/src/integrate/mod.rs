@@ -1,9 +1,10 @@
 //! Time integration of du/dt = L u + b: the timed loop every method shares (`timed`), the
 //! right-hand side and the stepper interface (`stepper`), the integrators (`euler`,
-//! `runge_kutta`, `theta`), what a run measured (`measure`) and the time step a case runs with
+//! `runge_kutta`, `theta`) and the one a case names (`integrator`), what a run measured (`measure`) and the time step a case runs with
 //! (`time_step`).
 
 pub mod euler;
+pub mod integrator;
 pub mod measure;
 pub mod runge_kutta;
 pub mod stepper;

@@ -10,14 +10,13 @@ use crate::case::{
 };
 use crate::discretization::stability::{dt_stable, forward_euler_dt_stable};
 use crate::discretization::stencil::Stencil;
-use crate::integrate::euler::ForwardEuler;
+use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
-use crate::integrate::runge_kutta::RungeKutta;
-use crate::integrate::stepper::{integrate, Rhs, Stepper};
-use crate::integrate::theta::{default_rtol, theta, Theta, DEFAULT_MAX_ITERATIONS};
+use crate::integrate::stepper::integrate;
+use crate::integrate::theta::theta;
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
-use crate::operator::{self, LinearOperator, SinePreconditioner};
+use crate::operator::{self, Identity, LinearOperator, SinePreconditioner};
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
 use crate::parallel::exchange::Ranks;
@@ -224,27 +223,10 @@ pub(crate) fn solve<Op: LinearOperator>(
         .map(|(whole, nodes)| Gathered::new(whole, nodes, plan.stencil.grid.nodes(), ranks));
     let trajectory = {
         let source = source.as_ref();
-        let mut stepper: Box<dyn Stepper> = match (case.integrator, &preconditioner) {
-            (Integrator::ForwardEuler, _) => {
-                Box::new(ForwardEuler::new(operator, source, ranks, len))
-            }
-            (Integrator::Heun | Integrator::Rk4, _) => Box::new(RungeKutta::new(
-                case.integrator,
-                operator,
-                source,
-                ranks,
-                len,
-            )),
-            (Integrator::BackwardEuler | Integrator::CrankNicolson, Some(preconditioner)) => {
-                let rhs = Rhs::new(operator, source, ranks);
-                match &gathered {
-                    Some(gathered) => theta_stepper(case, plan, rhs, gathered, len),
-                    None => theta_stepper(case, plan, rhs, preconditioner, len),
-                }
-            }
-            (Integrator::BackwardEuler | Integrator::CrankNicolson, None) => {
-                unreachable!("made above for the implicit integrators")
-            }
+        let mut stepper = match (&gathered, &preconditioner) {
+            (Some(gathered), _) => stepper(case, operator, source, ranks, len, &stepping, gathered),
+            (None, Some(whole)) => stepper(case, operator, source, ranks, len, &stepping, whole),
+            (None, None) => stepper(case, operator, source, ranks, len, &stepping, &Identity),
         };
         integrate(stepper.as_mut(), ranks, u0, source, &stepping)
     };
@@ -256,29 +238,6 @@ pub(crate) fn solve<Op: LinearOperator>(
         },
         trajectory,
     )
-}
-
-/// The θ-scheme of the case's implicit integrator with `preconditioner`.
-fn theta_stepper<'a, Op: LinearOperator, P: LinearOperator>(
-    case: &Case,
-    plan: &Plan,
-    rhs: Rhs<'a, Op>,
-    preconditioner: &'a P,
-    len: usize,
-) -> Box<dyn Stepper + 'a> {
-    let rtol = case
-        .rtol
-        .unwrap_or_else(|| default_rtol(case.integrator, plan.dt, plan.steps));
-    let max_iterations = case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS);
-    Box::new(Theta::new(
-        case.integrator,
-        rhs,
-        preconditioner,
-        len,
-        plan.dt,
-        rtol,
-        max_iterations,
-    ))
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives

@@ -9,17 +9,15 @@
 //! runs only with `allow_unstable`, as a probe.
 
 use crate::case::{
-    horizon_length, Backend, Case, CaseError, Collar, Formulation, HorizonProfile, Integrator,
-    Problem, SourceMode, ValidCase,
+    horizon_length, Backend, Case, CaseError, Collar, Formulation, HorizonProfile, Problem,
+    SourceMode, ValidCase,
 };
 use crate::discretization::grid::Grid;
 use crate::discretization::stability::dt_stable;
 use crate::discretization::variable_horizon::VariableHorizonOperator;
-use crate::integrate::euler::ForwardEuler;
+use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
-use crate::integrate::runge_kutta::RungeKutta;
-use crate::integrate::stepper::{integrate, Rhs, Stepper};
-use crate::integrate::theta::{default_rtol, Theta, DEFAULT_MAX_ITERATIONS};
+use crate::integrate::stepper::integrate;
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::Stepping;
 use crate::methods::patch_test::validate_horizon;
@@ -123,29 +121,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let bound = divergence_bound(case, ranks.max_abs(&u0), source_max);
     let stepping = Stepping::of_case(case, dt, steps, bound, 1.0);
     let setup_s = setup_started.elapsed().as_secs_f64();
-    let len = case.n;
     let trajectory = {
         let source = source.as_ref();
-        let mut stepper: Box<dyn Stepper> = match case.integrator {
-            Integrator::ForwardEuler => Box::new(ForwardEuler::new(&operator, source, ranks, len)),
-            Integrator::Heun | Integrator::Rk4 => Box::new(RungeKutta::new(
-                case.integrator,
-                &operator,
-                source,
-                ranks,
-                len,
-            )),
-            Integrator::BackwardEuler | Integrator::CrankNicolson => Box::new(Theta::new(
-                case.integrator,
-                Rhs::new(&operator, source, ranks),
-                &Identity,
-                len,
-                dt,
-                case.rtol
-                    .unwrap_or_else(|| default_rtol(case.integrator, dt, steps)),
-                case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
-            )),
-        };
+        let mut stepper = stepper(case, &operator, source, ranks, case.n, &stepping, &Identity);
         integrate(stepper.as_mut(), ranks, u0, source, &stepping)
     };
     let eps_max = variable.eps.iter().copied().fold(0.0, f64::max);
