@@ -7,10 +7,10 @@
 //! One test, one Slurm: the daemons listen on fixed ports. It is skipped, saying so, only where
 //! the packages cannot be installed.
 
-use nonlocal_study::{binary, records, text, Scratch};
+use nonlocal_study::{records, text, Scratch};
 use serde_json::json;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 fn script(name: &str) -> PathBuf {
@@ -67,18 +67,20 @@ impl Drop for LocalSlurm {
     }
 }
 
-/// `nlstudy submit` against the local Slurm.
-fn submit(scratch: &Scratch, slurm: &LocalSlurm, extra: &[&str]) -> std::process::Output {
-    Command::new(binary("nlstudy"))
-        .arg("submit")
-        .arg(scratch.study())
-        .arg("--results")
-        .arg(scratch.dir.join("results"))
-        .args(["--scheduler", "slurm"])
-        .args(extra)
+/// `nlstudy <verb> …` against the local Slurm.
+fn nlstudy(scratch: &Scratch, slurm: &LocalSlurm, verb: &str, extra: &[&str]) -> Output {
+    scratch
+        .command(verb, extra)
         .env("SLURM_CONF", slurm.conf())
         .output()
         .unwrap()
+}
+
+/// `nlstudy submit --scheduler slurm …` against the local Slurm.
+fn submit(scratch: &Scratch, slurm: &LocalSlurm, extra: &[&str]) -> Output {
+    let mut args = vec!["--scheduler", "slurm"];
+    args.extend(extra);
+    nlstudy(scratch, slurm, "submit", &args)
 }
 
 #[test]
@@ -185,17 +187,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         );
         std::thread::sleep(Duration::from_millis(200));
     }
-    let status = |scratch: &Scratch| {
-        let out = Command::new(binary("nlstudy"))
-            .arg("status")
-            .arg(scratch.study())
-            .arg("--results")
-            .arg(scratch.dir.join("results"))
-            .env("SLURM_CONF", slurm.conf())
-            .output()
-            .unwrap();
-        text(&out)
-    };
+    let status = |scratch: &Scratch| text(&nlstudy(scratch, &slurm, "status", &[]));
     let running = status(&scratch);
     assert!(
         running.contains("nlstudy-limit-0: running, 2 of 3 points stored"),

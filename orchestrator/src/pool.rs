@@ -239,8 +239,7 @@ pub fn run(
                 job.record(planned, solver, exit)
             };
             job.remove_files();
-            let failed = Status::of(&record) != Some(Status::Ok)
-                && Status::of(&record) != Some(Status::Diverged);
+            let failed = Status::of(&record).is_none_or(|s| s == Status::Failed);
             if failed && outside_the_case && job.attempt <= options.retries {
                 let message = record["message"].as_str().unwrap_or("");
                 progress.retrying(&planned.point.label(), job.attempt + 1, message);

@@ -6,12 +6,13 @@
 
 use crate::collect::headline_columns;
 use crate::pivot;
+use crate::status::counts_by_status;
 use crate::store::{write_atomically, Store};
 use crate::study::Study;
 use crate::table::{self, Row};
 use schema::record::Status;
 use serde_json::Value;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -57,15 +58,8 @@ pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:
 
 /// The stored runs counted by status.
 fn runs_section(page: &mut String, records: &[Value]) {
-    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
-    for record in records {
-        *counts
-            .entry(record["status"].as_str().unwrap_or("unknown"))
-            .or_default() += 1;
-    }
     let _ = writeln!(page, "<h2>Runs</h2>\n<p>{} stored runs:", records.len());
-    let listed: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
-    let _ = writeln!(page, "{}.</p>", listed.join(", "));
+    let _ = writeln!(page, "{}.</p>", counts_by_status(records).join(", "));
 }
 
 /// Each figure of the study inline, its title as the caption; one not drawn yet is named.

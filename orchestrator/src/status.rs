@@ -7,19 +7,25 @@ use crate::jobs;
 use crate::plan::Planned;
 use crate::store::Store;
 use schema::record::Status;
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+
+/// The records counted by status, as `3 ok`, `1 failed`, … (statuses in name order).
+pub fn counts_by_status(records: &[Value]) -> Vec<String> {
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+    for record in records {
+        let status = record["status"].as_str().unwrap_or("unknown");
+        *counts.entry(status).or_default() += 1;
+    }
+    counts.iter().map(|(s, n)| format!("{n} {s}")).collect()
+}
 
 /// The report: one line of counts, one line per failed run, the missing points, the jobs.
 pub fn report(study: &str, store: &Store, planned: &[Planned]) -> String {
     let scan = store.scan();
     let records = scan.records;
-    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
-    for record in &records {
-        let status = record["status"].as_str().unwrap_or("unknown");
-        *counts.entry(status).or_default() += 1;
-    }
-    let summary: Vec<String> = counts.iter().map(|(s, n)| format!("{n} {s}")).collect();
+    let summary = counts_by_status(&records);
     let mut out = String::new();
     let _ = writeln!(
         out,

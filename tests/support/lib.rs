@@ -145,7 +145,7 @@ impl Scratch {
     }
 
     /// `nlstudy <verb> study.json --results <scratch>/results <extra…>`.
-    fn command(&self, verb: &str, extra: &[&str]) -> Command {
+    pub fn command(&self, verb: &str, extra: &[&str]) -> Command {
         let mut command = Command::new(binary("nlstudy"));
         command
             .arg(verb)
