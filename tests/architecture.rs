@@ -23,6 +23,11 @@ const SOLVER_LAYERS: [&str; 10] = [
     "methods",
 ];
 
+/// The orchestrator's top-level modules (its folders), lowest first.
+const ORCHESTRATOR_LAYERS: [&str; 7] = [
+    "console", "model", "store", "run", "analysis", "output", "cli",
+];
+
 type Graph = BTreeMap<String, BTreeSet<String>>;
 
 #[test]
@@ -34,35 +39,54 @@ fn the_solver_has_no_import_cycle_and_its_layers_only_look_down() {
     );
     assert_acyclic("solver", &graph);
     assert_acyclic("solver (folders)", &folders(&graph));
+    assert_layers_look_down("solver", &SOLVER_LAYERS, &graph);
+}
+
+#[test]
+fn the_orchestrator_has_no_import_cycle_and_its_layers_only_look_down() {
+    let graph = imports(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("orchestrator/src")
+            .as_path(),
+    );
+    assert!(graph.contains_key("run::plan") && graph.contains_key("output::figure::scaling"));
+    assert_acyclic("orchestrator", &graph);
+    assert_acyclic("orchestrator (folders)", &folders(&graph));
+    assert_layers_look_down("orchestrator", &ORCHESTRATOR_LAYERS, &graph);
+}
+
+/// Every module of `graph` is in one of `layers` (by its top-level module) and imports only
+/// modules of its own layer or the ones before it.
+fn assert_layers_look_down(krate: &str, layers: &[&str], graph: &Graph) {
     let layer = |module: &str| {
         let top = module.split("::").next().unwrap_or_default();
-        SOLVER_LAYERS
-            .iter()
-            .position(|l| *l == top)
-            .unwrap_or_else(|| {
-                panic!("solver module `{top}` is in no layer; add it to SOLVER_LAYERS and lib.rs")
-            })
+        layers.iter().position(|l| *l == top).unwrap_or_else(|| {
+            panic!("{krate} module `{top}` is in no layer; add it to the layers of tests/architecture.rs and to lib.rs")
+        })
     };
-    for (from, targets) in &graph {
+    for (from, targets) in graph {
         for to in targets {
             assert!(
                 layer(to) <= layer(from),
-                "`{from}` imports `{to}`, a higher layer"
+                "{krate}: `{from}` imports `{to}`, a higher layer"
             );
         }
     }
 }
 
 #[test]
-fn the_orchestrator_has_no_import_cycle() {
-    let graph = imports(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("orchestrator/src")
-            .as_path(),
-    );
-    assert!(graph.contains_key("plan") && graph.contains_key("figure::scaling"));
-    assert_acyclic("orchestrator", &graph);
-    assert_acyclic("orchestrator (folders)", &folders(&graph));
+fn the_layer_check_sees_an_arrow_up() {
+    let graph = Graph::from([
+        (
+            "model::study".to_string(),
+            BTreeSet::from(["store".to_string()]),
+        ),
+        ("store".to_string(), BTreeSet::new()),
+    ]);
+    let upward = std::panic::catch_unwind(|| {
+        assert_layers_look_down("orchestrator", &ORCHESTRATOR_LAYERS, &graph)
+    });
+    assert!(upward.is_err(), "model importing store went unseen");
 }
 
 /// The schema both binaries read is plain serde data: it links no numerics, tables or plots, so

@@ -1,35 +1,38 @@
 //! The study orchestrator behind `nlstudy`: study files → points → cases → runs → records →
-//! Parquet tables → SVG figures. Its modules, roughly lowest first (tests/architecture.rs
-//! checks that their imports have no cycle):
+//! Parquet tables → SVG figures. Its folders are its layers, lowest first; each imports only
+//! the layers before it (tests/architecture.rs checks this):
 //!
-//! - `expression`, `store`, `progress`, `draw`: the study language, the record store, progress
-//!   output, and SVG drawing — no knowledge of studies (the record's status and timings and the
-//!   case's fields come from the `schema` crate, which `nlsolve` writes from);
-//! - `table`, `summary`: records as rows, and the per-point summary with speedups and orders;
-//! - `figure`, `pivot`: the figure kinds (one module each) and Markdown pivots over the summary;
-//! - `study`: a study file, expanded into points and cases, with its figures and resources;
-//! - `solver`: the `nlsolve` binary, which checks the cases;
-//! - `plan`: which points run and why (make-style);
-//! - `pool`, `submit`: running the plan on a local worker pool, or as Slurm/LSF jobs;
-//! - `collect`, `plot`, `status`: records → tables, tables → figures, records → a status report;
-//! - `commands`: the command line, one function per command.
+//! - `console`: printing that never panics on a closed or full stream;
+//! - `model`: the study file, its sweeps and expressions, its figure specs — pure data;
+//! - `store`: the record store (keys, locks, atomic writes) and records as table rows;
+//! - `run`: the `nlsolve` process, the plan (make-style), the worker pool, progress, and
+//!   `run::cluster` for job scripts, schedulers and the jobs ledger;
+//! - `analysis`: records → run and summary tables (speedups, orders), pivots;
+//! - `output`: SVG drawing and figures, the HTML report, the status of a study;
+//! - `cli`: the command line, one function per command.
+//!
+//! The record's status and timings and the case's fields come from the `schema` crate, which
+//! `nlsolve` writes from.
 
-pub mod collect;
-pub mod commands;
-pub mod draw;
-pub mod expression;
-pub mod figure;
-pub mod jobs;
-pub mod pivot;
-pub mod plan;
-pub mod plot;
-pub mod pool;
-pub mod progress;
-pub mod report;
-pub mod solver;
-pub mod status;
-pub mod store;
-pub mod study;
-pub mod submit;
-pub mod summary;
-pub mod table;
+/// `println!` that never panics (see `console`).
+macro_rules! tell {
+    ($($arg:tt)*) => { $crate::console::out(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+/// `print!` that never panics.
+macro_rules! tell_raw {
+    ($($arg:tt)*) => { $crate::console::out(format_args!($($arg)*)) };
+}
+
+/// `eprintln!` that never panics.
+macro_rules! say {
+    ($($arg:tt)*) => { $crate::console::err(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+pub(crate) mod analysis;
+pub mod cli;
+pub(crate) mod console;
+pub(crate) mod model;
+pub(crate) mod output;
+pub(crate) mod run;
+pub(crate) mod store;

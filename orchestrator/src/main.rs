@@ -1,19 +1,12 @@
 //! `nlstudy`: runs studies of the nonlocal and local diffusion solvers. A study file expands to
 //! cases; each case runs as an `nlsolve` process (or under mpirun) unless its record is already
 //! stored; records are gathered into tables and figures. The work is done in the library
-//! (`orchestrator::commands`); this is the process boundary.
+//! (`orchestrator::cli`); this is the process boundary.
 
 use clap::Parser;
-use orchestrator::commands::{self, Cli};
+use orchestrator::cli::{self, Cli};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    orchestrator::collect::set_display_defaults();
-    match commands::execute(Cli::parse()) {
-        Ok(code) => code,
-        Err(message) => {
-            eprintln!("nlstudy: {message}");
-            ExitCode::from(2)
-        }
-    }
+    cli::main(Cli::parse())
 }

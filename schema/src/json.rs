@@ -10,6 +10,39 @@ pub fn parse(text: &str) -> Result<Value, serde_json::Error> {
     serde_json::from_str::<Strict>(text).map(|strict| strict.0)
 }
 
+/// The first control character in a key or a string of `value` (a newline, an escape, a NUL),
+/// with the path of where it stands (`resources.queue`, `sweep[1].zip.kernel[0]`), leaving out
+/// the strings under the paths `prose` allows (free text may hold newlines and tabs). Names and
+/// fields reach file names, job scripts and terminals, where such characters do harm.
+pub fn control_character(value: &Value, prose: &[&str]) -> Option<(String, char)> {
+    fn walk(value: &Value, path: &str, prose: &[&str]) -> Option<(String, char)> {
+        let bad = |text: &str| {
+            let layout = prose.contains(&path);
+            text.chars()
+                .find(|c| c.is_control() && !(layout && matches!(c, '\n' | '\t')))
+        };
+        match value {
+            Value::String(text) => bad(text).map(|c| (path.to_string(), c)),
+            Value::Array(items) => items
+                .iter()
+                .enumerate()
+                .find_map(|(k, item)| walk(item, &format!("{path}[{k}]"), prose)),
+            Value::Object(object) => object.iter().find_map(|(key, item)| {
+                let inner = match path {
+                    "" => key.clone(),
+                    _ => format!("{path}.{key}"),
+                };
+                match key.chars().find(|c| c.is_control()) {
+                    Some(c) => Some((inner, c)),
+                    None => walk(item, &inner, prose),
+                }
+            }),
+            _ => None,
+        }
+    }
+    walk(value, "", prose)
+}
+
 struct Strict(Value);
 
 impl<'de> Deserialize<'de> for Strict {
@@ -99,5 +132,30 @@ mod tests {
             serde_json::from_str::<Value>(text).unwrap()
         );
         assert!(parse("{\"a\": 1} trailing").is_err());
+    }
+
+    #[test]
+    fn a_control_character_is_found_with_its_path_wherever_it_stands() {
+        let value = serde_json::json!({
+            "description": "two\nlines\tand a tab",
+            "sweep": [{"zip": {"kernel": ["constant", "linear\u{1b}[2J"]}}],
+        });
+        assert_eq!(
+            control_character(&value, &["description"]),
+            Some(("sweep[0].zip.kernel[1]".to_string(), '\u{1b}'))
+        );
+        assert_eq!(
+            control_character(&value, &[]),
+            Some(("description".to_string(), '\n'))
+        );
+        let key = serde_json::json!({"base": {"n\r": 1}});
+        assert_eq!(
+            control_character(&key, &[]),
+            Some(("base.n\r".to_string(), '\r'))
+        );
+        assert_eq!(
+            control_character(&serde_json::json!({"a": ["b", 1]}), &[]),
+            None
+        );
     }
 }

@@ -1,0 +1,6 @@
+//! From records to numbers: the run table and the per-point summary (speedups, convergence
+//! orders, timing statistics), and Markdown pivots over it.
+
+pub mod collect;
+pub mod pivot;
+pub mod summary;

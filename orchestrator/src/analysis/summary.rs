@@ -1,0 +1,313 @@
+//! The summary table: one row per point, its repeats' timings reduced to median, min, max and
+//! interquartile range, and the derived columns of scaling and convergence studies.
+//!
+//! - Timings are the record's `*_s` fields, over the repeats that ran (ok or diverged).
+//! - `workers` = threads × ranks. Along a scaling series (points differing only in workers),
+//!   the point with the fewest workers p₀ is the baseline (`baseline_workers`): speedup
+//!   S = T(p₀)/T(p) of the median `solve_s`, efficiency S·p₀/p, and the Karp–Flatt serial
+//!   fraction (1/S − 1/q)/(1 − 1/q) with q = p/p₀ (absent at the baseline, where it is 0/0).
+//!   A series of one point, or whose baseline is not ok, has none of these.
+//! - `bond_updates_per_s` = bonds × steps done / median `solve_s`.
+//! - Along a refinement series, ordered by h, the observed order between each point and the
+//!   next coarser one is ln(e_coarse/e)/ln(h_coarse/h), from the actual h of both.
+//!
+//! Derived values come only from points whose every repeat is `ok`.
+
+use crate::store::table::Row;
+use schema::record::{Status, TIMINGS};
+use serde_json::{json, Value};
+
+/// The status of a summary row whose repeats ended differently.
+const MIXED: &str = "mixed";
+
+/// The errors whose observed orders are derived, and the order columns' names (`coupled_1d`'s
+/// two models each have their own).
+const ORDERS: &[(&str, &str)] = &[
+    ("error_l2_norm", "order_l2"),
+    ("error_max", "order_max"),
+    ("coupling.error_nonlocal", "order_nonlocal"),
+    ("coupling.error_local", "order_local"),
+];
+
+/// One summary row per point (its repeats: rows sharing the `point` label, or the `case_id`
+/// where rows have no label), in the order points first appear. Points of different branches
+/// that are one case share its records but keep a row each.
+pub fn summarize(runs: &[Row]) -> Vec<Row> {
+    let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text("case_id")))
+        .iter()
+        .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
+        .collect();
+    derive_scaling(&mut summary);
+    derive_orders(&mut summary);
+    summary
+}
+
+/// Indices of the rows with each key, keys in first-seen order; rows without a key are left out.
+fn groups<'a>(rows: &'a [Row], key: impl Fn(&'a Row) -> Option<&'a str>) -> Vec<Vec<usize>> {
+    let mut groups: Vec<(&str, Vec<usize>)> = Vec::new();
+    for (i, row) in rows.iter().enumerate() {
+        let Some(k) = key(row) else { continue };
+        match groups.iter_mut().find(|(g, _)| *g == k) {
+            Some((_, members)) => members.push(i),
+            None => groups.push((k, vec![i])),
+        }
+    }
+    groups.into_iter().map(|(_, members)| members).collect()
+}
+
+fn is_timing(name: &str) -> bool {
+    TIMINGS.contains(&name)
+}
+
+fn is_ok(row: &Row) -> bool {
+    row.status() == Some(Status::Ok)
+}
+
+/// The repeats of one point as one row: the values of its first ok repeat (else its first),
+/// the status they share (`mixed` if they differ), and their timings' statistics.
+fn reduce(repeats: &[&Row]) -> Row {
+    let statuses: Vec<&str> = repeats
+        .iter()
+        .map(|r| r.text("status").unwrap_or(""))
+        .collect();
+    let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
+    let mut row = Row::default();
+    for (name, value) in first.cells() {
+        let per_run = matches!(name, "key" | "repeat") || name.starts_with("provenance.");
+        if !per_run && !is_timing(name) {
+            row.set(name, value.clone());
+        }
+    }
+    let uniform = statuses.iter().all(|s| *s == statuses[0]);
+    row.set("status", json!(if uniform { statuses[0] } else { MIXED }));
+    row.set("repeats", json!(repeats.len()));
+    let ran: Vec<&Row> = repeats
+        .iter()
+        .zip(&statuses)
+        .filter(|(_, s)| Status::parse(s) != Some(Status::Failed))
+        .map(|(r, _)| *r)
+        .collect();
+    for (name, _) in first.cells().filter(|(name, _)| is_timing(name)) {
+        let mut times: Vec<f64> = ran.iter().filter_map(|r| r.number(name)).collect();
+        times.sort_by(f64::total_cmp);
+        let statistic = |f: fn(&[f64]) -> f64| match times.is_empty() {
+            true => Value::Null,
+            false => json!(f(&times)),
+        };
+        row.set(&format!("{name}_median"), statistic(|t| quantile(t, 0.5)));
+        row.set(&format!("{name}_min"), statistic(|t| t[0]));
+        row.set(&format!("{name}_max"), statistic(|t| t[t.len() - 1]));
+        row.set(
+            &format!("{name}_iqr"),
+            statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
+        );
+    }
+    let workers =
+        row.number("case.threads").unwrap_or(1.0) * row.number("case.ranks").unwrap_or(1.0);
+    row.set("workers", json!(workers));
+    let work = (
+        row.number("bonds"),
+        row.number("steps_done"),
+        row.number("solve_s_median"),
+    );
+    let updates = match work {
+        (Some(bonds), Some(steps), Some(t)) if t > 0.0 && is_ok(&row) => json!(bonds * steps / t),
+        _ => Value::Null,
+    };
+    row.set("bond_updates_per_s", updates);
+    row
+}
+
+/// The q-quantile of sorted values, interpolating linearly between order statistics.
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let at = q * (sorted.len() - 1) as f64;
+    let (below, above) = (at.floor() as usize, at.ceil() as usize);
+    sorted[below] + (at - below as f64) * (sorted[above] - sorted[below])
+}
+
+fn derive_scaling(rows: &mut [Row]) {
+    for members in groups(rows, |r| r.text("scaling_series")) {
+        let workers: Vec<f64> = members
+            .iter()
+            .map(|&i| rows[i].number("workers").unwrap_or(1.0))
+            .collect();
+        let base = (0..members.len())
+            .min_by(|&a, &b| workers[a].total_cmp(&workers[b]))
+            .expect("a group has members");
+        let base_time = rows[members[base]]
+            .number("solve_s_median")
+            .filter(|_| is_ok(&rows[members[base]]) && members.len() > 1);
+        let Some(t0) = base_time else { continue };
+        for (k, &i) in members.iter().enumerate() {
+            let time = rows[i].number("solve_s_median").filter(|_| is_ok(&rows[i]));
+            let speedup = time.filter(|t| *t > 0.0).map(|t| t0 / t);
+            let q = workers[k] / workers[base];
+            let karp_flatt = speedup
+                .filter(|_| q > 1.0)
+                .map(|s| (1.0 / s - 1.0 / q) / (1.0 - 1.0 / q));
+            rows[i].set("baseline_workers", json!(workers[base]));
+            rows[i].set("speedup", json!(speedup));
+            rows[i].set("efficiency", json!(speedup.map(|s| s / q)));
+            rows[i].set("karp_flatt", json!(karp_flatt));
+        }
+    }
+}
+
+fn derive_orders(rows: &mut [Row]) {
+    for mut members in groups(rows, |r| r.text("refinement_series").filter(|_| is_ok(r))) {
+        let h = |i: usize| rows[i].number("h").unwrap_or(f64::NAN);
+        members.sort_by(|&a, &b| h(b).total_cmp(&h(a))); // coarse first
+        let mut orders = Vec::new();
+        for pair in members.windows(2) {
+            let (coarse, fine) = (pair[0], pair[1]);
+            let ratio = h(coarse) / h(fine);
+            for &(error, order) in ORDERS {
+                let errors = (rows[coarse].number(error), rows[fine].number(error));
+                let observed = match errors {
+                    (Some(e_c), Some(e)) if e_c > 0.0 && e > 0.0 && ratio > 1.0 => {
+                        Some((e_c / e).ln() / ratio.ln())
+                    }
+                    _ => None,
+                };
+                orders.push((fine, order, observed));
+            }
+        }
+        for (i, order, observed) in orders {
+            rows[i].set(order, json!(observed));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run's row with the fields the summary reads.
+    fn run(case_id: &str, threads: u64, ranks: u64, solve_s: f64) -> Row {
+        let mut row = Row::default();
+        row.set("scaling_series", json!("n=64"));
+        row.set(
+            "refinement_series",
+            json!(format!("threads={threads} ranks={ranks}")),
+        );
+        row.set("case_id", json!(case_id));
+        row.set("status", json!("ok"));
+        row.set("case.threads", json!(threads));
+        row.set("case.ranks", json!(ranks));
+        row.set("h", json!(1.0 / 64.0));
+        row.set("bonds", json!(1000));
+        row.set("steps_done", json!(10));
+        row.set("solve_s", json!(solve_s));
+        row
+    }
+
+    fn column(rows: &[Row], name: &str) -> Vec<Option<f64>> {
+        rows.iter().map(|r| r.number(name)).collect()
+    }
+
+    fn close(got: Vec<Option<f64>>, expected: &[Option<f64>]) {
+        assert_eq!(got.len(), expected.len(), "{got:?} vs {expected:?}");
+        for (g, e) in got.iter().zip(expected) {
+            match (g, e) {
+                (Some(g), Some(e)) => assert!(
+                    (g - e).abs() < 1e-12 * e.abs().max(1.0),
+                    "{got:?} vs {expected:?}"
+                ),
+                _ => assert_eq!(g, e, "{got:?} vs {expected:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn repeats_reduce_to_median_min_and_iqr() {
+        let runs: Vec<Row> = [4.0, 1.0, 3.0, 2.0]
+            .iter()
+            .map(|&t| run("a", 1, 1, t))
+            .collect();
+        let summary = summarize(&runs);
+        assert_eq!(summary.len(), 1);
+        let row = &summary[0];
+        assert_eq!(row.number("repeats"), Some(4.0));
+        assert_eq!(row.number("solve_s_median"), Some(2.5));
+        assert_eq!(row.number("solve_s_min"), Some(1.0));
+        assert_eq!(row.number("solve_s_max"), Some(4.0));
+        // Quartiles of 1, 2, 3, 4 by linear interpolation: 1.75 and 3.25.
+        assert_eq!(row.number("solve_s_iqr"), Some(1.5));
+        assert_eq!(row.get("solve_s"), None);
+        assert_eq!(row.number("bond_updates_per_s"), Some(1000.0 * 10.0 / 2.5));
+    }
+
+    #[test]
+    fn speedup_efficiency_and_serial_fraction_against_the_fewest_workers() {
+        // Amdahl with serial fraction 0.1 and T(1) = 10: T(p) = 10 (0.1 + 0.9/p).
+        let amdahl = |p: f64| 10.0 * (0.1 + 0.9 / p);
+        let runs = vec![
+            run("t2", 2, 1, amdahl(2.0)),
+            run("t1", 1, 1, amdahl(1.0)),
+            run("r4", 2, 2, amdahl(4.0)),
+        ];
+        let summary = summarize(&runs);
+        let s2 = 1.0 / (0.1 + 0.9 / 2.0);
+        let s4 = 1.0 / (0.1 + 0.9 / 4.0);
+        close(
+            column(&summary, "workers"),
+            &[Some(2.0), Some(1.0), Some(4.0)],
+        );
+        close(
+            column(&summary, "speedup"),
+            &[Some(s2), Some(1.0), Some(s4)],
+        );
+        close(
+            column(&summary, "efficiency"),
+            &[Some(s2 / 2.0), Some(1.0), Some(s4 / 4.0)],
+        );
+        close(
+            column(&summary, "karp_flatt"),
+            &[Some(0.1), None, Some(0.1)],
+        );
+
+        // Against a baseline of 2 workers the speedups are relative: 4 workers at half the
+        // time is perfect scaling.
+        let runs = vec![run("t2", 2, 1, 6.0), run("r4", 2, 2, 3.0)];
+        let summary = summarize(&runs);
+        close(column(&summary, "speedup"), &[Some(1.0), Some(2.0)]);
+        close(column(&summary, "efficiency"), &[Some(1.0), Some(1.0)]);
+        close(column(&summary, "karp_flatt"), &[None, Some(0.0)]);
+    }
+
+    #[test]
+    fn orders_come_from_the_actual_grid_ratios() {
+        // e = h² on the grids h = 1/10, 1/30, 1/40, listed out of order.
+        let runs: Vec<Row> = [30.0, 10.0, 40.0]
+            .iter()
+            .map(|&n: &f64| {
+                let mut row = run(&format!("n{n}"), 1, 1, 1.0);
+                row.set("scaling_series", json!(format!("n={n}")));
+                row.set("h", json!(1.0 / n));
+                row.set("error_l2_norm", json!(1.0 / (n * n)));
+                row.set("error_max", json!(3.0 / n));
+                row
+            })
+            .collect();
+        let summary = summarize(&runs);
+        close(column(&summary, "order_l2"), &[Some(2.0), None, Some(2.0)]);
+        close(column(&summary, "order_max"), &[Some(1.0), None, Some(1.0)]);
+    }
+
+    #[test]
+    fn failed_and_mixed_points_get_no_derived_values() {
+        let mut failed = run("a", 1, 1, 1.0);
+        failed.set("status", json!("failed"));
+        let runs = vec![run("a", 1, 1, 2.0), failed, run("b", 2, 1, 1.0)];
+        let summary = summarize(&runs);
+        assert_eq!(summary[0].text("status"), Some("mixed"));
+        // The failed repeat's time is not a timing.
+        assert_eq!(summary[0].number("solve_s_median"), Some(2.0));
+        // The baseline (1 thread) is mixed: no speedups in its series.
+        close(column(&summary, "speedup"), &[None, None]);
+        assert_eq!(summary[0].number("bond_updates_per_s"), None);
+        // A point alone in its series has no baseline to compare with.
+        let alone = summarize(&[run("c", 2, 1, 1.0)]);
+        assert_eq!(alone[0].number("speedup"), None);
+    }
+}

@@ -1,0 +1,510 @@
+//! The `nlstudy` command line: its commands and flags, and what each command does with the
+//! library's parts (study → plan → pool → store → collect → plot).
+
+use crate::model::resources::Resources;
+use crate::model::study::Study;
+use crate::output::status;
+use crate::run::cluster::scheduler::Scheduler;
+use crate::run::cluster::submit;
+use crate::run::nlsolve::Nlsolve;
+use crate::run::plan::{Decision, Options, Planned};
+use crate::run::pool::{Launcher, PoolOptions, DEFAULT_LAUNCHER};
+use crate::run::progress::{Mode, Progress};
+use crate::store::{FileError, Store};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+#[derive(Parser)]
+#[command(
+    name = "nlstudy",
+    version,
+    about = "Runs studies of nonlocal diffusion solvers."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Print every point of the study, whether it will run and why; run nothing.
+    Plan(PlanArgs),
+    /// Run the points not yet stored (make-style) and store their records.
+    Run(RunArgs),
+    /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
+    /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
+    Collect(CommonArgs),
+    /// Draw the study's figures from its summary table into <results>/<study>/figures/, each
+    /// only when its table or its spec changed.
+    Plot(CommonArgs),
+    /// Count the stored records by status and list the failures.
+    Status(CommonArgs),
+    /// Write <results>/<study>/report.html: one self-contained page with the study's description,
+    /// its figures, the summary table, the runs by status, the failures and the provenance.
+    Report(CommonArgs),
+    /// Print values of the summary table as a Markdown table: rows by some fields, columns by
+    /// another (e.g. `--rows branch,quadrature --column n --value order_l2`), or one column per
+    /// value (e.g. `--rows n --value error_l2_norm,order_l2`).
+    Table(TableArgs),
+    /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
+    Submit(SubmitArgs),
+}
+
+#[derive(Args)]
+pub struct SubmitArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    #[arg(long, value_enum)]
+    scheduler: Scheduler,
+    /// Write the scripts into results/<study>/jobs/ without submitting them.
+    #[arg(long)]
+    dry_run: bool,
+    /// Each flag overrides the study's `resources` field of the same name.
+    #[command(flatten)]
+    resources: Resources,
+    /// Each job's `nlstudy run --retries N`: a case that failed for a reason outside it runs again.
+    #[arg(long, default_value_t = 0)]
+    retries: usize,
+}
+
+#[derive(Args)]
+pub struct TableArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// The fields that name a line (comma-separated), e.g. `dim,quadrature`.
+    #[arg(long, value_delimiter = ',')]
+    rows: Vec<String>,
+    /// The field whose values head the columns, e.g. `n`; without it, one column per value.
+    #[arg(long)]
+    column: Option<String>,
+    /// The columns of the summary table in the cells (comma-separated, side by side), e.g.
+    /// `error_l2_norm,order_l2`.
+    #[arg(long, value_delimiter = ',', required = true)]
+    value: Vec<String>,
+    /// Conditions a point must meet, in the study language (repeatable).
+    #[arg(long = "where")]
+    filter: Vec<String>,
+}
+
+#[derive(Args)]
+pub struct CommonArgs {
+    /// The study file (JSON).
+    study: PathBuf,
+    /// Where results go: <results>/<study name>/runs/<key>.json.
+    #[arg(long, default_value = "results")]
+    results: PathBuf,
+    /// The nlsolve binary (default: $NLSOLVE, else the one beside nlstudy).
+    #[arg(long)]
+    solver: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Run every point again, stored or not.
+    #[arg(long)]
+    force: bool,
+    /// Run the points whose stored record failed.
+    #[arg(long)]
+    rerun_failed: bool,
+    /// Only the points with these keys (comma-separated), as cluster jobs do.
+    #[arg(long, value_delimiter = ',')]
+    only: Option<Vec<String>>,
+}
+
+#[derive(Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    plan: PlanArgs,
+    /// Cores the running cases may use together (threads × ranks each); default: all.
+    #[arg(short = 'j', long)]
+    jobs: Option<usize>,
+    /// Seconds after which a case is stopped and stored as failed (overrides the study's).
+    #[arg(long)]
+    timeout: Option<f64>,
+    /// Command prefix of MPI cases; `{ranks}` becomes the case's rank count.
+    #[arg(long, default_value = DEFAULT_LAUNCHER)]
+    launcher: Launcher,
+    /// Run a case again, up to N more times, when it failed for a reason outside it (past its
+    /// timeout, killed by a signal, its MPI launcher hung); the record keeps its `attempt`.
+    /// Divergence and refused input are results and never run again.
+    #[arg(long, default_value_t = 0)]
+    retries: usize,
+    /// No progress output.
+    #[arg(long, short)]
+    quiet: bool,
+    /// Do not gather the records into the study's tables, nor draw its figures, at the end.
+    #[arg(long)]
+    no_collect: bool,
+}
+
+/// nlstudy's exit statuses.
+pub mod exit {
+    /// Every case ran and stored `ok` or `diverged`, or the command did what it was asked.
+    pub const OK: u8 = 0;
+    /// A case failed (its record is stored `failed`), or a table or figure could not be made.
+    pub const CASE_FAILED: u8 = 1;
+    /// A bad study file, flag or value: nothing ran.
+    pub const BAD_INPUT: u8 = 2;
+    /// The results could not be read or written (a full disk, a path that is not a
+    /// directory), or a program could not be started: nothing is stored for the cases that
+    /// were running, and the next run takes them up again.
+    pub const IO: u8 = 3;
+    /// Stopped by Ctrl-C; what finished is stored.
+    pub const INTERRUPTED: u8 = 130;
+}
+
+/// Why a command stopped: the sentence for the user and the exit status that tells its kind.
+#[derive(Debug)]
+pub struct Failure {
+    pub message: String,
+    pub code: u8,
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Failure {
+        Failure {
+            message,
+            code: exit::BAD_INPUT,
+        }
+    }
+}
+
+impl From<&str> for Failure {
+    fn from(message: &str) -> Failure {
+        Failure::from(message.to_string())
+    }
+}
+
+impl From<FileError> for Failure {
+    fn from(e: FileError) -> Failure {
+        Failure {
+            message: e.to_string(),
+            code: exit::IO,
+        }
+    }
+}
+
+/// Runs one `nlstudy` command and says how it ended.
+pub fn main(cli: Cli) -> ExitCode {
+    let code = match execute(cli) {
+        Ok(code) => code,
+        Err(failure) => {
+            say!("nlstudy: {}", failure.message);
+            ExitCode::from(failure.code)
+        }
+    };
+    match crate::console::stdout_failure() {
+        Some(why) => {
+            say!("nlstudy: cannot write to standard output: {why}");
+            ExitCode::from(exit::IO)
+        }
+        None => code,
+    }
+}
+
+/// Runs one `nlstudy` command.
+pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
+    crate::analysis::collect::set_display_defaults();
+    match cli.command {
+        Command::Plan(args) => plan_command(&args),
+        Command::Run(args) => run_command(&args),
+        Command::Collect(args) => collect_command(&args),
+        Command::Plot(args) => plot_command(&args),
+        Command::Status(args) => status_command(&args),
+        Command::Report(args) => report_command(&args),
+        Command::Table(args) => table_command(&args),
+        Command::Submit(args) => submit_command(&args),
+    }
+}
+
+impl PlanArgs {
+    fn options(&self) -> Options {
+        Options {
+            force: self.force,
+            rerun_failed: self.rerun_failed,
+            only: self
+                .only
+                .as_ref()
+                .map(|keys| keys.iter().cloned().collect()),
+        }
+    }
+}
+
+/// The study, its solver and store, and the plan of its points.
+fn planned(
+    args: &CommonArgs,
+    options: &Options,
+) -> Result<(Study, Nlsolve, Store, Vec<Planned>), String> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let solver = Nlsolve::locate(args.solver.as_deref())?;
+    let store = Store::open(&args.results, &study.name);
+    let index = store.index();
+    for unreadable in &index.unreadable {
+        say!("nlstudy: warning: {unreadable}");
+    }
+    let planned =
+        crate::run::plan::plan(&study, &solver, &index, options).map_err(|e| e.to_string())?;
+    Ok((study, solver, store, planned))
+}
+
+fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
+    let (study, solver, _, planned) = planned(&args.common, &args.options())?;
+    tell!(
+        "study {}: {} points, solver {}",
+        study.name,
+        planned.len(),
+        solver.version
+    );
+    if !study.description.is_empty() {
+        tell!("{}", study.description);
+    }
+    for p in &planned {
+        let what = match &p.decision {
+            Decision::Run(reason) => format!("run   ({reason})"),
+            Decision::Skip(status) => format!("skip  ({status})"),
+            Decision::Duplicate => "skip  (the same case as an earlier point)".into(),
+        };
+        let refused = match &p.case {
+            Err(message) => format!("  refused: {message}"),
+            Ok(_) => String::new(),
+        };
+        tell!("{}  {what:<40} {}{refused}", p.key, p.point.label());
+    }
+    let runs = planned.iter().filter(|p| p.runs()).count();
+    let duplicates = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    let shared = match duplicates {
+        0 => String::new(),
+        n => format!(", {n} the same case as an earlier point"),
+    };
+    tell!(
+        "{runs} to run, {} stored{shared}",
+        planned.len() - runs - duplicates
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
+    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
+    let cores = crate::run::pool::machine_cores();
+    let timeout = match args.timeout {
+        Some(seconds) => Some(timeout(seconds, "--timeout")?),
+        None => study
+            .timeout_s
+            .map(|s| timeout(s, "timeout_s"))
+            .transpose()?,
+    };
+    let options = PoolOptions {
+        cores: args.jobs.unwrap_or(cores).max(1),
+        exclusive: !study.share_machine,
+        timeout,
+        launcher: args.launcher.clone(),
+        retries: args.retries,
+    };
+    store.clear_abandoned_outputs()?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))
+        .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
+    let to_run = planned.iter().filter(|p| p.runs()).count();
+    let duplicates = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    let skipped = planned.len() - to_run - duplicates;
+    let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
+    let tally = crate::run::pool::run(&planned, &solver, &store, &options, &stop, &mut progress);
+    progress.close();
+    let tally = tally.map_err(|e| Failure {
+        message: format!("{e}; the cases that were running are not stored and run again next time"),
+        code: exit::IO,
+    })?;
+    if !args.quiet {
+        let passed = match tally.passed {
+            0 => String::new(),
+            n => format!(", {n} run by another nlstudy"),
+        } + &match duplicates {
+            0 => String::new(),
+            n => format!(", {n} the same case as an earlier point"),
+        };
+        say!(
+            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored{passed}",
+            study.name,
+            tally.ok + tally.diverged + tally.failed,
+            tally.ok,
+            tally.diverged,
+            tally.failed,
+        );
+    }
+    if tally.interrupted {
+        say!("nlstudy: interrupted; what finished is stored, run again to resume");
+        return Ok(ExitCode::from(exit::INTERRUPTED));
+    }
+    if !args.no_collect {
+        let tables =
+            crate::analysis::collect::collect(&planned, &store).and_then(
+                |collected| match collected {
+                    Some(collected) => {
+                        let figures = crate::output::plot::plot(&study.figures, &store)?;
+                        let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+                        let page = crate::output::report::write(&study, &store, swept)?;
+                        if !args.quiet {
+                            print_tables_written(&collected);
+                            print_figures_drawn(&figures);
+                            say!("report: {}", page.display());
+                        }
+                        Ok(())
+                    }
+                    None => Ok(()),
+                },
+            );
+        if let Err(message) = tables {
+            say!("nlstudy: {message}; the runs are stored");
+            return Ok(ExitCode::from(exit::CASE_FAILED));
+        }
+    }
+    Ok(match tally.failed {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(exit::CASE_FAILED),
+    })
+}
+
+/// The longest timeout taken: about 31 years, past any allocation.
+const LONGEST_TIMEOUT_S: f64 = 1e9;
+
+/// A case's timeout from `field`: a positive, finite number of seconds.
+fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
+    if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
+        return Err(format!(
+            "{field}: {seconds} is not a timeout; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none for no limit"
+        )
+        .into());
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
+fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let (_, _, store, planned) = planned(args, &Options::default())?;
+    let collected = crate::analysis::collect::collect(&planned, &store)?.ok_or_else(|| {
+        format!(
+            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+            store.study
+        )
+    })?;
+    print_tables_written(&collected);
+    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    tell!(
+        "{}",
+        crate::analysis::collect::overview(&collected.table, swept)
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn plot_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    if study.figures.is_empty() {
+        return Err(format!(
+            "study {} lists no figures; add a `figures` list to {}",
+            study.name,
+            args.study.display()
+        )
+        .into());
+    }
+    let store = Store::open(&args.results, &study.name);
+    print_figures_drawn(&crate::output::plot::plot(&study.figures, &store)?);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn table_command(args: &TableArgs) -> Result<ExitCode, Failure> {
+    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
+    let store = Store::open(&args.common.results, &study.name);
+    let path = store.table(&format!("{}-summary.parquet", study.name));
+    if !path.exists() {
+        return Err(format!(
+            "{} does not exist; `nlstudy collect {}` writes it",
+            path.display(),
+            args.common.study.display()
+        )
+        .into());
+    }
+    let spec = crate::analysis::pivot::PivotSpec {
+        rows: args.rows.clone(),
+        column: args.column.clone(),
+        values: args.value.clone(),
+        filter: args.filter.clone(),
+    };
+    tell_raw!(
+        "{}",
+        crate::analysis::pivot::markdown(&spec, &crate::store::table::read_parquet(&path)?)?
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_figures_drawn(figures: &[crate::output::plot::Drawn]) {
+    for figure in figures {
+        let what = if figure.redrawn {
+            "drawn"
+        } else {
+            "up to date"
+        };
+        say!("figure {what}: {}", figure.path.display());
+    }
+}
+
+fn print_tables_written(collected: &crate::analysis::collect::Collected) {
+    say!(
+        "tables: {} ({} runs), {} ({} points)",
+        collected.runs.display(),
+        collected.rows,
+        collected.summary.display(),
+        collected.points
+    );
+    if collected.missing > 0 {
+        say!(
+            "  {} runs of the study are not stored yet",
+            collected.missing
+        );
+    }
+    if collected.left_out > 0 {
+        say!(
+            "  {} stored records are left out: their points are no longer in the study or were run by another solver version",
+            collected.left_out
+        );
+    }
+}
+
+fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    let page = crate::output::report::write(&study, &store, swept)?;
+    tell!("report: {}", page.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn status_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    tell_raw!("{}", status::render(&study.name, &store, &planned));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
+    let (study, solver, store, planned) = planned(&args.common, &Options::default())?;
+    let target = submit::Target {
+        scheduler: args.scheduler,
+        resources: study.resources.overridden_by(&args.resources),
+        results: args.common.results.clone(),
+        study_file: args.common.study.clone(),
+        dry_run: args.dry_run,
+        retries: args.retries,
+    };
+    submit::submit_study(&study, &solver, &planned, &store, &target)?;
+    Ok(ExitCode::SUCCESS)
+}

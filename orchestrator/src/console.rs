@@ -1,0 +1,37 @@
+//! Printing that never panics. `println!` and `eprintln!` panic when their stream is closed or
+//! full, which would end a study after its first case under `| head` or a `tee` that died. Here
+//! a message to stderr that cannot be written is dropped and the work goes on; on stdout a
+//! closed pipe ends the output quietly (as Unix tools do under `| head`), and any other failure
+//! (a full disk) is kept for `nlstudy` to report with its exit status.
+
+use std::fmt;
+use std::io::{self, Write};
+use std::sync::Mutex;
+
+/// The first failure to write stdout other than a closed pipe.
+static STDOUT_FAILURE: Mutex<Option<String>> = Mutex::new(None);
+
+/// Writes to stdout; see the module's doc.
+pub fn out(args: fmt::Arguments) {
+    let written = io::stdout().lock().write_fmt(args);
+    if let Err(e) = written {
+        if e.kind() != io::ErrorKind::BrokenPipe {
+            let mut failure = STDOUT_FAILURE.lock().unwrap_or_else(|p| p.into_inner());
+            failure.get_or_insert_with(|| e.to_string());
+        }
+    }
+}
+
+/// Writes to stderr; a failure is dropped.
+pub fn err(args: fmt::Arguments) {
+    let _ = io::stderr().lock().write_fmt(args);
+}
+
+/// Why stdout could not be written, if it could not (a closed pipe is not a failure).
+pub fn stdout_failure() -> Option<String> {
+    let _ = io::stdout().flush();
+    STDOUT_FAILURE
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .clone()
+}

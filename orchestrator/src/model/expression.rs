@@ -1,0 +1,395 @@
+//! Expressions of study files (`derive` and `where`): arithmetic, comparisons and logic over a
+//! point's fields, every number an f64.
+//!
+//! Hand-written rather than evalexpr: evalexpr divides integers as integers and holds 64 and
+//! 64.0 unequal, so `1/n` or `n == 64` would silently give wrong points; here `1/n` is a
+//! fraction and `n == 64` holds for n = 64 however the file wrote it.
+
+use schema::case::DEFAULT_LENGTH;
+use schema::choices::Method;
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
+
+#[derive(Clone, Debug, PartialEq)]
+enum Val {
+    Num(f64),
+    Str(String),
+    Bool(bool),
+}
+
+/// The names an expression may use: the point's fields, and `h`, its grid spacing.
+pub struct Scope {
+    names: BTreeMap<String, Val>,
+}
+
+impl Scope {
+    pub fn of(fields: &Map<String, Value>) -> Scope {
+        let mut names: BTreeMap<String, Val> = fields
+            .iter()
+            .filter_map(|(name, value)| {
+                let v = match value {
+                    Value::Number(x) => Val::Num(x.as_f64()?),
+                    Value::String(s) => Val::Str(s.clone()),
+                    Value::Bool(b) => Val::Bool(*b),
+                    _ => return None,
+                };
+                Some((name.clone(), v))
+            })
+            .collect();
+        if let Some(h) = grid_spacing(fields) {
+            names.insert("h".into(), Val::Num(h));
+        }
+        Scope { names }
+    }
+}
+
+/// h as the solver defines it (`schema`'s `Method::grid_spacing`); none while the method is
+/// not one the solver knows (its check will say so).
+fn grid_spacing(fields: &Map<String, Value>) -> Option<f64> {
+    let n = fields
+        .get("n")?
+        .as_f64()
+        .filter(|n| n.fract() == 0.0 && *n >= 1.0)?;
+    let method: Method = match fields.get("method") {
+        Some(name) => serde_json::from_value(name.clone()).ok()?,
+        None => Method::default(),
+    };
+    let length = fields
+        .get("length")
+        .and_then(Value::as_f64)
+        .unwrap_or(DEFAULT_LENGTH);
+    Some(method.grid_spacing(n as usize, length))
+}
+
+/// Evaluates a numeric expression; an integral result becomes a JSON integer.
+pub fn evaluate_number(text: &str, scope: &Scope) -> Result<Value, String> {
+    match evaluate(text, scope)? {
+        Val::Num(x) if x.fract() == 0.0 && x.abs() < 9.0e15 => Ok(Value::from(x as i64)),
+        Val::Num(x) if x.is_finite() => Ok(Value::from(x)),
+        Val::Num(x) => Err(format!("`{text}` evaluates to {x}, not a finite number")),
+        other => Err(format!("`{text}` must give a number, not {other:?}")),
+    }
+}
+
+/// Evaluates a condition.
+pub fn condition(text: &str, scope: &Scope) -> Result<bool, String> {
+    match evaluate(text, scope)? {
+        Val::Bool(b) => Ok(b),
+        other => Err(format!("`{text}` must be true or false, not {other:?}")),
+    }
+}
+
+fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
+    let tokens = tokenize(text)?;
+    let mut parser = Parser {
+        tokens: &tokens,
+        at: 0,
+        scope,
+        depth: 0,
+    };
+    let value = parser.or()?;
+    match parser.tokens.get(parser.at) {
+        None => Ok(value),
+        Some(token) => Err(format!("`{text}`: unexpected {token:?}")),
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Token {
+    Num(f64),
+    Str(String),
+    Name(String),
+    Op(&'static str),
+}
+
+const OPERATORS: [&str; 16] = [
+    "==", "!=", "<=", ">=", "&&", "||", "<", ">", "+", "-", "*", "/", "^", "(", ")", "!",
+];
+
+fn tokenize(text: &str) -> Result<Vec<Token>, String> {
+    let mut tokens = Vec::new();
+    let mut rest = text.trim_start();
+    while !rest.is_empty() {
+        let c = rest.chars().next().expect("not empty");
+        let taken = if c.is_ascii_digit() || c == '.' {
+            let end = number_end(rest);
+            let x = rest[..end]
+                .parse()
+                .map_err(|_| format!("`{text}`: `{}` is not a number", &rest[..end]))?;
+            tokens.push(Token::Num(x));
+            end
+        } else if c.is_alphabetic() || c == '_' {
+            // A dotted name is a nested field as the tables flatten it (`horizon_profile.kind`).
+            let end = rest
+                .find(|ch: char| !(ch.is_alphanumeric() || ch == '_' || ch == '.'))
+                .unwrap_or(rest.len());
+            tokens.push(Token::Name(rest[..end].to_string()));
+            end
+        } else if c == '"' || c == '\'' {
+            let close = rest[1..]
+                .find(c)
+                .ok_or_else(|| format!("`{text}`: a string is not closed"))?;
+            tokens.push(Token::Str(rest[1..1 + close].to_string()));
+            close + 2
+        } else if let Some(op) = OPERATORS.iter().find(|op| rest.starts_with(**op)) {
+            tokens.push(Token::Op(op));
+            op.len()
+        } else {
+            return Err(format!("`{text}`: unexpected `{c}`"));
+        };
+        rest = rest[taken..].trim_start();
+    }
+    Ok(tokens)
+}
+
+/// The end of a number literal starting `text`: digits, a point, and an exponent `e±d`.
+fn number_end(text: &str) -> usize {
+    let bytes = text.as_bytes();
+    let mut end = 0;
+    while end < bytes.len() && (bytes[end].is_ascii_digit() || bytes[end] == b'.') {
+        end += 1;
+    }
+    if end < bytes.len() && (bytes[end] == b'e' || bytes[end] == b'E') {
+        let mut exp = end + 1;
+        if exp < bytes.len() && (bytes[exp] == b'+' || bytes[exp] == b'-') {
+            exp += 1;
+        }
+        if exp < bytes.len() && bytes[exp].is_ascii_digit() {
+            end = exp;
+            while end < bytes.len() && bytes[end].is_ascii_digit() {
+                end += 1;
+            }
+        }
+    }
+    end
+}
+
+/// How deeply parentheses, signs and `!` may nest: far beyond what a study writes, and far
+/// below what would overflow the parser's stack.
+const DEEPEST: usize = 64;
+
+struct Parser<'a> {
+    tokens: &'a [Token],
+    at: usize,
+    scope: &'a Scope,
+    /// Nesting of the expression being parsed now.
+    depth: usize,
+}
+
+impl Parser<'_> {
+    /// Parses one nested level with `parse`, refusing nesting deeper than `DEEPEST`.
+    fn nested(&mut self, parse: fn(&mut Self) -> Result<Val, String>) -> Result<Val, String> {
+        if self.depth == DEEPEST {
+            return Err(format!(
+                "nested deeper than {DEEPEST} levels of parentheses, signs or `!`; write it more simply"
+            ));
+        }
+        self.depth += 1;
+        let value = parse(self);
+        self.depth -= 1;
+        value
+    }
+
+    fn eat(&mut self, op: &str) -> bool {
+        let found = matches!(self.tokens.get(self.at), Some(Token::Op(o)) if *o == op);
+        if found {
+            self.at += 1;
+        }
+        found
+    }
+
+    fn or(&mut self) -> Result<Val, String> {
+        let mut left = self.and()?;
+        while self.eat("||") {
+            let right = self.and()?;
+            left = Val::Bool(truth(&left)? || truth(&right)?);
+        }
+        Ok(left)
+    }
+
+    fn and(&mut self) -> Result<Val, String> {
+        let mut left = self.comparison()?;
+        while self.eat("&&") {
+            let right = self.comparison()?;
+            left = Val::Bool(truth(&left)? && truth(&right)?);
+        }
+        Ok(left)
+    }
+
+    fn comparison(&mut self) -> Result<Val, String> {
+        let left = self.sum()?;
+        for op in ["==", "!=", "<=", ">=", "<", ">"] {
+            if self.eat(op) {
+                let right = self.sum()?;
+                let holds = match (&left, &right, op) {
+                    (_, _, "==") => left == right,
+                    (_, _, "!=") => left != right,
+                    (Val::Num(a), Val::Num(b), _) => match op {
+                        "<=" => a <= b,
+                        ">=" => a >= b,
+                        "<" => a < b,
+                        _ => a > b,
+                    },
+                    _ => return Err(format!("cannot order {left:?} and {right:?}")),
+                };
+                return Ok(Val::Bool(holds));
+            }
+        }
+        Ok(left)
+    }
+
+    fn sum(&mut self) -> Result<Val, String> {
+        let mut left = self.product()?;
+        loop {
+            if self.eat("+") {
+                left = Val::Num(num(&left)? + num(&self.product()?)?);
+            } else if self.eat("-") {
+                left = Val::Num(num(&left)? - num(&self.product()?)?);
+            } else {
+                return Ok(left);
+            }
+        }
+    }
+
+    fn product(&mut self) -> Result<Val, String> {
+        let mut left = self.unary()?;
+        loop {
+            if self.eat("*") {
+                left = Val::Num(num(&left)? * num(&self.unary()?)?);
+            } else if self.eat("/") {
+                left = Val::Num(num(&left)? / num(&self.unary()?)?);
+            } else {
+                return Ok(left);
+            }
+        }
+    }
+
+    fn unary(&mut self) -> Result<Val, String> {
+        if self.eat("-") {
+            return Ok(Val::Num(-num(&self.nested(Self::unary)?)?));
+        }
+        if self.eat("!") {
+            return Ok(Val::Bool(!truth(&self.nested(Self::unary)?)?));
+        }
+        let base = self.atom()?;
+        if self.eat("^") {
+            return Ok(Val::Num(num(&base)?.powf(num(&self.nested(Self::unary)?)?)));
+        }
+        Ok(base)
+    }
+
+    fn atom(&mut self) -> Result<Val, String> {
+        let token = self
+            .tokens
+            .get(self.at)
+            .cloned()
+            .ok_or("the expression ends too early")?;
+        self.at += 1;
+        match token {
+            Token::Num(x) => Ok(Val::Num(x)),
+            Token::Str(s) => Ok(Val::Str(s)),
+            Token::Name(name) if name == "true" => Ok(Val::Bool(true)),
+            Token::Name(name) if name == "false" => Ok(Val::Bool(false)),
+            Token::Name(name) => self.scope.names.get(&name).cloned().ok_or_else(|| {
+                let known: Vec<&str> = self.scope.names.keys().map(String::as_str).collect();
+                format!("unknown name `{name}`; the point has {}", known.join(", "))
+            }),
+            Token::Op("(") => {
+                let inner = self.nested(Self::or)?;
+                if !self.eat(")") {
+                    return Err("a `(` is not closed".into());
+                }
+                Ok(inner)
+            }
+            Token::Op(op) => Err(format!("unexpected `{op}`")),
+        }
+    }
+}
+
+fn num(value: &Val) -> Result<f64, String> {
+    match value {
+        Val::Num(x) => Ok(*x),
+        other => Err(format!("{other:?} is not a number")),
+    }
+}
+
+fn truth(value: &Val) -> Result<bool, String> {
+    match value {
+        Val::Bool(b) => Ok(*b),
+        other => Err(format!("{other:?} is not true or false")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn scope(fields: Value) -> Scope {
+        Scope::of(fields.as_object().expect("an object"))
+    }
+
+    #[test]
+    fn arithmetic_is_in_f64_and_integral_results_are_integers() {
+        let s = scope(json!({"n": 64, "m": 4, "px": 2, "py": 3}));
+        assert_eq!(evaluate_number("px * py", &s), Ok(json!(6)));
+        assert_eq!(evaluate_number("m * h", &s), Ok(json!(0.0625)));
+        assert_eq!(evaluate_number("1/n", &s), Ok(json!(0.015625)));
+        assert_eq!(evaluate_number("2^-3 + 1e-1 * 10", &s), Ok(json!(1.125)));
+        assert_eq!(evaluate_number("-(m - 6) * 2", &s), Ok(json!(4)));
+    }
+
+    #[test]
+    fn conditions_compare_numbers_however_written_and_strings() {
+        let s = scope(json!({"n": 64.0, "threads": 2, "ranks": 1, "method": "adi"}));
+        assert_eq!(condition("n == 64", &s), Ok(true));
+        assert_eq!(
+            condition("threads * ranks <= 2 && method == \"adi\"", &s),
+            Ok(true)
+        );
+        assert_eq!(condition("!(n > 32) || method != 'adi'", &s), Ok(false));
+        let nested = scope(json!({"horizon_profile.kind": "linear", "patch.ghost_force": 1e-13}));
+        assert_eq!(
+            condition("horizon_profile.kind == 'linear'", &nested),
+            Ok(true)
+        );
+        assert_eq!(condition("patch.ghost_force < 1e-12", &nested), Ok(true));
+        // h of a grid method: L/(n + 1) with L = 2.
+        assert_eq!(evaluate_number("h", &s), Ok(json!(2.0 / 65.0)));
+    }
+
+    #[test]
+    fn errors_say_what_is_wrong() {
+        let s = scope(json!({"n": 64}));
+        assert!(evaluate_number("n * q", &s)
+            .unwrap_err()
+            .contains("unknown name `q`"));
+        assert!(evaluate_number("(n + 1", &s)
+            .unwrap_err()
+            .contains("not closed"));
+        assert!(condition("n + 1", &s)
+            .unwrap_err()
+            .contains("true or false"));
+        assert!(evaluate_number("n $ 2", &s)
+            .unwrap_err()
+            .contains("unexpected `$`"));
+    }
+
+    #[test]
+    fn nesting_is_refused_past_a_depth_not_overflowing_the_stack() {
+        let s = Scope::of(&serde_json::Map::new());
+        let deep =
+            |open: &str, n: usize, close: &str| format!("{}1{}", open.repeat(n), close.repeat(n));
+        assert_eq!(evaluate_number(&deep("(", DEEPEST, ")"), &s), Ok(json!(1)));
+        assert_eq!(evaluate_number(&deep("-", DEEPEST, ""), &s), Ok(json!(1)));
+        for text in [
+            deep("(", 10_000, ")"),
+            deep("-", 100_000, ""),
+            deep("!", 100_000, ""),
+            deep("2^", 100_000, ""),
+        ] {
+            let e = evaluate_number(&text, &s).unwrap_err();
+            assert!(e.contains("nested deeper than"), "{e}");
+        }
+    }
+}

@@ -1,0 +1,845 @@
+//! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
+//! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
+
+use crate::model::expression::{self, Scope};
+use crate::model::figure_spec::FigureSpec;
+use crate::model::resources::Resources;
+use serde::Deserialize;
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// A study file, as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Study {
+    /// Names the results directory `results/<name>/`.
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// The fields every point starts from.
+    pub base: Map<String, Value>,
+    /// Groups whose points multiply: a point takes one point of every group.
+    #[serde(default)]
+    pub sweep: Vec<SweepGroup>,
+    /// Fields computed from the others once the sweep is applied, e.g. `"ranks": "px * py"`;
+    /// `h` stands for the point's grid spacing. They may not refer to each other.
+    #[serde(default)]
+    pub derive: BTreeMap<String, String>,
+    /// Conditions every kept point satisfies, e.g. `"threads * ranks <= 2"`.
+    #[serde(default, rename = "where")]
+    pub filter: Vec<String>,
+    /// Runs of every point, for timing statistics.
+    #[serde(default = "one")]
+    pub repeat: usize,
+    /// Let cases share the machine even though their timings are recorded (by default each
+    /// case runs alone, so that no other run disturbs its timings).
+    #[serde(default)]
+    pub share_machine: bool,
+    /// Seconds after which a case is stopped and stored as failed.
+    #[serde(default)]
+    pub timeout_s: Option<f64>,
+    /// What cluster jobs ask of the scheduler (`nlstudy submit`); flags override it.
+    #[serde(default)]
+    pub resources: Resources,
+    /// The figures `nlstudy plot` draws from the study's summary table.
+    #[serde(default)]
+    pub figures: Vec<FigureSpec>,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// One sweep group.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum SweepGroup {
+    /// Every combination of the axes' values.
+    Product(BTreeMap<String, Vec<Value>>),
+    /// The axes' values in lock-step: the k-th point takes the k-th value of every axis.
+    Zip(BTreeMap<String, Vec<Value>>),
+    /// A path in the (ε, h) plane over grid sizes n.
+    Path(PathSpec),
+    /// Named alternatives, each a list of groups that multiply: a point lies on one branch, whose
+    /// name the tables keep in the column `branch` (e.g. the paths of an ε/h study, each with its
+    /// own source and time step). The solver never sees it.
+    Branches(BTreeMap<String, Vec<SweepGroup>>),
+}
+
+/// The pseudo-field through which a branch's name travels with its points' assignments.
+const BRANCH: &str = "branch";
+
+/// Paths in the (ε, h) plane: how the horizon follows the grid as h → 0.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PathSpec {
+    /// ε = m·h with m fixed: the ratio stays, both shrink.
+    FixedM { m: u64, n: Vec<u64> },
+    /// ε fixed while h → 0: convergence to the nonlocal solution.
+    FixedEps { eps: f64, n: Vec<u64> },
+    /// ε = c·h^alpha (alpha < 1: ε/h grows as h → 0, the asymptotically compatible regime).
+    Power { c: f64, alpha: f64, n: Vec<u64> },
+}
+
+/// One point of a study: the case fields before the solver checks them, which of them the
+/// sweep set (for messages and tables), and the series the point belongs to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    pub fields: Map<String, Value>,
+    /// The `branches` alternative the point lies on, if any.
+    pub branch: Option<String>,
+    pub swept: Vec<String>,
+    pub repeat: usize,
+    pub series: PointSeries,
+}
+
+/// The lines of a study's tables a point lies on, named by the swept fields held fixed along
+/// them: the points of one refinement series differ only in the grid (and what the sweep moves
+/// with it: the horizon of a path, the partners of `n` in a zip); those of one scaling series
+/// only in the workers (threads, ranks, px, py and their zip partners). Derived fields follow
+/// the swept ones, so they are left out of the names.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PointSeries {
+    pub refinement: String,
+    pub scaling: String,
+}
+
+/// The fields whose change makes a refinement, and a scaling.
+const REFINED: &[&str] = &["n"];
+const SCALED: &[&str] = &["threads", "ranks", "px", "py"];
+
+impl Point {
+    /// `n=64 threads=2` – the swept fields, for messages.
+    pub fn label(&self) -> String {
+        let mut label = self.label_without_repeat();
+        if self.repeat > 0 {
+            label.push_str(&format!(" repeat={}", self.repeat));
+        }
+        label
+    }
+
+    /// The label shared by the point's repeats.
+    pub fn label_without_repeat(&self) -> String {
+        self.label_without(&[])
+    }
+
+    fn label_without(&self, left_out: &[String]) -> String {
+        let branch = self.branch.iter().map(|b| format!("{BRANCH}={b}"));
+        let parts: Vec<String> = branch
+            .chain(
+                self.swept
+                    .iter()
+                    .filter(|f| !left_out.contains(f))
+                    .map(|f| match self.fields.get(f) {
+                        Some(Value::String(s)) => format!("{f}={s}"),
+                        Some(v) => format!("{f}={v}"),
+                        None => format!("{f}=?"),
+                    }),
+            )
+            .collect();
+        parts.join(" ")
+    }
+
+    /// The fields an expression sees: the case's, and the branch.
+    fn scope(&self) -> Scope {
+        let mut fields = self.fields.clone();
+        if let Some(branch) = &self.branch {
+            fields.insert(BRANCH.into(), Value::from(branch.clone()));
+        }
+        Scope::of(&fields)
+    }
+}
+
+/// Bad study file: where and what, in one sentence.
+#[derive(Debug, PartialEq)]
+pub struct StudyError {
+    pub place: String,
+    pub message: String,
+}
+
+impl StudyError {
+    pub(crate) fn new(place: impl Into<String>, message: impl Into<String>) -> Self {
+        StudyError {
+            place: place.into(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for StudyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "study `{}`: {}", self.place, self.message)
+    }
+}
+
+impl Study {
+    /// Reads and parses a study file, naming the field at fault.
+    pub fn read(path: &Path) -> Result<Study, StudyError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            StudyError::new(
+                &name,
+                format!("cannot read the study file: {e}; check the path"),
+            )
+        })?;
+        Study::parse(&text)
+    }
+
+    pub fn parse(text: &str) -> Result<Study, StudyError> {
+        // Typed fields refuse a repeated key themselves; maps such as `base` would keep the last.
+        let value =
+            schema::json::parse(text).map_err(|e| StudyError::new("file", e.to_string()))?;
+        if let Some((place, c)) = schema::json::control_character(&value, &["description"]) {
+            return Err(StudyError::new(
+                place,
+                format!("holds the control character {c:?}; names and values are printable text (only `description` may hold newlines and tabs)"),
+            ));
+        }
+        let mut deserializer = serde_json::Deserializer::from_str(text);
+        let study: Study = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+            let path = e.path().to_string();
+            let message = e.into_inner().to_string();
+            // serde reports a missing field at its parent: name the field itself.
+            let place = match field_named_in(&message) {
+                Some(field) if path == "." => field,
+                Some(field) if !path.ends_with(&field) => format!("{path}.{field}"),
+                _ => path,
+            };
+            StudyError::new(place, message)
+        })?;
+        if !is_file_stem(&study.name) {
+            return Err(StudyError::new(
+                "name",
+                format!(
+                    "`{}` must be non-empty letters, digits, `_` or `-`: it names the results directory",
+                    study.name
+                ),
+            ));
+        }
+        for (k, figure) in study.figures.iter().enumerate() {
+            if !is_file_stem(&figure.name) {
+                return Err(StudyError::new(
+                    format!("figures[{k}].name"),
+                    format!(
+                        "`{}` must be non-empty letters, digits, `_` or `-`: it names the SVG file",
+                        figure.name
+                    ),
+                ));
+            }
+            if study.figures[..k].iter().any(|f| f.name == figure.name) {
+                return Err(StudyError::new(
+                    format!("figures[{k}].name"),
+                    format!(
+                        "`{}` names an earlier figure too; give each figure its own name",
+                        figure.name
+                    ),
+                ));
+            }
+        }
+        if study.repeat == 0 {
+            return Err(StudyError::new("repeat", "must be at least 1 (got 0)"));
+        }
+        Ok(study)
+    }
+
+    /// The points of the study, in sweep order, each repeated `repeat` times.
+    pub fn expand(&self) -> Result<Vec<Point>, StudyError> {
+        let size = self.sweep.iter().fold(self.repeat as u128, |total, g| {
+            total.saturating_mul(g.size())
+        });
+        if size > MOST_POINTS as u128 {
+            return Err(StudyError::new(
+                "sweep",
+                format!(
+                    "expands to {size} points with their repeats, before `where`; at most {MOST_POINTS} are taken: split the study, or sweep fewer values"
+                ),
+            ));
+        }
+        let mut points = vec![Point {
+            fields: self.base.clone(),
+            branch: None,
+            swept: Vec::new(),
+            repeat: 0,
+            series: PointSeries::default(),
+        }];
+        for (g, group) in self.sweep.iter().enumerate() {
+            let assignments = group.assignments(g)?;
+            let mut next = Vec::with_capacity(points.len() * assignments.len());
+            for point in &points {
+                for assignment in &assignments {
+                    let mut point = point.clone();
+                    for (field, value) in assignment {
+                        if field == BRANCH {
+                            point.branch = value.as_str().map(str::to_string);
+                            continue;
+                        }
+                        if point.swept.contains(field) {
+                            return Err(StudyError::new(
+                                format!("sweep[{g}].{field}"),
+                                "is swept by an earlier group too; sweep each field in one group",
+                            ));
+                        }
+                        point.fields.insert(field.clone(), value.clone());
+                        point.swept.push(field.clone());
+                    }
+                    next.push(point);
+                }
+            }
+            points = next;
+        }
+        let derived: Vec<String> = self.derive.keys().cloned().collect();
+        let moving = |triggers: &[&str], branch: Option<&str>| -> Vec<String> {
+            let mut fields: Vec<String> = self
+                .sweep
+                .iter()
+                .flat_map(|g| g.moving_with(triggers, branch))
+                .collect();
+            fields.extend(derived.iter().cloned());
+            fields
+        };
+        let mut kept = Vec::with_capacity(points.len());
+        for mut point in points {
+            self.derive_fields(&mut point)?;
+            if self.keeps(&point)? {
+                let branch = point.branch.as_deref();
+                let (refined, scaled) = (moving(REFINED, branch), moving(SCALED, branch));
+                point.series = PointSeries {
+                    refinement: point.label_without(&refined),
+                    scaling: point.label_without(&scaled),
+                };
+                kept.push(point);
+            }
+        }
+        Ok(kept
+            .into_iter()
+            .flat_map(|point| {
+                (0..self.repeat).map(move |repeat| Point {
+                    repeat,
+                    ..point.clone()
+                })
+            })
+            .collect())
+    }
+
+    fn derive_fields(&self, point: &mut Point) -> Result<(), StudyError> {
+        let scope = point.scope();
+        let mut derived = Vec::new();
+        for (field, formula) in &self.derive {
+            let value = expression::evaluate_number(formula, &scope)
+                .map_err(|e| StudyError::new(format!("derive.{field}"), e))?;
+            derived.push((field.clone(), value));
+        }
+        for (field, value) in derived {
+            point.fields.insert(field.clone(), value);
+            if !point.swept.contains(&field) {
+                point.swept.push(field);
+            }
+        }
+        Ok(())
+    }
+
+    fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
+        let scope = point.scope();
+        for (k, condition) in self.filter.iter().enumerate() {
+            let holds = expression::condition(condition, &scope).map_err(|e| {
+                StudyError::new(format!("where[{k}]"), format!("{e} (at {})", point.label()))
+            })?;
+            if !holds {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// Letters, digits, `_` and `-`: a name that is safe as a file or directory name.
+fn is_file_stem(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
+fn field_named_in(message: &str) -> Option<String> {
+    ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|prefix| {
+            let rest = message.strip_prefix(prefix)?;
+            Some(rest[..rest.find('`')?].to_string())
+        })
+}
+
+/// The most points a study may expand to (repeats included), counted before they are made: a
+/// point costs about a kilobyte here and a line of `nlsolve check`, so 10⁶ is a gigabyte.
+pub const MOST_POINTS: usize = 1_000_000;
+
+impl SweepGroup {
+    /// The number of points the group gives, counted without making them.
+    fn size(&self) -> u128 {
+        let length = |values: &Vec<Value>| values.len() as u128;
+        match self {
+            SweepGroup::Product(axes) => axes
+                .values()
+                .fold(1, |total: u128, v| total.saturating_mul(length(v))),
+            SweepGroup::Zip(axes) => axes.values().next().map_or(0, length),
+            SweepGroup::Path(
+                PathSpec::FixedM { n, .. }
+                | PathSpec::FixedEps { n, .. }
+                | PathSpec::Power { n, .. },
+            ) => n.len() as u128,
+            SweepGroup::Branches(branches) => branches
+                .values()
+                .map(|groups| {
+                    groups
+                        .iter()
+                        .fold(1, |t: u128, g| t.saturating_mul(g.size()))
+                })
+                .fold(0, u128::saturating_add),
+        }
+    }
+
+    /// The group's fields that change when one of `triggers` does: the triggers themselves
+    /// among a product's axes, every field of a zip or path that holds one; of `branches`,
+    /// only those of the point's own branch.
+    fn moving_with(&self, triggers: &[&str], branch: Option<&str>) -> Vec<String> {
+        let fields: Vec<String> = match self {
+            SweepGroup::Product(axes) | SweepGroup::Zip(axes) => axes.keys().cloned().collect(),
+            SweepGroup::Path(_) => vec!["n".to_string(), "m".to_string(), "eps".to_string()],
+            SweepGroup::Branches(branches) => {
+                return branch
+                    .and_then(|b| branches.get(b))
+                    .into_iter()
+                    .flatten()
+                    .flat_map(|g| g.moving_with(triggers, branch))
+                    .collect()
+            }
+        };
+        let triggered = |f: &String| triggers.contains(&f.as_str());
+        match self {
+            SweepGroup::Product(_) => fields.into_iter().filter(triggered).collect(),
+            _ if fields.iter().any(triggered) => fields,
+            _ => Vec::new(),
+        }
+    }
+
+    /// The group's points, as field assignments; `g` is its index, for messages.
+    fn assignments(&self, g: usize) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+        let place = |what: &str| format!("sweep[{g}].{what}");
+        match self {
+            SweepGroup::Product(axes) => {
+                let mut assignments = vec![Vec::new()];
+                for (field, values) in axes {
+                    if values.is_empty() {
+                        return Err(StudyError::new(
+                            place(&format!("product.{field}")),
+                            "has no values; give at least one or remove the axis",
+                        ));
+                    }
+                    assignments = assignments
+                        .into_iter()
+                        .flat_map(|a: Vec<(String, Value)>| {
+                            values.iter().map(move |v| {
+                                let mut a = a.clone();
+                                a.push((field.clone(), v.clone()));
+                                a
+                            })
+                        })
+                        .collect();
+                }
+                Ok(assignments)
+            }
+            SweepGroup::Zip(axes) => {
+                let mut lengths = axes.iter().map(|(f, v)| (f, v.len()));
+                let Some((first, length)) = lengths.next() else {
+                    return Err(StudyError::new(place("zip"), "has no axes"));
+                };
+                if let Some((field, other)) = lengths.find(|&(_, l)| l != length) {
+                    return Err(StudyError::new(
+                        place(&format!("zip.{field}")),
+                        format!(
+                            "has {other} values but `{first}` has {length}; the axes of a zip step together, so give each the same number"
+                        ),
+                    ));
+                }
+                Ok((0..length)
+                    .map(|k| {
+                        axes.iter()
+                            .map(|(f, v)| (f.clone(), v[k].clone()))
+                            .collect()
+                    })
+                    .collect())
+            }
+            SweepGroup::Path(path) => path.assignments(&place("path")),
+            SweepGroup::Branches(branches) => {
+                if branches.is_empty() {
+                    return Err(StudyError::new(place("branches"), "has no branches"));
+                }
+                let mut assignments = Vec::new();
+                for (name, groups) in branches {
+                    let mut own = vec![vec![(BRANCH.to_string(), Value::from(name.clone()))]];
+                    for (k, group) in groups.iter().enumerate() {
+                        let inner = group.assignments(k).map_err(|e| {
+                            StudyError::new(
+                                format!(
+                                    "{}.{name}{}",
+                                    place("branches"),
+                                    e.place.trim_start_matches("sweep")
+                                ),
+                                e.message,
+                            )
+                        })?;
+                        own = own
+                            .iter()
+                            .flat_map(|a| {
+                                inner
+                                    .iter()
+                                    .map(move |b| a.iter().chain(b).cloned().collect())
+                            })
+                            .collect();
+                    }
+                    assignments.extend(own);
+                }
+                Ok(assignments)
+            }
+        }
+    }
+}
+
+impl PathSpec {
+    fn assignments(&self, place: &str) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+        let sizes = match self {
+            PathSpec::FixedM { n, .. }
+            | PathSpec::FixedEps { n, .. }
+            | PathSpec::Power { n, .. } => n,
+        };
+        if let Some(bad) = sizes.iter().find(|&&n| n == 0) {
+            return Err(StudyError::new(
+                format!("{place}.n"),
+                format!("holds {bad}; grid sizes are at least 1"),
+            ));
+        }
+        if sizes.is_empty() {
+            return Err(StudyError::new(format!("{place}.n"), "has no grid sizes"));
+        }
+        Ok(sizes
+            .iter()
+            .map(|&n| {
+                let horizon = match self {
+                    PathSpec::FixedM { m, .. } => ("m", Value::from(*m)),
+                    PathSpec::FixedEps { eps, .. } => ("eps", Value::from(*eps)),
+                    // h = 1/n: paths are for the nonlocal method on D = [0, 1]^d.
+                    PathSpec::Power { c, alpha, .. } => {
+                        ("eps", Value::from(c * (1.0 / n as f64).powf(*alpha)))
+                    }
+                };
+                vec![
+                    ("n".to_string(), Value::from(n)),
+                    (horizon.0.to_string(), horizon.1),
+                ]
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn points(study: Value) -> Result<Vec<Map<String, Value>>, StudyError> {
+        let study = Study::parse(&study.to_string())?;
+        Ok(study.expand()?.into_iter().map(|p| p.fields).collect())
+    }
+
+    fn fields(value: Value) -> Map<String, Value> {
+        value.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn a_sweep_is_counted_before_it_is_made_and_refused_past_the_limit() {
+        let values: Vec<u64> = (0..100).collect();
+        let huge = json!({
+            "name": "s", "base": {},
+            "sweep": [{"product": {"a": values, "b": values, "c": values}},
+                      {"branches": {"x": [{"zip": {"d": values}}], "y": [{"path": {"kind": "fixed_m", "m": 2, "n": values}}]}}],
+            "repeat": 3
+        });
+        let e = points(huge).unwrap_err();
+        assert_eq!(e.place, "sweep");
+        // 100³ × (100 + 100) × 3, none of them made.
+        assert!(
+            e.message.contains("expands to 600000000 points"),
+            "{}",
+            e.message
+        );
+        let fits = json!({"name": "s", "base": {}, "sweep": [{"product": {"a": values, "b": values}}], "repeat": 3});
+        assert_eq!(points(fits).unwrap().len(), 30_000);
+    }
+
+    #[test]
+    fn a_control_character_anywhere_is_refused_naming_its_place() {
+        let study = |extra: Value| {
+            let mut s =
+                json!({"name": "s", "base": {"dim": 1}, "description": "line one\nline two"});
+            s.as_object_mut().unwrap().extend(fields(extra));
+            Study::parse(&s.to_string())
+        };
+        assert!(study(json!({})).is_ok(), "prose may hold newlines");
+        let cases = [
+            (
+                json!({"sweep": [{"branches": {"a\u{1b}[31m": []}}]}),
+                "sweep[0].branches.a\u{1b}[31m",
+            ),
+            (json!({"where": ["n > 1\n"]}), "where[0]"),
+            (
+                json!({"figures": [{"name": "f", "kind": "convergence", "title": "t\r"}]}),
+                "figures[0].title",
+            ),
+            (
+                json!({"resources": {"queue": "debug\ntouch /tmp/pwned"}}),
+                "resources.queue",
+            ),
+        ];
+        for (extra, place) in cases {
+            let e = study(extra).unwrap_err();
+            assert_eq!(e.place, place);
+            assert!(e.message.contains("control character"), "{}", e.message);
+        }
+    }
+
+    #[test]
+    fn branches_are_alternatives_named_in_the_tables_but_not_the_case() {
+        let study = Study::parse(
+            &json!({
+                "name": "s", "base": {"dim": 1},
+                "sweep": [
+                    {"branches": {
+                        "fixed_m": [{"product": {"m": [2, 4], "source": ["local"]}},
+                                    {"product": {"n": [8, 16]}}],
+                        "fixed_eps": [{"path": {"kind": "fixed_eps", "eps": 0.25, "n": [8, 16]}}]
+                    }},
+                    {"product": {"kernel": ["constant", "linear"]}}
+                ],
+                "where": ["branch != 'fixed_eps' || kernel == 'linear'"]
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        let on = |b: &str| {
+            points
+                .iter()
+                .filter(|p| p.branch.as_deref() == Some(b))
+                .count()
+        };
+        assert_eq!((on("fixed_m"), on("fixed_eps"), points.len()), (8, 2, 10));
+        for p in &points {
+            assert!(
+                !p.fields.contains_key("branch"),
+                "the solver must not see it"
+            );
+            assert!(p
+                .label()
+                .starts_with(&format!("branch={}", p.branch.as_ref().unwrap())));
+        }
+        // A refinement series runs along n within one branch.
+        let eps_series: Vec<&str> = points
+            .iter()
+            .filter(|p| p.branch.as_deref() == Some("fixed_eps"))
+            .map(|p| p.series.refinement.as_str())
+            .collect();
+        assert_eq!(eps_series, ["branch=fixed_eps kernel=linear"; 2]);
+        // The other branch's path moves m with n; this one's m stays in its series.
+        let m_series = points
+            .iter()
+            .find(|p| p.branch.as_deref() == Some("fixed_m"))
+            .map(|p| p.series.refinement.clone());
+        assert_eq!(
+            m_series.as_deref(),
+            Some("branch=fixed_m m=2 source=local kernel=constant")
+        );
+        let bad = Study::parse(
+            &json!({"name": "s", "base": {}, "sweep": [{"branches": {"a": [{"product": {"n": []}}]}}]})
+                .to_string(),
+        )
+        .unwrap()
+        .expand()
+        .unwrap_err();
+        assert_eq!(bad.place, "sweep[0].branches.a[0].product.n", "{bad}");
+    }
+
+    #[test]
+    fn product_and_zip_groups_multiply() {
+        let got = points(json!({
+            "name": "s", "base": {"dim": 1},
+            "sweep": [
+                {"product": {"n": [8, 16], "m": [2, 3]}},
+                {"zip": {"threads": [1, 2], "ranks": [2, 1]}}
+            ]
+        }))
+        .unwrap();
+        let mut expected = Vec::new();
+        for (m, n) in [(2, 8), (3, 8), (2, 16), (3, 16)] {
+            for (threads, ranks) in [(1, 2), (2, 1)] {
+                expected.push(fields(json!({
+                    "dim": 1, "n": n, "m": m, "threads": threads, "ranks": ranks
+                })));
+            }
+        }
+        // Axes of a product vary in name order, the last fastest.
+        expected.sort_by_key(|f| (f["m"].as_u64(), f["n"].as_u64()));
+        let mut got_sorted = got.clone();
+        got_sorted.sort_by_key(|f| (f["m"].as_u64(), f["n"].as_u64()));
+        assert_eq!(got.len(), 8);
+        assert_eq!(got_sorted, expected);
+    }
+
+    #[test]
+    fn derived_fields_paths_filters_and_repeats() {
+        let study = Study::parse(
+            &json!({
+                "name": "s", "base": {"dim": 2},
+                "sweep": [
+                    {"path": {"kind": "fixed_m", "m": 3, "n": [16, 32]}},
+                    {"product": {"px": [1, 2], "py": [1, 2]}}
+                ],
+                "derive": {"ranks": "px * py", "eps_check": "m * h"},
+                "where": ["ranks <= 2"],
+                "repeat": 2
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        // 2 sizes × 3 shapes with px·py ≤ 2, twice each.
+        assert_eq!(points.len(), 12);
+        let first = &points[0].fields;
+        assert_eq!(first["n"], json!(16));
+        assert_eq!(first["m"], json!(3));
+        assert_eq!(first["ranks"], json!(1));
+        assert_eq!(first["eps_check"], json!(3.0 / 16.0));
+        assert_eq!((points[0].repeat, points[1].repeat), (0, 1));
+        assert!(points.iter().all(|p| p.fields["ranks"].as_u64() <= Some(2)));
+
+        let eps_paths = points_of_path(json!({"kind": "fixed_eps", "eps": 0.25, "n": [8, 16]}));
+        assert_eq!(eps_paths, vec![(8, json!(0.25)), (16, json!(0.25))]);
+        let power = points_of_path(json!({"kind": "power", "c": 2.0, "alpha": 0.5, "n": [4, 16]}));
+        assert_eq!(power, vec![(4, json!(1.0)), (16, json!(0.5))]);
+    }
+
+    #[test]
+    fn series_hold_all_but_the_grid_or_the_workers_fixed() {
+        let series = |study: Value| -> Vec<(String, String)> {
+            let study = Study::parse(&study.to_string()).unwrap();
+            let points = study.expand().unwrap();
+            points
+                .into_iter()
+                .map(|p| (p.series.refinement, p.series.scaling))
+                .collect()
+        };
+        // A product moves only its `n`; a zip moves all its fields with its worker counts.
+        let got = series(json!({
+            "name": "s", "base": {},
+            "sweep": [
+                {"product": {"n": [8, 16], "m": [2]}},
+                {"zip": {"threads": [1, 2], "ranks": [2, 1]}}
+            ]
+        }));
+        let expected = [
+            ("m=2 ranks=2 threads=1", "m=2 n=8"),
+            ("m=2 ranks=1 threads=2", "m=2 n=8"),
+            ("m=2 ranks=2 threads=1", "m=2 n=16"),
+            ("m=2 ranks=1 threads=2", "m=2 n=16"),
+        ];
+        let expected: Vec<(String, String)> = expected
+            .iter()
+            .map(|(r, s)| (r.to_string(), s.to_string()))
+            .collect();
+        assert_eq!(got, expected);
+        // A path moves its horizon with n; derived fields are left out of the names.
+        let got = series(json!({
+            "name": "s", "base": {},
+            "sweep": [
+                {"path": {"kind": "power", "c": 1.0, "alpha": 0.5, "n": [4, 16]}},
+                {"product": {"px": [1, 2], "method": ["nonlocal"]}}
+            ],
+            "derive": {"ranks": "px"}
+        }));
+        assert_eq!(
+            got[0],
+            (
+                "method=nonlocal px=1".into(),
+                "n=4 eps=0.5 method=nonlocal".into()
+            )
+        );
+        assert_eq!(
+            got[3],
+            (
+                "method=nonlocal px=2".into(),
+                "n=16 eps=0.25 method=nonlocal".into()
+            )
+        );
+    }
+
+    fn points_of_path(path: Value) -> Vec<(u64, Value)> {
+        points(json!({"name": "s", "base": {}, "sweep": [{"path": path}]}))
+            .unwrap()
+            .into_iter()
+            .map(|f| (f["n"].as_u64().unwrap(), f["eps"].clone()))
+            .collect()
+    }
+
+    #[test]
+    fn malformed_studies_name_the_place() {
+        let place = |study: Value| points(study).unwrap_err().place;
+        assert_eq!(place(json!({"name": "s"})), "base");
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "colour": 1})),
+            "colour"
+        );
+        assert_eq!(place(json!({"name": "a b", "base": {}})), "name");
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "repeat": 0})),
+            "repeat"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [{"zip": {"n": [1, 2], "m": [1]}}]})),
+            "sweep[0].zip.n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [{"product": {"n": []}}]})),
+            "sweep[0].product.n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [
+                {"product": {"n": [1]}}, {"product": {"n": [2]}}
+            ]})),
+            "sweep[1].n"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {"n": 4}, "derive": {"ranks": "px * 2"}})),
+            "derive.ranks"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {"n": 4}, "where": ["n + 1"]})),
+            "where[0]"
+        );
+        assert_eq!(
+            place(
+                json!({"name": "s", "base": {}, "sweep": [{"path": {"kind": "fixed_m", "m": 2, "n": [0]}}]})
+            ),
+            "sweep[0].path.n"
+        );
+        // JSON text, not a Value: a key given twice in a map (`base`) would keep the last.
+        let twice = Study::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);
+        let error = twice.map(|_| ()).unwrap_err();
+        assert_eq!(error.place, "file");
+        assert!(
+            error.message.contains("the key `dim` is given twice"),
+            "{error}"
+        );
+    }
+}

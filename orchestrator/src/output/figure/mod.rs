@@ -1,0 +1,140 @@
+//! The charts each figure kind makes of a study's summary table (one row per point).
+
+use crate::model::expression::{self, Scope};
+use crate::model::figure_spec::{FigureKind, FigureSpec};
+use crate::output::draw::Chart;
+use crate::store::table::Row;
+
+mod convergence;
+mod field;
+mod scaling;
+mod series;
+mod solver_comparison;
+mod stability;
+mod throughput;
+mod time_series;
+mod work_precision;
+
+use series::{group, shared_by_all};
+
+/// A figure's failure, naming the spec field at fault.
+fn fault(k: usize, field: &str, message: impl std::fmt::Display) -> String {
+    format!("figures[{k}].{field}: {message}")
+}
+
+/// The column a spec names: as written, else the case field of that name.
+fn column(rows: &[Row], name: &str) -> Option<String> {
+    [name.to_string(), format!("case.{name}")]
+        .into_iter()
+        .find(|c| rows.iter().any(|r| r.get(c).is_some_and(|v| !v.is_null())))
+}
+
+/// The chart of figure `k` of a study whose summary table is `rows`.
+pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String> {
+    let (dx, dy, ds) = spec.kind.defaults();
+    let magnitude = spec
+        .y
+        .as_deref()
+        .and_then(|y| y.strip_prefix("abs(")?.strip_suffix(')'));
+    let with_magnitude: Vec<Row>;
+    let rows = match magnitude {
+        Some(name) => {
+            let source = column(rows, name).ok_or_else(|| {
+                fault(
+                    k,
+                    "y",
+                    format!("the table has no column `{name}` to take abs() of"),
+                )
+            })?;
+            with_magnitude = rows
+                .iter()
+                .map(|row| {
+                    let mut row = row.clone();
+                    let value = row.number(&source).map(f64::abs);
+                    row.set(&format!("|{name}|"), serde_json::json!(value));
+                    row
+                })
+                .collect();
+            &with_magnitude[..]
+        }
+        None => rows,
+    };
+    let resolve = |field: &str, name: &str| {
+        column(rows, name).ok_or_else(|| {
+            fault(k, field, format!("the table has no column `{name}`; name one of the summary's columns (`nlstudy collect` lists them in results/<study>/<study>-summary.parquet)"))
+        })
+    };
+    let x = resolve("x", spec.x.as_deref().unwrap_or(dx))?;
+    let magnitude_name = magnitude.map(|name| format!("|{name}|"));
+    let y_name = magnitude_name
+        .as_deref()
+        .or(spec.y.as_deref())
+        .unwrap_or(dy);
+    let y = match spec.kind {
+        // A problem without an exact solution has no error to map.
+        FigureKind::Field => column(rows, y_name).unwrap_or_else(|| y_name.to_string()),
+        _ => resolve("y", y_name)?,
+    };
+    let series_columns: Vec<String> = match &spec.series {
+        Some(names) => names
+            .iter()
+            .map(|n| resolve("series", n))
+            .collect::<Result<_, _>>()?,
+        None => vec![ds.to_string()],
+    };
+    let mut kept = Vec::new();
+    for row in rows {
+        let scope = Scope::of(&row.expression_fields());
+        let mut keep = true;
+        for (j, condition) in spec.filter.iter().enumerate() {
+            keep &= expression::condition(condition, &scope)
+                .map_err(|e| fault(k, &format!("where[{j}]"), e))?;
+        }
+        if keep {
+            kept.push(row);
+        }
+    }
+    if spec.kind == FigureKind::SolverComparison {
+        let title = spec
+            .title
+            .clone()
+            .unwrap_or_else(|| spec.name.replace('_', " "));
+        let panels = solver_comparison::solver_comparison(&kept, &series_columns, &x, &y);
+        return Ok(Chart { title, panels });
+    }
+    if spec.kind == FigureKind::Throughput {
+        let panels = throughput::throughput(&kept, &series_columns, &x, &y);
+        let title = spec
+            .title
+            .clone()
+            .unwrap_or_else(|| spec.name.replace('_', " "));
+        return Ok(Chart { title, panels });
+    }
+    let mut groups = group(&kept, &series_columns);
+    let mut title = spec
+        .title
+        .clone()
+        .unwrap_or_else(|| spec.name.replace('_', " "));
+    let common = shared_by_all(&mut groups);
+    if !common.is_empty() {
+        title = format!("{title}: {common}");
+    }
+    let mut panels = match spec.kind {
+        FigureKind::StrongScaling => scaling::strong_scaling(&groups, &x, &y),
+        FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, &x, &y)],
+        FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
+        FigureKind::WorkPrecision => vec![work_precision::work_precision(&groups, &x, &y)],
+        FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
+        FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
+        FigureKind::Throughput => unreachable!("drawn above, one panel per n"),
+        FigureKind::SolverComparison => unreachable!("drawn above, two panels"),
+        FigureKind::Field => field::field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
+    };
+    if matches!(
+        spec.kind,
+        FigureKind::StrongScaling | FigureKind::WeakScaling
+    ) {
+        scaling::mark_oversubscribed(&kept, &x, &mut panels, &mut title);
+    }
+    Ok(Chart { title, panels })
+}

@@ -1,0 +1,137 @@
+//! Strong and weak scaling: time, speedup and efficiency against workers (threads × ranks).
+
+use super::series::*;
+use crate::output::draw::{self, Axis, Guide, Panel, Series};
+use crate::store::table::Row;
+use schema::record::Status;
+use serde_json::Value;
+
+pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
+    let (mut times, mut speedups, mut efficiencies) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut ideal_time, mut ideal_speedup) = (Vec::new(), Vec::new());
+    for (k, g) in groups.iter().enumerate() {
+        let points = g.points(x, y);
+        let Some(&(p0, t0)) = points.first() else {
+            continue;
+        };
+        let mut time = series(g.legend(), points.clone());
+        if let Some((lo, hi)) = band_columns(y) {
+            let rows = g.rows.iter().filter(|r| r.status() == Some(Status::Ok));
+            time.band = rows
+                .filter_map(|r| Some((r.number(x)?, r.number(&lo)?, r.number(&hi)?)))
+                .collect();
+            time.band.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        let speedup: Vec<(f64, f64)> = points.iter().map(|&(p, t)| (p, t0 / t)).collect();
+        let efficiency = speedup.iter().map(|&(p, s)| (p, s * p0 / p)).collect();
+        let label = |first: bool| first.then(|| "ideal".to_string());
+        ideal_time.push(Guide::Dashed {
+            label: label(k == 0),
+            of: Some(k),
+            points: points.iter().map(|&(p, _)| (p, t0 * p0 / p)).collect(),
+        });
+        ideal_speedup.push(Guide::Dashed {
+            label: label(k == 0),
+            of: Some(k),
+            points: points.iter().map(|&(p, _)| (p, p / p0)).collect(),
+        });
+        times.push(time);
+        speedups.push(series(g.legend(), speedup));
+        efficiencies.push(series(g.legend(), efficiency));
+    }
+    let workers = all(times.iter(), |p| p.0);
+    let x_axis = || Axis::fitting(describe(x), workers.iter().copied()).counting();
+    let mut efficiency_axis = Axis::linear("parallel efficiency T(p₀)·p₀ / (T(p)·p)");
+    efficiency_axis.include = vec![0.0, 1.0];
+    vec![
+        Panel {
+            title: "time".into(),
+            x: x_axis(),
+            y: Axis::fitting(describe(y), all(times.iter(), |p| p.1)),
+            series: times,
+            guides: ideal_time,
+            heat: None,
+        },
+        Panel {
+            title: "speedup".into(),
+            x: x_axis(),
+            y: Axis::fitting("speedup T(p₀) / T(p)", all(speedups.iter(), |p| p.1)),
+            series: speedups,
+            guides: ideal_speedup,
+            heat: None,
+        },
+        Panel {
+            title: "parallel efficiency".into(),
+            x: x_axis(),
+            y: efficiency_axis,
+            series: efficiencies,
+            guides: vec![ideal_efficiency(&workers)],
+            heat: None,
+        },
+    ]
+}
+
+/// Crosses over the points run with more workers than the machine had cores (the record's
+/// `oversubscribed`), and a note in the title: their times measure contention, not scaling.
+pub(super) fn mark_oversubscribed(
+    rows: &[&Row],
+    x: &str,
+    panels: &mut [Panel],
+    title: &mut String,
+) {
+    let beyond: Vec<f64> = rows
+        .iter()
+        .filter(|r| r.get("oversubscribed") == Some(&Value::Bool(true)))
+        .filter_map(|r| r.number(x))
+        .collect();
+    if beyond.is_empty() {
+        return;
+    }
+    for line in panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
+        line.crosses = line
+            .points
+            .iter()
+            .filter(|p| beyond.contains(&p.0))
+            .copied()
+            .collect();
+    }
+    title.push_str(" (×: more workers than cores, not performance data)");
+}
+
+/// Efficiency 1 across the workers shown.
+fn ideal_efficiency(workers: &[f64]) -> Guide {
+    let (lo, hi) = draw::span(workers.iter().copied());
+    Guide::Dashed {
+        label: Some("ideal".into()),
+        of: None,
+        points: match lo <= hi {
+            true => vec![(lo, 1.0), (hi, 1.0)],
+            false => Vec::new(),
+        },
+    }
+}
+
+pub(super) fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
+    let lines: Vec<Series> = groups
+        .iter()
+        .filter_map(|g| {
+            let points = g.points(x, y);
+            let &(_, t0) = points.first()?;
+            Some(series(
+                g.legend(),
+                points.iter().map(|&(p, t)| (p, t0 / t)).collect(),
+            ))
+        })
+        .collect();
+    let workers = all(lines.iter(), |p| p.0);
+    let mut y_axis = Axis::linear("weak-scaling efficiency T(p₀) / T(p)");
+    y_axis.include = vec![0.0, 1.0];
+    Panel {
+        title: "weak scaling".into(),
+        x: Axis::fitting(describe(x), workers.iter().copied()).counting(),
+        y: y_axis,
+        heat: None,
+        guides: vec![ideal_efficiency(&workers)],
+        series: lines,
+    }
+}

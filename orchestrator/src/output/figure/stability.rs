@@ -1,0 +1,39 @@
+//! Stability: max |u| at the end against dt / dt_stable, diverged runs marked.
+
+use super::series::*;
+use crate::output::draw::{Axis, Guide, Panel, Series};
+use schema::record::Status;
+
+pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
+    let lines: Vec<Series> = groups
+        .iter()
+        .map(|g| {
+            let mut line = series(g.legend(), g.points(x, y));
+            // A diverged run stops where |u| passed the bound; its cross sits at what it reached.
+            line.crosses = g
+                .rows
+                .iter()
+                .filter(|r| r.status() == Some(Status::Diverged))
+                .filter_map(|r| Some((r.number(x)?, r.number(y).filter(|v| v.is_finite())?)))
+                .collect();
+            line
+        })
+        .collect();
+    let ys = lines
+        .iter()
+        .flat_map(|s| s.points.iter().chain(&s.crosses).map(|p| p.1))
+        .collect::<Vec<_>>();
+    let mut x_axis = Axis::linear(describe(x));
+    x_axis.include = vec![1.0];
+    Panel {
+        title: "stability (× diverged)".into(),
+        x: x_axis,
+        y: Axis::fitting(describe(y), ys),
+        series: lines,
+        heat: None,
+        guides: vec![Guide::Vertical {
+            label: "dt = dt_stable".into(),
+            x: 1.0,
+        }],
+    }
+}

@@ -1,0 +1,395 @@
+//! `nlstudy plot`: draws a study's figures from its summary table alone (never a solver), each
+//! only when its table, its spec or the program drawing it changed since it was drawn: a stamp
+//! beside the SVG holds the hashes of the three.
+
+use crate::model::figure_spec::FigureSpec;
+use crate::output::draw;
+use crate::output::figure;
+use crate::store::table;
+use crate::store::{self, Store};
+use sha2::{Digest, Sha256};
+use std::path::PathBuf;
+
+pub struct Drawn {
+    pub path: PathBuf,
+    /// False when the figure was up to date.
+    pub redrawn: bool,
+}
+
+/// Draws the figures whose stamps are stale; the summary table must exist.
+pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Drawn>, String> {
+    let _outputs = store
+        .lock_outputs()
+        .map_err(|e| format!("cannot lock the figures of {}: {e}", store.study))?;
+    let table_path = store.table(&format!("{}-summary.parquet", store.study));
+    let table = std::fs::read(&table_path).map_err(|e| {
+        format!(
+            "cannot read {}: {e}; `nlstudy collect` writes it from the stored runs",
+            table_path.display()
+        )
+    })?;
+    let table_hash = store::hex(&Sha256::digest(&table));
+    let program = std::env::current_exe()
+        .and_then(std::fs::read)
+        .map(|bytes| store::hex(&Sha256::digest(&bytes)))
+        .unwrap_or_default();
+    let directory = store.table("figures");
+    let mut rows = None;
+    let mut drawn = Vec::new();
+    for (k, spec) in figures.iter().enumerate() {
+        let path = directory.join(format!("{}.svg", spec.name));
+        let stamp_path = directory.join(format!(".{}.stamp", spec.name));
+        let stamp = format!(
+            "table {table_hash}\nspec {}\nnlstudy {program}\n",
+            serde_json::to_string(spec).expect("a spec serializes"),
+        );
+        let current = std::fs::read_to_string(&stamp_path).is_ok_and(|s| s == stamp);
+        if current && path.exists() {
+            drawn.push(Drawn {
+                path,
+                redrawn: false,
+            });
+            continue;
+        }
+        if rows.is_none() {
+            rows = Some(table::read_parquet(&table_path)?);
+        }
+        let chart = figure::chart(spec, k, rows.as_deref().unwrap_or_default())?;
+        let svg = draw::render(&chart)?;
+        std::fs::create_dir_all(&directory)
+            .map_err(|e| format!("cannot create {}: {e}", directory.display()))?;
+        store::write_atomically(&path, svg.as_bytes())?;
+        store::write_atomically(&stamp_path, stamp.as_bytes())?;
+        drawn.push(Drawn {
+            path,
+            redrawn: true,
+        });
+    }
+    Ok(drawn)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::figure_spec::FigureKind;
+    use crate::store::table::Row;
+    use serde_json::json;
+
+    /// A summary table with two methods, each on three grids and two worker counts, a
+    /// stability sweep with one diverged point, and c_tot series.
+    fn summary() -> Vec<Row> {
+        let mut rows = Vec::new();
+        for (method, cost) in [("nonlocal", 1.0), ("pse", 3.0)] {
+            for n in [16.0, 32.0, 64.0] {
+                for workers in [1.0, 2.0] {
+                    let mut row = Row::default();
+                    let h = 1.0 / n;
+                    let time = cost * n * n / (1.0 + 0.8 * (workers - 1.0));
+                    for (name, value) in [
+                        (
+                            "point",
+                            json!(format!("method={method} n={n} threads={workers}")),
+                        ),
+                        ("scaling_series", json!(format!("method={method} n={n}"))),
+                        (
+                            "refinement_series",
+                            json!(format!("method={method} threads={workers}")),
+                        ),
+                        ("status", json!("ok")),
+                        ("repeats", json!(3)),
+                        ("case.method", json!(method)),
+                        ("case.n", json!(n)),
+                        ("case.threads", json!(workers)),
+                        ("case.cfl", json!(0.25 * n / 16.0)),
+                        ("workers", json!(workers)),
+                        ("h", json!(h)),
+                        ("error_l2_norm", json!(cost * h * h)),
+                        ("max_abs", json!(1.0 + n / 64.0)),
+                        ("solve_s_median", json!(time)),
+                        ("solve_s_min", json!(0.9 * time)),
+                        ("solve_s_max", json!(1.2 * time)),
+                        ("c_tot.time", json!("[0.0,0.5,1.0]")),
+                        (
+                            "c_tot.c_tot",
+                            json!(format!("[1.0,{},{}]", 1.0 - h, 1.0 - 2.0 * h)),
+                        ),
+                    ] {
+                        row.set(name, value);
+                    }
+                    rows.push(row);
+                }
+            }
+        }
+        rows[10].set("status", json!("diverged"));
+        // A 4 × 4 field snapshot on the coarsest grid: u = ix + 4 iy, error (ix − iy)/10.
+        for row in rows.iter_mut().filter(|r| r.number("case.n") == Some(16.0)) {
+            let values: Vec<f64> = (0..16).map(f64::from).collect();
+            let error: Vec<f64> = (0..16).map(|i| f64::from(i % 4 - i / 4) / 10.0).collect();
+            for (name, value) in [
+                ("field.nx", json!(4)),
+                ("field.ny", json!(4)),
+                ("field.lower", json!(0.0)),
+                ("field.upper", json!(1.0)),
+                (
+                    "field.values",
+                    json!(serde_json::to_string(&values).unwrap()),
+                ),
+                ("field.error", json!(serde_json::to_string(&error).unwrap())),
+            ] {
+                row.set(name, value);
+            }
+        }
+        rows
+    }
+
+    fn spec(name: &str, kind: FigureKind, filter: &[&str]) -> FigureSpec {
+        FigureSpec {
+            name: name.into(),
+            kind,
+            title: None,
+            x: None,
+            y: None,
+            series: None,
+            filter: filter.iter().map(|f| f.to_string()).collect(),
+        }
+    }
+
+    fn specs() -> Vec<FigureSpec> {
+        let mut work = spec("work", FigureKind::WorkPrecision, &["threads == 1"]);
+        work.series = Some(vec!["method".into()]);
+        let mut stability = spec("stability", FigureKind::Stability, &["threads == 1"]);
+        stability.series = Some(vec!["method".into()]);
+        vec![
+            spec("strong", FigureKind::StrongScaling, &["n == 64"]),
+            spec("weak", FigureKind::WeakScaling, &["n == 64"]),
+            spec("convergence", FigureKind::Convergence, &[]),
+            work,
+            stability,
+            spec(
+                "series",
+                FigureKind::TimeSeries,
+                &["threads == 1", "method == 'pse'"],
+            ),
+            spec(
+                "field",
+                FigureKind::Field,
+                &["n == 16", "threads == 1", "method == 'nonlocal'"],
+            ),
+        ]
+    }
+
+    /// The texts of an SVG, which must parse as XML.
+    fn texts(svg: &str) -> Vec<String> {
+        let document = roxmltree::Document::parse(svg).expect("well-formed SVG");
+        document
+            .descendants()
+            .filter(|n| n.has_tag_name("text"))
+            .map(|n| n.text().unwrap_or("").trim().to_string())
+            .collect()
+    }
+
+    #[test]
+    fn every_kind_draws_its_series_and_axes() {
+        let rows = summary();
+        // (figure, series in its legend, axis labels it must carry)
+        let expected: [(&str, usize, &[&str]); 7] = [
+            (
+                "strong",
+                2,
+                &[
+                    "workers (threads × ranks)",
+                    "solve time, median (s)",
+                    "speedup T(p₀) / T(p)",
+                ],
+            ),
+            (
+                "weak",
+                2,
+                &[
+                    "workers (threads × ranks)",
+                    "weak-scaling efficiency T(p₀) / T(p)",
+                ],
+            ),
+            ("convergence", 4, &["grid spacing h", "discrete L² error"]),
+            ("work", 2, &["discrete L² error", "solve time, median (s)"]),
+            (
+                "stability",
+                2,
+                &["dt / dt_stable", "max|u| at the final time"],
+            ),
+            ("series", 3, &["time t", "total concentration c_tot(t)"]),
+            (
+                "field",
+                0,
+                &["x", "y", "u at the final time", "error u − u_exact"],
+            ),
+        ];
+        for (k, spec) in specs().iter().enumerate() {
+            let chart = figure::chart(spec, k, &rows).unwrap();
+            let (name, series, labels) = expected[k];
+            assert_eq!(spec.name, name);
+            assert_eq!(chart.panels[0].series.len(), series, "{name}");
+            let texts = texts(&draw::render(&chart).unwrap());
+            for label in labels {
+                assert!(
+                    texts.iter().any(|t| t == label),
+                    "{name} lacks `{label}`: {texts:?}"
+                );
+            }
+            for s in &chart.panels[0].series {
+                assert!(
+                    texts.contains(&s.label),
+                    "{name}: no legend entry `{}`",
+                    s.label
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn figures_hold_what_the_table_says() {
+        let rows = summary();
+        let specs = specs();
+        // Convergence: e = c h² gives slope 2 on every series.
+        let chart = figure::chart(&specs[2], 2, &rows).unwrap();
+        let slopes: Vec<Option<&str>> = chart.panels[0]
+            .series
+            .iter()
+            .map(|s| s.note.as_deref())
+            .collect();
+        assert_eq!(slopes, [Some("  2.00"); 4]);
+        // Strong scaling: speedup 1.8 at two workers, efficiency 0.9.
+        let chart = figure::chart(&specs[0], 0, &rows).unwrap();
+        let speedup = &chart.panels[1].series[0].points;
+        assert!((speedup[1].1 - 1.8).abs() < 1e-12, "{speedup:?}");
+        let efficiency = &chart.panels[2].series[0].points;
+        assert!((efficiency[1].1 - 0.9).abs() < 1e-12);
+        assert!(chart.panels.iter().all(|p| p.series[0].crosses.is_empty()));
+        // Points run on more workers than cores are crossed out in every panel, and said so.
+        let mut crowded = rows.clone();
+        for row in crowded
+            .iter_mut()
+            .filter(|r| r.number("workers") == Some(2.0))
+        {
+            row.set("oversubscribed", json!(true));
+        }
+        let chart = figure::chart(&specs[0], 0, &crowded).unwrap();
+        for panel in &chart.panels {
+            assert_eq!(
+                panel.series[0].crosses,
+                panel.series[0].points[1..],
+                "{}",
+                panel.title
+            );
+        }
+        assert!(
+            chart.title.contains("not performance data"),
+            "{}",
+            chart.title
+        );
+        // Stability: the diverged pse point is a cross, not a point of the line.
+        let chart = figure::chart(&specs[4], 4, &rows).unwrap();
+        let pse = &chart.panels[0].series[1];
+        assert_eq!((pse.points.len(), pse.crosses.len()), (2, 1));
+    }
+
+    #[test]
+    fn a_field_figure_maps_one_points_field_and_its_error() {
+        let mut rows = summary();
+        let specs = specs();
+        let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+        let heat = |k: usize| chart.panels[k].heat.as_ref().expect("a heat map");
+        assert_eq!(chart.panels.len(), 2);
+        assert_eq!((heat(0).nx, heat(0).ny, heat(0).values[5]), (4, 4, 5.0));
+        assert!(!heat(0).diverging && heat(1).diverging);
+        assert_eq!(heat(1).values[1], 0.1);
+        // 16 cells per map, and 64 levels per colour bar.
+        let svg = draw::render(&chart).unwrap();
+        let document = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+        let rects = document
+            .descendants()
+            .filter(|n| n.has_tag_name("rect"))
+            .count();
+        assert!(rects >= 2 * (16 + 64), "{rects} rectangles");
+
+        // A 1D snapshot is drawn as profiles over x, at the cells' centres.
+        rows[0].set("field.nx", json!(16));
+        rows[0].set("field.ny", json!(1));
+        let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+        let profile = &chart.panels[0].series[0].points;
+        assert!(chart.panels[0].heat.is_none());
+        assert_eq!((profile[0], profile.len()), ((1.0 / 32.0, 0.0), 16));
+
+        // Without an exact solution there is no error column, and only the field is drawn.
+        let without_error: Vec<Row> = rows
+            .iter()
+            .map(|r| {
+                let mut kept = Row::default();
+                for (name, value) in r.cells().filter(|(name, _)| *name != "field.error") {
+                    kept.set(name, value.clone());
+                }
+                kept
+            })
+            .collect();
+        let chart = figure::chart(&specs[6], 6, &without_error).unwrap();
+        assert_eq!(chart.panels.len(), 1);
+
+        // The figure shows one point: a filter selecting two is refused, naming `where`.
+        let mut both = specs[6].clone();
+        both.filter.pop();
+        let error = figure::chart(&both, 6, &rows).err().unwrap();
+        assert!(
+            error.starts_with("figures[6].where: selects 2 points"),
+            "{error}"
+        );
+        let mut none = specs[6].clone();
+        none.filter = vec![
+            "n == 32".into(),
+            "threads == 1".into(),
+            "method == 'pse'".into(),
+        ];
+        let error = figure::chart(&none, 6, &rows).err().unwrap();
+        assert!(error.contains("set `field_snapshot`"), "{error}");
+    }
+
+    #[test]
+    fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
+        let dir = std::env::temp_dir().join(format!("nlstudy-plot-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::open(&dir, "synthetic");
+        std::fs::create_dir_all(store.table("")).unwrap();
+        let table = store.table("synthetic-summary.parquet");
+        let rows = summary();
+        table::write_parquet(&[(&table, &rows)]).unwrap();
+        let mut specs = specs();
+        let redrawn = |drawn: Vec<Drawn>| drawn.iter().filter(|d| d.redrawn).count();
+
+        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 7);
+        let first = std::fs::read(&plot(&specs, &store).unwrap()[2].path).unwrap();
+        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 0, "nothing changed");
+
+        // The same table written again gives the same bytes, and so the same figures.
+        table::write_parquet(&[(&table, &rows)]).unwrap();
+        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 0);
+        let svg = dir.join("synthetic/figures/convergence.svg");
+        std::fs::remove_file(&svg).unwrap();
+        assert_eq!(redrawn(plot(&specs, &store).unwrap()), 1);
+        assert_eq!(std::fs::read(&svg).unwrap(), first, "byte-identical");
+
+        specs[2].title = Some("orders".into());
+        assert_eq!(
+            redrawn(plot(&specs, &store).unwrap()),
+            1,
+            "only the changed spec"
+        );
+        let mut changed = rows.clone();
+        changed[0].set("error_l2_norm", json!(0.5));
+        table::write_parquet(&[(&table, &changed)]).unwrap();
+        assert_eq!(
+            redrawn(plot(&specs, &store).unwrap()),
+            7,
+            "a changed table redraws all"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,175 @@
+//! `nlstudy report`: a study as one self-contained HTML page, `results/<study>/report.html`: its
+//! description, its figures inline, the summary table, the runs by status, the failures with
+//! their messages, and what the runs were made with and where (solver version, git revision,
+//! host, CPU, dates). One file to open in a browser or pass on, as Snakemake's `--report` gives
+//! its users. Written from the store, the summary table and the drawn figures alone.
+
+use crate::analysis::collect::headline_columns;
+use crate::analysis::pivot;
+use crate::model::study::Study;
+use crate::output::status::counts_by_status;
+use crate::store::table::{self, Row};
+use crate::store::{write_atomically, Store};
+use schema::record::Status;
+use serde_json::Value;
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Writes the report of `study` (whose swept fields are `swept`) and returns its path.
+pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, String> {
+    let records = store.scan().records;
+    let summary_path = store.table(&format!("{}-summary.parquet", study.name));
+    let summary = match summary_path.exists() {
+        true => table::read_parquet(&summary_path)?,
+        false => Vec::new(),
+    };
+    let mut page = String::new();
+    let title = format!("Study {}", escape(&study.name));
+    let _ = write!(
+        page,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{title}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>{title}</h1>\n"
+    );
+    if !study.description.is_empty() {
+        let _ = writeln!(
+            page,
+            "<p class=\"description\">{}</p>",
+            escape(&study.description)
+        );
+    }
+    runs_section(&mut page, &records);
+    figures_section(&mut page, study, store);
+    summary_section(&mut page, &summary, swept);
+    failures_section(&mut page, &records);
+    provenance_section(&mut page, &records);
+    page.push_str("</body>\n</html>\n");
+    let path = store.table("report.html");
+    write_atomically(&path, page.as_bytes())?;
+    Ok(path)
+}
+
+const STYLE: &str =
+    "body{font-family:sans-serif;max-width:70em;margin:2em auto;padding:0 1em;color:#222}\
+figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #ddd}\
+figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font-size:.85em}\
+th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
+pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}";
+
+/// The stored runs counted by status.
+fn runs_section(page: &mut String, records: &[Value]) {
+    let _ = writeln!(page, "<h2>Runs</h2>\n<p>{} stored runs:", records.len());
+    let _ = writeln!(page, "{}.</p>", counts_by_status(records).join(", "));
+}
+
+/// Each figure of the study inline, its title as the caption; one not drawn yet is named.
+fn figures_section(page: &mut String, study: &Study, store: &Store) {
+    if study.figures.is_empty() {
+        return;
+    }
+    page.push_str("<h2>Figures</h2>\n");
+    for spec in &study.figures {
+        let path = store.table("figures").join(format!("{}.svg", spec.name));
+        let caption = escape(spec.title.as_deref().unwrap_or(&spec.name));
+        match std::fs::read_to_string(&path) {
+            Ok(svg) => {
+                // The SVG element itself: the XML declaration has no place inside HTML.
+                let start = svg.find("<svg").unwrap_or(0);
+                let _ = writeln!(
+                    page,
+                    "<figure id=\"figure-{}\">\n{}\n<figcaption>{caption}</figcaption>\n</figure>",
+                    escape(&spec.name),
+                    &svg[start..]
+                );
+            }
+            Err(_) => {
+                let _ = writeln!(
+                    page,
+                    "<p>Figure <em>{caption}</em> is not drawn yet: `nlstudy plot` draws it.</p>"
+                );
+            }
+        }
+    }
+}
+
+/// The summary table's swept fields and headline results, one row per point.
+fn summary_section(page: &mut String, summary: &[Row], swept: &[String]) {
+    if summary.is_empty() {
+        return;
+    }
+    let has = |name: &str| summary.iter().any(|row| row.get(name).is_some());
+    let columns = headline_columns(has, swept);
+    page.push_str("<h2>Summary</h2>\n<table>\n<tr>");
+    for (_, name) in &columns {
+        let _ = write!(page, "<th>{}</th>", escape(name));
+    }
+    page.push_str("</tr>\n");
+    for row in summary {
+        page.push_str("<tr>");
+        for (column, _) in &columns {
+            let cell = row.get(column).map(pivot::text).unwrap_or_default();
+            let _ = write!(page, "<td>{}</td>", escape(&cell));
+        }
+        page.push_str("</tr>\n");
+    }
+    page.push_str("</table>\n");
+}
+
+/// Every failed run: its key, its case and its message.
+fn failures_section(page: &mut String, records: &[Value]) {
+    let failed: Vec<&Value> = records
+        .iter()
+        .filter(|r| Status::of(r) == Some(Status::Failed))
+        .collect();
+    if failed.is_empty() {
+        return;
+    }
+    let _ = writeln!(page, "<h2>Failures</h2>");
+    for record in failed {
+        let _ = writeln!(
+            page,
+            "<h3>{}</h3>\n<p>Case: <code>{}</code></p>\n<pre>{}</pre>",
+            escape(record["key"].as_str().unwrap_or("?")),
+            escape(&record["case"].to_string()),
+            escape(record["message"].as_str().unwrap_or(""))
+        );
+    }
+}
+
+/// What the runs were made with and where, as the records tell it, and when.
+fn provenance_section(page: &mut String, records: &[Value]) {
+    let values = |field: &str| -> String {
+        let set: BTreeSet<String> = records
+            .iter()
+            .filter_map(|r| r["provenance"][field].as_str().map(str::to_string))
+            .collect();
+        set.into_iter().collect::<Vec<_>>().join(", ")
+    };
+    let stamps = values("timestamp");
+    let first = stamps.split(", ").next().unwrap_or("");
+    let last = stamps.split(", ").last().unwrap_or("");
+    page.push_str("<h2>Provenance</h2>\n<table>\n");
+    for (name, value) in [
+        ("solver version", values("solver_version")),
+        ("git revision", values("git_revision")),
+        ("host", values("host")),
+        ("CPU", values("cpu")),
+        ("instruction set", values("instruction_set")),
+        ("first run", first.to_string()),
+        ("last run", last.to_string()),
+        (
+            "report by",
+            format!("nlstudy {}", env!("CARGO_PKG_VERSION")),
+        ),
+    ] {
+        let _ = writeln!(page, "<tr><th>{name}</th><td>{}</td></tr>", escape(&value));
+    }
+    page.push_str("</table>\n");
+}
+
+/// Text made safe inside HTML elements and attribute values.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}

@@ -1,0 +1,93 @@
+//! `nlstudy status`: the stored records of a study counted by status, the failures with the
+//! first line of their messages, the files of the store that are not whole records, the points
+//! still missing, and, for a submitted study, each job's state and how many of its points are
+//! stored.
+
+use crate::run::cluster::{ledger, scheduler};
+use crate::run::plan::Planned;
+use crate::store::Store;
+use schema::record::Status;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+/// The records counted by status, as `3 ok`, `1 failed`, … (statuses in name order).
+pub fn counts_by_status(records: &[Value]) -> Vec<String> {
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
+    for record in records {
+        let status = record["status"].as_str().unwrap_or("unknown");
+        *counts.entry(status).or_default() += 1;
+    }
+    counts.iter().map(|(s, n)| format!("{n} {s}")).collect()
+}
+
+/// The report: one line of counts, one line per failed run, the missing points, the jobs.
+pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
+    let scan = store.scan();
+    let records = scan.records;
+    let summary = counts_by_status(&records);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "study {study}: {} records in {}: {}",
+        records.len(),
+        store.runs.display(),
+        if summary.is_empty() {
+            "none".to_string()
+        } else {
+            summary.join(", ")
+        }
+    );
+    for record in records
+        .iter()
+        .filter(|r| Status::of(r) == Some(Status::Failed))
+    {
+        let message = record["message"].as_str().unwrap_or("");
+        let _ = writeln!(
+            out,
+            "failed {}: {}",
+            record["key"].as_str().unwrap_or("?"),
+            message.lines().next().unwrap_or("")
+        );
+    }
+    for unreadable in &scan.unreadable {
+        let _ = writeln!(out, "unreadable: {unreadable}");
+    }
+    let missing = planned.iter().filter(|p| p.runs()).count();
+    let _ = writeln!(out, "{missing} of {} points to run", planned.len());
+    jobs_report(&mut out, store);
+    out
+}
+
+/// One line per job of the ledger: its id, name, state and stored points.
+fn jobs_report(out: &mut String, store: &Store) {
+    let entries = ledger::entries(store);
+    let Some(scheduler) = entries.first().map(|e| e.scheduler) else {
+        return;
+    };
+    let live = scheduler::live_jobs(scheduler);
+    if let Err(message) = &live {
+        let _ = writeln!(out, "jobs: cannot ask the scheduler ({message})");
+    }
+    for entry in &entries {
+        let state = match &live {
+            Ok(live) => live
+                .get(&entry.id)
+                .map_or("ended", String::as_str)
+                .to_lowercase(),
+            Err(_) => "unknown".to_string(),
+        };
+        let stored = entry
+            .keys
+            .iter()
+            .filter(|k| store.status(k).is_some_and(|s| s != Status::Failed))
+            .count();
+        let _ = writeln!(
+            out,
+            "job {} {}: {state}, {stored} of {} points stored",
+            entry.id,
+            entry.name,
+            entry.keys.len()
+        );
+    }
+}

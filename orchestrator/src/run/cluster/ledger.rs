@@ -1,0 +1,46 @@
+//! The jobs ledger of a study, `results/<study>/jobs/ledger/<id>.json`: one entry per job
+//! `nlstudy submit` handed to the scheduler (its id, name and keys). `submit` leaves out the points
+//! of jobs the scheduler still holds; `status` shows each job's state and how many of its points
+//! are stored.
+
+use super::scheduler::Scheduler;
+use crate::store::fs::create_dir;
+use crate::store::{write_atomically, Store};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LedgerEntry {
+    pub scheduler: Scheduler,
+    pub id: String,
+    pub name: String,
+    pub keys: Vec<String>,
+    /// Seconds since the Unix epoch.
+    pub submitted: u64,
+}
+
+fn ledger_dir(store: &Store) -> PathBuf {
+    store.table("jobs").join("ledger")
+}
+
+/// Adds a submitted job to the ledger.
+pub fn add(store: &Store, entry: &LedgerEntry) -> Result<(), String> {
+    let dir = ledger_dir(store);
+    create_dir(&dir)?;
+    let path = dir.join(format!("{}.json", entry.id));
+    let text = serde_json::to_string_pretty(entry).expect("an entry serializes");
+    Ok(write_atomically(&path, text.as_bytes())?)
+}
+
+/// Every job submitted for the study, oldest first; unreadable entries are skipped.
+pub fn entries(store: &Store) -> Vec<LedgerEntry> {
+    let mut entries: Vec<LedgerEntry> = std::fs::read_dir(ledger_dir(store))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
+        .filter_map(|e| serde_json::from_str(&std::fs::read_to_string(e.path()).ok()?).ok())
+        .collect();
+    entries.sort_by_key(|e: &LedgerEntry| (e.submitted, e.id.parse::<u64>().unwrap_or(0)));
+    entries
+}

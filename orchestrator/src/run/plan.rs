@@ -1,0 +1,145 @@
+//! Which points of a study run, and why: make-style, against the record store.
+
+use crate::model::study::{Point, Study, StudyError};
+use crate::run::nlsolve::Nlsolve;
+use crate::store::{self, Index};
+use schema::record::Status;
+use serde_json::Value;
+use std::collections::HashSet;
+use std::fmt;
+
+/// What the command line asks beyond the study.
+#[derive(Default)]
+pub struct Options {
+    /// Run every selected point, stored or not.
+    pub force: bool,
+    /// Run points whose stored record failed.
+    pub rerun_failed: bool,
+    /// Only these keys (how a cluster job runs its share of a study).
+    pub only: Option<HashSet<String>>,
+}
+
+/// Why a point runs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Reason {
+    Missing,
+    FailedBefore,
+    Forced,
+    SolverChanged { from: String },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Decision {
+    Run(Reason),
+    /// Stored with this status (`ok` or `diverged`: results, not failures), or failed and not
+    /// asked to run again, or not among `--only`.
+    Skip(String),
+    /// The same case as an earlier point (of another branch): it runs once, for both.
+    Duplicate,
+}
+
+/// A point, its case as the solver resolved it (or why the solver refused it), its key and
+/// what happens to it.
+pub struct Planned {
+    pub point: Point,
+    pub case: Result<Value, String>,
+    pub key: String,
+    pub case_id: String,
+    pub decision: Decision,
+}
+
+impl Planned {
+    pub fn runs(&self) -> bool {
+        matches!(self.decision, Decision::Run(_))
+    }
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Reason::Missing => write!(f, "missing"),
+            Reason::FailedBefore => write!(f, "failed before"),
+            Reason::Forced => write!(f, "forced"),
+            Reason::SolverChanged { from } => write!(f, "solver version changed (was {from})"),
+        }
+    }
+}
+
+/// Plans every point of `study` against what the store holds (`index`).
+pub fn plan(
+    study: &Study,
+    solver: &Nlsolve,
+    index: &Index,
+    options: &Options,
+) -> Result<Vec<Planned>, StudyError> {
+    let points = study.expand()?;
+    let cases = solver
+        .check(&points)
+        .map_err(|e| StudyError::new("solver", e))?;
+    let mut seen = HashSet::new();
+    let planned: Vec<Planned> = points
+        .into_iter()
+        .zip(cases)
+        .map(|(point, case)| {
+            // A refused case is keyed by its fields as written.
+            let identity = match &case {
+                Ok(canonical) => canonical.clone(),
+                Err(_) => Value::Object(point.fields.clone()),
+            };
+            let case_id = store::case_id(&identity);
+            let key = store::key(&identity, &solver.version, point.repeat);
+            let stored = index.status.get(&key);
+            let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
+            let first = seen.insert(key.clone());
+            let decision = match stored {
+                _ if !selected => Decision::Skip("not among --only".into()),
+                // Another point (of another branch) is the same case: it runs once.
+                _ if !first => Decision::Duplicate,
+                _ if options.force => Decision::Run(Reason::Forced),
+                None => match index.version_by_case.get(&case_id) {
+                    Some(from) if *from != solver.version => {
+                        Decision::Run(Reason::SolverChanged { from: from.clone() })
+                    }
+                    _ => Decision::Run(Reason::Missing),
+                },
+                Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
+                Some(status) => Decision::Skip(status.to_string()),
+            };
+            Planned {
+                point,
+                case,
+                key,
+                case_id,
+                decision,
+            }
+        })
+        .collect();
+    if let Some(only) = &options.only {
+        unknown_keys(only, &planned)?;
+    }
+    Ok(planned)
+}
+
+/// Refuses `--only` keys that are no point of the study: a job script written before the study
+/// was edited would otherwise run nothing and report success.
+fn unknown_keys(only: &HashSet<String>, planned: &[Planned]) -> Result<(), StudyError> {
+    let known: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
+    let mut unknown: Vec<&str> = only
+        .iter()
+        .map(String::as_str)
+        .filter(|k| !known.contains(k))
+        .collect();
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    unknown.sort_unstable();
+    Err(StudyError::new(
+        "--only",
+        format!(
+            "{} of the {} keys are no point of the study (was it edited after the job was written? `nlstudy submit` again): {}",
+            unknown.len(),
+            only.len(),
+            unknown.join(", ")
+        ),
+    ))
+}

@@ -1,0 +1,547 @@
+//! The worker pool: `nlsolve` processes within a core budget, MPI cases through a launcher, a
+//! timeout per case, failures stored with the tail of stderr, and a clean stop on Ctrl-C.
+//!
+//! Each case runs under its key's lock in the store, so processes sharing a store never run a
+//! point at the same time; a point another process holds, or has stored meanwhile, is passed.
+//! A solver process dies with this one (its parent-death signal), so a killed `nlstudy` leaves
+//! no case running unowned.
+
+use crate::run::nlsolve::Nlsolve;
+use crate::run::plan::{Decision, Planned, Reason};
+use crate::run::progress::Progress;
+use crate::store::fs::create_dir;
+use crate::store::{FileError, Store};
+use schema::record::Status;
+use serde_json::{json, Value};
+use std::fs::File;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// How `mpirun` is called by default; `{ranks}` is replaced by the case's rank count.
+pub const DEFAULT_LAUNCHER: &str = "mpirun --oversubscribe -n {ranks}";
+
+/// The command prefix that starts an MPI case, split into words by the shell's quoting rules;
+/// one of them holds `{ranks}`, which becomes the case's rank count.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Launcher {
+    words: Vec<String>,
+}
+
+impl Launcher {
+    /// The command for a case of `ranks` ranks: the program and its arguments.
+    fn command(&self, ranks: u64) -> Command {
+        let mut words = self
+            .words
+            .iter()
+            .map(|w| w.replace("{ranks}", &ranks.to_string()));
+        let mut command = Command::new(words.next().expect("a launcher has a program"));
+        command.args(words);
+        command
+    }
+}
+
+impl std::str::FromStr for Launcher {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Launcher, String> {
+        let words = shlex::split(text)
+            .ok_or_else(|| format!("{text:?} is not a command line: a quote is not closed"))?;
+        if words.is_empty() {
+            return Err(format!(
+                "the launcher is empty; give e.g. {DEFAULT_LAUNCHER:?}"
+            ));
+        }
+        if let Some(word) = words.iter().find(|w| w.chars().any(char::is_control)) {
+            return Err(format!("{word:?} holds a control character"));
+        }
+        if !words.iter().any(|w| w.contains("{ranks}")) {
+            return Err(format!(
+                "{text:?} has no `{{ranks}}`, so every MPI case would start with the launcher's own rank count; write it where the rank count goes, e.g. {DEFAULT_LAUNCHER:?}"
+            ));
+        }
+        Ok(Launcher { words })
+    }
+}
+/// Lines of stderr kept in a failed record.
+const STDERR_TAIL: usize = 20;
+/// How long an MPI launcher may leave an exited rank unreaped before its job is ended: Open MPI
+/// 4.1's `mpirun` can hang for good, ignoring SIGTERM, when a rank dies early (the dead rank
+/// stays a zombie, the launcher waits on a futex), which would stall the study.
+const UNREAPED_RANK_GRACE: Duration = Duration::from_secs(10);
+/// How often a running MPI job's ranks are looked at.
+const RANK_CHECK_EVERY: Duration = Duration::from_secs(1);
+
+pub struct PoolOptions {
+    /// Cores the running cases may use together (threads × ranks each).
+    pub cores: usize,
+    /// One case at a time, so that timings are not disturbed.
+    pub exclusive: bool,
+    pub timeout: Option<Duration>,
+    /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
+    pub launcher: Launcher,
+    /// Further attempts at a case that failed for a reason outside it: past its timeout, killed
+    /// by a signal, or its MPI launcher hung. A case that diverges or is refused is a result and
+    /// never runs again.
+    pub retries: usize,
+}
+
+/// Counts of a pool's work.
+#[derive(Debug, Default, PartialEq)]
+pub struct Tally {
+    pub ok: usize,
+    pub diverged: usize,
+    pub failed: usize,
+    /// Planned cases another process ran, or was running, meanwhile.
+    pub passed: usize,
+    pub interrupted: bool,
+}
+
+struct Running {
+    index: usize,
+    /// 1 for the first run of the point, 2 for its first retry, …
+    attempt: usize,
+    child: Child,
+    started: Instant,
+    cores: usize,
+    stdout: PathBuf,
+    stderr: PathBuf,
+    case_file: PathBuf,
+    /// The key's lock in the store, held until the record is stored.
+    _lock: File,
+    /// MPI jobs: when a rank was first seen exited and not reaped by the launcher.
+    launcher_watch: Option<LauncherWatch>,
+}
+
+/// What is known of an MPI launcher's ranks.
+struct LauncherWatch {
+    checked: Instant,
+    unreaped_since: Option<Instant>,
+}
+
+impl LauncherWatch {
+    /// Has a rank of `launcher` been dead and unreaped for longer than the grace period?
+    fn hung(&mut self, launcher: u32) -> bool {
+        if self.checked.elapsed() < RANK_CHECK_EVERY {
+            return false;
+        }
+        self.checked = Instant::now();
+        if !has_zombie_child(launcher) {
+            self.unreaped_since = None;
+            return false;
+        }
+        let since = *self.unreaped_since.get_or_insert_with(Instant::now);
+        since.elapsed() > UNREAPED_RANK_GRACE
+    }
+}
+
+/// Does process `parent` have a child that has exited and not been reaped (state Z)?
+fn has_zombie_child(parent: u32) -> bool {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return false;
+    };
+    entries.flatten().any(|entry| {
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            return false;
+        };
+        // After the command name's closing parenthesis: state, then the parent's pid.
+        let Some((_, rest)) = stat.rsplit_once(')') else {
+            return false;
+        };
+        let mut fields = rest.split_whitespace();
+        let state = fields.next();
+        let ppid = fields.next().and_then(|p| p.parse::<u32>().ok());
+        state == Some("Z") && ppid == Some(parent)
+    })
+}
+
+/// nlsolve's exit status when it computed a record but could not write it (sysexits' EX_IOERR):
+/// the file system's fault, not the case's.
+pub const NLSOLVE_IO_ERROR: i32 = 74;
+
+/// Runs the planned points that run; stores each record as it finishes. A failure of the file
+/// system (the store, the scratch files, a record nlsolve could not write) is not a property of
+/// a case: it stops the run, the running cases are ended and nothing is stored for them, so
+/// the next run takes them up again.
+pub fn run(
+    planned: &[Planned],
+    solver: &Nlsolve,
+    store: &Store,
+    options: &PoolOptions,
+    stop: &Arc<AtomicBool>,
+    progress: &mut Progress,
+) -> Result<Tally, FileError> {
+    let mut running: Vec<Running> = Vec::new();
+    let outcome = run_cases(
+        planned,
+        solver,
+        store,
+        options,
+        stop,
+        progress,
+        &mut running,
+    );
+    for mut job in running {
+        let _ = job.child.kill();
+        let _ = job.child.wait();
+        job.remove_files();
+    }
+    outcome
+}
+
+fn run_cases(
+    planned: &[Planned],
+    solver: &Nlsolve,
+    store: &Store,
+    options: &PoolOptions,
+    stop: &Arc<AtomicBool>,
+    progress: &mut Progress,
+    running: &mut Vec<Running>,
+) -> Result<Tally, FileError> {
+    let mut tally = Tally::default();
+    // (point, attempt), popped from the back in plan order.
+    let mut queue: Vec<(usize, usize)> = (0..planned.len())
+        .filter(|&i| planned[i].runs())
+        .map(|i| (i, 1))
+        .collect();
+    queue.reverse();
+    create_dir(&store.work_dir())?;
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            tally.interrupted = true;
+            return Ok(tally);
+        }
+        // Start what fits; a case larger than the budget runs alone.
+        while let Some(&(next, attempt)) = queue.last() {
+            let planned = &planned[next];
+            let cores = cores_of(planned);
+            let used: usize = running.iter().map(|r| r.cores).sum();
+            let fits = if options.exclusive {
+                running.is_empty()
+            } else {
+                running.is_empty() || used + cores <= options.cores
+            };
+            if !fits {
+                break;
+            }
+            queue.pop();
+            let Some(lock) = store.lock(&planned.key)? else {
+                progress.passed(&planned.point.label(), "another nlstudy is running it");
+                tally.passed += 1;
+                continue;
+            };
+            let forced = planned.decision == Decision::Run(Reason::Forced);
+            let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
+            if let Some(status) = stored.filter(|_| !forced) {
+                let why = format!("another nlstudy has stored it meanwhile ({status})");
+                progress.passed(&planned.point.label(), &why);
+                tally.passed += 1;
+                continue;
+            }
+            match &planned.case {
+                Err(message) => {
+                    let record = failed_record(planned, solver, message.clone());
+                    finish(store, planned, record, &mut tally, progress)?;
+                }
+                Ok(case) => {
+                    let mut job = start(next, case, planned, solver, store, options, cores, lock)?;
+                    job.attempt = attempt;
+                    running.push(job);
+                }
+            }
+        }
+        if running.is_empty() && queue.is_empty() {
+            return Ok(tally);
+        }
+        std::thread::sleep(Duration::from_millis(10));
+        let mut k = 0;
+        while k < running.len() {
+            let job = &mut running[k];
+            let timed_out = options
+                .timeout
+                .is_some_and(|limit| job.started.elapsed() > limit);
+            let launcher_hung = !timed_out
+                && job.launcher_watch.as_mut().is_some_and(|watch| {
+                    let pid = job.child.id();
+                    watch.hung(pid)
+                });
+            let exit = if timed_out || launcher_hung {
+                let _ = job.child.kill();
+                Some(job.child.wait())
+            } else {
+                job.child.try_wait().transpose()
+            };
+            let exit = exit
+                .transpose()
+                .map_err(FileError::on("wait for", &solver.binary))?;
+            let Some(exit) = exit else {
+                k += 1;
+                continue;
+            };
+            let job = running.swap_remove(k);
+            if stop.load(Ordering::SeqCst) && !exit.success() {
+                // Ctrl-C reaches the whole process group: a case it ended is not a failure.
+                job.remove_files();
+                continue;
+            }
+            let planned = &planned[job.index];
+            let killed = exit.signal().is_some() && !exit.success();
+            let outside_the_case = timed_out || launcher_hung || killed;
+            let record = if timed_out {
+                failed_record(
+                    planned,
+                    solver,
+                    format!(
+                        "timed out after {:.0} s; {}",
+                        job.started.elapsed().as_secs_f64(),
+                        job.stderr_tail()
+                    ),
+                )
+            } else if launcher_hung {
+                failed_record(
+                    planned,
+                    solver,
+                    format!(
+                        "a rank exited and the MPI launcher had not ended {} s later, so it was killed; {}",
+                        UNREAPED_RANK_GRACE.as_secs(),
+                        job.stderr_tail()
+                    ),
+                )
+            } else {
+                job.record(planned, solver, exit)?
+            };
+            job.remove_files();
+            let failed = Status::of(&record).is_none_or(|s| s == Status::Failed);
+            if failed && outside_the_case && job.attempt <= options.retries {
+                let message = record["message"].as_str().unwrap_or("");
+                progress.retrying(&planned.point.label(), job.attempt + 1, message);
+                queue.push((job.index, job.attempt + 1));
+                continue;
+            }
+            let mut record = record;
+            record["attempt"] = json!(job.attempt);
+            finish(store, planned, record, &mut tally, progress)?;
+        }
+    }
+}
+
+/// The cores this process may use (its affinity mask and cgroup quota respected).
+pub fn machine_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// threads × ranks of a case (1 for a refused one).
+fn cores_of(planned: &Planned) -> usize {
+    let field = |name: &str| {
+        planned
+            .case
+            .as_ref()
+            .ok()
+            .and_then(|c| c.get(name)?.as_u64())
+            .unwrap_or(1) as usize
+    };
+    field("threads").max(1) * field("ranks").max(1)
+}
+
+fn start(
+    index: usize,
+    case: &Value,
+    planned: &Planned,
+    solver: &Nlsolve,
+    store: &Store,
+    options: &PoolOptions,
+    cores: usize,
+    lock: File,
+) -> Result<Running, FileError> {
+    let work = store.work_dir();
+    let case_file = work.join(format!("{}.case.json", planned.key));
+    let stdout = work.join(format!("{}.out", planned.key));
+    let stderr = work.join(format!("{}.err", planned.key));
+    std::fs::write(&case_file, case.to_string()).map_err(FileError::on("write", &case_file))?;
+    let ranks = case.get("ranks").and_then(Value::as_u64).unwrap_or(1);
+    let mut command = if ranks > 1 {
+        let mut command = options.launcher.command(ranks);
+        if is_root() {
+            // Open MPI refuses root (containers, CI) unless told.
+            command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
+            command.env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        }
+        command.arg(&solver.binary);
+        command
+    } else {
+        Command::new(&solver.binary)
+    };
+    command.arg("run").arg("--case").arg(&case_file);
+    if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
+        command.arg("--write-vtk").arg(store.fields(&planned.key));
+    }
+    command
+        .stdin(Stdio::null())
+        .stdout(File::create(&stdout).map_err(FileError::on("create", &stdout))?)
+        .stderr(File::create(&stderr).map_err(FileError::on("create", &stderr))?);
+    // SAFETY: prctl is async-signal-safe and touches no memory of the parent.
+    unsafe {
+        command.pre_exec(|| {
+            // The case dies with this process (SIGKILL included), not run on unowned.
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == -1 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let program = PathBuf::from(command.get_program());
+    let child = command.spawn().map_err(FileError::on("start", &program))?;
+    Ok(Running {
+        index,
+        attempt: 1,
+        child,
+        started: Instant::now(),
+        cores,
+        stdout,
+        stderr,
+        case_file,
+        _lock: lock,
+        launcher_watch: (ranks > 1).then(|| LauncherWatch {
+            checked: Instant::now(),
+            unreaped_since: None,
+        }),
+    })
+}
+
+impl Running {
+    /// The record a finished process printed, or a failed record with its stderr; an error
+    /// when nlsolve could not write the record it computed.
+    fn record(
+        &self,
+        planned: &Planned,
+        solver: &Nlsolve,
+        exit: std::process::ExitStatus,
+    ) -> Result<Value, FileError> {
+        if exit.code() == Some(NLSOLVE_IO_ERROR) {
+            let said = std::io::Error::other(self.stderr_tail());
+            return Err(FileError::new("write", &self.stdout, said));
+        }
+        let printed = std::fs::read_to_string(&self.stdout).unwrap_or_default();
+        let record = printed.lines().rev().find_map(|line| {
+            serde_json::from_str::<Value>(line)
+                .ok()
+                .filter(Value::is_object)
+        });
+        Ok(match (exit.success(), record) {
+            (true, Some(mut record)) => {
+                let object = record.as_object_mut().expect("checked: an object");
+                for (field, value) in identity(planned, solver) {
+                    object.insert(field, value);
+                }
+                // Its timings measure contention, not scaling; figures and tables say so.
+                object.insert("oversubscribed".into(), json!(self.cores > machine_cores()));
+                record
+            }
+            _ => failed_record(
+                planned,
+                solver,
+                format!("nlsolve exited with {exit}: {}", self.stderr_tail()),
+            ),
+        })
+    }
+
+    fn stderr_tail(&self) -> String {
+        let text = std::fs::read_to_string(&self.stderr).unwrap_or_default();
+        let lines: Vec<&str> = text.lines().collect();
+        lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n")
+    }
+
+    fn remove_files(&self) {
+        for path in [&self.stdout, &self.stderr, &self.case_file] {
+            let _ = std::fs::remove_file(path);
+        }
+    }
+}
+
+/// The fields the orchestrator adds to every record: its key, case id, repeat and version.
+fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
+    vec![
+        ("key".into(), json!(planned.key)),
+        ("case_id".into(), json!(planned.case_id)),
+        ("repeat".into(), json!(planned.point.repeat)),
+        ("solver_version".into(), json!(solver.version)),
+    ]
+}
+
+fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Value {
+    let case = match &planned.case {
+        Ok(case) => case.clone(),
+        Err(_) => Value::Object(planned.point.fields.clone()),
+    };
+    let mut record = json!({ "case": case, "status": Status::Failed.as_str(), "message": message });
+    let object = record.as_object_mut().expect("an object");
+    for (field, value) in identity(planned, solver) {
+        object.insert(field, value);
+    }
+    record
+}
+
+fn finish(
+    store: &Store,
+    planned: &Planned,
+    record: Value,
+    tally: &mut Tally,
+    progress: &mut Progress,
+) -> Result<(), FileError> {
+    let status = Status::of(&record).unwrap_or(Status::Failed);
+    let mut message = record
+        .get("message")
+        .and_then(Value::as_str)
+        .unwrap_or("")
+        .to_string();
+    if !store.save(&planned.key, &record)? {
+        message.push_str("; the stored result of an earlier run is kept");
+    }
+    store.release_lock_file(&planned.key);
+    match status {
+        Status::Ok => tally.ok += 1,
+        Status::Diverged => tally.diverged += 1,
+        Status::Failed => tally.failed += 1,
+    }
+    progress.finished(&planned.point.label(), status, &message);
+    Ok(())
+}
+
+/// Is this process root (uid 0)? Read from /proc, to need no libc binding.
+fn is_root() -> bool {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("Uid:"))?;
+            Some(line.split_whitespace().nth(1)? == "0")
+        })
+        .unwrap_or(false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_launcher_is_split_by_shell_quoting_and_must_say_where_the_ranks_go() {
+        let launcher: Launcher =
+            r#"env "A=b c" mpirun -n {ranks} --bind-to 'core'"#.parse().unwrap();
+        let command = launcher.command(3);
+        let args: Vec<_> = command.get_args().map(|a| a.to_str().unwrap()).collect();
+        assert_eq!(command.get_program(), "env");
+        assert_eq!(args, ["A=b c", "mpirun", "-n", "3", "--bind-to", "core"]);
+        for (bad, says) in [
+            ("", "empty"),
+            ("   ", "empty"),
+            ("mpirun -n 2", "{ranks}"),
+            ("mpirun 'unclosed {ranks}", "quote"),
+            ("mpirun -n {ranks} \u{1b}x", "control"),
+        ] {
+            let e = bad.parse::<Launcher>().unwrap_err();
+            assert!(e.contains(says), "{bad:?}: {e}");
+        }
+    }
+}

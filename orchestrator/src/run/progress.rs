@@ -1,0 +1,129 @@
+//! Progress of a run: an indicatif bar on a terminal, one plain line per finished case
+//! otherwise (logs, CI), nothing with `--quiet`.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use schema::record::Status;
+use std::io::IsTerminal;
+
+pub enum Mode {
+    Bar,
+    Lines,
+    Quiet,
+}
+
+pub struct Progress {
+    mode: Mode,
+    bar: Option<ProgressBar>,
+    total: usize,
+    done: usize,
+    failed: usize,
+    skipped: usize,
+}
+
+impl Mode {
+    /// A bar on a terminal, lines elsewhere.
+    pub fn detect(quiet: bool) -> Mode {
+        match (quiet, std::io::stderr().is_terminal()) {
+            (true, _) => Mode::Quiet,
+            (false, true) => Mode::Bar,
+            (false, false) => Mode::Lines,
+        }
+    }
+}
+
+impl Progress {
+    pub fn new(mode: Mode, total: usize, skipped: usize) -> Progress {
+        let bar = matches!(mode, Mode::Bar).then(|| {
+            let bar = ProgressBar::new(total as u64);
+            bar.set_style(
+                ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")
+                    .expect("a valid template"),
+            );
+            bar
+        });
+        let mut progress = Progress {
+            mode,
+            bar,
+            total,
+            done: 0,
+            failed: 0,
+            skipped,
+        };
+        progress.update_message();
+        progress
+    }
+
+    /// A case finished with `status`.
+    pub fn finished(&mut self, label: &str, status: Status, message: &str) {
+        self.done += 1;
+        if status == Status::Failed {
+            self.failed += 1;
+        }
+        match self.mode {
+            Mode::Bar => {
+                let bar = self.bar.as_ref().expect("bar mode has a bar");
+                if status == Status::Failed {
+                    bar.println(format!("failed: {label}: {}", first_line(message)));
+                }
+                bar.inc(1);
+                self.update_message();
+            }
+            Mode::Lines => {
+                let detail = match status {
+                    Status::Failed => format!(": {}", first_line(message)),
+                    Status::Ok | Status::Diverged => String::new(),
+                };
+                say!("[{}/{}] {status} {label}{detail}", self.done, self.total);
+            }
+            Mode::Quiet => {}
+        }
+    }
+
+    /// A case that failed for a reason outside it (timeout, a killed process) starts again.
+    pub fn retrying(&mut self, label: &str, attempt: usize, message: &str) {
+        let line = format!(
+            "retrying {label} (attempt {attempt}): {}",
+            first_line(message)
+        );
+        match self.mode {
+            Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
+            Mode::Lines => say!("{line}"),
+            Mode::Quiet => {}
+        }
+    }
+
+    /// A planned case that this process did not run: another one runs it or just ran it.
+    pub fn passed(&mut self, label: &str, why: &str) {
+        self.done += 1;
+        self.skipped += 1;
+        match self.mode {
+            Mode::Bar => {
+                let bar = self.bar.as_ref().expect("bar mode has a bar");
+                bar.println(format!("skipped: {label}: {why}"));
+                bar.inc(1);
+                self.update_message();
+            }
+            Mode::Lines => say!("[{}/{}] skipped {label}: {why}", self.done, self.total),
+            Mode::Quiet => {}
+        }
+    }
+
+    fn update_message(&mut self) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(format!(
+                "done {}, skipped {}, failed {}",
+                self.done, self.skipped, self.failed
+            ));
+        }
+    }
+
+    pub fn close(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish();
+        }
+    }
+}
+
+fn first_line(message: &str) -> &str {
+    message.lines().next().unwrap_or("")
+}

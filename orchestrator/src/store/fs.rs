@@ -1,0 +1,158 @@
+//! The file-system primitives under the store and the study's outputs: whole-or-nothing writes,
+//! lock files, and the removal of leftovers, which never follows a symbolic link out of the
+//! results. Every failure names its path.
+
+use std::fmt;
+use std::fs::File;
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// A file-system failure and the path it happened on.
+#[derive(Debug)]
+pub struct FileError {
+    /// What was tried: "write", "create", "read", "lock".
+    pub action: &'static str,
+    pub path: PathBuf,
+    pub source: io::Error,
+}
+
+impl FileError {
+    pub fn new(action: &'static str, path: &Path, source: io::Error) -> FileError {
+        FileError {
+            action,
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// A `map_err` for an action on `path`.
+    pub fn on<'a>(
+        action: &'static str,
+        path: &'a Path,
+    ) -> impl FnOnce(io::Error) -> FileError + 'a {
+        move |source| FileError::new(action, path, source)
+    }
+}
+
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "cannot {} {}: {}",
+            self.action,
+            self.path.display(),
+            self.source
+        )
+    }
+}
+
+impl From<FileError> for String {
+    fn from(e: FileError) -> String {
+        e.to_string()
+    }
+}
+
+/// Where a file is written before it is renamed into place: hidden (readers skip dot files)
+/// and named for this process, so that processes writing the same file do not mix.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
+}
+
+/// Writes a file whole or not at all: to its partial path, then a rename.
+pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), FileError> {
+    let partial = partial_path(path);
+    std::fs::write(&partial, contents)
+        .map_err(FileError::on("write", &partial))
+        .and_then(|_| std::fs::rename(&partial, path).map_err(FileError::on("write", path)))
+        .inspect_err(|_| {
+            let _ = std::fs::remove_file(&partial);
+        })
+}
+
+/// Makes `dir` and its parents.
+pub fn create_dir(dir: &Path) -> Result<(), FileError> {
+    std::fs::create_dir_all(dir).map_err(FileError::on("create", dir))
+}
+
+/// The lock file `name` in `dir` (both made when missing), not yet locked.
+pub fn lock_file(dir: &Path, name: &str) -> Result<File, FileError> {
+    create_dir(dir)?;
+    let path = dir.join(name);
+    File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(FileError::on("open", &path))
+}
+
+/// Removes the files of `dir` whose names `stale` picks (a missing `dir` has none). A `dir`
+/// that is a symbolic link is left alone, and so is what a link inside it points to (the link
+/// itself may go): leftovers are cleared inside the results, never elsewhere.
+pub fn remove_where(dir: &Path, stale: impl Fn(&str) -> bool) {
+    let is_real_dir = std::fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_dir());
+    if !is_real_dir {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        // The entry's own type: a link is not followed.
+        let removable = entry.file_type().is_ok_and(|t| !t.is_dir());
+        if removable && stale(&entry.file_name().to_string_lossy()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn removal_never_reaches_through_a_symbolic_link() {
+        let root = std::env::temp_dir().join(format!("fs-links-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let outside = root.join("outside");
+        let results = root.join("results");
+        std::fs::create_dir_all(&outside).unwrap();
+        std::fs::create_dir_all(&results).unwrap();
+        let precious = outside.join(".thesis.partial");
+        std::fs::write(&precious, "years").unwrap();
+        // A linked directory, and a link to a file, both named like leftovers.
+        std::os::unix::fs::symlink(&outside, results.join("figures")).unwrap();
+        std::os::unix::fs::symlink(&precious, results.join(".link.partial")).unwrap();
+        let partial = |n: &str| n.ends_with(".partial");
+        remove_where(&results.join("figures"), partial);
+        remove_where(&results, partial);
+        assert!(precious.exists(), "a file outside the results was removed");
+        assert!(
+            std::fs::symlink_metadata(results.join(".link.partial")).is_err(),
+            "the link itself is a leftover and goes"
+        );
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn a_failed_write_names_its_path_and_leaves_nothing() {
+        let root = std::env::temp_dir().join(format!("fs-write-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        std::fs::create_dir_all(&root).unwrap();
+        std::fs::write(root.join("file"), "").unwrap();
+        // A path under a regular file: "Not a directory".
+        let path = root.join("file").join("record.json");
+        let error = write_atomically(&path, b"{}").unwrap_err();
+        assert!(error
+            .to_string()
+            .contains(&root.join("file").display().to_string()));
+        let long = root.join("x".repeat(300));
+        let error = write_atomically(&long, b"{}").unwrap_err();
+        assert!(error.to_string().contains("xxxxxxxx"), "{error}");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

@@ -1,0 +1,282 @@
+//! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
+//! (booleans, integers, floats, else text; arrays are kept as JSON text).
+
+use polars::prelude::*;
+use schema::record::Status;
+use serde_json::{Map, Value};
+use std::path::Path;
+
+/// A table row: named cells in column order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Row(Vec<(String, Value)>);
+
+impl Row {
+    /// A row as expression names, as a study's own `where` reads them: the case's fields by their
+    /// own names, then the other columns. A case field wins over a record column of the same name
+    /// (the record's `subdomains` is p², the case's p; its `backend` is the one `auto` chose), so a
+    /// figure's `where` means what the study's does; the record's value is the column when the case
+    /// leaves the field out.
+    pub fn expression_fields(&self) -> Map<String, Value> {
+        let mut fields = Map::new();
+        for (name, value) in self.cells() {
+            if let Some(field) = name.strip_prefix("case.") {
+                if !value.is_null() {
+                    fields.insert(field.to_string(), value.clone());
+                }
+            }
+        }
+        for (name, value) in self.cells() {
+            fields
+                .entry(name.to_string())
+                .or_insert_with(|| value.clone());
+        }
+        fields
+    }
+
+    pub fn get(&self, name: &str) -> Option<&Value> {
+        self.0.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+    }
+
+    pub fn number(&self, name: &str) -> Option<f64> {
+        self.get(name).and_then(Value::as_f64)
+    }
+
+    pub fn text(&self, name: &str) -> Option<&str> {
+        self.get(name).and_then(Value::as_str)
+    }
+
+    /// The run's status (`None` for a summary row whose repeats are `mixed`).
+    pub fn status(&self) -> Option<Status> {
+        self.text("status").and_then(Status::parse)
+    }
+
+    /// Sets a cell, in place if the column is there, else as a new last column.
+    pub fn set(&mut self, name: &str, value: Value) {
+        match self.0.iter_mut().find(|(n, _)| n == name) {
+            Some((_, cell)) => *cell = value,
+            None => self.0.push((name.to_string(), value)),
+        }
+    }
+
+    pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
+        self.0.iter().map(|(n, v)| (n.as_str(), v))
+    }
+
+    /// Sets a cell, or one cell per field of an object, named `name.field` (recursively).
+    pub fn set_flattened(&mut self, name: &str, value: &Value) {
+        match value {
+            Value::Object(fields) => {
+                for (field, inner) in fields {
+                    self.set_flattened(&format!("{name}.{field}"), inner);
+                }
+            }
+            _ => self.set(name, value.clone()),
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, PartialOrd)]
+enum ColumnType {
+    Boolean,
+    Integer,
+    Float,
+    Text,
+}
+
+fn column_type_of(value: &Value) -> Option<ColumnType> {
+    match value {
+        Value::Null => None,
+        Value::Bool(_) => Some(ColumnType::Boolean),
+        Value::Number(n) if n.is_i64() => Some(ColumnType::Integer),
+        Value::Number(_) => Some(ColumnType::Float),
+        _ => Some(ColumnType::Text),
+    }
+}
+
+/// The narrowest type holding every cell: integers widen to floats, anything else mixed to text.
+/// A column of nulls only is a float column.
+fn column_type<'a>(cells: impl Iterator<Item = &'a Value>) -> ColumnType {
+    cells
+        .filter_map(column_type_of)
+        .fold(None, |acc, kind| match acc {
+            None => Some(kind),
+            Some(k) if k == kind => Some(k),
+            Some(ColumnType::Integer | ColumnType::Float)
+                if matches!(kind, ColumnType::Integer | ColumnType::Float) =>
+            {
+                Some(ColumnType::Float)
+            }
+            Some(_) => Some(ColumnType::Text),
+        })
+        .unwrap_or(ColumnType::Float)
+}
+
+/// The rows as a data frame; its columns are the union of the rows' cells in first-seen order,
+/// a cell a row lacks being null.
+pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
+    let mut names: Vec<&str> = Vec::new();
+    for row in rows {
+        for (name, _) in row.cells() {
+            if !names.contains(&name) {
+                names.push(name);
+            }
+        }
+    }
+    let columns = names
+        .iter()
+        .map(|&name| {
+            let cells: Vec<&Value> = rows
+                .iter()
+                .map(|row| row.get(name).unwrap_or(&Value::Null))
+                .collect();
+            let name = PlSmallStr::from(name);
+            match column_type(cells.iter().copied()) {
+                ColumnType::Boolean => {
+                    Column::new(name, cells.iter().map(|v| v.as_bool()).collect::<Vec<_>>())
+                }
+                ColumnType::Integer => {
+                    Column::new(name, cells.iter().map(|v| v.as_i64()).collect::<Vec<_>>())
+                }
+                ColumnType::Float => {
+                    Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
+                }
+                ColumnType::Text => {
+                    Column::new(name, cells.iter().map(|v| text_of(v)).collect::<Vec<_>>())
+                }
+            }
+        })
+        .collect();
+    DataFrame::new(rows.len(), columns)
+}
+
+fn text_of(value: &Value) -> Option<String> {
+    match value {
+        Value::Null => None,
+        Value::String(s) => Some(s.clone()),
+        other => Some(other.to_string()),
+    }
+}
+
+/// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
+/// process) that is synced, and only once all are written are they renamed into place.
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, String> {
+    let mut written = Vec::new();
+    let mut frames = Vec::new();
+    let mut outcome = Ok(());
+    for (path, rows) in tables {
+        let partial = crate::store::fs::partial_path(path);
+        written.push((partial.clone(), path.to_path_buf()));
+        match write_one(&partial, rows) {
+            Ok(frame) => frames.push(frame),
+            Err(e) => {
+                outcome = Err(format!("cannot write {}: {e}", path.display()));
+                break;
+            }
+        }
+    }
+    if outcome.is_ok() {
+        for (partial, path) in &written {
+            std::fs::rename(partial, path)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        }
+        return Ok(frames);
+    }
+    for (partial, _) in &written {
+        let _ = std::fs::remove_file(partial);
+    }
+    outcome.map(|_| frames)
+}
+
+/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null).
+pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot read {}: {e}", path.display());
+    let file = std::fs::File::open(path).map_err(|e| fail(&e))?;
+    let frame = ParquetReader::new(file).finish().map_err(|e| fail(&e))?;
+    let mut rows = vec![Row::default(); frame.height()];
+    for column in frame.columns() {
+        for (i, row) in rows.iter_mut().enumerate() {
+            let value = match column.get(i).map_err(|e| fail(&e))? {
+                AnyValue::Boolean(b) => Value::from(b),
+                AnyValue::Int64(v) => Value::from(v),
+                AnyValue::Float64(v) => {
+                    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
+                }
+                AnyValue::String(s) => Value::from(s),
+                AnyValue::StringOwned(s) => Value::from(s.as_str()),
+                _ => Value::Null,
+            };
+            row.set(column.name(), value);
+        }
+    }
+    Ok(rows)
+}
+
+fn write_one(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
+    let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
+    let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    ParquetWriter::new(&mut file)
+        .finish(&mut frame)
+        .map_err(|e| e.to_string())?;
+    file.sync_all().map_err(|e| e.to_string())?;
+    Ok(frame)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn row(value: Value) -> Row {
+        let mut row = Row::default();
+        for (name, value) in value.as_object().unwrap() {
+            row.set_flattened(name, value);
+        }
+        row
+    }
+
+    #[test]
+    fn columns_take_the_narrowest_type_of_their_cells() {
+        let rows = [
+            row(json!({"n": 8, "h": 1, "ok": true, "case": {"dim": 2}, "c_tot": [1.0, 2.0]})),
+            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no"})),
+        ];
+        let frame = data_frame(&rows).unwrap();
+        let names: Vec<&str> = frame
+            .get_column_names()
+            .iter()
+            .map(|n| n.as_str())
+            .collect();
+        // JSON objects iterate in name order; a column first seen in a later row comes last.
+        assert_eq!(names, ["c_tot", "case.dim", "h", "n", "ok", "message"]);
+        let dtype = |name: &str| frame.column(name).unwrap().dtype().clone();
+        assert_eq!(dtype("n"), DataType::Int64);
+        assert_eq!(dtype("h"), DataType::Float64);
+        assert_eq!(dtype("ok"), DataType::Boolean);
+        assert_eq!(dtype("c_tot"), DataType::String);
+        let c_tot = frame.column("c_tot").unwrap();
+        assert_eq!(c_tot.get(0).unwrap(), AnyValue::String("[1.0,2.0]"));
+        assert_eq!(c_tot.get(1).unwrap(), AnyValue::Null);
+        assert_eq!(
+            frame.column("h").unwrap().get(1).unwrap(),
+            AnyValue::Float64(0.5)
+        );
+    }
+
+    #[test]
+    fn a_case_field_wins_over_the_record_column_of_the_same_name() {
+        // FETI's record holds p² subdomains and the backend `auto` chose; the case holds p and
+        // `auto`. A figure's `where` speaks the study's language: the case's.
+        let mut row = Row::default();
+        row.set("subdomains", json!(16));
+        row.set("backend", json!("stencil"));
+        row.set("collar", json!("zero"));
+        row.set("case.subdomains", json!(4));
+        row.set("case.backend", json!("auto"));
+        row.set("case.collar", serde_json::Value::Null);
+        let named = row.expression_fields();
+        assert_eq!(named["subdomains"], json!(4));
+        assert_eq!(named["backend"], json!("auto"));
+        // A field the case leaves out is the record's resolved value.
+        assert_eq!(named["collar"], json!("zero"));
+    }
+}
