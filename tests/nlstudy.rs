@@ -270,7 +270,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let results = || absolute(scratch.dir.join("results"));
     let command = |launcher: &str| {
         format!(
-            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only {}\n",
+            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
             binary("nlstudy").display(),
             absolute(scratch.study()),
             results(),
@@ -286,10 +286,13 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let expected = format!(
         "#!/bin/bash\n#SBATCH --job-name=nlstudy-two-0\n#SBATCH --nodes=1\n#SBATCH --ntasks=2\n\
          #SBATCH --cpus-per-task=2\n#SBATCH --time=01:30:00\n#SBATCH --partition=normal\n\
-         #SBATCH --account=nonlocal\n#SBATCH --output={jobs}/nlstudy-two-0.%j.out\n{}",
+         #SBATCH --account=nonlocal\n#SBATCH --output=\"{jobs}/nlstudy-two-0.%j.out\"\n{}",
         command("srun --mpi=pmix -n {ranks}")
     );
     assert_eq!(script, expected);
+    // The structure both schedulers' scripts share (Slurm's also runs under a real sbatch in
+    // tests/slurm.rs; LSF's can only be read here).
+    check_job_structure(&script, "#SBATCH", &keys);
 
     let lsf = scratch.nlstudy(
         "submit",
@@ -306,17 +309,18 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     assert!(lsf.status.success(), "{}", text(&lsf));
     let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.bsub")).unwrap();
     let expected = format!(
-        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 01:30\n\
-         #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -o {jobs}/nlstudy-two-0.%J.out\n{}",
+        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 1:30\n\
+         #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -o \"{jobs}/nlstudy-two-0.%J.out\"\n{}",
         command("mpirun -n {ranks}")
     );
     assert_eq!(script, expected);
-    // The structure both schedulers' scripts share (Slurm's also runs under a real sbatch in
-    // tests/slurm.rs; LSF's can only be read here).
-    for (extension, directive) in [("sbatch", "#SBATCH"), ("bsub", "#BSUB")] {
-        let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.{extension}")).unwrap();
-        check_job_structure(&script, directive, &keys);
-    }
+    check_job_structure(&script, "#BSUB", &keys);
+    // The Slurm script of the first submit is archived, not left beside the LSF one.
+    assert!(!Path::new(&format!("{jobs}/nlstudy-two-0.sbatch")).exists());
+    let archived = std::fs::read_dir(format!("{jobs}/archive"))
+        .unwrap()
+        .count();
+    assert_eq!(archived, 1);
 
     // Retries pass on to each job's nlstudy run.
     let retrying = scratch.nlstudy(
@@ -339,7 +343,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     );
     let second = std::fs::read_to_string(format!("{jobs}/nlstudy-two-1.sbatch")).unwrap();
     assert!(
-        second.ends_with(&format!("--only {}\n", keys[1])),
+        second.ends_with(&format!("--only '{}'\n", keys[1])),
         "{second}"
     );
 }
@@ -511,7 +515,7 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
         "{}",
         body[1]
     );
-    assert_eq!(value_of("--only"), keys.join(","));
+    assert_eq!(value_of("--only"), format!("'{}'", keys.join(",")));
     let asked = |option: &str| -> usize {
         let line = lines[..directives]
             .iter()

@@ -403,7 +403,7 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
         "flaky-launcher",
         "marker=\"$(dirname \"$0\")/killed-once\"\n\
          if [ ! -e \"$marker\" ]; then touch \"$marker\"; kill -9 $$; fi\n\
-         exec mpirun --oversubscribe -n 2 \"$@\"\n",
+         exec mpirun --oversubscribe \"$@\"\n",
     );
     let out = scratch.nlstudy(
         "run",
@@ -442,11 +442,12 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
 }
 
 /// An executable shell script in the scratch directory, to stand in for an MPI launcher that
-/// misbehaves the way a real one can; returns its path.
+/// misbehaves the way a real one can; returns the launcher line that starts it.
 fn launcher_script(scratch: &Scratch, name: &str, body: &str) -> String {
     use std::os::unix::fs::PermissionsExt;
     let path = scratch.dir.join(name);
     std::fs::write(&path, format!("#!/bin/sh\n{body}")).unwrap();
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-    path.to_string_lossy().into_owned()
+    // Launchers say where the rank count goes; these take it as mpirun does.
+    format!("'{}' -n {{ranks}}", path.display())
 }
