@@ -451,3 +451,272 @@ fn launcher_script(scratch: &Scratch, name: &str, body: &str) -> String {
     // Launchers say where the rank count goes; these take it as mpirun does.
     format!("'{}' -n {{ranks}}", path.display())
 }
+
+/// No panic text in what a process printed.
+fn assert_no_panic(out: &std::process::Output) {
+    let said = text(out);
+    assert!(
+        !said.contains("panicked") && !said.contains("RUST_BACKTRACE"),
+        "{said}"
+    );
+}
+
+/// `nlstudy run S 2>&1 | head -1`, a `tee` that died, `plan | head -1`: output nobody reads
+/// never stops a study nor panics; a broken pipe ends a listing quietly with exit 0, and a full
+/// stdout (/dev/full) is reported with the I/O exit status.
+#[test]
+fn output_nobody_reads_never_stops_a_study_nor_panics() {
+    let scratch = Scratch::new("closed-output", &short_study("closed", &[16, 24]));
+    let mut run = scratch.spawn("run", &[]);
+    // Both ends closed before the first case finishes.
+    drop(run.stdout.take());
+    drop(run.stderr.take());
+    let status = run.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    assert_whole(&scratch, "closed", 4, "run into a closed pipe");
+    for verb in ["plan", "collect", "status", "table"] {
+        let extra: &[&str] = match verb {
+            "table" => &["--rows", "n,threads", "--value", "error_l2_norm"],
+            _ => &[],
+        };
+        let mut child = scratch
+            .command(verb, extra)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(0), "{verb}: {}", text(&out));
+        assert_no_panic(&out);
+        let full = scratch
+            .command(verb, extra)
+            .stdout(
+                std::fs::File::options()
+                    .write(true)
+                    .open("/dev/full")
+                    .unwrap(),
+            )
+            .output()
+            .unwrap();
+        assert_eq!(full.status.code(), Some(3), "{verb}: {}", text(&full));
+        assert!(
+            text(&full).contains("cannot write to standard output"),
+            "{}",
+            text(&full)
+        );
+        assert_no_panic(&full);
+    }
+}
+
+/// A tmpfs of `size` mounted at `dir` for the life of the value (root only).
+struct Tmpfs(PathBuf);
+
+impl Tmpfs {
+    fn mount(dir: &Path, size: &str) -> Option<Tmpfs> {
+        std::fs::create_dir_all(dir).unwrap();
+        let mounted = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir)
+            .output()
+            .is_ok_and(|o| o.status.success());
+        mounted.then(|| Tmpfs(dir.to_path_buf()))
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+/// Fills the file system under `dir` with `filler` until it is full.
+fn fill(filler: &Path) {
+    use std::io::Write;
+    let mut file = std::fs::File::create(filler).unwrap();
+    let block = vec![0u8; 4096];
+    while file.write_all(&block).is_ok() {}
+    let _ = file.sync_all();
+}
+
+/// A store on a full disk: the run stops with the I/O exit status, names the path, stores no
+/// point as failed, and once space is freed the next run runs every point.
+#[test]
+fn a_full_disk_stores_nothing_failed_and_the_next_run_resumes() {
+    let scratch = Scratch::new("full-disk", &short_study("full", &[16]));
+    let results = scratch.dir.join("results");
+    let Some(_mounted) = Tmpfs::mount(&results, "1m") else {
+        eprintln!("skipped: mounting a tmpfs needs root");
+        return;
+    };
+    let filler = results.join("filler");
+    fill(&filler);
+    let out = scratch.nlstudy("run", &[]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(
+        text(&out).contains(&results.display().to_string()),
+        "the message names the path: {}",
+        text(&out)
+    );
+    assert_no_panic(&out);
+    assert!(records(&scratch.runs("full")).is_empty());
+    std::fs::remove_file(&filler).unwrap();
+    let again = scratch.nlstudy("run", &[]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert_whole(&scratch, "full", 2, "after space is freed");
+}
+
+/// nlsolve's exit 74 (it computed a record but could not write it): the file system's fault, not
+/// the case's. The run stops with the I/O exit status naming the file, stores nothing, and the
+/// point runs again next time.
+#[test]
+fn a_record_nlsolve_could_not_write_is_not_stored_as_a_failure() {
+    let scratch = Scratch::new("unwritten", &short_study("unwritten", &[16]));
+    let solver = scratch.dir.join("nlsolve-disk-full");
+    std::fs::write(
+        &solver,
+        format!(
+            "#!/bin/sh\nif [ \"$1\" = run ]; then echo 'nlsolve: cannot write the record to standard output: No space left on device (os error 28)' >&2; exit 74; fi\nexec '{}' \"$@\"\n",
+            nonlocal_study::binary("nlsolve").display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&solver, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let out = scratch.nlstudy("run", &["--solver", solver.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
+    assert!(
+        text(&out).contains(".out") && text(&out).contains("No space left"),
+        "{}",
+        text(&out)
+    );
+    assert!(records(&scratch.runs("unwritten")).is_empty());
+    let again = scratch.nlstudy("run", &[]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert_whole(&scratch, "unwritten", 2, "with a working solver");
+}
+
+/// Hostile or careless input, each refused before anything runs: exit 2, a sentence naming the
+/// field or flag, no panic, no job script written.
+#[test]
+fn hostile_input_is_refused_naming_the_field() {
+    let base = json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.001, "cfl": 0.5});
+    let with = |extra: Value| {
+        let mut study = json!({"name": "hostile", "base": base});
+        study
+            .as_object_mut()
+            .unwrap()
+            .extend(extra.as_object().unwrap().clone());
+        study
+    };
+    let deep = format!("{}n{} > 1", "(".repeat(10_000), ")".repeat(10_000));
+    let minus = format!("{}n > 1", "-".repeat(100_000));
+    let big: Vec<u64> = (0..1000).collect();
+    let cases: Vec<(Value, &str, Vec<&str>, &str)> = vec![
+        (
+            with(json!({"resources": {"queue": "debug\ntouch /tmp/pwned"}})),
+            "submit",
+            vec!["--scheduler", "slurm", "--dry-run"],
+            "resources.queue",
+        ),
+        (
+            with(json!({"resources": {"account": "x;touch /tmp/pwned"}})),
+            "submit",
+            vec!["--scheduler", "lsf", "--dry-run"],
+            "resources.account",
+        ),
+        (
+            with(json!({"resources": {"time": "01:00:00\ntouch /tmp/pwned"}})),
+            "submit",
+            vec!["--scheduler", "slurm", "--dry-run"],
+            "resources.time",
+        ),
+        (
+            with(json!({})),
+            "submit",
+            vec![
+                "--scheduler",
+                "slurm",
+                "--dry-run",
+                "--queue",
+                "a\ntouch /tmp/pwned",
+            ],
+            "--queue",
+        ),
+        (
+            with(json!({})),
+            "submit",
+            vec!["--scheduler", "slurm", "--dry-run", "--time", "30x"],
+            "--time",
+        ),
+        (
+            with(json!({})),
+            "submit",
+            vec!["--scheduler", "lsf", "--dry-run", "--nodes", "0"],
+            "--nodes",
+        ),
+        (
+            with(json!({})),
+            "run",
+            vec!["--timeout", "inf"],
+            "--timeout",
+        ),
+        (
+            with(json!({"timeout_s": 1e300})),
+            "run",
+            vec![],
+            "timeout_s",
+        ),
+        (
+            with(json!({"where": [deep]})),
+            "plan",
+            vec![],
+            "nested deeper",
+        ),
+        (
+            with(json!({"where": [minus]})),
+            "plan",
+            vec![],
+            "nested deeper",
+        ),
+        (
+            with(json!({"sweep": [{"product": {"a": big, "b": big, "c": big}}]})),
+            "plan",
+            vec![],
+            "expands to",
+        ),
+        (
+            with(json!({})),
+            "run",
+            vec!["--only", "0123456789abcdef"],
+            "0123456789abcdef",
+        ),
+        (
+            with(json!({})),
+            "run",
+            vec!["--launcher", "mpirun -n 2"],
+            "{ranks}",
+        ),
+        (
+            with(json!({"sweep": [{"branches": {"a\u{1b}[2J": [{"product": {"n": [8]}}]}}]})),
+            "plan",
+            vec![],
+            "control character",
+        ),
+    ];
+    for (k, (study, verb, extra, names)) in cases.into_iter().enumerate() {
+        let scratch = Scratch::new(&format!("hostile-{k}"), &study);
+        let out = scratch.nlstudy(verb, &extra);
+        assert_eq!(out.status.code(), Some(2), "case {k}: {}", text(&out));
+        assert!(text(&out).contains(names), "case {k}: {}", text(&out));
+        assert_no_panic(&out);
+        let jobs = scratch.dir.join("results/hostile/jobs");
+        assert!(
+            files_under(&jobs)
+                .iter()
+                .all(|f| f.extension().is_none_or(|x| x != "sbatch" && x != "bsub")),
+            "case {k}: a script was written"
+        );
+    }
+    assert!(!Path::new("/tmp/pwned").exists());
+}
