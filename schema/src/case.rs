@@ -7,8 +7,8 @@
 //! `nlstudy` read the same case.
 
 use crate::choices::*;
+use crate::error::{field_names, FieldError, Subject};
 use serde::{Deserialize, Serialize};
-use std::fmt;
 
 /// Seed 001's relative tolerance for the steady solvers.
 pub const DEFAULT_RTOL: f64 = 1e-5;
@@ -148,29 +148,15 @@ fn one_thread() -> usize {
     1
 }
 
-/// Bad input: the field at fault and one sentence saying what is wrong and how to fix it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CaseError {
-    pub field: String,
-    pub message: String,
+/// What a `CaseError` is about: a field of the case.
+pub struct CaseField;
+
+impl Subject for CaseField {
+    const NAME: &'static str = "case field";
 }
 
-impl CaseError {
-    pub fn new(field: &str, message: impl Into<String>) -> Self {
-        CaseError {
-            field: field.to_string(),
-            message: message.into(),
-        }
-    }
-}
-
-impl fmt::Display for CaseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "case field `{}`: {}", self.field, self.message)
-    }
-}
-
-impl std::error::Error for CaseError {}
+/// Bad input: the case field at fault and one sentence saying what is wrong and how to fix it.
+pub type CaseError = FieldError<CaseField>;
 
 impl Case {
     /// Parses a case from JSON, naming the offending field on any error. The fields' values are
@@ -179,29 +165,17 @@ impl Case {
         let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner().to_string();
-            // serde reports an unknown or missing field at the parent; name the field itself.
-            let field = field_named_in(&inner).unwrap_or(path);
-            CaseError::new(
-                &field,
+            CaseError::from_serde(
+                path,
                 format!("{inner}; see `nlsolve run --help` for the fields"),
             )
         })?;
         Ok(case)
     }
 
-    /// The names of every field, in the order of the struct: read from serde's refusal of an
-    /// unknown field, which lists them, so the list cannot drift from the struct.
-    pub fn field_names() -> Vec<String> {
-        let refusal = serde_json::from_value::<Case>(serde_json::json!({ "": 0 }))
-            .expect_err("an empty field name is unknown")
-            .to_string();
-        let expected = refusal.split("expected one of ").nth(1).unwrap_or_default();
-        expected
-            .split('`')
-            .skip(1)
-            .step_by(2)
-            .map(String::from)
-            .collect()
+    /// The names of every field, in the order of the struct.
+    pub fn field_names() -> &'static [&'static str] {
+        field_names::<Case>()
     }
 
     /// L of the local methods' domain.
@@ -238,16 +212,6 @@ impl Case {
     }
 }
 
-/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
-fn field_named_in(message: &str) -> Option<String> {
-    ["unknown field `", "missing field `"]
-        .iter()
-        .find_map(|prefix| {
-            let rest = message.strip_prefix(prefix)?;
-            Some(rest[..rest.find('`')?].to_string())
-        })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -255,8 +219,8 @@ mod tests {
     #[test]
     fn the_field_names_are_the_structs() {
         let names = Case::field_names();
-        assert_eq!(names.first().map(String::as_str), Some("method"));
-        assert_eq!(names.last().map(String::as_str), Some("local_domain"));
+        assert_eq!(names.first(), Some(&"method"));
+        assert_eq!(names.last(), Some(&"local_domain"));
         for name in [
             "dim",
             "n",
@@ -267,11 +231,23 @@ mod tests {
             "subdomains",
         ] {
             assert!(
-                names.iter().any(|f| f == name),
+                names.contains(&name),
                 "{name} missing from {names:?}"
             );
         }
-        assert_eq!(names.len(), 36, "{names:?}");
+        // Every field a case serializes is among them (the list cannot miss a field).
+        let full = Case::parse(serde_json::json!({"dim": 1, "n": 8, "m": 2, "eps": 0.1,
+            "source": "discrete", "length": 2.0, "t_end": 1.0, "dt": 0.1, "cfl": 0.5,
+            "diagnostics_every": 0.1, "histogram_bins": 4, "field_snapshot": 4, "vtk_every": 0.5,
+            "px": 1, "py": 1, "rtol": 1e-6, "max_iterations": 9, "subdomains": 2,
+            "preconditioner": "dirichlet", "formulation": "standard", "patch": "linear",
+            "local_domain": [0.75, 1.75], "quadrature": "ac", "collar": "exact",
+            "integrator": "rk4"}))
+        .unwrap();
+        let written = serde_json::to_value(&full).unwrap();
+        for field in written.as_object().unwrap().keys() {
+            assert!(names.contains(&field.as_str()), "{field} missing from {names:?}");
+        }
     }
 
     #[test]

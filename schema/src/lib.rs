@@ -5,5 +5,6 @@
 
 pub mod case;
 pub mod choices;
+pub mod error;
 pub mod json;
 pub mod record;

@@ -4,10 +4,10 @@
 use crate::model::expression::{self, Scope};
 use crate::model::figure_spec::FigureSpec;
 use crate::model::resources::Resources;
+use schema::error::{FieldError, Subject};
 use serde::Deserialize;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
-use std::fmt;
 use std::path::Path;
 
 /// A study file, as written.
@@ -152,27 +152,15 @@ impl Point {
     }
 }
 
+/// What a `StudyError` is about: a place in a study file (`sweep[1].zip.n`, `resources.time`).
+pub struct StudyPlace;
+
+impl Subject for StudyPlace {
+    const NAME: &'static str = "study";
+}
+
 /// Bad study file: where and what, in one sentence.
-#[derive(Debug, PartialEq)]
-pub struct StudyError {
-    pub place: String,
-    pub message: String,
-}
-
-impl StudyError {
-    pub(crate) fn new(place: impl Into<String>, message: impl Into<String>) -> Self {
-        StudyError {
-            place: place.into(),
-            message: message.into(),
-        }
-    }
-}
-
-impl fmt::Display for StudyError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "study `{}`: {}", self.place, self.message)
-    }
-}
+pub type StudyError = FieldError<StudyPlace>;
 
 impl Study {
     /// Reads and parses a study file, naming the field at fault.
@@ -200,14 +188,7 @@ impl Study {
         let mut deserializer = serde_json::Deserializer::from_str(text);
         let study: Study = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
             let path = e.path().to_string();
-            let message = e.into_inner().to_string();
-            // serde reports a missing field at its parent: name the field itself.
-            let place = match field_named_in(&message) {
-                Some(field) if path == "." => field,
-                Some(field) if !path.ends_with(&field) => format!("{path}.{field}"),
-                _ => path,
-            };
-            StudyError::new(place, message)
+            StudyError::from_serde(path, e.into_inner().to_string())
         })?;
         if !is_file_stem(&study.name) {
             return Err(StudyError::new(
@@ -362,16 +343,6 @@ fn is_file_stem(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
-/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
-fn field_named_in(message: &str) -> Option<String> {
-    ["unknown field `", "missing field `"]
-        .iter()
-        .find_map(|prefix| {
-            let rest = message.strip_prefix(prefix)?;
-            Some(rest[..rest.find('`')?].to_string())
-        })
-}
-
 /// The most points a study may expand to (repeats included), counted before they are made: a
 /// point costs about a kilobyte here and a line of `nlsolve check`, so 10⁶ is a gigabyte.
 pub const MOST_POINTS: usize = 1_000_000;
@@ -486,7 +457,7 @@ impl SweepGroup {
                                 format!(
                                     "{}.{name}{}",
                                     place("branches"),
-                                    e.place.trim_start_matches("sweep")
+                                    e.field.trim_start_matches("sweep")
                                 ),
                                 e.message,
                             )
@@ -568,7 +539,7 @@ mod tests {
             "repeat": 3
         });
         let e = points(huge).unwrap_err();
-        assert_eq!(e.place, "sweep");
+        assert_eq!(e.field, "sweep");
         // 100³ × (100 + 100) × 3, none of them made.
         assert!(
             e.message.contains("expands to 600000000 points"),
@@ -605,7 +576,7 @@ mod tests {
         ];
         for (extra, place) in cases {
             let e = study(extra).unwrap_err();
-            assert_eq!(e.place, place);
+            assert_eq!(e.field, place);
             assert!(e.message.contains("control character"), "{}", e.message);
         }
     }
@@ -668,7 +639,7 @@ mod tests {
         .unwrap()
         .expand()
         .unwrap_err();
-        assert_eq!(bad.place, "sweep[0].branches.a[0].product.n", "{bad}");
+        assert_eq!(bad.field, "sweep[0].branches.a[0].product.n", "{bad}");
     }
 
     #[test]
@@ -794,7 +765,7 @@ mod tests {
 
     #[test]
     fn malformed_studies_name_the_place() {
-        let place = |study: Value| points(study).unwrap_err().place;
+        let place = |study: Value| points(study).unwrap_err().field;
         assert_eq!(place(json!({"name": "s"})), "base");
         assert_eq!(
             place(json!({"name": "s", "base": {}, "colour": 1})),
@@ -836,7 +807,7 @@ mod tests {
         // JSON text, not a Value: a key given twice in a map (`base`) would keep the last.
         let twice = Study::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);
         let error = twice.map(|_| ()).unwrap_err();
-        assert_eq!(error.place, "file");
+        assert_eq!(error.field, "file");
         assert!(
             error.message.contains("the key `dim` is given twice"),
             "{error}"

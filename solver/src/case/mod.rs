@@ -310,7 +310,7 @@ pub(crate) fn refuse_given(
     message: impl Fn(&str) -> String,
 ) -> Result<(), CaseError> {
     match fields.iter().find(|(_, given)| *given) {
-        Some((field, _)) => Err(CaseError::new(field, message(field))),
+        Some((field, _)) => Err(CaseError::new(*field, message(field))),
         None => Ok(()),
     }
 }

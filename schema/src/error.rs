@@ -1,0 +1,148 @@
+//! Bad input, in one shape for a case and a study file: the field (or place) at fault and one
+//! sentence saying what is wrong and how to fix it; and what serde knows of a struct's fields.
+
+use serde::de::{self, Deserialize, Deserializer, Visitor};
+use std::fmt;
+use std::marker::PhantomData;
+
+/// What a `FieldError` is about, as its message begins: "case field `n`: …", "study `sweep`: …".
+pub trait Subject {
+    const NAME: &'static str;
+}
+
+/// The field or place at fault and one sentence.
+pub struct FieldError<S: Subject> {
+    pub field: String,
+    pub message: String,
+    subject: PhantomData<S>,
+}
+
+impl<S: Subject> FieldError<S> {
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        FieldError {
+            field: field.into(),
+            message: message.into(),
+            subject: PhantomData,
+        }
+    }
+
+    /// A refusal by serde (through `serde_path_to_error`): at `path`, saying `message`. serde
+    /// reports an unknown or missing field at its parent; the error names the field itself.
+    pub fn from_serde(path: String, message: String) -> Self {
+        let field = match field_named_in(&message) {
+            None => path,
+            Some(field) if path == "." || path.is_empty() => field,
+            Some(field) if path.ends_with(&field) => path,
+            Some(field) => format!("{path}.{field}"),
+        };
+        FieldError::new(field, message)
+    }
+}
+
+impl<S: Subject> Clone for FieldError<S> {
+    fn clone(&self) -> Self {
+        FieldError::new(self.field.clone(), self.message.clone())
+    }
+}
+
+impl<S: Subject> PartialEq for FieldError<S> {
+    fn eq(&self, other: &Self) -> bool {
+        (&self.field, &self.message) == (&other.field, &other.message)
+    }
+}
+
+impl<S: Subject> fmt::Debug for FieldError<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct(S::NAME)
+            .field("field", &self.field)
+            .field("message", &self.message)
+            .finish()
+    }
+}
+
+impl<S: Subject> fmt::Display for FieldError<S> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} `{}`: {}", S::NAME, self.field, self.message)
+    }
+}
+
+impl<S: Subject> std::error::Error for FieldError<S> {}
+
+/// The field a serde message like "unknown field `x`, expected …" or "missing field `x`" names.
+fn field_named_in(message: &str) -> Option<String> {
+    ["unknown field `", "missing field `"]
+        .iter()
+        .find_map(|prefix| {
+            let rest = message.strip_prefix(prefix)?;
+            Some(rest[..rest.find('`')?].to_string())
+        })
+}
+
+/// The fields of struct `T` in declaration order, as its derived `Deserialize` hands them to the
+/// deserializer: from the type itself, so the list cannot drift from the struct.
+pub fn field_names<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    let mut names = FieldNames(&[]);
+    let _ = T::deserialize(&mut names);
+    names.0
+}
+
+/// A deserializer that only listens: it keeps the field list `deserialize_struct` is given.
+struct FieldNames(&'static [&'static str]);
+
+impl<'de> Deserializer<'de> for &mut FieldNames {
+    type Error = de::value::Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Self::Error> {
+        Err(de::Error::custom("not a struct"))
+    }
+
+    fn deserialize_struct<V: Visitor<'de>>(
+        self,
+        _: &'static str,
+        fields: &'static [&'static str],
+        _: V,
+    ) -> Result<V::Value, Self::Error> {
+        self.0 = fields;
+        Err(de::Error::custom("only the field names were asked"))
+    }
+
+    serde::forward_to_deserialize_any! {
+        bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
+        option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
+        ignored_any
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Thing;
+    impl Subject for Thing {
+        const NAME: &'static str = "thing";
+    }
+
+    #[test]
+    fn serde_refusals_name_the_field_itself() {
+        let at = |path: &str, message: &str| {
+            FieldError::<Thing>::from_serde(path.into(), message.into()).field
+        };
+        assert_eq!(at(".", "unknown field `kernal`, expected one of …"), "kernal");
+        assert_eq!(at("resources", "missing field `x`"), "resources.x");
+        assert_eq!(at("base.n", "invalid type: string, expected usize"), "base.n");
+        let e = FieldError::<Thing>::new("n", "must be at least 1");
+        assert_eq!(e.to_string(), "thing `n`: must be at least 1");
+    }
+
+    #[test]
+    fn field_names_come_from_the_type() {
+        #[derive(serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Two {
+            first: u8,
+            #[serde(rename = "second_renamed")]
+            second: u8,
+        }
+        assert_eq!(field_names::<Two>(), ["first", "second_renamed"]);
+    }
+}
