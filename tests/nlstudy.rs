@@ -1,7 +1,7 @@
 //! `nlstudy` as a process: make-style runs, failures stored and re-run on request, a changed
 //! solver version explained, and an interrupted run resumed with nothing lost or duplicated.
 
-use nonlocal_study::{binary, records, text, Scratch};
+use nonlocal_study::{binary, planned_keys, records, stored_keys, text, Scratch};
 use polars::prelude::{DataFrame, DataType, ParquetReader, SerReader};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -241,9 +241,11 @@ fn an_interrupted_run_resumes_with_every_record_once() {
     assert!(resumed.status.success(), "{}", text(&resumed));
     let stored = records(&scratch.runs("long"));
     assert_eq!(stored.len(), 6, "every point once");
-    let mut keys: Vec<&str> = stored.iter().map(|r| r["key"].as_str().unwrap()).collect();
-    keys.dedup();
-    assert_eq!(keys.len(), 6);
+    assert_eq!(
+        stored_keys(&stored),
+        planned_keys(&scratch),
+        "the study's points"
+    );
     assert!(stored.iter().all(|r| r["status"] == "ok"));
 }
 

@@ -2,7 +2,7 @@
 //! `collect` killed (SIGKILL) at random moments and resumed, records that are not whole, and an
 //! MPI rank killed mid-run. docs/reliability.md lists what each shows.
 
-use nonlocal_study::{records, text, Scratch};
+use nonlocal_study::{planned_keys, records, stored_keys, text, Scratch};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
@@ -51,10 +51,11 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
 fn assert_whole(scratch: &Scratch, study: &str, points: usize, context: &str) {
     let stored = records(&scratch.runs(study));
     assert_eq!(stored.len(), points, "{context}: one record per point");
-    let mut keys: Vec<&str> = stored.iter().map(|r| r["key"].as_str().unwrap()).collect();
-    keys.sort();
-    keys.dedup();
-    assert_eq!(keys.len(), points, "{context}: every key once");
+    assert_eq!(
+        stored_keys(&stored),
+        planned_keys(scratch),
+        "{context}: a record of every point of the study"
+    );
     assert!(
         stored.iter().all(|r| r["status"] == "ok"),
         "{context}: {stored:?}"

@@ -7,7 +7,7 @@
 //! One test, one Slurm: the daemons listen on fixed ports. It is skipped, saying so, only where
 //! the packages cannot be installed.
 
-use nonlocal_study::{records, text, Scratch};
+use nonlocal_study::{planned_keys, records, stored_keys, text, Scratch};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -143,9 +143,11 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     };
     assert_eq!(stored.len(), 4, "job output: {}", logs());
     assert!(stored.iter().all(|r| r["status"] == "ok"), "{stored:?}");
-    let mut keys: Vec<&str> = stored.iter().map(|r| r["key"].as_str().unwrap()).collect();
-    keys.dedup();
-    assert_eq!(keys.len(), 4);
+    assert_eq!(
+        stored_keys(&stored),
+        planned_keys(&scratch),
+        "the study's points"
+    );
     assert!(
         stored.iter().any(|r| r["ranks"] == 2),
         "the MPI case ran on 2 ranks"

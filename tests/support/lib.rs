@@ -186,6 +186,26 @@ pub fn text(output: &Output) -> String {
     )
 }
 
+/// The keys `nlstudy plan` lists for the study of `scratch`, each once: the points a store
+/// should hold records of.
+pub fn planned_keys(scratch: &Scratch) -> std::collections::BTreeSet<String> {
+    let plan = scratch.nlstudy("plan", &[]);
+    String::from_utf8_lossy(&plan.stdout)
+        .lines()
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|word| word.len() == 32 && word.bytes().all(|b| b.is_ascii_hexdigit()))
+        .map(String::from)
+        .collect()
+}
+
+/// The keys of `records`, each once.
+pub fn stored_keys(records: &[Value]) -> std::collections::BTreeSet<String> {
+    records
+        .iter()
+        .map(|r| r["key"].as_str().expect("a key").to_string())
+        .collect()
+}
+
 /// The stored records, by file name.
 pub fn records(runs: &Path) -> Vec<Value> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)

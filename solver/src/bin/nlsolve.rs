@@ -1,5 +1,11 @@
 //! `nlsolve`: runs one case and prints its record as one JSON line on stdout, with a short human
-//! summary on stderr. Bad input exits with code 2 and one sentence naming the field.
+//! summary on stderr.
+//!
+//! Exit statuses (also in `--help`): 0 when the record (the report, the verdicts) was written; 1
+//! when MPI could not start; 2 for bad input, with one sentence naming the field; 74
+//! (`EXIT_IO`) when the record, the verdicts or a `--write-*` file could not be written, with
+//! one line saying what and why. A failed write to stderr (the summary, a message) is ignored:
+//! there is nowhere left to report it, and it says nothing about the result.
 
 use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -10,8 +16,24 @@ use solver::output::record::Record;
 use solver::output::vtk;
 use solver::{Outcome, ValidCase};
 use std::io::{Read, Write};
+use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+/// Exit status of bad input (a case, a flag, a case file that cannot be read).
+const EXIT_BAD_INPUT: u8 = 2;
+
+/// Exit status when what nlsolve was asked to write could not be written (standard output
+/// closed, a broken pipe, a full disk, a `--write-*` path that cannot be written): sysexits'
+/// EX_IOERR, so that a caller tells a lost record from a bad case and from a run that finished.
+const EXIT_IO: u8 = 74;
+
+/// The exit statuses, as `--help` lists them.
+const EXIT_STATUSES: &str =
+    "Exit status: 0 when the record (the report, the verdicts) was written; \
+1 when MPI could not start; 2 for bad input (one line on stderr naming the field); 74 (EX_IOERR) \
+when the record, the verdicts or a --write-* file could not be written (standard output closed \
+or full, a broken pipe, a path that cannot be written), with one line on stderr saying which.";
 
 #[derive(Parser)]
 #[command(
@@ -192,6 +214,64 @@ struct CaseArgs {
 
 /// Bad input: a message for the user, exit code 2.
 struct BadInput(String);
+
+/// Why nlsolve stops without success; each kind has its exit status.
+enum Failure {
+    /// Bad input: one sentence naming the field, `EXIT_BAD_INPUT`.
+    BadInput(String),
+    /// An output could not be written (the message names it and the error): `EXIT_IO`.
+    Output(String),
+}
+
+impl From<BadInput> for Failure {
+    fn from(BadInput(message): BadInput) -> Self {
+        Failure::BadInput(message)
+    }
+}
+
+/// Writes one line to standard error, ignoring a failure: a closed or full stderr must not turn
+/// a finished run into a crash (`eprintln!` panics), and there is nowhere left to report it.
+fn note(line: &str) {
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
+/// Standard output as a file of its own (a duplicate of descriptor 1). `std::io::stdout`
+/// reports a write to a closed descriptor as a success, so a record written there would be lost
+/// with exit status 0; through this file every failure (EBADF, EPIPE, ENOSPC) is an error, and
+/// so is a standard output that was closed when nlsolve started.
+fn standard_output() -> std::io::Result<std::fs::File> {
+    if standard_output_was_closed() {
+        return Err(std::io::Error::other("it was closed when nlsolve started"));
+    }
+    let descriptor = std::io::stdout().as_fd().try_clone_to_owned()?;
+    Ok(std::fs::File::from(descriptor))
+}
+
+/// Was standard output closed when nlsolve started (`nlsolve run … >&-`)? Rust's runtime then
+/// opens /dev/null for reading and writing in its place, so that no later file takes descriptor
+/// 1, and every write succeeds. A shell's `>/dev/null`, or `Stdio::null()`, opens it for writing
+/// only, so /dev/null open for reading and writing is the runtime's mark. False where /proc
+/// does not tell.
+fn standard_output_was_closed() -> bool {
+    let on_null =
+        std::fs::read_link("/proc/self/fd/1").is_ok_and(|target| target == Path::new("/dev/null"));
+    // fdinfo's `flags:` are the open flags in octal; the access mode is their two low bits.
+    let read_write = || {
+        let info = std::fs::read_to_string("/proc/self/fdinfo/1").ok()?;
+        let flags = info.lines().find_map(|line| line.strip_prefix("flags:"))?;
+        u32::from_str_radix(flags.trim(), 8).ok()
+    };
+    on_null && read_write().is_some_and(|flags| flags & 0o3 == 0o2)
+}
+
+/// Writes `line` and a newline to standard output; `what` names it in the error (`the record`).
+fn print_line(line: &str, what: &str) -> Result<(), Failure> {
+    let failed =
+        |e: std::io::Error| Failure::Output(format!("cannot write {what} to standard output: {e}"));
+    let mut out = standard_output().map_err(failed)?;
+    out.write_all(format!("{line}\n").as_bytes())
+        .map_err(failed)
+}
 
 impl CaseArgs {
     /// The case: the file's fields (if any) with the flags' fields set on top.
@@ -396,7 +476,9 @@ fn parse_command_line() -> Result<Cli, BadInput> {
         .find_subcommand_mut("run")
         .expect("the run subcommand exists")
         .render_help();
-    let command = command.after_help(format!("`nlsolve run` takes these flags:\n\n{run_help}"));
+    let command = command.after_help(format!(
+        "{EXIT_STATUSES}\n\n`nlsolve run` takes these flags:\n\n{run_help}"
+    ));
     let matches = command.try_get_matches().map_err(|e| match e.kind() {
         ErrorKind::DisplayHelp
         | ErrorKind::DisplayVersion
@@ -424,7 +506,7 @@ fn main() -> ExitCode {
         true => match mpi::initialize_with_threading(mpi::Threading::Funneled) {
             Some((universe, _)) => Some(universe),
             None => {
-                eprintln!("nlsolve: MPI could not be initialised");
+                note("nlsolve: MPI could not be initialised");
                 return ExitCode::FAILURE;
             }
         },
@@ -432,27 +514,33 @@ fn main() -> ExitCode {
     };
     let world = universe.as_ref().map(|u| u.world());
     let rank0 = world.as_ref().is_none_or(|w| w.rank() == 0);
-    let result = parse_command_line().and_then(|cli| match cli.command {
-        Command::Run(args) => run(&args, world.as_ref()),
-        Command::Partition(args) => partition_report(&args),
-        Command::Check => check_cases(),
-    });
+    let result = parse_command_line()
+        .map_err(Failure::from)
+        .and_then(|cli| match cli.command {
+            Command::Run(args) => run(&args, world.as_ref()),
+            Command::Partition(args) => partition_report(&args),
+            Command::Check => check_cases(),
+        });
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(BadInput(message)) => {
+        Err(failure) => {
+            let (status, message) = match failure {
+                Failure::BadInput(message) => (EXIT_BAD_INPUT, message),
+                Failure::Output(message) => (EXIT_IO, message),
+            };
             if rank0 {
-                eprintln!("nlsolve: {message}");
+                note(&format!("nlsolve: {message}"));
             }
-            ExitCode::from(2)
+            ExitCode::from(status)
         }
     }
 }
 
 /// Runs the case (on every rank of `world` when started by MPI); rank 0 prints the record.
-fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInput> {
+fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), Failure> {
     let case = args.case.case()?;
     if args.write_diagnostics.is_some() && case.diagnostics_every.is_none() {
-        return Err(BadInput(
+        return Err(Failure::BadInput(
             "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
         ));
     }
@@ -479,15 +567,15 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), BadInpu
         write_vtk(dir, &outcome)?;
     }
     let line = serde_json::to_string(&outcome.record)
-        .map_err(|e| BadInput(format!("cannot write the record: {e}")))?;
-    println!("{line}");
-    eprintln!("{}", summary(&outcome.record));
+        .map_err(|e| Failure::Output(format!("cannot write the record: {e}")))?;
+    print_line(&line, "the record")?;
+    note(&summary(&outcome.record));
     Ok(())
 }
 
 /// Writes the outcome's frames (or its final field) into `dir` as `.vti` files, then the `.pvd`
 /// collection: a reader that finds the collection finds every frame it lists.
-fn write_vtk(dir: &Path, outcome: &Outcome) -> Result<(), BadInput> {
+fn write_vtk(dir: &Path, outcome: &Outcome) -> Result<(), Failure> {
     let t_final = outcome.record.steps_done as f64 * outcome.record.resolved.dt;
     let frames: Vec<(f64, &[f64])> = match outcome.frames.is_empty() {
         true => vec![(t_final, &outcome.field)],
@@ -498,7 +586,7 @@ fn write_vtk(dir: &Path, outcome: &Outcome) -> Result<(), BadInput> {
             .collect(),
     };
     std::fs::create_dir_all(dir).map_err(|e| {
-        BadInput(format!(
+        Failure::Output(format!(
             "cannot create {}: {e}; check the path given to --write-vtk",
             dir.display()
         ))
@@ -513,13 +601,16 @@ fn write_vtk(dir: &Path, outcome: &Outcome) -> Result<(), BadInput> {
     write_atomically(&dir.join("u.pvd"), collection.as_bytes(), "--write-vtk")
 }
 
-/// Writes `bytes` to `path` through a temporary file, so that no half-written file is left.
-fn write_atomically(path: &Path, bytes: &[u8], flag: &str) -> Result<(), BadInput> {
+/// Writes `bytes` to `path` through a temporary file, so that no half-written file is left; a
+/// failure names the path and exits with `EXIT_IO` (an output lost, not a bad case).
+fn write_atomically(path: &Path, bytes: &[u8], flag: &str) -> Result<(), Failure> {
     let partial = path.with_extension("partial");
     std::fs::write(&partial, bytes)
         .and_then(|()| std::fs::rename(&partial, path))
         .map_err(|e| {
-            BadInput(format!(
+            // Leave no partial file behind (it may not exist: ignore that).
+            let _ = std::fs::remove_file(&partial);
+            Failure::Output(format!(
                 "cannot write {}: {e}; check the path given to {flag}",
                 path.display()
             ))
@@ -527,7 +618,7 @@ fn write_atomically(path: &Path, bytes: &[u8], flag: &str) -> Result<(), BadInpu
 }
 
 /// Prints the halo report of the case as one JSON line.
-fn partition_report(args: &CaseArgs) -> Result<(), BadInput> {
+fn partition_report(args: &CaseArgs) -> Result<(), Failure> {
     let mut fields = args.fields()?;
     // The time step does not shape the partition; fill it in when absent.
     fields.entry("t_end").or_insert(Value::from(1.0));
@@ -536,16 +627,20 @@ fn partition_report(args: &CaseArgs) -> Result<(), BadInput> {
     }
     let case = Case::parse(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))?;
     let report = solver::partition_report(&case).map_err(|e| BadInput(e.to_string()))?;
-    println!(
-        "{}",
-        serde_json::to_string(&report).expect("the report serializes")
-    );
-    Ok(())
+    print_line(
+        &serde_json::to_string(&report).expect("the report serializes"),
+        "the partition report",
+    )
 }
 
 /// `nlsolve check`: validates each case of standard input and prints its canonical form.
-fn check_cases() -> Result<(), BadInput> {
-    let mut out = std::io::stdout().lock();
+fn check_cases() -> Result<(), Failure> {
+    let failed = |e: std::io::Error| {
+        Failure::Output(format!("cannot write the verdicts to standard output: {e}"))
+    };
+    // Flushed at each line, as `stdout()` is, so that a reader sees each verdict as its case is
+    // read; on `standard_output()`, so that a closed descriptor is an error too.
+    let mut out = std::io::LineWriter::new(standard_output().map_err(failed)?);
     for line in std::io::stdin().lines() {
         let line = line.map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
         if line.trim().is_empty() {
@@ -558,7 +653,7 @@ fn check_cases() -> Result<(), BadInput> {
             },
             Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
         };
-        writeln!(out, "{verdict}").map_err(|e| BadInput(format!("cannot write: {e}")))?;
+        writeln!(out, "{verdict}").map_err(failed)?;
     }
-    Ok(())
+    out.flush().map_err(failed)
 }

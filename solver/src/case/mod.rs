@@ -23,6 +23,28 @@ pub const MAX_SNAPSHOT_SIDE: usize = 256;
 /// `methods::resources::OVERSUBSCRIPTION` × this machine's cores).
 pub const MAX_THREADS: usize = 1024;
 
+/// Most bins of a histogram: as many values as the largest field snapshot (256²), so that a
+/// record stays a few MB; each block of the field is also counted into its own copy of the bins.
+pub const MAX_HISTOGRAM_BINS: usize = MAX_SNAPSHOT_SIDE * MAX_SNAPSHOT_SIDE;
+
+/// Most samples of c_tot(t) a case may ask for (t_end / `diagnostics_every`): 10⁵ pairs of
+/// numbers are a few MB of record, far more than a plot resolves; an interval below dt would
+/// otherwise sample every step, up to 10⁸.
+pub const MAX_SERIES_SAMPLES: f64 = 1e5;
+
+/// The diffusivities accepted. k enters the weights (∝ k/ε^(d+2)), the sources (∝ k) and
+/// dt_stable (∝ h²/k); within 10^±100 none of them overflows or sinks towards the subnormal
+/// numbers on any grid a machine holds (h ≥ 10⁻⁹), beyond it they do (k = 1e308 gave fields of
+/// NaN). The problems are scaled for k of order 1.
+pub const DIFFUSIVITY_RANGE: std::ops::RangeInclusive<f64> = 1e-100..=1e100;
+
+/// Smallest relative tolerance `rtol` accepted: about 45 ε_mach. A residual computed in double
+/// precision carries rounding of a few ε_mach per term summed (each product A p sums up to
+/// hundreds of bonds, each norm all nodes), so below this a solve meets its tolerance by
+/// chance or not at all and runs to `max_iterations`, to be recorded `diverged`. The implicit
+/// integrators' own default stops at 1e-13 (`integrate::theta`).
+pub const MIN_RTOL: f64 = 1e-14;
+
 /// The horizon as a length: `eps`, or m·h with h = 1/n; 0 when the case gives neither (a
 /// varying `horizon_profile`, or a case validation refuses).
 pub fn horizon_length(case: &Case) -> f64 {
@@ -102,7 +124,7 @@ impl Rules for Case {
     /// diagnostics, the time step, threads and ranks, and a source that fits the problem.
     /// dt against dt_stable is checked when the stencil is known.
     fn validate_time_dependent(&self) -> Result<(), CaseError> {
-        positive("diffusivity", self.diffusivity)?;
+        validate_diffusivity(self.diffusivity)?;
         validate_diagnostics(self)?;
         validate_time_and_threads(self)
     }
@@ -130,7 +152,7 @@ impl Rules for Case {
         self.validate_iteration()
     }
 
-    /// `rtol` in (0, 1) and at least one iteration, when given.
+    /// `rtol` in [`MIN_RTOL`, 1) and at least one iteration, when given.
     fn validate_iteration(&self) -> Result<(), CaseError> {
         if self.max_iterations == Some(0) {
             return Err(CaseError::new(
@@ -143,6 +165,13 @@ impl Rules for Case {
                 "rtol",
                 format!(
                     "must lie in (0, 1) (got {}); seed 001 uses 1e-5",
+                    readable(rtol)
+                ),
+            )),
+            Some(rtol) if rtol < MIN_RTOL => Err(CaseError::new(
+                "rtol",
+                format!(
+                    "{} is below {MIN_RTOL:e}, what a residual computed in double precision can reach (rounding of a few ε_mach = 2.2e-16 per term), so the solve would run to `max_iterations` and end `diverged`; use rtol ≥ {MIN_RTOL:e}",
                     readable(rtol)
                 ),
             )),
@@ -211,12 +240,34 @@ impl Rules for Case {
 fn validate_diagnostics(case: &Case) -> Result<(), CaseError> {
     if let Some(every) = case.diagnostics_every {
         positive("diagnostics_every", every)?;
+        let samples = case.t_end() / every;
+        if samples > MAX_SERIES_SAMPLES {
+            return Err(CaseError::new(
+                "diagnostics_every",
+                format!(
+                    "asks for t_end / diagnostics_every = {} samples of c_tot(t), more than {MAX_SERIES_SAMPLES:e}; enlarge `diagnostics_every` to at least {}",
+                    readable(samples),
+                    readable(case.t_end() / MAX_SERIES_SAMPLES)
+                ),
+            ));
+        }
     }
-    if case.histogram_bins == Some(0) {
-        return Err(CaseError::new(
-            "histogram_bins",
-            "must be at least 1 (got 0); leave it out for no histogram",
-        ));
+    match case.histogram_bins {
+        Some(0) => {
+            return Err(CaseError::new(
+                "histogram_bins",
+                "must be at least 1 (got 0); leave it out for no histogram",
+            ))
+        }
+        Some(bins) if bins > MAX_HISTOGRAM_BINS => {
+            return Err(CaseError::new(
+                "histogram_bins",
+                format!(
+                    "must be at most {MAX_HISTOGRAM_BINS} (got {bins}): every bin is a count in the record and in each block's copy; use fewer bins"
+                ),
+            ))
+        }
+        _ => {}
     }
     if let Some(side) = case.field_snapshot {
         if !(1..=MAX_SNAPSHOT_SIDE).contains(&side) {
@@ -313,6 +364,23 @@ pub(crate) fn refuse_given(
         Some((field, _)) => Err(CaseError::new(*field, message(field))),
         None => Ok(()),
     }
+}
+
+/// `diffusivity` positive and within [`DIFFUSIVITY_RANGE`].
+pub(crate) fn validate_diffusivity(k: f64) -> Result<(), CaseError> {
+    positive("diffusivity", k)?;
+    if !DIFFUSIVITY_RANGE.contains(&k) {
+        return Err(CaseError::new(
+            "diffusivity",
+            format!(
+                "k = {} lies outside [{:e}, {:e}]: the weights (∝ k), the sources (∝ k) and dt_stable (∝ h²/k) overflow or vanish; the problems are scaled for k of order 1, use one",
+                readable(k),
+                DIFFUSIVITY_RANGE.start(),
+                DIFFUSIVITY_RANGE.end()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 pub(crate) fn positive(field: &str, value: f64) -> Result<(), CaseError> {

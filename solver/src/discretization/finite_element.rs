@@ -161,14 +161,21 @@ impl BandMatrix {
         self.slot(i, j).map_or(0.0, |s| self.values[s])
     }
 
-    /// The non-zero entries (row, column, value) of the block rows × columns, renumbered.
+    /// The non-zero entries (row, column, value) of the block rows × columns, renumbered; `rows`
+    /// distinct and ascending. Each column visits only its band, through each row's place in
+    /// `rows`: O(len · w) rather than O(|rows| · |columns|), which made a long local domain's
+    /// set-up quadratic in its length.
     pub fn block(&self, rows: &[usize], columns: &[usize]) -> Vec<(usize, usize, f64)> {
+        let mut place = vec![usize::MAX; self.n];
+        for (r, &i) in rows.iter().enumerate() {
+            place[i] = r;
+        }
         let mut entries = Vec::new();
         for (c, &j) in columns.iter().enumerate() {
-            for (r, &i) in rows.iter().enumerate() {
+            for i in j.saturating_sub(self.w)..(j + self.w + 1).min(self.n) {
                 let v = self.get(i, j);
-                if v != 0.0 {
-                    entries.push((r, c, v));
+                if place[i] != usize::MAX && v != 0.0 {
+                    entries.push((place[i], c, v));
                 }
             }
         }
@@ -298,6 +305,25 @@ mod tests {
         let h = 1.0 / 128.0;
         assert!(widths.iter().all(|&w| w > 0.25 * h && w < 1.25 * h + 1e-15));
         assert!((fine.nodes[0] + 0.065).abs() < 1e-15);
+    }
+
+    /// The band-limited block is the block read entry by entry, in the same order.
+    #[test]
+    fn a_block_is_every_non_zero_of_its_rows_and_columns() {
+        let mesh = Mesh::with_collars(16, 0.2);
+        let a = nonlocal_stiffness(&mesh, Kernel::Constant, 0.2, 1.0);
+        let rows: Vec<usize> = (0..mesh.len()).filter(|i| i % 5 != 2).collect();
+        let columns: Vec<usize> = (0..mesh.len()).filter(|i| i % 3 != 0).collect();
+        let mut brute = Vec::new();
+        for (c, &j) in columns.iter().enumerate() {
+            for (r, &i) in rows.iter().enumerate() {
+                if a.get(i, j) != 0.0 {
+                    brute.push((r, c, a.get(i, j)));
+                }
+            }
+        }
+        assert!(!brute.is_empty());
+        assert_eq!(a.block(&rows, &columns), brute);
     }
 
     #[test]

@@ -14,7 +14,7 @@
 
 use super::stepper::{Rhs, Stepper};
 use crate::case::Integrator;
-use crate::linalg::cg::{self, combine, Pcg};
+use crate::linalg::cg::{self, combine, Cg, CgParams, Norm, Start};
 use crate::operator::LinearOperator;
 use crate::output::record::ImplicitSolves;
 use std::f64::consts::TAU;
@@ -35,7 +35,7 @@ pub struct Theta<'a, Op: LinearOperator, P: LinearOperator> {
     dt: f64,
     preconditioner: &'a P,
     preconditioner_workspace: P::Workspace,
-    pcg: Pcg,
+    cg: Cg,
     /// L uⁿ, then L p inside the solve; the right-hand side.
     lu: Vec<f64>,
     b: Vec<f64>,
@@ -65,7 +65,7 @@ impl<'a, Op: LinearOperator, P: LinearOperator> Theta<'a, Op, P> {
             dt,
             preconditioner,
             preconditioner_workspace: preconditioner.workspace(),
-            pcg: Pcg::new(len),
+            cg: Cg::new(len),
             lu: vec![0.0; len],
             b: vec![0.0; len],
             rtol,
@@ -95,7 +95,7 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
             theta,
             preconditioner,
             preconditioner_workspace,
-            pcg,
+            cg,
             lu,
             b,
             rtol,
@@ -107,23 +107,30 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
         ranks.on(|| combine(b, u, (1.0 - theta) * dt, lu));
         rhs.add_source(&[(t + dt, theta * dt), (t, (1.0 - theta) * dt)], b);
         let shift = theta * dt;
-        let convergence = pcg.solve(
-            ranks.pool(),
-            |p, ap| {
+        let system = &mut cg::Preconditioned {
+            len: u.len(),
+            apply: |p: &[f64], ap: &mut [f64]| {
                 rhs.apply(p, lu);
                 ranks.on(|| combine(ap, p, -shift, lu));
             },
-            |r, z| preconditioner.apply(r, z, preconditioner_workspace),
-            |x, y| ranks.sum(ranks.on(|| cg::dot(x, y))),
-            b,
-            u,
-            *rtol,
-            *max_iterations,
-        );
+            precondition: |r: &[f64], z: &mut [f64]| {
+                preconditioner.apply(r, z, preconditioner_workspace)
+            },
+            dot: |x: &[f64], y: &[f64]| ranks.sum(ranks.on(|| cg::dot(x, y))),
+        };
+        // From the previous step's field, until ‖r‖/‖b‖ ≤ rtol.
+        let params = CgParams {
+            start: Start::Guess,
+            rtol: *rtol,
+            norm: Norm::Residual,
+            max_iterations: *max_iterations,
+            pool: ranks.pool(),
+        };
+        let convergence = cg.solve(system, b, u, &params);
         self.solves += 1;
         self.iterations += convergence.iterations;
         self.most_iterations = self.most_iterations.max(convergence.iterations);
-        if !(convergence.relative_residual <= self.rtol) {
+        if !convergence.converged {
             self.unconverged += 1;
         }
         self.rhs.ranks.max_abs(u)

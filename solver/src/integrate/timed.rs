@@ -87,8 +87,8 @@ pub(crate) fn is_sampled(steps: usize, k: usize) -> bool {
 
 /// The time loop every solver shares: up to `steps` timed calls of `step(state, k)`, which
 /// advances from step k and returns max |u| after it; the loop ends at the first step whose max
-/// |u| exceeds `bound` or is not finite. `after(state, k + 1)` runs untimed after every step that
-/// did not diverge (error bookkeeping).
+/// |u| exceeds `bound` or is not finite (whatever the bound). `after(state, k + 1)` runs untimed
+/// after every step that did not diverge (error bookkeeping).
 pub(crate) fn timed_steps<S>(
     state: &mut S,
     steps: usize,
@@ -111,7 +111,9 @@ pub(crate) fn timed_steps<S>(
             timing.step_seconds.push(seconds);
         }
         timing.steps_done = k + 1;
-        if !(max_abs <= bound) {
+        // A non-finite max |u| is diverged whatever the bound (a NaN compares false, and an
+        // infinite bound would let +∞ through).
+        if !(max_abs.is_finite() && max_abs <= bound) {
             timing.diverged_at = Some(k + 1);
             break;
         }
@@ -170,4 +172,33 @@ pub(crate) fn timed_steps_observed<S>(
         },
     );
     (timing, Observed { c_tot, frames })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Steps that return the given max |u|, in turn: where does the loop stop?
+    fn diverged_at(maxima: &[f64], bound: f64) -> Option<usize> {
+        let mut state = 0;
+        timed_steps(&mut state, maxima.len(), bound, |_, k| maxima[k], |_, _| {}).diverged_at
+    }
+
+    #[test]
+    fn a_field_that_is_not_finite_diverges_whatever_the_bound() {
+        for bound in [1e6, f64::MAX, f64::INFINITY] {
+            assert_eq!(
+                diverged_at(&[1.0, f64::INFINITY, 1.0], bound),
+                Some(2),
+                "{bound}"
+            );
+            assert_eq!(
+                diverged_at(&[1.0, 2.0, f64::NAN], bound),
+                Some(3),
+                "{bound}"
+            );
+        }
+        assert_eq!(diverged_at(&[1.0, 2.0, 3.0], f64::MAX), None);
+        assert_eq!(diverged_at(&[1.0, 2e6], 1e6), Some(2));
+    }
 }

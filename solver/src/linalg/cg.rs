@@ -1,6 +1,8 @@
-//! Unpreconditioned conjugate gradients from a zero initial guess (seed 001, section 4.1's
-//! baseline), over any matrix–vector product and inner product: threaded on one process, or
-//! with a halo exchange and a reduction over ranks.
+//! Conjugate gradients, once for every solver: the steady problem's unpreconditioned CG from
+//! zero (seed 001, section 4.1's baseline), the θ-steps' preconditioned CG from the previous
+//! step, and FETI's projected CG on the interface (seed 001's Algorithm 1). A solve is a
+//! `CgSystem` (A, optionally M ≈ A⁻¹, and the inner product, threaded on one process or summed
+//! over ranks) and its `CgParams` (where x starts, the tolerance and its norm, the iteration cap).
 //!
 //! The vector updates and the inner product split the vectors at fixed boundaries, so the
 //! iterates do not depend on the thread count.
@@ -12,76 +14,86 @@ use rayon::ThreadPool;
 /// Length below which a vector operation runs on one thread; the split points of `dot`.
 const CHUNK: usize = 8192;
 
-/// How an iteration ended.
+/// What CG iterates with: A (symmetric positive definite on the space the iterates move in),
+/// optionally a preconditioner M ≈ A⁻¹, and the inner product (a sum over ranks when the
+/// vectors are distributed), over vectors of `len` entries.
+pub trait CgSystem {
+    /// The length of every vector of the system: a solve with any other length is refused.
+    fn len(&self) -> usize;
+
+    /// ap = A p.
+    fn apply(&mut self, p: &[f64], ap: &mut [f64]);
+
+    /// (a, b).
+    fn dot(&mut self, a: &[f64], b: &[f64]) -> f64;
+
+    /// Whether `precondition` applies a preconditioner; without one, z is r itself.
+    fn preconditioned(&self) -> bool {
+        false
+    }
+
+    /// z = M r (called only when `preconditioned`).
+    fn precondition(&mut self, _r: &[f64], _z: &mut [f64]) {}
+}
+
+/// Where the iterates start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Start<'a> {
+    /// x = 0 (x is cleared), so r = b.
+    Zero,
+    /// x as given; r = b − A x.
+    Guess,
+    /// x as given, with its residual computed by the caller (FETI projects it).
+    Residual(&'a [f64]),
+}
+
+/// The norm of the stopping test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Norm {
+    /// ‖r‖ / ‖b‖.
+    Residual,
+    /// √(rᵀz / r₀ᵀz₀), the preconditioned residual against the first one (FETI's, seed 001:
+    /// "until rᵀy is small enough").
+    Preconditioned,
+}
+
+/// How one solve runs.
+#[derive(Clone, Copy, Debug)]
+pub struct CgParams<'a> {
+    pub start: Start<'a>,
+    /// Stop once the `norm` of the residual is at most `rtol`.
+    pub rtol: f64,
+    pub norm: Norm,
+    /// Stop after this many iterations, converged or not.
+    pub max_iterations: usize,
+    /// Where the vector updates run (the current pool when None), so that MPI calls in `apply`
+    /// and `dot` can stay on the calling thread.
+    pub pool: Option<&'a ThreadPool>,
+}
+
+/// How a solve ended.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Convergence {
     pub iterations: usize,
-    /// ‖r_k‖/‖b‖ of the recursively updated residual.
+    /// The residual in the solve's norm when it stopped.
     pub relative_residual: f64,
+    /// `relative_residual <= rtol`: false when the iterations ran out or the residual stopped
+    /// being a number.
+    pub converged: bool,
 }
 
-/// Solves A x = b for symmetric positive definite A from x = 0, until ‖r‖ ≤ rtol ‖b‖ or
-/// `max_iterations`. `apply(p, ap)` writes ap = A p; `dot` is the inner product (a sum over
-/// ranks when the vectors are distributed). x must be zero on entry. The vector updates run on
-/// `pool` (the current one when None), so that MPI calls in `apply` and `dot` can stay on the
-/// calling thread.
-pub fn conjugate_gradient(
-    pool: Option<&ThreadPool>,
-    mut apply: impl FnMut(&[f64], &mut [f64]),
-    dot: impl Fn(&[f64], &[f64]) -> f64,
-    b: &[f64],
-    x: &mut [f64],
-    rtol: f64,
-    max_iterations: usize,
-) -> Convergence {
-    let mut r = b.to_vec();
-    let mut p = b.to_vec();
-    let mut ap = vec![0.0; b.len()];
-    let b_norm = dot(b, b).sqrt();
-    let mut rr = b_norm * b_norm;
-    if b_norm == 0.0 {
-        return Convergence {
-            iterations: 0,
-            relative_residual: 0.0,
-        };
-    }
-    for k in 1..=max_iterations {
-        apply(&p, &mut ap);
-        let alpha = rr / dot(&p, &ap);
-        on(pool, || {
-            axpy(alpha, &p, x);
-            axpy(-alpha, &ap, &mut r);
-        });
-        let rr_next = dot(&r, &r);
-        let relative_residual = rr_next.sqrt() / b_norm;
-        if relative_residual <= rtol || k == max_iterations || !relative_residual.is_finite() {
-            return Convergence {
-                iterations: k,
-                relative_residual,
-            };
-        }
-        let beta = rr_next / rr;
-        on(pool, || xpby(&r, beta, &mut p));
-        rr = rr_next;
-    }
-    Convergence {
-        iterations: 0,
-        relative_residual: 1.0,
-    }
-}
-
-/// The buffers of preconditioned CG for vectors of one length, made once and reused by every
-/// solve (an implicit integrator solves once per step).
-pub struct Pcg {
+/// The buffers of CG for vectors of one length, made once and reused by every solve (an
+/// implicit integrator solves once per step).
+pub struct Cg {
     r: Vec<f64>,
     z: Vec<f64>,
     p: Vec<f64>,
     ap: Vec<f64>,
 }
 
-impl Pcg {
+impl Cg {
     pub fn new(len: usize) -> Self {
-        Pcg {
+        Cg {
             r: vec![0.0; len],
             z: vec![0.0; len],
             p: vec![0.0; len],
@@ -89,69 +101,178 @@ impl Pcg {
         }
     }
 
-    /// Solves A x = b for symmetric positive definite A and M ≈ A⁻¹ (`precondition(r, z)` writes
-    /// z = M r), from the initial guess in x, until ‖r‖ ≤ rtol ‖b‖ or `max_iterations`. `apply`
-    /// and `dot` are as for `conjugate_gradient`; the vector updates run on `pool`.
-    #[allow(clippy::too_many_arguments)]
+    /// Solves A x = b from `params.start` until the residual's norm is at most `params.rtol`
+    /// or `params.max_iterations` have run. Vectors whose length is not the system's are a
+    /// caller's error, refused with a message rather than read short.
     pub fn solve(
         &mut self,
-        pool: Option<&ThreadPool>,
-        mut apply: impl FnMut(&[f64], &mut [f64]),
-        mut precondition: impl FnMut(&[f64], &mut [f64]),
-        dot: impl Fn(&[f64], &[f64]) -> f64,
+        system: &mut impl CgSystem,
         b: &[f64],
         x: &mut [f64],
-        rtol: f64,
-        max_iterations: usize,
+        params: &CgParams,
     ) -> Convergence {
-        let Pcg { r, z, p, ap } = self;
-        apply(x, ap);
-        on(pool, || {
-            r.copy_from_slice(b);
-            axpy(-1.0, ap, r);
-        });
-        let b_norm = dot(b, b).sqrt();
-        let residual = |rr: f64| {
-            if b_norm > 0.0 {
-                rr.sqrt() / b_norm
-            } else {
-                0.0
+        let len = system.len();
+        assert!(
+            b.len() == len && x.len() == len && self.r.len() == len,
+            "CG on a system of {len} unknowns was given b of {}, x of {} and buffers of {}",
+            b.len(),
+            x.len(),
+            self.r.len()
+        );
+        let preconditioned = system.preconditioned();
+        let Cg { r, z, p, ap } = self;
+        let pool = params.pool;
+        match params.start {
+            Start::Zero => on(pool, || {
+                x.fill(0.0);
+                r.copy_from_slice(b);
+            }),
+            Start::Guess => {
+                system.apply(x, ap);
+                on(pool, || {
+                    r.copy_from_slice(b);
+                    axpy(-1.0, ap, r);
+                });
             }
-        };
-        let mut relative_residual = residual(dot(r, r));
-        if relative_residual <= rtol {
-            return Convergence {
-                iterations: 0,
-                relative_residual,
-            };
+            Start::Residual(r0) => {
+                assert_eq!(r0.len(), len, "the initial residual's length");
+                on(pool, || r.copy_from_slice(r0));
+            }
         }
-        precondition(r, z);
-        on(pool, || p.copy_from_slice(z));
-        let mut rz = dot(r, z);
-        for k in 1..=max_iterations {
-            apply(p, ap);
-            let alpha = rz / dot(p, ap);
+        // The first residual in the solve's norm, ‖r₀‖² (what rᵀz is without a
+        // preconditioner) and the norm's scale.
+        let (mut relative_residual, r0r0, scale) = match params.norm {
+            Norm::Residual => {
+                let b_norm = system.dot(b, b).sqrt();
+                let r_norm = match params.start {
+                    Start::Zero => b_norm,
+                    _ => system.dot(r, r).sqrt(),
+                };
+                let relative = if b_norm > 0.0 { r_norm / b_norm } else { 0.0 };
+                (relative, r_norm * r_norm, b_norm)
+            }
+            Norm::Preconditioned => (f64::NAN, f64::NAN, f64::NAN),
+        };
+        let mut rz = if preconditioned {
+            system.precondition(r, z);
+            on(pool, || p.copy_from_slice(z));
+            system.dot(r, z)
+        } else {
+            on(pool, || p.copy_from_slice(r));
+            r0r0
+        };
+        let rz0 = rz;
+        if params.norm == Norm::Preconditioned {
+            relative_residual = if rz0 > 0.0 { 1.0 } else { 0.0 };
+        }
+        let ended = |iterations: usize, relative_residual: f64| Convergence {
+            iterations,
+            relative_residual,
+            converged: relative_residual <= params.rtol,
+        };
+        if relative_residual <= params.rtol {
+            return ended(0, relative_residual);
+        }
+        for k in 1..=params.max_iterations {
+            system.apply(p, ap);
+            let alpha = rz / system.dot(p, ap);
             on(pool, || {
                 axpy(alpha, p, x);
                 axpy(-alpha, ap, r);
             });
-            relative_residual = residual(dot(r, r));
-            if relative_residual <= rtol || k == max_iterations || !relative_residual.is_finite() {
-                return Convergence {
-                    iterations: k,
-                    relative_residual,
-                };
-            }
-            precondition(r, z);
-            let rz_next = dot(r, z);
+            let rz_next = match params.norm {
+                Norm::Residual => {
+                    let rr = system.dot(r, r);
+                    relative_residual = if scale > 0.0 { rr.sqrt() / scale } else { 0.0 };
+                    let last = k == params.max_iterations || !relative_residual.is_finite();
+                    if relative_residual <= params.rtol || last {
+                        return ended(k, relative_residual);
+                    }
+                    if preconditioned {
+                        system.precondition(r, z);
+                        system.dot(r, z)
+                    } else {
+                        rr
+                    }
+                }
+                Norm::Preconditioned => {
+                    let rz_next = if preconditioned {
+                        system.precondition(r, z);
+                        system.dot(r, z)
+                    } else {
+                        system.dot(r, r)
+                    };
+                    relative_residual = (rz_next.max(0.0) / rz0).sqrt();
+                    let last = k == params.max_iterations || !relative_residual.is_finite();
+                    if relative_residual <= params.rtol || last {
+                        return ended(k, relative_residual);
+                    }
+                    rz_next
+                }
+            };
             let beta = rz_next / rz;
-            on(pool, || xpby(z, beta, p));
+            let direction: &[f64] = if preconditioned { z } else { r };
+            on(pool, || xpby(direction, beta, p));
             rz = rz_next;
         }
-        Convergence {
-            iterations: max_iterations,
-            relative_residual,
-        }
+        ended(0, relative_residual)
+    }
+}
+
+/// A `CgSystem` of closures: `apply` writes ap = A p, `dot` is the inner product; no
+/// preconditioner.
+pub struct Plain<A, D> {
+    pub len: usize,
+    pub apply: A,
+    pub dot: D,
+}
+
+impl<A: FnMut(&[f64], &mut [f64]), D: Fn(&[f64], &[f64]) -> f64> CgSystem for Plain<A, D> {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn apply(&mut self, p: &[f64], ap: &mut [f64]) {
+        (self.apply)(p, ap)
+    }
+
+    fn dot(&mut self, a: &[f64], b: &[f64]) -> f64 {
+        (self.dot)(a, b)
+    }
+}
+
+/// A `CgSystem` of closures with a preconditioner: `precondition(r, z)` writes z = M r.
+pub struct Preconditioned<A, M, D> {
+    pub len: usize,
+    pub apply: A,
+    pub precondition: M,
+    pub dot: D,
+}
+
+impl<A, M, D> CgSystem for Preconditioned<A, M, D>
+where
+    A: FnMut(&[f64], &mut [f64]),
+    M: FnMut(&[f64], &mut [f64]),
+    D: Fn(&[f64], &[f64]) -> f64,
+{
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn apply(&mut self, p: &[f64], ap: &mut [f64]) {
+        (self.apply)(p, ap)
+    }
+
+    fn dot(&mut self, a: &[f64], b: &[f64]) -> f64 {
+        (self.dot)(a, b)
+    }
+
+    fn preconditioned(&self) -> bool {
+        true
+    }
+
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
+        (self.precondition)(r, z)
     }
 }
 
@@ -223,6 +344,15 @@ mod tests {
         }
     }
 
+    /// A Jacobi-like preconditioner that is not the identity: z = r / (2 + i/n).
+    fn scaled(n: usize) -> impl Fn(&[f64], &mut [f64]) + Copy {
+        move |r, z| {
+            for (i, (z, r)) in z.iter_mut().zip(r).enumerate() {
+                *z = r / (2.0 + i as f64 / n as f64);
+            }
+        }
+    }
+
     fn max_difference(a: &[f64], b: &[f64]) -> f64 {
         a.iter()
             .zip(b)
@@ -230,7 +360,223 @@ mod tests {
             .fold(0.0, f64::max)
     }
 
-    /// The 1D Laplacian tridiag(−1, 2, −1): CG converges in at most n iterations.
+    fn params(start: Start, rtol: f64, norm: Norm, max_iterations: usize) -> CgParams {
+        CgParams {
+            start,
+            rtol,
+            norm,
+            max_iterations,
+            pool: None,
+        }
+    }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// The literal loops the solvers ran before they shared one CG: unpreconditioned from zero,
+    /// preconditioned from a guess, and FETI's projected CG (its projection left out: it is
+    /// part of A and M). The shared CG must give their bits.
+    mod literal {
+        use super::super::{axpy, xpby};
+
+        pub fn plain(
+            a: impl Fn(&[f64], &mut [f64]),
+            dot: impl Fn(&[f64], &[f64]) -> f64,
+            b: &[f64],
+            x: &mut [f64],
+            rtol: f64,
+            max: usize,
+        ) -> (usize, f64) {
+            let mut r = b.to_vec();
+            let mut p = b.to_vec();
+            let mut ap = vec![0.0; b.len()];
+            let b_norm = dot(b, b).sqrt();
+            let mut rr = b_norm * b_norm;
+            if b_norm == 0.0 {
+                return (0, 0.0);
+            }
+            for k in 1..=max {
+                a(&p, &mut ap);
+                let alpha = rr / dot(&p, &ap);
+                axpy(alpha, &p, x);
+                axpy(-alpha, &ap, &mut r);
+                let rr_next = dot(&r, &r);
+                let rel = rr_next.sqrt() / b_norm;
+                if rel <= rtol || k == max || !rel.is_finite() {
+                    return (k, rel);
+                }
+                xpby(&r, rr_next / rr, &mut p);
+                rr = rr_next;
+            }
+            (0, 1.0)
+        }
+
+        pub fn preconditioned(
+            a: impl Fn(&[f64], &mut [f64]),
+            m: impl Fn(&[f64], &mut [f64]),
+            dot: impl Fn(&[f64], &[f64]) -> f64,
+            b: &[f64],
+            x: &mut [f64],
+            rtol: f64,
+            max: usize,
+        ) -> (usize, f64) {
+            let n = b.len();
+            let (mut r, mut z, mut p, mut ap) =
+                (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            a(x, &mut ap);
+            r.copy_from_slice(b);
+            axpy(-1.0, &ap, &mut r);
+            let b_norm = dot(b, b).sqrt();
+            let residual = |rr: f64| {
+                if b_norm > 0.0 {
+                    rr.sqrt() / b_norm
+                } else {
+                    0.0
+                }
+            };
+            let mut rel = residual(dot(&r, &r));
+            if rel <= rtol {
+                return (0, rel);
+            }
+            m(&r, &mut z);
+            p.copy_from_slice(&z);
+            let mut rz = dot(&r, &z);
+            for k in 1..=max {
+                a(&p, &mut ap);
+                let alpha = rz / dot(&p, &ap);
+                axpy(alpha, &p, x);
+                axpy(-alpha, &ap, &mut r);
+                rel = residual(dot(&r, &r));
+                if rel <= rtol || k == max || !rel.is_finite() {
+                    return (k, rel);
+                }
+                m(&r, &mut z);
+                let rz_next = dot(&r, &z);
+                xpby(&z, rz_next / rz, &mut p);
+                rz = rz_next;
+            }
+            (max, rel)
+        }
+
+        pub fn projected(
+            a: impl Fn(&[f64], &mut [f64]),
+            m: impl Fn(&[f64], &mut [f64]),
+            dot: impl Fn(&[f64], &[f64]) -> f64,
+            r0: &[f64],
+            lambda: &mut [f64],
+            rtol: f64,
+            max: usize,
+        ) -> (usize, f64) {
+            let len = r0.len();
+            let mut r = r0.to_vec();
+            let mut x = vec![0.0; len];
+            let mut y = vec![0.0; len];
+            m(&r, &mut y);
+            let mut p = y.clone();
+            let mut alpha = dot(&r, &y);
+            let alpha0 = alpha;
+            let mut dual = if alpha0 > 0.0 { 1.0 } else { 0.0 };
+            let mut iterations = 0;
+            while dual > rtol && iterations < max {
+                iterations += 1;
+                a(&p, &mut x);
+                let step = alpha / dot(&p, &x);
+                for i in 0..len {
+                    lambda[i] += step * p[i];
+                    r[i] -= step * x[i];
+                }
+                m(&r, &mut y);
+                let alpha_next = dot(&r, &y);
+                dual = (alpha_next.max(0.0) / alpha0).sqrt();
+                if !dual.is_finite() {
+                    break;
+                }
+                let ratio = alpha_next / alpha;
+                for i in 0..len {
+                    p[i] = y[i] + ratio * p[i];
+                }
+                alpha = alpha_next;
+            }
+            (iterations, dual)
+        }
+    }
+
+    #[test]
+    fn every_start_and_norm_gives_the_bits_of_the_loop_it_replaced() {
+        let n = 64;
+        let (a, m) = (laplacian(n), scaled(n));
+        let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
+        let mut b = vec![0.0; n];
+        a(&exact, &mut b);
+        let guess: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64).cos()).collect();
+        let mut cg = Cg::new(n);
+        for (rtol, max) in [(1e-10, 1000), (0.0, 5), (1e-3, 1000), (1e-10, 0)] {
+            // Unpreconditioned from zero: the steady solvers and FETI's interior solves.
+            let mut x = vec![1.0; n];
+            let got = cg.solve(
+                &mut Plain {
+                    len: n,
+                    apply: a,
+                    dot,
+                },
+                &b,
+                &mut x,
+                &params(Start::Zero, rtol, Norm::Residual, max),
+            );
+            let mut reference = vec![0.0; n];
+            let (k, rel) = literal::plain(a, dot, &b, &mut reference, rtol, max);
+            assert_eq!(
+                (got.iterations, got.relative_residual.to_bits()),
+                (k, rel.to_bits()),
+                "plain {rtol} {max}"
+            );
+            assert_eq!(bits(&x), bits(&reference), "plain {rtol} {max}");
+            // Preconditioned from a guess: the θ-steps.
+            let mut x = guess.clone();
+            let system = &mut Preconditioned {
+                len: n,
+                apply: a,
+                precondition: m,
+                dot,
+            };
+            let got = cg.solve(
+                system,
+                &b,
+                &mut x,
+                &params(Start::Guess, rtol, Norm::Residual, max),
+            );
+            let mut reference = guess.clone();
+            let (k, rel) = literal::preconditioned(a, m, dot, &b, &mut reference, rtol, max);
+            assert_eq!(
+                (got.iterations, got.relative_residual.to_bits()),
+                (k, rel.to_bits()),
+                "pcg {rtol} {max}"
+            );
+            assert_eq!(bits(&x), bits(&reference), "pcg {rtol} {max}");
+            // FETI's: the caller's residual, the preconditioned norm.
+            let mut ax = vec![0.0; n];
+            a(&guess, &mut ax);
+            let r0: Vec<f64> = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
+            let mut x = guess.clone();
+            let got = cg.solve(
+                system,
+                &b,
+                &mut x,
+                &params(Start::Residual(&r0), rtol, Norm::Preconditioned, max),
+            );
+            let mut reference = guess.clone();
+            let (k, rel) = literal::projected(a, m, dot, &r0, &mut reference, rtol, max);
+            assert_eq!(
+                (got.iterations, got.relative_residual.to_bits()),
+                (k, rel.to_bits()),
+                "feti {rtol} {max}"
+            );
+            assert_eq!(bits(&x), bits(&reference), "feti {rtol} {max}");
+        }
+    }
+
+    /// The 1D Laplacian: CG converges in at most n iterations, and says so.
     #[test]
     fn solves_a_tridiagonal_system_in_at_most_n_iterations() {
         let n = 50;
@@ -239,10 +585,30 @@ mod tests {
         let mut b = vec![0.0; n];
         apply(&exact, &mut b);
         let mut x = vec![0.0; n];
-        let convergence = conjugate_gradient(None, apply, dot, &b, &mut x, 1e-12, 1000);
-        assert!(convergence.iterations <= n, "{convergence:?}");
+        let system = &mut Plain { len: n, apply, dot };
+        let convergence = Cg::new(n).solve(
+            system,
+            &b,
+            &mut x,
+            &params(Start::Zero, 1e-12, Norm::Residual, 1000),
+        );
+        assert!(
+            convergence.converged && convergence.iterations <= n,
+            "{convergence:?}"
+        );
         let error = max_difference(&x, &exact);
         assert!(error < 1e-9, "error {error}");
+        let capped = Cg::new(n).solve(
+            system,
+            &b,
+            &mut x,
+            &params(Start::Zero, 1e-12, Norm::Residual, 3),
+        );
+        assert_eq!(
+            (capped.iterations, capped.converged),
+            (3, false),
+            "{capped:?}"
+        );
     }
 
     /// PCG with M = A⁻¹ (the 1D Laplacian's inverse in closed form) converges in one
@@ -262,14 +628,38 @@ mod tests {
         let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
         let mut b = vec![0.0; n];
         apply(&exact, &mut b);
-        let mut pcg = Pcg::new(n);
+        let mut cg = Cg::new(n);
         let mut x = vec![0.0; n];
-        let first = pcg.solve(None, apply, inverse, dot, &b, &mut x, 1e-12, 100);
+        let system = &mut Preconditioned {
+            len: n,
+            apply,
+            precondition: inverse,
+            dot,
+        };
+        let guess = params(Start::Guess, 1e-12, Norm::Residual, 100);
+        let first = cg.solve(system, &b, &mut x, &guess);
         assert_eq!(first.iterations, 1, "{first:?}");
-        let again = pcg.solve(None, apply, inverse, dot, &b, &mut x, 1e-12, 100);
+        let again = cg.solve(system, &b, &mut x, &guess);
         assert_eq!(again.iterations, 0, "{again:?}");
         let error = max_difference(&x, &exact);
         assert!(error < 1e-12, "error {error}");
+    }
+
+    #[test]
+    #[should_panic(expected = "CG on a system of 8 unknowns was given b of 7")]
+    fn vectors_of_another_length_are_refused_with_a_message() {
+        let system = &mut Plain {
+            len: 8,
+            apply: laplacian(8),
+            dot,
+        };
+        let mut x = vec![0.0; 8];
+        Cg::new(8).solve(
+            system,
+            &[1.0; 7],
+            &mut x,
+            &params(Start::Zero, 1e-8, Norm::Residual, 10),
+        );
     }
 
     #[test]

@@ -47,6 +47,15 @@ pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
 /// refused rather than allocated.
 const MAX_LOCAL_ELEMENTS: f64 = 1e8;
 
+/// Longest set-up accepted, in seconds of `SETUP_RATE` operations (`Sizes::setup_operations`):
+/// ten minutes, beyond any case of the seed (n ≤ 2⁷ takes milliseconds), and a guard against an
+/// `n` or an ε that would run for days.
+const MAX_SETUP_S: f64 = 600.0;
+
+/// Operations per second the set-up's loops are assumed to run at on one core: a conservative
+/// 10⁹ (each "operation" is a few instructions: a binary search step, a band addition).
+const SETUP_RATE: f64 = 1e9;
+
 /// The rules of a coupled case.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.dim != 1 {
@@ -113,7 +122,21 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     if let Some(message) = message {
         return Err(CaseError::new("local_domain", message));
     }
-    crate::case::positive("diffusivity", case.diffusivity)?;
+    let sizes = Sizes::of(case);
+    // J must determine every control: faer's least squares asserts as many rows as columns.
+    let (rows, columns) = sizes.least_squares_shape(sizes.overlap_breaks.0);
+    if rows < columns {
+        return Err(CaseError::new(
+            "local_domain",
+            format!(
+                "the overlap Ω_b = (a, 1) = ({}, 1) holds no node of either mesh (h = 1/{}), so J has {rows} Gauss points and smoothing rows for {columns} controls and cannot determine them; put a below the last node 1 − h = {}",
+                readable(a),
+                case.n,
+                readable(1.0 - 1.0 / case.n as f64)
+            ),
+        ));
+    }
+    crate::case::validate_diffusivity(case.diffusivity)?;
     if case.length.is_some() {
         return Err(CaseError::new(
             "length",
@@ -123,7 +146,135 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     case.refuse_steady_fields()?;
     case.refuse_time_loop_fields(
         "the coupled problem is steady, on one rank, solved directly by finite elements",
-    )
+    )?;
+    let (nonlocal, local) = sizes.setup_operations();
+    let seconds = (nonlocal + local) / SETUP_RATE;
+    if seconds > MAX_SETUP_S {
+        let (field, fix) = if local > nonlocal {
+            ("local_domain", "shorten the local domain")
+        } else {
+            ("n", "use a smaller n or ε")
+        };
+        return Err(CaseError::new(
+            field,
+            format!(
+                "the set-up would take about {} s ({:.1e} operations at {SETUP_RATE:e} per second: the nonlocal assembly grows as ε n², its factor and control responses as ε² n³, the local model as its length × n), more than the {MAX_SETUP_S} s accepted; {fix}",
+                readable(seconds.round()),
+                nonlocal + local
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The sizes a coupled case's set-up works with, from its fields alone (nothing allocated):
+/// what `validate` checks the least-squares problem and the set-up time against, and what the
+/// memory estimate counts. Counts are f64: a case's fields may make them huge.
+pub(crate) struct Sizes {
+    /// Nodes of the nonlocal mesh (Ω_n and both collars) and of the local mesh.
+    nonlocal_nodes: f64,
+    local_nodes: f64,
+    /// Nodes of each collar of the nonlocal mesh beyond D's end node; the controls are those of
+    /// [1, 1 + ε], node 1 included.
+    collar: f64,
+    /// Half-bandwidth of the nonlocal stiffness matrix: the nodes within ε, and the element's.
+    band: f64,
+    /// Mesh nodes strictly inside the overlap (a, 1), the breaks of its quadrature: at least
+    /// those of the denser mesh, at most those of both.
+    overlap_breaks: (f64, f64),
+}
+
+impl Sizes {
+    pub(crate) fn of(case: &Case) -> Sizes {
+        let n = case.n as f64;
+        let h = 1.0 / n;
+        let eps = horizon_length(case);
+        let [a, b] = local_domain(case);
+        // As `Mesh::with_collars`: k h for k ≥ 1 below ε − h/4, then ε itself.
+        let collar = ((eps / h - 0.25).ceil() - 1.0).max(0.0) + 1.0;
+        // As `Coupled::new`: elements of about h on [a, b].
+        let local_elements = ((b - a) / h).round().max(1.0);
+        let local_spacing = (b - a) / local_elements;
+        // Inside (a, 1): the nonlocal nodes k/n for k = ⌊a n⌋ + 1 … n − 1, and the local
+        // nodes a + j h_l below 1.
+        let nonlocal_inside = (n - 1.0 - (a * n).floor()).max(0.0);
+        let local_inside = (((1.0 - a) / local_spacing).ceil() - 1.0).max(0.0);
+        Sizes {
+            nonlocal_nodes: n + 1.0 + 2.0 * collar,
+            local_nodes: local_elements + 1.0,
+            collar,
+            band: collar + 2.0,
+            overlap_breaks: (
+                nonlocal_inside.max(local_inside),
+                nonlocal_inside + local_inside,
+            ),
+        }
+    }
+
+    /// The nonlocal controls: the nodes of [1, 1 + ε].
+    fn controls(&self) -> f64 {
+        self.collar + 1.0
+    }
+
+    /// The nonlocal unknowns (the nodes inside (0, 1)), and the non-zeros of their block of the
+    /// stiffness matrix: the pairs of them within the band, i = j included.
+    fn free_block(&self) -> (f64, f64) {
+        let free = (self.nonlocal_nodes - 2.0 * self.controls()).max(1.0);
+        let k = self.band.min(free - 1.0);
+        (free, free + 2.0 * (k * free - k * (k + 1.0) / 2.0))
+    }
+
+    /// Rows and columns of the stacked least-squares matrix [Ψ; δ D₂] (`least_squares`) with
+    /// `breaks` quadrature breaks inside the overlap: two Gauss points per piece between them,
+    /// a smoothing row per interior nonlocal control; a column per control, θ_l's included.
+    fn least_squares_shape(&self, breaks: f64) -> (f64, f64) {
+        let rows = 2.0 * (breaks + 1.0) + (self.controls() - 2.0).max(0.0);
+        (rows, self.controls() + 1.0)
+    }
+
+    /// Operations of the set-up, (nonlocal model and least squares, local model), as the code
+    /// runs them: a model for refusing cases that would run for days, not a benchmark.
+    fn setup_operations(&self) -> (f64, f64) {
+        let (nodes, collar, band) = (self.nonlocal_nodes, self.collar, self.band);
+        // `nonlocal_stiffness`: about 2·collar s-pieces (the node differences below ε) of 12
+        // points, each over the 2·nodes x-pieces of `shifted_pieces` with 2 Gauss points, each
+        // about 150 operations (two element searches, 16 band additions).
+        let assembly = 2.0 * collar * 12.0 * 4.0 * nodes * 150.0;
+        // `s_pieces`: the nodes·collar differences below ε, sorted.
+        let differences = nodes * collar * (nodes * collar).max(2.0).log2();
+        // The Cholesky factor of the free block (a band: its non-zeros times the band's width)
+        // and a response per control (two triangular solves, four sweeps of the factor's half
+        // of the block); the base state sums a band row per data node.
+        let (free, block) = self.free_block();
+        let factor = block * band.min(free) + 2.0 * self.controls() * block + nodes * collar;
+        // Two singular value decompositions and a column-pivoted QR of the stacked matrix.
+        let (rows, columns) = self.least_squares_shape(self.overlap_breaks.1);
+        let least_squares = 10.0 * rows * columns * columns;
+        // The local model is linear in its nodes: loads, assembly, factor, solves, L² errors.
+        let local = 1000.0 * self.local_nodes;
+        (assembly + differences + factor + least_squares, local)
+    }
+
+    /// Bytes the set-up holds at its peak, the largest of its three stages:
+    /// - the nonlocal model's `sparse_matrix`: the band matrix (8 bytes per entry of the
+    ///   nodes × (2 band + 1) band), and per non-zero of the free block its entry (24 bytes),
+    ///   faer's triplet (24) and the matrix built from them (its argsort, row indices and
+    ///   values: 24), with the mesh, load and free list;
+    /// - the local model's, the same on its tridiagonal band plus the load's Gauss points (4 per
+    ///   element, 16 bytes each), beside the nonlocal control responses (a vector of the
+    ///   nonlocal nodes per control) kept from then on;
+    /// - the least squares: Ψ, the stacked matrix, and the copies its QR and singular value
+    ///   decompositions take (8 bytes per entry, four matrices), beside the responses.
+    pub(crate) fn peak_bytes(&self) -> f64 {
+        let (nodes, local) = (self.nonlocal_nodes, self.local_nodes);
+        let (_, block) = self.free_block();
+        let nonlocal = 8.0 * nodes * (2.0 * self.band + 1.0) + 72.0 * block + 24.0 * nodes;
+        let responses = 8.0 * nodes * (self.controls() + 3.0);
+        let local_model = 80.0 * 3.0 * local + 88.0 * local;
+        let (rows, columns) = self.least_squares_shape(self.overlap_breaks.1);
+        let least_squares = 32.0 * rows * columns + 24.0 * local;
+        nonlocal.max(responses + local_model.max(least_squares))
+    }
 }
 
 fn local_domain(case: &Case) -> [f64; 2] {
@@ -239,6 +390,18 @@ fn least_squares(
     smoothing: &Mat<f64>,
 ) -> Result<Optimum, CaseError> {
     let failed = |e| CaseError::new("n", format!("the reduced problem's SVD failed ({e:?})"));
+    // Fewer rows than controls cannot determine them (and faer's least squares asserts);
+    // `validate` refuses such an overlap, this keeps any other way here a refusal too.
+    let columns = psi.ncols();
+    if psi.nrows() + smoothing.nrows() < columns {
+        return Err(CaseError::new(
+            "local_domain",
+            format!(
+                "the overlap Ω_b holds {} Gauss points and smoothing rows for {columns} controls, too few to determine them; put a further below 1",
+                psi.nrows() + smoothing.nrows()
+            ),
+        ));
+    }
     let sigma = psi.singular_values().map_err(failed)?;
     let largest = sigma.iter().copied().fold(0.0, f64::max);
     let delta = f64::EPSILON.sqrt().sqrt() * largest;
@@ -520,6 +683,87 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The sizes `validate` predicts are the meshes `Coupled::new` builds.
+    #[test]
+    fn the_predicted_sizes_are_the_meshes_built() {
+        for (n, eps, a, b) in [
+            (8, 0.065, 0.75, 1.75),
+            (64, 0.065, 0.75, 1.75),
+            (128, 0.065, 0.8, 1.3),
+            (40, 0.3, 0.5, 2.0),
+            (33, 0.1, 0.97, 1.5),
+        ] {
+            let case = Case::parse(serde_json::json!({
+                "method": "coupled_1d", "dim": 1, "n": n, "eps": eps, "local_domain": [a, b]
+            }))
+            .unwrap();
+            let sizes = Sizes::of(&case);
+            let problem = Coupled::new(&case).unwrap();
+            let context = format!("n={n} ε={eps} [{a}, {b}]");
+            assert_eq!(
+                sizes.nonlocal_nodes,
+                problem.nonlocal.mesh.len() as f64,
+                "{context}"
+            );
+            assert_eq!(
+                sizes.local_nodes,
+                problem.local.mesh.len() as f64,
+                "{context}"
+            );
+            assert_eq!(
+                sizes.controls(),
+                problem.nonlocal.control_nodes.len() as f64,
+                "{context}"
+            );
+            // Two Gauss points per piece; a node within rounding of a or 1 may count or not.
+            let points = problem.overlap.len() as f64;
+            let (fewest, most) = sizes.overlap_breaks;
+            assert!(
+                2.0 * fewest <= points && points <= 2.0 * (most + 2.0),
+                "{context}: {points} Gauss points, predicted {fewest} … {most} breaks"
+            );
+        }
+    }
+
+    /// An overlap thinner than an element is refused by `validate`, and `least_squares`
+    /// refuses too few rows instead of letting faer assert.
+    #[test]
+    fn an_overlap_too_thin_for_its_controls_is_refused() {
+        let case = Case::parse(serde_json::json!({
+            "method": "coupled_1d", "dim": 1, "n": 64, "eps": 0.065, "local_domain": [0.99, 1.75]
+        }))
+        .unwrap();
+        let refusal = validate(&case).unwrap_err();
+        assert_eq!(refusal.field, "local_domain", "{refusal}");
+        let psi = Mat::from_fn(2, 4, |i, j| (i + j) as f64 + 1.0);
+        let d0 = Mat::from_fn(2, 1, |i, _| i as f64);
+        let smoothing = second_differences(&[1.0, 1.01, 1.02], 0.01, 4);
+        let refusal = least_squares(&psi, &d0, &smoothing).err().unwrap();
+        assert_eq!(refusal.field, "local_domain", "{refusal}");
+    }
+
+    /// The set-up time model refuses what would run for days and admits the local mesh's cap,
+    /// linear since `BandMatrix::block` reads only the band.
+    #[test]
+    fn the_set_up_time_model_refuses_days_and_admits_the_element_cap() {
+        let case = |n: usize, b: f64| {
+            Case::parse(serde_json::json!({
+                "method": "coupled_1d", "dim": 1, "n": n, "eps": 0.065, "local_domain": [0.75, b]
+            }))
+            .unwrap()
+        };
+        let seconds = |case: &Case| {
+            let (nonlocal, local) = Sizes::of(case).setup_operations();
+            (nonlocal + local) / SETUP_RATE
+        };
+        assert!(seconds(&case(128, 1.75)) < 0.1);
+        let at_cap = case(10, 0.75 + 0.999e7);
+        assert!(validate(&at_cap).is_ok(), "{:?}", validate(&at_cap));
+        assert!(seconds(&at_cap) < MAX_SETUP_S);
+        let refusal = validate(&case(1_000_000, 1.75)).unwrap_err();
+        assert_eq!(refusal.field, "n", "{refusal}");
     }
 
     #[test]

@@ -105,7 +105,7 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             ),
         ));
     }
-    match case.method {
+    let outcome = match case.method {
         Method::Nonlocal => in_pool(&case, nonlocal::run),
         Method::FdExplicit => in_pool(&case, |case| local::run(case, false)),
         Method::Adi => in_pool(&case, |case| local::run(case, true)),
@@ -114,7 +114,14 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         Method::SteadyCg | Method::Feti => steady::run(&case),
         Method::PatchTest => in_pool(&case, patch_test::run),
         Method::Coupled1d => in_pool(&case, coupled::run),
-    }
+    };
+    outcome.map(finished)
+}
+
+/// Every outcome leaves through here: an `ok` record may hold no result that is not finite.
+fn finished(mut outcome: Outcome) -> Outcome {
+    outcome.record.diverge_if_not_finite();
+    outcome
 }
 
 /// Runs a method on a rayon pool of `case.threads` threads.
@@ -163,11 +170,12 @@ pub fn run_on_ranks(
             ),
         ));
     }
-    match case.method {
+    let outcome = match case.method {
         Method::Nonlocal => nonlocal::distributed::run(world, &case, gather_field),
         Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case),
         Method::FdExplicit | Method::Adi | Method::Pse | Method::PatchTest | Method::Coupled1d => {
             unreachable!("refused above")
         }
-    }
+    };
+    outcome.map(|outcome| outcome.map(finished))
 }

@@ -8,10 +8,11 @@
 //! operator (the seed's performance slide compares both for a constant and a varying horizon).
 
 use crate::case::{
-    horizon_length, readable, Case, CaseError, HorizonProfile, Method, PatchField, Rules,
-    ValidCase, MAX_EPS,
+    horizon_length, readable, validate_diffusivity, Case, CaseError, HorizonProfile, Method,
+    PatchField, Rules, ValidCase, MAX_EPS,
 };
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
+use crate::output::diagnostics::magnitude;
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, PatchTest, Record, Resolved, Spectrum};
 use crate::problem::polynomial::PolynomialField;
@@ -39,10 +40,55 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         ));
     }
     validate_horizon(case)?;
+    validate_interior(case)?;
+    validate_diffusivity(case.diffusivity)?;
     case.refuse_steady_fields()?;
     case.refuse_time_loop_fields(
         "a patch test evaluates L_h once, on one rank, with its own weights",
     )
+}
+
+/// The field that sets the horizon: `horizon_profile` when it varies, else `m` or `eps`.
+fn horizon_field(case: &Case) -> &'static str {
+    match case.horizon_profile {
+        Some(profile) if profile != HorizonProfile::Constant => "horizon_profile",
+        _ if case.m.is_some() => "m",
+        _ => "eps",
+    }
+}
+
+/// The refusal of a horizon whose largest value ε_max over D leaves no node of D farther than
+/// ε_max from both ends: the ghost force is measured there, and over no node it would be 0.
+fn empty_interior(case: &Case, eps_max: f64) -> CaseError {
+    let h = 1.0 / case.n as f64;
+    CaseError::new(
+        horizon_field(case),
+        format!(
+            "ε reaches {} on D, so no node of D lies farther than that from both ends, where the ghost force is measured; keep ε below 1/2 − h/2 = {} (or refine n)",
+            readable(eps_max),
+            readable(0.5 - 0.5 * h)
+        ),
+    )
+}
+
+/// Some node of D must lie farther than the largest ε from both ends (`run` measures the ghost
+/// force there). ε(x) is monotone for every profile, so its largest value on D's nodes is at the
+/// first or the last node, and the nodes nearest the middle are the ones to test.
+fn validate_interior(case: &Case) -> Result<(), CaseError> {
+    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let (n, h) = (case.n, 1.0 / case.n as f64);
+    let x = |i: usize| (i as f64 + 0.5) * h;
+    let eps_max = horizon_at(profile, horizon_length(case), x(0)).max(horizon_at(
+        profile,
+        horizon_length(case),
+        x(n - 1),
+    ));
+    let inside = |i: usize| x(i) > eps_max && x(i) < 1.0 - eps_max;
+    if inside((n - 1) / 2) || inside(n / 2) {
+        Ok(())
+    } else {
+        Err(empty_interior(case, eps_max))
+    }
 }
 
 /// A variable horizon's rules, for the patch test and the time-dependent nonlocal method: ε(x)
@@ -96,6 +142,37 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
     Ok(())
 }
 
+/// Bytes the variable-horizon operator holds at its peak, from the case alone (nothing
+/// allocated): every bar node's bonds (about 2ε(x)/h of 24 bytes each, over n + 4R nodes, R
+/// the largest reach in cells) beside D's rows (16 bytes per coefficient: about 2ε/h + 1 of
+/// them for `standard`, twice that for `partial_stress`, whose rows reach the neighbours'
+/// neighbours); a patch test's dense spectrum (n ≤ `SPECTRUM_MAX_NODES`: the matrix and the
+/// eigensolver's copies, 32 n² bytes); for a time-dependent run, the rows copied into its
+/// operator (growing vectors: up to twice their length).
+pub(crate) fn operator_bytes(case: &Case) -> f64 {
+    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let constant = horizon_length(case);
+    let n = case.n as f64;
+    // ε(x) is monotone: its extremes are at the ends.
+    let [left, right] = [0.0, 1.0].map(|x| horizon_at(profile, constant, x) * n);
+    let (largest, mean) = (left.max(right).floor(), 0.5 * (left + right));
+    let bonds = 24.0 * (n + 4.0 * largest) * 2.0 * mean;
+    let row = match case.formulation.unwrap_or_default() {
+        crate::case::Formulation::Standard => 2.0 * mean + 1.0,
+        crate::case::Formulation::PartialStress => 4.0 * mean + 1.0,
+    };
+    let rows = 16.0 * n * row;
+    let spectrum = match case.method == Method::PatchTest && case.n <= SPECTRUM_MAX_NODES {
+        true => 32.0 * n * n,
+        false => 0.0,
+    };
+    let copied = match case.method == Method::Nonlocal {
+        true => 2.0 * rows,
+        false => 0.0,
+    };
+    bonds + rows + spectrum + copied
+}
+
 /// Evaluates L_h on the prescribed field and measures the ghost force.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::PatchTest);
@@ -126,14 +203,17 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let eps_d = &operator.eps[operator.collar..operator.collar + case.n];
     let eps_max = eps_d.iter().copied().fold(0.0, f64::max);
     // As the seed plots it: the nodes within the largest horizon of an end left out (there ε
-    // meets its constant continuation into the collar).
+    // meets its constant continuation into the collar). A NaN counts as +∞ (`f64::max` would
+    // skip it), and no node at all is a refusal, not a ghost force of 0.
+    let deviation = |v: &f64| magnitude(v - expected);
     let ghost_force = x
         .iter()
         .zip(&l_u)
         .filter(|(x, _)| **x > eps_max && **x < 1.0 - eps_max)
-        .map(|(_, v)| (v - expected).abs())
-        .fold(0.0, f64::max);
-    let ghost_force_all = l_u.iter().map(|v| (v - expected).abs()).fold(0.0, f64::max);
+        .map(|(_, v)| deviation(v))
+        .reduce(f64::max)
+        .ok_or_else(|| empty_interior(case, eps_max))?;
+    let ghost_force_all = l_u.iter().map(deviation).fold(0.0, f64::max);
     let lambda = operator.lambda_bound();
     let resolved = Resolved {
         h: operator.h,

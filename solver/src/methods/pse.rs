@@ -80,7 +80,49 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             ),
         ));
     }
+    // Checked here as well as in `run`, before `Particles::new` bins the lattice in cells of
+    // side r_c: a cutoff below h would ask for more cells than particles (at ε = 1e-9, 10¹⁷).
+    if spacing * spacing >= eps * eps * CUTOFF_LOG {
+        return Err(too_narrow(field, eps, spacing));
+    }
     Ok(())
+}
+
+/// The refusal of a kernel so narrow that no other particle lies within its cutoff.
+fn too_narrow(field: &str, eps: f64, h: f64) -> CaseError {
+    CaseError::new(
+        field,
+        format!(
+            "ε = {} is so small next to h = {} that no particle lies within the kernel's cutoff {:.2}ε; use ε ≥ h/6",
+            readable(eps),
+            readable(h),
+            CUTOFF_LOG.sqrt()
+        ),
+    )
+}
+
+/// Bytes a `pse` run holds at its peak, from the case alone (nothing allocated): while
+/// `Particles::new` builds the slots, its P lattice points of 48 bytes each (P: particles and
+/// images, the span (n + 2R)^d of the cutoff's reach R in spacings, less the corners beyond
+/// r_c), with beside them either the sort's buffer (24 P) or the slots' positions (16 P), image
+/// sources (16 per image) and slot numbers (8 N), and four arrays of 8 bytes per cell. The time
+/// loop holds less: the positions, the field in slot order and a few N-vectors.
+pub(crate) fn memory_bytes(case: &Case) -> f64 {
+    let (n, dim) = (case.n as f64, case.dim as i32);
+    let h = case.length() / n;
+    let eps = case.m.map_or(case.eps.unwrap_or(h), |m| m as f64 * h);
+    let cutoff = eps * CUTOFF_LOG.sqrt();
+    let reach = (cutoff / h).ceil();
+    let side = case.length() + 2.0 * reach * h;
+    let cells = (side / cutoff).floor().max(1.0).powi(dim);
+    let corners = if dim == 2 {
+        (4.0 - PI) * reach * reach
+    } else {
+        0.0
+    };
+    let points = (n + 2.0 * reach).powi(dim) - corners;
+    let particles = n.powi(dim);
+    48.0 * points + (24.0 * points).max(32.0 * points - 8.0 * particles) + 32.0 * cells
 }
 
 /// ln(1e16): exp(−r²/ε²) is dropped beyond r² = ε² · CUTOFF_LOG.
@@ -516,17 +558,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         (None, eps) => ("eps", eps.expect("validated: m or eps")),
     };
     let particles = Particles::new(case.dim, case.n, case.length(), eps);
-    let dt_stable = particles.dt_stable(case.diffusivity).ok_or_else(|| {
-        CaseError::new(
-            field,
-            format!(
-                "ε = {} is so small next to h = {} that no particle lies within the kernel's cutoff {:.2}ε; use ε ≥ h/6",
-                readable(eps),
-                readable(particles.h),
-                CUTOFF_LOG.sqrt()
-            ),
-        )
-    })?;
+    let dt_stable = particles
+        .dt_stable(case.diffusivity)
+        .ok_or_else(|| too_narrow(field, eps, particles.h))?;
     let (dt, steps) = time_step(case, dt_stable, false)?;
     let u0 = particles.sample(case);
     let divergence_bound = divergence_bound(case, diagnostics::max_abs(&u0), None);
@@ -620,6 +654,41 @@ mod tests {
                 );
             }
         }
+    }
+
+    fn case(dim: usize, n: usize, eps: f64) -> Case {
+        Case::parse(serde_json::json!({
+            "method": "pse", "problem": "eigenmode", "dim": dim, "n": n, "eps": eps,
+            "t_end": 0.01, "cfl": 0.5
+        }))
+        .unwrap()
+    }
+
+    /// A cutoff below h is refused by `validate`, before `Particles::new` would bin the lattice
+    /// into some 10¹⁷ cells.
+    #[test]
+    fn a_kernel_narrower_than_the_spacing_is_refused_by_validation() {
+        for dim in [1, 2] {
+            let refusal = validate(&case(dim, 100, 1e-9)).unwrap_err();
+            assert_eq!(refusal.field, "eps", "{refusal}");
+            assert!(validate(&case(dim, 100, 0.02)).is_ok());
+        }
+    }
+
+    /// The memory estimate counts the slots `Particles::new` makes (at 80 bytes each, give or
+    /// take the images it drops): a wide kernel's images, not the n^d particles, dominate.
+    #[test]
+    fn the_memory_estimate_counts_particles_and_images() {
+        for (dim, n, eps) in [(1, 200, 0.05), (2, 40, 0.1), (2, 64, 1.0)] {
+            let slots = Particles::new(dim, n, 2.0, eps).slots() as f64;
+            let bytes = memory_bytes(&case(dim, n, eps));
+            assert!(
+                bytes >= 64.0 * slots && bytes <= 128.0 * slots,
+                "dim {dim} n {n} ε {eps}: {bytes:e} bytes for {slots} slots"
+            );
+        }
+        let wide = memory_bytes(&case(2, 64, 1.0));
+        assert!(wide > 50.0 * 4.0 * 64.0 * 64.0 * 8.0, "{wide:e}");
     }
 
     /// The cell-list sweep visits every pair with a real particle within r_c exactly once:

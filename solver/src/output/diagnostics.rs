@@ -19,11 +19,12 @@ pub fn squared_l2_error(exact: impl Fn(usize) -> f64 + Sync, u: &[f64], volume: 
     volume * fixed_order_sum(u.len(), |i| (exact(i) - u[i]).powi(2))
 }
 
-/// maxᵢ |exact(i) − uᵢ|.
+/// maxᵢ |exact(i) − uᵢ|, with a NaN counted as +∞ (`f64::max` would skip it, and a field of
+/// NaN would report an error of 0).
 pub fn max_error(exact: impl Fn(usize) -> f64 + Sync, u: &[f64]) -> f64 {
     (0..u.len())
         .into_par_iter()
-        .map(|i| (exact(i) - u[i]).abs())
+        .map(|i| magnitude(exact(i) - u[i]))
         .reduce(|| 0.0, f64::max)
 }
 
@@ -202,4 +203,19 @@ pub fn median(mut samples: Vec<f64>) -> f64 {
     }
     let mid = samples.len() / 2;
     *samples.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_field_of_nan_has_an_infinite_max_error_and_max_abs() {
+        let u = [0.5, f64::NAN, 0.25];
+        assert_eq!(max_error(|_| 0.0, &u), f64::INFINITY);
+        assert_eq!(max_abs(&u), f64::INFINITY);
+        let exact = [0.5, 0.0, 0.25];
+        assert_eq!(max_error(|i| exact[i], &[0.5, 0.0, 0.5]), 0.25);
+        assert!(squared_l2_error(|_| 0.0, &u, 1.0).is_nan());
+    }
 }

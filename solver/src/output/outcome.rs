@@ -38,9 +38,19 @@ pub(crate) struct Measured {
 /// The record of a finished run.
 pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Record {
     let t_final = measured.steps_done as f64 * resolved.dt;
-    let (status, message) = match measured.diverged_at {
-        None => (Status::Ok, String::new()),
-        Some(step) => (
+    let (status, message) = match (measured.diverged_at, non_finite(&measured)) {
+        (None, None) => (Status::Ok, String::new()),
+        // Below the bound at every step, yet a measure is not a number: nothing usable was
+        // measured, so the run is not `ok` (its record would hold a null or a NaN-blind 0).
+        (None, Some((name, value))) => (
+            Status::Diverged,
+            format!(
+                "`{name}` is {value} at t = {t_final} although max |u| stayed below {:e}: the run produced no finite result; dt/dt_stable = {:.4}",
+                measured.divergence_bound,
+                resolved.dt / resolved.dt_stable
+            ),
+        ),
+        (Some(step), _) => (
             Status::Diverged,
             format!(
                 "max |u| exceeded {:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
@@ -75,4 +85,70 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
 
 fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
+}
+
+/// The first of a run's measures that is not a finite number, by its name in the record.
+fn non_finite(measured: &Measured) -> Option<(&'static str, f64)> {
+    let (squared, max) = measured.errors.unzip();
+    [
+        ("error_l2", squared),
+        ("error_max", max),
+        ("error_total", measured.error_total),
+        ("mass", Some(measured.mass)),
+        ("max_abs", Some(measured.max_abs)),
+    ]
+    .into_iter()
+    .find_map(|(name, value)| value.filter(|v| !v.is_finite()).map(|v| (name, v)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn case() -> Case {
+        Case::parse(serde_json::json!({"dim": 2, "n": 4, "m": 1, "t_end": 0.1, "cfl": 0.5}))
+            .unwrap()
+    }
+
+    /// The record of one step that stayed below the bound, with these measures.
+    fn recorded(errors: Option<(f64, f64)>, mass: f64) -> Record {
+        let case = case();
+        let measured = Measured {
+            setup_s: 0.0,
+            solve_s: 0.0,
+            step_s: 0.0,
+            steps_done: 1,
+            diverged_at: None,
+            divergence_bound: 1e6,
+            errors,
+            error_total: None,
+            mass,
+            max_abs: 1.0,
+            c_tot: None,
+            histogram: None,
+            field: None,
+            distribution: Distribution::serial(&case),
+            implicit: ImplicitSolves::default(),
+        };
+        let resolved = Resolved {
+            dt: 0.1,
+            dt_stable: 0.2,
+            ..Resolved::default()
+        };
+        record(&case, resolved, measured)
+    }
+
+    #[test]
+    fn a_run_whose_measures_are_not_finite_is_not_ok() {
+        assert_eq!(recorded(Some((1e-6, 1e-3)), 0.5).status, Status::Ok);
+        for (errors, mass, name) in [
+            (Some((f64::NAN, 0.0)), 0.5, "error_l2"),
+            (Some((1e-6, f64::INFINITY)), 0.5, "error_max"),
+            (None, f64::NAN, "mass"),
+        ] {
+            let record = recorded(errors, mass);
+            assert_eq!(record.status, Status::Diverged, "{name}");
+            assert!(record.message.contains(name), "{}", record.message);
+        }
+    }
 }

@@ -97,6 +97,54 @@ impl Record {
     }
 }
 
+impl Record {
+    /// The first result that should be a finite number and is not, by its name in the record
+    /// (the conditioning diagnostics `coupling.gradient` and `hessian_condition` may be
+    /// infinite by right and are left out).
+    pub fn non_finite_result(&self) -> Option<(&'static str, f64)> {
+        let mut results = vec![
+            ("error_l2", self.error_l2),
+            ("error_l2_norm", self.error_l2_norm),
+            ("error_max", self.error_max),
+            ("error_total", self.error_total),
+            ("mass", self.mass),
+            ("max_abs", self.max_abs),
+            ("relative_residual", self.steady.relative_residual),
+            ("dual_residual", self.steady.dual_residual),
+        ];
+        if let Some(patch) = &self.patch {
+            results.push(("patch.ghost_force", Some(patch.ghost_force)));
+            results.push(("patch.ghost_force_all", Some(patch.ghost_force_all)));
+        }
+        if let Some(coupling) = &self.coupling {
+            results.extend([
+                ("coupling.error_nonlocal", Some(coupling.error_nonlocal)),
+                ("coupling.error_local", Some(coupling.error_local)),
+                ("coupling.mismatch", Some(coupling.mismatch)),
+                ("coupling.control_error", Some(coupling.control_error)),
+            ]);
+        }
+        results
+            .into_iter()
+            .find_map(|(name, value)| value.filter(|v| !v.is_finite()).map(|v| (name, v)))
+    }
+
+    /// An `ok` record holding a result that is not finite becomes `diverged`, saying which:
+    /// such a number was never measured (JSON writes it as null), whatever a method's own
+    /// checks let through. `methods::run` applies this to every record it returns.
+    pub fn diverge_if_not_finite(&mut self) {
+        if self.status != Status::Ok {
+            return;
+        }
+        if let Some((name, value)) = self.non_finite_result() {
+            self.status = Status::Diverged;
+            self.message = format!(
+                "`{name}` is {value}, not a finite number: the run produced no usable result"
+            );
+        }
+    }
+}
+
 /// VmHWM of /proc/self/status: the most resident memory this process has held.
 pub fn peak_memory_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -375,4 +423,39 @@ fn cpu_model() -> Option<String> {
     let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("model name"))?;
     Some(line.split_once(':')?.1.trim().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record() -> Record {
+        let case =
+            Case::parse(serde_json::json!({"method": "steady_cg", "dim": 2, "n": 8, "m": 2}))
+                .unwrap();
+        Record::new(&case, Resolved::default(), Distribution::serial(&case))
+    }
+
+    #[test]
+    fn an_ok_record_holding_a_non_finite_result_is_diverged() {
+        let mut finite = record();
+        finite.error_max = Some(1e-3);
+        finite.diverge_if_not_finite();
+        assert_eq!(finite.status, Status::Ok);
+        for value in [f64::NAN, f64::INFINITY] {
+            let mut bad = record();
+            bad.error_max = Some(0.0);
+            bad.steady.relative_residual = Some(value);
+            bad.diverge_if_not_finite();
+            assert_eq!(bad.status, Status::Diverged);
+            assert!(bad.message.contains("relative_residual"), "{}", bad.message);
+        }
+        // A record already diverged keeps its own message.
+        let mut diverged = record();
+        diverged.status = Status::Diverged;
+        diverged.message = "stopped".into();
+        diverged.mass = Some(f64::NAN);
+        diverged.diverge_if_not_finite();
+        assert_eq!(diverged.message, "stopped");
+    }
 }

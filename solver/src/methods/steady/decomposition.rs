@@ -92,6 +92,41 @@ impl Axis {
     }
 }
 
+/// Per block k of one axis: the width of Λ_k and of its interior (the nodes of Λ_k in no other
+/// block's Λ), as `Axis::new` and `Decomposition::new` make them, from the cuts alone (the
+/// memory estimate's sizes, without building the decomposition). A subdomain's unknowns and
+/// interior are the products of its blocks' widths: a node lies on an interface exactly when
+/// one of its coordinates lies in another block's Λ on that axis.
+pub fn widths(n: usize, p: usize, m: usize) -> Vec<(usize, usize)> {
+    let (ni, mi, cut) = (n as i64, m as i64, (m / 2) as i64);
+    let lambda = |k: usize| {
+        let (a, b) = ((k * n / p) as i64, ((k + 1) * n / p) as i64);
+        let lo = if k > 0 { a + cut } else { a };
+        let hi = if k + 1 < p { b - cut } else { b };
+        (lo - mi).max(0)..(hi + mi).min(ni)
+    };
+    (0..p)
+        .map(|k| {
+            let own = lambda(k);
+            // Λ's ends grow with k, so only the neighbours' Λ can reach into block k's.
+            let start = if k > 0 {
+                own.start.max(lambda(k - 1).end)
+            } else {
+                own.start
+            };
+            let end = if k + 1 < p {
+                own.end.min(lambda(k + 1).start)
+            } else {
+                own.end
+            };
+            (
+                (own.end - own.start).max(0) as usize,
+                (end - start).max(0) as usize,
+            )
+        })
+        .collect()
+}
+
 /// The nodes subdomain n shares with another one.
 #[derive(Clone, Debug)]
 pub struct Interface {
@@ -295,6 +330,36 @@ mod tests {
                 for b in a - mi..=a + mi {
                     assert!(axis.count(a, b) >= 1, "n {n} p {p} m {m}: bond {a}–{b}");
                 }
+            }
+        }
+    }
+
+    /// `widths` gives every subdomain's unknowns and interior (the nodes on no interface, as
+    /// the Dirichlet preconditioner finds them) without building the decomposition.
+    #[test]
+    fn widths_are_the_decompositions_unknowns_and_interiors() {
+        for (n, p, m) in [
+            (30, 3, 4),
+            (25, 4, 3),
+            (32, 4, 4),
+            (24, 2, 5),
+            (40, 5, 1),
+            (16, 1, 2),
+        ] {
+            let decomposition = Decomposition::new(n, p, m);
+            let widths = widths(n, p, m);
+            for subdomain in &decomposition.subdomains {
+                let [kx, ky] = subdomain.block;
+                let ((wx, ix), (wy, iy)) = (widths[kx], widths[ky]);
+                assert_eq!(subdomain.unknowns(), wx * wy, "n {n} p {p} m {m}");
+                let mut on_interface = vec![false; subdomain.unknowns()];
+                for interface in &subdomain.interfaces {
+                    for &i in &interface.nodes {
+                        on_interface[i] = true;
+                    }
+                }
+                let interior = on_interface.iter().filter(|&&shared| !shared).count();
+                assert_eq!(interior, ix * iy, "n {n} p {p} m {m} block {kx},{ky}");
             }
         }
     }

@@ -10,7 +10,7 @@ use super::problem::negate_into;
 use super::problem::{outcome, SteadyProblem, Stop, Timings};
 use crate::case::ValidCase;
 use crate::case::{CaseError, Method};
-use crate::linalg::cg::{self, conjugate_gradient};
+use crate::linalg::cg::{self, Cg};
 use crate::operator::{self, LinearOperator};
 use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
@@ -49,18 +49,15 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let solve_started = Instant::now();
     let comm_before = mpi.seconds();
     let mut u = vec![0.0; b.len()];
-    let convergence = conjugate_gradient(
-        Some(&pool),
-        |p, ap| {
+    let system = &mut cg::Plain {
+        len: b.len(),
+        apply: |p: &[f64], ap: &mut [f64]| {
             operator.apply(p, &mut lp, &mut workspace);
             pool.install(|| negate_into(&lp, ap));
         },
-        |x, y| mpi.sum(pool.install(|| cg::dot(x, y))),
-        &b,
-        &mut u,
-        problem.rtol,
-        case.max_iterations(),
-    );
+        dot: |x: &[f64], y: &[f64]| mpi.sum(pool.install(|| cg::dot(x, y))),
+    };
+    let convergence = Cg::new(b.len()).solve(system, &b, &mut u, &problem.cg_params(Some(&pool)));
     let solve_s = solve_started.elapsed().as_secs_f64();
     let comm_s = mpi.seconds() - comm_before;
 
@@ -85,7 +82,7 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
             &problem,
             Some(backend),
             timings,
-            Stop::of_cg(&convergence, problem.rtol),
+            Stop::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             distribution,
             field,

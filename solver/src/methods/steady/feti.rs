@@ -26,8 +26,8 @@ use super::assembly::assemble;
 use super::decomposition::{Decomposition, Subdomain};
 use super::problem::{outcome, SteadyProblem, Stop, Timings};
 use crate::case::ValidCase;
-use crate::case::{CaseError, FetiPreconditioner};
-use crate::linalg::cg::{conjugate_gradient, dot_serial};
+use crate::case::{Case, CaseError, FetiPreconditioner};
+use crate::linalg::cg::{dot_serial, Cg, CgParams, CgSystem, Norm, Plain, Start};
 use crate::linalg::cholesky::{symmetric_product, Cholesky};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, FetiPhases, SteadySolve};
@@ -43,13 +43,74 @@ use std::time::Instant;
 /// Iterations of CG for the interior solves of `dirichlet_cg` (seed 001, section 4.1).
 const INTERIOR_CG_ITERATIONS: usize = 5;
 
+/// Non-zeros of the Cholesky factor of a subdomain matrix on `s` nodes with the square stencil
+/// of reach m, under faer's AMD ordering: 3.8 m^1.5 s^1.25, at most the dense triangle. Fitted
+/// at m = 4 to `factor_nonzeros_max` (43–47 M at s = 85 264, docs/steady.md) and to the weak
+/// study's peak (7.8 GB per rank at s = 4 624); s^1.25 lies between nested dissection's
+/// s log s and AMD's worse fill on grids, and m^1.5 comes from viewing the stencil as a coarse
+/// grid of m × m blocks (not measured at other m).
+fn factor_nonzeros(s: f64, m: f64) -> f64 {
+    (3.8 * m.powf(1.5) * s.powf(1.25)).min(s * (s + 1.0) / 2.0)
+}
+
+/// Bytes a `feti` run holds at its peak over all ranks, from the case alone (nothing
+/// allocated), besides the fields of n² values counted by the caller. Per subdomain of s
+/// unknowns (s_I of them interior): A_n in CSC (16 bytes per non-zero: its pairs of nodes
+/// within the stencil), the Cholesky factor of A_n and, for `dirichlet` (scaled or not), of A_II
+/// (8 bytes per non-zero of L, `factor_nonzeros`), or A_II itself for `dirichlet_cg`; its work
+/// vectors (48 bytes per node); its interface lists and dual vectors (72 bytes per interface
+/// node). Per rank: the coarse GᵀG, factored on every rank (24 bytes per entry while it is built
+/// and factored), and an assembly in flight per thread (48 bytes per entry: the triplets and
+/// faer's sorting of them into a matrix).
+pub(crate) fn memory_bytes(case: &Case) -> f64 {
+    let (Some(p), Some(m)) = (case.subdomains, case.m) else {
+        return 0.0;
+    };
+    // The widths take a few values: count the blocks of each (Λ width, interior width).
+    let mut kinds = std::collections::BTreeMap::<(usize, usize), f64>::new();
+    for width in super::decomposition::widths(case.n, p, m) {
+        *kinds.entry(width).or_default() += 1.0;
+    }
+    // Pairs (i, j) of a block's nodes within m of each other, i = j included.
+    let pairs = |w: usize| {
+        let k = m.min(w.saturating_sub(1)) as f64;
+        let w = w as f64;
+        w + 2.0 * (k * w - k * (k + 1.0) / 2.0)
+    };
+    let reach = m as f64;
+    let (mut bytes, mut largest_matrix) = (0.0, 0.0f64);
+    for (&(wx, ix), &count_x) in &kinds {
+        for (&(wy, iy), &count_y) in &kinds {
+            let (s, interior) = ((wx * wy) as f64, (ix * iy) as f64);
+            let matrix = pairs(wx) * pairs(wy);
+            largest_matrix = largest_matrix.max(matrix);
+            let preconditioner = match case.preconditioner() {
+                FetiPreconditioner::None => 0.0,
+                FetiPreconditioner::DirichletCg => 16.0 * pairs(ix) * pairs(iy),
+                FetiPreconditioner::Dirichlet | FetiPreconditioner::DirichletScaled => {
+                    8.0 * factor_nonzeros(interior, reach)
+                }
+            };
+            let subdomain = 16.0 * matrix
+                + 8.0 * factor_nonzeros(s, reach)
+                + preconditioner
+                + 48.0 * s
+                + 72.0 * (s - interior);
+            bytes += count_x * count_y * subdomain;
+        }
+    }
+    let floating = (p as f64 - 2.0).max(0.0).powi(2);
+    let per_rank = 24.0 * floating * floating + case.threads as f64 * 48.0 * largest_matrix;
+    bytes + case.ranks as f64 * per_rank
+}
+
 /// How the Dirichlet preconditioner solves with A_II.
 enum InteriorSolve {
     /// No preconditioner, or no interior node: S_n = A_BB.
     None,
     Cholesky(Cholesky),
-    /// `dirichlet_cg`: a few CG iterations on A_II, from zero.
-    Cg(SparseColMat<usize, f64>),
+    /// `dirichlet_cg`: a few CG iterations on A_II, from zero, with their buffers.
+    Cg(SparseColMat<usize, f64>, Cg),
 }
 
 /// One subdomain's matrices, factors and work vectors.
@@ -110,7 +171,9 @@ impl<'d> Local<'d> {
         let interior_solve = match preconditioner {
             _ if interior.is_empty() => InteriorSolve::None,
             FetiPreconditioner::None => InteriorSolve::None,
-            FetiPreconditioner::DirichletCg => InteriorSolve::Cg(submatrix(&a, &interior)),
+            FetiPreconditioner::DirichletCg => {
+                InteriorSolve::Cg(submatrix(&a, &interior), Cg::new(interior.len()))
+            }
             FetiPreconditioner::Dirichlet | FetiPreconditioner::DirichletScaled => {
                 InteriorSolve::Cholesky(Cholesky::new(submatrix(&a, &interior).as_ref())?)
             }
@@ -210,20 +273,24 @@ impl<'d> Local<'d> {
                 factor.solve_in_place(y);
                 true
             }
-            InteriorSolve::Cg(a_ii) => {
+            InteriorSolve::Cg(a_ii, cg) => {
                 for (b, &i) in self.interior_load.iter_mut().zip(&self.interior) {
                     *b = self.w[i];
                 }
-                y.fill(0.0);
-                conjugate_gradient(
-                    None,
-                    |p, ap| symmetric_product(a_ii.as_ref(), p, ap),
-                    dot_serial,
-                    &self.interior_load,
-                    y,
-                    0.0,
-                    INTERIOR_CG_ITERATIONS,
-                );
+                let system = &mut Plain {
+                    len: y.len(),
+                    apply: |p: &[f64], ap: &mut [f64]| symmetric_product(a_ii.as_ref(), p, ap),
+                    dot: dot_serial,
+                };
+                // A fixed number of iterations: rtol 0 is never reached.
+                let params = CgParams {
+                    start: Start::Zero,
+                    rtol: 0.0,
+                    norm: Norm::Residual,
+                    max_iterations: INTERIOR_CG_ITERATIONS,
+                    pool: None,
+                };
+                cg.solve(system, &self.interior_load, y, &params);
                 true
             }
         };
@@ -601,7 +668,45 @@ struct DualSolve {
     phases: FetiPhases,
 }
 
-/// Algorithm 1: preconditioned projected CG on P₀ K λ = P₀ e, Gᵀλ = g.
+/// The interface problem P₀ K λ = P₀ e as CG sees it: A = P₀ K, M = P₀ Q (seed 001's
+/// Algorithm 1), the inner product over the multipliers. The phases are timed from the first
+/// iteration's product on, not over the start-up.
+struct DualSystem<'f, 'd> {
+    feti: &'f mut Feti<'d>,
+    exchange: &'f dyn Exchange,
+    iterations_started: Option<Instant>,
+}
+
+impl CgSystem for DualSystem<'_, '_> {
+    fn len(&self) -> usize {
+        self.feti.layout.len()
+    }
+
+    fn apply(&mut self, p: &[f64], x: &mut [f64]) {
+        if self.iterations_started.is_none() {
+            self.feti.reset_clocks();
+            self.iterations_started = Some(Instant::now());
+        }
+        self.feti.apply_k(self.exchange, p, x);
+        self.feti.project(self.exchange, x);
+    }
+
+    fn dot(&mut self, a: &[f64], b: &[f64]) -> f64 {
+        self.feti.dot(self.exchange, a, b)
+    }
+
+    fn preconditioned(&self) -> bool {
+        true
+    }
+
+    fn precondition(&mut self, r: &[f64], y: &mut [f64]) {
+        self.feti.apply_preconditioner(self.exchange, r, y);
+        self.feti.project(self.exchange, y);
+    }
+}
+
+/// Algorithm 1: preconditioned projected CG on P₀ K λ = P₀ e, Gᵀλ = g, until
+/// √(rᵀy / r₀ᵀy₀) ≤ rtol.
 fn projected_cg(
     feti: &mut Feti,
     exchange: &dyn Exchange,
@@ -620,44 +725,30 @@ fn projected_cg(
     // The residual of P₀ K λ = P₀ e (eq. 31): projected, so that y = P₀ Q r stays symmetric.
     let mut r: Vec<f64> = e.iter().zip(&x).map(|(e, x)| e - x).collect();
     feti.project(exchange, &mut r);
-    let mut y = vec![0.0; len];
-    feti.apply_preconditioner(exchange, &r, &mut y);
-    feti.project(exchange, &mut y);
-    let mut p = y.clone();
-    let mut alpha = feti.dot(exchange, &r, &y);
-    let alpha0 = alpha;
-    let mut dual_residual = if alpha0 > 0.0 { 1.0 } else { 0.0 };
-    let mut iterations = 0;
-    // The phases are timed over the iterations only, not the start-up products above.
-    feti.reset_clocks();
-    let loop_started = Instant::now();
-    while dual_residual > rtol && iterations < max_iterations {
-        iterations += 1;
-        feti.apply_k(exchange, &p, &mut x);
-        feti.project(exchange, &mut x);
-        let step = alpha / feti.dot(exchange, &p, &x);
-        for i in 0..len {
-            lambda[i] += step * p[i];
-            r[i] -= step * x[i];
-        }
-        feti.apply_preconditioner(exchange, &r, &mut y);
-        feti.project(exchange, &mut y);
-        let alpha_next = feti.dot(exchange, &r, &y);
-        dual_residual = (alpha_next.max(0.0) / alpha0).sqrt();
-        if !dual_residual.is_finite() {
-            break;
-        }
-        let ratio = alpha_next / alpha;
-        for i in 0..len {
-            p[i] = y[i] + ratio * p[i];
-        }
-        alpha = alpha_next;
+    let params = CgParams {
+        start: Start::Residual(&r),
+        rtol,
+        norm: Norm::Preconditioned,
+        max_iterations,
+        pool: None,
+    };
+    let mut system = DualSystem {
+        feti,
+        exchange,
+        iterations_started: None,
+    };
+    let convergence = Cg::new(len).solve(&mut system, e, &mut lambda, &params);
+    let started = system.iterations_started;
+    if started.is_none() {
+        // Solved before any iteration: no phase is timed.
+        feti.reset_clocks();
     }
-    let phases = feti.phases(exchange, iterations, loop_started.elapsed().as_secs_f64());
+    let loop_s = started.map_or(0.0, |started| started.elapsed().as_secs_f64());
+    let phases = feti.phases(exchange, convergence.iterations, loop_s);
     DualSolve {
         lambda,
-        iterations,
-        dual_residual,
+        iterations: convergence.iterations,
+        dual_residual: convergence.relative_residual,
         phases,
     }
 }
@@ -830,6 +921,24 @@ pub fn run_on(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// At the case (n = 512, m = 4, p = 2: 1974 MiB measured at the peak, where the
+    /// fields alone are 12 MiB) the estimate is within a factor 2; and the fill model gives the
+    /// factors docs/steady.md measured at L/p = 288.
+    #[test]
+    fn the_memory_estimate_counts_the_subdomain_factors() {
+        let case = ValidCase::from_json(serde_json::json!({
+            "method": "feti", "dim": 2, "n": 512, "m": 4, "kernel": "inverse_distance",
+            "subdomains": 2,
+        }))
+        .unwrap();
+        let mib = memory_bytes(&case) / (1u64 << 20) as f64;
+        assert!((1974.0 / 2.0..1974.0 * 2.0).contains(&mib), "{mib} MiB");
+        let nonzeros = factor_nonzeros(85_264.0, 4.0);
+        assert!((40e6..50e6).contains(&nonzeros), "{nonzeros:e}");
+        // Never more than the dense triangle.
+        assert_eq!(factor_nonzeros(10.0, 8.0), 55.0);
+    }
 
     /// On a floating subdomain, A_n^† is the Moore–Penrose pseudo-inverse: A A^† b = P b (P removes
     /// the mean, the projection on range A_n = 1⊥), A^† b ⊥ 1, and A^† is symmetric.

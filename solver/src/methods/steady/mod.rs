@@ -38,10 +38,10 @@ pub mod problem;
 use crate::case::Rules;
 use crate::case::ValidCase;
 use crate::case::{
-    positive, refuse_given, Backend, Case, CaseError, Collar, Kernel, Method, Partition, Problem,
-    Quadrature,
+    refuse_given, validate_diffusivity, Backend, Case, CaseError, Collar, Kernel, Method,
+    Partition, Problem, Quadrature,
 };
-use crate::linalg::cg;
+use crate::linalg::cg::{self, Cg};
 use crate::operator::{self, LinearOperator};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, SteadySolve};
@@ -106,7 +106,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         ],
         |field| format!("method {method} is steady (−L u = f, g = u on Γ); leave `{field}` out"),
     )?;
-    positive("diffusivity", case.diffusivity)?;
+    validate_diffusivity(case.diffusivity)?;
     case.validate_iteration()?;
     if case.threads < 1 {
         return Err(CaseError::new("threads", "must be at least 1 (got 0)"));
@@ -192,25 +192,22 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         let mut lu = vec![0.0; b.len()];
         let setup_s = started.elapsed().as_secs_f64();
         let solve_started = Instant::now();
-        let convergence = cg::conjugate_gradient(
-            None,
-            |p, ap| {
+        let system = &mut cg::Plain {
+            len: b.len(),
+            apply: |p: &[f64], ap: &mut [f64]| {
                 operator.apply(p, &mut lu, &mut workspace);
                 negate_into(&lu, ap);
             },
-            cg::dot,
-            &b,
-            &mut u,
-            problem.rtol,
-            case.max_iterations(),
-        );
+            dot: cg::dot,
+        };
+        let convergence = Cg::new(b.len()).solve(system, &b, &mut u, &problem.cg_params(None));
         let solve_s = solve_started.elapsed().as_secs_f64();
         Ok(outcome(
             case,
             &problem,
             Some(backend),
             Timings { setup_s, solve_s },
-            Stop::of_cg(&convergence, problem.rtol),
+            Stop::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             Distribution::serial(case),
             u,

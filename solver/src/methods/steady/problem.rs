@@ -6,12 +6,13 @@ use crate::case::{Backend, Case, Kernel, Quadrature};
 use crate::discretization::grid::{Grid, Horizon};
 use crate::discretization::influence::Influence;
 use crate::discretization::stencil::Stencil;
-use crate::linalg::cg;
+use crate::linalg::cg::{self, CgParams, Norm, Start};
 use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, Record, Resolved, Status, SteadySolve};
 use rayon::prelude::*;
+use rayon::ThreadPool;
 
 /// The steady problem of a case: the square stencil of A = −L_h and the data.
 pub struct SteadyProblem {
@@ -19,6 +20,8 @@ pub struct SteadyProblem {
     /// k of the local limit kΔ.
     pub diffusivity: f64,
     pub rtol: f64,
+    /// The iteration cap of its CG (and of FETI's).
+    pub max_iterations: usize,
 }
 
 /// The manufactured solution u = x₁² + x₂², also the volume constraint g on Γ.
@@ -57,6 +60,19 @@ impl SteadyProblem {
             stencil,
             diffusivity: k,
             rtol: case.rtol(),
+            max_iterations: case.max_iterations(),
+        }
+    }
+
+    /// How its CG runs (seed 001, section 4.1): from zero until ‖r‖/‖b‖ ≤ rtol, at most the
+    /// case's iterations; the vector updates on `pool`.
+    pub fn cg_params<'a>(&self, pool: Option<&'a ThreadPool>) -> CgParams<'a> {
+        CgParams {
+            start: Start::Zero,
+            rtol: self.rtol,
+            norm: Norm::Residual,
+            max_iterations: self.max_iterations,
+            pool,
         }
     }
 
@@ -159,9 +175,9 @@ pub(crate) struct Stop {
 }
 
 impl Stop {
-    pub(crate) fn of_cg(convergence: &cg::Convergence, rtol: f64) -> Self {
+    pub(crate) fn of_cg(convergence: &cg::Convergence) -> Self {
         Stop {
-            reached_tolerance: convergence.relative_residual <= rtol,
+            reached_tolerance: convergence.converged,
             residual: convergence.relative_residual,
         }
     }
