@@ -292,7 +292,7 @@ fn help_and_readme_document_every_case_field() {
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
     let fields = Case::field_names();
     assert!(fields.len() > 30, "{fields:?}");
-    for field in &fields {
+    for field in fields {
         let flag = format!("--{}", field.replace('_', "-"));
         let named = help.match_indices(&flag).any(|(at, _)| {
             !help[at + flag.len()..].starts_with(|c: char| c.is_alphanumeric() || c == '-')

@@ -230,10 +230,7 @@ mod tests {
             "ranks",
             "subdomains",
         ] {
-            assert!(
-                names.contains(&name),
-                "{name} missing from {names:?}"
-            );
+            assert!(names.contains(&name), "{name} missing from {names:?}");
         }
         // Every field a case serializes is among them (the list cannot miss a field).
         let full = Case::parse(serde_json::json!({"dim": 1, "n": 8, "m": 2, "eps": 0.1,
@@ -246,7 +243,10 @@ mod tests {
         .unwrap();
         let written = serde_json::to_value(&full).unwrap();
         for field in written.as_object().unwrap().keys() {
-            assert!(names.contains(&field.as_str()), "{field} missing from {names:?}");
+            assert!(
+                names.contains(&field.as_str()),
+                "{field} missing from {names:?}"
+            );
         }
     }
 

@@ -127,9 +127,15 @@ mod tests {
         let at = |path: &str, message: &str| {
             FieldError::<Thing>::from_serde(path.into(), message.into()).field
         };
-        assert_eq!(at(".", "unknown field `kernal`, expected one of …"), "kernal");
+        assert_eq!(
+            at(".", "unknown field `kernal`, expected one of …"),
+            "kernal"
+        );
         assert_eq!(at("resources", "missing field `x`"), "resources.x");
-        assert_eq!(at("base.n", "invalid type: string, expected usize"), "base.n");
+        assert_eq!(
+            at("base.n", "invalid type: string, expected usize"),
+            "base.n"
+        );
         let e = FieldError::<Thing>::new("n", "must be at least 1");
         assert_eq!(e.to_string(), "thing `n`: must be at least 1");
     }
