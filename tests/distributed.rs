@@ -6,7 +6,7 @@
 
 use nonlocal_study::{binary, mpirun, mpirun_with, nlsolve, read_field, record, RESULT_FIELDS};
 use serde_json::Value;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Output;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -29,7 +29,7 @@ struct Run {
     field: Vec<f64>,
 }
 
-fn finished(output: &Output, path: &PathBuf, what: &str) -> Run {
+fn finished(output: &Output, path: &Path, what: &str) -> Run {
     assert!(
         output.status.success(),
         "{what} failed: {}",

@@ -18,13 +18,16 @@ pub struct PivotSpec {
 
 /// The pivot as a Markdown table; a cell no row fills stays empty, one that several fill is an
 /// error (the row fields do not tell the points apart).
+/// A line of the pivot: its row fields' texts, and its cells by column index.
+type Line = (Vec<String>, Vec<(usize, String)>);
+
 pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
     if spec.values.is_empty() {
         return Err("give at least one --value".into());
     }
     // A column is (the column field's value, or null without one; the value's index).
     let mut columns: Vec<(Value, usize)> = Vec::new();
-    let mut lines: Vec<(Vec<String>, Vec<(usize, String)>)> = Vec::new();
+    let mut lines: Vec<Line> = Vec::new();
     for row in table {
         let named = row.expression_fields();
         let scope = Scope::of(&named);

@@ -247,7 +247,7 @@ fn run_cases(
                     finish(store, planned, record, &mut tally, progress)?;
                 }
                 Ok(case) => {
-                    let mut job = start(next, case, planned, solver, store, options, cores, lock)?;
+                    let mut job = start(next, case, planned, solver, store, options, lock)?;
                     job.attempt = attempt;
                     running.push(job);
                 }
@@ -353,7 +353,6 @@ fn start(
     solver: &Nlsolve,
     store: &Store,
     options: &PoolOptions,
-    cores: usize,
     lock: File,
 ) -> Result<Running, FileError> {
     let work = store.work_dir();
@@ -399,7 +398,7 @@ fn start(
         attempt: 1,
         child,
         started: Instant::now(),
-        cores,
+        cores: cores_of(planned),
         stdout,
         stderr,
         case_file,

@@ -139,6 +139,10 @@ impl Window {
         self.nx * self.ny
     }
 
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// Storage index of the node in column x, row y of D (which must lie in the window).
     #[inline]
     pub fn index(&self, x: usize, y: usize) -> usize {
@@ -170,6 +174,10 @@ impl PaddedWindow {
         self.stride() * self.window.ny
     }
 
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// Storage index of the node in column x, row y of D (which must lie in the window).
     #[inline]
     pub fn index(&self, x: usize, y: usize) -> usize {
@@ -190,6 +198,10 @@ pub struct RowRun {
 impl RowRun {
     pub fn len(&self) -> usize {
         self.x1 - self.x0
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.x1 == self.x0
     }
 }
 

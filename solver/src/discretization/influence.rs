@@ -44,7 +44,7 @@ impl Influence for Kernel {
             }
             Kernel::Gaussian => {
                 let e = (-1.0f64).exp();
-                let mut g = if i % 2 == 0 {
+                let mut g = if i.is_multiple_of(2) {
                     0.5 * PI.sqrt() * ERF_1
                 } else {
                     0.5 * (1.0 - e)

@@ -12,7 +12,7 @@
 //!   ½ Σ_o w_o (o h)ᵀ ∇²p (o h) = (Δp / 2d) Σ_o w_o |o h|²: the odd terms and the mixed second
 //!   derivatives cancel. Hence L_h is exact on every polynomial of degree ≤ 3 (L_h p = kΔp, as the
 //!   continuum operator of eq. 1.1 with c of eq. 1.5 is) if and only if the one moment condition
-//!       Σ_o w_o |o h|² = 2 d k,   i.e.   Σ_o J_o V_o |o h|² = ∫_{B_ε} J(|z|/ε) |z|² dz
+//!   Σ_o w_o |o h|² = 2 d k,   i.e.   Σ_o J_o V_o |o h|² = ∫_{B_ε} J(|z|/ε) |z|² dz
 //!   holds (the right side is 2ε³M₂ in 1D and 2πε⁴M₃ in 2D). This is the quadratic exactness of
 //!   seed 002 (Lemma 5), whose quasi-discrete operator gets it from reproducing-kernel quadrature
 //!   weights; on our symmetric lattice the generalized-moving-least-squares weight fit of Trask,

@@ -82,7 +82,7 @@ pub struct Timing {
 
 /// Is step k of `steps` one whose time is kept (every k-th in runs longer than `MAX_TIMED_STEPS`)?
 pub(crate) fn is_sampled(steps: usize, k: usize) -> bool {
-    k % steps.div_ceil(MAX_TIMED_STEPS).max(1) == 0
+    k.is_multiple_of(steps.div_ceil(MAX_TIMED_STEPS).max(1))
 }
 
 /// The time loop every solver shares: up to `steps` timed calls of `step(state, k)`, which

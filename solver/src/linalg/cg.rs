@@ -21,6 +21,10 @@ pub trait CgSystem {
     /// The length of every vector of the system: a solve with any other length is refused.
     fn len(&self) -> usize;
 
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// ap = A p.
     fn apply(&mut self, p: &[f64], ap: &mut [f64]);
 

@@ -114,7 +114,7 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
     }
     let constant = horizon_length(case);
     if let HorizonProfile::Transition { start, end, .. } = profile {
-        if !(0.0..=1.0).contains(&start) || !(start < end && end <= 1.0) {
+        if !((0.0..=1.0).contains(&start) && start < end && end <= 1.0) {
             return Err(CaseError::new(
                 "horizon_profile",
                 format!(

@@ -292,7 +292,7 @@ impl FftOperator {
     ) {
         // The transform of a real row has real end values; round-off left imaginary parts there.
         spectrum[0].im = 0.0;
-        if self.px % 2 == 0 {
+        if self.px.is_multiple_of(2) {
             spectrum[self.px / 2].im = 0.0;
         }
         self.rows_inverse

@@ -86,7 +86,7 @@ impl Transform {
 /// Whether k has no prime factor above 5 (FFTs of such lengths are fast).
 fn is_5_smooth(mut k: usize) -> bool {
     for p in [2, 3, 5] {
-        while k > 0 && k % p == 0 {
+        while k > 0 && k.is_multiple_of(p) {
             k /= p;
         }
     }

@@ -128,10 +128,10 @@ fn block_shape(case: &Case, stencil: &Stencil) -> Result<(usize, usize), CaseErr
     let fits = |px: usize, py: usize| px * py == ranks && px <= n && py <= rows;
     let shape = match (case.px, case.py) {
         (Some(px), Some(py)) => Some((px, py)),
-        (Some(px), None) => (ranks % px == 0).then(|| (px, ranks / px)),
-        (None, Some(py)) => (ranks % py == 0).then(|| (ranks / py, py)),
+        (Some(px), None) => ranks.is_multiple_of(px).then(|| (px, ranks / px)),
+        (None, Some(py)) => ranks.is_multiple_of(py).then(|| (ranks / py, py)),
         (None, None) => (1..=ranks)
-            .filter(|&px| ranks % px == 0 && fits(px, ranks / px))
+            .filter(|&px| ranks.is_multiple_of(px) && fits(px, ranks / px))
             .map(|px| (px, ranks / px))
             .min_by_key(|&(px, py)| (block_halo(stencil, px, py), px)),
     };

@@ -10,6 +10,7 @@
 //!   four sides of D; in θ at the corners of D (the first side hit changes) and where the circle
 //!   of radius ε meets a side (a crossing enters or leaves (0, ε)). The factor ρ of dy cancels the
 //!   1/ρ of the inverse-distance kernel, so every piece is smooth.
+//!
 //! Where the ball lies inside D, φ = sin(a x₁) sin(a x₂) is an eigenfunction of the
 //! translation-invariant operator: averaging over ±z leaves φ(x + z) → φ(x) cos(a z₁) cos(a z₂),
 //! so L φ = λ φ with λ = c ∫_{|z|≤ε} J(|z|/ε)(cos(a z₁) cos(a z₂) − 1) dz (cos(a z) − 1 in 1D),
@@ -149,8 +150,8 @@ impl ContinuumOperator {
             }
         }
         for side in [0.0, 1.0] {
-            for axis in 0..2 {
-                let offset = (side - x[axis]) / eps;
+            for (axis, coordinate) in x.iter().enumerate() {
+                let offset = (side - coordinate) / eps;
                 if offset.abs() < 1.0 {
                     let (a, b) = if axis == 0 {
                         (offset.acos(), -offset.acos())

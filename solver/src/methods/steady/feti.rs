@@ -37,6 +37,7 @@ use faer::sparse::SparseColMat;
 use faer::MatMut;
 use rayon::prelude::*;
 use rayon::ThreadPool;
+use std::collections::BTreeMap;
 use std::ops::Range;
 use std::time::Instant;
 
@@ -369,6 +370,10 @@ struct DualLayout {
     peer_blocks: Vec<Vec<(usize, usize)>>,
 }
 
+/// A block of multipliers a peer rank also holds: the subdomain pair of its interface, and its
+/// start and length in this rank's vector.
+type RemotePair = ((usize, usize), usize, usize);
+
 impl DualLayout {
     fn new(decomposition: &Decomposition, owned: &[usize], rank: usize, ranks: usize) -> Self {
         let mut offsets = vec![0];
@@ -377,8 +382,7 @@ impl DualLayout {
         }
         let start_of = |n: usize| offsets[n - owned[0]];
         let mut local_pairs = Vec::new();
-        let mut remote: std::collections::BTreeMap<usize, Vec<((usize, usize), usize, usize)>> =
-            Default::default();
+        let mut remote: BTreeMap<usize, Vec<RemotePair>> = BTreeMap::new();
         for &n in owned {
             for interface in &decomposition.subdomains[n].interfaces {
                 let start = start_of(n) + interface.offset;

@@ -184,6 +184,8 @@ impl Stop {
 }
 
 /// The record of a finished steady solve, its residual and error measured on the whole field.
+// Each argument is one stage's product of the same solve; a struct of them would only rename them.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn outcome(
     case: &Case,
     problem: &SteadyProblem,
