@@ -30,6 +30,8 @@ pub mod threads;
 
 pub use case::ValidCase;
 pub use case::{Case, CaseError};
-pub use methods::{partition_report, run, run_on_ranks, validate};
+#[cfg(feature = "mpi")]
+pub use methods::run_on_ranks;
+pub use methods::{partition_report, run, validate};
 pub use output::outcome::Outcome;
 pub use output::record::Record;

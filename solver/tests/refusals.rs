@@ -163,3 +163,28 @@ fn outputs_sized_by_the_case_are_capped() {
         "n",
     );
 }
+
+/// A build without the `mpi` feature (no Open MPI, no METIS) refuses a case over several ranks
+/// when it is checked, saying how to build with MPI; the block partition's report still works.
+#[cfg(not(feature = "mpi"))]
+#[test]
+fn a_build_without_mpi_refuses_ranks_saying_how_to_build_with_it() {
+    let refusal = assert_refused(
+        json!({"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5, "ranks": 2}),
+        "ranks",
+    );
+    assert!(refusal.message.contains("built without it"), "{refusal}");
+    assert!(
+        refusal.message.contains("cargo build --release"),
+        "{refusal}"
+    );
+    let case = solver::Case::parse(json!({"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5,
+        "ranks": 4}))
+    .unwrap();
+    assert!(solver::partition_report(&case).is_ok());
+    let graph = solver::Case::parse(json!({"dim": 2, "n": 16, "m": 2, "t_end": 0.01, "cfl": 0.5,
+        "ranks": 4, "partition": "graph"}))
+    .unwrap();
+    let refusal = solver::partition_report(&graph).unwrap_err();
+    assert_eq!(refusal.field, "partition", "{refusal}");
+}

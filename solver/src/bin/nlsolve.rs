@@ -9,7 +9,6 @@
 
 use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
-use mpi::topology::{Communicator, SimpleCommunicator};
 use serde_json::{Map, Value};
 use solver::case::{Case, Method};
 use solver::output::record::Record;
@@ -492,28 +491,76 @@ fn parse_command_line() -> Result<Cli, BadInput> {
     Cli::from_arg_matches(&matches).map_err(|e| BadInput(e.to_string()))
 }
 
-/// Was this process started by an MPI launcher (mpirun, mpiexec, srun)?
-fn launched_by_mpi() -> bool {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"]
-        .iter()
-        .any(|name| std::env::var_os(name).is_some())
+/// MPI, with the `mpi` feature: the ranks of the launcher that started this process.
+#[cfg(feature = "mpi")]
+mod ranks {
+    use mpi::topology::Communicator;
+    pub use mpi::topology::SimpleCommunicator as World;
+
+    /// Was this process started by an MPI launcher (mpirun, mpiexec, srun)?
+    fn launched_by_mpi() -> bool {
+        ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"]
+            .iter()
+            .any(|name| std::env::var_os(name).is_some())
+    }
+
+    /// MPI initialised when a launcher started this process (None otherwise), or Err when it
+    /// could not be.
+    pub fn start() -> Result<Option<mpi::environment::Universe>, ()> {
+        match launched_by_mpi() {
+            true => mpi::initialize_with_threading(mpi::Threading::Funneled)
+                .map(|(universe, _)| Some(universe))
+                .ok_or(()),
+            false => Ok(None),
+        }
+    }
+
+    pub fn world(universe: &Option<mpi::environment::Universe>) -> Option<World> {
+        universe.as_ref().map(|u| u.world())
+    }
+
+    pub fn is_rank0(world: Option<&World>) -> bool {
+        world.is_none_or(|w| w.rank() == 0)
+    }
+
+    pub use solver::run_on_ranks as run;
+}
+
+/// No MPI without the `mpi` feature: one process, and no value of `World` exists.
+#[cfg(not(feature = "mpi"))]
+mod ranks {
+    pub enum World {}
+
+    pub fn start() -> Result<Option<()>, ()> {
+        Ok(None)
+    }
+
+    pub fn world(_: &Option<()>) -> Option<World> {
+        None
+    }
+
+    pub fn is_rank0(_: Option<&World>) -> bool {
+        true
+    }
+
+    pub fn run(
+        world: &World,
+        _: &solver::Case,
+        _: bool,
+    ) -> Result<Option<solver::Outcome>, solver::CaseError> {
+        match *world {}
+    }
 }
 
 fn main() -> ExitCode {
     // MPI starts before anything can fail, so that every rank of a bad run finalizes and exits
     // with the same code instead of leaving mpirun to report a crash.
-    let universe = match launched_by_mpi() {
-        true => match mpi::initialize_with_threading(mpi::Threading::Funneled) {
-            Some((universe, _)) => Some(universe),
-            None => {
-                note("nlsolve: MPI could not be initialised");
-                return ExitCode::FAILURE;
-            }
-        },
-        false => None,
+    let Ok(universe) = ranks::start() else {
+        note("nlsolve: MPI could not be initialised");
+        return ExitCode::FAILURE;
     };
-    let world = universe.as_ref().map(|u| u.world());
-    let rank0 = world.as_ref().is_none_or(|w| w.rank() == 0);
+    let world = ranks::world(&universe);
+    let rank0 = ranks::is_rank0(world.as_ref());
     let result = parse_command_line()
         .map_err(Failure::from)
         .and_then(|cli| match cli.command {
@@ -537,7 +584,7 @@ fn main() -> ExitCode {
 }
 
 /// Runs the case (on every rank of `world` when started by MPI); rank 0 prints the record.
-fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), Failure> {
+fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), Failure> {
     let case = args.case.case()?;
     if args.write_diagnostics.is_some() && case.diagnostics_every.is_none() {
         return Err(Failure::BadInput(
@@ -545,7 +592,7 @@ fn run(args: &RunArgs, world: Option<&SimpleCommunicator>) -> Result<(), Failure
         ));
     }
     let outcome = match world {
-        Some(world) => solver::run_on_ranks(
+        Some(world) => ranks::run(
             world,
             &case,
             args.write_field.is_some() || args.write_vtk.is_some(),

@@ -26,8 +26,8 @@ use crate::discretization::stencil::Stencil;
 use crate::output::outcome::Outcome;
 use crate::parallel::share::HaloReport;
 use crate::threads;
-use mpi::topology::SimpleCommunicator;
-use mpi::traits::*;
+#[cfg(feature = "mpi")]
+use mpi::{topology::SimpleCommunicator, traits::*};
 
 impl ValidCase {
     /// Checks `case` against the rules every case obeys and then those of its method.
@@ -45,6 +45,8 @@ impl ValidCase {
 /// stencil is known.
 pub fn validate(case: Case) -> Result<ValidCase, CaseError> {
     check(&case)?;
+    #[cfg(not(feature = "mpi"))]
+    refuse_ranks_without_mpi(&case)?;
     Ok(ValidCase::validated(case))
 }
 
@@ -92,6 +94,22 @@ fn check(case: &Case) -> Result<(), CaseError> {
     }
 }
 
+/// A build without the `mpi` feature has no MPI (nor METIS): a case over several ranks is
+/// refused, saying how to build with them.
+#[cfg(not(feature = "mpi"))]
+fn refuse_ranks_without_mpi(case: &Case) -> Result<(), CaseError> {
+    if case.ranks <= 1 {
+        return Ok(());
+    }
+    Err(CaseError::new(
+        "ranks",
+        format!(
+            "{} ranks need MPI, and this nlsolve was built without it (`--no-default-features`); install Open MPI (`scripts/setup.sh` does) and build with the default features, `cargo build --release`",
+            case.ranks
+        ),
+    ))
+}
+
 /// Runs `case` in this process, on a rayon pool of `case.threads` threads.
 pub fn run(case: &Case) -> Result<Outcome, CaseError> {
     let case = validate(case.clone())?;
@@ -132,9 +150,11 @@ fn in_pool(
     threads::pool(case.threads)?.install(|| run(case))
 }
 
-/// What a distributed run of `case` would exchange, found without running it.
+/// What a distributed run of `case` would exchange, found without running it (and without
+/// MPI: a build without it reports the block partition too).
 pub fn partition_report(case: &Case) -> Result<HaloReport, CaseError> {
-    let case = validate(case.clone())?;
+    check(case)?;
+    let case = ValidCase::validated(case.clone());
     resources::fit_machine(&case)?;
     if case.method.is_local() {
         return Err(CaseError::new(
@@ -145,6 +165,7 @@ pub fn partition_report(case: &Case) -> Result<HaloReport, CaseError> {
     HaloReport::of(&case, &Stencil::of_case(&case))
 }
 
+#[cfg(feature = "mpi")]
 /// Runs `case` on the ranks of `world`. Rank 0 gets the outcome (with the whole field when
 /// `gather_field`), the other ranks `None`. Every rank returns the same error for bad input.
 pub fn run_on_ranks(

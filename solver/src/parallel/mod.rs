@@ -1,6 +1,6 @@
 //! Running one case over MPI ranks: how the nodes are divided (`partition`), what each rank
 //! holds (`share`: its window, row runs and neighbours), the collectives and partner swaps the
-//! methods need (`exchange`), L_h on a rank's nodes with its ghost exchange (`operator`), and a
+//! methods need (`exchange`, over MPI in `world`), L_h on a rank's nodes with its ghost exchange (`operator`), and a
 //! whole-grid operator on a spread vector (`gathered`).
 
 pub mod exchange;
@@ -8,3 +8,5 @@ pub mod gathered;
 pub mod operator;
 pub mod partition;
 pub mod share;
+#[cfg(feature = "mpi")]
+pub mod world;

@@ -70,20 +70,7 @@ pub fn graph(case: &Case, grid: Grid) -> Result<Ownership, CaseError> {
     let owner: Vec<u32> = if ranks == 1 {
         vec![0; grid.nodes()]
     } else {
-        let (xadj, adjncy) = lattice_graph(&grid);
-        let mut part = vec![0 as metis::Idx; grid.nodes()];
-        let metis_failed = |e: &dyn std::fmt::Display| {
-            CaseError::new(
-                "partition",
-                format!("METIS failed: {e}; use `partition: block`"),
-            )
-        };
-        metis::Graph::new(1, ranks as metis::Idx, &xadj, &adjncy)
-            .map_err(|e| metis_failed(&e))?
-            .set_option(metis::option::Seed(1))
-            .part_kway(&mut part)
-            .map_err(|e| metis_failed(&e))?;
-        part.into_iter().map(|p| p as u32).collect()
+        metis_parts(grid, ranks)?
     };
     let ownership = Ownership {
         grid,
@@ -102,6 +89,34 @@ pub fn graph(case: &Case, grid: Grid) -> Result<Ownership, CaseError> {
         ));
     }
     Ok(ownership)
+}
+
+/// METIS's k-way partition of the grid's lattice graph: each node's rank.
+#[cfg(feature = "mpi")]
+fn metis_parts(grid: Grid, ranks: usize) -> Result<Vec<u32>, CaseError> {
+    let (xadj, adjncy) = lattice_graph(&grid);
+    let mut part = vec![0 as metis::Idx; grid.nodes()];
+    let metis_failed = |e: &dyn std::fmt::Display| {
+        CaseError::new(
+            "partition",
+            format!("METIS failed: {e}; use `partition: block`"),
+        )
+    };
+    metis::Graph::new(1, ranks as metis::Idx, &xadj, &adjncy)
+        .map_err(|e| metis_failed(&e))?
+        .set_option(metis::option::Seed(1))
+        .part_kway(&mut part)
+        .map_err(|e| metis_failed(&e))?;
+    Ok(part.into_iter().map(|p| p as u32).collect())
+}
+
+/// A build without the `mpi` feature has no METIS (validation refuses ranks > 1 there first).
+#[cfg(not(feature = "mpi"))]
+fn metis_parts(_: Grid, _: usize) -> Result<Vec<u32>, CaseError> {
+    Err(CaseError::new(
+        "partition",
+        "the graph partition needs METIS, and this nlsolve was built without it (`--no-default-features`); use `partition: block` or build with the default features",
+    ))
 }
 
 /// px × py: as given (checked), or the factor pair of R whose halo is smallest (ties go to the
@@ -190,6 +205,7 @@ pub fn block_halo(stencil: &Stencil, px: usize, py: usize) -> usize {
 }
 
 /// The lattice's nearest-neighbour graph in METIS's CSR form (xadj, adjncy).
+#[cfg(feature = "mpi")]
 fn lattice_graph(grid: &Grid) -> (Vec<metis::Idx>, Vec<metis::Idx>) {
     let (n, rows) = (grid.n as i64, grid.rows() as i64);
     let mut xadj = Vec::with_capacity(grid.nodes() + 1);

@@ -1,6 +1,7 @@
 //! The nonlocal heat equation of seed 000: plan the operator, resolve the time step, step with
 //! forward Euler (eq. 2.1) on one process (`run`) or over MPI ranks (`distributed`), measure.
 
+#[cfg(feature = "mpi")]
 pub mod distributed;
 pub mod variable_horizon;
 

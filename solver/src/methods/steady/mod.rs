@@ -31,6 +31,7 @@
 
 pub mod assembly;
 pub mod decomposition;
+#[cfg(feature = "mpi")]
 pub mod distributed;
 pub mod feti;
 pub mod problem;
