@@ -9,6 +9,7 @@
 
 use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use serde::Serialize;
 use serde_json::{Map, Value};
 use solver::case::{Case, Method};
 use solver::output::record::Record;
@@ -83,122 +84,165 @@ struct CaseArgs {
     /// Case file in JSON (`-` for standard input); flags given too override its fields.
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
-    /// Method: nonlocal (forward Euler on eq. 2.1); fd_explicit, adi or pse (local diffusion,
+    #[command(flatten)]
+    flags: CaseFlags,
+}
+
+/// The case's fields as flags, one for each field of `schema::Case` (a test checks that the two
+/// lists agree): serialized, the flags given are the case fields they set.
+#[derive(Args, Serialize)]
+struct CaseFlags {
+    /// Method: nonlocal (eq. 2.1, stepped by --integrator); fd_explicit, adi or pse (local diffusion,
     /// seed 004); steady_cg or feti (the steady problem of seed 001); patch_test (a variable
     /// horizon's patch tests, seed 003); coupled_1d (seed 003's optimization-based local–nonlocal
     /// coupling).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     dim: Option<usize>,
     /// Nodes per side; h = 1/n, nodes at cell centres.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     n: Option<usize>,
     /// Horizon in cells, ε = m·h (give --m or --eps); for pse, the kernel width in spacings.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     m: Option<usize>,
     /// Horizon as a length in (0, 0.5]; m = ceil(ε/h). For pse, the kernel width ε ≤ L/2.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     eps: Option<f64>,
     /// Influence function J: constant, linear, gaussian, inverse_distance.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     kernel: Option<String>,
     /// Quadrature of the nonlocal operator: midpoint (seed 000), partial_volume, ac (exact on quadratics).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     quadrature: Option<String>,
-    /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
-    #[arg(long)]
-    collar: Option<String>,
     /// Operator backend: auto (default: stencil or fft by the cost model), stencil (precomputed
     /// weights), fft (convolution by FFT) or neighbour_list (Algorithm 1, the oracle).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     backend: Option<String>,
     /// Diffusivity k of the local limit kΔ (default 1).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     diffusivity: Option<f64>,
     /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi, pse).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     problem: Option<String>,
+    /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
+    #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
+    collar: Option<String>,
     /// Source mode of the manufactured problem: discrete, continuum (default) or local.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     source: Option<String>,
     /// Side L of the local methods' domain (−L/2, L/2)^d (default 2).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     length: Option<f64>,
     /// Final time.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     t_end: Option<f64>,
     /// Time step (lowered to land on t_end); give --dt or --cfl.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     dt: Option<f64>,
     /// Time step as a fraction of the stable step dt_stable (implicit integrators: of forward
     /// Euler's).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     cfl: Option<f64>,
     /// nonlocal: time integrator forward_euler (default, eq. 2.1), heun, rk4, backward_euler or
     /// crank_nicolson (the last two solve by sine-preconditioned CG each step).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     integrator: Option<String>,
     /// Accept a time step above dt_stable (stability studies); the run may end `diverged`.
     #[arg(long)]
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
     allow_unstable: bool,
     /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
     #[arg(long)]
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
     error_total: bool,
     /// Time between samples of c_tot(t) (into the record; see --write-diagnostics).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     diagnostics_every: Option<f64>,
     /// Bins of a histogram of the final field's values (into the record).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     histogram_bins: Option<usize>,
     /// Blocks per side of a coarse copy of the final field and its error (into the record).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     field_snapshot: Option<usize>,
     /// Time between the field's frames written by --write-vtk.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     vtk_every: Option<f64>,
     /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     threads: Option<usize>,
     /// MPI ranks; must match `mpirun -n`. Results are bitwise the same for any count.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     ranks: Option<usize>,
     /// How the grid is divided among ranks: block (px × py rectangles) or graph (METIS).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     partition: Option<String>,
     /// Blocks along x of a block partition (chosen to minimise the halo when left out).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     px: Option<usize>,
     /// Blocks along y of a block partition.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     py: Option<usize>,
     /// Relative tolerance of the iteration: steady methods (default 1e-5) and the implicit
     /// integrators' solves (default tied to the time error).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     rtol: Option<f64>,
     /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
     /// the implicit integrators (default 1000 per step).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     max_iterations: Option<usize>,
     /// feti: subdomains per side, p (p × p in all).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     subdomains: Option<usize>,
     /// feti: preconditioner none, dirichlet (default; Cholesky interior solves), dirichlet_cg
     /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     preconditioner: Option<String>,
     /// patch_test: how ε varies along D, as JSON: {"kind": "constant"} (from --eps or --m),
     /// {"kind": "linear", "left": a, "right": b} or {"kind": "transition", "left": a, "right":
     /// b, "start": s, "end": e}.
     #[arg(long, value_name = "JSON")]
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "json_text")]
     horizon_profile: Option<String>,
     /// patch_test: standard (pairwise bonds; ghost forces where ε varies) or partial_stress.
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     formulation: Option<String>,
     /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²); coupled_1d: the
     /// exact solution, also quartic (u = x² − x⁴).
     #[arg(long)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     patch: Option<String>,
     /// coupled_1d: the local problem's interval a,b (default 0.75,1.75): Γ_c = a inside (0, 1),
     /// Γ_i = b ≥ 1 + ε.
@@ -208,6 +252,7 @@ struct CaseArgs {
         value_delimiter = ',',
         allow_hyphen_values = true
     )]
+    #[serde(skip_serializing_if = "Option::is_none")]
     local_domain: Option<Vec<f64>>,
 }
 
@@ -284,59 +329,22 @@ impl CaseArgs {
             Some(path) => read_case_file(path)?,
             None => Map::new(),
         };
-        let mut set = |field: &str, value: Option<Value>| {
-            if let Some(value) = value {
-                fields.insert(field.to_string(), value);
-            }
-        };
-        set("method", self.method.clone().map(Value::from));
-        set("dim", self.dim.map(Value::from));
-        set("n", self.n.map(Value::from));
-        set("m", self.m.map(Value::from));
-        set("eps", self.eps.map(Value::from));
-        set("kernel", self.kernel.clone().map(Value::from));
-        set("quadrature", self.quadrature.clone().map(Value::from));
-        set("collar", self.collar.clone().map(Value::from));
-        set("backend", self.backend.clone().map(Value::from));
-        set("diffusivity", self.diffusivity.map(Value::from));
-        set("problem", self.problem.clone().map(Value::from));
-        set("source", self.source.clone().map(Value::from));
-        set("length", self.length.map(Value::from));
-        set("t_end", self.t_end.map(Value::from));
-        set("dt", self.dt.map(Value::from));
-        set("cfl", self.cfl.map(Value::from));
-        set("integrator", self.integrator.clone().map(Value::from));
-        set(
-            "allow_unstable",
-            self.allow_unstable.then_some(Value::Bool(true)),
-        );
-        set("error_total", self.error_total.then_some(Value::Bool(true)));
-        set("diagnostics_every", self.diagnostics_every.map(Value::from));
-        set("histogram_bins", self.histogram_bins.map(Value::from));
-        set("field_snapshot", self.field_snapshot.map(Value::from));
-        set("vtk_every", self.vtk_every.map(Value::from));
-        set("threads", self.threads.map(Value::from));
-        set("ranks", self.ranks.map(Value::from));
-        set("partition", self.partition.clone().map(Value::from));
-        set("px", self.px.map(Value::from));
-        set("py", self.py.map(Value::from));
-        set("rtol", self.rtol.map(Value::from));
-        set("max_iterations", self.max_iterations.map(Value::from));
-        set("subdomains", self.subdomains.map(Value::from));
-        set(
-            "preconditioner",
-            self.preconditioner.clone().map(Value::from),
-        );
-        let profile = self.horizon_profile.as_deref().map(|text| {
-            schema::json::parse(text)
-                .map_err(|e| BadInput(format!("--horizon-profile is not valid JSON: {e}")))
-        });
-        set("horizon_profile", profile.transpose()?);
-        set("formulation", self.formulation.clone().map(Value::from));
-        set("patch", self.patch.clone().map(Value::from));
-        set("local_domain", self.local_domain.clone().map(Value::from));
+        match serde_json::to_value(&self.flags) {
+            Ok(Value::Object(given)) => fields.extend(given),
+            Ok(_) => unreachable!("a struct serializes to an object"),
+            Err(e) => return Err(BadInput(e.to_string())),
+        }
         Ok(fields)
     }
+}
+
+/// `--horizon-profile`'s JSON text as the JSON value it is.
+fn json_text<S: serde::Serializer>(text: &Option<String>, to: S) -> Result<S::Ok, S::Error> {
+    let text = text.as_deref().unwrap_or("null");
+    let value = schema::json::parse(text).map_err(|e| {
+        serde::ser::Error::custom(format!("--horizon-profile is not valid JSON: {e}"))
+    })?;
+    value.serialize(to)
 }
 
 fn read_case_file(path: &PathBuf) -> Result<Map<String, Value>, BadInput> {
@@ -703,4 +711,59 @@ fn check_cases() -> Result<(), Failure> {
         writeln!(out, "{verdict}").map_err(failed)?;
     }
     out.flush().map_err(failed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One flag per case field, named as the field: the flags and `schema::Case` cannot drift.
+    #[test]
+    fn the_flags_are_the_case_fields() {
+        let command = CaseFlags::augment_args(clap::Command::new("nlsolve"));
+        let flags: Vec<&str> = command
+            .get_arguments()
+            .map(|a| a.get_id().as_str())
+            .collect();
+        assert_eq!(flags, Case::field_names());
+    }
+
+    /// The flags given, and only those, become the case's fields, with their JSON types.
+    #[test]
+    fn the_flags_given_are_the_fields_they_set() {
+        let cli = Cli::try_parse_from([
+            "nlsolve",
+            "run",
+            "--dim",
+            "1",
+            "--n",
+            "8",
+            "--eps",
+            "0.25",
+            "--error-total",
+            "--horizon-profile",
+            r#"{"kind": "constant", "eps": 0.1}"#,
+            "--local-domain",
+            "-0.5,1",
+        ])
+        .unwrap();
+        let Command::Run(args) = cli.command else {
+            panic!("a run")
+        };
+        let fields = args.case.fields().ok().unwrap();
+        assert_eq!(
+            Value::Object(fields),
+            serde_json::json!({"dim": 1, "n": 8, "eps": 0.25, "error_total": true,
+                "horizon_profile": {"kind": "constant", "eps": 0.1}, "local_domain": [-0.5, 1.0]})
+        );
+        let bad = Cli::try_parse_from(["nlsolve", "run", "--horizon-profile", "{"]).unwrap();
+        let Command::Run(args) = bad.command else {
+            panic!("a run")
+        };
+        let refusal = args.case.fields().err().unwrap().0;
+        assert!(
+            refusal.contains("--horizon-profile is not valid JSON"),
+            "{refusal}"
+        );
+    }
 }

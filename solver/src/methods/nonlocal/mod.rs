@@ -1,5 +1,6 @@
 //! The nonlocal heat equation of seed 000: plan the operator, resolve the time step, step with
-//! forward Euler (eq. 2.1) on one process (`run`) or over MPI ranks (`distributed`), measure.
+//! the case's integrator (eq. 2.1's forward Euler by default) on one process (`run`) or over MPI
+//! ranks (`distributed`), measure.
 
 #[cfg(feature = "mpi")]
 pub mod distributed;
