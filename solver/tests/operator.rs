@@ -240,20 +240,62 @@ fn auto_follows_the_cost_model() {
                 Backend::Fft,
                 "{dim}D n={n}, long horizon"
             );
-            for stencil in [short, long] {
-                let cost = Cost::of(&stencil);
-                let cheaper = if cost.fft < cost.stencil {
-                    Backend::Fft
-                } else {
-                    Backend::Stencil
-                };
-                assert_eq!(solver::operator::resolve(Backend::Auto, &stencil), cheaper);
-            }
             // Explicit choices are kept as they are.
             for backend in [Backend::Stencil, Backend::Fft, Backend::NeighbourList] {
                 assert_eq!(solver::operator::resolve(backend, &of(1)), backend);
             }
         }
+    }
+}
+
+/// `auto` against the clock: on a 2D grid where the model predicts one backend 4× or more
+/// faster than the other (a horizon of one cell, and of 32), both are timed (the median of five
+/// applications each, alternating) and `auto` must have picked the one measured faster.
+#[test]
+fn auto_picks_the_backend_measured_faster_where_the_two_differ_widely() {
+    let grid = Grid::new(2, 512);
+    for m in [1, 32] {
+        let stencil = Stencil::new(
+            grid,
+            Horizon::from_m(&grid, m),
+            Kernel::Linear,
+            Quadrature::Midpoint,
+            1.0,
+        );
+        let cost = Cost::of(&stencil);
+        let predicted = (cost.fft / cost.stencil).max(cost.stencil / cost.fft);
+        assert!(
+            predicted >= 4.0,
+            "m = {m}: the model predicts only {predicted:.1}x"
+        );
+        let u = random_field(grid.nodes(), 7);
+        let mut out = vec![0.0; grid.nodes()];
+        let operators = [Backend::Stencil, Backend::Fft].map(|b| (b, plan(b, &stencil)));
+        let mut seconds = [Vec::new(), Vec::new()];
+        for _ in 0..5 {
+            for (k, (_, operator)) in operators.iter().enumerate() {
+                let mut workspace = operator.workspace();
+                let started = std::time::Instant::now();
+                operator.apply(&u, &mut out, &mut workspace);
+                seconds[k].push(started.elapsed().as_secs_f64());
+            }
+        }
+        let median = |times: &mut Vec<f64>| {
+            times.sort_by(f64::total_cmp);
+            times[times.len() / 2]
+        };
+        let (stencil_s, fft_s) = (median(&mut seconds[0]), median(&mut seconds[1]));
+        let faster = if fft_s < stencil_s {
+            Backend::Fft
+        } else {
+            Backend::Stencil
+        };
+        eprintln!("m = {m}: stencil {stencil_s:.2e} s, FFT {fft_s:.2e} s");
+        assert_eq!(
+            solver::operator::resolve(Backend::Auto, &stencil),
+            faster,
+            "m = {m}: stencil {stencil_s:.2e} s, FFT {fft_s:.2e} s"
+        );
     }
 }
 

@@ -630,9 +630,21 @@ mod tests {
         .unwrap()
     }
 
+    /// Without `local_domain` the local problem lies on the seed's [0.75, 1.75]: the same
+    /// problem as one that writes it, overlapping Ω_n on Ω_b = (0.75, 1).
     #[test]
     fn the_default_layout_is_the_seeds() {
-        assert_eq!(DEFAULT_LOCAL_DOMAIN, [0.75, 1.75]);
+        let implicit = case(16, "quadratic");
+        let explicit = Case {
+            local_domain: Some([0.75, 1.75]),
+            ..implicit.clone()
+        };
+        let built = Coupled::new(&implicit).unwrap();
+        assert_eq!(built.overlap, Coupled::new(&explicit).unwrap().overlap);
+        let length: f64 = built.overlap.iter().map(|(_, w)| w).sum();
+        assert!((length - 0.25).abs() < 1e-12, "|Ω_b| = {length}");
+        let inside = built.overlap.iter().all(|&(x, _)| 0.75 < x && x < 1.0);
+        assert!(inside, "Gauss points of Ω_b outside (0.75, 1)");
         let case = Case::parse(
             serde_json::json!({"method": "coupled_1d", "dim": 1, "n": 8, "eps": 0.065}),
         )
