@@ -133,12 +133,14 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         Method::PatchTest => in_pool(&case, patch_test::run),
         Method::Coupled1d => in_pool(&case, coupled::run),
     };
-    outcome.map(finished)
+    outcome.map(|outcome| finished(&case, outcome))
 }
 
-/// Every outcome leaves through here: an `ok` record may hold no result that is not finite.
-fn finished(mut outcome: Outcome) -> Outcome {
+/// Every outcome leaves through here: an `ok` record may hold no result that is not finite, and
+/// each carries the memory estimate beside its measured peak.
+fn finished(case: &ValidCase, mut outcome: Outcome) -> Outcome {
     outcome.record.diverge_if_not_finite();
+    outcome.record.memory_estimate_bytes = Some(resources::estimated_bytes_per_rank(case));
     outcome
 }
 
@@ -198,5 +200,5 @@ pub fn run_on_ranks(
             unreachable!("refused above")
         }
     };
-    outcome.map(|outcome| outcome.map(finished))
+    outcome.map(|outcome| outcome.map(|outcome| finished(&case, outcome)))
 }

@@ -60,6 +60,11 @@ pub struct Record {
     /// included; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_memory_bytes: Option<u64>,
+    /// What `nlsolve run` estimated the run would hold at its peak, per rank, before it
+    /// allocated (the estimate that refuses runs too large for the machine), beside the
+    /// measured peak.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_estimate_bytes: Option<u64>,
     pub provenance: Provenance,
 }
 
@@ -93,6 +98,7 @@ impl Record {
             patch: None,
             coupling: None,
             peak_memory_bytes: peak_memory_bytes(),
+            memory_estimate_bytes: None,
         }
     }
 }
