@@ -305,6 +305,32 @@ mod tests {
     }
 
     #[test]
+    fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
+        let store = scratch("lock-files");
+        let lock_path = |key: &str| store.work_dir().join(format!("{key}.lock"));
+        for (key, status) in [("done", "ok"), ("broken", "failed")] {
+            let held = store.lock(key).unwrap().expect("free");
+            let record = json!({"key": key, "status": status, "message": ""});
+            assert!(store.save(key, &record).unwrap());
+            store.release_lock_file(key);
+            drop(held);
+        }
+        assert!(
+            !lock_path("done").exists(),
+            "a stored result's lock file stays"
+        );
+        assert!(
+            lock_path("broken").exists(),
+            "a failed point's lock file is its reruns'"
+        );
+        // A later process takes a new lock file and finds the result stored.
+        let again = store.lock("done").unwrap().expect("free");
+        assert_eq!(store.status("done"), Some(Status::Ok));
+        drop(again);
+        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+    }
+
+    #[test]
     fn abandoned_output_partials_are_cleared_only_while_no_writer_holds_the_outputs() {
         let store = scratch("outputs");
         std::fs::create_dir_all(&store.runs).unwrap();
