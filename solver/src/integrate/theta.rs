@@ -107,7 +107,7 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
         ranks.on(|| combine(b, u, (1.0 - theta) * dt, lu));
         rhs.add_source(&[(t + dt, theta * dt), (t, (1.0 - theta) * dt)], b);
         let shift = theta * dt;
-        let system = &mut cg::Preconditioned {
+        let system = &mut cg::Closures {
             len: u.len(),
             apply: |p: &[f64], ap: &mut [f64]| {
                 rhs.apply(p, lu);

@@ -223,40 +223,42 @@ impl Cg {
     }
 }
 
-/// A `CgSystem` of closures: `apply` writes ap = A p, `dot` is the inner product; no
-/// preconditioner.
-pub struct Plain<A, D> {
-    pub len: usize,
-    pub apply: A,
-    pub dot: D,
+/// A preconditioner M ≈ A⁻¹ for `Closures`: a closure writing z = M r, or `NoPreconditioner`.
+pub trait Preconditioner {
+    /// Whether there is one (without, CG's z is r itself).
+    const PRESENT: bool = true;
+
+    fn apply(&mut self, r: &[f64], z: &mut [f64]);
 }
 
-impl<A: FnMut(&[f64], &mut [f64]), D: Fn(&[f64], &[f64]) -> f64> CgSystem for Plain<A, D> {
-    fn len(&self) -> usize {
-        self.len
-    }
+/// CG without a preconditioner.
+pub struct NoPreconditioner;
 
-    fn apply(&mut self, p: &[f64], ap: &mut [f64]) {
-        (self.apply)(p, ap)
-    }
+impl Preconditioner for NoPreconditioner {
+    const PRESENT: bool = false;
 
-    fn dot(&mut self, a: &[f64], b: &[f64]) -> f64 {
-        (self.dot)(a, b)
+    fn apply(&mut self, _: &[f64], _: &mut [f64]) {}
+}
+
+impl<M: FnMut(&[f64], &mut [f64])> Preconditioner for M {
+    fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        self(r, z)
     }
 }
 
-/// A `CgSystem` of closures with a preconditioner: `precondition(r, z)` writes z = M r.
-pub struct Preconditioned<A, M, D> {
+/// A `CgSystem` of closures: `apply` writes ap = A p, `precondition` is the preconditioner,
+/// `dot` the inner product.
+pub struct Closures<A, M, D> {
     pub len: usize,
     pub apply: A,
     pub precondition: M,
     pub dot: D,
 }
 
-impl<A, M, D> CgSystem for Preconditioned<A, M, D>
+impl<A, M, D> CgSystem for Closures<A, M, D>
 where
     A: FnMut(&[f64], &mut [f64]),
-    M: FnMut(&[f64], &mut [f64]),
+    M: Preconditioner,
     D: Fn(&[f64], &[f64]) -> f64,
 {
     fn len(&self) -> usize {
@@ -272,11 +274,11 @@ where
     }
 
     fn preconditioned(&self) -> bool {
-        true
+        M::PRESENT
     }
 
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
-        (self.precondition)(r, z)
+        self.precondition.apply(r, z)
     }
 }
 
@@ -519,9 +521,10 @@ mod tests {
             // Unpreconditioned from zero: the steady solvers and FETI's interior solves.
             let mut x = vec![1.0; n];
             let got = cg.solve(
-                &mut Plain {
+                &mut Closures {
                     len: n,
                     apply: a,
+                    precondition: NoPreconditioner,
                     dot,
                 },
                 &b,
@@ -538,7 +541,7 @@ mod tests {
             assert_eq!(bits(&x), bits(&reference), "plain {rtol} {max}");
             // Preconditioned from a guess: the θ-steps.
             let mut x = guess.clone();
-            let system = &mut Preconditioned {
+            let system = &mut Closures {
                 len: n,
                 apply: a,
                 precondition: m,
@@ -589,7 +592,12 @@ mod tests {
         let mut b = vec![0.0; n];
         apply(&exact, &mut b);
         let mut x = vec![0.0; n];
-        let system = &mut Plain { len: n, apply, dot };
+        let system = &mut Closures {
+            len: n,
+            apply,
+            precondition: NoPreconditioner,
+            dot,
+        };
         let convergence = Cg::new(n).solve(
             system,
             &b,
@@ -634,7 +642,7 @@ mod tests {
         apply(&exact, &mut b);
         let mut cg = Cg::new(n);
         let mut x = vec![0.0; n];
-        let system = &mut Preconditioned {
+        let system = &mut Closures {
             len: n,
             apply,
             precondition: inverse,
@@ -652,7 +660,8 @@ mod tests {
     #[test]
     #[should_panic(expected = "CG on a system of 8 unknowns was given b of 7")]
     fn vectors_of_another_length_are_refused_with_a_message() {
-        let system = &mut Plain {
+        let system = &mut Closures {
+            precondition: NoPreconditioner,
             len: 8,
             apply: laplacian(8),
             dot,

@@ -50,8 +50,9 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let solve_started = Instant::now();
     let comm_before = mpi.seconds();
     let mut u = vec![0.0; b.len()];
-    let system = &mut cg::Plain {
+    let system = &mut cg::Closures {
         len: b.len(),
+        precondition: cg::NoPreconditioner,
         apply: |p: &[f64], ap: &mut [f64]| {
             operator.apply(p, &mut lp, &mut workspace);
             pool.install(|| negate_into(&lp, ap));

@@ -27,7 +27,9 @@ use super::decomposition::{Decomposition, Subdomain};
 use super::problem::{outcome, SteadyProblem, Stop, Timings};
 use crate::case::ValidCase;
 use crate::case::{Case, CaseError, FetiPreconditioner};
-use crate::linalg::cg::{dot_serial, Cg, CgParams, CgSystem, Norm, Plain, Start};
+use crate::linalg::cg::{
+    dot_serial, Cg, CgParams, CgSystem, Closures, NoPreconditioner, Norm, Start,
+};
 use crate::linalg::cholesky::{symmetric_product, Cholesky};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, FetiPhases, SteadySolve};
@@ -278,8 +280,9 @@ impl<'d> Local<'d> {
                 for (b, &i) in self.interior_load.iter_mut().zip(&self.interior) {
                     *b = self.w[i];
                 }
-                let system = &mut Plain {
+                let system = &mut Closures {
                     len: y.len(),
+                    precondition: NoPreconditioner,
                     apply: |p: &[f64], ap: &mut [f64]| symmetric_product(a_ii.as_ref(), p, ap),
                     dot: dot_serial,
                 };

@@ -193,8 +193,9 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         let mut lu = vec![0.0; b.len()];
         let setup_s = started.elapsed().as_secs_f64();
         let solve_started = Instant::now();
-        let system = &mut cg::Plain {
+        let system = &mut cg::Closures {
             len: b.len(),
+            precondition: cg::NoPreconditioner,
             apply: |p: &[f64], ap: &mut [f64]| {
                 operator.apply(p, &mut lu, &mut workspace);
                 negate_into(&lu, ap);
