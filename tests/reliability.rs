@@ -695,6 +695,12 @@ fn hostile_input_is_refused_naming_the_field() {
         (
             with(json!({})),
             "run",
+            vec!["--only", "k\u{1b}]0;title\u{7}"],
+            "\\u{1b}",
+        ),
+        (
+            with(json!({})),
+            "run",
             vec!["--launcher", "mpirun -n 2"],
             "{ranks}",
         ),
@@ -711,6 +717,10 @@ fn hostile_input_is_refused_naming_the_field() {
         assert_eq!(out.status.code(), Some(2), "case {k}: {}", text(&out));
         assert!(text(&out).contains(names), "case {k}: {}", text(&out));
         assert_no_panic(&out);
+        assert!(
+            !text(&out).contains('\u{1b}'),
+            "case {k}: a raw escape reached the terminal"
+        );
         let jobs = scratch.dir.join("results/hostile/jobs");
         assert!(
             files_under(&jobs)

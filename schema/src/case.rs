@@ -162,6 +162,13 @@ impl Case {
     /// Parses a case from JSON, naming the offending field on any error. The fields' values are
     /// not checked yet: the solver's `ValidCase::from_json` parses and validates.
     pub fn parse(value: serde_json::Value) -> Result<Case, CaseError> {
+        // A case's strings reach messages, file names and terminals.
+        if let Some((field, c)) = crate::json::control_character(&value, &[]) {
+            return Err(CaseError::new(
+                field,
+                format!("holds the control character {c:?}; case values are printable text"),
+            ));
+        }
         let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner().to_string();
@@ -247,6 +254,24 @@ mod tests {
                 names.contains(&field.as_str()),
                 "{field} missing from {names:?}"
             );
+        }
+    }
+
+    #[test]
+    fn a_control_character_in_any_value_is_refused_naming_the_field() {
+        for (case, field) in [
+            (
+                serde_json::json!({"dim": 1, "n": 8, "kernel": "constant\u{1b}[2J"}),
+                "kernel",
+            ),
+            (
+                serde_json::json!({"dim": 1, "n": 8, "horizon_profile": {"kind": "x\ny"}}),
+                "horizon_profile.kind",
+            ),
+        ] {
+            let refusal = Case::parse(case).unwrap_err();
+            assert_eq!(refusal.field, field);
+            assert!(refusal.message.contains("control character"), "{refusal}");
         }
     }
 

@@ -28,9 +28,11 @@ pub fn control_character(value: &Value, prose: &[&str]) -> Option<(String, char)
                 .enumerate()
                 .find_map(|(k, item)| walk(item, &format!("{path}[{k}]"), prose)),
             Value::Object(object) => object.iter().find_map(|(key, item)| {
+                // The path is printed: a key's own control characters appear escaped in it.
+                let printed = key.escape_debug();
                 let inner = match path {
-                    "" => key.clone(),
-                    _ => format!("{path}.{key}"),
+                    "" => printed.to_string(),
+                    _ => format!("{path}.{printed}"),
                 };
                 match key.chars().find(|c| c.is_control()) {
                     Some(c) => Some((inner, c)),
@@ -151,7 +153,7 @@ mod tests {
         let key = serde_json::json!({"base": {"n\r": 1}});
         assert_eq!(
             control_character(&key, &[]),
-            Some(("base.n\r".to_string(), '\r'))
+            Some(("base.n\\r".to_string(), '\r'))
         );
         assert_eq!(
             control_character(&serde_json::json!({"a": ["b", 1]}), &[]),

@@ -562,7 +562,7 @@ mod tests {
         let cases = [
             (
                 json!({"sweep": [{"branches": {"a\u{1b}[31m": []}}]}),
-                "sweep[0].branches.a\u{1b}[31m",
+                "sweep[0].branches.a\\u{1b}[31m",
             ),
             (json!({"where": ["n > 1\n"]}), "where[0]"),
             (

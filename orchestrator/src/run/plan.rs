@@ -133,6 +133,8 @@ fn unknown_keys(only: &HashSet<String>, planned: &[Planned]) -> Result<(), Study
         return Ok(());
     }
     unknown.sort_unstable();
+    // Quoted: a key comes from the command line and goes to a terminal.
+    let unknown: Vec<String> = unknown.iter().map(|k| format!("{k:?}")).collect();
     Err(StudyError::new(
         "--only",
         format!(
