@@ -89,7 +89,7 @@ struct CaseArgs {
 }
 
 /// The case's fields as flags, one for each field of `schema::Case` (a test checks that the two
-/// lists agree): serialized, the flags given are the case fields they set.
+/// lists agree): serialized, the flags given are the case fields they set (`CaseArgs::fields`).
 #[derive(Args, Serialize)]
 struct CaseFlags {
     /// Method: nonlocal (eq. 2.1, stepped by --integrator); fd_explicit, adi or pse (local diffusion,
@@ -97,152 +97,118 @@ struct CaseFlags {
     /// horizon's patch tests, seed 003); coupled_1d (seed 003's optimization-based local–nonlocal
     /// coupling).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     method: Option<String>,
     /// Dimension of D = [0,1]^d: 1 or 2.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     dim: Option<usize>,
     /// Nodes per side; h = 1/n, nodes at cell centres.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     n: Option<usize>,
     /// Horizon in cells, ε = m·h (give --m or --eps); for pse, the kernel width in spacings.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     m: Option<usize>,
     /// Horizon as a length in (0, 0.5]; m = ceil(ε/h). For pse, the kernel width ε ≤ L/2.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     eps: Option<f64>,
     /// Influence function J: constant, linear, gaussian, inverse_distance.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     kernel: Option<String>,
     /// Quadrature of the nonlocal operator: midpoint (seed 000), partial_volume, ac (exact on quadratics).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     quadrature: Option<String>,
     /// Operator backend: auto (default: stencil or fft by the cost model), stencil (precomputed
     /// weights), fft (convolution by FFT) or neighbour_list (Algorithm 1, the oracle).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     backend: Option<String>,
     /// Diffusivity k of the local limit kΔ (default 1).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     diffusivity: Option<f64>,
     /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi, pse).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     problem: Option<String>,
     /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     collar: Option<String>,
     /// Source mode of the manufactured problem: discrete, continuum (default) or local.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     source: Option<String>,
     /// Side L of the local methods' domain (−L/2, L/2)^d (default 2).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     length: Option<f64>,
     /// Final time.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     t_end: Option<f64>,
     /// Time step (lowered to land on t_end); give --dt or --cfl.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     dt: Option<f64>,
     /// Time step as a fraction of the stable step dt_stable (implicit integrators: of forward
     /// Euler's).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     cfl: Option<f64>,
     /// nonlocal: time integrator forward_euler (default, eq. 2.1), heun, rk4, backward_euler or
     /// crank_nicolson (the last two solve by sine-preconditioned CG each step).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     integrator: Option<String>,
     /// Accept a time step above dt_stable (stability studies); the run may end `diverged`.
     #[arg(long)]
-    #[serde(skip_serializing_if = "std::ops::Not::not")]
     allow_unstable: bool,
     /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
     #[arg(long)]
-    #[serde(skip_serializing_if = "std::ops::Not::not")]
     error_total: bool,
     /// Time between samples of c_tot(t) (into the record; see --write-diagnostics).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     diagnostics_every: Option<f64>,
     /// Bins of a histogram of the final field's values (into the record).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     histogram_bins: Option<usize>,
     /// Blocks per side of a coarse copy of the final field and its error (into the record).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     field_snapshot: Option<usize>,
     /// Time between the field's frames written by --write-vtk.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     vtk_every: Option<f64>,
     /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     threads: Option<usize>,
     /// MPI ranks; must match `mpirun -n`. Results are bitwise the same for any count.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     ranks: Option<usize>,
     /// How the grid is divided among ranks: block (px × py rectangles) or graph (METIS).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     partition: Option<String>,
     /// Blocks along x of a block partition (chosen to minimise the halo when left out).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     px: Option<usize>,
     /// Blocks along y of a block partition.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     py: Option<usize>,
     /// Relative tolerance of the iteration: steady methods (default 1e-5) and the implicit
     /// integrators' solves (default tied to the time error).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     rtol: Option<f64>,
     /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
     /// the implicit integrators (default 1000 per step).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     max_iterations: Option<usize>,
     /// feti: subdomains per side, p (p × p in all).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     subdomains: Option<usize>,
     /// feti: preconditioner none, dirichlet (default; Cholesky interior solves), dirichlet_cg
     /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     preconditioner: Option<String>,
     /// patch_test: how ε varies along D, as JSON: {"kind": "constant"} (from --eps or --m),
     /// {"kind": "linear", "left": a, "right": b} or {"kind": "transition", "left": a, "right":
     /// b, "start": s, "end": e}.
     #[arg(long, value_name = "JSON")]
-    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "json_text")]
+    #[serde(serialize_with = "json_text")]
     horizon_profile: Option<String>,
     /// patch_test: standard (pairwise bonds; ghost forces where ε varies) or partial_stress.
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     formulation: Option<String>,
     /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²); coupled_1d: the
     /// exact solution, also quartic (u = x² − x⁴).
     #[arg(long)]
-    #[serde(skip_serializing_if = "Option::is_none")]
     patch: Option<String>,
     /// coupled_1d: the local problem's interval a,b (default 0.75,1.75): Γ_c = a inside (0, 1),
     /// Γ_i = b ≥ 1 + ε.
@@ -252,7 +218,6 @@ struct CaseFlags {
         value_delimiter = ',',
         allow_hyphen_values = true
     )]
-    #[serde(skip_serializing_if = "Option::is_none")]
     local_domain: Option<Vec<f64>>,
 }
 
@@ -330,7 +295,12 @@ impl CaseArgs {
             None => Map::new(),
         };
         match serde_json::to_value(&self.flags) {
-            Ok(Value::Object(given)) => fields.extend(given),
+            // A flag not given is null (a switch not given, false): it leaves its field alone.
+            Ok(Value::Object(flags)) => fields.extend(
+                flags
+                    .into_iter()
+                    .filter(|(_, v)| !v.is_null() && *v != Value::Bool(false)),
+            ),
             Ok(_) => unreachable!("a struct serializes to an object"),
             Err(e) => return Err(BadInput(e.to_string())),
         }
