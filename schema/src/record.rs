@@ -6,6 +6,11 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::fmt;
 
+/// nlsolve's exit status when it computed a result but could not write it (standard output
+/// closed or full, a broken pipe, a `--write-*` path): sysexits' EX_IOERR. The orchestrator
+/// reads it as the file system's fault, not the case's, and stores nothing for the run.
+pub const NLSOLVE_EXIT_IO: u8 = 74;
+
 /// What became of a run: `nlsolve` writes `ok` or `diverged`; nlstudy stores `failed` for a run
 /// the solver refused, or that crashed or timed out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]

@@ -11,7 +11,7 @@ use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::store::fs::create_dir;
 use crate::store::{FileError, Store};
-use schema::record::Status;
+use schema::record::{Status, NLSOLVE_EXIT_IO};
 use serde_json::{json, Value};
 use std::fs::File;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
@@ -66,6 +66,7 @@ impl std::str::FromStr for Launcher {
         Ok(Launcher { words })
     }
 }
+
 /// Lines of stderr kept in a failed record.
 const STDERR_TAIL: usize = 20;
 /// How long an MPI launcher may leave an exited rank unreaped before its job is ended: Open MPI
@@ -157,10 +158,6 @@ fn has_zombie_child(parent: u32) -> bool {
         state == Some("Z") && ppid == Some(parent)
     })
 }
-
-/// nlsolve's exit status when it computed a record but could not write it (sysexits' EX_IOERR):
-/// the file system's fault, not the case's.
-pub const NLSOLVE_IO_ERROR: i32 = 74;
 
 /// Runs the planned points that run; stores each record as it finishes. A failure of the file
 /// system (the store, the scratch files, a record nlsolve could not write) is not a property of
@@ -419,7 +416,7 @@ impl Running {
         solver: &Nlsolve,
         exit: std::process::ExitStatus,
     ) -> Result<Value, FileError> {
-        if exit.code() == Some(NLSOLVE_IO_ERROR) {
+        if exit.code() == Some(i32::from(NLSOLVE_EXIT_IO)) {
             let said = std::io::Error::other(self.stderr_tail());
             return Err(FileError::new("write", &self.stdout, said));
         }

@@ -24,9 +24,9 @@ use std::process::ExitCode;
 const EXIT_BAD_INPUT: u8 = 2;
 
 /// Exit status when what nlsolve was asked to write could not be written (standard output
-/// closed, a broken pipe, a full disk, a `--write-*` path that cannot be written): sysexits'
-/// EX_IOERR, so that a caller tells a lost record from a bad case and from a run that finished.
-const EXIT_IO: u8 = 74;
+/// closed, a broken pipe, a full disk, a `--write-*` path that cannot be written), so that a
+/// caller tells a lost record from a bad case and from a run that finished.
+const EXIT_IO: u8 = schema::record::NLSOLVE_EXIT_IO;
 
 /// The exit statuses, as `--help` lists them.
 const EXIT_STATUSES: &str =
