@@ -5,3 +5,10 @@ pub mod ledger;
 pub mod scheduler;
 pub mod script;
 pub mod submit;
+
+/// Seconds since the Unix epoch: when a job was submitted, when earlier scripts were archived.
+fn unix_seconds() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}

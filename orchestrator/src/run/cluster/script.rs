@@ -9,7 +9,6 @@ use crate::store::write_atomically;
 use std::fmt::Write as _;
 use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
-use std::time::{SystemTime, UNIX_EPOCH};
 
 /// What a job runs: the absolute paths it needs (it starts in the scheduler's working
 /// directory) and the options of its `nlstudy run`.
@@ -95,9 +94,7 @@ fn archive_earlier_scripts(jobs: &Path) -> Result<(), String> {
     }
     let archive = jobs.join("archive");
     create_dir(&archive)?;
-    let now = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
+    let now = super::unix_seconds();
     for path in earlier {
         let name = path.file_name().unwrap_or_default().to_string_lossy();
         let to = archive.join(format!("{now}-{name}"));

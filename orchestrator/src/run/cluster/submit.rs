@@ -12,7 +12,6 @@ use crate::run::plan::Planned;
 use crate::store::Store;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::time::{SystemTime, UNIX_EPOCH};
 
 /// Where and how `nlstudy submit` sends a study: the scheduler, the resources (the study's,
 /// overridden by flags), the results directory and study file as given, and whether to stop
@@ -101,9 +100,7 @@ pub fn submit_study(
         );
         if !target.dry_run {
             let id = scheduler::submit(target.scheduler, &job.script)?;
-            let submitted = SystemTime::now()
-                .duration_since(UNIX_EPOCH)
-                .map_or(0, |d| d.as_secs());
+            let submitted = super::unix_seconds();
             ledger::add(
                 store,
                 &LedgerEntry {
