@@ -4,7 +4,9 @@ use crate::case::Case;
 use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::{FieldSnapshot, Frame};
-use crate::output::record::{Distribution, ImplicitSolves, Record, Resolved, Status};
+use crate::output::record::{
+    first_non_finite, Distribution, ImplicitSolves, Record, Resolved, Status,
+};
 
 /// A finished run: its record, the final field on the nodes of D (empty when a distributed run
 /// did not gather it), where its values sit, and the frames the case asked for.
@@ -87,18 +89,18 @@ fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
 }
 
-/// The first of a run's measures that is not a finite number, by its name in the record.
+/// The first of a run's measures that is not a finite number, by its name in the record. Checked
+/// here, not only by `Record::diverge_if_not_finite`: the record holds these as `finite(x)`, a
+/// null for a value that is not a number, which that later check cannot tell from "not measured".
 fn non_finite(measured: &Measured) -> Option<(&'static str, f64)> {
     let (squared, max) = measured.errors.unzip();
-    [
+    first_non_finite([
         ("error_l2", squared),
         ("error_max", max),
         ("error_total", measured.error_total),
         ("mass", Some(measured.mass)),
         ("max_abs", Some(measured.max_abs)),
-    ]
-    .into_iter()
-    .find_map(|(name, value)| value.filter(|v| !v.is_finite()).map(|v| (name, v)))
+    ])
 }
 
 #[cfg(test)]

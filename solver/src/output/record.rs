@@ -101,9 +101,7 @@ impl Record {
             memory_estimate_bytes: None,
         }
     }
-}
 
-impl Record {
     /// The first result that should be a finite number and is not, by its name in the record
     /// (the conditioning diagnostics `coupling.gradient` and `hessian_condition` may be
     /// infinite by right and are left out).
@@ -130,9 +128,7 @@ impl Record {
                 ("coupling.control_error", Some(coupling.control_error)),
             ]);
         }
-        results
-            .into_iter()
-            .find_map(|(name, value)| value.filter(|v| !v.is_finite()).map(|v| (name, v)))
+        first_non_finite(results)
     }
 
     /// An `ok` record holding a result that is not finite becomes `diverged`, saying which:
@@ -149,6 +145,15 @@ impl Record {
             );
         }
     }
+}
+
+/// The first of named results that is given and not a finite number.
+pub(crate) fn first_non_finite(
+    results: impl IntoIterator<Item = (&'static str, Option<f64>)>,
+) -> Option<(&'static str, f64)> {
+    results
+        .into_iter()
+        .find_map(|(name, value)| value.filter(|v| !v.is_finite()).map(|v| (name, v)))
 }
 
 /// VmHWM of /proc/self/status: the most resident memory this process has held.
