@@ -150,7 +150,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         "the coupled problem is steady, on one rank, solved directly by finite elements",
     )?;
     let (nonlocal, local) = sizes.setup_operations();
-    let seconds = (nonlocal + local) / SETUP_RATE;
+    let seconds = sizes.setup_seconds();
     if seconds > MAX_SETUP_S {
         let (field, fix) = if local > nonlocal {
             ("local_domain", "shorten the local domain")
@@ -255,6 +255,12 @@ impl Sizes {
         // The local model is linear in its nodes: loads, assembly, factor, solves, L² errors.
         let local = 1000.0 * self.local_nodes;
         (assembly + differences + factor + least_squares, local)
+    }
+
+    /// The set-up's predicted seconds on one core, at `SETUP_RATE`.
+    fn setup_seconds(&self) -> f64 {
+        let (nonlocal, local) = self.setup_operations();
+        (nonlocal + local) / SETUP_RATE
     }
 
     /// Bytes the set-up holds at its peak, the largest of its three stages:
@@ -768,10 +774,7 @@ mod tests {
             }))
             .unwrap()
         };
-        let seconds = |case: &Case| {
-            let (nonlocal, local) = Sizes::of(case).setup_operations();
-            (nonlocal + local) / SETUP_RATE
-        };
+        let seconds = |case: &Case| Sizes::of(case).setup_seconds();
         assert!(seconds(&case(128, 1.75)) < 0.1);
         let at_cap = case(10, 0.75 + 0.999e7);
         assert!(validate(&at_cap).is_ok(), "{:?}", validate(&at_cap));
