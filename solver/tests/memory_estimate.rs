@@ -3,26 +3,16 @@
 //! own base dominates) to ones of tens to hundreds of MiB. Each case runs as its own nlsolve
 //! process, one after the other, so that no other run's memory counts in its peak.
 
+mod common;
+
+use common::nlsolve;
 use serde_json::{json, Value};
-use std::io::Write;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
 /// (peak, estimate) in bytes of one run of `case`.
 fn peak_and_estimate(case: &Value) -> (f64, f64) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_nlsolve"))
-        .args(["run", "--case", "-"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("nlsolve starts");
-    child
-        .stdin
-        .take()
-        .expect("a pipe")
-        .write_all(case.to_string().as_bytes())
-        .expect("nlsolve reads its case");
-    let out = child.wait_with_output().expect("nlsolve ends");
+    let input = case.to_string();
+    let out = nlsolve(&["run", "--case", "-"], Some(&input), Stdio::piped());
     assert!(
         out.status.success(),
         "{case}: {}",

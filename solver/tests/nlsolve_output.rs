@@ -4,6 +4,9 @@
 //! saying what failed, never with a panic and never with success. A full standard error loses
 //! only the summary.
 
+mod common;
+
+use common::nlsolve;
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::process::{Command, Output, Stdio};
@@ -26,29 +29,6 @@ fn dev_full() -> File {
         .write(true)
         .open("/dev/full")
         .expect("/dev/full")
-}
-
-/// Runs nlsolve with `args`, standard output `stdout` and, when given, `input` on standard
-/// input (else none).
-fn nlsolve(args: &[&str], input: Option<&str>, stdout: Stdio) -> Output {
-    let mut child = Command::new(NLSOLVE)
-        .args(args)
-        .stdin(if input.is_some() {
-            Stdio::piped()
-        } else {
-            Stdio::null()
-        })
-        .stdout(stdout)
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("nlsolve starts");
-    if let Some(input) = input {
-        let mut stdin = child.stdin.take().expect("a pipe");
-        stdin
-            .write_all(input.as_bytes())
-            .expect("nlsolve reads its input");
-    }
-    child.wait_with_output().expect("nlsolve ends")
 }
 
 /// Exit status 74, one line on stderr naming what could not be written, no panic.

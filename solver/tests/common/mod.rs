@@ -3,6 +3,8 @@
 
 use solver::case::Case;
 use solver::ValidCase;
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
 
 /// Do two fields hold the same values bit for bit (and as many)?
 pub fn same_bits(a: &[f64], b: &[f64]) -> bool {
@@ -44,4 +46,27 @@ pub fn scientific(values: &[f64]) -> String {
 /// `case` as validated, for the APIs that take only a validated case.
 pub fn valid(case: Case) -> ValidCase {
     ValidCase::new(case).unwrap_or_else(|e| panic!("test case is invalid: {e}"))
+}
+
+/// Runs nlsolve with `args`, standard output `stdout` and, when given, `input` on standard
+/// input (else none).
+pub fn nlsolve(args: &[&str], input: Option<&str>, stdout: Stdio) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nlsolve"))
+        .args(args)
+        .stdin(if input.is_some() {
+            Stdio::piped()
+        } else {
+            Stdio::null()
+        })
+        .stdout(stdout)
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("nlsolve starts");
+    if let Some(input) = input {
+        let mut stdin = child.stdin.take().expect("a pipe");
+        stdin
+            .write_all(input.as_bytes())
+            .expect("nlsolve reads its input");
+    }
+    child.wait_with_output().expect("nlsolve ends")
 }
