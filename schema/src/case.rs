@@ -19,6 +19,9 @@ pub const MAX_ITERATIONS: usize = 100_000;
 /// Default side L of the local methods' domain (seed 004's).
 pub const DEFAULT_LENGTH: f64 = 2.0;
 
+/// `coupled_1d`'s default local interval [Γ_c, Γ_i]: it overlaps Ω_n = (0, 1) on (0.75, 1).
+pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Case {
@@ -213,6 +216,79 @@ impl Case {
         self.source.unwrap_or(self.problem.default_source())
     }
 
+    /// `patch_test`'s horizon profile.
+    pub fn horizon_profile(&self) -> HorizonProfile {
+        self.horizon_profile.unwrap_or(HorizonProfile::Constant)
+    }
+
+    pub fn formulation(&self) -> Formulation {
+        self.formulation.unwrap_or_default()
+    }
+
+    /// The prescribed (`patch_test`) or exact (`coupled_1d`) field.
+    pub fn patch(&self) -> PatchField {
+        self.patch.unwrap_or_default()
+    }
+
+    pub fn local_domain(&self) -> [f64; 2] {
+        self.local_domain.unwrap_or(DEFAULT_LOCAL_DOMAIN)
+    }
+
+    /// The case as people and tables read it: every field the method uses, with the default it
+    /// resolves to when the case leaves it out (`quadrature: midpoint`, `source: continuum`, …).
+    /// Fields without a default (`t_end`, `dt`, `px`, …) stay absent when not given. A run's key
+    /// is not taken from this form but from the case as serialized, which leaves some defaults
+    /// out so that the keys of earlier runs stay valid.
+    pub fn resolved(&self) -> serde_json::Value {
+        let value = |v: serde_json::Result<serde_json::Value>| v.expect("case fields serialize");
+        let mut fields = match value(serde_json::to_value(self)) {
+            serde_json::Value::Object(fields) => fields,
+            _ => unreachable!("a case serializes as an object"),
+        };
+        let mut fill = |name: &str, v: serde_json::Value| {
+            fields.entry(name).or_insert(v);
+        };
+        fill("quadrature", value(serde_json::to_value(self.quadrature)));
+        fill("collar", value(serde_json::to_value(self.collar)));
+        fill("integrator", value(serde_json::to_value(self.integrator)));
+        fill("source", value(serde_json::to_value(self.source())));
+        match self.method {
+            Method::FdExplicit | Method::Adi | Method::Pse => {
+                fill("length", self.length().into());
+            }
+            Method::SteadyCg | Method::Feti => {
+                fill("rtol", self.rtol().into());
+                fill("max_iterations", self.max_iterations().into());
+            }
+            Method::PatchTest => {
+                fill(
+                    "horizon_profile",
+                    value(serde_json::to_value(self.horizon_profile())),
+                );
+                fill(
+                    "formulation",
+                    value(serde_json::to_value(self.formulation())),
+                );
+                fill("patch", value(serde_json::to_value(self.patch())));
+            }
+            Method::Coupled1d => {
+                fill("patch", value(serde_json::to_value(self.patch())));
+                fill(
+                    "local_domain",
+                    value(serde_json::to_value(self.local_domain())),
+                );
+            }
+            Method::Nonlocal => {}
+        }
+        if self.method == Method::Feti {
+            fill(
+                "preconditioner",
+                value(serde_json::to_value(self.preconditioner())),
+            );
+        }
+        serde_json::Value::Object(fields)
+    }
+
     /// The case's grid spacing h (see `Method::grid_spacing`).
     pub fn h(&self) -> f64 {
         self.method.grid_spacing(self.n, self.length())
@@ -255,6 +331,52 @@ mod tests {
                 "{field} missing from {names:?}"
             );
         }
+    }
+
+    #[test]
+    fn the_resolved_case_fills_every_default_the_method_uses() {
+        let case = |fields: serde_json::Value| Case::parse(fields).unwrap().resolved();
+        let nonlocal = case(serde_json::json!({"dim": 1, "n": 8, "m": 2}));
+        for (field, default) in [
+            ("quadrature", "midpoint"),
+            ("collar", "zero"),
+            ("integrator", "forward_euler"),
+            ("source", "continuum"),
+            ("kernel", "constant"),
+            ("method", "nonlocal"),
+        ] {
+            assert_eq!(nonlocal[field], default, "{field}");
+        }
+        assert!(nonlocal.get("t_end").is_none() && nonlocal.get("rtol").is_none());
+        let bump = case(serde_json::json!({"dim": 1, "n": 8, "m": 2, "problem": "bump"}));
+        assert_eq!(bump["source"], "none");
+        let feti = case(serde_json::json!({"method": "feti", "dim": 2, "n": 8, "m": 2}));
+        assert_eq!(
+            (
+                &feti["rtol"],
+                &feti["max_iterations"],
+                &feti["preconditioner"]
+            ),
+            (
+                &serde_json::json!(DEFAULT_RTOL),
+                &serde_json::json!(MAX_ITERATIONS),
+                &serde_json::json!("dirichlet")
+            )
+        );
+        let coupled = case(serde_json::json!({"method": "coupled_1d", "dim": 1, "n": 8, "m": 2}));
+        assert_eq!(
+            coupled["local_domain"],
+            serde_json::json!(DEFAULT_LOCAL_DOMAIN)
+        );
+        // A given value is kept, and the serialized case (the key's source) stays as it was.
+        let given =
+            Case::parse(serde_json::json!({"dim": 1, "n": 8, "m": 2, "quadrature": "ac"})).unwrap();
+        assert_eq!(given.resolved()["quadrature"], "ac");
+        let keyed = serde_json::to_value(
+            Case::parse(serde_json::json!({"dim": 1, "n": 8, "m": 2})).unwrap(),
+        )
+        .unwrap();
+        assert!(keyed.get("quadrature").is_none() && keyed.get("integrator").is_none());
     }
 
     #[test]

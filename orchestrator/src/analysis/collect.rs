@@ -55,6 +55,12 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
         .collect();
     rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
     for (name, value) in rest {
+        // The case with its defaults filled in, as the solver resolves it now (records keep
+        // the case as keyed, which leaves some defaults out).
+        let value = match (name.as_str(), &planned.case) {
+            ("case", Ok(checked)) => &checked.resolved,
+            _ => value,
+        };
         row.set_flattened(name, value);
     }
     row

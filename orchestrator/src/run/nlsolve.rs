@@ -13,6 +13,16 @@ pub struct Nlsolve {
     pub version: String,
 }
 
+/// A case the solver accepted, in its two forms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Checked {
+    /// Keys sorted, some defaults left out: what a run's key is taken from (stable across
+    /// versions that fill in more defaults).
+    pub canonical: Value,
+    /// Every field the method uses, defaults filled in: what tables and messages show.
+    pub resolved: Value,
+}
+
 impl Nlsolve {
     /// The solver at `explicit`, else `$NLSOLVE`, else `nlsolve` beside this executable.
     pub fn locate(explicit: Option<&Path>) -> Result<Nlsolve, String> {
@@ -38,9 +48,9 @@ impl Nlsolve {
         Ok(Nlsolve { binary, version })
     }
 
-    /// Each point's canonical case (every field, defaults filled in, keys sorted), or the
-    /// solver's sentence saying which field is wrong; one `nlsolve check` for all points.
-    pub fn check(&self, points: &[Point]) -> Result<Vec<Result<Value, String>>, String> {
+    /// Each point's case as the solver reads it, or the solver's sentence saying which field is
+    /// wrong; one `nlsolve check` for all points.
+    pub fn check(&self, points: &[Point]) -> Result<Vec<Result<Checked, String>>, String> {
         let mut child = Command::new(&self.binary)
             .arg("check")
             .stdin(Stdio::piped())
@@ -69,13 +79,22 @@ impl Nlsolve {
                 String::from_utf8_lossy(&output.stderr).trim()
             ));
         }
-        let verdicts: Vec<Result<Value, String>> = String::from_utf8_lossy(&output.stdout)
+        let verdicts: Vec<Result<Checked, String>> = String::from_utf8_lossy(&output.stdout)
             .lines()
             .map(|line| {
                 let mut verdict: Value = serde_json::from_str(line)
                     .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
                 if let Some(case) = verdict.get_mut("case") {
-                    return Ok(case.take());
+                    let canonical = case.take();
+                    // A solver from before `resolved` was printed: its case as it is.
+                    let resolved = match verdict.get_mut("resolved") {
+                        Some(resolved) => resolved.take(),
+                        None => canonical.clone(),
+                    };
+                    return Ok(Checked {
+                        canonical,
+                        resolved,
+                    });
                 }
                 match verdict.get("error").and_then(Value::as_str) {
                     Some(error) => Err(error.to_string()),

@@ -1,7 +1,7 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
 use crate::model::study::{Point, Study, StudyError};
-use crate::run::nlsolve::Nlsolve;
+use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::store::{self, Index};
 use schema::record::Status;
 use serde_json::Value;
@@ -42,7 +42,7 @@ pub enum Decision {
 /// what happens to it.
 pub struct Planned {
     pub point: Point,
-    pub case: Result<Value, String>,
+    pub case: Result<Checked, String>,
     pub key: String,
     pub case_id: String,
     pub decision: Decision,
@@ -83,7 +83,7 @@ pub fn plan(
         .map(|(point, case)| {
             // A refused case is keyed by its fields as written.
             let identity = match &case {
-                Ok(canonical) => canonical.clone(),
+                Ok(checked) => checked.canonical.clone(),
                 Err(_) => Value::Object(point.fields.clone()),
             };
             let case_id = store::case_id(&identity);

@@ -40,9 +40,6 @@ use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 use std::time::Instant;
 
-/// Seed 003's local domain (Γ_c, Γ_i).
-pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
-
 /// Most elements of the local mesh (a few GB of vectors), so that a runaway `local_domain` is
 /// refused rather than allocated.
 const MAX_LOCAL_ELEMENTS: f64 = 1e8;
@@ -286,7 +283,7 @@ impl Sizes {
 }
 
 fn local_domain(case: &Case) -> [f64; 2] {
-    case.local_domain.unwrap_or(DEFAULT_LOCAL_DOMAIN)
+    case.local_domain()
 }
 
 /// One model's discrete problem, reduced to its controls: the state with zero controls and
@@ -474,7 +471,7 @@ struct Coupled {
 impl Coupled {
     /// Assembles and reduces both models (the factorisations and control responses included).
     fn new(case: &Case) -> Result<Coupled, CaseError> {
-        let field = case.patch.unwrap_or_default();
+        let field = case.patch();
         let (k, kernel, eps) = (case.diffusivity, case.kernel, horizon_length(case));
         let [a, b] = local_domain(case);
         let h = 1.0 / case.n as f64;
@@ -570,7 +567,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let (u_n, u_l) = (&states.0, &states.1);
     let solve_s = solving.elapsed().as_secs_f64();
 
-    let field = case.patch.unwrap_or_default();
+    let field = case.patch();
     let exact = |x: f64| field.value(x);
     let [a, b] = local_domain(case);
     let control_error = nonlocal
@@ -658,10 +655,7 @@ mod tests {
         )
         .unwrap();
         assert!(validate(&case).is_ok());
-        assert_eq!(
-            case.patch.unwrap_or_default(),
-            crate::case::PatchField::Linear
-        );
+        assert_eq!(case.patch(), crate::case::PatchField::Linear);
     }
 
     /// J measured directly on the states, not through Ψ: no control vector does better than the

@@ -75,7 +75,7 @@ fn empty_interior(case: &Case, eps_max: f64) -> CaseError {
 /// force there). ε(x) is monotone for every profile, so its largest value on D's nodes is at the
 /// first or the last node, and the nodes nearest the middle are the ones to test.
 fn validate_interior(case: &Case) -> Result<(), CaseError> {
-    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let profile = case.horizon_profile();
     let (n, h) = (case.n, 1.0 / case.n as f64);
     let x = |i: usize| (i as f64 + 0.5) * h;
     let eps_max = horizon_at(profile, horizon_length(case), x(0)).max(horizon_at(
@@ -95,7 +95,7 @@ fn validate_interior(case: &Case) -> Result<(), CaseError> {
 /// from a varying `horizon_profile` (then no `m` or `eps`) or a constant one (then one of
 /// them), a transition inside D, and ε within [h, 1/2] along the bar.
 pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
-    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let profile = case.horizon_profile();
     match (profile, case.m, case.eps) {
         (HorizonProfile::Constant, Some(_), None) | (HorizonProfile::Constant, None, Some(_)) => {}
         (HorizonProfile::Constant, _, _) => {
@@ -150,14 +150,14 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
 /// eigensolver's copies, 32 n² bytes); for a time-dependent run, the rows copied into its
 /// operator (growing vectors: up to twice their length).
 pub(crate) fn operator_bytes(case: &Case) -> f64 {
-    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let profile = case.horizon_profile();
     let constant = horizon_length(case);
     let n = case.n as f64;
     // ε(x) is monotone: its extremes are at the ends.
     let [left, right] = [0.0, 1.0].map(|x| horizon_at(profile, constant, x) * n);
     let (largest, mean) = (left.max(right).floor(), 0.5 * (left + right));
     let bonds = 24.0 * (n + 4.0 * largest) * 2.0 * mean;
-    let row = match case.formulation.unwrap_or_default() {
+    let row = match case.formulation() {
         crate::case::Formulation::Standard => 2.0 * mean + 1.0,
         crate::case::Formulation::PartialStress => 4.0 * mean + 1.0,
     };
@@ -177,10 +177,10 @@ pub(crate) fn operator_bytes(case: &Case) -> f64 {
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::PatchTest);
     let started = Instant::now();
-    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let profile = case.horizon_profile();
     let constant = horizon_length(case);
-    let field = case.patch.unwrap_or_default();
-    let formulation = case.formulation.unwrap_or_default();
+    let field = case.patch();
+    let formulation = case.formulation();
     let operator = VariableHorizonOperator::new(
         case.n,
         profile,

@@ -49,7 +49,7 @@ pub fn write_jobs(
         let keys: Vec<String> = pack.iter().map(|p| p.key.clone()).collect();
         let largest = |field: &str| {
             pack.iter()
-                .filter_map(|p| p.case.as_ref().ok()?.get(field)?.as_u64())
+                .filter_map(|p| p.case.as_ref().ok()?.resolved.get(field)?.as_u64())
                 .max()
                 .unwrap_or(1)
                 .max(1) as usize

@@ -78,14 +78,14 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 /// Plans, integrates and measures a nonlocal case with a `horizon_profile`.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();
-    let profile = case.horizon_profile.unwrap_or(HorizonProfile::Constant);
+    let profile = case.horizon_profile();
     let variable = VariableHorizonOperator::new(
         case.n,
         profile,
         horizon_length(case),
         case.kernel,
         case.diffusivity,
-        case.formulation.unwrap_or_default(),
+        case.formulation(),
     );
     let operator = RowOperator::new(variable.rows_with_zero_collar());
     // Gershgorin's bound: the exact step of the symmetric standard form is about twice this.
