@@ -69,6 +69,9 @@ pub struct SubmitArgs {
     /// Each job's `nlstudy run --retries N`: a case that failed for a reason outside it runs again.
     #[arg(long, default_value_t = 0)]
     retries: usize,
+    /// Submit the other points when the solver refuses some (see `plan --allow-refused`).
+    #[arg(long)]
+    allow_refused: bool,
 }
 
 #[derive(Args)]
@@ -115,6 +118,10 @@ pub struct PlanArgs {
     /// Only the points with these keys (comma-separated), as cluster jobs do.
     #[arg(long, value_delimiter = ',')]
     only: Option<Vec<String>>,
+    /// Go on when the solver refuses some points (they are stored as failed); by default a
+    /// refused point stops `plan`, `run` and `submit` before anything runs.
+    #[arg(long)]
+    allow_refused: bool,
 }
 
 #[derive(Args)]
@@ -270,9 +277,10 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
             Decision::Skip(status) => format!("skip  ({status})"),
             Decision::Duplicate => "skip  (the same case as an earlier point)".into(),
         };
+        // Said once per distinct sentence below.
         let refused = match &p.case {
-            Err(message) => format!("  refused: {message}"),
-            Ok(_) => String::new(),
+            Err(_) => "  refused",
+            Ok(_) => "",
         };
         tell!("{}  {what:<40} {}{refused}", p.key, p.point.label());
     }
@@ -289,11 +297,32 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
         "{runs} to run, {} stored{shared}",
         planned.len() - runs - duplicates
     );
+    no_refusals(&planned, args.allow_refused)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Stops a command when the solver refused points (unless `allowed`): each distinct refusal
+/// once, with the number of points it refused.
+fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {
+    let refusals = crate::run::plan::refusals(planned);
+    if refusals.is_empty() {
+        return Ok(());
+    }
+    let points: usize = refusals.iter().map(|r| r.points).sum();
+    let text = crate::run::plan::describe_refusals(&refusals);
+    if allowed {
+        say!("nlstudy: warning: the solver refuses {points} points; they are stored as failed:\n{text}");
+        return Ok(());
+    }
+    Err(format!(
+        "the solver refuses {points} of the study's points, so nothing runs:\n{text}\nfix the study file, or give --allow-refused to run the other points and store these as failed"
+    )
+    .into())
 }
 
 fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
+    no_refusals(&planned, args.plan.allow_refused)?;
     let cores = crate::run::pool::machine_cores();
     let timeout = match args.timeout {
         Some(seconds) => Some(timeout(seconds, "--timeout")?),
@@ -497,6 +526,7 @@ fn status_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 
 fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let (study, solver, store, planned) = planned(&args.common, &Options::default())?;
+    no_refusals(&planned, args.allow_refused)?;
     let target = submit::Target {
         scheduler: args.scheduler,
         resources: study.resources.overridden_by(&args.resources),

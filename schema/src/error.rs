@@ -28,12 +28,17 @@ impl<S: Subject> FieldError<S> {
 
     /// A refusal by serde (through `serde_path_to_error`): at `path`, saying `message`. serde
     /// reports an unknown or missing field at its parent; the error names the field itself.
+    /// A misspelt name gets the nearest of the names serde expected (`did you mean `kernel`?`).
     pub fn from_serde(path: String, message: String) -> Self {
         let field = match field_named_in(&message) {
             None => path,
             Some(field) if path == "." || path.is_empty() => field,
             Some(field) if path.ends_with(&field) => path,
             Some(field) => format!("{path}.{field}"),
+        };
+        let message = match suggestion(&message) {
+            Some(name) => with_suggestion(&message, &name),
+            None => message,
         };
         FieldError::new(field, message)
     }
@@ -76,6 +81,43 @@ fn field_named_in(message: &str) -> Option<String> {
             let rest = message.strip_prefix(prefix)?;
             Some(rest[..rest.find('`')?].to_string())
         })
+}
+
+/// The name a serde refusal ("unknown field `kernal`, expected one of `dim`, `kernel`, …",
+/// "unknown variant `rk5`, expected `a` or `b`") most likely meant: the expected name nearest to
+/// the given one, if it is near enough to be a misspelling rather than another word.
+pub fn suggestion(message: &str) -> Option<String> {
+    let rest = ["unknown field `", "unknown variant `"]
+        .iter()
+        .find_map(|prefix| message.strip_prefix(prefix))?;
+    let given = &rest[..rest.find('`')?];
+    let expected = &rest[rest.find("expected")?..];
+    // A hint may follow the list (`; see `nlsolve run --help``).
+    let expected = expected.split(';').next().unwrap_or_default();
+    let candidates = expected.split('`').skip(1).step_by(2);
+    nearest(given, candidates)
+}
+
+/// "unknown field `kernal`, expected one of … ; see …" as "unknown field `kernal`; did you mean
+/// `kernel`?; see …": the guess replaces the list of every name, which it makes noise.
+fn with_suggestion(message: &str, name: &str) -> String {
+    let Some(list) = message.find(", expected") else {
+        return format!("{message}; did you mean `{name}`?");
+    };
+    let hint = message[list..]
+        .find(';')
+        .map_or("", |k| &message[list + k..]);
+    format!("{}; did you mean `{name}`?{hint}", &message[..list])
+}
+
+/// The candidate nearest to `given` by Jaro–Winkler similarity, if above 0.8 (a typo or two).
+pub fn nearest<'a>(given: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<String> {
+    candidates
+        .into_iter()
+        .map(|c| (strsim::jaro_winkler(given, c), c))
+        .filter(|(similarity, _)| *similarity > 0.8)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, c)| c.to_string())
 }
 
 /// The fields of struct `T` in declaration order, as its derived `Deserialize` hands them to the
@@ -138,6 +180,36 @@ mod tests {
         );
         let e = FieldError::<Thing>::new("n", "must be at least 1");
         assert_eq!(e.to_string(), "thing `n`: must be at least 1");
+    }
+
+    #[test]
+    fn a_misspelt_name_is_met_with_the_nearest_expected_one() {
+        let e = FieldError::<Thing>::from_serde(
+            ".".into(),
+            "unknown field `kernal`, expected one of `method`, `dim`, `kernel`, `n`".into(),
+        );
+        assert_eq!(e.field, "kernal");
+        assert_eq!(e.message, "unknown field `kernal`; did you mean `kernel`?");
+        let hinted = FieldError::<Thing>::from_serde(
+            ".".into(),
+            "unknown field `kernal`, expected `kernel` or `n`; see `nlsolve run --help`".into(),
+        );
+        assert_eq!(
+            hinted.message,
+            "unknown field `kernal`; did you mean `kernel`?; see `nlsolve run --help`"
+        );
+        let variant = "unknown variant `forward_eulr`, expected one of `forward_euler`, `heun`";
+        assert_eq!(suggestion(variant).as_deref(), Some("forward_euler"));
+        assert_eq!(
+            suggestion("unknown variant `rk5`, expected `rk4` or `heun`").as_deref(),
+            Some("rk4")
+        );
+        // Another word altogether gets no guess.
+        assert_eq!(
+            suggestion("unknown field `colour`, expected `n` or `dim`"),
+            None
+        );
+        assert_eq!(suggestion("invalid type: string, expected usize"), None);
     }
 
     #[test]

@@ -120,6 +120,53 @@ pub fn plan(
     Ok(planned)
 }
 
+/// Points the solver refused that share one sentence: a typo in `base` refuses every point
+/// with the same words, and is said once.
+#[derive(Debug, PartialEq)]
+pub struct Refusal {
+    pub message: String,
+    /// Points (repeats counted once) refused with it.
+    pub points: usize,
+    /// The first of them, by its label.
+    pub first: String,
+}
+
+/// The solver's refusals, one per distinct sentence, in the order they first appear.
+pub fn refusals(planned: &[Planned]) -> Vec<Refusal> {
+    let mut refusals: Vec<Refusal> = Vec::new();
+    for p in planned.iter().filter(|p| p.point.repeat == 0) {
+        let Err(message) = &p.case else { continue };
+        match refusals.iter_mut().find(|r| r.message == *message) {
+            Some(refusal) => refusal.points += 1,
+            None => refusals.push(Refusal {
+                message: message.clone(),
+                points: 1,
+                first: p.point.label_without_repeat(),
+            }),
+        }
+    }
+    refusals
+}
+
+/// The refusals as lines for people: `60 points (first: n=8 m=2): case field …`.
+pub fn describe_refusals(refusals: &[Refusal]) -> String {
+    refusals
+        .iter()
+        .map(|r| {
+            let points = match r.points {
+                1 => "1 point".to_string(),
+                n => format!("{n} points"),
+            };
+            let first = match r.first.as_str() {
+                "" => String::new(),
+                label => format!(" (first: {label})"),
+            };
+            format!("  {points}{first}: {}", r.message)
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// Refuses `--only` keys that are no point of the study: a job script written before the study
 /// was edited would otherwise run nothing and report success.
 fn unknown_keys(only: &HashSet<String>, planned: &[Planned]) -> Result<(), StudyError> {

@@ -244,7 +244,8 @@ fn run_cases(
                     finish(store, planned, record, &mut tally, progress)?;
                 }
                 Ok(case) => {
-                    let mut job = start(next, &case.canonical, planned, solver, store, options, lock)?;
+                    let mut job =
+                        start(next, &case.canonical, planned, solver, store, options, lock)?;
                     job.attempt = attempt;
                     running.push(job);
                 }

@@ -460,13 +460,22 @@ fn parse_command_line() -> Result<Cli, BadInput> {
         ErrorKind::DisplayHelp
         | ErrorKind::DisplayVersion
         | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => e.exit(),
-        _ => {
-            let text = e.to_string();
-            let first = text.lines().next().unwrap_or_default();
-            BadInput(first.trim_start_matches("error: ").to_string())
-        }
+        _ => BadInput(usage_error(&e.to_string())),
     })?;
     Cli::from_arg_matches(&matches).map_err(|e| BadInput(e.to_string()))
+}
+
+/// clap's error as one line: its first line and its tips (`a similar argument exists:
+/// '--integrator'`), without the usage block.
+fn usage_error(text: &str) -> String {
+    let first = text.lines().next().unwrap_or_default();
+    let tips = text
+        .lines()
+        .filter_map(|line| line.trim().strip_prefix("tip: "))
+        .map(|tip| format!("; {tip}"));
+    std::iter::once(first.trim_start_matches("error: ").to_string())
+        .chain(tips)
+        .collect()
 }
 
 /// MPI, with the `mpi` feature: the ranks of the launcher that started this process.
@@ -697,6 +706,21 @@ mod tests {
             .map(|a| a.get_id().as_str())
             .collect();
         assert_eq!(flags, Case::field_names());
+    }
+
+    /// A misspelt flag is one line of bad input that still carries clap's suggestion.
+    #[test]
+    fn a_misspelt_flag_is_refused_with_the_flag_it_resembles() {
+        let error = Cli::try_parse_from(["nlsolve", "run", "--integrater", "rk4"])
+            .err()
+            .expect("an unknown flag");
+        let line = usage_error(&error.to_string());
+        assert!(!line.contains('\n'), "{line}");
+        assert!(
+            line.starts_with("unexpected argument '--integrater' found")
+                && line.contains("similar argument exists: '--integrator'"),
+            "{line}"
+        );
     }
 
     /// The flags given, and only those, become the case's fields, with their JSON types.
