@@ -45,10 +45,32 @@ fn a_second_run_runs_nothing_and_a_new_axis_value_runs_only_its_points() {
 }
 
 #[test]
-fn a_refused_case_is_stored_as_failed_without_stopping_the_others() {
+fn a_refused_case_stops_the_run_unless_allowed_then_is_stored_as_failed() {
     // n = 2 cannot hold m = 2 (ε = 1 > 0.5): the solver refuses it.
     let scratch = Scratch::new("failed", &small_study(&[2, 16]));
-    let run = scratch.nlstudy("run", &[]);
+    for command in ["plan", "run"] {
+        let stopped = scratch.nlstudy(command, &[]);
+        assert_eq!(stopped.status.code(), Some(2), "{}", text(&stopped));
+        // The refusal said once for both points it refuses, with the way on.
+        assert_eq!(
+            text(&stopped).matches("case field `m`").count(),
+            1,
+            "{}",
+            text(&stopped)
+        );
+        assert!(
+            text(&stopped).contains("2 points (first: n=2 threads=1)"),
+            "{}",
+            text(&stopped)
+        );
+        assert!(
+            text(&stopped).contains("--allow-refused"),
+            "{}",
+            text(&stopped)
+        );
+    }
+    assert!(records(&scratch.runs("small")).is_empty(), "nothing ran");
+    let run = scratch.nlstudy("run", &["--allow-refused"]);
     assert_eq!(run.status.code(), Some(1), "{}", text(&run));
     let stored = records(&scratch.runs("small"));
     assert_eq!(stored.len(), 4);
@@ -58,12 +80,12 @@ fn a_refused_case_is_stored_as_failed_without_stopping_the_others() {
     let status = text(&scratch.nlstudy("status", &[]));
     assert!(status.contains("2 failed, 2 ok"), "{status}");
 
-    let again = text(&scratch.nlstudy("plan", &[]));
+    let again = text(&scratch.nlstudy("plan", &["--allow-refused"]));
     assert!(
         again.contains("0 to run"),
         "failed runs are not retried unasked: {again}"
     );
-    let retry = text(&scratch.nlstudy("plan", &["--rerun-failed"]));
+    let retry = text(&scratch.nlstudy("plan", &["--rerun-failed", "--allow-refused"]));
     assert_eq!(retry.matches("run   (failed before)").count(), 2, "{retry}");
 }
 
@@ -423,7 +445,7 @@ fn every_shipped_study_plans_without_a_refused_point() {
             .unwrap();
         assert!(out.status.success(), "{}: {}", path.display(), text(&out));
         assert!(
-            !text(&out).contains("refused:"),
+            !text(&out).contains("refuse"),
             "{}: {}",
             path.display(),
             text(&out)

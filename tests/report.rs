@@ -54,7 +54,7 @@ fn the_report_opens_in_a_browser_with_every_figure_drawn() {
         ]
     });
     let scratch = Scratch::new("report", &study);
-    let run = scratch.nlstudy("run", &[]);
+    let run = scratch.nlstudy("run", &["--allow-refused"]);
     assert_eq!(
         run.status.code(),
         Some(1),
