@@ -553,3 +553,50 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
     };
     assert_eq!(value_of("-j"), slots.to_string(), "{script}");
 }
+
+/// Two branches that sweep different fields: every row of the terminal summary and of the
+/// report's table must differ from the others, the branch and each branch's own field shown.
+#[test]
+fn no_two_points_render_as_identical_rows() {
+    let study = json!({
+        "name": "apart",
+        "base": {"dim": 1, "n": 16, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"branches": {
+            "threads": [{"product": {"threads": [1, 2]}}],
+            "steps": [{"product": {"cfl": [0.25, 0.5]}}]
+        }}]
+    });
+    let scratch = Scratch::new("apart", &study);
+    let run = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(run.status.success(), "{}", text(&run));
+    let collect = scratch.nlstudy("collect", &[]);
+    assert!(collect.status.success(), "{}", text(&collect));
+    let rows: Vec<String> = String::from_utf8_lossy(&collect.stdout)
+        .lines()
+        .filter(|l| l.starts_with('|') && !l.contains("---"))
+        .map(str::to_string)
+        .collect();
+    assert_eq!(rows.len(), 5, "a header and four points: {rows:?}");
+    for field in ["branch", "threads", "cfl"] {
+        assert!(rows[0].contains(field), "no column {field}: {}", rows[0]);
+    }
+    assert_distinct(&rows);
+
+    let report = scratch.nlstudy("report", &[]);
+    assert!(report.status.success(), "{}", text(&report));
+    let page = std::fs::read_to_string(scratch.dir.join("results/apart/report.html")).unwrap();
+    let summary = &page[page.find("<h2>Summary</h2>").expect("a summary")..];
+    let summary = &summary[..summary.find("</table>").unwrap()];
+    let rows: Vec<String> = summary.split("<tr>").skip(1).map(str::to_string).collect();
+    assert_eq!(rows.len(), 5, "{summary}");
+    assert_distinct(&rows);
+}
+
+fn assert_distinct(rows: &[String]) {
+    for (k, row) in rows.iter().enumerate() {
+        assert!(
+            !rows[..k].contains(row),
+            "two points look alike: {row}\n{rows:#?}"
+        );
+    }
+}

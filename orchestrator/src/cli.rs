@@ -2,7 +2,7 @@
 //! library's parts (study → plan → pool → store → collect → plot).
 
 use crate::model::resources::Resources;
-use crate::model::study::Study;
+use crate::model::study::{fields_telling_apart, Study};
 use crate::output::status;
 use crate::run::cluster::scheduler::Scheduler;
 use crate::run::cluster::submit;
@@ -383,8 +383,8 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
                 |collected| match collected {
                     Some(collected) => {
                         let figures = crate::output::plot::plot(&study.figures, &store)?;
-                        let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
-                        let page = crate::output::report::write(&study, &store, swept)?;
+                        let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+                        let page = crate::output::report::write(&study, &store, &swept)?;
                         if !args.quiet {
                             print_tables_written(&collected);
                             print_figures_drawn(&figures);
@@ -429,10 +429,10 @@ fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
         )
     })?;
     print_tables_written(&collected);
-    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
+    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
     tell!(
         "{}",
-        crate::analysis::collect::overview(&collected.table, swept)
+        crate::analysis::collect::overview(&collected.table, &swept)
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -512,8 +512,8 @@ fn print_tables_written(collected: &crate::analysis::collect::Collected) {
 
 fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
     let (study, _, store, planned) = planned(args, &Options::default())?;
-    let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
-    let page = crate::output::report::write(&study, &store, swept)?;
+    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+    let page = crate::output::report::write(&study, &store, &swept)?;
     tell!("report: {}", page.display());
     Ok(ExitCode::SUCCESS)
 }

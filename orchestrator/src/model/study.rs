@@ -152,6 +152,24 @@ impl Point {
     }
 }
 
+/// The fields that tell a study's points apart, for the columns of its tables: `branch` when
+/// there are branches, then every field swept or derived on any branch, in first-seen order (the
+/// fields of one branch alone would leave another's rows looking alike).
+pub fn fields_telling_apart<'a>(points: impl IntoIterator<Item = &'a Point>) -> Vec<String> {
+    let mut fields: Vec<String> = Vec::new();
+    for point in points {
+        if point.branch.is_some() && !fields.iter().any(|f| f == BRANCH) {
+            fields.insert(0, BRANCH.to_string());
+        }
+        for field in &point.swept {
+            if !fields.contains(field) {
+                fields.push(field.clone());
+            }
+        }
+    }
+    fields
+}
+
 /// What a `StudyError` is about: a place in a study file (`sweep[1].zip.n`, `resources.time`).
 pub struct StudyPlace;
 
@@ -616,6 +634,11 @@ mod tests {
                 .label()
                 .starts_with(&format!("branch={}", p.branch.as_ref().unwrap())));
         }
+        // The tables' columns: the branch, then what any branch sweeps.
+        assert_eq!(
+            fields_telling_apart(&points),
+            ["branch", "n", "eps", "kernel", "m", "source"]
+        );
         // A refinement series runs along n within one branch.
         let eps_series: Vec<&str> = points
             .iter()
