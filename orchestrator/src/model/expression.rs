@@ -4,6 +4,10 @@
 //! Hand-written rather than evalexpr: evalexpr divides integers as integers and holds 64 and
 //! 64.0 unequal, so `1/n` or `n == 64` would silently give wrong points; here `1/n` is a
 //! fraction and `n == 64` holds for n = 64 however the file wrote it.
+//!
+//! A name the point lacks (a field another branch sweeps) is an error where its value is
+//! needed, but `||` and `&&` read left to right and stop once decided, so
+//! `branch != 'threads' || threads <= 2` holds on every branch.
 
 use schema::case::DEFAULT_LENGTH;
 use schema::choices::Method;
@@ -15,6 +19,8 @@ enum Val {
     Num(f64),
     Str(String),
     Bool(bool),
+    /// A name the point lacks: the error to give if its value is needed.
+    Missing(String),
 }
 
 /// The names an expression may use: the point's fields, and `h`, its grid spacing.
@@ -89,7 +95,10 @@ fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
     };
     let value = parser.or()?;
     match parser.tokens.get(parser.at) {
-        None => Ok(value),
+        None => match value {
+            Val::Missing(why) => Err(why),
+            value => Ok(value),
+        },
         Some(token) => Err(format!("`{text}`: unexpected {token:?}")),
     }
 }
@@ -202,7 +211,12 @@ impl Parser<'_> {
         let mut left = self.and()?;
         while self.eat("||") {
             let right = self.and()?;
-            left = Val::Bool(truth(&left)? || truth(&right)?);
+            left = match left {
+                Val::Bool(true) => left,
+                Val::Missing(_) => left,
+                _ if matches!(right, Val::Missing(_)) => right,
+                _ => Val::Bool(truth(&left)? || truth(&right)?),
+            };
         }
         Ok(left)
     }
@@ -211,7 +225,12 @@ impl Parser<'_> {
         let mut left = self.comparison()?;
         while self.eat("&&") {
             let right = self.comparison()?;
-            left = Val::Bool(truth(&left)? && truth(&right)?);
+            left = match left {
+                Val::Bool(false) => left,
+                Val::Missing(_) => left,
+                _ if matches!(right, Val::Missing(_)) => right,
+                _ => Val::Bool(truth(&left)? && truth(&right)?),
+            };
         }
         Ok(left)
     }
@@ -222,6 +241,8 @@ impl Parser<'_> {
             if self.eat(op) {
                 let right = self.sum()?;
                 let holds = match (&left, &right, op) {
+                    (Val::Missing(_), _, _) => return Ok(left),
+                    (_, Val::Missing(_), _) => return Ok(right),
                     (_, _, "==") => left == right,
                     (_, _, "!=") => left != right,
                     (Val::Num(a), Val::Num(b), _) => match op {
@@ -242,9 +263,9 @@ impl Parser<'_> {
         let mut left = self.product()?;
         loop {
             if self.eat("+") {
-                left = Val::Num(num(&left)? + num(&self.product()?)?);
+                left = arithmetic(left, self.product()?, |a, b| a + b)?;
             } else if self.eat("-") {
-                left = Val::Num(num(&left)? - num(&self.product()?)?);
+                left = arithmetic(left, self.product()?, |a, b| a - b)?;
             } else {
                 return Ok(left);
             }
@@ -255,9 +276,9 @@ impl Parser<'_> {
         let mut left = self.unary()?;
         loop {
             if self.eat("*") {
-                left = Val::Num(num(&left)? * num(&self.unary()?)?);
+                left = arithmetic(left, self.unary()?, |a, b| a * b)?;
             } else if self.eat("/") {
-                left = Val::Num(num(&left)? / num(&self.unary()?)?);
+                left = arithmetic(left, self.unary()?, |a, b| a / b)?;
             } else {
                 return Ok(left);
             }
@@ -266,14 +287,17 @@ impl Parser<'_> {
 
     fn unary(&mut self) -> Result<Val, String> {
         if self.eat("-") {
-            return Ok(Val::Num(-num(&self.nested(Self::unary)?)?));
+            return arithmetic(Val::Num(0.0), self.nested(Self::unary)?, |_, b| -b);
         }
         if self.eat("!") {
-            return Ok(Val::Bool(!truth(&self.nested(Self::unary)?)?));
+            return match self.nested(Self::unary)? {
+                Val::Missing(why) => Ok(Val::Missing(why)),
+                value => Ok(Val::Bool(!truth(&value)?)),
+            };
         }
         let base = self.atom()?;
         if self.eat("^") {
-            return Ok(Val::Num(num(&base)?.powf(num(&self.nested(Self::unary)?)?)));
+            return arithmetic(base, self.nested(Self::unary)?, f64::powf);
         }
         Ok(base)
     }
@@ -290,10 +314,16 @@ impl Parser<'_> {
             Token::Str(s) => Ok(Val::Str(s)),
             Token::Name(name) if name == "true" => Ok(Val::Bool(true)),
             Token::Name(name) if name == "false" => Ok(Val::Bool(false)),
-            Token::Name(name) => self.scope.names.get(&name).cloned().ok_or_else(|| {
-                let known: Vec<&str> = self.scope.names.keys().map(String::as_str).collect();
-                format!("unknown name `{name}`; the point has {}", known.join(", "))
-            }),
+            Token::Name(name) => Ok(self.scope.names.get(&name).cloned().unwrap_or_else(|| {
+                let known = self.scope.names.keys().map(String::as_str);
+                let guess = schema::error::nearest(&name, known.clone())
+                    .map_or(String::new(), |g| format!("did you mean `{g}`? "));
+                let known: Vec<&str> = known.collect();
+                Val::Missing(format!(
+                    "unknown name `{name}`; {guess}the point has {}",
+                    known.join(", ")
+                ))
+            })),
             Token::Op("(") => {
                 let inner = self.nested(Self::or)?;
                 if !self.eat(")") {
@@ -303,6 +333,15 @@ impl Parser<'_> {
             }
             Token::Op(op) => Err(format!("unexpected `{op}`")),
         }
+    }
+}
+
+/// `f` of two numbers; a missing name stays missing (an error only where its value is needed).
+fn arithmetic(left: Val, right: Val, f: impl Fn(f64, f64) -> f64) -> Result<Val, String> {
+    match (&left, &right) {
+        (Val::Missing(_), _) => Ok(left),
+        (_, Val::Missing(_)) => Ok(right),
+        _ => Ok(Val::Num(f(num(&left)?, num(&right)?))),
     }
 }
 
@@ -356,6 +395,33 @@ mod tests {
         assert_eq!(condition("patch.ghost_force < 1e-12", &nested), Ok(true));
         // h of a grid method: L/(n + 1) with L = 2.
         assert_eq!(evaluate_number("h", &s), Ok(json!(2.0 / 65.0)));
+    }
+
+    #[test]
+    fn a_name_the_point_lacks_is_skipped_once_the_logic_is_decided() {
+        let on_threads = scope(json!({"branch": "threads", "threads": 4}));
+        let on_steps = scope(json!({"branch": "steps", "cfl": 0.5}));
+        let spanning = "branch != 'threads' || threads <= 2";
+        assert_eq!(condition(spanning, &on_threads), Ok(false));
+        assert_eq!(condition(spanning, &on_steps), Ok(true));
+        assert_eq!(
+            condition("branch == 'threads' && threads > 2", &on_steps),
+            Ok(false)
+        );
+        // Needed, it is an error, with a guess when one is near.
+        for needed in [
+            "threads <= 2 || branch == 'steps'",
+            "threads == 1",
+            "-threads < 0",
+        ] {
+            let error = condition(needed, &on_steps).unwrap_err();
+            assert!(
+                error.contains("unknown name `threads`"),
+                "{needed}: {error}"
+            );
+        }
+        let error = condition("thread == 1", &on_threads).unwrap_err();
+        assert!(error.contains("did you mean `threads`?"), "{error}");
     }
 
     #[test]

@@ -65,7 +65,59 @@ pub enum SweepGroup {
     /// Named alternatives, each a list of groups that multiply: a point lies on one branch, whose
     /// name the tables keep in the column `branch` (e.g. the paths of an ε/h study, each with its
     /// own source and time step). The solver never sees it.
-    Branches(BTreeMap<String, Vec<SweepGroup>>),
+    Branches(BTreeMap<String, Branch>),
+}
+
+/// One alternative of `branches`: its groups, written as a list (`"a": [{"product": …}]`), or
+/// as an object that also gives the branch's own `where` (conditions on its points only, after
+/// the study's) and `repeat` (instead of the study's): `"a": {"sweep": […], "repeat": 5}`.
+#[derive(Debug, Default)]
+pub struct Branch {
+    pub sweep: Vec<SweepGroup>,
+    pub filter: Vec<String>,
+    pub repeat: Option<usize>,
+}
+
+/// A branch written as an object.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BranchFields {
+    #[serde(default)]
+    sweep: Vec<SweepGroup>,
+    #[serde(default, rename = "where")]
+    filter: Vec<String>,
+    #[serde(default)]
+    repeat: Option<usize>,
+}
+
+impl<'de> Deserialize<'de> for Branch {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Branch, D::Error> {
+        use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
+        struct Either;
+        impl<'de> serde::de::Visitor<'de> for Either {
+            type Value = Branch;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str(
+                    "a list of sweep groups, or {\"sweep\": […], \"where\": […], \"repeat\": n}",
+                )
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<Branch, A::Error> {
+                Ok(Branch {
+                    sweep: Deserialize::deserialize(SeqAccessDeserializer::new(seq))?,
+                    ..Branch::default()
+                })
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<Branch, A::Error> {
+                let fields = BranchFields::deserialize(MapAccessDeserializer::new(map))?;
+                Ok(Branch {
+                    sweep: fields.sweep,
+                    filter: fields.filter,
+                    repeat: fields.repeat,
+                })
+            }
+        }
+        deserializer.deserialize_any(Either)
+    }
 }
 
 /// The pseudo-field through which a branch's name travels with its points' assignments.
@@ -298,10 +350,11 @@ impl Study {
             fields.extend(derived.iter().cloned());
             fields
         };
+        let branches = self.branches()?;
         let mut kept = Vec::with_capacity(points.len());
         for mut point in points {
             self.derive_fields(&mut point)?;
-            if self.keeps(&point)? {
+            if self.keeps(&point, &branches)? {
                 let branch = point.branch.as_deref();
                 let (refined, scaled) = (moving(REFINED, branch), moving(SCALED, branch));
                 point.series = PointSeries {
@@ -314,12 +367,45 @@ impl Study {
         Ok(kept
             .into_iter()
             .flat_map(|point| {
-                (0..self.repeat).map(move |repeat| Point {
+                let own = point.branch.as_ref().and_then(|b| branches.get(b));
+                let repeats = own.and_then(|(_, b)| b.repeat).unwrap_or(self.repeat);
+                (0..repeats).map(move |repeat| Point {
                     repeat,
                     ..point.clone()
                 })
             })
             .collect())
+    }
+
+    /// Every branch of the sweep, nested ones too, by name, with its place in the file. Names
+    /// are unique: a point's `branch` names one.
+    fn branches(&self) -> Result<BTreeMap<String, (String, &Branch)>, StudyError> {
+        fn walk<'a>(
+            groups: &'a [SweepGroup],
+            place: &str,
+            found: &mut BTreeMap<String, (String, &'a Branch)>,
+        ) -> Result<(), StudyError> {
+            for (g, group) in groups.iter().enumerate() {
+                let SweepGroup::Branches(branches) = group else {
+                    continue;
+                };
+                for (name, branch) in branches {
+                    let at = format!("{place}[{g}].branches.{name}");
+                    if found.contains_key(name) {
+                        return Err(StudyError::new(
+                            at,
+                            "names another branch too; give each branch its own name",
+                        ));
+                    }
+                    found.insert(name.clone(), (at.clone(), branch));
+                    walk(&branch.sweep, &at, found)?;
+                }
+            }
+            Ok(())
+        }
+        let mut found = BTreeMap::new();
+        walk(&self.sweep, "sweep", &mut found)?;
+        Ok(found)
     }
 
     fn derive_fields(&self, point: &mut Point) -> Result<(), StudyError> {
@@ -339,11 +425,24 @@ impl Study {
         Ok(())
     }
 
-    fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
+    /// Whether the point meets the study's `where`, then its branch's.
+    fn keeps(
+        &self,
+        point: &Point,
+        branches: &BTreeMap<String, (String, &Branch)>,
+    ) -> Result<bool, StudyError> {
         let scope = point.scope();
-        for (k, condition) in self.filter.iter().enumerate() {
+        let study = self.filter.iter().map(|c| ("where".to_string(), c));
+        let own = point.branch.as_ref().and_then(|b| branches.get(b));
+        let branch = own
+            .into_iter()
+            .flat_map(|(place, b)| b.filter.iter().map(move |c| (format!("{place}.where"), c)));
+        for (k, (place, condition)) in study.enumerate().chain(branch.enumerate()) {
             let holds = expression::condition(condition, &scope).map_err(|e| {
-                StudyError::new(format!("where[{k}]"), format!("{e} (at {})", point.label()))
+                StudyError::new(
+                    format!("{place}[{k}]"),
+                    format!("{e} (at {})", point.label()),
+                )
             })?;
             if !holds {
                 return Ok(false);
@@ -379,12 +478,16 @@ impl SweepGroup {
                 | PathSpec::FixedEps { n, .. }
                 | PathSpec::Power { n, .. },
             ) => n.len() as u128,
+            // A branch's own repeats are counted with it (the study's multiply the rest).
             SweepGroup::Branches(branches) => branches
                 .values()
-                .map(|groups| {
-                    groups
+                .map(|branch| {
+                    branch
+                        .sweep
                         .iter()
-                        .fold(1, |t: u128, g| t.saturating_mul(g.size()))
+                        .fold(branch.repeat.unwrap_or(1) as u128, |t: u128, g| {
+                            t.saturating_mul(g.size())
+                        })
                 })
                 .fold(0, u128::saturating_add),
         }
@@ -401,7 +504,7 @@ impl SweepGroup {
                 return branch
                     .and_then(|b| branches.get(b))
                     .into_iter()
-                    .flatten()
+                    .flat_map(|b| &b.sweep)
                     .flat_map(|g| g.moving_with(triggers, branch))
                     .collect()
             }
@@ -467,9 +570,15 @@ impl SweepGroup {
                     return Err(StudyError::new(place("branches"), "has no branches"));
                 }
                 let mut assignments = Vec::new();
-                for (name, groups) in branches {
+                for (name, branch) in branches {
+                    if branch.repeat == Some(0) {
+                        return Err(StudyError::new(
+                            format!("{}.{name}.repeat", place("branches")),
+                            "must be at least 1 (got 0)",
+                        ));
+                    }
                     let mut own = vec![vec![(BRANCH.to_string(), Value::from(name.clone()))]];
-                    for (k, group) in groups.iter().enumerate() {
+                    for (k, group) in branch.sweep.iter().enumerate() {
                         let inner = group.assignments(k).map_err(|e| {
                             StudyError::new(
                                 format!(
@@ -663,6 +772,57 @@ mod tests {
         .expand()
         .unwrap_err();
         assert_eq!(bad.field, "sweep[0].branches.a[0].product.n", "{bad}");
+    }
+
+    #[test]
+    fn a_branch_may_have_its_own_where_and_repeat() {
+        let study = Study::parse(
+            &json!({
+                "name": "s", "base": {"dim": 1, "n": 16},
+                "sweep": [{"branches": {
+                    "threads": {"sweep": [{"product": {"threads": [1, 2, 4]}}],
+                                "where": ["threads <= 2"], "repeat": 3},
+                    "steps": [{"zip": {"cfl": [0.25, 0.5], "dt": [null, 0.001]}}]
+                }}],
+                // Spans branches: `threads` is read only where the branch has it.
+                "where": ["branch != 'threads' || threads >= 1"]
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        let on = |b: &str| {
+            points
+                .iter()
+                .filter(|p| p.branch.as_deref() == Some(b))
+                .map(|p| (p.fields.get("threads").cloned(), p.repeat))
+                .collect::<Vec<_>>()
+        };
+        let threads: Vec<_> = [1, 2]
+            .iter()
+            .flat_map(|&t| (0..3).map(move |r| (Some(json!(t)), r)))
+            .collect();
+        assert_eq!(on("threads"), threads);
+        assert_eq!(on("steps"), [(None, 0), (None, 0)]);
+        // `null` in a zip leaves the field out of the case (here: dt from cfl).
+        assert_eq!(points[0].fields.get("dt"), Some(&Value::Null));
+
+        let refused = |branches: Value| {
+            Study::parse(
+                &json!({"name": "s", "base": {}, "sweep": [{"branches": branches}]}).to_string(),
+            )
+            .and_then(|s| s.expand())
+            .unwrap_err()
+        };
+        let e = refused(json!({"a": {"sweep": [], "where": ["thread > 1"]}}));
+        assert_eq!(e.field, "sweep[0].branches.a.where[0]", "{e}");
+        assert!(e.message.contains("unknown name `thread`"), "{e}");
+        let e = refused(json!({"a": {"repeat": 0}}));
+        assert_eq!(e.field, "sweep[0].branches.a.repeat", "{e}");
+        let e = refused(json!({"a": {"sweep": [{"branches": {"a": []}}]}}));
+        assert!(e.message.contains("give each branch its own name"), "{e}");
+        let e = refused(json!({"a": {"repeats": 2}}));
+        assert!(e.message.contains("did you mean `repeat`?"), "{e}");
     }
 
     #[test]
