@@ -210,7 +210,6 @@ pub fn main(cli: Cli) -> ExitCode {
 
 /// Runs one `nlstudy` command.
 pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
-    crate::analysis::collect::set_display_defaults();
     match cli.command {
         Command::Plan(args) => plan_command(&args),
         Command::Run(args) => run_command(&args),

@@ -60,7 +60,10 @@ pub fn number(x: f64) -> String {
 /// Numbers that are read side by side (one axis's ticks, one column): in one notation, so
 /// `1e-4` does not stand beside `0.01`; scientific for all when any needs it.
 pub fn numbers_alike(values: &[f64]) -> Vec<String> {
-    if values.iter().any(|&x| x.is_finite() && x != 0.0 && scientific(x)) {
+    if values
+        .iter()
+        .any(|&x| x.is_finite() && x != 0.0 && scientific(x))
+    {
         values
             .iter()
             .map(|&x| match x {
@@ -79,16 +82,13 @@ fn decimal_exponent(x: f64) -> i32 {
     if x == 0.0 {
         return 0;
     }
-    let rounded: f64 = format!("{:.*e}", SIGNIFICANT - 1, x)
-        .parse()
-        .unwrap_or(x);
+    let rounded: f64 = format!("{:.*e}", SIGNIFICANT - 1, x).parse().unwrap_or(x);
     rounded.abs().log10().floor() as i32
 }
 
 fn scientific(x: f64) -> bool {
     let exponent = decimal_exponent(x);
-    x.fract() != 0.0 && (exponent < -4 || exponent >= SIGNIFICANT as i32)
-        || x.abs() >= 1e15
+    x.fract() != 0.0 && (exponent < -4 || exponent >= SIGNIFICANT as i32) || x.abs() >= 1e15
 }
 
 /// `9.451e-9`, `1e-4`, `-2.5e6`.

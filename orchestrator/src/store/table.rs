@@ -159,19 +159,15 @@ fn text_of(value: &Value) -> Option<String> {
 
 /// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
 /// process) that is synced, and only once all are written are they renamed into place.
-pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, String> {
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
     let mut written = Vec::new();
-    let mut frames = Vec::new();
     let mut outcome = Ok(());
     for (path, rows) in tables {
         let partial = crate::store::fs::partial_path(path);
         written.push((partial.clone(), path.to_path_buf()));
-        match write_one(&partial, rows) {
-            Ok(frame) => frames.push(frame),
-            Err(e) => {
-                outcome = Err(format!("cannot write {}: {e}", path.display()));
-                break;
-            }
+        if let Err(e) = write_one(&partial, rows) {
+            outcome = Err(format!("cannot write {}: {e}", path.display()));
+            break;
         }
     }
     if outcome.is_ok() {
@@ -179,12 +175,12 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, Strin
             std::fs::rename(partial, path)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         }
-        return Ok(frames);
+        return Ok(());
     }
     for (partial, _) in &written {
         let _ = std::fs::remove_file(partial);
     }
-    outcome.map(|_| frames)
+    outcome
 }
 
 /// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null).
@@ -211,14 +207,13 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
     Ok(rows)
 }
 
-fn write_one(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
+fn write_one(path: &Path, rows: &[Row]) -> Result<(), String> {
     let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
     let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     ParquetWriter::new(&mut file)
         .finish(&mut frame)
         .map_err(|e| e.to_string())?;
-    file.sync_all().map_err(|e| e.to_string())?;
-    Ok(frame)
+    file.sync_all().map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
