@@ -1,5 +1,5 @@
 //! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
-//! (booleans, integers, floats, else text; arrays are kept as JSON text).
+//! (booleans, integers, floats, arrays of numbers as lists of floats, else text).
 
 use polars::prelude::*;
 use schema::record::Status;
@@ -80,6 +80,8 @@ enum ColumnType {
     Boolean,
     Integer,
     Float,
+    /// Arrays of numbers (nulls allowed): `c_tot.time`, a field's values.
+    Floats,
     Text,
 }
 
@@ -89,6 +91,9 @@ fn column_type_of(value: &Value) -> Option<ColumnType> {
         Value::Bool(_) => Some(ColumnType::Boolean),
         Value::Number(n) if n.is_i64() => Some(ColumnType::Integer),
         Value::Number(_) => Some(ColumnType::Float),
+        Value::Array(items) if items.iter().all(|v| v.is_number() || v.is_null()) => {
+            Some(ColumnType::Floats)
+        }
         _ => Some(ColumnType::Text),
     }
 }
@@ -140,6 +145,16 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
                 ColumnType::Float => {
                     Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
                 }
+                ColumnType::Floats => {
+                    let lists: Vec<Option<Series>> = cells
+                        .iter()
+                        .map(|v| {
+                            let items = v.as_array()?.iter().map(Value::as_f64);
+                            Some(Series::new(PlSmallStr::EMPTY, items.collect::<Vec<_>>()))
+                        })
+                        .collect();
+                    Column::new(name, lists)
+                }
                 ColumnType::Text => {
                     Column::new(name, cells.iter().map(|v| text_of(v)).collect::<Vec<_>>())
                 }
@@ -183,7 +198,8 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
     outcome
 }
 
-/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null).
+/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null, a list
+/// as a JSON array).
 pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
     let fail = |e: &dyn std::fmt::Display| format!("cannot read {}: {e}", path.display());
     let file = std::fs::File::open(path).map_err(|e| fail(&e))?;
@@ -194,17 +210,25 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
             let value = match column.get(i).map_err(|e| fail(&e))? {
                 AnyValue::Boolean(b) => Value::from(b),
                 AnyValue::Int64(v) => Value::from(v),
-                AnyValue::Float64(v) => {
-                    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
-                }
+                AnyValue::Float64(v) => json_number(Some(v)),
                 AnyValue::String(s) => Value::from(s),
                 AnyValue::StringOwned(s) => Value::from(s.as_str()),
+                AnyValue::List(items) => {
+                    let items = items.f64().map_err(|e| fail(&e))?;
+                    Value::Array(items.iter().map(json_number).collect())
+                }
                 _ => Value::Null,
             };
             row.set(column.name(), value);
         }
     }
     Ok(rows)
+}
+
+/// A float as JSON: null when missing or not finite.
+fn json_number(x: Option<f64>) -> Value {
+    x.and_then(serde_json::Number::from_f64)
+        .map_or(Value::Null, Value::Number)
 }
 
 fn write_one(path: &Path, rows: &[Row]) -> Result<(), String> {
@@ -233,7 +257,7 @@ mod tests {
     fn columns_take_the_narrowest_type_of_their_cells() {
         let rows = [
             row(json!({"n": 8, "h": 1, "ok": true, "case": {"dim": 2}, "c_tot": [1.0, 2.0]})),
-            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no"})),
+            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no", "tags": ["a", 1]})),
         ];
         let frame = data_frame(&rows).unwrap();
         let names: Vec<&str> = frame
@@ -242,15 +266,25 @@ mod tests {
             .map(|n| n.as_str())
             .collect();
         // JSON objects iterate in name order; a column first seen in a later row comes last.
-        assert_eq!(names, ["c_tot", "case.dim", "h", "n", "ok", "message"]);
+        assert_eq!(
+            names,
+            ["c_tot", "case.dim", "h", "n", "ok", "message", "tags"]
+        );
         let dtype = |name: &str| frame.column(name).unwrap().dtype().clone();
         assert_eq!(dtype("n"), DataType::Int64);
         assert_eq!(dtype("h"), DataType::Float64);
         assert_eq!(dtype("ok"), DataType::Boolean);
-        assert_eq!(dtype("c_tot"), DataType::String);
-        let c_tot = frame.column("c_tot").unwrap();
-        assert_eq!(c_tot.get(0).unwrap(), AnyValue::String("[1.0,2.0]"));
-        assert_eq!(c_tot.get(1).unwrap(), AnyValue::Null);
+        assert_eq!(dtype("c_tot"), DataType::List(Box::new(DataType::Float64)));
+        let c_tot = frame.column("c_tot").unwrap().list().unwrap();
+        let first = c_tot.get_as_series(0).unwrap();
+        assert_eq!(first.f64().unwrap().to_vec(), [Some(1.0), Some(2.0)]);
+        assert_eq!(c_tot.get_as_series(1), None);
+        // An array that is not numbers stays JSON text.
+        assert_eq!(dtype("tags"), DataType::String);
+        assert_eq!(
+            frame.column("tags").unwrap().get(1).unwrap(),
+            AnyValue::String("[\"a\",1]")
+        );
         assert_eq!(
             frame.column("h").unwrap().get(1).unwrap(),
             AnyValue::Float64(0.5)
@@ -273,5 +307,29 @@ mod tests {
         assert_eq!(named["backend"], json!("auto"));
         // A field the case leaves out is the record's resolved value.
         assert_eq!(named["collar"], json!("zero"));
+    }
+
+    #[test]
+    fn arrays_are_written_as_lists_of_floats_and_read_back_as_json_arrays() {
+        let dir = std::env::temp_dir().join(format!("table-lists-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.parquet");
+        let rows = [
+            row(json!({"c_tot": {"time": [0.0, 0.5], "c_tot": [1.0, 0.99]}})),
+            row(json!({"c_tot": {"time": [], "c_tot": null}})),
+        ];
+        write_parquet(&[(&path, &rows)]).unwrap();
+        let file = std::fs::File::open(&path).unwrap();
+        let frame = ParquetReader::new(file).finish().unwrap();
+        let time = frame.column("c_tot.time").unwrap().list().unwrap();
+        let time: Vec<Option<Vec<Option<f64>>>> = (0..time.len())
+            .map(|i| time.get_as_series(i).map(|s| s.f64().unwrap().to_vec()))
+            .collect();
+        assert_eq!(time, [Some(vec![Some(0.0), Some(0.5)]), Some(vec![])]);
+        let back = read_parquet(&path).unwrap();
+        assert_eq!(back[0].get("c_tot.c_tot"), Some(&json!([1.0, 0.99])));
+        assert_eq!(back[1].get("c_tot.time"), Some(&json!([])));
+        assert_eq!(back[1].get("c_tot.c_tot"), Some(&Value::Null));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
