@@ -41,6 +41,11 @@ impl Row {
         self.get(name).and_then(Value::as_f64)
     }
 
+    /// A cell holding a whole number of things (threads, workers, repeats).
+    pub fn count(&self, name: &str) -> Option<u64> {
+        self.get(name).and_then(Value::as_u64)
+    }
+
     pub fn text(&self, name: &str) -> Option<&str> {
         self.get(name).and_then(Value::as_str)
     }
