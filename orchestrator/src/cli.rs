@@ -349,8 +349,8 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
     }
     if !args.no_collect {
         let tables =
-            crate::analysis::collect::collect(&planned, &store).and_then(
-                |collected| match collected {
+            crate::analysis::collect::collect(&planned, &store, &study).and_then(|collected| {
+                match collected {
                     Some(collected) => {
                         let figures = crate::output::plot::plot(&study.figures, &store)?;
                         let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
@@ -363,8 +363,8 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
                         Ok(())
                     }
                     None => Ok(()),
-                },
-            );
+                }
+            });
         if let Err(message) = tables {
             say!("nlstudy: {message}; the runs are stored");
             return Ok(ExitCode::from(exit::CASE_FAILED));
@@ -391,13 +391,14 @@ fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
 }
 
 fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (_, _, store, planned) = planned(args, &Options::default())?;
-    let collected = crate::analysis::collect::collect(&planned, &store)?.ok_or_else(|| {
-        format!(
-            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
-            store.study
-        )
-    })?;
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let collected =
+        crate::analysis::collect::collect(&planned, &store, &study)?.ok_or_else(|| {
+            format!(
+                "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+                store.study
+            )
+        })?;
     print_tables_written(&collected);
     let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
     tell!(

@@ -4,6 +4,7 @@
 //! or run by another solver version) stay stored but are left out.
 
 use crate::analysis::{pivot, summary};
+use crate::model::study::Study;
 use crate::run::plan::Planned;
 use crate::store::table::{self, Row};
 use crate::store::Store;
@@ -59,8 +60,33 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     row
 }
 
-/// Writes the tables; `None` when no run of the study is stored yet.
-pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, String> {
+/// The columns that name a point's place in the study rather than measure it: labels, as the
+/// figures' legends show them and the summary groups repeats by `point`. (A struct of the swept
+/// fields would need polars' `dtype-struct`, which this build leaves out; the fields are columns
+/// `case.<field>` anyway.) Each file's metadata carries these notes.
+const LABELS: &[(&str, &str)] = &[
+    (
+        "point",
+        "label: the point's swept fields as `field=value`, space-separated; its repeats share it",
+    ),
+    ("branch", "label: the sweep's branch the point lies on"),
+    (
+        "refinement_series",
+        "label: the point's swept fields but `n` and what moves with it; the points of one grid refinement share it",
+    ),
+    (
+        "scaling_series",
+        "label: the point's swept fields but threads, ranks, px, py and what moves with them; the points of one scaling series share it",
+    ),
+];
+
+/// Writes the tables, with the study's description in their metadata; `None` when no run of the
+/// study is stored yet.
+pub fn collect(
+    planned: &[Planned],
+    store: &Store,
+    study: &Study,
+) -> Result<Option<Collected>, String> {
     let records: HashMap<String, Value> = store
         .records()
         .into_iter()
@@ -89,7 +115,11 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, 
         .map_err(|e| format!("cannot lock the tables of {}: {e}", store.study))?;
     let runs = store.table(&format!("{}.parquet", store.study));
     let summary = store.table(&format!("{}-summary.parquet", store.study));
-    table::write_parquet(&[(&runs, &rows), (&summary, &summary_rows)])?;
+    let about = table::About {
+        description: &study.description,
+        notes: LABELS,
+    };
+    table::write_parquet_about(&[(&runs, &rows), (&summary, &summary_rows)], &about)?;
     Ok(Some(Collected {
         runs,
         summary,

@@ -1,5 +1,8 @@
 //! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
-//! (booleans, integers, floats, arrays of numbers as lists of floats, else text).
+//! (booleans, integers, floats, arrays of numbers as lists of floats, else text), and each file
+//! says what it holds in its key–value metadata: `description` (the study's), `unit:<column>`
+//! for each column with a unit (read off its name, `unit`) and `note:<column>` for each column
+//! its writer explains.
 
 use polars::prelude::*;
 use schema::record::Status;
@@ -177,15 +180,32 @@ fn text_of(value: &Value) -> Option<String> {
     }
 }
 
+/// What a table's file says about itself beside its columns (its Parquet key–value metadata);
+/// each column's unit comes from its name.
+#[derive(Default)]
+pub struct About<'a> {
+    /// The study's description, as `description`.
+    pub description: &'a str,
+    /// What a column holds where its name does not tell, as `(column, note)`; written as
+    /// `note:<column>` for the columns the table has.
+    pub notes: &'a [(&'a str, &'a str)],
+}
+
+/// `write_parquet_about` with no description or notes: the tables tests make by hand.
+#[cfg(test)]
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
+    write_parquet_about(tables, &About::default())
+}
+
 /// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
 /// process) that is synced, and only once all are written are they renamed into place.
-pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
+pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<(), String> {
     let mut written = Vec::new();
     let mut outcome = Ok(());
     for (path, rows) in tables {
         let partial = crate::store::fs::partial_path(path);
         written.push((partial.clone(), path.to_path_buf()));
-        if let Err(e) = write_one(&partial, rows) {
+        if let Err(e) = write_one(&partial, rows, about) {
             outcome = Err(format!("cannot write {}: {e}", path.display()));
             break;
         }
@@ -201,6 +221,45 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
         let _ = std::fs::remove_file(partial);
     }
     outcome
+}
+
+/// A column's unit, from its name: the measured times `*_s` (and their statistics `*_s_median`,
+/// `_min`, `_max`, `_iqr`) in seconds, rates `*_per_s` per second, sizes `*_bytes` in bytes.
+/// `None` for the rest: the model's quantities (t, dt, h, errors) are dimensionless, and counts,
+/// ratios and text have none.
+fn unit(column: &str) -> Option<&'static str> {
+    let measured = ["_median", "_min", "_max", "_iqr"]
+        .iter()
+        .find_map(|statistic| column.strip_suffix(statistic))
+        .unwrap_or(column);
+    if measured.ends_with("_per_s") {
+        Some("1/s")
+    } else if measured.ends_with("_s") {
+        Some("s")
+    } else if measured.ends_with("_bytes") {
+        Some("bytes")
+    } else {
+        None
+    }
+}
+
+/// The key–value metadata of the file holding `frame`.
+fn metadata(frame: &DataFrame, about: &About) -> Vec<(String, String)> {
+    let mut pairs = Vec::new();
+    if !about.description.is_empty() {
+        pairs.push(("description".to_string(), about.description.to_string()));
+    }
+    for name in frame.get_column_names() {
+        if let Some(unit) = unit(name) {
+            pairs.push((format!("unit:{name}"), unit.to_string()));
+        }
+    }
+    for (column, note) in about.notes {
+        if frame.column(column).is_ok() {
+            pairs.push((format!("note:{column}"), note.to_string()));
+        }
+    }
+    pairs
 }
 
 /// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null, a list
@@ -236,10 +295,12 @@ fn json_number(x: Option<f64>) -> Value {
         .map_or(Value::Null, Value::Number)
 }
 
-fn write_one(path: &Path, rows: &[Row]) -> Result<(), String> {
+fn write_one(path: &Path, rows: &[Row], about: &About) -> Result<(), String> {
     let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
+    let metadata = KeyValueMetadata::from_static(metadata(&frame, about));
     let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     ParquetWriter::new(&mut file)
+        .with_key_value_metadata(Some(metadata))
         .finish(&mut frame)
         .map_err(|e| e.to_string())?;
     file.sync_all().map_err(|e| e.to_string())
@@ -315,26 +376,78 @@ mod tests {
     }
 
     #[test]
-    fn arrays_are_written_as_lists_of_floats_and_read_back_as_json_arrays() {
-        let dir = std::env::temp_dir().join(format!("table-lists-{}", std::process::id()));
+    fn a_table_reads_back_typed_with_its_description_units_and_notes() {
+        let dir = std::env::temp_dir().join(format!("table-typed-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.parquet");
         let rows = [
-            row(json!({"c_tot": {"time": [0.0, 0.5], "c_tot": [1.0, 0.99]}})),
-            row(json!({"c_tot": {"time": [], "c_tot": null}})),
+            row(json!({"point": "n=16", "workers": 2, "solve_s_median": 0.5,
+                "peak_memory_bytes": 1024, "bond_updates_per_s": 1e9, "error_l2_norm": 1e-3,
+                "c_tot": {"time": [0.0, 0.5], "c_tot": [1.0, 0.99]}})),
+            row(json!({"point": "n=32", "workers": 4, "c_tot": {"time": [], "c_tot": null}})),
         ];
-        write_parquet(&[(&path, &rows)]).unwrap();
-        let file = std::fs::File::open(&path).unwrap();
-        let frame = ParquetReader::new(file).finish().unwrap();
+        let about = About {
+            description: "Heat in a square.",
+            notes: &[("point", "a label"), ("absent", "not in this table")],
+        };
+        write_parquet_about(&[(&path, &rows)], &about).unwrap();
+        let mut reader = ParquetReader::new(std::fs::File::open(&path).unwrap());
+        let mut metadata: Vec<(String, String)> = reader
+            .get_metadata()
+            .unwrap()
+            .key_value_metadata
+            .iter()
+            .flatten()
+            .filter(|kv| kv.key != "ARROW:schema")
+            .map(|kv| (kv.key.clone(), kv.value.clone().unwrap_or_default()))
+            .collect();
+        metadata.sort();
+        let expected = [
+            ("description", "Heat in a square."),
+            ("note:point", "a label"),
+            ("unit:bond_updates_per_s", "1/s"),
+            ("unit:peak_memory_bytes", "bytes"),
+            ("unit:solve_s_median", "s"),
+        ];
+        let expected: Vec<(String, String)> = expected
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        assert_eq!(metadata, expected);
+
+        let frame = reader.finish().unwrap();
+        let workers = frame.column("workers").unwrap().i64().unwrap();
+        assert_eq!(workers.to_vec(), [Some(2), Some(4)]);
         let time = frame.column("c_tot.time").unwrap().list().unwrap();
         let time: Vec<Option<Vec<Option<f64>>>> = (0..time.len())
             .map(|i| time.get_as_series(i).map(|s| s.f64().unwrap().to_vec()))
             .collect();
         assert_eq!(time, [Some(vec![Some(0.0), Some(0.5)]), Some(vec![])]);
+
+        // read_parquet gives lists back as JSON arrays, as the figures read them.
         let back = read_parquet(&path).unwrap();
         assert_eq!(back[0].get("c_tot.c_tot"), Some(&json!([1.0, 0.99])));
         assert_eq!(back[1].get("c_tot.time"), Some(&json!([])));
         assert_eq!(back[1].get("c_tot.c_tot"), Some(&Value::Null));
+        assert_eq!(back[1].get("workers"), Some(&json!(4)));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn units_are_read_off_column_names() {
+        let units = [
+            ("solve_s", Some("s")),
+            ("step_s_iqr", Some("s")),
+            ("feti_phases.coarse_s", Some("s")),
+            ("bond_updates_per_s", Some("1/s")),
+            ("halo_bytes", Some("bytes")),
+            ("speedup", None),
+            ("steps", None),
+            ("case.t_end", None),
+            ("error_l2_norm", None),
+        ];
+        for (column, expected) in units {
+            assert_eq!(unit(column), expected, "{column}");
+        }
     }
 }
