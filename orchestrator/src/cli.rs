@@ -401,7 +401,7 @@ fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
         })?;
     print_tables_written(&collected);
     let swept = planned.first().map_or(&[][..], |p| &p.point.swept[..]);
-    tell!(
+    tell_raw!(
         "{}",
         crate::analysis::collect::overview(&collected.table, swept)
     );
