@@ -217,7 +217,6 @@ pub fn main(cli: Cli) -> ExitCode {
 
 /// Runs one `nlstudy` command.
 pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
-    crate::analysis::collect::set_display_defaults();
     match cli.command {
         Command::Plan(args) => plan_command(&args),
         Command::Run(args) => run_command(&args),
@@ -379,8 +378,8 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
     }
     if !args.no_collect {
         let tables =
-            crate::analysis::collect::collect(&planned, &store).and_then(
-                |collected| match collected {
+            crate::analysis::collect::collect(&planned, &store, &study).and_then(|collected| {
+                match collected {
                     Some(collected) => {
                         let figures = crate::output::plot::plot(&study.figures, &store)?;
                         let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
@@ -393,8 +392,8 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
                         Ok(())
                     }
                     None => Ok(()),
-                },
-            );
+                }
+            });
         if let Err(message) = tables {
             say!("nlstudy: {message}; the runs are stored");
             return Ok(ExitCode::from(exit::CASE_FAILED));
@@ -421,16 +420,17 @@ fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
 }
 
 fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (_, _, store, planned) = planned(args, &Options::default())?;
-    let collected = crate::analysis::collect::collect(&planned, &store)?.ok_or_else(|| {
-        format!(
-            "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
-            store.study
-        )
-    })?;
+    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let collected =
+        crate::analysis::collect::collect(&planned, &store, &study)?.ok_or_else(|| {
+            format!(
+                "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+                store.study
+            )
+        })?;
     print_tables_written(&collected);
     let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
-    tell!(
+    tell_raw!(
         "{}",
         crate::analysis::collect::overview(&collected.table, &swept)
     );

@@ -3,11 +3,11 @@
 //! point; see `summary`). Records of points the study no longer has (removed from the sweep,
 //! or run by another solver version) stay stored but are left out.
 
-use crate::analysis::summary;
+use crate::analysis::{pivot, summary};
+use crate::model::study::Study;
 use crate::run::plan::Planned;
 use crate::store::table::{self, Row};
 use crate::store::Store;
-use polars::prelude::DataFrame;
 use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
@@ -21,8 +21,8 @@ pub struct Collected {
     pub missing: usize,
     /// Stored records that are not points of the study now.
     pub left_out: usize,
-    /// The summary table, for printing.
-    pub table: DataFrame,
+    /// The summary table's rows, for printing.
+    pub table: Vec<Row>,
 }
 
 /// The fields that lead a run's row; the case follows, then the results, then provenance.
@@ -66,8 +66,33 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     row
 }
 
-/// Writes the tables; `None` when no run of the study is stored yet.
-pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, String> {
+/// The columns that name a point's place in the study rather than measure it: labels, as the
+/// figures' legends show them and the summary groups repeats by `point`. (A struct of the swept
+/// fields would need polars' `dtype-struct`, which this build leaves out; the fields are columns
+/// `case.<field>` anyway.) Each file's metadata carries these notes.
+const LABELS: &[(&str, &str)] = &[
+    (
+        "point",
+        "label: the point's swept fields as `field=value`, space-separated; its repeats share it",
+    ),
+    ("branch", "label: the sweep's branch the point lies on"),
+    (
+        "refinement_series",
+        "label: the point's swept fields but `n` and what moves with it; the points of one grid refinement share it",
+    ),
+    (
+        "scaling_series",
+        "label: the point's swept fields but threads, ranks, px, py and what moves with them; the points of one scaling series share it",
+    ),
+];
+
+/// Writes the tables, with the study's description in their metadata; `None` when no run of the
+/// study is stored yet.
+pub fn collect(
+    planned: &[Planned],
+    store: &Store,
+    study: &Study,
+) -> Result<Option<Collected>, String> {
     let records: HashMap<String, Value> = store
         .records()
         .into_iter()
@@ -96,7 +121,11 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, 
         .map_err(|e| format!("cannot lock the tables of {}: {e}", store.study))?;
     let runs = store.table(&format!("{}.parquet", store.study));
     let summary = store.table(&format!("{}-summary.parquet", store.study));
-    let mut frames = table::write_parquet(&[(&runs, &rows), (&summary, &summary_rows)])?;
+    let about = table::About {
+        description: &study.description,
+        notes: LABELS,
+    };
+    table::write_parquet_about(&[(&runs, &rows), (&summary, &summary_rows)], &about)?;
     Ok(Some(Collected {
         runs,
         summary,
@@ -104,31 +133,13 @@ pub fn collect(planned: &[Planned], store: &Store) -> Result<Option<Collected>, 
         points: summary_rows.len(),
         missing,
         left_out,
-        table: frames.pop().expect("two tables written"),
+        table: summary_rows,
     }))
-}
-
-/// polars reads its display settings from the environment: a compact table of every row,
-/// unless the user chose otherwise. Called first thing, before any thread could read the
-/// environment.
-pub fn set_display_defaults() {
-    for (name, value) in [
-        ("POLARS_FMT_MAX_ROWS", "-1"),
-        ("POLARS_FMT_MAX_COLS", "-1"),
-        ("POLARS_TABLE_WIDTH", "400"),
-        ("POLARS_FMT_TABLE_FORMATTING", "ASCII_MARKDOWN"),
-        ("POLARS_FMT_TABLE_HIDE_COLUMN_DATA_TYPES", "1"),
-        ("POLARS_FMT_TABLE_HIDE_DATAFRAME_SHAPE_INFORMATION", "1"),
-    ] {
-        if std::env::var_os(name).is_none() {
-            std::env::set_var(name, value);
-        }
-    }
 }
 
 /// The summary's headline columns: the swept fields (as `(column, shown name)`: from the case,
 /// or derived by the solver), then the headline results the study has.
-pub fn headline_columns(has: impl Fn(&str) -> bool, swept: &[String]) -> Vec<(String, String)> {
+fn headline_columns(summary: &[Row], swept: &[String]) -> Vec<(String, String)> {
     const RESULTS: &[&str] = &[
         "status",
         "solve_s_median",
@@ -138,6 +149,7 @@ pub fn headline_columns(has: impl Fn(&str) -> bool, swept: &[String]) -> Vec<(St
         "speedup",
         "efficiency",
     ];
+    let has = |name: &str| summary.iter().any(|row| row.get(name).is_some());
     let mut shown: Vec<(String, String)> = swept
         .iter()
         .filter_map(|field| {
@@ -156,20 +168,48 @@ pub fn headline_columns(has: impl Fn(&str) -> bool, swept: &[String]) -> Vec<(St
     shown
 }
 
-/// The summary at a glance, for the terminal: the headline columns, every row.
-pub fn overview(summary: &DataFrame, swept: &[String]) -> String {
-    let shown = headline_columns(|name| summary.column(name).is_ok(), swept);
-    let selected = summary.select(shown.iter().map(|(column, _)| column.as_str()));
-    let renamed = selected.and_then(|mut frame| {
-        for (column, name) in &shown {
-            if column != name {
-                frame.rename(column, name.as_str().into())?;
-            }
-        }
-        Ok(frame)
-    });
-    match renamed {
-        Ok(frame) => frame.to_string(),
-        Err(e) => format!("(cannot show the summary: {e})"),
+/// The summary's headline columns as texts: their shown names, and one line per point.
+pub fn headline(summary: &[Row], swept: &[String]) -> (Vec<String>, Vec<Vec<String>>) {
+    let shown = headline_columns(summary, swept);
+    let columns: Vec<&str> = shown.iter().map(|(column, _)| column.as_str()).collect();
+    let names = shown.iter().map(|(_, name)| name.clone()).collect();
+    (names, pivot::texts(summary, &columns))
+}
+
+/// The summary at a glance, for the terminal: the headline columns, every row, as Markdown.
+pub fn overview(summary: &[Row], swept: &[String]) -> String {
+    let (names, lines) = headline(summary, swept);
+    pivot::markdown_table(&names, &lines)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A summary row of the issue's study: one-digit numbers there, four significant digits here.
+    fn summary_row(n: u64, solve_s: f64, error: f64) -> Row {
+        let mut row = Row::default();
+        row.set("point", json!(format!("n={n}")));
+        row.set("case.n", json!(n));
+        row.set("case.t_end", json!(4e-7));
+        row.set("status", json!("ok"));
+        row.set("solve_s_median", json!(solve_s));
+        row.set("error_l2_norm", json!(error));
+        row
+    }
+
+    #[test]
+    fn the_overview_shows_four_significant_digits_one_notation_per_column() {
+        let summary = [
+            summary_row(16, 0.0002, 0.000003),
+            summary_row(32, 1.5, 9.4513e-9),
+        ];
+        assert_eq!(
+            overview(&summary, &["n".into(), "t_end".into()]),
+            "| n | t_end | status | solve_s_median | error_l2_norm |\n\
+             | --- | --- | --- | --- | --- |\n\
+             | 16 | 4e-7 | ok | 0.0002 | 3e-6 |\n\
+             | 32 | 4e-7 | ok | 1.5 | 9.451e-9 |\n"
+        );
     }
 }

@@ -1,11 +1,14 @@
 //! `nlstudy table`: values of a study's summary table as a Markdown pivot, rows named by some
 //! fields and columns by another (e.g. observed orders by path and quadrature against n), or one
 //! column per value (e.g. errors and orders by n, as a convergence table), for results pages
-//! that are regenerated rather than copied by hand.
+//! that are regenerated rather than copied by hand. Also the Markdown table and the cell texts
+//! every table people read is made of: numbers with four significant digits, one notation per
+//! column.
 
+use crate::console::numbers_alike;
 use crate::model::expression::{self, Scope};
 use crate::store::table::Row;
-use serde_json::Value;
+use serde_json::{Map, Value};
 
 pub struct PivotSpec {
     pub rows: Vec<String>,
@@ -16,44 +19,39 @@ pub struct PivotSpec {
     pub filter: Vec<String>,
 }
 
+/// A line of the pivot: its row fields' values, and its cells by column index.
+type Line = (Vec<Value>, Vec<(usize, Value)>);
+
 /// The pivot as a Markdown table; a cell no row fills stays empty, one that several fill is an
 /// error (the row fields do not tell the points apart).
-/// A line of the pivot: its row fields' texts, and its cells by column index.
-type Line = (Vec<String>, Vec<(usize, String)>);
-
 pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
     if spec.values.is_empty() {
         return Err("give at least one --value".into());
     }
+    let kept = kept_rows(spec, table)?;
+    let fields: Vec<&String> = spec.rows.iter().chain(&spec.column).collect();
+    for name in fields.iter().copied().chain(&spec.values) {
+        if !table.iter().any(|row| has_column(row, name)) {
+            return Err(no_column(name, table));
+        }
+    }
+    for name in &fields {
+        let null: Vec<&Row> = kept
+            .iter()
+            .filter(|(_, named)| named.get(name.as_str()).is_none_or(Value::is_null))
+            .map(|(row, _)| *row)
+            .collect();
+        if !null.is_empty() {
+            return Err(null_in(name, &null, kept.len()));
+        }
+    }
     // A column is (the column field's value, or null without one; the value's index).
     let mut columns: Vec<(Value, usize)> = Vec::new();
     let mut lines: Vec<Line> = Vec::new();
-    for row in table {
-        let named = row.expression_fields();
-        let scope = Scope::of(&named);
-        let mut keep = true;
-        for (k, condition) in spec.filter.iter().enumerate() {
-            keep &= expression::condition(condition, &scope)
-                .map_err(|e| format!("--where {k}: {e}"))?;
-        }
-        if !keep {
-            continue;
-        }
-        let lookup = |name: &str| {
-            named
-                .get(name)
-                .cloned()
-                .ok_or_else(|| format!("the table has no column `{name}`; see `nlstudy collect`'s output for the columns"))
-        };
-        let key: Vec<String> = spec
-            .rows
-            .iter()
-            .map(|name| lookup(name).map(|v| text(&v)))
-            .collect::<Result<_, _>>()?;
-        let heading = match &spec.column {
-            Some(column) => lookup(column)?,
-            None => Value::Null,
-        };
+    for (_, named) in &kept {
+        let cell = |name: &str| named.get(name).cloned().unwrap_or(Value::Null);
+        let key: Vec<Value> = spec.rows.iter().map(|name| cell(name)).collect();
+        let heading = spec.column.as_deref().map_or(Value::Null, cell);
         let line = match lines.iter().position(|(k, _)| *k == key) {
             Some(l) => l,
             None => {
@@ -62,7 +60,6 @@ pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
             }
         };
         for (v, name) in spec.values.iter().enumerate() {
-            let value = text(&lookup(name)?);
             let column = (heading.clone(), v);
             let c = match columns.iter().position(|c| *c == column) {
                 Some(c) => c,
@@ -72,13 +69,15 @@ pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
                 }
             };
             if lines[line].1.iter().any(|(filled, _)| *filled == c) {
+                let texts: Vec<String> = key.iter().map(|v| column_texts(&[v]).remove(0)).collect();
+                let heading = column_texts(&[&columns[c].0]).remove(0);
                 return Err(format!(
                     "several points share the cell {} / {}; add the field that tells them apart to --rows or --where",
-                    key.join(", "),
-                    header(spec, &columns[c])
+                    texts.join(", "),
+                    header(spec, &heading, v)
                 ));
             }
-            lines[line].1.push((c, value));
+            lines[line].1.push((c, cell(name)));
         }
     }
     let mut order: Vec<usize> = (0..columns.len()).collect();
@@ -86,62 +85,186 @@ pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
         let ((x, i), (y, j)) = (&columns[a], &columns[b]);
         let by_heading = match (x.as_f64(), y.as_f64()) {
             (Some(x), Some(y)) => x.total_cmp(&y),
-            _ => text(x).cmp(&text(y)),
+            _ => x.to_string().cmp(&y.to_string()),
         };
         by_heading.then(i.cmp(j))
     });
-    let mut out = String::new();
+    let headings = column_texts(&order.iter().map(|&c| &columns[c].0).collect::<Vec<_>>());
     let header: Vec<String> = spec
         .rows
         .iter()
         .cloned()
-        .chain(order.iter().map(|&c| header(spec, &columns[c])))
-        .collect();
-    out.push_str(&format!("| {} |\n", header.join(" | ")));
-    out.push_str(&format!("|{}\n", " --- |".repeat(header.len())));
-    for (key, cells) in &lines {
-        let values = order.iter().map(|&c| {
-            cells
+        .chain(
+            order
                 .iter()
-                .find(|(filled, _)| *filled == c)
-                .map_or(String::new(), |(_, v)| v.clone())
-        });
-        let line: Vec<String> = key.iter().cloned().chain(values).collect();
-        out.push_str(&format!("| {} |\n", line.join(" | ")));
+                .zip(&headings)
+                .map(|(&c, heading)| header(spec, heading, columns[c].1)),
+        )
+        .collect();
+    // The table column by column, each in one notation: the row fields, then the pivot's.
+    let key_columns = (0..spec.rows.len())
+        .map(|k| column_texts(&lines.iter().map(|(key, _)| &key[k]).collect::<Vec<_>>()));
+    let value_columns = order.iter().map(|&c| {
+        let cells: Vec<&Value> = lines
+            .iter()
+            .map(|(_, cells)| {
+                cells
+                    .iter()
+                    .find(|(filled, _)| *filled == c)
+                    .map_or(&Value::Null, |(_, v)| v)
+            })
+            .collect();
+        column_texts(&cells)
+    });
+    let by_column: Vec<Vec<String>> = key_columns.chain(value_columns).collect();
+    Ok(markdown_table(&header, &transpose(by_column, lines.len())))
+}
+
+/// A row the filter keeps, and its fields as expressions name them.
+type Kept<'a> = (&'a Row, Map<String, Value>);
+
+/// The table's rows the filter keeps.
+fn kept_rows<'a>(spec: &PivotSpec, table: &'a [Row]) -> Result<Vec<Kept<'a>>, String> {
+    let mut kept = Vec::new();
+    for row in table {
+        let named = row.expression_fields();
+        let scope = Scope::of(&named);
+        let mut keep = true;
+        for (k, condition) in spec.filter.iter().enumerate() {
+            keep &= expression::condition(condition, &scope)
+                .map_err(|e| format!("--where {k}: {e}"))?;
+        }
+        if keep {
+            kept.push((row, named));
+        }
     }
-    Ok(out)
+    Ok(kept)
+}
+
+/// Whether `row` has the column `name`, by its own name or as a case field (even a null one).
+fn has_column(row: &Row, name: &str) -> bool {
+    row.get(name).is_some() || row.get(&format!("case.{name}")).is_some()
+}
+
+/// "No such column", with the columns whose names are close to it.
+fn no_column(name: &str, table: &[Row]) -> String {
+    let mut names: Vec<&str> = Vec::new();
+    for (column, _) in table.iter().flat_map(Row::cells) {
+        for known in [column, column.strip_prefix("case.").unwrap_or(column)] {
+            if !names.contains(&known) {
+                names.push(known);
+            }
+        }
+    }
+    let mut close: Vec<(usize, &str)> = names
+        .into_iter()
+        .filter_map(|known| {
+            let distance = strsim::damerau_levenshtein(name, known);
+            // A typo (an edit per three letters), or a longer name holding it (`solve_s` for
+            // `solve_s_median`).
+            let near = distance <= (name.chars().count() / 3).max(1)
+                || (name.len() >= 3 && known.contains(name));
+            near.then_some((distance, known))
+        })
+        .collect();
+    close.sort();
+    let close: Vec<String> = close
+        .iter()
+        .take(5)
+        .map(|(_, n)| format!("`{n}`"))
+        .collect();
+    match close.is_empty() {
+        true => format!("the summary table has no column `{name}`"),
+        false => format!(
+            "the summary table has no column `{name}`; close: {}",
+            close.join(", ")
+        ),
+    }
+}
+
+/// "The column is there but null in these rows", naming their points.
+fn null_in(name: &str, rows: &[&Row], kept: usize) -> String {
+    const SHOWN: usize = 3;
+    let points: Vec<&str> = rows
+        .iter()
+        .take(SHOWN)
+        .map(|row| {
+            row.text("point")
+                .or(row.text("case_id"))
+                .unwrap_or("(no label)")
+        })
+        .collect();
+    let more = match rows.len() > SHOWN {
+        true => format!(" and {} more", rows.len() - SHOWN),
+        false => String::new(),
+    };
+    format!(
+        "column `{name}` is null in {} of the {kept} rows (points {}{more}); leave them out with --where, or choose another field",
+        rows.len(),
+        points.join("; ")
+    )
 }
 
 /// A column's heading: `column=value`, the value's name after it when there are several, or the
 /// value's name alone without a column field.
-fn header(spec: &PivotSpec, (heading, v): &(Value, usize)) -> String {
+fn header(spec: &PivotSpec, heading: &str, v: usize) -> String {
     match (&spec.column, spec.values.len()) {
-        (Some(column), 1) => format!("{column}={}", text(heading)),
-        (Some(column), _) => format!("{column}={} {}", text(heading), spec.values[*v]),
-        (None, _) => spec.values[*v].clone(),
+        (Some(column), 1) => format!("{column}={heading}"),
+        (Some(column), _) => format!("{column}={heading} {}", spec.values[v]),
+        (None, _) => spec.values[v].clone(),
     }
 }
 
-/// A cell's text: numbers to three significant digits, null as empty.
-pub(crate) fn text(value: &Value) -> String {
-    match value {
-        Value::Null => String::new(),
-        Value::String(s) => s.clone(),
-        Value::Number(n) if n.is_i64() || n.is_u64() => n.to_string(),
-        Value::Number(n) => {
-            let x = n.as_f64().unwrap_or(f64::NAN);
-            let decade = x.abs().log10().floor();
-            if x == 0.0 || !x.is_finite() {
-                x.to_string()
-            } else if (-2.0..4.0).contains(&decade) {
-                let decimals = (2.0 - decade).max(0.0) as usize;
-                format!("{x:.decimals$}")
-            } else {
-                format!("{x:.2e}")
-            }
+/// The texts of one column's cells: its numbers in one notation with four significant digits
+/// (`console::numbers_alike`), text as it is, null as empty, anything else as JSON.
+pub fn column_texts(cells: &[&Value]) -> Vec<String> {
+    let numbers: Vec<f64> = cells.iter().filter_map(|v| v.as_f64()).collect();
+    let mut numbers = numbers_alike(&numbers).into_iter();
+    cells
+        .iter()
+        .map(|cell| match cell {
+            Value::Number(_) => numbers.next().unwrap_or_default(),
+            Value::Null => String::new(),
+            Value::String(s) => s.clone(),
+            other => other.to_string(),
+        })
+        .collect()
+}
+
+/// The cells of `rows` under `columns`, as lines of texts, each column in one notation.
+pub fn texts(rows: &[Row], columns: &[&str]) -> Vec<Vec<String>> {
+    let by_column = columns
+        .iter()
+        .map(|&name| {
+            let cells: Vec<&Value> = rows
+                .iter()
+                .map(|row| row.get(name).unwrap_or(&Value::Null))
+                .collect();
+            column_texts(&cells)
+        })
+        .collect();
+    transpose(by_column, rows.len())
+}
+
+/// Columns of texts as lines.
+fn transpose(columns: Vec<Vec<String>>, lines: usize) -> Vec<Vec<String>> {
+    let mut out = vec![Vec::with_capacity(columns.len()); lines];
+    for column in columns {
+        for (line, text) in out.iter_mut().zip(column) {
+            line.push(text);
         }
-        other => other.to_string(),
     }
+    out
+}
+
+/// A Markdown table: the header, its rule, one line per row.
+pub fn markdown_table(header: &[String], lines: &[Vec<String>]) -> String {
+    let mut out = format!("| {} |\n", header.join(" | "));
+    out.push_str(&format!("|{}\n", " --- |".repeat(header.len())));
+    for line in lines {
+        out.push_str(&format!("| {} |\n", line.join(" | ")));
+    }
+    out
 }
 
 #[cfg(test)]
@@ -162,7 +285,7 @@ mod tests {
         let table = [
             row(json!({"case.quadrature": "ac", "n": 128, "order": 2.013})),
             row(json!({"case.quadrature": "ac", "n": 64, "order": 1.97})),
-            row(json!({"case.quadrature": "midpoint", "n": 128, "order": 0.0012345})),
+            row(json!({"case.quadrature": "midpoint", "n": 128, "order": 0.0012346})),
             row(json!({"case.quadrature": "midpoint", "n": 32, "order": null})),
         ];
         let spec = PivotSpec {
@@ -173,7 +296,7 @@ mod tests {
         };
         assert_eq!(
             markdown(&spec, &table).unwrap(),
-            "| quadrature | n=64 | n=128 |\n| --- | --- | --- |\n| ac | 1.97 | 2.01 |\n| midpoint |  | 1.23e-3 |\n"
+            "| quadrature | n=64 | n=128 |\n| --- | --- | --- |\n| ac | 1.97 | 2.013 |\n| midpoint |  | 0.001235 |\n"
         );
         let clash = PivotSpec {
             rows: vec![],
@@ -196,7 +319,7 @@ mod tests {
         };
         assert_eq!(
             markdown(&spec, &table).unwrap(),
-            "| n | e | order |\n| --- | --- | --- |\n| 16 | 4.00e-3 | 1.90 |\n| 8 | 0.0160 |  |\n"
+            "| n | e | order |\n| --- | --- | --- |\n| 16 | 0.004 | 1.9 |\n| 8 | 0.016 |  |\n"
         );
         let by_column = PivotSpec {
             rows: vec![],
@@ -205,7 +328,79 @@ mod tests {
         };
         assert_eq!(
             markdown(&by_column, &table).unwrap(),
-            "| n=8 e | n=8 order | n=16 e | n=16 order |\n| --- | --- | --- | --- |\n| 0.0160 |  | 4.00e-3 | 1.90 |\n"
+            "| n=8 e | n=8 order | n=16 e | n=16 order |\n| --- | --- | --- | --- |\n| 0.016 |  | 0.004 | 1.9 |\n"
+        );
+    }
+
+    #[test]
+    fn cells_and_headings_keep_four_significant_digits_one_notation_per_column() {
+        // The table: a column of one-digit 0.000003 beside 9.4513e-9, and `cfl=0.0312`
+        // heading the column of 0.03125.
+        let table = [
+            row(json!({"dt": 1e-3, "case.cfl": 0.5, "e": 0.000003})),
+            row(json!({"dt": 1e-3, "case.cfl": 0.03125, "e": 0.25})),
+            row(json!({"dt": 2.5e-4, "case.cfl": 0.5, "e": 9.4513e-9})),
+            row(json!({"dt": 2.5e-4, "case.cfl": 0.03125, "e": 0.5})),
+        ];
+        let spec = PivotSpec {
+            rows: vec!["dt".into()],
+            column: Some("cfl".into()),
+            values: vec!["e".into()],
+            filter: vec![],
+        };
+        assert_eq!(
+            markdown(&spec, &table).unwrap(),
+            "| dt | cfl=0.03125 | cfl=0.5 |\n| --- | --- | --- |\n| 0.001 | 0.25 | 3e-6 |\n| 0.00025 | 0.5 | 9.451e-9 |\n"
+        );
+    }
+
+    #[test]
+    fn a_missing_column_is_told_from_one_that_is_null_in_some_points() {
+        let table = [
+            row(
+                json!({"point": "method=nonlocal n=16", "n": 16, "case.cfl": 0.5, "solve_s_median": 1.0}),
+            ),
+            row(
+                json!({"point": "method=adi n=16", "n": 16, "case.cfl": null, "solve_s_median": 2.0}),
+            ),
+            row(
+                json!({"point": "method=adi n=32", "n": 32, "case.cfl": null, "solve_s_median": 3.0}),
+            ),
+        ];
+        let spec = |column: &str, value: &str| PivotSpec {
+            rows: vec!["n".into()],
+            column: Some(column.into()),
+            values: vec![value.into()],
+            filter: vec![],
+        };
+        let null = markdown(&spec("cfl", "solve_s_median"), &table).unwrap_err();
+        assert_eq!(
+            null,
+            "column `cfl` is null in 2 of the 3 rows (points method=adi n=16; method=adi n=32); leave them out with --where, or choose another field"
+        );
+        let typo = markdown(&spec("clf", "solve_s_median"), &table).unwrap_err();
+        assert_eq!(typo, "the summary table has no column `clf`; close: `cfl`");
+        let stem = markdown(&spec("n", "solve_s"), &table).unwrap_err();
+        assert!(stem.ends_with("close: `solve_s_median`"), "{stem}");
+        let far = markdown(&spec("n", "bandwidth"), &table).unwrap_err();
+        assert_eq!(far, "the summary table has no column `bandwidth`");
+        // The rows the filter leaves hold no null: the pivot is made.
+        let only_nonlocal = PivotSpec {
+            filter: vec!["method == 'nonlocal'".into()],
+            ..spec("cfl", "solve_s_median")
+        };
+        let mut table = table.to_vec();
+        for row in &mut table {
+            let method = if row.get("case.cfl") == Some(&Value::Null) {
+                "adi"
+            } else {
+                "nonlocal"
+            };
+            row.set("case.method", json!(method));
+        }
+        assert_eq!(
+            markdown(&only_nonlocal, &table).unwrap(),
+            "| n | cfl=0.5 |\n| --- | --- |\n| 16 | 1 |\n"
         );
     }
 }

@@ -102,8 +102,7 @@ fn reduce(repeats: &[&Row]) -> Row {
             statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
         );
     }
-    let workers =
-        row.number("case.threads").unwrap_or(1.0) * row.number("case.ranks").unwrap_or(1.0);
+    let workers = row.count("case.threads").unwrap_or(1) * row.count("case.ranks").unwrap_or(1);
     row.set("workers", json!(workers));
     let work = (
         row.number("bonds"),
@@ -127,12 +126,12 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 
 fn derive_scaling(rows: &mut [Row]) {
     for members in groups(rows, |r| r.text("scaling_series")) {
-        let workers: Vec<f64> = members
+        let workers: Vec<u64> = members
             .iter()
-            .map(|&i| rows[i].number("workers").unwrap_or(1.0))
+            .map(|&i| rows[i].count("workers").unwrap_or(1))
             .collect();
         let base = (0..members.len())
-            .min_by(|&a, &b| workers[a].total_cmp(&workers[b]))
+            .min_by_key(|&k| workers[k])
             .expect("a group has members");
         let base_time = rows[members[base]]
             .number("solve_s_median")
@@ -141,7 +140,7 @@ fn derive_scaling(rows: &mut [Row]) {
         for (k, &i) in members.iter().enumerate() {
             let time = rows[i].number("solve_s_median").filter(|_| is_ok(&rows[i]));
             let speedup = time.filter(|t| *t > 0.0).map(|t| t0 / t);
-            let q = workers[k] / workers[base];
+            let q = workers[k] as f64 / workers[base] as f64;
             let karp_flatt = speedup
                 .filter(|_| q > 1.0)
                 .map(|s| (1.0 / s - 1.0 / q) / (1.0 - 1.0 / q));
@@ -249,10 +248,15 @@ mod tests {
         let summary = summarize(&runs);
         let s2 = 1.0 / (0.1 + 0.9 / 2.0);
         let s4 = 1.0 / (0.1 + 0.9 / 4.0);
-        close(
-            column(&summary, "workers"),
-            &[Some(2.0), Some(1.0), Some(4.0)],
+        // Counts are integers (Int64 columns in Parquet), not floats.
+        let cells =
+            |name: &str| -> Vec<Option<&Value>> { summary.iter().map(|r| r.get(name)).collect() };
+        assert_eq!(
+            cells("workers"),
+            [Some(&json!(2)), Some(&json!(1)), Some(&json!(4))]
         );
+        assert_eq!(cells("baseline_workers"), [Some(&json!(1)); 3]);
+        assert_eq!(cells("repeats"), [Some(&json!(1)); 3]);
         close(
             column(&summary, "speedup"),
             &[Some(s2), Some(1.0), Some(s4)],

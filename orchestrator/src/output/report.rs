@@ -4,8 +4,7 @@
 //! host, CPU, dates). One file to open in a browser or pass on, as Snakemake's `--report` gives
 //! its users. Written from the store, the summary table and the drawn figures alone.
 
-use crate::analysis::collect::headline_columns;
-use crate::analysis::pivot;
+use crate::analysis::collect::headline;
 use crate::model::study::Study;
 use crate::output::status::counts_by_status;
 use crate::store::table::{self, Row};
@@ -96,18 +95,16 @@ fn summary_section(page: &mut String, summary: &[Row], swept: &[String]) {
     if summary.is_empty() {
         return;
     }
-    let has = |name: &str| summary.iter().any(|row| row.get(name).is_some());
-    let columns = headline_columns(has, swept);
+    let (names, lines) = headline(summary, swept);
     page.push_str("<h2>Summary</h2>\n<table>\n<tr>");
-    for (_, name) in &columns {
+    for name in &names {
         let _ = write!(page, "<th>{}</th>", escape(name));
     }
     page.push_str("</tr>\n");
-    for row in summary {
+    for line in &lines {
         page.push_str("<tr>");
-        for (column, _) in &columns {
-            let cell = row.get(column).map(pivot::text).unwrap_or_default();
-            let _ = write!(page, "<td>{}</td>", escape(&cell));
+        for cell in line {
+            let _ = write!(page, "<td>{}</td>", escape(cell));
         }
         page.push_str("</tr>\n");
     }
@@ -172,4 +169,29 @@ fn escape(text: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn the_summary_shows_four_significant_digits_one_notation_per_column() {
+        let summary: Vec<Row> = [(16, 0.000003), (32, 9.4513e-9)]
+            .iter()
+            .map(|&(n, error)| {
+                let mut row = Row::default();
+                row.set("case.n", json!(n));
+                row.set("error_l2_norm", json!(error));
+                row
+            })
+            .collect();
+        let mut page = String::new();
+        summary_section(&mut page, &summary, &["n".to_string()]);
+        assert!(
+            page.contains("<tr><th>n</th><th>error_l2_norm</th></tr>\n<tr><td>16</td><td>3e-6</td></tr>\n<tr><td>32</td><td>9.451e-9</td></tr>"),
+            "{page}"
+        );
+    }
 }

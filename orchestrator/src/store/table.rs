@@ -1,5 +1,8 @@
 //! Rows of named JSON cells, and their Parquet form: a column's type is read off its cells
-//! (booleans, integers, floats, else text; arrays are kept as JSON text).
+//! (booleans, integers, floats, arrays of numbers as lists of floats, else text), and each file
+//! says what it holds in its key–value metadata: `description` (the study's), `unit:<column>`
+//! for each column with a unit (read off its name, `unit`) and `note:<column>` for each column
+//! its writer explains.
 
 use polars::prelude::*;
 use schema::record::Status;
@@ -41,6 +44,11 @@ impl Row {
         self.get(name).and_then(Value::as_f64)
     }
 
+    /// A cell holding a whole number of things (threads, workers, repeats).
+    pub fn count(&self, name: &str) -> Option<u64> {
+        self.get(name).and_then(Value::as_u64)
+    }
+
     pub fn text(&self, name: &str) -> Option<&str> {
         self.get(name).and_then(Value::as_str)
     }
@@ -80,6 +88,8 @@ enum ColumnType {
     Boolean,
     Integer,
     Float,
+    /// Arrays of numbers (nulls allowed): `c_tot.time`, a field's values.
+    Floats,
     Text,
 }
 
@@ -89,6 +99,9 @@ fn column_type_of(value: &Value) -> Option<ColumnType> {
         Value::Bool(_) => Some(ColumnType::Boolean),
         Value::Number(n) if n.is_i64() => Some(ColumnType::Integer),
         Value::Number(_) => Some(ColumnType::Float),
+        Value::Array(items) if items.iter().all(|v| v.is_number() || v.is_null()) => {
+            Some(ColumnType::Floats)
+        }
         _ => Some(ColumnType::Text),
     }
 }
@@ -140,6 +153,16 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
                 ColumnType::Float => {
                     Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
                 }
+                ColumnType::Floats => {
+                    let lists: Vec<Option<Series>> = cells
+                        .iter()
+                        .map(|v| {
+                            let items = v.as_array()?.iter().map(Value::as_f64);
+                            Some(Series::new(PlSmallStr::EMPTY, items.collect::<Vec<_>>()))
+                        })
+                        .collect();
+                    Column::new(name, lists)
+                }
                 ColumnType::Text => {
                     Column::new(name, cells.iter().map(|v| text_of(v)).collect::<Vec<_>>())
                 }
@@ -157,21 +180,34 @@ fn text_of(value: &Value) -> Option<String> {
     }
 }
 
+/// What a table's file says about itself beside its columns (its Parquet key–value metadata);
+/// each column's unit comes from its name.
+#[derive(Default)]
+pub struct About<'a> {
+    /// The study's description, as `description`.
+    pub description: &'a str,
+    /// What a column holds where its name does not tell, as `(column, note)`; written as
+    /// `note:<column>` for the columns the table has.
+    pub notes: &'a [(&'a str, &'a str)],
+}
+
+/// `write_parquet_about` with no description or notes: the tables tests make by hand.
+#[cfg(test)]
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
+    write_parquet_about(tables, &About::default())
+}
+
 /// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
 /// process) that is synced, and only once all are written are they renamed into place.
-pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, String> {
+pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<(), String> {
     let mut written = Vec::new();
-    let mut frames = Vec::new();
     let mut outcome = Ok(());
     for (path, rows) in tables {
         let partial = crate::store::fs::partial_path(path);
         written.push((partial.clone(), path.to_path_buf()));
-        match write_one(&partial, rows) {
-            Ok(frame) => frames.push(frame),
-            Err(e) => {
-                outcome = Err(format!("cannot write {}: {e}", path.display()));
-                break;
-            }
+        if let Err(e) = write_one(&partial, rows, about) {
+            outcome = Err(format!("cannot write {}: {e}", path.display()));
+            break;
         }
     }
     if outcome.is_ok() {
@@ -179,15 +215,55 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<Vec<DataFrame>, Strin
             std::fs::rename(partial, path)
                 .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         }
-        return Ok(frames);
+        return Ok(());
     }
     for (partial, _) in &written {
         let _ = std::fs::remove_file(partial);
     }
-    outcome.map(|_| frames)
+    outcome
 }
 
-/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null).
+/// A column's unit, from its name: the measured times `*_s` (and their statistics `*_s_median`,
+/// `_min`, `_max`, `_iqr`) in seconds, rates `*_per_s` per second, sizes `*_bytes` in bytes.
+/// `None` for the rest: the model's quantities (t, dt, h, errors) are dimensionless, and counts,
+/// ratios and text have none.
+fn unit(column: &str) -> Option<&'static str> {
+    let measured = ["_median", "_min", "_max", "_iqr"]
+        .iter()
+        .find_map(|statistic| column.strip_suffix(statistic))
+        .unwrap_or(column);
+    if measured.ends_with("_per_s") {
+        Some("1/s")
+    } else if measured.ends_with("_s") {
+        Some("s")
+    } else if measured.ends_with("_bytes") {
+        Some("bytes")
+    } else {
+        None
+    }
+}
+
+/// The key–value metadata of the file holding `frame`.
+fn metadata(frame: &DataFrame, about: &About) -> Vec<(String, String)> {
+    let mut pairs = Vec::new();
+    if !about.description.is_empty() {
+        pairs.push(("description".to_string(), about.description.to_string()));
+    }
+    for name in frame.get_column_names() {
+        if let Some(unit) = unit(name) {
+            pairs.push((format!("unit:{name}"), unit.to_string()));
+        }
+    }
+    for (column, note) in about.notes {
+        if frame.column(column).is_ok() {
+            pairs.push((format!("note:{column}"), note.to_string()));
+        }
+    }
+    pairs
+}
+
+/// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null, a list
+/// as a JSON array).
 pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
     let fail = |e: &dyn std::fmt::Display| format!("cannot read {}: {e}", path.display());
     let file = std::fs::File::open(path).map_err(|e| fail(&e))?;
@@ -198,11 +274,13 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
             let value = match column.get(i).map_err(|e| fail(&e))? {
                 AnyValue::Boolean(b) => Value::from(b),
                 AnyValue::Int64(v) => Value::from(v),
-                AnyValue::Float64(v) => {
-                    serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number)
-                }
+                AnyValue::Float64(v) => json_number(Some(v)),
                 AnyValue::String(s) => Value::from(s),
                 AnyValue::StringOwned(s) => Value::from(s.as_str()),
+                AnyValue::List(items) => {
+                    let items = items.f64().map_err(|e| fail(&e))?;
+                    Value::Array(items.iter().map(json_number).collect())
+                }
                 _ => Value::Null,
             };
             row.set(column.name(), value);
@@ -211,14 +289,21 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
     Ok(rows)
 }
 
-fn write_one(path: &Path, rows: &[Row]) -> Result<DataFrame, String> {
+/// A float as JSON: null when missing or not finite.
+fn json_number(x: Option<f64>) -> Value {
+    x.and_then(serde_json::Number::from_f64)
+        .map_or(Value::Null, Value::Number)
+}
+
+fn write_one(path: &Path, rows: &[Row], about: &About) -> Result<(), String> {
     let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
+    let metadata = KeyValueMetadata::from_static(metadata(&frame, about));
     let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
     ParquetWriter::new(&mut file)
+        .with_key_value_metadata(Some(metadata))
         .finish(&mut frame)
         .map_err(|e| e.to_string())?;
-    file.sync_all().map_err(|e| e.to_string())?;
-    Ok(frame)
+    file.sync_all().map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
@@ -238,7 +323,7 @@ mod tests {
     fn columns_take_the_narrowest_type_of_their_cells() {
         let rows = [
             row(json!({"n": 8, "h": 1, "ok": true, "case": {"dim": 2}, "c_tot": [1.0, 2.0]})),
-            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no"})),
+            row(json!({"n": 16, "h": 0.5, "ok": false, "message": "no", "tags": ["a", 1]})),
         ];
         let frame = data_frame(&rows).unwrap();
         let names: Vec<&str> = frame
@@ -247,15 +332,25 @@ mod tests {
             .map(|n| n.as_str())
             .collect();
         // JSON objects iterate in name order; a column first seen in a later row comes last.
-        assert_eq!(names, ["c_tot", "case.dim", "h", "n", "ok", "message"]);
+        assert_eq!(
+            names,
+            ["c_tot", "case.dim", "h", "n", "ok", "message", "tags"]
+        );
         let dtype = |name: &str| frame.column(name).unwrap().dtype().clone();
         assert_eq!(dtype("n"), DataType::Int64);
         assert_eq!(dtype("h"), DataType::Float64);
         assert_eq!(dtype("ok"), DataType::Boolean);
-        assert_eq!(dtype("c_tot"), DataType::String);
-        let c_tot = frame.column("c_tot").unwrap();
-        assert_eq!(c_tot.get(0).unwrap(), AnyValue::String("[1.0,2.0]"));
-        assert_eq!(c_tot.get(1).unwrap(), AnyValue::Null);
+        assert_eq!(dtype("c_tot"), DataType::List(Box::new(DataType::Float64)));
+        let c_tot = frame.column("c_tot").unwrap().list().unwrap();
+        let first = c_tot.get_as_series(0).unwrap();
+        assert_eq!(first.f64().unwrap().to_vec(), [Some(1.0), Some(2.0)]);
+        assert_eq!(c_tot.get_as_series(1), None);
+        // An array that is not numbers stays JSON text.
+        assert_eq!(dtype("tags"), DataType::String);
+        assert_eq!(
+            frame.column("tags").unwrap().get(1).unwrap(),
+            AnyValue::String("[\"a\",1]")
+        );
         assert_eq!(
             frame.column("h").unwrap().get(1).unwrap(),
             AnyValue::Float64(0.5)
@@ -278,5 +373,81 @@ mod tests {
         assert_eq!(named["backend"], json!("auto"));
         // A field the case leaves out is the record's resolved value.
         assert_eq!(named["collar"], json!("zero"));
+    }
+
+    #[test]
+    fn a_table_reads_back_typed_with_its_description_units_and_notes() {
+        let dir = std::env::temp_dir().join(format!("table-typed-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.parquet");
+        let rows = [
+            row(json!({"point": "n=16", "workers": 2, "solve_s_median": 0.5,
+                "peak_memory_bytes": 1024, "bond_updates_per_s": 1e9, "error_l2_norm": 1e-3,
+                "c_tot": {"time": [0.0, 0.5], "c_tot": [1.0, 0.99]}})),
+            row(json!({"point": "n=32", "workers": 4, "c_tot": {"time": [], "c_tot": null}})),
+        ];
+        let about = About {
+            description: "Heat in a square.",
+            notes: &[("point", "a label"), ("absent", "not in this table")],
+        };
+        write_parquet_about(&[(&path, &rows)], &about).unwrap();
+        let mut reader = ParquetReader::new(std::fs::File::open(&path).unwrap());
+        let mut metadata: Vec<(String, String)> = reader
+            .get_metadata()
+            .unwrap()
+            .key_value_metadata
+            .iter()
+            .flatten()
+            .filter(|kv| kv.key != "ARROW:schema")
+            .map(|kv| (kv.key.clone(), kv.value.clone().unwrap_or_default()))
+            .collect();
+        metadata.sort();
+        let expected = [
+            ("description", "Heat in a square."),
+            ("note:point", "a label"),
+            ("unit:bond_updates_per_s", "1/s"),
+            ("unit:peak_memory_bytes", "bytes"),
+            ("unit:solve_s_median", "s"),
+        ];
+        let expected: Vec<(String, String)> = expected
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        assert_eq!(metadata, expected);
+
+        let frame = reader.finish().unwrap();
+        let workers = frame.column("workers").unwrap().i64().unwrap();
+        assert_eq!(workers.to_vec(), [Some(2), Some(4)]);
+        let time = frame.column("c_tot.time").unwrap().list().unwrap();
+        let time: Vec<Option<Vec<Option<f64>>>> = (0..time.len())
+            .map(|i| time.get_as_series(i).map(|s| s.f64().unwrap().to_vec()))
+            .collect();
+        assert_eq!(time, [Some(vec![Some(0.0), Some(0.5)]), Some(vec![])]);
+
+        // read_parquet gives lists back as JSON arrays, as the figures read them.
+        let back = read_parquet(&path).unwrap();
+        assert_eq!(back[0].get("c_tot.c_tot"), Some(&json!([1.0, 0.99])));
+        assert_eq!(back[1].get("c_tot.time"), Some(&json!([])));
+        assert_eq!(back[1].get("c_tot.c_tot"), Some(&Value::Null));
+        assert_eq!(back[1].get("workers"), Some(&json!(4)));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn units_are_read_off_column_names() {
+        let units = [
+            ("solve_s", Some("s")),
+            ("step_s_iqr", Some("s")),
+            ("feti_phases.coarse_s", Some("s")),
+            ("bond_updates_per_s", Some("1/s")),
+            ("halo_bytes", Some("bytes")),
+            ("speedup", None),
+            ("steps", None),
+            ("case.t_end", None),
+            ("error_l2_norm", None),
+        ];
+        for (column, expected) in units {
+            assert_eq!(unit(column), expected, "{column}");
+        }
     }
 }
