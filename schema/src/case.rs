@@ -248,15 +248,18 @@ impl Case {
         let mut fill = |name: &str, v: serde_json::Value| {
             fields.entry(name).or_insert(v);
         };
-        fill("quadrature", value(serde_json::to_value(self.quadrature)));
-        fill("collar", value(serde_json::to_value(self.collar)));
-        fill("integrator", value(serde_json::to_value(self.integrator)));
-        fill("source", value(serde_json::to_value(self.source())));
         match self.method {
+            Method::Nonlocal => {
+                fill("quadrature", value(serde_json::to_value(self.quadrature)));
+                fill("collar", value(serde_json::to_value(self.collar)));
+                fill("integrator", value(serde_json::to_value(self.integrator)));
+                fill("source", value(serde_json::to_value(self.source())));
+            }
             Method::FdExplicit | Method::Adi | Method::Pse => {
                 fill("length", self.length().into());
             }
             Method::SteadyCg | Method::Feti => {
+                fill("quadrature", value(serde_json::to_value(self.quadrature)));
                 fill("rtol", self.rtol().into());
                 fill("max_iterations", self.max_iterations().into());
             }
@@ -278,7 +281,6 @@ impl Case {
                     value(serde_json::to_value(self.local_domain())),
                 );
             }
-            Method::Nonlocal => {}
         }
         if self.method == Method::Feti {
             fill(
@@ -350,6 +352,12 @@ mod tests {
         assert!(nonlocal.get("t_end").is_none() && nonlocal.get("rtol").is_none());
         let bump = case(serde_json::json!({"dim": 1, "n": 8, "m": 2, "problem": "bump"}));
         assert_eq!(bump["source"], "none");
+        let adi = case(serde_json::json!({"method": "adi", "dim": 1, "n": 8}));
+        assert_eq!(adi["length"], DEFAULT_LENGTH);
+        assert!(
+            adi.get("quadrature").is_none(),
+            "adi has no quadrature: {adi}"
+        );
         let feti = case(serde_json::json!({"method": "feti", "dim": 2, "n": 8, "m": 2}));
         assert_eq!(
             (
