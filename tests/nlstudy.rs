@@ -433,7 +433,11 @@ fn every_shipped_study_plans_without_a_refused_point() {
     let mut planned = 0;
     for entry in std::fs::read_dir(&studies).unwrap() {
         let path = entry.unwrap().path();
-        if path.extension().is_none_or(|x| x != "json") {
+        let study_file = ["json", "jsonc", "toml"];
+        if !path
+            .extension()
+            .is_some_and(|x| study_file.iter().any(|s| x == *s))
+        {
             continue;
         }
         let out = Command::new(binary("nlstudy"))

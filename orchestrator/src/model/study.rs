@@ -233,7 +233,8 @@ impl Subject for StudyPlace {
 pub type StudyError = FieldError<StudyPlace>;
 
 impl Study {
-    /// Reads and parses a study file, naming the field at fault.
+    /// Reads and parses a study file, naming the field at fault: TOML when its name ends in
+    /// `.toml`, else JSON in which comments are allowed (JSONC).
     pub fn read(path: &Path) -> Result<Study, StudyError> {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| {
@@ -242,21 +243,43 @@ impl Study {
                 format!("cannot read the study file: {e}; check the path"),
             )
         })?;
-        Study::parse(&text)
+        match path.extension().and_then(|x| x.to_str()) {
+            Some("toml") => Study::parse_toml(&text),
+            _ => Study::parse(&text),
+        }
     }
 
+    /// A study from JSON with comments (`//`, `/* */`, `#`): they become spaces, so the lines
+    /// and columns of errors stay those of the file.
     pub fn parse(text: &str) -> Result<Study, StudyError> {
+        let mut plain = String::with_capacity(text.len());
+        std::io::Read::read_to_string(
+            &mut json_comments::StripComments::new(text.as_bytes()),
+            &mut plain,
+        )
+        .map_err(|e| StudyError::new("file", format!("{e}; close every /* comment with */")))?;
         // Typed fields refuse a repeated key themselves; maps such as `base` would keep the last.
         let value =
-            schema::json::parse(text).map_err(|e| StudyError::new("file", e.to_string()))?;
+            schema::json::parse(&plain).map_err(|e| StudyError::new("file", e.to_string()))?;
+        Study::from_value(value)
+    }
+
+    /// A study from TOML (which refuses a key given twice itself).
+    pub fn parse_toml(text: &str) -> Result<Study, StudyError> {
+        let value: Value = toml::from_str(text).map_err(|e| {
+            StudyError::new("file", format!("not valid TOML: {}", e.to_string().trim()))
+        })?;
+        Study::from_value(value)
+    }
+
+    fn from_value(value: Value) -> Result<Study, StudyError> {
         if let Some((place, c)) = schema::json::control_character(&value, &["description"]) {
             return Err(StudyError::new(
                 place,
                 format!("holds the control character {c:?}; names and values are printable text (only `description` may hold newlines and tabs)"),
             ));
         }
-        let mut deserializer = serde_json::Deserializer::from_str(text);
-        let study: Study = serde_path_to_error::deserialize(&mut deserializer).map_err(|e| {
+        let study: Study = serde_path_to_error::deserialize(value).map_err(|e| {
             let path = e.path().to_string();
             StudyError::from_serde(path, e.into_inner().to_string())
         })?;
@@ -823,6 +846,39 @@ mod tests {
         assert!(e.message.contains("give each branch its own name"), "{e}");
         let e = refused(json!({"a": {"repeats": 2}}));
         assert!(e.message.contains("did you mean `repeat`?"), "{e}");
+    }
+
+    #[test]
+    fn study_files_may_carry_comments_or_be_toml() {
+        let commented = r#"
+            // a first study
+            {
+              "name": "s", /* results/s/ */
+              "base": {"dim": 1, "note": "a // in a string stays"},
+              "sweep": [{"product": {"n": [8, 16]}}]  # shell style too
+            }"#;
+        let toml = r#"
+            name = "s"
+            [base]
+            dim = 1
+            note = "a // in a string stays"
+            [[sweep]]
+            product = { n = [8, 16] }
+        "#;
+        let json = Study::parse(commented).unwrap().expand().unwrap();
+        let from_toml = Study::parse_toml(toml).unwrap().expand().unwrap();
+        assert_eq!(json, from_toml);
+        assert_eq!(json[1].fields["note"], "a // in a string stays");
+        // Comments become spaces: an error still names its line in the file.
+        let error = Study::parse("// one\n// two\n{\"name\": }").unwrap_err();
+        assert!(error.message.contains("line 3"), "{error}");
+        let error = Study::parse_toml("name = \"s\"\nname = \"t\"").unwrap_err();
+        assert!(error.message.contains("not valid TOML"), "{error}");
+        let error = Study::parse_toml("name = \"s\"\n[base]\n[[sweep]]\nproduct = { n = [] }")
+            .unwrap()
+            .expand()
+            .unwrap_err();
+        assert_eq!(error.field, "sweep[0].product.n");
     }
 
     #[test]
