@@ -428,11 +428,14 @@ fn the_diagnostics_file_is_the_records_series_as_csv() {
 }
 
 /// The h the solver reports is the h `nlstudy` gives study expressions (`schema`'s
-/// `Method::grid_spacing`), for every method.
+/// `Method::grid_spacing`), for every method; and every column a record gives the tables is one
+/// the schema lists (`nlstudy plan` checks figures against that list before anything runs).
 #[test]
-fn every_method_reports_the_grid_spacing_of_the_schema() {
+fn every_method_reports_the_grid_spacing_and_the_columns_of_the_schema() {
     let cases = [
         r#"{"method": "nonlocal", "dim": 1, "n": 24, "m": 2, "t_end": 0.001, "cfl": 0.5}"#,
+        r#"{"method": "nonlocal", "dim": 2, "n": 16, "m": 2, "t_end": 0.001, "cfl": 0.5, "integrator": "crank_nicolson", "diagnostics_every": 0.0005, "histogram_bins": 4, "field_snapshot": 4, "error_total": true}"#,
+        r#"{"method": "patch_test", "dim": 1, "n": 24, "patch": "quadratic", "horizon_profile": {"kind": "linear", "left": 0.05, "right": 0.1}}"#,
         r#"{"method": "fd_explicit", "problem": "eigenmode", "dim": 1, "n": 24, "length": 3, "t_end": 0.001, "cfl": 0.5}"#,
         r#"{"method": "adi", "problem": "square", "dim": 2, "n": 24, "t_end": 0.001, "dt": 0.0005}"#,
         r#"{"method": "pse", "problem": "eigenmode", "dim": 1, "n": 24, "m": 4, "length": 3, "t_end": 0.001, "cfl": 0.5}"#,
@@ -451,5 +454,28 @@ fn every_method_reports_the_grid_spacing_of_the_schema() {
         let rec = record(&out);
         let parsed = Case::parse(rec["case"].clone()).unwrap();
         assert_eq!(rec["h"].as_f64(), Some(parsed.h()), "{case}");
+        for column in flattened_names("", &rec) {
+            assert!(
+                schema::record::is_column(&column),
+                "{case}: the record's column `{column}` is not in schema::record::COLUMNS"
+            );
+        }
+    }
+}
+
+/// A record's names as the tables flatten them (`field.values`).
+fn flattened_names(prefix: &str, value: &Value) -> Vec<String> {
+    match value.as_object() {
+        Some(fields) => fields
+            .iter()
+            .flat_map(|(name, inner)| {
+                let name = match prefix {
+                    "" => name.clone(),
+                    _ => format!("{prefix}.{name}"),
+                };
+                flattened_names(&name, inner)
+            })
+            .collect(),
+        None => vec![prefix.to_string()],
     }
 }

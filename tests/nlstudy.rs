@@ -604,3 +604,23 @@ fn assert_distinct(rows: &[String]) {
         );
     }
 }
+
+/// A figure naming a column no table will have is a bad study file at `plan`, before anything
+/// runs, not a failure after every case has run.
+#[test]
+fn a_misspelt_figure_column_stops_plan_and_run_before_anything_runs() {
+    let mut study = small_study(&[16]);
+    study["figures"] = json!([{"name": "c", "kind": "convergence", "y": "eror_l2_norm"}]);
+    let scratch = Scratch::new("figure-typo", &study);
+    for command in ["plan", "run"] {
+        let out = scratch.nlstudy(command, &[]);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+        assert!(
+            text(&out).contains("figures[0] (c).y")
+                && text(&out).contains("did you mean `error_l2_norm`?"),
+            "{}",
+            text(&out)
+        );
+    }
+    assert!(records(&scratch.runs("small")).is_empty(), "nothing ran");
+}

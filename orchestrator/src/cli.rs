@@ -242,12 +242,19 @@ impl PlanArgs {
     }
 }
 
+/// The study file, its figures checked against the columns its tables will have.
+fn read_study(path: &std::path::Path) -> Result<Study, String> {
+    let study = Study::read(path).map_err(|e| e.to_string())?;
+    crate::analysis::figure_columns::check(&study).map_err(|e| e.to_string())?;
+    Ok(study)
+}
+
 /// The study, its solver and store, and the plan of its points.
 fn planned(
     args: &CommonArgs,
     options: &Options,
 ) -> Result<(Study, Nlsolve, Store, Vec<Planned>), String> {
-    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let study = read_study(&args.study)?;
     let solver = Nlsolve::locate(args.solver.as_deref())?;
     let store = Store::open(&args.results, &study.name);
     let index = store.index();
@@ -438,7 +445,7 @@ fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 }
 
 fn plot_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let study = Study::read(&args.study).map_err(|e| e.to_string())?;
+    let study = read_study(&args.study)?;
     if study.figures.is_empty() {
         return Err(format!(
             "study {} lists no figures; add a `figures` list to {}",
@@ -453,7 +460,7 @@ fn plot_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 }
 
 fn table_command(args: &TableArgs) -> Result<ExitCode, Failure> {
-    let study = Study::read(&args.common.study).map_err(|e| e.to_string())?;
+    let study = read_study(&args.common.study)?;
     let store = Store::open(&args.common.results, &study.name);
     let path = store.table(&format!("{}-summary.parquet", study.name));
     if !path.exists() {

@@ -52,6 +52,91 @@ impl fmt::Display for Status {
 /// the fields whose repeats the orchestrator's summary reduces to min, median and max.
 pub const TIMINGS: [&str; 4] = ["setup_s", "solve_s", "step_s", "comm_s"];
 
+/// The columns a record gives the tables, flattened (`field.values`): the solver's fields, then
+/// the ones nlstudy adds. A name ending in `.*` stands for a group whose members vary (a
+/// method's outcome, the provenance). Figures and tables are checked against these before
+/// anything runs; a test of nlsolve checks that every record it writes keeps to them.
+pub const COLUMNS: &[&str] = &[
+    // What became of the run, and its case.
+    "status",
+    "message",
+    "case.*",
+    // The discretization as resolved (`Resolved`).
+    "h",
+    "eps",
+    "m",
+    "c",
+    "dt",
+    "dt_stable",
+    "steps",
+    "nodes",
+    "bonds",
+    "pair_visits",
+    "quadrature",
+    "collar",
+    "patch_error",
+    "backend",
+    "integrator",
+    // Results and timings.
+    "steps_done",
+    "setup_s",
+    "solve_s",
+    "step_s",
+    "error_l2",
+    "error_l2_norm",
+    "error_max",
+    "error_total",
+    "mass",
+    "max_abs",
+    "diverged_step",
+    "diverged_time",
+    "c_tot.*",
+    "histogram.*",
+    "field.*",
+    "patch.*",
+    "coupling.*",
+    // The distribution over ranks.
+    "ranks",
+    "partition",
+    "px",
+    "py",
+    "halo_nodes",
+    "halo_bytes",
+    "imbalance",
+    "comm_s",
+    // Steady and implicit solves.
+    "iterations",
+    "relative_residual",
+    "dual_residual",
+    "subdomains",
+    "floating_subdomains",
+    "multipliers",
+    "factor_nonzeros_max",
+    "feti_phases.*",
+    "solve_iterations_mean",
+    "solve_iterations_max",
+    "solves_unconverged",
+    "solve_rtol",
+    "peak_memory_bytes",
+    "memory_estimate_bytes",
+    "provenance.*",
+    // Added by nlstudy.
+    "key",
+    "case_id",
+    "repeat",
+    "solver_version",
+    "attempt",
+    "oversubscribed",
+];
+
+/// Whether `name` is a column of records (see `COLUMNS`).
+pub fn is_column(name: &str) -> bool {
+    COLUMNS.iter().any(|c| match c.strip_suffix('*') {
+        Some(group) => name.starts_with(group) && name.len() > group.len(),
+        None => *c == name,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -68,5 +153,12 @@ mod tests {
             );
         }
         assert_eq!(Status::parse("mixed"), None);
+    }
+
+    #[test]
+    fn a_column_is_a_name_or_a_member_of_a_group() {
+        assert!(is_column("error_l2_norm") && is_column("c_tot.time"));
+        assert!(is_column("feti_phases.coarse_s") && is_column("case.n"));
+        assert!(!is_column("c_tot.") && !is_column("error_l2norm") && !is_column("c_tot"));
     }
 }

@@ -2,5 +2,6 @@
 //! orders, timing statistics), and Markdown pivots over it.
 
 pub mod collect;
+pub mod figure_columns;
 pub mod pivot;
 pub mod summary;

@@ -29,6 +29,53 @@ const ORDERS: &[(&str, &str)] = &[
     ("coupling.error_local", "order_local"),
 ];
 
+/// The columns the summary adds to a run's: labels, counts, the timings' statistics, and what
+/// scaling and refinement series derive.
+const DERIVED: &[&str] = &[
+    "point",
+    "branch",
+    "refinement_series",
+    "scaling_series",
+    "repeats",
+    "workers",
+    "bond_updates_per_s",
+    "baseline_workers",
+    "speedup",
+    "efficiency",
+    "karp_flatt",
+];
+
+/// The statistics each timing `T_s` becomes (`T_s_median`, …).
+const STATISTICS: &[&str] = &["median", "min", "max", "iqr"];
+
+/// Whether `name` is a column of a summary table: a record's (`schema::record::COLUMNS`), or
+/// one the summary derives.
+pub fn is_column(name: &str) -> bool {
+    let statistic = STATISTICS.iter().any(|s| {
+        name.strip_suffix(s)
+            .and_then(|t| t.strip_suffix('_'))
+            .is_some_and(is_timing)
+    });
+    schema::record::is_column(name)
+        || DERIVED.contains(&name)
+        || ORDERS.iter().any(|(_, order)| *order == name)
+        || statistic
+}
+
+/// Every column name a summary may have, groups written `group.*`: for suggestions.
+pub fn column_names() -> Vec<String> {
+    let statistics = TIMINGS
+        .iter()
+        .flat_map(|t| STATISTICS.iter().map(move |s| format!("{t}_{s}")));
+    schema::record::COLUMNS
+        .iter()
+        .chain(DERIVED)
+        .map(|c| c.to_string())
+        .chain(ORDERS.iter().map(|(_, order)| order.to_string()))
+        .chain(statistics)
+        .collect()
+}
+
 /// One summary row per point (its repeats: rows sharing the `point` label, or the `case_id`
 /// where rows have no label), in the order points first appear. Points of different branches
 /// that are one case share its records but keep a row each.

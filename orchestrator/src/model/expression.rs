@@ -85,6 +85,17 @@ pub fn condition(text: &str, scope: &Scope) -> Result<bool, String> {
     }
 }
 
+/// The names an expression reads (its fields), without evaluating it.
+pub fn names(text: &str) -> Result<Vec<String>, String> {
+    Ok(tokenize(text)?
+        .into_iter()
+        .filter_map(|token| match token {
+            Token::Name(name) if name != "true" && name != "false" => Some(name),
+            _ => None,
+        })
+        .collect())
+}
+
 fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
     let tokens = tokenize(text)?;
     let mut parser = Parser {

@@ -1,0 +1,126 @@
+//! A study's figure specs checked against the columns its summary table will have, before
+//! anything runs: a misspelt column is a bad study file, said at `plan`, not a failed figure
+//! after every case has run.
+
+use crate::analysis::summary;
+use crate::model::expression;
+use crate::model::figure_spec::FigureSpec;
+use crate::model::study::{Study, StudyError};
+use schema::case::Case;
+
+/// Refuses the first figure that names a column no summary table has, with a guess.
+pub fn check(study: &Study) -> Result<(), StudyError> {
+    for (k, figure) in study.figures.iter().enumerate() {
+        let place = |what: &str| format!("figures[{k}] ({}).{what}", figure.name);
+        let named = figure_names(figure).map_err(|e| StudyError::new(place("where"), e))?;
+        for (what, name) in named {
+            if !is_known(&name) {
+                let guess =
+                    guess(&name).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
+                return Err(StudyError::new(
+                    place(what),
+                    format!("no column `{name}` in the summary table{guess} (the columns: the case's fields, the record's, and what the summary derives; see README, Tables)"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The names a figure reads, with the place each stands in.
+fn figure_names(figure: &FigureSpec) -> Result<Vec<(&'static str, String)>, String> {
+    let mut names = Vec::new();
+    if let Some(x) = &figure.x {
+        names.push(("x", x.clone()));
+    }
+    if let Some(y) = &figure.y {
+        let column = y.strip_prefix("abs(").and_then(|c| c.strip_suffix(')'));
+        names.push(("y", column.unwrap_or(y).to_string()));
+    }
+    for series in figure.series.iter().flatten() {
+        names.push(("series", series.clone()));
+    }
+    for condition in &figure.filter {
+        names.extend(
+            expression::names(condition)?
+                .into_iter()
+                .map(|n| ("where", n)),
+        );
+    }
+    Ok(names)
+}
+
+/// A case field (bare, or as `case.<field>`, nested objects by their first part) or a summary
+/// column.
+fn is_known(name: &str) -> bool {
+    let field = name.strip_prefix("case.").unwrap_or(name);
+    let top = field.split('.').next().unwrap_or(field);
+    Case::field_names().contains(&top) || (!name.starts_with("case.") && summary::is_column(name))
+}
+
+fn guess(name: &str) -> Option<String> {
+    let columns = summary::column_names();
+    let candidates = Case::field_names().iter().copied().chain(
+        columns
+            .iter()
+            .map(String::as_str)
+            .filter(|c| !c.ends_with('*')),
+    );
+    schema::error::nearest(name, candidates)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn study(figures: serde_json::Value) -> Study {
+        Study::parse(&json!({"name": "s", "base": {}, "figures": figures}).to_string()).unwrap()
+    }
+
+    #[test]
+    fn a_misspelt_column_is_refused_at_plan_with_a_guess() {
+        let good = study(json!([
+            {"name": "a", "kind": "convergence", "x": "dt", "y": "abs(error_max)", "series": ["integrator", "case.m"],
+             "where": ["branch == 'x' && horizon_profile.kind == 'linear' && solve_s_median > 0 && patch.ghost_force < 1"]},
+            {"name": "b", "kind": "strong_scaling", "where": ["workers <= 2 && c_tot.time != 0 && order_l2 > 1"]}
+        ]));
+        assert_eq!(check(&good), Ok(()));
+        let cases = [
+            (
+                json!({"name": "c", "kind": "convergence", "y": "eror_l2_norm"}),
+                "figures[0] (c).y",
+                "error_l2_norm",
+            ),
+            (
+                json!({"name": "c", "kind": "convergence", "series": ["integrater"]}),
+                "figures[0] (c).series",
+                "integrator",
+            ),
+            (
+                json!({"name": "c", "kind": "convergence", "where": ["thread == 1"]}),
+                "figures[0] (c).where",
+                "threads",
+            ),
+            (
+                json!({"name": "c", "kind": "convergence", "x": "solve_s_medain"}),
+                "figures[0] (c).x",
+                "solve_s_median",
+            ),
+        ];
+        for (figure, place, guess) in cases {
+            let error = check(&study(json!([figure]))).unwrap_err();
+            assert_eq!(error.field, place);
+            assert!(
+                error.message.contains(&format!("did you mean `{guess}`?")),
+                "{error}"
+            );
+        }
+        // `case.` names only case fields.
+        let error = check(&study(
+            json!([{"name": "c", "kind": "convergence", "x": "case.h"}]),
+        ))
+        .unwrap_err();
+        assert_eq!(error.field, "figures[0] (c).x");
+    }
+}
