@@ -624,3 +624,73 @@ fn a_misspelt_figure_column_stops_plan_and_run_before_anything_runs() {
     }
     assert!(records(&scratch.runs("small")).is_empty(), "nothing ran");
 }
+
+/// Two study files with one `name` do not write over each other's results: the second is
+/// refused until it adopts the directory. `clean` removes figures no spec draws and lists, then
+/// with --yes deletes, the records no point has.
+#[test]
+fn a_results_directory_belongs_to_one_study_file_and_clean_clears_what_it_no_longer_makes() {
+    let mut study = small_study(&[16, 32]);
+    study["figures"] = json!([
+        {"name": "convergence", "kind": "convergence"},
+        {"name": "scaling", "kind": "strong_scaling"}
+    ]);
+    let scratch = Scratch::new("owner", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+
+    let other = scratch.dir.join("other.json");
+    std::fs::write(&other, small_study(&[16]).to_string()).unwrap();
+    let results = scratch.dir.join("results");
+    let nlstudy = |verb: &str, extra: &[&str]| {
+        Command::new(binary("nlstudy"))
+            .arg(verb)
+            .arg(&other)
+            .arg("--results")
+            .arg(&results)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    for verb in ["plan", "run", "collect"] {
+        let refused = nlstudy(verb, &[]);
+        assert_eq!(refused.status.code(), Some(2), "{verb}: {}", text(&refused));
+        assert!(
+            text(&refused).contains("another study file of the same name")
+                && text(&refused).contains("--adopt"),
+            "{}",
+            text(&refused)
+        );
+    }
+    // Adopted, the other file reuses the stored runs of its points: nothing runs.
+    let adopted = nlstudy("run", &["--adopt"]);
+    assert!(text(&adopted).contains("0 ran"), "{}", text(&adopted));
+    assert_eq!(scratch.nlstudy("plan", &[]).status.code(), Some(2));
+
+    // Back to the first file, with one figure and one grid fewer.
+    let mut smaller = small_study(&[16]);
+    smaller["figures"] = json!([{"name": "scaling", "kind": "strong_scaling"}]);
+    scratch.write_study(&smaller);
+    let listed = scratch.nlstudy("clean", &["--adopt"]);
+    assert!(listed.status.success(), "{}", text(&listed));
+    let figures = results.join("small/figures");
+    assert!(!figures.join("convergence.svg").exists() && figures.join("scaling.svg").exists());
+    assert!(
+        text(&listed).contains("removed figures/convergence.svg")
+            && text(&listed).contains("2 stored records are no point"),
+        "{}",
+        text(&listed)
+    );
+    assert_eq!(
+        records(&scratch.runs("small")).len(),
+        4,
+        "listed, not deleted"
+    );
+    let deleted = scratch.nlstudy("clean", &["--yes"]);
+    assert!(
+        text(&deleted).contains("deleted 2 records"),
+        "{}",
+        text(&deleted)
+    );
+    assert_eq!(records(&scratch.runs("small")).len(), 2);
+}

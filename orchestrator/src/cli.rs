@@ -10,6 +10,7 @@ use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Decision, Options, Planned};
 use crate::run::pool::{Launcher, PoolOptions, DEFAULT_LAUNCHER};
 use crate::run::progress::{Mode, Progress};
+use crate::store::owner::Refusal;
 use crate::store::{FileError, Store};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -52,6 +53,18 @@ pub enum Command {
     Table(TableArgs),
     /// Write Slurm or LSF job scripts for the points not yet stored, and submit them.
     Submit(SubmitArgs),
+    /// Remove the figures no spec of the study draws any more, and list the stored records no
+    /// point of the study has (deleted only with --yes).
+    Clean(CleanArgs),
+}
+
+#[derive(Args)]
+pub struct CleanArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Delete the records no point of the study has (without it they are only listed).
+    #[arg(long)]
+    yes: bool,
 }
 
 #[derive(Args)]
@@ -103,6 +116,10 @@ pub struct CommonArgs {
     /// The nlsolve binary (default: $NLSOLVE, else the one beside nlstudy).
     #[arg(long)]
     solver: Option<PathBuf>,
+    /// Make this study file the owner of <results>/<study name>/ when another file of the same
+    /// name owns it (its stored runs stay; points that are the same cases reuse them).
+    #[arg(long)]
+    adopt: bool,
 }
 
 #[derive(Args)]
@@ -226,6 +243,7 @@ pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
         Command::Report(args) => report_command(&args),
         Command::Table(args) => table_command(&args),
         Command::Submit(args) => submit_command(&args),
+        Command::Clean(args) => clean_command(&args),
     }
 }
 
@@ -249,14 +267,34 @@ fn read_study(path: &std::path::Path) -> Result<Study, String> {
     Ok(study)
 }
 
-/// The study, its solver and store, and the plan of its points.
+/// The study's store, once the study file is known to own it (see `store::owner`); a command
+/// that `writes` records the file as its owner.
+fn open_store(args: &CommonArgs, study: &Study, writes: bool) -> Result<Store, Failure> {
+    let store = Store::open(&args.results, &study.name);
+    let text = std::fs::read_to_string(&args.study).unwrap_or_default();
+    match store.claim(&args.study, &text, args.adopt, writes) {
+        Ok(()) => Ok(store),
+        Err(Refusal::Io(e)) => Err(e.into()),
+        Err(Refusal::OwnedBy(owner)) => Err(format!(
+            "{} holds the results of another study file of the same name `{}`: {}; give this study its own `name`, or --adopt to make {} the owner (the stored runs stay, and its points that are the same cases reuse them)",
+            store.table("").display(),
+            study.name,
+            owner.display(),
+            args.study.display()
+        )
+        .into()),
+    }
+}
+
+/// The study, its solver and store, and the plan of its points; see `open_store` for `writes`.
 fn planned(
     args: &CommonArgs,
     options: &Options,
-) -> Result<(Study, Nlsolve, Store, Vec<Planned>), String> {
+    writes: bool,
+) -> Result<(Study, Nlsolve, Store, Vec<Planned>), Failure> {
     let study = read_study(&args.study)?;
     let solver = Nlsolve::locate(args.solver.as_deref())?;
-    let store = Store::open(&args.results, &study.name);
+    let store = open_store(args, &study, writes)?;
     let index = store.index();
     for unreadable in &index.unreadable {
         say!("nlstudy: warning: {unreadable}");
@@ -267,7 +305,7 @@ fn planned(
 }
 
 fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
-    let (study, solver, _, planned) = planned(&args.common, &args.options())?;
+    let (study, solver, _, planned) = planned(&args.common, &args.options(), false)?;
     tell!(
         "study {}: {} points, solver {}",
         study.name,
@@ -327,7 +365,7 @@ fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {
 }
 
 fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
-    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options())?;
+    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
     no_refusals(&planned, args.plan.allow_refused)?;
     let cores = crate::run::pool::machine_cores();
     let timeout = match args.timeout {
@@ -427,7 +465,7 @@ fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
 }
 
 fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let (study, _, store, planned) = planned(args, &Options::default(), true)?;
     let collected =
         crate::analysis::collect::collect(&planned, &store, &study)?.ok_or_else(|| {
             format!(
@@ -454,14 +492,14 @@ fn plot_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
         )
         .into());
     }
-    let store = Store::open(&args.results, &study.name);
+    let store = open_store(args, &study, true)?;
     print_figures_drawn(&crate::output::plot::plot(&study.figures, &store)?);
     Ok(ExitCode::SUCCESS)
 }
 
 fn table_command(args: &TableArgs) -> Result<ExitCode, Failure> {
     let study = read_study(&args.common.study)?;
-    let store = Store::open(&args.common.results, &study.name);
+    let store = open_store(&args.common, &study, false)?;
     let path = store.table(&format!("{}-summary.parquet", study.name));
     if !path.exists() {
         return Err(format!(
@@ -518,7 +556,7 @@ fn print_tables_written(collected: &crate::analysis::collect::Collected) {
 }
 
 fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let (study, _, store, planned) = planned(args, &Options::default(), true)?;
     let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
     let page = crate::output::report::write(&study, &store, &swept)?;
     tell!("report: {}", page.display());
@@ -526,13 +564,13 @@ fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 }
 
 fn status_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(args, &Options::default())?;
+    let (study, _, store, planned) = planned(args, &Options::default(), false)?;
     tell_raw!("{}", status::render(&study.name, &store, &planned));
     Ok(ExitCode::SUCCESS)
 }
 
 fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
-    let (study, solver, store, planned) = planned(&args.common, &Options::default())?;
+    let (study, solver, store, planned) = planned(&args.common, &Options::default(), true)?;
     no_refusals(&planned, args.allow_refused)?;
     let target = submit::Target {
         scheduler: args.scheduler,
@@ -543,5 +581,34 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         retries: args.retries,
     };
     submit::submit_study(&study, &solver, &planned, &store, &target)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn clean_command(args: &CleanArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
+    let cleaned = crate::output::clean::clean(&study, &store, &planned, args.yes)?;
+    for figure in &cleaned.figures {
+        tell!("removed figures/{figure}: no figure of the study draws it");
+    }
+    if cleaned.orphans.is_empty() {
+        tell!("every stored record is a point of study {}", study.name);
+        return Ok(ExitCode::SUCCESS);
+    }
+    for (key, case) in &cleaned.orphans {
+        // A record on disk may hold anything: escaped for the terminal.
+        tell!("{key}  {}", case.escape_debug());
+    }
+    let count = cleaned.orphans.len();
+    if cleaned.deleted {
+        tell!(
+            "deleted {count} records that are no point of study {}",
+            study.name
+        );
+    } else {
+        tell!(
+            "{count} stored records are no point of study {} (removed from its sweep, or run by another solver version); `nlstudy clean --yes` deletes them",
+            study.name
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -14,6 +14,7 @@ use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
 pub mod fs;
+pub mod owner;
 pub mod table;
 
 use fs::{create_dir, lock_file, remove_where};

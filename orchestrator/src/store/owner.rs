@@ -1,0 +1,101 @@
+//! Which study file a results directory belongs to: `results/<study>/study-file.json` holds its
+//! path and the hash of its text when last used. A second file with the same `name` would
+//! otherwise write its tables and figures over the first's without a word.
+
+use crate::store::{hex, write_atomically, FileError, Store};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Deserialize, PartialEq, Serialize)]
+pub struct Owner {
+    /// The study file, as an absolute path with links resolved.
+    pub study_file: PathBuf,
+    /// SHA-256 of its text when a command last used it (it may change: a study is edited).
+    pub sha256: String,
+}
+
+/// Why a study may not use a results directory.
+#[derive(Debug)]
+pub enum Refusal {
+    /// Another study file owns it.
+    OwnedBy(PathBuf),
+    Io(FileError),
+}
+
+const FILE: &str = "study-file.json";
+
+impl Store {
+    /// The owner of the results directory, if one is written.
+    pub fn owner(&self) -> Option<Owner> {
+        let text = std::fs::read_to_string(self.table(FILE)).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+
+    /// Checks that `study_file` (whose text is `text`) owns the results directory, and with
+    /// `write` records it as the owner when none is, when it `adopt`s the directory, or when
+    /// its text changed. A directory another file owns is refused unless `adopt`.
+    pub fn claim(
+        &self,
+        study_file: &Path,
+        text: &str,
+        adopt: bool,
+        write: bool,
+    ) -> Result<(), Refusal> {
+        let path = std::fs::canonicalize(study_file).unwrap_or_else(|_| study_file.to_path_buf());
+        let me = Owner {
+            study_file: path,
+            sha256: hex(&Sha256::digest(text.as_bytes())),
+        };
+        let owner = self.owner();
+        match &owner {
+            Some(owner) if owner.study_file != me.study_file && !adopt => {
+                return Err(Refusal::OwnedBy(owner.study_file.clone()))
+            }
+            Some(owner) if *owner == me => return Ok(()),
+            _ if !write => return Ok(()),
+            _ => {}
+        }
+        let directory = self.table("");
+        crate::store::fs::create_dir(&directory).map_err(Refusal::Io)?;
+        let json = serde_json::to_string_pretty(&me).expect("an owner serializes");
+        write_atomically(&self.table(FILE), json.as_bytes()).map_err(Refusal::Io)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_second_file_of_the_same_name_is_refused_unless_it_adopts() {
+        let dir = std::env::temp_dir().join(format!("nlstudy-owner-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let (first, second) = (dir.join("a.json"), dir.join("b.json"));
+        std::fs::write(&first, "{}").unwrap();
+        std::fs::write(&second, "{}").unwrap();
+        let store = Store::open(&dir.join("results"), "s");
+
+        // Reading does not write; the first command that writes makes the file the owner.
+        store.claim(&first, "{}", false, false).unwrap();
+        assert_eq!(store.owner(), None);
+        store.claim(&first, "{}", false, true).unwrap();
+        let owner = store.owner().unwrap();
+        assert_eq!(owner.study_file, std::fs::canonicalize(&first).unwrap());
+        // An edited study is the same study; its new hash is kept.
+        store.claim(&first, "{\"edited\": 1}", false, true).unwrap();
+        assert_ne!(store.owner().unwrap().sha256, owner.sha256);
+
+        match store.claim(&second, "{}", false, true) {
+            Err(Refusal::OwnedBy(path)) => assert_eq!(path, owner.study_file),
+            other => panic!("{other:?}"),
+        }
+        store.claim(&second, "{}", true, true).unwrap();
+        assert_eq!(
+            store.owner().unwrap().study_file,
+            std::fs::canonicalize(&second).unwrap()
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
