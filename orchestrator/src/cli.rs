@@ -434,7 +434,7 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
                             print_figures_drawn(&figures);
                             say!("report: {}", page.display());
                         }
-                        Ok(())
+                        crate::output::plot::all_drawn(&figures)
                     }
                     None => Ok(()),
                 }
@@ -493,7 +493,12 @@ fn plot_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
         .into());
     }
     let store = open_store(args, &study, true)?;
-    print_figures_drawn(&crate::output::plot::plot(&study.figures, &store)?);
+    let figures = crate::output::plot::plot(&study.figures, &store)?;
+    print_figures_drawn(&figures);
+    crate::output::plot::all_drawn(&figures).map_err(|message| Failure {
+        message,
+        code: exit::CASE_FAILED,
+    })?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -522,12 +527,13 @@ fn table_command(args: &TableArgs) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_figures_drawn(figures: &[crate::output::plot::Drawn]) {
+fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {
+    use crate::output::plot::Outcome;
     for figure in figures {
-        let what = if figure.redrawn {
-            "drawn"
-        } else {
-            "up to date"
+        let what = match figure.outcome {
+            Outcome::Drawn => "drawn",
+            Outcome::UpToDate => "up to date",
+            Outcome::Failed(_) => "not drawn",
         };
         say!("figure {what}: {}", figure.path.display());
     }

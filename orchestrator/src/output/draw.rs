@@ -1,16 +1,24 @@
 //! Charts as SVG, through plotters: what a figure shows (panels of series, bands, guide lines
 //! and notes) is decided in `figure`; this module only draws it.
 //!
-//! Log axes are drawn in log₁₀ coordinates with ticks at decades (and at 2 and 5 when the
-//! data span few decades), so that linear and log axes share one chart type.
+//! Sizes are for a page read at 100 %: a figure is at most `PAGE` px wide (the report's column),
+//! several panels wrap two to a row so that each keeps at least 480 px, and every text is at
+//! least 14 px. Series are told apart by colour and by marker shape, which survives grey print.
+//!
+//! Log axes are drawn in log₁₀ coordinates with ticks at decades (at 1, 2 and 5 when the data
+//! span few decades, and at the data's own values when even those give fewer than three ticks),
+//! so that linear and log axes share one chart type. The labels of one axis share one notation.
 
+use crate::console::numbers_alike;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::ops::Range;
 
-/// One SVG: panels side by side under a title.
+/// One SVG: a title, a subtitle (what all its series share), and panels under them.
 pub struct Chart {
     pub title: String,
+    pub subtitle: String,
     pub panels: Vec<Panel>,
 }
 
@@ -52,7 +60,8 @@ pub struct Series {
     pub band: Vec<(f64, f64, f64)>,
     /// Points drawn as crosses, e.g. diverged runs.
     pub crosses: Vec<(f64, f64)>,
-    /// Text written beside the series' last point, e.g. its fitted slope.
+    /// Text written beside the series' last point, e.g. its fitted slope; the notes of a panel
+    /// are moved apart so that they do not overlap.
     pub note: Option<String>,
 }
 
@@ -66,13 +75,45 @@ pub enum Guide {
     },
     /// A vertical line across the panel.
     Vertical { label: String, x: f64 },
+    /// A reference slope: the right triangle whose hypotenuse runs from `triangle[0]` to
+    /// `triangle[1]`, with its right angle at `triangle[2]` under it; `slope` is written beside
+    /// its vertical leg and 1 under its horizontal one.
+    Slope {
+        triangle: [(f64, f64); 3],
+        slope: String,
+    },
 }
 
-const PANEL: (u32, u32) = (640, 480);
+/// The widest figure: the report's column (70em of 16 px, less its padding).
+const PAGE: u32 = 1040;
+/// A figure of one panel.
+const SINGLE: (u32, u32) = (720, 480);
+/// Each panel of a figure of several: two to a row across the page, each at least 480 px wide.
+const CELL: (u32, u32) = (PAGE / 2, 440);
 
-/// Fixed colours, in series order, so the same table gives the same picture.
+/// Text sizes in SVG pixels at 100 %.
+const TICK_PX: f64 = 14.0;
+const LEGEND_PX: f64 = 14.0;
+const NOTE_PX: f64 = 14.0;
+const AXIS_PX: f64 = 15.0;
+const SUBTITLE_PX: f64 = 15.0;
+const CAPTION_PX: f64 = 16.0;
+const TITLE_PX: f64 = 20.0;
+
+/// The font of `px` SVG pixels: plotters writes a font of size s as `font-size = s / 1.24`.
+fn font(px: f64) -> FontDesc<'static> {
+    ("sans-serif", px * 1.24).into_font()
+}
+
+/// About how wide a text is drawn (an average sans-serif letter is 0.55 em).
+fn text_width(text: &str, px: f64) -> u32 {
+    (text.chars().count() as f64 * 0.55 * px).ceil() as u32
+}
+
+/// Fixed colours, in series order, so the same table gives the same picture: twelve that
+/// stay apart on screen (Tableau 10, navy and teal), repeating only with another marker.
 fn colour(index: usize) -> RGBColor {
-    const PALETTE: [RGBColor; 8] = [
+    const PALETTE: [RGBColor; 12] = [
         RGBColor(31, 119, 180),
         RGBColor(214, 39, 40),
         RGBColor(44, 160, 44),
@@ -81,8 +122,33 @@ fn colour(index: usize) -> RGBColor {
         RGBColor(140, 86, 75),
         RGBColor(227, 119, 194),
         RGBColor(23, 190, 207),
+        RGBColor(188, 189, 34),
+        RGBColor(127, 127, 127),
+        RGBColor(25, 25, 112),
+        RGBColor(0, 128, 128),
     ];
     PALETTE[index % PALETTE.len()]
+}
+
+/// The marker of series `index`, as a polygon around the point in pixels: circle, square,
+/// triangle, diamond, inverted triangle. Five shapes against twelve colours: no two of the
+/// first sixty series look alike.
+fn marker(index: usize) -> Vec<(i32, i32)> {
+    match index % 5 {
+        0 => (0..12)
+            .map(|k| {
+                let angle = f64::from(k) * std::f64::consts::PI / 6.0;
+                (
+                    (4.5 * angle.cos()).round() as i32,
+                    (4.5 * angle.sin()).round() as i32,
+                )
+            })
+            .collect(),
+        1 => vec![(-4, -4), (4, -4), (4, 4), (-4, 4)],
+        2 => vec![(0, -5), (5, 4), (-5, 4)],
+        3 => vec![(0, -6), (5, 0), (0, 6), (-5, 0)],
+        _ => vec![(0, 5), (5, -4), (-5, -4)],
+    }
 }
 
 impl Axis {
@@ -107,10 +173,21 @@ impl Axis {
     pub fn fitting(label: impl Into<String>, values: impl IntoIterator<Item = f64>) -> Axis {
         let (lo, hi) = span(values.into_iter().filter(|v| v.is_finite()));
         Axis {
-            label: label.into(),
             log: lo > 0.0 && hi / lo >= 10.0,
-            include: Vec::new(),
-            whole: false,
+            ..Axis::linear(label)
+        }
+    }
+
+    /// Log when no value is negative and some are positive, however narrow their span: orders
+    /// are read as slopes. A zero (an error exact to the last bit) has no place on it.
+    pub fn log_if_positive(
+        label: impl Into<String>,
+        values: impl IntoIterator<Item = f64>,
+    ) -> Axis {
+        let (lo, hi) = span(values.into_iter().filter(|v| v.is_finite()));
+        Axis {
+            log: lo >= 0.0 && hi > 0.0,
+            ..Axis::linear(label)
         }
     }
 
@@ -122,13 +199,26 @@ impl Axis {
         }
     }
 
-    /// The axis's range in drawing coordinates, from the values it shows, padded.
-    fn range(&self, values: impl Iterator<Item = f64>) -> (f64, f64) {
-        let shown = values
+    fn from(&self, t: f64) -> f64 {
+        if self.log {
+            10f64.powf(t)
+        } else {
+            t
+        }
+    }
+
+    /// The values it shows in drawing coordinates: finite, and positive on a log axis.
+    fn shown(&self, values: impl Iterator<Item = f64>) -> Vec<f64> {
+        values
             .chain(self.include.iter().copied())
             .filter(|v| v.is_finite() && (!self.log || *v > 0.0))
-            .map(|v| self.to(v));
-        let (lo, hi) = span(shown);
+            .map(|v| self.to(v))
+            .collect()
+    }
+
+    /// The axis's range in drawing coordinates, from the values it shows, padded.
+    fn range(shown: &[f64]) -> (f64, f64) {
+        let (lo, hi) = span(shown.iter().copied());
         if !lo.is_finite() {
             return (0.0, 1.0);
         }
@@ -136,8 +226,8 @@ impl Axis {
         (lo - pad, hi + pad)
     }
 
-    /// Tick positions in drawing coordinates.
-    fn ticks(&self, (lo, hi): (f64, f64)) -> Vec<f64> {
+    /// Tick positions in drawing coordinates over the range, given the values measured.
+    fn ticks(&self, (lo, hi): (f64, f64), shown: &[f64]) -> Vec<f64> {
         if !self.log {
             let mut ticks = linear_ticks(lo, hi);
             if self.whole {
@@ -151,27 +241,78 @@ impl Axis {
                 .flat_map(|k| [1.0f64, 2.0, 5.0].map(|m| f64::from(k) + m.log10()))
                 .collect()
         } else {
-            let step = ((hi - lo) / 6.0).ceil() as i32;
+            let step = ((hi - lo) / 8.0).ceil() as i32;
             decades.filter(|k| k % step == 0).map(f64::from).collect()
         };
         ticks.retain(|t| (lo..=hi).contains(t));
+        if ticks.len() < 3 {
+            // Less than a factor 2.5 (h from 1/32 to 1/64): the values themselves, at most eight.
+            let mut own = shown.to_vec();
+            own.sort_by(f64::total_cmp);
+            own.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+            let every = own.len().div_ceil(8).max(1);
+            let own: Vec<f64> = own.into_iter().step_by(every).collect();
+            if own.len() > ticks.len() {
+                return own;
+            }
+        }
         ticks
     }
 
-    fn tick_label(&self, t: f64) -> String {
-        if self.log {
-            short_number(10f64.powf(t))
-        } else {
-            short_number(t)
+    /// The ticks with their labels, in one notation. Ticks from 1 to 10⁵ and more, which
+    /// `console::number` writes in full, are written in thousands, millions, …, the power
+    /// going into the axis's label.
+    fn ticked(&self, range: (f64, f64), shown: &[f64]) -> Ticked {
+        let ticks = self.ticks(range, shown);
+        let values: Vec<f64> = ticks.iter().map(|&t| self.from(t)).collect();
+        let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let counts = values.iter().all(|v| *v == 0.0 || v.abs() >= 1.0);
+        let in_full = largest >= 1e5 && counts;
+        let power = match in_full {
+            true => 3 * (largest.log10() / 3.0).floor() as i32,
+            false => 0,
+        };
+        let scaled: Vec<f64> = values.iter().map(|v| v / 10f64.powi(power)).collect();
+        Ticked {
+            lo: range.0,
+            hi: range.1,
+            labels: numbers_alike(&scaled),
+            ticks,
+            power,
         }
     }
 }
 
-/// A linear coordinate with the ticks we choose (plotters' own f64 axis picks its ticks itself).
+/// A linear coordinate with the ticks we choose (plotters' own f64 axis picks its ticks itself)
+/// and their labels.
+#[derive(Clone)]
 struct Ticked {
     lo: f64,
     hi: f64,
     ticks: Vec<f64>,
+    labels: Vec<String>,
+    /// The labels are the values over 10^power.
+    power: i32,
+}
+
+impl Ticked {
+    /// Ticks on a linear scale over [lo, hi] (a heat map's sides, a colour bar).
+    fn linear(lo: f64, hi: f64) -> Ticked {
+        Axis::linear("").ticked((lo, hi), &[])
+    }
+
+    /// The axis's description, with the power its labels leave out.
+    fn describe(&self, label: &str) -> String {
+        match self.power {
+            0 => label.to_string(),
+            power => format!("{label} (×1e{power})"),
+        }
+    }
+
+    fn label(&self, t: f64) -> String {
+        let at = self.ticks.iter().position(|&k| k == t);
+        at.map(|k| self.labels[k].clone()).unwrap_or_default()
+    }
 }
 
 impl Ranged for Ticked {
@@ -213,18 +354,38 @@ fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
     (first..=last).map(|k| k as f64 * step).collect()
 }
 
-/// Short and exact enough for a tick: 0.001, 2.5, 1e-6, 3e5.
-fn short_number(v: f64) -> String {
-    let magnitude = v.abs();
-    if v == 0.0 {
-        "0".into()
-    } else if !(1e-3..1e5).contains(&magnitude) {
-        let text = format!("{v:.1e}");
-        text.replace(".0e", "e")
-    } else {
-        let text = format!("{v:.4}");
-        text.trim_end_matches('0').trim_end_matches('.').to_string()
+/// Lines of at most `width` characters, broken at spaces (a longer word keeps its own line).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split_whitespace() {
+        match lines.last_mut() {
+            Some(line) if line.chars().count() + 1 + word.chars().count() <= width => {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
     }
+    lines
+}
+
+/// Positions for labels wanted at `wanted` (pixels, in any order): each as near its own as a
+/// gap of at least `gap` between neighbours allows, kept within [lo, hi] while they fit.
+fn spread(wanted: &[f64], gap: f64, (lo, hi): (f64, f64)) -> Vec<f64> {
+    let mut order: Vec<usize> = (0..wanted.len()).collect();
+    order.sort_by(|&a, &b| wanted[a].total_cmp(&wanted[b]));
+    let mut placed = wanted.to_vec();
+    let mut previous = f64::NEG_INFINITY;
+    for &i in &order {
+        placed[i] = wanted[i].max(lo).max(previous + gap);
+        previous = placed[i];
+    }
+    let mut next = f64::INFINITY;
+    for &i in order.iter().rev() {
+        placed[i] = placed[i].min(hi).min(next - gap);
+        next = placed[i];
+    }
+    placed
 }
 
 /// Linear interpolation between colour stops at equal spacing over [0, 1].
@@ -282,36 +443,32 @@ impl HeatMap {
     }
 }
 
-const COLOUR_BAR: u32 = 110;
+const COLOUR_BAR: u32 = 120;
 
 /// The cells coloured by value, and beside them a colour bar with its scale.
 fn draw_heat_map(panel: &Panel, heat: &HeatMap, area: &Area, caption: bool) -> DrawResult {
     let (width, _) = area.dim_in_pixel();
     let (cells, bar) = area.split_horizontally(width.saturating_sub(COLOUR_BAR));
     let (lo, hi) = (heat.lower, heat.upper);
-    let axis = || Ticked {
-        lo,
-        hi,
-        ticks: linear_ticks(lo, hi),
-    };
     let mut builder = ChartBuilder::on(&cells);
     if caption {
-        builder.caption(&panel.title, ("sans-serif", 17));
+        builder.caption(&panel.title, font(CAPTION_PX));
     }
+    let side = Ticked::linear(lo, hi);
     let mut chart = builder
         .margin(14)
-        .x_label_area_size(50)
-        .y_label_area_size(60)
-        .build_cartesian_2d(axis(), axis())?;
+        .x_label_area_size(56)
+        .y_label_area_size(70)
+        .build_cartesian_2d(side.clone(), side.clone())?;
     chart
         .configure_mesh()
         .disable_mesh()
-        .x_desc(&panel.x.label)
-        .y_desc(&panel.y.label)
-        .x_label_formatter(&|t| short_number(*t))
-        .y_label_formatter(&|t| short_number(*t))
-        .label_style(("sans-serif", 14))
-        .axis_desc_style(("sans-serif", 15))
+        .x_desc(side.describe(&panel.x.label))
+        .y_desc(side.describe(&panel.y.label))
+        .x_label_formatter(&|t| side.label(*t))
+        .y_label_formatter(&|t| side.label(*t))
+        .label_style(font(TICK_PX))
+        .axis_desc_style(font(AXIS_PX))
         .draw()?;
     let scale = heat.scale();
     let (dx, dy) = ((hi - lo) / heat.nx as f64, (hi - lo) / heat.ny as f64);
@@ -326,24 +483,23 @@ fn draw_heat_map(panel: &Panel, heat: &HeatMap, area: &Area, caption: bool) -> D
 
     let mut builder = ChartBuilder::on(&bar);
     builder
-        .margin_top(if caption { 44 } else { 14 })
-        .margin_bottom(64)
+        .margin_top(if caption { 48 } else { 14 })
+        .margin_bottom(70)
         .margin_right(8)
-        .set_label_area_size(LabelAreaPosition::Right, 70);
-    let mut key = builder.build_cartesian_2d(
-        0.0..1.0,
-        Ticked {
-            lo: scale.0,
-            hi: scale.1,
-            ticks: linear_ticks(scale.0, scale.1),
-        },
-    )?;
-    key.configure_mesh()
-        .disable_mesh()
+        .set_label_area_size(LabelAreaPosition::Right, 80);
+    let levels = Ticked::linear(scale.0, scale.1);
+    let mut key = builder.build_cartesian_2d(0.0..1.0, levels.clone())?;
+    let level_label = |t: &f64| levels.label(*t);
+    let mut mesh = key.configure_mesh();
+    mesh.disable_mesh()
         .disable_x_axis()
-        .y_label_formatter(&|t| short_number(*t))
-        .label_style(("sans-serif", 13))
-        .draw()?;
+        .y_label_formatter(&level_label)
+        .label_style(font(TICK_PX))
+        .axis_desc_style(font(AXIS_PX));
+    if levels.power != 0 {
+        mesh.y_desc(levels.describe("").trim_start());
+    }
+    mesh.draw()?;
     const LEVELS: usize = 64;
     let step = (scale.1 - scale.0) / LEVELS as f64;
     key.draw_series((0..LEVELS).map(|k| {
@@ -354,11 +510,12 @@ fn draw_heat_map(panel: &Panel, heat: &HeatMap, area: &Area, caption: bool) -> D
     Ok(())
 }
 
-/// An entry of the legend under the panels.
+/// An entry of the legend: a series (its colour and marker) or a dashed guide.
 struct Entry<'a> {
     label: &'a str,
     colour: RGBColor,
-    dashed: bool,
+    /// The series' index for its marker; none for a guide, drawn dashed.
+    marker: Option<usize>,
 }
 
 /// The legend: every labelled series and guide of the panels, once each, in order.
@@ -368,19 +525,20 @@ fn legend(chart: &Chart) -> Vec<Entry<'_>> {
         let series = panel.series.iter().enumerate().map(|(k, s)| Entry {
             label: &s.label,
             colour: colour(k),
-            dashed: false,
+            marker: Some(k),
         });
         let guides = panel.guides.iter().filter_map(|g| match g {
             Guide::Dashed { label, of, .. } => Some(Entry {
                 label: label.as_deref()?,
                 colour: of.map_or(BLACK, colour),
-                dashed: true,
+                marker: None,
             }),
             Guide::Vertical { label, .. } => Some(Entry {
                 label,
                 colour: BLACK,
-                dashed: true,
+                marker: None,
             }),
+            Guide::Slope { .. } => None,
         });
         for entry in series.chain(guides) {
             if !entries.iter().any(|e| e.label == entry.label) {
@@ -391,33 +549,83 @@ fn legend(chart: &Chart) -> Vec<Entry<'_>> {
     entries
 }
 
-const LEGEND_ROW: u32 = 22;
-const LEGEND_COLUMN: u32 = 480;
+const LEGEND_ROW: u32 = 24;
+/// The line and marker before an entry's text.
+const LEGEND_KEY: u32 = 48;
 
-/// The chart as SVG text: the title, the panels side by side, and one legend under them.
+/// Where the panels go: how many to a row, and the size of each.
+fn grid(panels: usize) -> (usize, (u32, u32)) {
+    match panels {
+        0 | 1 => (1, SINGLE),
+        _ => (2, CELL),
+    }
+}
+
+/// The chart as SVG text: the title and subtitle, the panels (wrapped two to a row), and one
+/// legend, in the grid's spare cell when it has one the legend fits in, else under the panels.
 pub fn render(chart: &Chart) -> Result<String, String> {
-    let mut svg = String::new();
-    // Wide enough for the title too (about 10 px a character at its size).
-    let title_width = 10 * chart.title.chars().count() as u32 + 40;
-    let width = (PANEL.0 * chart.panels.len().max(1) as u32).max(title_width);
+    let count = chart.panels.len().max(1);
+    let (columns, cell) = grid(count);
+    let rows = count.div_ceil(columns);
+    let width = cell.0 * columns as u32;
+    let title = wrap(
+        &chart.title,
+        ((width - 40) as f64 / (0.55 * TITLE_PX)) as usize,
+    );
+    let subtitle = wrap(
+        &chart.subtitle,
+        ((width - 40) as f64 / (0.55 * SUBTITLE_PX)) as usize,
+    );
+    let header = 14 + 28 * title.len() as u32 + 22 * subtitle.len() as u32;
+
     let entries = legend(chart);
-    let columns = (width / LEGEND_COLUMN).max(1);
-    let rows = (entries.len() as u32).div_ceil(columns);
-    let height = PANEL.1 + rows * LEGEND_ROW + 10;
+    let entry_width = entries
+        .iter()
+        .map(|e| LEGEND_KEY + text_width(e.label, LEGEND_PX) + 24)
+        .max()
+        .unwrap_or(0);
+    let spare = !count.is_multiple_of(columns)
+        && entry_width <= cell.0
+        && (entries.len() as u32 + 1) * LEGEND_ROW <= cell.1;
+    let legend_columns = (width / entry_width.max(1)).max(1);
+    let legend_height = match spare || entries.is_empty() {
+        true => 0,
+        false => (entries.len() as u32).div_ceil(legend_columns) * LEGEND_ROW + 16,
+    };
+    let height = header + cell.1 * rows as u32 + legend_height;
+
+    let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
         let failed = |e: &dyn std::fmt::Display| format!("cannot draw `{}`: {e}", chart.title);
         root.fill(&WHITE).map_err(|e| failed(&e))?;
-        let root = root
-            .titled(&chart.title, ("sans-serif", 20))
-            .map_err(|e| failed(&e))?;
-        let (plots, key) = root.split_vertically(PANEL.1 - 30);
-        let areas = plots.split_evenly((1, chart.panels.len().max(1)));
+        let centred = Pos::new(HPos::Center, VPos::Top);
+        let lines = title
+            .iter()
+            .map(|l| (l, TITLE_PX, 28))
+            .chain(subtitle.iter().map(|l| (l, SUBTITLE_PX, 22)));
+        let mut y = 10;
+        for (line, px, step) in lines {
+            let text = Text::new(
+                line.clone(),
+                (width as i32 / 2, y),
+                TextStyle::from(font(px)).pos(centred),
+            );
+            root.draw(&text).map_err(|e| failed(&e))?;
+            y += step;
+        }
+        let (_, body) = root.split_vertically(header);
+        let (plots, key) = body.split_vertically(cell.1 * rows as u32);
+        let areas = plots.split_evenly((rows, columns));
         let captions = chart.panels.len() > 1;
         for (panel, area) in chart.panels.iter().zip(&areas) {
             draw_panel(panel, area, captions).map_err(|e| failed(&e))?;
         }
-        draw_legend(&entries, &key, columns).map_err(|e| failed(&e))?;
+        let (key, key_columns) = match spare {
+            true => (&areas[count], 1),
+            false => (&key, legend_columns),
+        };
+        draw_legend(&entries, key, key_columns, entry_width).map_err(|e| failed(&e))?;
         root.present().map_err(|e| failed(&e))?;
     }
     Ok(svg)
@@ -426,87 +634,97 @@ pub fn render(chart: &Chart) -> Result<String, String> {
 type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 type DrawResult = Result<(), DrawingAreaErrorKind<std::io::Error>>;
 
-fn draw_legend(entries: &[Entry], area: &Area, columns: u32) -> DrawResult {
+fn draw_legend(entries: &[Entry], area: &Area, columns: u32, entry_width: u32) -> DrawResult {
     for (k, entry) in entries.iter().enumerate() {
         let (row, column) = (k as u32 / columns, k as u32 % columns);
-        let x = (20 + column * LEGEND_COLUMN) as i32;
+        let x = (20 + column * entry_width) as i32;
         let y = (8 + row * LEGEND_ROW) as i32 + LEGEND_ROW as i32 / 2;
         let style = entry.colour.stroke_width(2);
-        if entry.dashed {
-            for dash in [0, 12, 24] {
-                area.draw(&PathElement::new(
-                    vec![(x + dash, y), (x + dash + 7, y)],
-                    style,
-                ))?;
+        match entry.marker {
+            None => {
+                for dash in [0, 12, 24] {
+                    area.draw(&PathElement::new(
+                        vec![(x + dash, y), (x + dash + 7, y)],
+                        style,
+                    ))?;
+                }
             }
-        } else {
-            area.draw(&PathElement::new(vec![(x, y), (x + 30, y)], style))?;
-            area.draw(&Circle::new((x + 15, y), 3, entry.colour.filled()))?;
+            Some(k) => {
+                area.draw(&PathElement::new(vec![(x, y), (x + 32, y)], style))?;
+                let shape = Polygon::new(marker(k), entry.colour.filled());
+                area.draw(&(EmptyElement::at((x + 16, y)) + shape))?;
+            }
         }
-        let font = ("sans-serif", 14).into_font();
-        area.draw(&Text::new(entry.label.to_string(), (x + 40, y - 7), font))?;
+        let left = Pos::new(HPos::Left, VPos::Center);
+        let text = Text::new(
+            entry.label.to_string(),
+            (x + LEGEND_KEY as i32, y),
+            TextStyle::from(font(LEGEND_PX)).pos(left),
+        );
+        area.draw(&text)?;
     }
     Ok(())
+}
+
+/// Every x (`pick` 0) or y (`pick` 1) a panel's series and guides draw.
+fn coordinates(panel: &Panel, pick: fn(&(f64, f64)) -> f64, bands: bool) -> Vec<f64> {
+    let series = panel.series.iter().flat_map(|s| {
+        let band = s.band.iter().flat_map(move |b| match bands {
+            true => vec![b.1, b.2],
+            false => vec![b.0],
+        });
+        s.points.iter().chain(&s.crosses).map(pick).chain(band)
+    });
+    let guides = panel.guides.iter().flat_map(|g| match g {
+        Guide::Dashed { points, .. } => points.iter().map(pick).collect::<Vec<_>>(),
+        Guide::Vertical { x, .. } => match bands {
+            true => Vec::new(),
+            false => vec![*x],
+        },
+        Guide::Slope { triangle, .. } => triangle.iter().map(pick).collect(),
+    });
+    series.chain(guides).collect()
 }
 
 fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
     if let Some(heat) = &panel.heat {
         return draw_heat_map(panel, heat, area, caption);
     }
-    let xs = panel
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().chain(&s.crosses).map(|p| p.0))
-        .chain(panel.guides.iter().flat_map(|g| match g {
-            Guide::Dashed { points, .. } => points.iter().map(|p| p.0).collect::<Vec<_>>(),
-            Guide::Vertical { x, .. } => vec![*x],
-        }));
-    let ys = panel
-        .series
-        .iter()
-        .flat_map(|s| {
-            let band = s.band.iter().flat_map(|b| [b.1, b.2]);
-            s.points
-                .iter()
-                .chain(&s.crosses)
-                .map(|p| p.1)
-                .chain(band)
-                .collect::<Vec<_>>()
-        })
-        .chain(panel.guides.iter().flat_map(|g| match g {
-            Guide::Dashed { points, .. } => points.iter().map(|p| p.1).collect::<Vec<_>>(),
-            Guide::Vertical { .. } => Vec::new(),
-        }));
     let (x, y) = (&panel.x, &panel.y);
-    let (x_range, y_range) = (x.range(xs), y.range(ys));
+    let xs = x.shown(coordinates(panel, |p| p.0, false).into_iter());
+    let ys = y.shown(coordinates(panel, |p| p.1, true).into_iter());
+    let (x_range, y_range) = (Axis::range(&xs), Axis::range(&ys));
+    let notes: Vec<(usize, &str)> = panel
+        .series
+        .iter()
+        .enumerate()
+        .filter_map(|(k, s)| Some((k, s.note.as_deref()?)))
+        .collect();
+    let note_room = notes.iter().map(|(_, n)| text_width(n, NOTE_PX) + 12).max();
     let mut builder = ChartBuilder::on(area);
     if caption {
-        builder.caption(&panel.title, ("sans-serif", 17));
+        builder.caption(&panel.title, font(CAPTION_PX));
     }
+    // Ticks at the data's own values come from the series, not from where guides are drawn.
+    let measured = |pick: fn(&(f64, f64)) -> f64, axis: &Axis| {
+        axis.shown(panel.series.iter().flat_map(|s| s.points.iter().map(pick)))
+    };
+    let x_ticks = x.ticked(x_range, &measured(|p| p.0, x));
+    let y_ticks = y.ticked(y_range, &measured(|p| p.1, y));
     let mut chart = builder
         .margin(14)
-        .x_label_area_size(50)
-        .y_label_area_size(78)
-        .build_cartesian_2d(
-            Ticked {
-                lo: x_range.0,
-                hi: x_range.1,
-                ticks: x.ticks(x_range),
-            },
-            Ticked {
-                lo: y_range.0,
-                hi: y_range.1,
-                ticks: y.ticks(y_range),
-            },
-        )?;
+        .margin_right(14 + note_room.unwrap_or(0))
+        .x_label_area_size(56)
+        .y_label_area_size(90)
+        .build_cartesian_2d(x_ticks.clone(), y_ticks.clone())?;
     chart
         .configure_mesh()
-        .x_desc(&x.label)
-        .y_desc(&y.label)
-        .x_label_formatter(&|t| x.tick_label(*t))
-        .y_label_formatter(&|t| y.tick_label(*t))
-        .label_style(("sans-serif", 14))
-        .axis_desc_style(("sans-serif", 15))
+        .x_desc(x_ticks.describe(&x.label))
+        .y_desc(y_ticks.describe(&y.label))
+        .x_label_formatter(&|t| x_ticks.label(*t))
+        .y_label_formatter(&|t| y_ticks.label(*t))
+        .label_style(font(TICK_PX))
+        .axis_desc_style(font(AXIS_PX))
         .light_line_style(WHITE.mix(0.0))
         .draw()?;
     let at = |(px, py): (f64, f64)| (x.to(px), y.to(py));
@@ -514,6 +732,7 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
         let (px, py) = at(*p);
         px.is_finite() && py.is_finite()
     };
+    let mut last_points = Vec::new();
     for (k, series) in panel.series.iter().enumerate() {
         let style = colour(k);
         let band: Vec<(f64, f64)> = series
@@ -533,16 +752,35 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
             .map(|p| at(*p))
             .collect();
         chart.draw_series(LineSeries::new(points.clone(), style.stroke_width(2)))?;
-        chart.draw_series(points.iter().map(|p| Circle::new(*p, 3, style.filled())))?;
+        let shape = marker(k);
+        chart.draw_series(
+            points
+                .iter()
+                .map(|p| EmptyElement::at(*p) + Polygon::new(shape.clone(), style.filled())),
+        )?;
         let crosses = series.crosses.iter().filter(|p| visible(p));
         chart.draw_series(crosses.map(|p| Cross::new(at(*p), 6, style.stroke_width(2))))?;
-        if let (Some(note), Some(last)) = (&series.note, points.last()) {
-            chart.draw_series(std::iter::once(Text::new(
-                note.clone(),
-                *last,
-                ("sans-serif", 14).into_font().color(&style),
-            )))?;
-        }
+        last_points.push(points.last().copied());
+    }
+    // The notes beside the last points, stacked apart where they would overlap.
+    let placed: Vec<(usize, &str, (f64, f64))> = notes
+        .iter()
+        .filter_map(|&(k, note)| Some((k, note, last_points[k]?)))
+        .collect();
+    let wanted: Vec<f64> = placed
+        .iter()
+        .map(|(_, _, p)| f64::from(chart.backend_coord(p).1))
+        .collect();
+    let (_, rows) = chart.plotting_area().get_pixel_range();
+    let bounds = (f64::from(rows.start) + 8.0, f64::from(rows.end) - 8.0);
+    let stacked = spread(&wanted, NOTE_PX + 4.0, bounds);
+    for ((&(k, note, point), wanted), stacked) in placed.iter().zip(&wanted).zip(&stacked) {
+        let offset = (10, (stacked - wanted).round() as i32);
+        let style = font(NOTE_PX)
+            .color(&colour(k))
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        let text = Text::new(note.to_string(), offset, style);
+        chart.draw_series(std::iter::once(EmptyElement::at(point) + text))?;
     }
     for guide in &panel.guides {
         match guide {
@@ -559,6 +797,32 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
                 let line = vec![(x.to(*vx), y_range.0), (x.to(*vx), y_range.1)];
                 chart.draw_series(DashedLineSeries::new(line, 6, 4, BLACK.stroke_width(1)))?;
             }
+            Guide::Slope { triangle, slope } => {
+                let [start, end, corner] = triangle.map(at);
+                let outline = vec![start, end, corner, start];
+                chart.draw_series(std::iter::once(PathElement::new(outline, BLACK)))?;
+                // The vertical leg joins the corner to the hypotenuse's end above it.
+                let top = if start.0 == corner.0 { start } else { end };
+                let across = if start.0 == corner.0 { end } else { start };
+                let beside = match corner.0 > across.0 {
+                    true => (6, Pos::new(HPos::Left, VPos::Center)),
+                    false => (-6, Pos::new(HPos::Right, VPos::Center)),
+                };
+                let rise = EmptyElement::at((corner.0, 0.5 * (corner.1 + top.1)))
+                    + Text::new(
+                        slope.clone(),
+                        (beside.0, 0),
+                        TextStyle::from(font(NOTE_PX)).pos(beside.1),
+                    );
+                let run = EmptyElement::at((0.5 * (corner.0 + across.0), corner.1))
+                    + Text::new(
+                        "1",
+                        (0, 4),
+                        TextStyle::from(font(NOTE_PX)).pos(Pos::new(HPos::Center, VPos::Top)),
+                    );
+                chart.draw_series(std::iter::once(rise))?;
+                chart.draw_series(std::iter::once(run))?;
+            }
         }
     }
     Ok(())
@@ -568,36 +832,77 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
 mod tests {
     use super::*;
 
+    fn labels(axis: &Axis, range: (f64, f64), shown: &[f64]) -> Vec<String> {
+        axis.ticked(range, shown).labels
+    }
+
     #[test]
-    fn ticks_fall_on_round_numbers() {
+    fn ticks_fall_on_round_numbers_in_one_notation_per_axis() {
         assert_eq!(
             linear_ticks(0.0, 1.05),
             [0.0, 0.2, 0.4, 0.6000000000000001, 0.8, 1.0]
         );
         let counts = Axis::linear("").counting();
-        let workers: Vec<f64> = counts.ticks((0.9, 2.1));
-        assert_eq!(workers, [1.0, 2.0]);
+        assert_eq!(counts.ticks((0.9, 2.1), &[]), [1.0, 2.0]);
         let log = Axis {
             log: true,
             ..Axis::linear("")
         };
-        let decades: Vec<String> = log
-            .ticks((-6.2, -1.9))
-            .iter()
-            .map(|t| log.tick_label(*t))
-            .collect();
-        assert_eq!(decades, ["1e-6", "1e-5", "1e-4", "0.001", "0.01"]);
-        let narrow: Vec<String> = log
-            .ticks((-0.1, 0.75))
-            .iter()
-            .map(|t| log.tick_label(*t))
-            .collect();
-        assert_eq!(narrow, ["1", "2", "5"]);
-        let decade: Vec<String> = log
-            .ticks((-0.66, 0.75))
-            .iter()
-            .map(|t| log.tick_label(*t))
-            .collect();
-        assert_eq!(decade, ["0.5", "1", "2", "5"]);
+        // Not `1e-4` beside `0.01`: every label of the axis in the notation one of them needs.
+        assert_eq!(
+            labels(&log, (-6.2, -1.9), &[]),
+            ["1e-6", "1e-5", "1e-4", "1e-3", "1e-2"]
+        );
+        assert_eq!(labels(&log, (-0.1, 0.75), &[]), ["1", "2", "5"]);
+        assert_eq!(labels(&log, (-0.66, 0.75), &[]), ["0.5", "1", "2", "5"]);
+        // Not 100000000000: large values in a power of ten the axis's label states.
+        let rates = log.ticked((7.9, 11.1), &[]);
+        assert_eq!(rates.labels, ["0.1", "1", "10", "100"]);
+        assert_eq!(rates.describe("updates per s"), "updates per s (×1e9)");
+        // An axis with fractions too keeps its values.
+        let blowup = log.ticked((-2.1, 6.1), &[]);
+        assert_eq!((blowup.labels[0].as_str(), blowup.power), ("0.01", 0));
+        // h from 1/64 to 1/16 spans less than a decade: 1, 2, 5 give two ticks, the grids three.
+        let h: Vec<f64> = [64.0f64, 32.0, 16.0].iter().map(|n| -n.log10()).collect();
+        let range = Axis::range(&h);
+        assert_eq!(labels(&log, range, &h), ["0.01563", "0.03125", "0.0625"]);
+    }
+
+    #[test]
+    fn notes_are_moved_apart_by_the_gap_within_the_panel() {
+        let placed = spread(&[103.0, 100.0, 300.0], 18.0, (0.0, 400.0));
+        assert_eq!(
+            placed,
+            [118.0, 100.0, 300.0],
+            "the lower moves, the apart one stays"
+        );
+        // At the bottom there is no room below: they stack upwards.
+        let placed = spread(&[398.0, 399.0, 400.0], 18.0, (0.0, 400.0));
+        assert_eq!(placed, [364.0, 382.0, 400.0]);
+    }
+
+    #[test]
+    fn series_stay_apart_by_colour_and_marker_past_twelve() {
+        let colours: Vec<RGBColor> = (0..12).map(colour).collect();
+        for (k, c) in colours.iter().enumerate() {
+            assert!(!colours[..k].contains(c), "colour {k} repeats");
+        }
+        let looks: Vec<(RGBColor, Vec<(i32, i32)>)> =
+            (0..60).map(|k| (colour(k), marker(k))).collect();
+        for (k, look) in looks.iter().enumerate() {
+            assert!(
+                !looks[..k].contains(look),
+                "series {k} looks like an earlier one"
+            );
+        }
+    }
+
+    #[test]
+    fn long_titles_wrap_at_spaces() {
+        assert_eq!(
+            wrap("Strong scaling over threads: nonlocal", 16),
+            ["Strong scaling", "over threads:", "nonlocal"]
+        );
+        assert!(wrap("", 10).is_empty());
     }
 }

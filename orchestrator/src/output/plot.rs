@@ -10,14 +10,23 @@ use crate::store::{self, Store};
 use sha2::{Digest, Sha256};
 use std::path::PathBuf;
 
-pub struct Drawn {
-    pub path: PathBuf,
-    /// False when the figure was up to date.
-    pub redrawn: bool,
+/// What became of one figure.
+#[derive(Debug, PartialEq)]
+pub enum Outcome {
+    Drawn,
+    UpToDate,
+    /// Why it could not be drawn, naming the figure; its stale SVG is removed.
+    Failed(String),
 }
 
-/// Draws the figures whose stamps are stale; the summary table must exist.
-pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Drawn>, String> {
+pub struct Figure {
+    pub path: PathBuf,
+    pub outcome: Outcome,
+}
+
+/// Draws the figures whose stamps are stale, every one it can: a figure that fails does not
+/// stop the others. Fails as a whole only when the summary table cannot be read.
+pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String> {
     let _outputs = store
         .lock_outputs()
         .map_err(|e| format!("cannot lock the figures of {}: {e}", store.study))?;
@@ -35,7 +44,7 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Drawn>, String>
         .unwrap_or_default();
     let directory = store.table("figures");
     let mut rows = None;
-    let mut drawn = Vec::new();
+    let mut outcomes = Vec::new();
     for (k, spec) in figures.iter().enumerate() {
         let path = directory.join(format!("{}.svg", spec.name));
         let stamp_path = directory.join(format!(".{}.stamp", spec.name));
@@ -45,27 +54,56 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Drawn>, String>
         );
         let current = std::fs::read_to_string(&stamp_path).is_ok_and(|s| s == stamp);
         if current && path.exists() {
-            drawn.push(Drawn {
+            outcomes.push(Figure {
                 path,
-                redrawn: false,
+                outcome: Outcome::UpToDate,
             });
             continue;
         }
         if rows.is_none() {
             rows = Some(table::read_parquet(&table_path)?);
         }
-        let chart = figure::chart(spec, k, rows.as_deref().unwrap_or_default())?;
-        let svg = draw::render(&chart)?;
-        std::fs::create_dir_all(&directory)
-            .map_err(|e| format!("cannot create {}: {e}", directory.display()))?;
-        store::write_atomically(&path, svg.as_bytes())?;
-        store::write_atomically(&stamp_path, stamp.as_bytes())?;
-        drawn.push(Drawn {
-            path,
-            redrawn: true,
+        let rows = rows.as_deref().unwrap_or_default();
+        let drawn = figure::chart(spec, k, rows).and_then(|chart| {
+            let written = draw::render(&chart).and_then(|svg| {
+                std::fs::create_dir_all(&directory)
+                    .map_err(|e| format!("cannot create {}: {e}", directory.display()))?;
+                store::write_atomically(&path, svg.as_bytes())?;
+                Ok(store::write_atomically(&stamp_path, stamp.as_bytes())?)
+            });
+            written.map_err(|e| figure::fault(k, spec, e))
         });
+        let outcome = match drawn {
+            Ok(()) => Outcome::Drawn,
+            Err(message) => {
+                // A figure of an earlier table would pass for this one's.
+                let _ = std::fs::remove_file(&path);
+                let _ = std::fs::remove_file(&stamp_path);
+                Outcome::Failed(message)
+            }
+        };
+        outcomes.push(Figure { path, outcome });
     }
-    Ok(drawn)
+    Ok(outcomes)
+}
+
+/// Ok when every figure is drawn or up to date, else the messages of those that failed.
+pub fn all_drawn(figures: &[Figure]) -> Result<(), String> {
+    let failed: Vec<&str> = figures
+        .iter()
+        .filter_map(|f| match &f.outcome {
+            Outcome::Failed(message) => Some(message.as_str()),
+            _ => None,
+        })
+        .collect();
+    match failed.len() {
+        0 => Ok(()),
+        n => Err(format!(
+            "{n} of {} figures not drawn: {}",
+            figures.len(),
+            failed.join("; ")
+        )),
+    }
 }
 
 #[cfg(test)]
@@ -198,7 +236,7 @@ mod tests {
                 2,
                 &[
                     "workers (threads × ranks)",
-                    "solve time, median (s)",
+                    "solve time, median of 3 repeats (s)",
                     "speedup T(p₀) / T(p)",
                 ],
             ),
@@ -211,7 +249,11 @@ mod tests {
                 ],
             ),
             ("convergence", 4, &["grid spacing h", "discrete L² error"]),
-            ("work", 2, &["discrete L² error", "solve time, median (s)"]),
+            (
+                "work",
+                2,
+                &["discrete L² error", "solve time, median of 3 repeats (s)"],
+            ),
             (
                 "stability",
                 2,
@@ -257,7 +299,7 @@ mod tests {
             .iter()
             .map(|s| s.note.as_deref())
             .collect();
-        assert_eq!(slopes, [Some("  2.00"); 4]);
+        assert_eq!(slopes, [Some("2"); 4]);
         // Strong scaling: speedup 1.8 at two workers, efficiency 0.9.
         let chart = figure::chart(&specs[0], 0, &rows).unwrap();
         let speedup = &chart.panels[1].series[0].points;
@@ -283,9 +325,9 @@ mod tests {
             );
         }
         assert!(
-            chart.title.contains("not performance data"),
+            chart.subtitle.contains("not performance data"),
             "{}",
-            chart.title
+            chart.subtitle
         );
         // Stability: the diverged pse point is a cross, not a point of the line.
         let chart = figure::chart(&specs[4], 4, &rows).unwrap();
@@ -339,7 +381,7 @@ mod tests {
         both.filter.pop();
         let error = figure::chart(&both, 6, &rows).err().unwrap();
         assert!(
-            error.starts_with("figures[6].where: selects 2 points"),
+            error.starts_with("figures[6] (field): where selects 2 points"),
             "{error}"
         );
         let mut none = specs[6].clone();
@@ -362,7 +404,10 @@ mod tests {
         let rows = summary();
         table::write_parquet(&[(&table, &rows)]).unwrap();
         let mut specs = specs();
-        let redrawn = |drawn: Vec<Drawn>| drawn.iter().filter(|d| d.redrawn).count();
+        let redrawn = |drawn: Vec<Figure>| {
+            let outcomes = drawn.iter().map(|d| &d.outcome);
+            outcomes.filter(|o| **o == Outcome::Drawn).count()
+        };
 
         assert_eq!(redrawn(plot(&specs, &store).unwrap()), 7);
         let first = std::fs::read(&plot(&specs, &store).unwrap()[2].path).unwrap();
@@ -389,6 +434,185 @@ mod tests {
             redrawn(plot(&specs, &store).unwrap()),
             7,
             "a changed table redraws all"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The `<text>` elements of an SVG: (text, font size, x, y, fill).
+    fn text_elements(svg: &str) -> Vec<(String, f64, f64, f64, String)> {
+        let document = roxmltree::Document::parse(svg).expect("well-formed SVG");
+        let number = |n: &roxmltree::Node, a: &str| -> f64 {
+            n.attribute(a)
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(f64::NAN)
+        };
+        document
+            .descendants()
+            .filter(|n| n.has_tag_name("text"))
+            .map(|n| {
+                let text = n.text().unwrap_or("").trim().to_string();
+                let fill = n.attribute("fill").unwrap_or("").to_string();
+                (
+                    text,
+                    number(&n, "font-size"),
+                    number(&n, "x"),
+                    number(&n, "y"),
+                    fill,
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn figures_read_on_a_page_at_100_percent() {
+        let rows = summary();
+        for (k, spec) in specs().iter().enumerate() {
+            let svg = draw::render(&figure::chart(spec, k, &rows).unwrap()).unwrap();
+            let document = roxmltree::Document::parse(&svg).unwrap();
+            let width: f64 = document
+                .root_element()
+                .attribute("width")
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(width <= 1040.0, "{}: {width} px wide", spec.name);
+            for (text, size, ..) in text_elements(&svg) {
+                assert!(size >= 14.0, "{}: `{text}` at {size} px", spec.name);
+            }
+        }
+        // Strong scaling's three panels wrap two to a row, each at least 480 px wide.
+        let svg = draw::render(&figure::chart(&specs()[0], 0, &rows).unwrap()).unwrap();
+        let texts = text_elements(&svg);
+        let caption = |name: &str| {
+            let found = texts.iter().find(|t| t.0.starts_with(name));
+            found.map(|t| (t.2, t.3)).expect(name)
+        };
+        let (time, speedup, efficiency) = (
+            caption("time"),
+            caption("speedup"),
+            caption("parallel efficiency"),
+        );
+        assert_eq!(time.1, speedup.1, "one row");
+        assert!(speedup.0 - time.0 >= 480.0, "{time:?} {speedup:?}");
+        assert!(
+            efficiency.1 > time.1 + 300.0,
+            "the third wraps: {efficiency:?}"
+        );
+    }
+
+    #[test]
+    fn titles_are_written_for_people() {
+        let rows = summary();
+        let chart = figure::chart(&specs()[0], 0, &rows).unwrap();
+        assert_eq!(
+            (&chart.title[..], &chart.subtitle[..]),
+            ("strong", "n = 64")
+        );
+        let labels: Vec<&str> = chart.panels[0]
+            .series
+            .iter()
+            .map(|s| &s.label[..])
+            .collect();
+        assert_eq!(labels, ["method = nonlocal", "method = pse"]);
+        // No `key=value` dump in any text of any figure.
+        for (k, spec) in specs().iter().enumerate() {
+            let svg = draw::render(&figure::chart(spec, k, &rows).unwrap()).unwrap();
+            for text in texts(&svg) {
+                let dumped = text.contains('=') && !text.contains(" = ");
+                assert!(!dumped, "{}: `{text}`", spec.name);
+            }
+        }
+    }
+
+    #[test]
+    fn repeats_are_counted_only_where_a_statistic_is_over_them() {
+        let rows = summary();
+        let specs = specs();
+        let convergence = figure::chart(&specs[2], 2, &rows).unwrap();
+        let labels: Vec<&str> = convergence.panels[0]
+            .series
+            .iter()
+            .map(|s| &s.label[..])
+            .collect();
+        assert_eq!(
+            labels[0],
+            "method = nonlocal, threads = 1: order 2 fitted, 2 finest pair"
+        );
+        let svg = draw::render(&convergence).unwrap();
+        assert!(!svg.contains("repeat"), "errors are deterministic");
+        let work = figure::chart(&specs[3], 3, &rows).unwrap();
+        assert_eq!(
+            work.panels[0].y.label,
+            "solve time, median of 3 repeats (s)"
+        );
+        assert!(work.panels[0]
+            .series
+            .iter()
+            .all(|s| !s.label.contains("repeat")));
+    }
+
+    #[test]
+    fn notes_beside_coinciding_lines_do_not_overlap() {
+        // Threads do not change the error: both series of each method lie on one line, and
+        // their notes would be written on top of each other.
+        let svg = draw::render(&figure::chart(&specs()[2], 2, &summary()).unwrap()).unwrap();
+        let mut notes: Vec<f64> = text_elements(&svg)
+            .into_iter()
+            .filter(|t| t.0 == "2" && t.4 != "#000000")
+            .map(|t| t.3)
+            .collect();
+        assert_eq!(notes.len(), 4, "{notes:?}");
+        notes.sort_by(f64::total_cmp);
+        for pair in notes.windows(2) {
+            assert!(pair[1] - pair[0] >= 14.0, "{notes:?}");
+        }
+    }
+
+    #[test]
+    fn a_where_that_selects_nothing_names_its_figure() {
+        let mut none = specs()[2].clone();
+        none.filter = vec!["n == 7".into()];
+        let error = figure::chart(&none, 2, &summary()).err().unwrap();
+        assert!(
+            error.starts_with(
+                "figures[2] (convergence): where selects no row of the summary table (12 rows)"
+            ),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_failing_figure_leaves_the_others_drawn() {
+        let dir = std::env::temp_dir().join(format!("nlstudy-plot-fail-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = Store::open(&dir, "synthetic");
+        std::fs::create_dir_all(store.table("")).unwrap();
+        let table = store.table("synthetic-summary.parquet");
+        table::write_parquet(&[(&table, &summary())]).unwrap();
+        let mut specs = specs();
+        assert!(all_drawn(&plot(&specs, &store).unwrap()).is_ok());
+        // A misspelt column in the second figure: the first and the third are still drawn,
+        // and the second's figure of the earlier spec is gone.
+        specs[1].x = Some("wrkers".into());
+        specs[2].title = Some("orders".into());
+        let figures = plot(&specs, &store).unwrap();
+        let outcomes: Vec<&Outcome> = figures.iter().map(|f| &f.outcome).collect();
+        let Outcome::Failed(message) = outcomes[1] else {
+            panic!("{outcomes:?}")
+        };
+        assert!(
+            message.starts_with("figures[1] (weak): x names no column `wrkers`"),
+            "{message}"
+        );
+        assert_eq!(
+            (outcomes[0], outcomes[2]),
+            (&Outcome::UpToDate, &Outcome::Drawn)
+        );
+        assert!(!figures[1].path.exists() && figures[2].path.exists());
+        let summary = all_drawn(&figures).err().unwrap();
+        assert!(
+            summary.starts_with("1 of 7 figures not drawn: figures[1] (weak)"),
+            "{summary}"
         );
         let _ = std::fs::remove_dir_all(&dir);
     }

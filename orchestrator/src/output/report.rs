@@ -83,7 +83,7 @@ fn figures_section(page: &mut String, study: &Study, store: &Store) {
             Err(_) => {
                 let _ = writeln!(
                     page,
-                    "<p>Figure <em>{caption}</em> is not drawn yet: `nlstudy plot` draws it.</p>"
+                    "<p>Figure <em>{caption}</em> is not drawn: `nlstudy plot` draws it or says why it cannot.</p>"
                 );
             }
         }

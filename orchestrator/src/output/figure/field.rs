@@ -18,7 +18,7 @@ pub(super) fn field(rows: &[&Row], x: &str, y: &str) -> Result<Vec<Panel>, Strin
     let (Some(nx), Some(ny), Some(lower), Some(upper)) =
         (size("nx"), size("ny"), size("lower"), size("upper"))
     else {
-        return Err(format!("the point has no `{stem}` snapshot; set `field_snapshot` (e.g. 64) in the study's base"));
+        return Err(format!("selects a point without a `{stem}` snapshot; set `field_snapshot` (e.g. 64) in the study's base"));
     };
     let (nx, ny) = (nx as usize, ny as usize);
     let values = numbers(row.get(x));

@@ -2,7 +2,7 @@
 
 use crate::model::expression::{self, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
-use crate::output::draw::Chart;
+use crate::output::draw::{Chart, Panel};
 use crate::store::table::Row;
 
 mod convergence;
@@ -15,11 +15,12 @@ mod throughput;
 mod time_series;
 mod work_precision;
 
-use series::{group, shared_by_all};
+use series::{group, shared_by_all, subtitle};
 
-/// A figure's failure, naming the spec field at fault.
-fn fault(k: usize, field: &str, message: impl std::fmt::Display) -> String {
-    format!("figures[{k}].{field}: {message}")
+/// A figure's failure: `figures[2] (convergence): ` and a sentence naming the spec field at
+/// fault.
+pub fn fault(k: usize, spec: &FigureSpec, message: impl std::fmt::Display) -> String {
+    format!("figures[{k}] ({}): {message}", spec.name)
 }
 
 /// The column a spec names: as written, else the case field of that name.
@@ -42,8 +43,8 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             let source = column(rows, name).ok_or_else(|| {
                 fault(
                     k,
-                    "y",
-                    format!("the table has no column `{name}` to take abs() of"),
+                    spec,
+                    format!("y takes abs() of `{name}`, which is no column of the summary table"),
                 )
             })?;
             with_magnitude = rows
@@ -61,7 +62,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
     };
     let resolve = |field: &str, name: &str| {
         column(rows, name).ok_or_else(|| {
-            fault(k, field, format!("the table has no column `{name}`; name one of the summary's columns (`nlstudy collect` lists them in results/<study>/<study>-summary.parquet)"))
+            fault(k, spec, format!("{field} names no column `{name}` of the summary table; name one of its columns (`nlstudy collect` writes it to results/<study>/<study>-summary.parquet)"))
         })
     };
     let x = resolve("x", spec.x.as_deref().unwrap_or(dx))?;
@@ -88,53 +89,71 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         let mut keep = true;
         for (j, condition) in spec.filter.iter().enumerate() {
             keep &= expression::condition(condition, &scope)
-                .map_err(|e| fault(k, &format!("where[{j}]"), e))?;
+                .map_err(|e| fault(k, spec, format!("where[{j}]: {e}")))?;
         }
         if keep {
             kept.push(row);
         }
     }
-    if spec.kind == FigureKind::SolverComparison {
-        let title = spec
-            .title
-            .clone()
-            .unwrap_or_else(|| spec.name.replace('_', " "));
-        let panels = solver_comparison::solver_comparison(&kept, &series_columns, &x, &y);
-        return Ok(Chart { title, panels });
+    if kept.is_empty() {
+        return Err(fault(k, spec, format!("where selects no row of the summary table ({} rows); compare its conditions with the table's values (`nlstudy table` shows them)", rows.len())));
     }
-    if spec.kind == FigureKind::Throughput {
-        let panels = throughput::throughput(&kept, &series_columns, &x, &y);
-        let title = spec
-            .title
-            .clone()
-            .unwrap_or_else(|| spec.name.replace('_', " "));
-        return Ok(Chart { title, panels });
-    }
-    let mut groups = group(&kept, &series_columns);
-    let mut title = spec
+    let title = spec
         .title
         .clone()
         .unwrap_or_else(|| spec.name.replace('_', " "));
-    let common = shared_by_all(&mut groups);
-    if !common.is_empty() {
-        title = format!("{title}: {common}");
-    }
+    let mut subtitle_text = String::new();
     let mut panels = match spec.kind {
-        FigureKind::StrongScaling => scaling::strong_scaling(&groups, &x, &y),
-        FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, &x, &y)],
-        FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
-        FigureKind::WorkPrecision => vec![work_precision::work_precision(&groups, &x, &y)],
-        FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
-        FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
-        FigureKind::Throughput => unreachable!("drawn above, one panel per n"),
-        FigureKind::SolverComparison => unreachable!("drawn above, two panels"),
-        FigureKind::Field => field::field(&kept, &x, &y).map_err(|e| fault(k, "where", e))?,
+        FigureKind::SolverComparison => {
+            solver_comparison::solver_comparison(&kept, &series_columns, &x, &y)
+        }
+        FigureKind::Throughput => throughput::throughput(&kept, &series_columns, &x, &y),
+        FigureKind::Field => {
+            field::field(&kept, &x, &y).map_err(|e| fault(k, spec, format!("where {e}")))?
+        }
+        kind => {
+            let mut groups = group(&kept, &series_columns);
+            subtitle_text = subtitle(&shared_by_all(&mut groups));
+            match kind {
+                FigureKind::StrongScaling => scaling::strong_scaling(&groups, &x, &y),
+                FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, &x, &y)],
+                FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
+                FigureKind::WorkPrecision => {
+                    vec![work_precision::work_precision(&groups, &x, &y)]
+                }
+                FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
+                FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
+                FigureKind::SolverComparison | FigureKind::Throughput | FigureKind::Field => {
+                    unreachable!("drawn from the rows above")
+                }
+            }
+        }
     };
+    let drawn = |p: &Panel| {
+        p.heat.is_some()
+            || p.series
+                .iter()
+                .any(|s| !s.points.is_empty() || !s.crosses.is_empty())
+    };
+    if !panels.iter().any(drawn) {
+        return Err(fault(
+            k,
+            spec,
+            format!(
+                "where selects {} rows, but none has both `{x}` and `{y}` (with status ok) to draw",
+                kept.len()
+            ),
+        ));
+    }
     if matches!(
         spec.kind,
         FigureKind::StrongScaling | FigureKind::WeakScaling
     ) {
-        scaling::mark_oversubscribed(&kept, &x, &mut panels, &mut title);
+        scaling::mark_oversubscribed(&kept, &x, &mut panels, &mut subtitle_text);
     }
-    Ok(Chart { title, panels })
+    Ok(Chart {
+        title,
+        subtitle: subtitle_text,
+        panels,
+    })
 }

@@ -14,7 +14,7 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
         let Some(&(p0, t0)) = points.first() else {
             continue;
         };
-        let mut time = series(g.legend(), points.clone());
+        let mut time = series(g.label(), points.clone());
         if let Some((lo, hi)) = band_columns(y) {
             let rows = g.rows.iter().filter(|r| r.status() == Some(Status::Ok));
             time.band = rows
@@ -36,18 +36,21 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
             points: points.iter().map(|&(p, _)| (p, p / p0)).collect(),
         });
         times.push(time);
-        speedups.push(series(g.legend(), speedup));
-        efficiencies.push(series(g.legend(), efficiency));
+        speedups.push(series(g.label(), speedup));
+        efficiencies.push(series(g.label(), efficiency));
     }
     let workers = all(times.iter(), |p| p.0);
-    let x_axis = || Axis::fitting(describe(x), workers.iter().copied()).counting();
+    let x_axis = || Axis::fitting(describe(x, groups), workers.iter().copied()).counting();
     let mut efficiency_axis = Axis::linear("parallel efficiency T(p₀)·p₀ / (T(p)·p)");
     efficiency_axis.include = vec![0.0, 1.0];
     vec![
         Panel {
-            title: "time".into(),
+            title: match times.iter().any(|t| !t.band.is_empty()) {
+                true => "time (band: min to max of the repeats)".into(),
+                false => "time".into(),
+            },
             x: x_axis(),
-            y: Axis::fitting(describe(y), all(times.iter(), |p| p.1)),
+            y: Axis::fitting(describe(y, groups), all(times.iter(), |p| p.1)),
             series: times,
             guides: ideal_time,
             heat: None,
@@ -72,12 +75,12 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
 }
 
 /// Crosses over the points run with more workers than the machine had cores (the record's
-/// `oversubscribed`), and a note in the title: their times measure contention, not scaling.
+/// `oversubscribed`), and a note in the subtitle: their times measure contention, not scaling.
 pub(super) fn mark_oversubscribed(
     rows: &[&Row],
     x: &str,
     panels: &mut [Panel],
-    title: &mut String,
+    subtitle: &mut String,
 ) {
     let beyond: Vec<f64> = rows
         .iter()
@@ -95,7 +98,10 @@ pub(super) fn mark_oversubscribed(
             .copied()
             .collect();
     }
-    title.push_str(" (×: more workers than cores, not performance data)");
+    if !subtitle.is_empty() {
+        subtitle.push_str("; ");
+    }
+    subtitle.push_str("×: more workers than cores, not performance data");
 }
 
 /// Efficiency 1 across the workers shown.
@@ -118,7 +124,7 @@ pub(super) fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
             let points = g.points(x, y);
             let &(_, t0) = points.first()?;
             Some(series(
-                g.legend(),
+                g.label(),
                 points.iter().map(|&(p, t)| (p, t0 / t)).collect(),
             ))
         })
@@ -128,7 +134,7 @@ pub(super) fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
     y_axis.include = vec![0.0, 1.0];
     Panel {
         title: "weak scaling".into(),
-        x: Axis::fitting(describe(x), workers.iter().copied()).counting(),
+        x: Axis::fitting(describe(x, groups), workers.iter().copied()).counting(),
         y: y_axis,
         heat: None,
         guides: vec![ideal_efficiency(&workers)],

@@ -1,12 +1,14 @@
 //! Rows of the summary grouped into labelled series, and the words an axis shows for a column.
 
-use crate::output::draw::Series;
+use crate::console::number;
+use crate::output::draw::{span, Series};
 use crate::store::table::Row;
 use schema::record::Status;
 use serde_json::Value;
 
-/// How columns read on an axis.
-pub(super) fn describe(column: &str) -> String {
+/// How a column reads on an axis. A statistic over repeats (a timing's median) says how many
+/// repeats of `groups` it is over; errors, orders and counts are deterministic and do not.
+pub(super) fn describe(column: &str, groups: &[Group]) -> String {
     let known = [
         ("workers", "workers (threads × ranks)"),
         ("h", "grid spacing h"),
@@ -34,54 +36,68 @@ pub(super) fn describe(column: &str) -> String {
     let name = column.strip_prefix("case.").unwrap_or(column);
     for (suffix, statistic) in [("_s_median", "median"), ("_s_min", "min"), ("_s", "")] {
         if let Some(what) = name.strip_suffix(suffix) {
-            return format!(
-                "{what} time{} (s)",
-                if statistic.is_empty() {
-                    String::new()
-                } else {
-                    format!(", {statistic}")
-                }
-            );
+            let over = match (statistic, repeats(groups)) {
+                ("", _) => String::new(),
+                (statistic, Some(repeats)) => format!(", {statistic} of {repeats}"),
+                (statistic, None) => format!(", {statistic}"),
+            };
+            return format!("{what} time{over} (s)");
         }
     }
     name.to_string()
 }
 
-/// Rows of one series, with its label.
+/// Rows of one series, with the `field = value` parts that tell it apart.
 pub(super) struct Group<'a> {
-    pub label: String,
+    pub parts: Vec<(String, String)>,
     pub rows: Vec<&'a Row>,
+}
+
+/// `name = value` parts joined for people: `quadrature = ac, n = 64`.
+fn read_parts(parts: &[(String, String)]) -> String {
+    let parts: Vec<String> = parts.iter().map(|(f, v)| format!("{f} = {v}")).collect();
+    parts.join(", ")
+}
+
+/// A value as a label shows it: numbers with `console::number`, text as it is.
+fn value_text(value: &str) -> String {
+    match value.parse::<f64>() {
+        Ok(x) => number(x),
+        Err(_) => value.to_string(),
+    }
 }
 
 pub(super) fn group<'a>(rows: &[&'a Row], columns: &[String]) -> Vec<Group<'a>> {
     let mut groups: Vec<Group<'a>> = Vec::new();
     for row in rows {
-        let parts: Vec<String> = columns
-            .iter()
-            .map(|c| {
-                let value = match row.get(c) {
-                    Some(Value::String(s)) => s.clone(),
-                    Some(v) => v.to_string(),
-                    None => "?".into(),
-                };
-                // Series columns already read `name=value`.
-                match c.as_str() {
-                    "point" | "scaling_series" | "refinement_series" => value,
-                    _ => format!("{}={value}", c.strip_prefix("case.").unwrap_or(c)),
+        let mut parts: Vec<(String, String)> = Vec::new();
+        for c in columns {
+            let value = match row.get(c) {
+                Some(Value::String(s)) => s.clone(),
+                Some(v) => v.to_string(),
+                None => "?".into(),
+            };
+            match c.as_str() {
+                // Series columns already read `name=value name=value`.
+                "point" | "scaling_series" | "refinement_series" => {
+                    for part in value.split(' ') {
+                        let (field, value) = part.split_once('=').unwrap_or(("", part));
+                        parts.push((field.to_string(), value.to_string()));
+                    }
                 }
-            })
-            .collect();
+                _ => parts.push((c.strip_prefix("case.").unwrap_or(c).to_string(), value)),
+            }
+        }
         // `m=null` (a field a zip leaves out for some points) tells nothing apart.
-        let label = parts
-            .iter()
-            .flat_map(|p| p.split(' '))
-            .filter(|p| !p.ends_with("=null"))
-            .collect::<Vec<_>>()
-            .join(" ");
-        match groups.iter_mut().find(|g| g.label == label) {
+        let parts: Vec<(String, String)> = parts
+            .into_iter()
+            .filter(|(_, v)| v != "null")
+            .map(|(f, v)| (f, value_text(&v)))
+            .collect();
+        match groups.iter_mut().find(|g| g.parts == parts) {
             Some(g) => g.rows.push(row),
             None => groups.push(Group {
-                label,
+                parts,
                 rows: vec![row],
             }),
         }
@@ -89,37 +105,62 @@ pub(super) fn group<'a>(rows: &[&'a Row], columns: &[String]) -> Vec<Group<'a>> 
     groups
 }
 
-/// Takes the `field=value` parts every series label shares out of the labels (they go into the
-/// title), so that legends say only what tells the series apart.
-pub(super) fn shared_by_all(groups: &mut [Group]) -> String {
+/// Takes the parts every series shares out of the series (they go into the subtitle), so that
+/// legends say only what tells the series apart; returns them sorted by field.
+pub(super) fn shared_by_all(groups: &mut [Group]) -> Vec<(String, String)> {
     let Some(first) = groups.first() else {
-        return String::new();
+        return Vec::new();
     };
-    let shared: Vec<String> = first
-        .label
-        .split(' ')
-        .filter(|part| {
-            groups
-                .iter()
-                .all(|g| g.label.split(' ').any(|p| p == *part))
-        })
-        .map(str::to_string)
+    let mut shared: Vec<(String, String)> = first
+        .parts
+        .iter()
+        .filter(|part| groups.iter().all(|g| g.parts.contains(part)))
+        .cloned()
         .collect();
     for g in groups.iter_mut() {
-        let own: Vec<&str> = g
-            .label
-            .split(' ')
-            .filter(|p| !shared.iter().any(|s| s == p))
-            .collect();
-        g.label = match own.is_empty() {
-            true => "all points".into(),
-            false => own.join(" "),
-        };
+        g.parts.retain(|p| !shared.contains(p));
     }
-    shared.join(" ")
+    shared.sort();
+    shared
+}
+
+/// The subtitle of a chart: the fields its series share. `branch`, the name of a part of the
+/// study file, is left out: it says nothing about the cases.
+pub(super) fn subtitle(shared: &[(String, String)]) -> String {
+    let fields: Vec<(String, String)> = shared
+        .iter()
+        .filter(|(field, _)| field != "branch")
+        .cloned()
+        .collect();
+    read_parts(&fields)
+}
+
+/// How many repeats the rows' statistics are over: `3 repeats`, `1–3 repeats`.
+fn repeats(groups: &[Group]) -> Option<String> {
+    let counts = groups
+        .iter()
+        .flat_map(|g| &g.rows)
+        .filter_map(|r| r.number("repeats"));
+    let (lo, hi) = span(counts);
+    if !lo.is_finite() {
+        None
+    } else if lo < hi {
+        Some(format!("{}–{} repeats", number(lo), number(hi)))
+    } else {
+        let s = if lo == 1.0 { "" } else { "s" };
+        Some(format!("{} repeat{s}", number(lo)))
+    }
 }
 
 impl Group<'_> {
+    /// The legend's words for the series: its own parts, or `all points` when it has none.
+    pub(super) fn label(&self) -> String {
+        match self.parts.is_empty() {
+            true => "all points".into(),
+            false => read_parts(&self.parts),
+        }
+    }
+
     /// The ok rows' (x, y), sorted by x.
     pub(super) fn points(&self, x: &str, y: &str) -> Vec<(f64, f64)> {
         let mut points: Vec<(f64, f64)> = self
@@ -130,23 +171,6 @@ impl Group<'_> {
             .collect();
         points.sort_by(|a, b| a.0.total_cmp(&b.0));
         points
-    }
-
-    /// The label with the repeats behind its points: `… (3 repeats)` or `(1–3 repeats)`.
-    pub(super) fn legend(&self) -> String {
-        let repeats = self.rows.iter().filter_map(|r| r.number("repeats"));
-        let (lo, hi) = repeats.fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
-            (lo.min(r), hi.max(r))
-        });
-        match (lo, hi) {
-            (lo, _) if !lo.is_finite() => self.label.clone(),
-            (lo, hi) if lo == hi => format!(
-                "{} ({lo} repeat{})",
-                self.label,
-                if lo == 1.0 { "" } else { "s" }
-            ),
-            (lo, hi) => format!("{} ({lo}–{hi} repeats)", self.label),
-        }
     }
 }
 

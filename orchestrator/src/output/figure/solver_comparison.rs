@@ -44,12 +44,12 @@ pub(super) fn solver_comparison(
         .map(|(column, title)| {
             let lines: Vec<Series> = groups
                 .iter()
-                .map(|g| series(g.legend(), g.points(x, column)))
+                .map(|g| series(g.label(), g.points(x, column)))
                 .collect();
             Panel {
                 title: title.into(),
-                x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
-                y: Axis::fitting(describe(column), all(lines.iter(), |p| p.1)),
+                x: Axis::fitting(describe(x, &groups), all(lines.iter(), |p| p.0)),
+                y: Axis::fitting(describe(column, &groups), all(lines.iter(), |p| p.1)),
                 series: lines,
                 heat: None,
                 guides: Vec::new(),

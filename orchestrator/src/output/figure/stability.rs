@@ -8,7 +8,7 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
     let lines: Vec<Series> = groups
         .iter()
         .map(|g| {
-            let mut line = series(g.legend(), g.points(x, y));
+            let mut line = series(g.label(), g.points(x, y));
             // A diverged run stops where |u| passed the bound; its cross sits at what it reached.
             line.crosses = g
                 .rows
@@ -23,12 +23,12 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
         .iter()
         .flat_map(|s| s.points.iter().chain(&s.crosses).map(|p| p.1))
         .collect::<Vec<_>>();
-    let mut x_axis = Axis::linear(describe(x));
+    let mut x_axis = Axis::linear(describe(x, groups));
     x_axis.include = vec![1.0];
     Panel {
         title: "stability (× diverged)".into(),
         x: x_axis,
-        y: Axis::fitting(describe(y), ys),
+        y: Axis::fitting(describe(y, groups), ys),
         series: lines,
         heat: None,
         guides: vec![Guide::Vertical {

@@ -22,7 +22,7 @@ pub(super) fn throughput(rows: &[&Row], series_columns: &[String], x: &str, y: &
             shared_by_all(&mut groups);
             let lines: Vec<Series> = groups
                 .iter()
-                .map(|g| series(g.legend(), g.points(x, y)))
+                .map(|g| series(g.label(), g.points(x, y)))
                 .collect();
             let backend_points = |name: &str| {
                 groups
@@ -42,8 +42,8 @@ pub(super) fn throughput(rows: &[&Row], series_columns: &[String], x: &str, y: &
             };
             Panel {
                 title: format!("n = {n}"),
-                x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
-                y: Axis::fitting(describe(y), all(lines.iter(), |p| p.1)),
+                x: Axis::fitting(describe(x, &groups), all(lines.iter(), |p| p.0)),
+                y: Axis::fitting(describe(y, &groups), all(lines.iter(), |p| p.1)),
                 series: lines,
                 guides,
                 heat: None,

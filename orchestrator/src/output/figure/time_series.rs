@@ -13,15 +13,15 @@ pub(super) fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
                 .into_iter()
                 .zip(numbers(r.get(y)))
                 .collect();
-            series(g.label.clone(), points)
+            series(g.label(), points)
         })
         .collect();
     // The whole range from 0, as seed 004 draws c_tot(t).
-    let mut y_axis = Axis::linear(describe(y));
+    let mut y_axis = Axis::linear(describe(y, groups));
     y_axis.include = vec![0.0];
     Panel {
         title: "time series".into(),
-        x: Axis::linear(describe(x)),
+        x: Axis::linear(describe(x, groups)),
         y: y_axis,
         series: lines,
         guides: Vec::new(),

@@ -19,13 +19,13 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
 pub(super) fn work_precision(groups: &[Group], x: &str, y: &str) -> Panel {
     let lines: Vec<Series> = groups
         .iter()
-        .map(|g| series(g.legend(), g.points(x, y)))
+        .map(|g| series(g.label(), g.points(x, y)))
         .collect();
     let everything: Vec<(f64, f64)> = lines.iter().flat_map(|s| s.points.clone()).collect();
     Panel {
         title: "work–precision".into(),
-        x: Axis::fitting(describe(x), all(lines.iter(), |p| p.0)),
-        y: Axis::fitting(describe(y), all(lines.iter(), |p| p.1)),
+        x: Axis::fitting(describe(x, groups), all(lines.iter(), |p| p.0)),
+        y: Axis::fitting(describe(y, groups), all(lines.iter(), |p| p.1)),
         series: lines,
         heat: None,
         guides: vec![Guide::Dashed {
