@@ -89,8 +89,9 @@ fn the_layer_check_sees_an_arrow_up() {
     assert!(upward.is_err(), "model importing store went unseen");
 }
 
-/// The schema both binaries read is plain serde data: it links no numerics, tables or plots, so
-/// the orchestrator never compiles the solver to read a case or a record.
+/// The schema both binaries read is plain serde data (and strsim, for "did you mean" in its
+/// errors): it links no numerics, tables or plots, so the orchestrator never compiles the solver
+/// to read a case or a record.
 #[test]
 fn the_schema_is_serde_only_and_acyclic() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema");
@@ -104,7 +105,10 @@ fn the_schema_is_serde_only_and_acyclic() {
         .filter_map(|line| line.split(['.', ' ', '=']).next())
         .filter(|name| !name.is_empty() && !name.starts_with('#'))
         .collect();
-    assert_eq!(dependencies, ["serde", "serde_json", "serde_path_to_error"]);
+    assert_eq!(
+        dependencies,
+        ["serde", "serde_json", "serde_path_to_error", "strsim"]
+    );
     let graph = imports(root.join("src").as_path());
     assert!(graph.contains_key("case") && graph.contains_key("record"));
     assert_acyclic("schema", &graph);

@@ -694,3 +694,20 @@ fn a_results_directory_belongs_to_one_study_file_and_clean_clears_what_it_no_lon
     );
     assert_eq!(records(&scratch.runs("small")).len(), 2);
 }
+
+/// The README's annotated study is studies/first.jsonc, as it is: what a newcomer copies runs.
+#[test]
+fn the_readmes_annotated_study_is_the_shipped_file() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let start = readme
+        .find("```jsonc\n")
+        .expect("a ```jsonc block in README.md")
+        + 9;
+    let block = &readme[start..start + readme[start..].find("```").unwrap()];
+    let file = std::fs::read_to_string(root.join("studies/first.jsonc")).unwrap();
+    assert_eq!(
+        block, file,
+        "README.md's ```jsonc block is not studies/first.jsonc"
+    );
+}

@@ -235,13 +235,7 @@ pub fn column_texts(cells: &[&Value]) -> Vec<String> {
 pub fn texts(rows: &[Row], columns: &[&str]) -> Vec<Vec<String>> {
     let by_column = columns
         .iter()
-        .map(|&name| {
-            let cells: Vec<&Value> = rows
-                .iter()
-                .map(|row| row.get(name).unwrap_or(&Value::Null))
-                .collect();
-            column_texts(&cells)
-        })
+        .map(|&name| column_texts(&crate::store::table::column(rows, name)))
         .collect();
     transpose(by_column, rows.len())
 }

@@ -124,6 +124,13 @@ fn column_type<'a>(cells: impl Iterator<Item = &'a Value>) -> ColumnType {
         .unwrap_or(ColumnType::Float)
 }
 
+/// The cells of column `name`, one per row, null where a row lacks it.
+pub fn column<'a>(rows: &'a [Row], name: &str) -> Vec<&'a Value> {
+    rows.iter()
+        .map(|row| row.get(name).unwrap_or(&Value::Null))
+        .collect()
+}
+
 /// The rows as a data frame; its columns are the union of the rows' cells in first-seen order,
 /// a cell a row lacks being null.
 pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
@@ -138,10 +145,7 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
     let columns = names
         .iter()
         .map(|&name| {
-            let cells: Vec<&Value> = rows
-                .iter()
-                .map(|row| row.get(name).unwrap_or(&Value::Null))
-                .collect();
+            let cells = column(rows, name);
             let name = PlSmallStr::from(name);
             match column_type(cells.iter().copied()) {
                 ColumnType::Boolean => {

@@ -55,8 +55,9 @@ enum Command {
     /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
     Partition(CaseArgs),
     /// Check cases without running them: reads one JSON case per line on standard input and
-    /// prints one line for each, `{"case": …}` with the case in canonical form (every field,
-    /// defaults filled in, keys sorted) or `{"error": "…"}` naming the field at fault.
+    /// prints one line for each: `{"case": …, "resolved": …}` (`case` in canonical form, keys
+    /// sorted, what a run's key is taken from; `resolved` the same case with every default the
+    /// method uses filled in) or `{"error": "…"}` naming the field at fault.
     Check,
 }
 
