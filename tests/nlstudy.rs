@@ -147,6 +147,21 @@ fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
     assert_eq!(runs.column("case.n").unwrap().dtype(), &DataType::Int64);
     assert_eq!(runs.column("solve_s").unwrap().dtype(), &DataType::Float64);
     assert_eq!(runs.column("status").unwrap().dtype(), &DataType::String);
+    // The case as resolved: defaults the study left out are filled in, never null.
+    for (column, default) in [
+        ("case.quadrature", "midpoint"),
+        ("case.integrator", "forward_euler"),
+        ("case.source", "continuum"),
+    ] {
+        let cells = runs
+            .column(column)
+            .unwrap_or_else(|e| panic!("{column}: {e}"));
+        let cells = cells.str().unwrap();
+        assert!(
+            (0..cells.len()).all(|i| cells.get(i) == Some(default)),
+            "{column}: {cells:?}"
+        );
+    }
 
     // One row per point; its timings are the median of its repeats' (two: their mean).
     let summary = read_parquet(&table("small-summary.parquet"));
