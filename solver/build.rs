@@ -1,8 +1,14 @@
-//! Embeds the git revision the solver was built from, for the provenance of every record.
+//! Embeds the solver's fingerprint (see build/fingerprint.rs) and the git revision it was built
+//! from, for the provenance of every record.
 
+use std::path::Path;
 use std::process::Command;
 
+#[path = "build/fingerprint.rs"]
+mod fingerprint;
+
 fn main() {
+    embed_fingerprint();
     let git = |args: &[&str]| {
         Command::new("git")
             .args(args)
@@ -25,4 +31,35 @@ fn main() {
         println!("cargo:rerun-if-changed={git_dir}/index");
     }
     println!("cargo:rerun-if-changed=build.rs");
+}
+
+/// `NLSOLVE_FINGERPRINT`: the hash of the sources and of the build's settings.
+fn embed_fingerprint() {
+    let env = |name: &str| std::env::var(name).unwrap_or_default();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the solver crate lies in the workspace");
+    let rustc = Command::new(env("RUSTC"))
+        .arg("-vV")
+        .output()
+        .map(|out| String::from_utf8_lossy(&out.stdout).into_owned())
+        .unwrap_or_default();
+    let mut features: Vec<String> = std::env::vars()
+        .filter_map(|(name, _)| name.strip_prefix("CARGO_FEATURE_").map(str::to_lowercase))
+        .collect();
+    features.sort();
+    let settings = [
+        ("rustc", rustc),
+        ("target", env("TARGET")),
+        ("target_features", env("CARGO_CFG_TARGET_FEATURE")),
+        ("rustflags", env("CARGO_ENCODED_RUSTFLAGS")),
+        ("profile", env("PROFILE")),
+        ("opt_level", env("OPT_LEVEL")),
+        ("features", features.join(",")),
+    ];
+    let hash = fingerprint::fingerprint(root, fingerprint::SOURCES, &settings);
+    println!("cargo:rustc-env=NLSOLVE_FINGERPRINT={hash}");
+    for source in fingerprint::SOURCES {
+        println!("cargo:rerun-if-changed={}", root.join(source).display());
+    }
 }

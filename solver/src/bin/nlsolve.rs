@@ -59,6 +59,10 @@ enum Command {
     /// sorted, what a run's key is taken from; `resolved` the same case with every default the
     /// method uses filled in) or `{"error": "…"}` naming the field at fault.
     Check,
+    /// Print the build's fingerprint: the hash of everything that decides a record's numbers
+    /// (the solver's and schema's sources, Cargo.lock, the compiler, target, flags, profile and
+    /// features), which every record carries in its provenance.
+    Fingerprint,
 }
 
 #[derive(Args)]
@@ -411,7 +415,7 @@ fn summary(record: &Record) -> String {
             None => "cg".into(),
         };
         return format!(
-            "nlsolve: steady n={} {method}, {solver}, {} rank(s) × {} thread(s): {iterations} iterations in {:.3} s (setup {:.3} s), relative residual {:.2e}{errors}; status {} {}",
+            "nlsolve: steady n={} {method}, {solver}, {} rank(s) × {} thread(s): {iterations} iterations in {:.3e} s (setup {:.3e} s), relative residual {:.2e}{errors}; status {} {}",
             case.n,
             case.ranks,
             case.threads,
@@ -430,7 +434,7 @@ fn summary(record: &Record) -> String {
         None => String::new(),
     };
     format!(
-        "nlsolve: {}D n={} {method} {}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}){solves} in {:.3} s, {:.3e} s/step{errors}; status {} {}",
+        "nlsolve: {}D n={} {method} {}, {} rank(s) × {} thread(s): {} steps of dt={:.3e} (dt/dt_stable {:.3}){solves} in {:.3e} s, {:.3e} s/step{errors}; status {} {}",
         case.dim,
         case.n,
         label(&case.integrator),
@@ -555,6 +559,9 @@ fn main() -> ExitCode {
             Command::Run(args) => run(&args, world.as_ref()),
             Command::Partition(args) => partition_report(&args),
             Command::Check => check_cases(),
+            Command::Fingerprint => {
+                print_line(solver::output::record::FINGERPRINT, "the fingerprint")
+            }
         });
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -397,6 +397,11 @@ impl Distribution {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Provenance {
     pub solver_version: String,
+    /// The build's fingerprint (`nlsolve fingerprint`): the hash of the solver's and schema's
+    /// sources, Cargo.lock, the compiler, target, flags, profile and features (solver/build/
+    /// fingerprint.rs says what is in it); absent from records made before it was kept.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub fingerprint: String,
     pub git_revision: Option<String>,
     pub host: String,
     pub cpu: String,
@@ -409,10 +414,14 @@ pub struct Provenance {
     pub instruction_set: String,
 }
 
+/// This build's fingerprint (see build/fingerprint.rs).
+pub const FINGERPRINT: &str = env!("NLSOLVE_FINGERPRINT");
+
 impl Provenance {
     pub fn here(threads: usize, ranks: usize) -> Self {
         Provenance {
             solver_version: env!("CARGO_PKG_VERSION").to_string(),
+            fingerprint: FINGERPRINT.to_string(),
             git_revision: option_env!("NLSOLVE_GIT_REVISION").map(str::to_string),
             host: read_trimmed("/proc/sys/kernel/hostname").unwrap_or_else(|| "unknown".into()),
             cpu: cpu_model().unwrap_or_else(|| "unknown".into()),
