@@ -726,3 +726,62 @@ fn the_readmes_annotated_study_is_the_shipped_file() {
         "README.md's ```jsonc block is not studies/first.jsonc"
     );
 }
+
+/// A solver of another fingerprint (a wrapper that reports one, and writes it into the records
+/// it passes on) makes every stored point stale: `plan` says so, `--keep-stale` reuses them,
+/// `run` runs them again and keeps the superseded records in the study's history.
+#[test]
+fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history() {
+    let scratch = Scratch::new("stale", &small_study(&[16]));
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    let real = binary("nlsolve");
+    let other = "f".repeat(64);
+    let wrapper = scratch.dir.join("other-nlsolve");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\nif [ \"$1\" = fingerprint ]; then echo {other}; exit 0; fi\nout=$('{}' \"$@\")\nstatus=$?\nprintf '%s\\n' \"$out\" | sed 's/\"fingerprint\":\"[0-9a-f]*\"/\"fingerprint\":\"{other}\"/'\nexit $status\n",
+            real.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let with_other = |verb: &str, extra: &[&str]| {
+        let mut args = vec!["--solver", wrapper.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        scratch.nlstudy(verb, &args)
+    };
+
+    let plan = text(&with_other("plan", &[]));
+    assert_eq!(plan.matches("stale: solver changed (").count(), 2, "{plan}");
+    assert!(
+        plan.contains("→ ffffffff)") && plan.contains("2 to run"),
+        "{plan}"
+    );
+    let kept = text(&with_other("plan", &["--keep-stale"]));
+    assert!(
+        kept.contains("0 to run") && kept.contains("stale but kept"),
+        "{kept}"
+    );
+
+    let rerun = with_other("run", &[]);
+    assert!(text(&rerun).contains("2 ran (2 ok"), "{}", text(&rerun));
+    let history: Vec<_> = std::fs::read_dir(scratch.dir.join("results/small/history"))
+        .expect("a history")
+        .flatten()
+        .collect();
+    assert_eq!(history.len(), 2, "the superseded records are kept");
+    for record in records(&scratch.runs("small")) {
+        assert_eq!(record["provenance"]["fingerprint"], json!(other));
+    }
+    assert!(text(&with_other("plan", &[])).contains("0 to run"));
+    // Back to the real solver: its points are stale again.
+    let back = text(&scratch.nlstudy("plan", &[]));
+    assert_eq!(
+        back.matches("stale: solver changed (ffffffff").count(),
+        2,
+        "{back}"
+    );
+}

@@ -135,6 +135,10 @@ pub struct PlanArgs {
     /// Only the points with these keys (comma-separated), as cluster jobs do.
     #[arg(long, value_delimiter = ',')]
     only: Option<Vec<String>>,
+    /// Reuse stored records that a solver of another fingerprint made (by default they are
+    /// stale and run again; the old record moves to <results>/<study>/history/).
+    #[arg(long)]
+    keep_stale: bool,
     /// Go on when the solver refuses some points (they are stored as failed); by default a
     /// refused point stops `plan`, `run` and `submit` before anything runs.
     #[arg(long)]
@@ -256,6 +260,7 @@ impl PlanArgs {
                 .only
                 .as_ref()
                 .map(|keys| keys.iter().cloned().collect()),
+            keep_stale: self.keep_stale,
         }
     }
 }

@@ -11,6 +11,9 @@ pub struct Nlsolve {
     pub binary: PathBuf,
     /// `nlsolve --version`: part of every run's key, so a new solver version runs again.
     pub version: String,
+    /// `nlsolve fingerprint`: what made the numbers (sources, compiler, flags); a stored record
+    /// of another fingerprint is stale. `None` for a solver from before fingerprints.
+    pub fingerprint: Option<String>,
 }
 
 /// A case the solver accepted, in its two forms.
@@ -45,7 +48,18 @@ impl Nlsolve {
         if !output.status.success() || version.is_empty() {
             return Err(format!("{} --version failed", binary.display()));
         }
-        Ok(Nlsolve { binary, version })
+        let fingerprint = Command::new(&binary)
+            .arg("fingerprint")
+            .output()
+            .ok()
+            .filter(|out| out.status.success())
+            .map(|out| String::from_utf8_lossy(&out.stdout).trim().to_string())
+            .filter(|f| !f.is_empty() && f.chars().all(|c| c.is_ascii_hexdigit()));
+        Ok(Nlsolve {
+            binary,
+            version,
+            fingerprint,
+        })
     }
 
     /// Each point's case as the solver reads it, or the solver's sentence saying which field is

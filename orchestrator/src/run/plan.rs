@@ -17,6 +17,8 @@ pub struct Options {
     pub rerun_failed: bool,
     /// Only these keys (how a cluster job runs its share of a study).
     pub only: Option<HashSet<String>>,
+    /// Reuse records another solver made (`--keep-stale`) instead of running them again.
+    pub keep_stale: bool,
 }
 
 /// Why a point runs.
@@ -25,7 +27,14 @@ pub enum Reason {
     Missing,
     FailedBefore,
     Forced,
-    SolverChanged { from: String },
+    SolverChanged {
+        from: String,
+    },
+    /// Stored by a solver of another fingerprint.
+    Stale {
+        from: String,
+        to: String,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -61,7 +70,18 @@ impl fmt::Display for Reason {
             Reason::FailedBefore => write!(f, "failed before"),
             Reason::Forced => write!(f, "forced"),
             Reason::SolverChanged { from } => write!(f, "solver version changed (was {from})"),
+            Reason::Stale { from, to } => {
+                write!(f, "stale: solver changed ({} → {})", short(from), short(to))
+            }
         }
+    }
+}
+
+/// A fingerprint as people read it: its first 8 digits, or `unknown`.
+pub fn short(fingerprint: &str) -> &str {
+    match fingerprint {
+        "" => "unknown",
+        f => &f[..f.len().min(8)],
     }
 }
 
@@ -103,7 +123,21 @@ pub fn plan(
                     _ => Decision::Run(Reason::Missing),
                 },
                 Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
-                Some(status) => Decision::Skip(status.to_string()),
+                Some(status) => match (&solver.fingerprint, index.fingerprint.get(&key)) {
+                    (Some(now), Some(then)) if now != then && *status != Status::Failed => {
+                        let (from, to) = (short(then), short(now));
+                        match options.keep_stale {
+                            true => {
+                                Decision::Skip(format!("{status}, stale but kept: {from} → {to}"))
+                            }
+                            false => Decision::Run(Reason::Stale {
+                                from: then.clone(),
+                                to: now.clone(),
+                            }),
+                        }
+                    }
+                    _ => Decision::Skip(status.to_string()),
+                },
             };
             Planned {
                 point,

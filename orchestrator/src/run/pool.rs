@@ -230,7 +230,12 @@ fn run_cases(
                 tally.passed += 1;
                 continue;
             };
-            let forced = planned.decision == Decision::Run(Reason::Forced);
+            // A forced or stale point runs whatever is stored; others may have been stored by
+            // another nlstudy since the plan.
+            let forced = matches!(
+                planned.decision,
+                Decision::Run(Reason::Forced | Reason::Stale { .. })
+            );
             let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
             if let Some(status) = stored.filter(|_| !forced) {
                 let why = format!("another nlstudy has stored it meanwhile ({status})");

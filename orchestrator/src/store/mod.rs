@@ -78,10 +78,26 @@ impl Store {
     /// Stores `record` as the record of `key`, unless it is `failed` and the stored one is a
     /// result (`ok`, `diverged`): a run's fault does not erase what an earlier run computed.
     /// Returns whether it was stored. Call it holding the key's lock.
+    /// A record made by another solver (another fingerprint) is not overwritten: it moves to
+    /// the study's history first (`history/<key>.<fingerprint>.json`), so nothing computed is
+    /// lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Value) -> Result<bool, FileError> {
         let failed = Status::of(record).is_none_or(|s| s == Status::Failed);
         if failed && self.status(key).is_some_and(|s| s != Status::Failed) {
             return Ok(false);
+        }
+        if let Some(stored) = self.stored(key) {
+            let old = fingerprint_of(&stored);
+            if old != fingerprint_of(record) {
+                let history = self.table("history");
+                create_dir(&history)?;
+                let name = format!(
+                    "{key}.{}.json",
+                    if old.is_empty() { "unknown" } else { old }
+                );
+                std::fs::rename(self.path(key), history.join(&name))
+                    .map_err(FileError::on("move to history", &self.path(key)))?;
+            }
         }
         create_dir(&self.runs)?;
         write_atomically(&self.path(key), format!("{record}\n").as_bytes())?;
@@ -100,9 +116,13 @@ impl Store {
 
     /// The status of the stored record of `key`, read now; `None` when absent or not whole.
     pub fn status(&self, key: &str) -> Option<Status> {
+        Status::of(&self.stored(key)?)
+    }
+
+    /// The stored record of `key`, read now, if whole.
+    pub fn stored(&self, key: &str) -> Option<Value> {
         let path = self.path(key);
-        let record = read_record(&path, &std::fs::read_to_string(&path).ok()?).ok()?;
-        Status::of(&record)
+        read_record(&path, &std::fs::read_to_string(&path).ok()?).ok()
     }
 
     /// Takes the lock of `key` for this process: `None` when another process holds it (that
@@ -209,9 +229,22 @@ impl Store {
             if let (Some(id), Some(version)) = (text("case_id"), text("solver_version")) {
                 index.version_by_case.insert(id, version);
             }
+            if let Some(key) = text("key") {
+                index
+                    .fingerprint
+                    .insert(key, fingerprint_of(&record).to_string());
+            }
         }
         index
     }
+}
+
+/// The fingerprint of the solver that made `record` ("" when it does not say).
+pub fn fingerprint_of(record: &Value) -> &str {
+    record
+        .pointer("/provenance/fingerprint")
+        .and_then(Value::as_str)
+        .unwrap_or("")
 }
 
 /// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and
@@ -258,6 +291,8 @@ pub struct Scan {
 #[derive(Default)]
 pub struct Index {
     pub status: HashMap<String, Status>,
+    /// The fingerprint of the solver that made each key's record ("" when it does not say).
+    pub fingerprint: HashMap<String, String>,
     pub version_by_case: HashMap<String, String>,
     pub unreadable: Vec<Unreadable>,
 }
