@@ -784,4 +784,17 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
         2,
         "{back}"
     );
+
+    // Kept, beside new points of the real solver: one table would mix two builds.
+    scratch.write_study(&small_study(&[16, 32]));
+    let mixed = scratch.nlstudy("run", &["--keep-stale"]);
+    assert_eq!(mixed.status.code(), Some(1), "{}", text(&mixed));
+    assert!(
+        text(&mixed).contains("the runs mix solver fingerprints: ffffffff (2 runs)")
+            && text(&mixed).contains("--allow-mixed"),
+        "{}",
+        text(&mixed)
+    );
+    let allowed = scratch.nlstudy("collect", &["--allow-mixed"]);
+    assert!(allowed.status.success(), "{}", text(&allowed));
 }

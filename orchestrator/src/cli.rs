@@ -38,7 +38,7 @@ pub enum Command {
     Run(RunArgs),
     /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
     /// <study>-summary.parquet (one row per point, with speedups and convergence orders).
-    Collect(CommonArgs),
+    Collect(CollectArgs),
     /// Draw the study's figures from its summary table into <results>/<study>/figures/, each
     /// only when its table or its spec changed.
     Plot(CommonArgs),
@@ -85,6 +85,16 @@ pub struct SubmitArgs {
     /// Submit the other points when the solver refuses some (see `plan --allow-refused`).
     #[arg(long)]
     allow_refused: bool,
+}
+
+#[derive(Args)]
+pub struct CollectArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Tabulate runs of several solver builds (fingerprints), hosts or instruction sets
+    /// together; by default such a mix is refused.
+    #[arg(long)]
+    allow_mixed: bool,
 }
 
 #[derive(Args)]
@@ -169,6 +179,10 @@ pub struct RunArgs {
     /// Do not gather the records into the study's tables, nor draw its figures, at the end.
     #[arg(long)]
     no_collect: bool,
+    /// At the end, tabulate runs of several solver builds, hosts or instruction sets together
+    /// (see `collect --allow-mixed`).
+    #[arg(long)]
+    allow_mixed: bool,
 }
 
 /// nlstudy's exit statuses.
@@ -427,22 +441,20 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
         return Ok(ExitCode::from(exit::INTERRUPTED));
     }
     if !args.no_collect {
-        let tables =
-            crate::analysis::collect::collect(&planned, &store, &study).and_then(|collected| {
-                match collected {
-                    Some(collected) => {
-                        let figures = crate::output::plot::plot(&study.figures, &store)?;
-                        let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
-                        let page = crate::output::report::write(&study, &store, &swept)?;
-                        if !args.quiet {
-                            print_tables_written(&collected);
-                            print_figures_drawn(&figures);
-                            say!("report: {}", page.display());
-                        }
-                        crate::output::plot::all_drawn(&figures)
+        let tables = crate::analysis::collect::collect(&planned, &store, &study, args.allow_mixed)
+            .and_then(|collected| match collected {
+                Some(collected) => {
+                    let figures = crate::output::plot::plot(&study.figures, &store)?;
+                    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+                    let page = crate::output::report::write(&study, &store, &swept)?;
+                    if !args.quiet {
+                        print_tables_written(&collected);
+                        print_figures_drawn(&figures);
+                        say!("report: {}", page.display());
                     }
-                    None => Ok(()),
+                    crate::output::plot::all_drawn(&figures)
                 }
+                None => Ok(()),
             });
         if let Err(message) = tables {
             say!("nlstudy: {message}; the runs are stored");
@@ -469,10 +481,12 @@ fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
     Ok(Duration::from_secs_f64(seconds))
 }
 
-fn collect_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
+fn collect_command(args: &CollectArgs) -> Result<ExitCode, Failure> {
+    let allow_mixed = args.allow_mixed;
+    let args = &args.common;
     let (study, _, store, planned) = planned(args, &Options::default(), true)?;
-    let collected =
-        crate::analysis::collect::collect(&planned, &store, &study)?.ok_or_else(|| {
+    let collected = crate::analysis::collect::collect(&planned, &store, &study, allow_mixed)?
+        .ok_or_else(|| {
             format!(
                 "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
                 store.study

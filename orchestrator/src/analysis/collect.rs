@@ -5,9 +5,10 @@
 
 use crate::analysis::{pivot, summary};
 use crate::model::study::Study;
-use crate::run::plan::Planned;
+use crate::run::plan::{short, Planned};
 use crate::store::table::{self, Row};
 use crate::store::Store;
+use schema::record::Status;
 use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
@@ -88,10 +89,13 @@ const LABELS: &[(&str, &str)] = &[
 
 /// Writes the tables, with the study's description in their metadata; `None` when no run of the
 /// study is stored yet.
+/// With `allow_mixed`, runs of several solver builds, hosts or instruction sets are tabulated
+/// together; without it they are refused (see `mixed_provenance`).
 pub fn collect(
     planned: &[Planned],
     store: &Store,
     study: &Study,
+    allow_mixed: bool,
 ) -> Result<Option<Collected>, String> {
     let records: HashMap<String, Value> = store
         .records()
@@ -115,6 +119,11 @@ pub fn collect(
     if rows.is_empty() {
         return Ok(None);
     }
+    if let (Some(mixed), false) = (mixed_provenance(&rows), allow_mixed) {
+        return Err(format!(
+            "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
+        ));
+    }
     let summary_rows = summary::summarize(&rows);
     let _outputs = store
         .lock_outputs()
@@ -135,6 +144,43 @@ pub fn collect(
         left_out,
         table: summary_rows,
     }))
+}
+
+/// What a timing or an error depends on, as the record's provenance names it.
+const PROVENANCE: &[(&str, &str)] = &[
+    ("solver fingerprints", "provenance.fingerprint"),
+    ("hosts", "provenance.host"),
+    ("instruction sets", "provenance.instruction_set"),
+];
+
+/// Whether the runs that measured something (`ok`, `diverged`) came from more than one solver
+/// build, host or instruction set: the first such mix, said with each value and its run count.
+pub fn mixed_provenance(rows: &[Row]) -> Option<String> {
+    let measured: Vec<&Row> = rows
+        .iter()
+        .filter(|r| matches!(r.status(), Some(Status::Ok | Status::Diverged)))
+        .collect();
+    PROVENANCE.iter().find_map(|(what, column)| {
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for row in &measured {
+            let value = row.text(column).unwrap_or("");
+            match counts.iter_mut().find(|(v, _)| *v == value) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((value, 1)),
+            }
+        }
+        (counts.len() > 1).then(|| {
+            let listed: Vec<String> = counts
+                .iter()
+                .map(|(v, n)| match (*what, *v) {
+                    (_, "") => format!("unknown ({n} runs)"),
+                    ("solver fingerprints", v) => format!("{} ({n} runs)", short(v)),
+                    (_, v) => format!("{v:?} ({n} runs)"),
+                })
+                .collect();
+            format!("the runs mix {what}: {}", listed.join(", "))
+        })
+    })
 }
 
 /// The summary's headline columns: the swept fields (as `(column, shown name)`: from the case,
@@ -196,6 +242,38 @@ mod tests {
         row.set("solve_s_median", json!(solve_s));
         row.set("error_l2_norm", json!(error));
         row
+    }
+
+    #[test]
+    fn runs_of_two_builds_or_hosts_are_a_mix_failed_ones_are_not() {
+        let run = |status: &str, fingerprint: Option<&str>, host: &str| {
+            let mut row = summary_row(16, 1.0, 1e-3);
+            row.set("status", json!(status));
+            if let Some(f) = fingerprint {
+                row.set("provenance.fingerprint", json!(f));
+            }
+            row.set("provenance.host", json!(host));
+            row
+        };
+        let (a, b) = ("a".repeat(64), "b".repeat(64));
+        let same = [run("ok", Some(&a), "vm"), run("diverged", Some(&a), "vm")];
+        // A failed run measured nothing (nlstudy wrote it): it mixes nothing in.
+        let with_failed = [run("ok", Some(&a), "vm"), run("failed", None, "")];
+        assert_eq!(mixed_provenance(&same), None);
+        assert_eq!(mixed_provenance(&with_failed), None);
+        let builds = [
+            run("ok", Some(&a), "vm"),
+            run("ok", Some(&b), "vm"),
+            run("ok", None, "vm"),
+        ];
+        assert_eq!(
+            mixed_provenance(&builds).as_deref(),
+            Some("the runs mix solver fingerprints: aaaaaaaa (1 runs), bbbbbbbb (1 runs), unknown (1 runs)")
+        );
+        let hosts = [run("ok", Some(&a), "vm"), run("ok", Some(&a), "node2")];
+        assert!(mixed_provenance(&hosts)
+            .unwrap()
+            .contains("hosts: \"vm\" (1 runs), \"node2\""));
     }
 
     #[test]
