@@ -798,3 +798,114 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
     let allowed = scratch.nlstudy("collect", &["--allow-mixed"]);
     assert!(allowed.status.success(), "{}", text(&allowed));
 }
+
+/// `compare`: B written by a solver wrapper that reports ten times every timing is worse with
+/// an interval above 1; a set against itself changes nothing; a point of one side is listed;
+/// unlike machines, single runs and another study's results are refused.
+#[test]
+fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
+    let mut study = small_study(&[16]);
+    study["repeat"] = json!(3);
+    let scratch = Scratch::new("compare", &study);
+    assert!(scratch.nlstudy("run", &["--no-collect"]).status.success());
+    // A wrapper scaling the timings by $FACTOR and naming the CPU $CPU in the records.
+    let wrapper = scratch.dir.join("scaled-nlsolve");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\nout = subprocess.run(['{}'] + sys.argv[1:], stdout=subprocess.PIPE)\ntext = out.stdout.decode()\nif sys.argv[1:2] == ['run'] and text.strip():\n    record = json.loads(text)\n    for field in ('solve_s', 'step_s', 'setup_s'):\n        record[field] *= float(os.environ.get('FACTOR', '1'))\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    text = json.dumps(record) + '\\n'\nsys.stdout.write(text)\nsys.exit(out.returncode)\n",
+            binary("nlsolve").display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let run_into = |study: &Path, dir: &str, solver: &Path, env: &[(&str, &str)]| {
+        let out = Command::new(binary("nlstudy"))
+            .args(["run", "--no-collect", "--results"])
+            .arg(scratch.dir.join(dir))
+            .arg("--solver")
+            .arg(solver)
+            .arg(study)
+            .envs(env.iter().copied())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", text(&out));
+    };
+    let side = |dir: &str, env: &[(&str, &str)]| run_into(&scratch.study(), dir, &wrapper, env);
+    let compare = |against: &str, extra: &[&str]| {
+        let against = scratch.dir.join(against);
+        let mut args = vec!["--against", against.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        scratch.nlstudy("compare", &args)
+    };
+    side("slower", &[("FACTOR", "10")]);
+    let slower = compare("slower", &[]);
+    assert_eq!(slower.status.code(), Some(1), "{}", text(&slower));
+    let slower = text(&slower);
+    let worse: Vec<&str> = slower
+        .lines()
+        .filter(|l| l.contains("| solve_s |"))
+        .collect();
+    assert_eq!(worse.len(), 2, "{slower}");
+    for line in worse {
+        assert!(line.ends_with("| worse |"), "{line}");
+        let low: f64 = line
+            .split('[')
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(low > 1.1, "{line}");
+    }
+    // The same runs on both sides: nothing changed.
+    let itself = compare("results", &[]);
+    assert!(itself.status.success(), "{}", text(&itself));
+    assert!(!text(&itself).contains("| worse |") && !text(&itself).contains("| better |"));
+
+    // Unlike machines are refused unless allowed.
+    side("elsewhere", &[("CPU", "another CPU")]);
+    let unlike = compare("elsewhere", &[]);
+    assert_eq!(unlike.status.code(), Some(2), "{}", text(&unlike));
+    assert!(
+        text(&unlike).contains("unlike machines"),
+        "{}",
+        text(&unlike)
+    );
+    assert!(compare("elsewhere", &["--allow-unlike"]).status.code() != Some(2));
+
+    // A point stored on one side only is listed.
+    let mut grown = small_study(&[16, 32]);
+    grown["repeat"] = json!(3);
+    scratch.write_study(&grown);
+    assert!(scratch.nlstudy("run", &["--no-collect"]).status.success());
+    let one_sided = compare("slower", &[]);
+    assert_eq!(
+        text(&one_sided).matches("only in A: n=32").count(),
+        2,
+        "{}",
+        text(&one_sided)
+    );
+
+    // Another study's results, and single runs, are refused.
+    let other = scratch.dir.join("other.json");
+    std::fs::write(&other, grown.to_string()).unwrap();
+    run_into(&other, "theirs", &binary("nlsolve"), &[]);
+    let foreign = compare("theirs", &[]);
+    assert_eq!(foreign.status.code(), Some(2), "{}", text(&foreign));
+    assert!(
+        text(&foreign).contains("compare result sets of one study"),
+        "{}",
+        text(&foreign)
+    );
+    scratch.write_study(&small_study(&[16]));
+    let single = compare("slower", &[]);
+    assert!(
+        text(&single).contains("no interval can be formed"),
+        "{}",
+        text(&single)
+    );
+}

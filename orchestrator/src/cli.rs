@@ -56,6 +56,27 @@ pub enum Command {
     /// Remove the figures no spec of the study draws any more, and list the stored records no
     /// point of the study has (deleted only with --yes).
     Clean(CleanArgs),
+    /// Compare the study's stored runs (A) with another set of them (B), point by point: the
+    /// ratio B/A of each metric's median over the repeats with a bootstrap 95 % interval, and a
+    /// verdict; exits 1 when something got worse (for CI jobs).
+    Compare(CompareArgs),
+}
+
+#[derive(Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// B: `history` (the records that the current ones superseded, of the most recent other
+    /// solver fingerprint), or another results directory holding the same study.
+    #[arg(long)]
+    against: String,
+    /// The smallest change of a timing that counts, as a fraction: with 0.1, B/A's interval
+    /// must lie above 1.1 or below 1/1.1.
+    #[arg(long, default_value_t = 0.1)]
+    threshold: f64,
+    /// Compare timings measured on unlike machines (another CPU model or instruction set).
+    #[arg(long)]
+    allow_unlike: bool,
 }
 
 #[derive(Args)]
@@ -262,6 +283,7 @@ pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
         Command::Table(args) => table_command(&args),
         Command::Submit(args) => submit_command(&args),
         Command::Clean(args) => clean_command(&args),
+        Command::Compare(args) => compare_command(&args),
     }
 }
 
@@ -636,4 +658,127 @@ fn clean_command(args: &CleanArgs) -> Result<ExitCode, Failure> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
+    use crate::analysis::compare;
+    if !(args.threshold > 0.0 && args.threshold < 10.0) {
+        return Err(format!(
+            "--threshold: {} is not a fraction of change; give e.g. 0.1 for 10 %",
+            args.threshold
+        )
+        .into());
+    }
+    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
+    let by_key =
+        |records: Vec<serde_json::Value>| -> std::collections::HashMap<String, serde_json::Value> {
+            records
+                .into_iter()
+                .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
+                .collect()
+        };
+    let a = by_key(store.records());
+    let b = match args.against.as_str() {
+        "history" => by_key(latest_superseded(store.history()).ok_or_else(|| {
+            format!(
+                "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
+                study.name
+            )
+        })?),
+        directory => {
+            let other = Store::open(std::path::Path::new(directory), &study.name);
+            if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {
+                if theirs.study_file != ours.study_file {
+                    return Err(format!(
+                        "--against {directory}: its study {} was made by {}, not by {}; compare result sets of one study",
+                        study.name,
+                        theirs.study_file.display(),
+                        ours.study_file.display()
+                    )
+                    .into());
+                }
+            }
+            by_key(other.records())
+        }
+    };
+    let mut points: Vec<(String, Vec<String>)> = Vec::new();
+    for p in &planned {
+        let label = p.point.label_without_repeat();
+        match points.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, keys)) => keys.push(p.key.clone()),
+            None => points.push((label, vec![p.key.clone()])),
+        }
+    }
+    let paired = compare::pair(&points, &a, &b);
+    if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
+        return Err(format!(
+            "--against {}: no point of study {} is stored on both sides",
+            args.against, study.name
+        )
+        .into());
+    }
+    if paired.iter().all(|p| p.a.len() < 2 && p.b.len() < 2) {
+        return Err(format!(
+            "study {} runs each point once, so no interval can be formed for its timings; set `repeat` to 5 or more and run both sides again",
+            study.name
+        )
+        .into());
+    }
+    let side_a: Vec<&serde_json::Value> = paired.iter().flat_map(|p| p.a.iter().copied()).collect();
+    let side_b: Vec<&serde_json::Value> = paired.iter().flat_map(|p| p.b.iter().copied()).collect();
+    let (machines_a, machines_b) = (compare::machines(&side_a), compare::machines(&side_b));
+    if machines_a != machines_b && !args.allow_unlike {
+        return Err(format!(
+            "the two sides ran on unlike machines (A: {}; B: {}), whose timings do not compare; give --allow-unlike to compare them anyway",
+            machines_a.join(", "),
+            machines_b.join(", ")
+        )
+        .into());
+    }
+    let comparison = compare::compare(&paired, args.threshold);
+    tell_raw!("{}", compare::markdown(&comparison));
+    for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
+        for point in points {
+            tell!("only in {side}: {point}");
+        }
+    }
+    let table = store.table("compare.parquet");
+    crate::store::table::write_parquet_about(
+        &[(&table, &compare::rows(&comparison))],
+        &crate::store::table::About {
+            description: &format!("{} against {}", study.name, args.against),
+            notes: &[],
+        },
+    )?;
+    let regressions = comparison.regressions();
+    say!(
+        "compare: {} metrics of {} points, {regressions} worse; table: {}",
+        comparison.changes.len(),
+        points.len(),
+        table.display()
+    );
+    Ok(match regressions {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(exit::CASE_FAILED),
+    })
+}
+
+/// Of the superseded records, those of the fingerprint that ran last.
+fn latest_superseded(history: Vec<serde_json::Value>) -> Option<Vec<serde_json::Value>> {
+    let text = |r: &serde_json::Value, f: &str| {
+        r.pointer(&format!("/provenance/{f}"))
+            .and_then(serde_json::Value::as_str)
+            .unwrap_or("")
+            .to_string()
+    };
+    let latest = history
+        .iter()
+        .max_by_key(|r| text(r, "timestamp"))
+        .map(|r| text(r, "fingerprint"))?;
+    Some(
+        history
+            .into_iter()
+            .filter(|r| text(r, "fingerprint") == latest)
+            .collect(),
+    )
 }

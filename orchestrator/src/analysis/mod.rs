@@ -2,6 +2,7 @@
 //! orders, timing statistics), and Markdown pivots over it.
 
 pub mod collect;
+pub mod compare;
 pub mod figure_columns;
 pub mod pivot;
 pub mod summary;

@@ -213,6 +213,25 @@ impl Store {
         self.scan().records
     }
 
+    /// The superseded records in `history/` (`<key>.<fingerprint>.json`, see `save`): whole
+    /// JSON objects with a key and a known status; anything else is left out.
+    pub fn history(&self) -> Vec<Value> {
+        let Ok(entries) = std::fs::read_dir(self.table("history")) else {
+            return Vec::new();
+        };
+        let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
+        paths.sort();
+        paths
+            .iter()
+            .filter_map(|path| {
+                serde_json::from_str::<Value>(&std::fs::read_to_string(path).ok()?).ok()
+            })
+            .filter(|record| {
+                record.get("key").is_some_and(Value::is_string) && Status::of(record).is_some()
+            })
+            .collect()
+    }
+
     /// What the stored records say, read once: the status of each key and the solver version
     /// each case id was run with. An unreadable file counts as absent (its point runs again).
     pub fn index(&self) -> Index {
