@@ -147,10 +147,15 @@ fn provenance_section(page: &mut String, records: &[Value]) {
     page.push_str("<h2>Provenance</h2>\n<table>\n");
     for (name, value) in [
         ("solver version", values("solver_version")),
+        ("solver fingerprint", values("fingerprint")),
         ("git revision", values("git_revision")),
         ("host", values("host")),
         ("CPU", values("cpu")),
         ("instruction set", values("instruction_set")),
+        (
+            "busy machine",
+            crate::output::status::noisy_runs(records).unwrap_or_else(|| "no run is noisy".into()),
+        ),
         ("first run", first.to_string()),
         ("last run", last.to_string()),
         (

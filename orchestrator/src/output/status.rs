@@ -21,6 +21,21 @@ pub fn counts_by_status(records: &[Value]) -> Vec<String> {
     counts.iter().map(|(s, n)| format!("{n} {s}")).collect()
 }
 
+/// How many runs were timed on a busy machine (their provenance says `noisy`), as a sentence;
+/// `None` when none was.
+pub fn noisy_runs(records: &[Value]) -> Option<String> {
+    let noisy = records
+        .iter()
+        .filter(|r| r.pointer("/provenance/noisy") == Some(&Value::Bool(true)))
+        .count();
+    (noisy > 0).then(|| {
+        format!(
+            "{noisy} of {} runs are noisy: timed while other tasks wanted the cores the run left free; rerun them (`--force`) on a quiet machine before trusting their timings",
+            records.len()
+        )
+    })
+}
+
 /// The report: one line of counts, one line per failed run, the missing points, the jobs.
 pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
     let scan = store.scan();
@@ -49,6 +64,9 @@ pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
             record["key"].as_str().unwrap_or("?"),
             message.lines().next().unwrap_or("")
         );
+    }
+    if let Some(noisy) = noisy_runs(&records) {
+        let _ = writeln!(out, "{noisy}");
     }
     for unreadable in &scan.unreadable {
         let _ = writeln!(out, "unreadable: {unreadable}");
@@ -89,5 +107,19 @@ fn jobs_report(out: &mut String, store: &Store) {
             entry.name,
             entry.keys.len()
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn noisy_runs_are_counted_and_a_quiet_study_says_nothing() {
+        let run = |noisy: bool| json!({"status": "ok", "provenance": {"noisy": noisy}});
+        assert_eq!(noisy_runs(&[run(false), json!({"status": "failed"})]), None);
+        let said = noisy_runs(&[run(true), run(false), run(true)]).unwrap();
+        assert!(said.starts_with("2 of 3 runs are noisy"), "{said}");
     }
 }

@@ -545,6 +545,8 @@ mod ranks {
 }
 
 fn main() -> ExitCode {
+    // The machine's load before this run adds to it, for the record's provenance.
+    solver::output::record::note_start();
     // MPI starts before anything can fail, so that every rank of a bad run finalizes and exits
     // with the same code instead of leaving mpirun to report a crash.
     let Ok(universe) = ranks::start() else {

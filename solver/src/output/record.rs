@@ -412,6 +412,52 @@ pub struct Provenance {
     /// start-up; absent from records made before the kernel dispatched.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub instruction_set: String,
+    /// Whether the working tree had uncommitted changes when the solver was built (from
+    /// `git_revision`'s `-dirty`); the fingerprint hashes the sources themselves either way.
+    #[serde(default)]
+    pub dirty_tree: bool,
+    /// Cores this process may run on (affinity and cgroup limits included).
+    #[serde(default)]
+    pub cores_online: usize,
+    /// The machine's load when the run started and ended: /proc/loadavg's one-minute average,
+    /// and how many other tasks were runnable at that instant (the run's own left out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_start: Option<Load>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_end: Option<Load>,
+    /// Timed while other tasks wanted more cores than the run left free (cores online minus
+    /// threads × ranks), at its start or its end: its timings measure contention too.
+    #[serde(default)]
+    pub noisy: bool,
+}
+
+/// The machine's load at one instant (see `Provenance::load_start`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Load {
+    pub average_1min: f64,
+    pub other_runnable: usize,
+}
+
+impl Load {
+    /// Now, with `own` of the runnable tasks being this run's; `None` where /proc does not tell.
+    pub fn now(own: usize) -> Option<Load> {
+        let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+        let mut fields = text.split_whitespace();
+        let average_1min = fields.next()?.parse().ok()?;
+        let runnable: usize = fields.nth(2)?.split('/').next()?.parse().ok()?;
+        Some(Load {
+            average_1min,
+            other_runnable: runnable.saturating_sub(own),
+        })
+    }
+}
+
+/// The load when the run started, taken by `note_start` before any work.
+static START: std::sync::OnceLock<Option<Load>> = std::sync::OnceLock::new();
+
+/// Takes the load at the start of the run (nlsolve calls it first thing; only this thread runs).
+pub fn note_start() {
+    START.get_or_init(|| Load::now(1));
 }
 
 /// This build's fingerprint (see build/fingerprint.rs).
@@ -431,7 +477,25 @@ impl Provenance {
             instruction_set: crate::operator::InstructionSet::detected()
                 .name()
                 .to_string(),
+            dirty_tree: option_env!("NLSOLVE_GIT_REVISION").is_some_and(|r| r.ends_with("-dirty")),
+            cores_online: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            load_start: None,
+            load_end: None,
+            noisy: false,
         }
+        .with_load(START.get().copied().flatten(), Load::now(threads * ranks))
+    }
+
+    /// The load at the run's start and end, and whether it made the run noisy.
+    fn with_load(mut self, start: Option<Load>, end: Option<Load>) -> Self {
+        let free = self.cores_online.saturating_sub(self.threads * self.ranks);
+        self.noisy = [start, end]
+            .iter()
+            .flatten()
+            .any(|load| load.other_runnable > free);
+        self.load_start = start;
+        self.load_end = end;
+        self
     }
 }
 
@@ -448,6 +512,31 @@ fn cpu_model() -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_run_is_noisy_when_others_wanted_the_cores_it_left_free() {
+        // 4 cores, a 2-thread run: 2 free.
+        let mut provenance = Provenance::here(2, 1);
+        provenance.cores_online = 4;
+        let load = |others: usize| {
+            Some(Load {
+                average_1min: 1.0,
+                other_runnable: others,
+            })
+        };
+        assert!(!provenance.clone().with_load(load(2), load(0)).noisy);
+        assert!(provenance.clone().with_load(load(0), load(3)).noisy);
+        assert!(provenance.clone().with_load(load(3), None).noisy);
+        assert!(
+            !provenance.with_load(None, None).noisy,
+            "unmeasured is not noisy"
+        );
+        let now = Load::now(0).expect("/proc/loadavg on Linux");
+        assert!(
+            now.average_1min >= 0.0 && now.other_runnable >= 1,
+            "this test runs: {now:?}"
+        );
+    }
 
     fn record() -> Record {
         let case =
