@@ -861,6 +861,8 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
             .unwrap();
         assert!(low > 1.1, "{line}");
     }
+    let compared = scratch.dir.join("results/small");
+    assert!(compared.join("compare.parquet").exists() && compared.join("compare.svg").exists());
     // The same runs on both sides: nothing changed.
     let itself = compare("results", &[]);
     assert!(itself.status.success(), "{}", text(&itself));

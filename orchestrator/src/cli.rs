@@ -750,12 +750,21 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
             notes: &[],
         },
     )?;
+    let figure = store.table("compare.svg");
+    let title = format!("study {}: B = {} against A", study.name, args.against);
+    let svg = crate::output::draw::render(&crate::output::compare_figure::chart(
+        &comparison,
+        &title,
+        args.threshold,
+    ))?;
+    crate::store::write_atomically(&figure, svg.as_bytes())?;
     let regressions = comparison.regressions();
     say!(
-        "compare: {} metrics of {} points, {regressions} worse; table: {}",
+        "compare: {} metrics of {} points, {regressions} worse; table: {}, figure: {}",
         comparison.changes.len(),
         points.len(),
-        table.display()
+        table.display(),
+        figure.display()
     );
     Ok(match regressions {
         0 => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 //! report, and the status of a study's records and jobs.
 
 pub mod clean;
+pub mod compare_figure;
 pub mod draw;
 pub mod figure;
 pub mod plot;

@@ -11,7 +11,7 @@ use crate::store::table::{self, Row};
 use crate::store::{write_atomically, Store};
 use schema::record::Status;
 use serde_json::Value;
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -39,6 +39,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
     runs_section(&mut page, &records);
     figures_section(&mut page, study, store);
     summary_section(&mut page, &summary, swept);
+    comparison_section(&mut page, store);
     failures_section(&mut page, &records);
     provenance_section(&mut page, &records);
     page.push_str("</body>\n</html>\n");
@@ -88,6 +89,35 @@ fn figures_section(page: &mut String, study: &Study, store: &Store) {
             }
         }
     }
+}
+
+/// The last `nlstudy compare` of the study, if any: its figure and its verdicts counted.
+fn comparison_section(page: &mut String, store: &Store) {
+    let Ok(svg) = std::fs::read_to_string(store.table("compare.svg")) else {
+        return;
+    };
+    let verdicts = table::read_parquet(&store.table("compare.parquet"))
+        .map(|rows| {
+            let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+            for row in &rows {
+                *counts
+                    .entry(row.text("verdict").unwrap_or("?").to_string())
+                    .or_default() += 1;
+            }
+            counts
+                .iter()
+                .map(|(v, n)| format!("{n} {v}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .unwrap_or_default();
+    let start = svg.find("<svg").unwrap_or(0);
+    let _ = writeln!(
+        page,
+        "<h2>Comparison</h2>\n<p>The last <code>nlstudy compare</code>: {} (metrics of points; compare.parquet holds each).</p>\n<figure id=\"compare\">\n{}\n</figure>",
+        escape(&verdicts),
+        &svg[start..]
+    );
 }
 
 /// The summary table's swept fields and headline results, one row per point.
