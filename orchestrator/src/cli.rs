@@ -60,6 +60,19 @@ pub enum Command {
     /// ratio B/A of each metric's median over the repeats with a bootstrap 95 % interval, and a
     /// verdict; exits 1 when something got worse (for CI jobs).
     Compare(CompareArgs),
+    /// Draw each point's metric against the date each solver build (fingerprint) first ran it,
+    /// from the current records and the superseded ones in history/, into
+    /// <results>/<study>/history.svg.
+    History(HistoryArgs),
+}
+
+#[derive(Args)]
+pub struct HistoryArgs {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// A record field, or `<field>_median` for the median over the repeats, e.g. `step_s_median`.
+    #[arg(long, default_value = "step_s_median")]
+    metric: String,
 }
 
 #[derive(Args)]
@@ -284,6 +297,7 @@ pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
         Command::Submit(args) => submit_command(&args),
         Command::Clean(args) => clean_command(&args),
         Command::Compare(args) => compare_command(&args),
+        Command::History(args) => history_command(&args),
     }
 }
 
@@ -701,14 +715,7 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
             by_key(other.records())
         }
     };
-    let mut points: Vec<(String, Vec<String>)> = Vec::new();
-    for p in &planned {
-        let label = p.point.label_without_repeat();
-        match points.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, keys)) => keys.push(p.key.clone()),
-            None => points.push((label, vec![p.key.clone()])),
-        }
-    }
+    let points = repeats_by_point(&planned);
     let paired = compare::pair(&points, &a, &b);
     if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
         return Err(format!(
@@ -790,4 +797,33 @@ fn latest_superseded(history: Vec<serde_json::Value>) -> Option<Vec<serde_json::
             .filter(|r| text(r, "fingerprint") == latest)
             .collect(),
     )
+}
+
+/// Each point's label and the keys of its repeats, in the study's order.
+fn repeats_by_point(planned: &[Planned]) -> Vec<(String, Vec<String>)> {
+    let mut points: Vec<(String, Vec<String>)> = Vec::new();
+    for p in planned {
+        let label = p.point.label_without_repeat();
+        match points.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, keys)) => keys.push(p.key.clone()),
+            None => points.push((label, vec![p.key.clone()])),
+        }
+    }
+    points
+}
+
+fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
+    let mut records = store.records();
+    records.extend(store.history());
+    let chart = crate::output::history::chart(
+        &study.name,
+        &args.metric,
+        &repeats_by_point(&planned),
+        &records,
+    )?;
+    let path = store.table("history.svg");
+    crate::store::write_atomically(&path, crate::output::draw::render(&chart)?.as_bytes())?;
+    tell!("history: {}", path.display());
+    Ok(ExitCode::SUCCESS)
 }

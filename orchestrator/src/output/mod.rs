@@ -5,6 +5,7 @@ pub mod clean;
 pub mod compare_figure;
 pub mod draw;
 pub mod figure;
+pub mod history;
 pub mod plot;
 pub mod report;
 pub mod status;
