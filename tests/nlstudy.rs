@@ -799,8 +799,8 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
     assert!(allowed.status.success(), "{}", text(&allowed));
 }
 
-/// `compare`: B written by a solver wrapper that reports ten times every timing is worse with
-/// an interval above 1; a set against itself changes nothing; a point of one side is listed;
+/// `compare`: the current runs (B) against a baseline (A) written by a solver wrapper that
+/// reports a tenth of every timing are worse, with an interval above 1; a set against itself changes nothing; a point of one side is listed;
 /// unlike machines, single runs and another study's results are refused.
 #[test]
 fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
@@ -839,8 +839,8 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
         args.extend_from_slice(extra);
         scratch.nlstudy("compare", &args)
     };
-    side("slower", &[("FACTOR", "10")]);
-    let slower = compare("slower", &[]);
+    side("faster", &[("FACTOR", "0.1")]);
+    let slower = compare("faster", &[]);
     assert_eq!(slower.status.code(), Some(1), "{}", text(&slower));
     let slower = text(&slower);
     let worse: Vec<&str> = slower
@@ -884,9 +884,9 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
     grown["repeat"] = json!(3);
     scratch.write_study(&grown);
     assert!(scratch.nlstudy("run", &["--no-collect"]).status.success());
-    let one_sided = compare("slower", &[]);
+    let one_sided = compare("faster", &[]);
     assert_eq!(
-        text(&one_sided).matches("only in A: n=32").count(),
+        text(&one_sided).matches("only in B: n=32").count(),
         2,
         "{}",
         text(&one_sided)
@@ -904,7 +904,7 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
         text(&foreign)
     );
     scratch.write_study(&small_study(&[16]));
-    let single = compare("slower", &[]);
+    let single = compare("faster", &[]);
     assert!(
         text(&single).contains("no interval can be formed"),
         "{}",

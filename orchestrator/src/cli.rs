@@ -56,9 +56,9 @@ pub enum Command {
     /// Remove the figures no spec of the study draws any more, and list the stored records no
     /// point of the study has (deleted only with --yes).
     Clean(CleanArgs),
-    /// Compare the study's stored runs (A) with another set of them (B), point by point: the
-    /// ratio B/A of each metric's median over the repeats with a bootstrap 95 % interval, and a
-    /// verdict; exits 1 when something got worse (for CI jobs).
+    /// Compare the study's stored runs (B, the new) with a baseline set of them (A), point by
+    /// point: the ratio B/A of each metric's median over the repeats with a bootstrap 95 %
+    /// interval, and a verdict; exits 1 when something got worse (for CI jobs).
     Compare(CompareArgs),
     /// Draw each point's metric against the date each solver build (fingerprint) first ran it,
     /// from the current records and the superseded ones in history/, into
@@ -79,8 +79,8 @@ pub struct HistoryArgs {
 pub struct CompareArgs {
     #[command(flatten)]
     common: CommonArgs,
-    /// B: `history` (the records that the current ones superseded, of the most recent other
-    /// solver fingerprint), or another results directory holding the same study.
+    /// The baseline A: `history` (the records that the current ones superseded, of the most
+    /// recent other solver fingerprint), or another results directory holding the same study.
     #[arg(long)]
     against: String,
     /// The smallest change of a timing that counts, as a fraction: with 0.1, B/A's interval
@@ -691,8 +691,8 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
                 .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
                 .collect()
         };
-    let a = by_key(store.records());
-    let b = match args.against.as_str() {
+    let b = by_key(store.records());
+    let a = match args.against.as_str() {
         "history" => by_key(latest_superseded(store.history()).ok_or_else(|| {
             format!(
                 "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
@@ -758,7 +758,7 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         },
     )?;
     let figure = store.table("compare.svg");
-    let title = format!("study {}: B = {} against A", study.name, args.against);
+    let title = format!("study {}: now (B) against {} (A)", study.name, args.against);
     let svg = crate::output::draw::render(&crate::output::compare_figure::chart(
         &comparison,
         &title,

@@ -70,11 +70,14 @@ pub fn chart(
             "no stored record of study {study} has `{field}`; name a field of the records, or `<field>_median`"
         ));
     }
-    let builds: Vec<Guide> = first_day
+    let mut in_order: Vec<(&String, &f64)> = first_day.iter().collect();
+    in_order.sort_by(|a, b| a.1.total_cmp(b.1));
+    let builds: Vec<Guide> = in_order
         .iter()
-        .map(|(build, day)| Guide::Vertical {
-            label: format!("build {}", crate::run::plan::short(build)),
-            x: day - origin,
+        .enumerate()
+        .map(|(k, (build, day))| Guide::Vertical {
+            label: format!("build {}: {}", k + 1, crate::run::plan::short(build)),
+            x: *day - origin,
         })
         .collect();
     Ok(Chart {
