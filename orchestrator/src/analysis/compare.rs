@@ -212,7 +212,8 @@ fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
         .collect()
 }
 
-fn median(values: &[f64]) -> f64 {
+/// The median of `values` (not empty).
+pub fn median(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     let n = sorted.len();
@@ -262,7 +263,8 @@ fn seed_of(point: &str, metric: &str) -> u64 {
         })
 }
 
-/// The machines the measured records of a side ran on: their CPU models and instruction sets.
+/// The machines the measured records of a side ran on: their CPU models, instruction sets and
+/// cores online.
 pub fn machines(records: &[&Value]) -> Vec<String> {
     let mut machines: Vec<String> = measured(records)
         .iter()
@@ -273,7 +275,15 @@ pub fn machines(records: &[&Value]) -> Vec<String> {
                     .unwrap_or("unknown")
                     .to_string()
             };
-            format!("{} ({})", field("cpu"), field("instruction_set"))
+            let cores = r
+                .pointer("/provenance/cores_online")
+                .and_then(Value::as_u64)
+                .map_or("unknown".to_string(), |n| n.to_string());
+            format!(
+                "{} ({}, {cores} cores)",
+                field("cpu"),
+                field("instruction_set")
+            )
         })
         .collect();
     machines.sort();

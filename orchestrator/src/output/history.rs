@@ -2,6 +2,7 @@
 //! records and the superseded ones in `history/`), each point's metric against the date its
 //! build first ran, as asv draws benchmarks against commits.
 
+use crate::analysis::compare::median;
 use crate::output::draw::{Axis, Chart, Guide, Panel, Series};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -105,16 +106,6 @@ pub fn chart(
             heat: None,
         }],
     })
-}
-
-fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let n = sorted.len();
-    match n % 2 {
-        1 => sorted[n / 2],
-        _ => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
-    }
 }
 
 /// Days since 1970 of an RFC 3339 UTC time such as `2026-11-23T22:35:40Z`.
