@@ -742,7 +742,12 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         )
         .into());
     }
-    let comparison = compare::compare(&paired, args.threshold);
+    let mut comparison = compare::compare(&paired, args.threshold);
+    comparison.changes.extend(compare::compare_derived(
+        &crate::analysis::collect::summary_of(&planned, &a),
+        &crate::analysis::collect::summary_of(&planned, &b),
+        args.threshold,
+    ));
     tell_raw!("{}", compare::markdown(&comparison));
     for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
         for point in points {

@@ -146,6 +146,16 @@ pub fn collect(
     }))
 }
 
+/// The summary rows of the points whose records `records` (by key) holds, as `collect` would
+/// write them: for comparing what two result sets derive (speedups, orders).
+pub fn summary_of(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
+    let rows: Vec<Row> = planned
+        .iter()
+        .filter_map(|p| Some(run_row(p, records.get(&p.key)?)))
+        .collect();
+    summary::summarize(&rows)
+}
+
 /// What a timing or an error depends on, as the record's provenance names it.
 const PROVENANCE: &[(&str, &str)] = &[
     ("solver fingerprints", "provenance.fingerprint"),

@@ -15,6 +15,8 @@ use std::collections::HashMap;
 enum Better {
     Lower,
     Higher,
+    /// Neither way: a change is worse (a convergence order).
+    Unchanged,
 }
 
 /// How a metric varies between runs of one case.
@@ -36,6 +38,20 @@ const METRICS: &[(&str, Better, Kind)] = &[
     ("error_l2_norm", Better::Lower, Kind::Deterministic),
     ("error_max", Better::Lower, Kind::Deterministic),
 ];
+
+/// What the summary derives, compared point by point: speedup and efficiency (higher is better,
+/// beyond the threshold; from medians, so without an interval), and observed orders, which
+/// count as worse when they move by more than `ORDER_TOLERANCE` either way: without the
+/// method's theoretical order at hand, any change of a convergence order is flagged.
+const DERIVED: &[(&str, Better)] = &[
+    ("speedup", Better::Higher),
+    ("efficiency", Better::Higher),
+    ("order_l2", Better::Unchanged),
+    ("order_max", Better::Unchanged),
+];
+
+/// How far an observed order may move before it counts as a change.
+const ORDER_TOLERANCE: f64 = 0.1;
 
 /// Errors differ when |b − a| > ABSOLUTE + RELATIVE·|a|: round-off of a changed summation order
 /// stays below, a changed discretization does not.
@@ -184,6 +200,45 @@ fn change(
         interval,
         verdict,
     }
+}
+
+/// What the summaries of the two sides derive for each point (`DERIVED`), by the `point` label.
+pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
+    let mut changes = Vec::new();
+    for row_a in a {
+        let Some(point) = row_a.text("point") else {
+            continue;
+        };
+        let Some(row_b) = b.iter().find(|r| r.text("point") == Some(point)) else {
+            continue;
+        };
+        for &(metric, better) in DERIVED {
+            let (Some(xa), Some(xb)) = (row_a.number(metric), row_b.number(metric)) else {
+                continue;
+            };
+            if !(xa.is_finite() && xb.is_finite()) {
+                continue;
+            }
+            let ratio = xb / xa;
+            let verdict = match better {
+                Better::Unchanged if (xb - xa).abs() > ORDER_TOLERANCE => Verdict::Worse,
+                Better::Unchanged => Verdict::Same,
+                _ if ratio < 1.0 / (1.0 + threshold) => Verdict::Worse,
+                _ if ratio > 1.0 + threshold => Verdict::Better,
+                _ => Verdict::Same,
+            };
+            changes.push(Change {
+                point: point.to_string(),
+                metric,
+                a: xa,
+                b: xb,
+                ratio,
+                interval: None,
+                verdict,
+            });
+        }
+    }
+    changes
 }
 
 /// The records that measured something (`ok`, `diverged`).
@@ -418,6 +473,29 @@ mod tests {
         assert!(
             same.changes.iter().all(|c| c.verdict == Verdict::Same),
             "A/A"
+        );
+    }
+
+    #[test]
+    fn derived_speedups_and_orders_are_compared_too() {
+        let row = |speedup: f64, order: f64| {
+            let mut row = Row::default();
+            row.set("point", json!("n=64 threads=2"));
+            row.set("speedup", json!(speedup));
+            row.set("order_l2", json!(order));
+            row
+        };
+        let changes = compare_derived(&[row(1.8, 2.0)], &[row(1.2, 1.85)], 0.1);
+        let verdict = |m: &str| changes.iter().find(|c| c.metric == m).unwrap().verdict;
+        assert_eq!(
+            (verdict("speedup"), verdict("order_l2")),
+            (Verdict::Worse, Verdict::Worse)
+        );
+        let changes = compare_derived(&[row(1.8, 2.0)], &[row(1.85, 2.05)], 0.1);
+        assert!(changes.iter().all(|c| c.verdict == Verdict::Same));
+        assert!(
+            compare_derived(&[row(1.8, 2.0)], &[], 0.1).is_empty(),
+            "a point on one side"
         );
     }
 
