@@ -777,6 +777,16 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
         assert_eq!(record["provenance"]["fingerprint"], json!(other));
     }
     assert!(text(&with_other("plan", &[])).contains("0 to run"));
+    // The superseded build is found by its fingerprint (its runs are single: no interval).
+    let real_build = text(&Command::new(&real).arg("fingerprint").output().unwrap());
+    let by_build = format!("fingerprint:{}", &real_build.trim()[..8]);
+    let compared = text(&with_other("compare", &["--against", &by_build]));
+    assert!(compared.contains("no interval can be formed"), "{compared}");
+    let unknown = text(&with_other("compare", &["--against", "fingerprint:0123"]));
+    assert!(
+        unknown.contains("no stored or superseded record"),
+        "{unknown}"
+    );
     // Back to the real solver: its points are stale again.
     let back = text(&scratch.nlstudy("plan", &[]));
     assert_eq!(

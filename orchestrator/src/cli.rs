@@ -80,7 +80,9 @@ pub struct CompareArgs {
     #[command(flatten)]
     common: CommonArgs,
     /// The baseline A: `history` (the records that the current ones superseded, of the most
-    /// recent other solver fingerprint), or another results directory holding the same study.
+    /// recent other solver fingerprint), `fingerprint:PREFIX` (the stored or superseded records
+    /// of the build whose fingerprint starts with PREFIX), or another results directory holding
+    /// the same study.
     #[arg(long)]
     against: String,
     /// The smallest change of a timing that counts, as a fraction: with 0.1, B/A's interval
@@ -699,6 +701,25 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
                 study.name
             )
         })?),
+        build if build.starts_with("fingerprint:") => {
+            let prefix = build.trim_start_matches("fingerprint:");
+            let mut records = store.history();
+            records.extend(b.values().cloned());
+            let of_build: Vec<serde_json::Value> = records
+                .into_iter()
+                .filter(|r| {
+                    !prefix.is_empty() && crate::store::fingerprint_of(r).starts_with(prefix)
+                })
+                .collect();
+            if of_build.is_empty() {
+                return Err(format!(
+                    "--against {build}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
+                    study.name
+                )
+                .into());
+            }
+            by_key(of_build)
+        }
         directory => {
             let other = Store::open(std::path::Path::new(directory), &study.name);
             if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {
