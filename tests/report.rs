@@ -68,6 +68,19 @@ fn the_report_opens_in_a_browser_with_every_figure_drawn() {
         text(&run)
     );
     let page = std::fs::read_to_string(&report).expect("the run wrote its report");
+    // Each figure names the build and machine of its runs.
+    let build = text(
+        &std::process::Command::new(nonlocal_study::binary("nlsolve"))
+            .arg("fingerprint")
+            .output()
+            .unwrap(),
+    );
+    assert_eq!(
+        page.matches(&format!("(runs of build {} on ", &build.trim()[..8]))
+            .count(),
+        2,
+        "{page}"
+    );
     for expected in [
         "The nonlocal solver in 1D at fixed m against h",
         "4 stored runs:",
@@ -137,7 +150,11 @@ frame.addEventListener('load', () => {
             "a figure did not render: {figure}"
         );
     }
-    assert_eq!(figures[0]["caption"], "Error against h at m = 2");
+    let caption = figures[0]["caption"].as_str().unwrap();
+    assert!(
+        caption.starts_with("Error against h at m = 2 (runs of build "),
+        "{caption}"
+    );
     assert!(measured["rows"].as_u64().unwrap() > 4, "{measured}");
     let console: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE")).collect();
     assert!(console.is_empty(), "console messages: {console:?}");

@@ -37,7 +37,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
         );
     }
     runs_section(&mut page, &records);
-    figures_section(&mut page, study, store);
+    figures_section(&mut page, study, store, &summary, &records);
     summary_section(&mut page, &summary, swept);
     comparison_section(&mut page, store);
     failures_section(&mut page, &records);
@@ -61,22 +61,30 @@ fn runs_section(page: &mut String, records: &[Value]) {
     let _ = writeln!(page, "{}.</p>", counts_by_status(records).join(", "));
 }
 
-/// Each figure of the study inline, its title as the caption; one not drawn yet is named.
-fn figures_section(page: &mut String, study: &Study, store: &Store) {
+/// Each figure of the study inline, its title as the caption with the builds and machines its
+/// points were run on; one not drawn yet is named.
+fn figures_section(
+    page: &mut String,
+    study: &Study,
+    store: &Store,
+    summary: &[Row],
+    records: &[Value],
+) {
     if study.figures.is_empty() {
         return;
     }
     page.push_str("<h2>Figures</h2>\n");
-    for spec in &study.figures {
+    for (k, spec) in study.figures.iter().enumerate() {
         let path = store.table("figures").join(format!("{}.svg", spec.name));
         let caption = escape(spec.title.as_deref().unwrap_or(&spec.name));
+        let made_by = made_by(spec, k, summary, records);
         match std::fs::read_to_string(&path) {
             Ok(svg) => {
                 // The SVG element itself: the XML declaration has no place inside HTML.
                 let start = svg.find("<svg").unwrap_or(0);
                 let _ = writeln!(
                     page,
-                    "<figure id=\"figure-{}\">\n{}\n<figcaption>{caption}</figcaption>\n</figure>",
+                    "<figure id=\"figure-{}\">\n{}\n<figcaption>{caption}{made_by}</figcaption>\n</figure>",
                     escape(&spec.name),
                     &svg[start..]
                 );
@@ -118,6 +126,48 @@ fn comparison_section(page: &mut String, store: &Store) {
         escape(&verdicts),
         &svg[start..]
     );
+}
+
+/// ` (runs of build e27b0c1a on vm: Intel Xeon, avx512f)`: the builds and machines of the runs
+/// behind figure `k`'s points (more than one only when tabulated with `--allow-mixed`).
+fn made_by(
+    spec: &crate::model::figure_spec::FigureSpec,
+    k: usize,
+    summary: &[Row],
+    records: &[Value],
+) -> String {
+    let Ok(rows) = crate::output::figure::selected(spec, k, summary) else {
+        return String::new();
+    };
+    let cases: BTreeSet<&str> = rows.iter().filter_map(|r| r.text("case_id")).collect();
+    let of = |field: &str| -> Vec<String> {
+        let set: BTreeSet<String> = records
+            .iter()
+            .filter(|r| r["case_id"].as_str().is_some_and(|c| cases.contains(c)))
+            .filter(|r| matches!(Status::of(r), Some(Status::Ok | Status::Diverged)))
+            .map(|r| {
+                r["provenance"][field]
+                    .as_str()
+                    .unwrap_or("unknown")
+                    .to_string()
+            })
+            .collect();
+        set.into_iter().collect()
+    };
+    let builds: Vec<String> = of("fingerprint")
+        .iter()
+        .map(|f| crate::run::plan::short(f).to_string())
+        .collect();
+    if builds.is_empty() {
+        return String::new();
+    }
+    escape(&format!(
+        " (runs of build {} on {}: {}, {})",
+        builds.join(" and "),
+        of("host").join(", "),
+        of("cpu").join(", "),
+        of("instruction_set").join(", ")
+    ))
 }
 
 /// The summary table's swept fields and headline results, one row per point.

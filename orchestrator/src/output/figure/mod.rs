@@ -30,6 +30,23 @@ fn column(rows: &[Row], name: &str) -> Option<String> {
         .find(|c| rows.iter().any(|r| r.get(c).is_some_and(|v| !v.is_null())))
 }
 
+/// The rows of the summary table that figure `k`'s `where` keeps.
+pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<&'a Row>, String> {
+    let mut kept = Vec::new();
+    for row in rows {
+        let scope = Scope::of(&row.expression_fields());
+        let mut keep = true;
+        for (j, condition) in spec.filter.iter().enumerate() {
+            keep &= expression::condition(condition, &scope)
+                .map_err(|e| fault(k, spec, format!("where[{j}]: {e}")))?;
+        }
+        if keep {
+            kept.push(row);
+        }
+    }
+    Ok(kept)
+}
+
 /// The chart of figure `k` of a study whose summary table is `rows`.
 pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String> {
     let (dx, dy, ds) = spec.kind.defaults();
@@ -83,18 +100,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             .collect::<Result<_, _>>()?,
         None => vec![ds.to_string()],
     };
-    let mut kept = Vec::new();
-    for row in rows {
-        let scope = Scope::of(&row.expression_fields());
-        let mut keep = true;
-        for (j, condition) in spec.filter.iter().enumerate() {
-            keep &= expression::condition(condition, &scope)
-                .map_err(|e| fault(k, spec, format!("where[{j}]: {e}")))?;
-        }
-        if keep {
-            kept.push(row);
-        }
-    }
+    let kept = selected(spec, k, rows)?;
     if kept.is_empty() {
         return Err(fault(k, spec, format!("where selects no row of the summary table ({} rows); compare its conditions with the table's values (`nlstudy table` shows them)", rows.len())));
     }
