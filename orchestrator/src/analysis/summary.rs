@@ -37,6 +37,7 @@ const DERIVED: &[&str] = &[
     "refinement_series",
     "scaling_series",
     "repeats",
+    "build",
     "workers",
     "bond_updates_per_s",
     "baseline_workers",
@@ -134,6 +135,19 @@ fn reduce(repeats: &[&Row]) -> Row {
         .filter(|(_, s)| Status::parse(s) != Some(Status::Failed))
         .map(|(r, _)| *r)
         .collect();
+    // The solver build that ran the point: what a figure splits its series by when a table
+    // mixes builds (`collect --allow-mixed`).
+    let builds: Vec<&str> = ran
+        .iter()
+        .map(|r| r.text("provenance.fingerprint").unwrap_or(""))
+        .collect();
+    if let Some(first_build) = builds.first() {
+        let build = match builds.iter().all(|b| b == first_build) {
+            true => crate::run::plan::short(first_build),
+            false => MIXED,
+        };
+        row.set("build", json!(build));
+    }
     for (name, _) in first.cells().filter(|(name, _)| is_timing(name)) {
         let mut times: Vec<f64> = ran.iter().filter_map(|r| r.number(name)).collect();
         times.sort_by(f64::total_cmp);

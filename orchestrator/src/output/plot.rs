@@ -289,6 +289,30 @@ mod tests {
     }
 
     #[test]
+    fn points_of_two_builds_never_share_a_line() {
+        let mut rows = summary();
+        let one = figure::chart(&specs()[2], 2, &rows).unwrap().panels[0]
+            .series
+            .len();
+        // The finest grid rerun by another build: it leaves each refinement line.
+        for row in rows.iter_mut() {
+            let build = match row.number("case.n") {
+                Some(64.0) => "bbbbbbbb",
+                _ => "aaaaaaaa",
+            };
+            row.set("build", json!(build));
+        }
+        let chart = figure::chart(&specs()[2], 2, &rows).unwrap();
+        let series = &chart.panels[0].series;
+        assert!(series.len() > one, "{} series", series.len());
+        assert!(
+            series.iter().all(|s| s.label.contains("build = ")),
+            "{:?}",
+            series.iter().map(|s| &s.label).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
     fn figures_hold_what_the_table_says() {
         let rows = summary();
         let specs = specs();

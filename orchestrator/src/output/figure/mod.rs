@@ -104,6 +104,15 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
     if kept.is_empty() {
         return Err(fault(k, spec, format!("where selects no row of the summary table ({} rows); compare its conditions with the table's values (`nlstudy table` shows them)", rows.len())));
     }
+    // Points of several solver builds (a table collected with --allow-mixed) are never joined
+    // into one line: the build splits the series and names them.
+    let mut series_columns = series_columns;
+    let mut builds: Vec<&str> = kept.iter().filter_map(|r| r.text("build")).collect();
+    builds.sort_unstable();
+    builds.dedup();
+    if builds.len() > 1 && !series_columns.iter().any(|c| c == "build") {
+        series_columns.push("build".to_string());
+    }
     let title = spec
         .title
         .clone()
