@@ -686,61 +686,13 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         .into());
     }
     let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
-    let by_key =
-        |records: Vec<serde_json::Value>| -> std::collections::HashMap<String, serde_json::Value> {
-            records
-                .into_iter()
-                .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
-                .collect()
-        };
-    let b = by_key(store.records());
-    let a = match args.against.as_str() {
-        "history" => by_key(latest_superseded(store.history()).ok_or_else(|| {
-            format!(
-                "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
-                study.name
-            )
-        })?),
-        build if build.starts_with("fingerprint:") => {
-            let prefix = build.trim_start_matches("fingerprint:");
-            let mut records = store.history();
-            records.extend(b.values().cloned());
-            let of_build: Vec<serde_json::Value> = records
-                .into_iter()
-                .filter(|r| {
-                    !prefix.is_empty() && crate::store::fingerprint_of(r).starts_with(prefix)
-                })
-                .collect();
-            if of_build.is_empty() {
-                return Err(format!(
-                    "--against {build}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
-                    study.name
-                )
-                .into());
-            }
-            by_key(of_build)
-        }
-        directory => {
-            let other = Store::open(std::path::Path::new(directory), &study.name);
-            if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {
-                if theirs.study_file != ours.study_file {
-                    return Err(format!(
-                        "--against {directory}: its study {} was made by {}, not by {}; compare result sets of one study",
-                        study.name,
-                        theirs.study_file.display(),
-                        ours.study_file.display()
-                    )
-                    .into());
-                }
-            }
-            by_key(other.records())
-        }
-    };
+    let b = crate::store::by_key(store.records());
+    let a = baseline(&args.against, &study, &store, &b)?;
     let points = repeats_by_point(&planned);
     let paired = compare::pair(&points, &a, &b);
     if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
         return Err(format!(
-            "--against {}: no point of study {} is stored on both sides",
+            "--against {:?}: no point of study {} is stored on both sides",
             args.against, study.name
         )
         .into());
@@ -852,4 +804,48 @@ fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
     crate::store::write_atomically(&path, crate::output::draw::render(&chart)?.as_bytes())?;
     tell!("history: {}", path.display());
     Ok(ExitCode::SUCCESS)
+}
+
+/// `compare`'s baseline A, by key: what `--against` names (see `CompareArgs::against`).
+fn baseline(
+    against: &str,
+    study: &Study,
+    store: &Store,
+    current: &std::collections::HashMap<String, serde_json::Value>,
+) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
+    use crate::store::{by_key, fingerprint_of};
+    if against == "history" {
+        return Ok(by_key(latest_superseded(store.history()).ok_or_else(|| {
+            format!(
+                "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
+                study.name
+            )
+        })?));
+    }
+    if let Some(prefix) = against.strip_prefix("fingerprint:") {
+        let mut records = store.history();
+        records.extend(current.values().cloned());
+        records.retain(|r| !prefix.is_empty() && fingerprint_of(r).starts_with(prefix));
+        if records.is_empty() {
+            return Err(format!(
+                "--against {against:?}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
+                study.name
+            )
+            .into());
+        }
+        return Ok(by_key(records));
+    }
+    let other = Store::open(std::path::Path::new(against), &study.name);
+    if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {
+        if theirs.study_file != ours.study_file {
+            return Err(format!(
+                "--against {against:?}: its study {} was made by {}, not by {}; compare result sets of one study",
+                study.name,
+                theirs.study_file.display(),
+                ours.study_file.display()
+            )
+            .into());
+        }
+    }
+    Ok(by_key(other.records()))
 }

@@ -97,11 +97,7 @@ pub fn collect(
     study: &Study,
     allow_mixed: bool,
 ) -> Result<Option<Collected>, String> {
-    let records: HashMap<String, Value> = store
-        .records()
-        .into_iter()
-        .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
-        .collect();
+    let records = crate::store::by_key(store.records());
     let mut rows = Vec::new();
     let mut missing = 0;
     // Points of different branches may be one case: each gets its row from the one record.

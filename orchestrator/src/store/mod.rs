@@ -258,6 +258,14 @@ impl Store {
     }
 }
 
+/// Records by their key (a record without one is left out).
+pub fn by_key(records: Vec<Value>) -> HashMap<String, Value> {
+    records
+        .into_iter()
+        .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
+        .collect()
+}
+
 /// The fingerprint of the solver that made `record` ("" when it does not say).
 pub fn fingerprint_of(record: &Value) -> &str {
     record
