@@ -787,6 +787,15 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
         unknown.contains("no stored or superseded record"),
         "{unknown}"
     );
+    // Two builds, neither of them necessarily current: B by --of.
+    let two = ["--of", "fingerprint:ffff", "--against", &by_build];
+    let compared = text(&scratch.nlstudy("compare", &two));
+    assert!(compared.contains("no interval can be formed"), "{compared}");
+    let unknown = text(&scratch.nlstudy(
+        "compare",
+        &["--of", "fingerprint:0123", "--against", "history"],
+    ));
+    assert!(unknown.contains("--of fingerprint"), "{unknown}");
     // Back to the real solver: its points are stale again.
     let back = text(&scratch.nlstudy("plan", &[]));
     assert_eq!(

@@ -92,6 +92,10 @@ pub struct CompareArgs {
     /// Compare timings measured on unlike machines (another CPU model or instruction set).
     #[arg(long)]
     allow_unlike: bool,
+    /// B: the records of the build whose fingerprint starts with PREFIX (`fingerprint:PREFIX`,
+    /// stored or superseded) instead of the study's current records: two past builds compared.
+    #[arg(long)]
+    of: Option<String>,
 }
 
 #[derive(Args)]
@@ -686,8 +690,19 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         .into());
     }
     let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
-    let b = crate::store::by_key(store.records());
-    let a = baseline(&args.against, &study, &store, &b)?;
+    let b = match &args.of {
+        Some(build) => match build.strip_prefix("fingerprint:") {
+            Some(prefix) => of_build(prefix, "--of", &study, &store)?,
+            None => {
+                return Err(format!(
+                    "--of {build:?}: give fingerprint:PREFIX, a build's fingerprint or its start"
+                )
+                .into())
+            }
+        },
+        None => crate::store::by_key(store.records()),
+    };
+    let a = baseline(&args.against, &study, &store)?;
     let points = repeats_by_point(&planned);
     let paired = compare::pair(&points, &a, &b);
     if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
@@ -806,14 +821,34 @@ fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The stored or superseded records of the build whose fingerprint starts with `prefix`, by key;
+/// `flag` names where the prefix came from, for the message.
+fn of_build(
+    prefix: &str,
+    flag: &str,
+    study: &Study,
+    store: &Store,
+) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
+    let mut records = store.history();
+    records.extend(store.records());
+    records.retain(|r| !prefix.is_empty() && crate::store::fingerprint_of(r).starts_with(prefix));
+    if records.is_empty() {
+        return Err(format!(
+            "{flag} fingerprint:{prefix:?}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
+            study.name
+        )
+        .into());
+    }
+    Ok(crate::store::by_key(records))
+}
+
 /// `compare`'s baseline A, by key: what `--against` names (see `CompareArgs::against`).
 fn baseline(
     against: &str,
     study: &Study,
     store: &Store,
-    current: &std::collections::HashMap<String, serde_json::Value>,
 ) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
-    use crate::store::{by_key, fingerprint_of};
+    use crate::store::by_key;
     if against == "history" {
         return Ok(by_key(latest_superseded(store.history()).ok_or_else(|| {
             format!(
@@ -823,17 +858,7 @@ fn baseline(
         })?));
     }
     if let Some(prefix) = against.strip_prefix("fingerprint:") {
-        let mut records = store.history();
-        records.extend(current.values().cloned());
-        records.retain(|r| !prefix.is_empty() && fingerprint_of(r).starts_with(prefix));
-        if records.is_empty() {
-            return Err(format!(
-                "--against {against:?}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
-                study.name
-            )
-            .into());
-        }
-        return Ok(by_key(records));
+        return of_build(prefix, "--against", study, store);
     }
     let other = Store::open(std::path::Path::new(against), &study.name);
     if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {

@@ -15,8 +15,8 @@ use std::collections::HashMap;
 enum Better {
     Lower,
     Higher,
-    /// Neither way: a change is worse (a convergence order).
-    Unchanged,
+    /// Closer to the theoretical order (a convergence order).
+    Closer,
 }
 
 /// How a metric varies between runs of one case.
@@ -40,14 +40,14 @@ const METRICS: &[(&str, Better, Kind)] = &[
 ];
 
 /// What the summary derives, compared point by point: speedup and efficiency (higher is better,
-/// beyond the threshold; from medians, so without an interval), and observed orders, which
-/// count as worse when they move by more than `ORDER_TOLERANCE` either way: without the
-/// method's theoretical order at hand, any change of a convergence order is flagged.
+/// beyond the threshold; from medians, so without an interval), and observed orders, better
+/// when closer to the theoretical order (taken as the whole number nearest the baseline's: the
+/// orders of these methods are whole) by more than `ORDER_TOLERANCE`, worse when farther.
 const DERIVED: &[(&str, Better)] = &[
     ("speedup", Better::Higher),
     ("efficiency", Better::Higher),
-    ("order_l2", Better::Unchanged),
-    ("order_max", Better::Unchanged),
+    ("order_l2", Better::Closer),
+    ("order_max", Better::Closer),
 ];
 
 /// How far an observed order may move before it counts as a change.
@@ -221,8 +221,15 @@ pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
             }
             let ratio = xb / xa;
             let verdict = match better {
-                Better::Unchanged if (xb - xa).abs() > ORDER_TOLERANCE => Verdict::Worse,
-                Better::Unchanged => Verdict::Same,
+                Better::Closer => {
+                    let theory = xa.round();
+                    let moved = (xb - theory).abs() - (xa - theory).abs();
+                    match moved {
+                        m if m > ORDER_TOLERANCE => Verdict::Worse,
+                        m if m < -ORDER_TOLERANCE => Verdict::Better,
+                        _ => Verdict::Same,
+                    }
+                }
                 _ if ratio < 1.0 / (1.0 + threshold) => Verdict::Worse,
                 _ if ratio > 1.0 + threshold => Verdict::Better,
                 _ => Verdict::Same,
@@ -493,6 +500,16 @@ mod tests {
         );
         let changes = compare_derived(&[row(1.8, 2.0)], &[row(1.85, 2.05)], 0.1);
         assert!(changes.iter().all(|c| c.verdict == Verdict::Same));
+        // An order of 1.7 that reaches 1.98 came closer to 2.
+        let closer = compare_derived(&[row(1.8, 1.7)], &[row(1.8, 1.98)], 0.1);
+        assert_eq!(
+            closer
+                .iter()
+                .find(|c| c.metric == "order_l2")
+                .unwrap()
+                .verdict,
+            Verdict::Better
+        );
         assert!(
             compare_derived(&[row(1.8, 2.0)], &[], 0.1).is_empty(),
             "a point on one side"
