@@ -123,7 +123,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     );
     assert!(out.status.success(), "{}", text(&out));
     assert_eq!(
-        text(&out).matches("Submitted batch job").count(),
+        text(&out).matches("submitted as job ").count(),
         2,
         "{}",
         text(&out)

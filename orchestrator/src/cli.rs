@@ -125,6 +125,11 @@ pub struct SubmitArgs {
     /// Submit the other points when the solver refuses some (see `plan --allow-refused`).
     #[arg(long)]
     allow_refused: bool,
+    /// The MPI launcher inside each job, `{ranks}` where the rank count goes (default: `srun
+    /// --mpi=pmix -n {ranks}` under Slurm, `mpirun -n {ranks}` under LSF), e.g. for a site whose
+    /// Slurm speaks PMI-2: `srun --mpi=pmi2 -n {ranks}`.
+    #[arg(long)]
+    launcher: Option<Launcher>,
 }
 
 #[derive(Args)]
@@ -646,6 +651,7 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         study_file: args.common.study.clone(),
         dry_run: args.dry_run,
         retries: args.retries,
+        launcher: args.launcher.clone(),
     };
     submit::submit_study(&study, &solver, &planned, &store, &target)?;
     Ok(ExitCode::SUCCESS)

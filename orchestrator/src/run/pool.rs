@@ -42,6 +42,12 @@ impl Launcher {
         command.args(words);
         command
     }
+
+    /// The launcher as one command line, each word quoted as the shell needs (for job scripts).
+    pub fn text(&self) -> String {
+        shlex::try_join(self.words.iter().map(String::as_str))
+            .expect("a launcher's words hold no NUL: control characters are refused")
+    }
 }
 
 impl std::str::FromStr for Launcher {

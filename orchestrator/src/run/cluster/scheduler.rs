@@ -40,14 +40,16 @@ pub fn live_jobs(scheduler: Scheduler) -> Result<HashMap<String, String>, String
         .collect())
 }
 
-/// The job id in what the scheduler printed on submission: `Submitted batch job 42` (sbatch),
-/// `Job <42> is submitted to queue <normal>.` (bsub).
+/// The job id in what the scheduler printed on submission: `42` or `42;cluster` (`sbatch
+/// --parsable`, which this asks for: its output is meant to be read), or the human sentence
+/// `Submitted batch job 42`; `Job <42> is submitted to queue <normal>.` (bsub).
 pub fn submitted_id(scheduler: Scheduler, printed: &str) -> Option<String> {
     let id = match scheduler {
-        Scheduler::Slurm => printed
-            .lines()
-            .find_map(|l| l.strip_prefix("Submitted batch job "))?
-            .trim(),
+        Scheduler::Slurm => {
+            let line = printed.lines().map(str::trim).find(|l| !l.is_empty())?;
+            let line = line.strip_prefix("Submitted batch job ").unwrap_or(line);
+            line.split(';').next()?.trim()
+        }
         Scheduler::Lsf => printed.split_once('<')?.1.split_once('>')?.0,
     };
     (!id.is_empty() && id.chars().all(|c| c.is_ascii_digit())).then(|| id.to_string())
@@ -56,7 +58,13 @@ pub fn submitted_id(scheduler: Scheduler, printed: &str) -> Option<String> {
 /// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`) and returns the job's id.
 pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
     let (program, output) = match scheduler {
-        Scheduler::Slurm => ("sbatch", Command::new("sbatch").arg(script).output()),
+        Scheduler::Slurm => (
+            "sbatch",
+            Command::new("sbatch")
+                .arg("--parsable")
+                .arg(script)
+                .output(),
+        ),
         Scheduler::Lsf => (
             "bsub",
             std::fs::File::open(script).and_then(|file| Command::new("bsub").stdin(file).output()),
@@ -66,7 +74,6 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
         format!("cannot run {program}: {e}; on a machine without the scheduler use --dry-run to write the scripts only")
     })?;
     let printed = String::from_utf8_lossy(&output.stdout);
-    tell_raw!("{printed}");
     if !output.status.success() {
         return Err(format!(
             "{program} refused {}: {}",
@@ -97,5 +104,14 @@ mod tests {
             Some("7")
         );
         assert_eq!(submitted_id(Scheduler::Slurm, "sbatch: error: …"), None);
+        // `sbatch --parsable`: the id, and the cluster's name on a federation.
+        assert_eq!(
+            submitted_id(Scheduler::Slurm, "42\n").as_deref(),
+            Some("42")
+        );
+        assert_eq!(
+            submitted_id(Scheduler::Slurm, "43;cluster-a\n").as_deref(),
+            Some("43")
+        );
     }
 }

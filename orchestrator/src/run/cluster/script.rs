@@ -19,6 +19,8 @@ pub struct JobCommand {
     pub results: PathBuf,
     pub jobs: PathBuf,
     pub retries: usize,
+    /// The MPI launcher inside the job (`submit --launcher`); the scheduler's own by default.
+    pub launcher: Option<crate::run::pool::Launcher>,
 }
 
 /// A written job script.
@@ -148,9 +150,13 @@ fn script(
             // LSF counts slots: every task's threads.
             let slots = shape.tasks * shape.threads;
             directives.push(format!("-n {slots}"));
-            if let Some(nodes) = r.nodes {
-                let per_node = slots.div_ceil(nodes.get());
-                directives.push(format!("-R \"span[ptile={per_node}]\""));
+            match r.nodes {
+                Some(nodes) => {
+                    let per_node = slots.div_ceil(nodes.get());
+                    directives.push(format!("-R \"span[ptile={per_node}]\""));
+                }
+                // A job of threads on one node: its slots may not spread over hosts.
+                None => directives.push("-R \"span[hosts=1]\"".to_string()),
             }
             if let Some(time) = r.time {
                 directives.push(format!("-W {}", time.lsf()));
@@ -172,7 +178,11 @@ fn script(
         writeln!(text, "{prefix} {directive}").expect("a String");
     }
     text.push_str("set -euo pipefail\n");
-    text.push_str(&body(keys, shape, launcher, command)?);
+    let launcher = command
+        .launcher
+        .as_ref()
+        .map_or(launcher.to_string(), |l| l.text());
+    text.push_str(&body(keys, shape, &launcher, command)?);
     Ok(text)
 }
 
@@ -351,6 +361,7 @@ mod tests {
                     jobs: dirs[2].join("s").join("jobs"),
                     nlsolve: dirs[3].join("nlsolve"),
                     retries: 1,
+                    launcher: None,
                 };
                 for scheduler in SCHEDULERS {
                     let Ok(text) =
@@ -414,6 +425,70 @@ mod tests {
             }
         }
         assert!(ran > 60, "only {ran} scripts ran");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    /// `submit --launcher` reaches the job's `nlstudy run` as one argument that splits back
+    /// into the launcher's words, whatever they hold; an LSF job on one node keeps its slots on
+    /// one host.
+    #[test]
+    fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
+        let root = sandbox("launcher");
+        let given = "env \"A=$(touch MARK) b\" srun --mpi=pmi2 -n {ranks}";
+        let launcher: crate::run::pool::Launcher = given.parse().unwrap();
+        let command = JobCommand {
+            nlstudy: root.join("bin/nlstudy"),
+            study: root.join("s.json"),
+            results: root.join("results"),
+            jobs: root.join("results/s/jobs"),
+            nlsolve: root.join("bin/nlsolve"),
+            retries: 0,
+            launcher: Some(launcher),
+        };
+        let shape = Shape {
+            tasks: 1,
+            threads: 2,
+        };
+        let keys = ["00ff".to_string()];
+        for scheduler in SCHEDULERS {
+            let text = script(
+                scheduler,
+                "j",
+                &keys,
+                shape,
+                &Resources::default(),
+                &command,
+            )
+            .unwrap();
+            if scheduler == Scheduler::Lsf {
+                assert!(
+                    text.contains("#BSUB -n 2\n#BSUB -R \"span[hosts=1]\"\n"),
+                    "{text}"
+                );
+            }
+            let path = root.join("job.sh");
+            std::fs::write(&path, &text).unwrap();
+            let args = root.join("args");
+            stub(&command.nlstudy, &args);
+            let run = Command::new("bash")
+                .arg(&path)
+                .current_dir(&root)
+                .output()
+                .unwrap();
+            assert!(run.status.success(), "{text}");
+            let got = std::fs::read_to_string(&args).unwrap();
+            let lines: Vec<&str> = got.lines().collect();
+            let at = lines.iter().position(|l| *l == "--launcher").unwrap();
+            assert_eq!(
+                shlex::split(lines[at + 1]).unwrap(),
+                shlex::split(given).unwrap(),
+                "{text}"
+            );
+            assert!(
+                !root.join("MARK").exists(),
+                "the launcher ran a command:\n{text}"
+            );
+        }
         let _ = std::fs::remove_dir_all(&root);
     }
 

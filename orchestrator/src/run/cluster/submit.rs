@@ -24,6 +24,8 @@ pub struct Target {
     pub dry_run: bool,
     /// `nlstudy run --retries` inside each job.
     pub retries: usize,
+    /// The MPI launcher inside each job (the scheduler's own when `None`).
+    pub launcher: Option<crate::run::pool::Launcher>,
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
@@ -82,6 +84,7 @@ pub fn submit_study(
         jobs: results.join(&study.name).join("jobs"),
         results,
         retries: target.retries,
+        launcher: target.launcher.clone(),
     };
     let jobs = write_jobs(
         &study.name,
@@ -100,6 +103,7 @@ pub fn submit_study(
         );
         if !target.dry_run {
             let id = scheduler::submit(target.scheduler, &job.script)?;
+            tell!("  submitted as job {id}");
             let submitted = super::unix_seconds();
             ledger::add(
                 store,
