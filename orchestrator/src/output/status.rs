@@ -89,10 +89,14 @@ fn jobs_report(out: &mut String, store: &Store) {
     }
     for entry in &entries {
         let state = match &live {
-            Ok(live) => live
-                .get(&entry.id)
-                .map_or("ended", String::as_str)
-                .to_lowercase(),
+            Ok(live) => match live.get(&entry.id) {
+                Some(state) => match scheduler::meaning(state) {
+                    // `running (running)` says nothing twice.
+                    same if same.eq_ignore_ascii_case(state) => same.to_string(),
+                    meaning => format!("{} ({meaning})", state.to_lowercase()),
+                },
+                None => "ended".to_string(),
+            },
             Err(_) => "unknown".to_string(),
         };
         let stored = entry

@@ -40,6 +40,30 @@ pub fn live_jobs(scheduler: Scheduler) -> Result<HashMap<String, String>, String
         .collect())
 }
 
+/// What a job's state (as `squeue`, `sacct` or `bjobs` names it) means for its points, in a
+/// phrase for `status`. Preempted and requeued jobs are not failures: the points they finished
+/// are stored, and what is missing runs again (by the requeued job, or the next `submit`).
+pub fn meaning(state: &str) -> &'static str {
+    match state.to_ascii_uppercase().trim_end_matches('+') {
+        "PENDING" | "PEND" | "CONFIGURING" | "REQUEUE_HOLD" | "REQUEUE_FED" | "RESV_DEL_HOLD" => {
+            "waiting for its allocation"
+        }
+        "RUNNING" | "RUN" | "COMPLETING" | "RESIZING" | "SIGNALING" | "STAGE_OUT" => "running",
+        "SUSPENDED" | "STOPPED" | "PSUSP" | "USUSP" | "SSUSP" => "suspended, will resume",
+        "REQUEUED" => "requeued, not a failure: it runs again and takes up what is missing",
+        "PREEMPTED" => {
+            "preempted, not a failure: its finished points are stored; `submit` again for the rest"
+        }
+        "COMPLETED" | "DONE" => "completed",
+        "TIMEOUT" | "DEADLINE" => "ended at its time limit: its unfinished point is missing; `submit` again, with more --time",
+        "OUT_OF_MEMORY" => "ended out of memory: its unfinished point is missing",
+        "NODE_FAIL" | "BOOT_FAIL" => "ended by a node failure: `submit` again for what is missing",
+        "CANCELLED" => "cancelled: `submit` again for what is missing",
+        "FAILED" | "EXIT" => "failed: see its output in results/<study>/jobs/",
+        _ => "in a state nlstudy does not know",
+    }
+}
+
 /// The job id in what the scheduler printed on submission: `42` or `42;cluster` (`sbatch
 /// --parsable`, which this asks for: its output is meant to be read), or the human sentence
 /// `Submitted batch job 42`; `Job <42> is submitted to queue <normal>.` (bsub).
@@ -92,6 +116,36 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_scheduler_state_has_its_meaning_and_preemption_is_no_failure() {
+        let slurm = [
+            ("PENDING", "waiting"),
+            ("RUNNING", "running"),
+            ("COMPLETED", "completed"),
+            ("FAILED", "failed"),
+            ("TIMEOUT", "time limit"),
+            ("OUT_OF_MEMORY", "out of memory"),
+            ("PREEMPTED", "not a failure"),
+            ("REQUEUED", "not a failure"),
+            ("NODE_FAIL", "node failure"),
+            ("CANCELLED", "cancelled"),
+            ("CANCELLED+", "cancelled"),
+            ("SUSPENDED", "suspended"),
+            ("COMPLETING", "running"),
+        ];
+        let lsf = [
+            ("PEND", "waiting"),
+            ("RUN", "running"),
+            ("DONE", "completed"),
+            ("EXIT", "failed"),
+        ];
+        for (state, says) in slurm.into_iter().chain(lsf) {
+            assert!(meaning(state).contains(says), "{state}: {}", meaning(state));
+            assert_eq!(meaning(state), meaning(&state.to_lowercase()));
+        }
+        assert!(meaning("BOGUS").contains("does not know"));
+    }
 
     #[test]
     fn job_ids_are_read_from_what_either_scheduler_prints() {
