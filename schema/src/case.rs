@@ -141,6 +141,11 @@ pub struct Case {
     pub local_domain: Option<[f64; 2]>,
 }
 
+/// A case field as JSON (every field serializes).
+fn json(value: impl Serialize) -> serde_json::Value {
+    serde_json::to_value(value).expect("case fields serialize")
+}
+
 fn default_kernel() -> Kernel {
     Kernel::Constant
 }
@@ -240,8 +245,7 @@ impl Case {
     /// is not taken from this form but from the case as serialized, which leaves some defaults
     /// out so that the keys of earlier runs stay valid.
     pub fn resolved(&self) -> serde_json::Value {
-        let value = |v: serde_json::Result<serde_json::Value>| v.expect("case fields serialize");
-        let mut fields = match value(serde_json::to_value(self)) {
+        let mut fields = match json(self) {
             serde_json::Value::Object(fields) => fields,
             _ => unreachable!("a case serializes as an object"),
         };
@@ -250,43 +254,29 @@ impl Case {
         };
         match self.method {
             Method::Nonlocal => {
-                fill("quadrature", value(serde_json::to_value(self.quadrature)));
-                fill("collar", value(serde_json::to_value(self.collar)));
-                fill("integrator", value(serde_json::to_value(self.integrator)));
-                fill("source", value(serde_json::to_value(self.source())));
+                fill("quadrature", json(self.quadrature));
+                fill("collar", json(self.collar));
+                fill("integrator", json(self.integrator));
+                fill("source", json(self.source()));
             }
-            Method::FdExplicit | Method::Adi | Method::Pse => {
-                fill("length", self.length().into());
-            }
+            Method::FdExplicit | Method::Adi | Method::Pse => fill("length", json(self.length())),
             Method::SteadyCg | Method::Feti => {
-                fill("quadrature", value(serde_json::to_value(self.quadrature)));
-                fill("rtol", self.rtol().into());
-                fill("max_iterations", self.max_iterations().into());
+                fill("quadrature", json(self.quadrature));
+                fill("rtol", json(self.rtol()));
+                fill("max_iterations", json(self.max_iterations()));
+                if self.method == Method::Feti {
+                    fill("preconditioner", json(self.preconditioner()));
+                }
             }
             Method::PatchTest => {
-                fill(
-                    "horizon_profile",
-                    value(serde_json::to_value(self.horizon_profile())),
-                );
-                fill(
-                    "formulation",
-                    value(serde_json::to_value(self.formulation())),
-                );
-                fill("patch", value(serde_json::to_value(self.patch())));
+                fill("horizon_profile", json(self.horizon_profile()));
+                fill("formulation", json(self.formulation()));
+                fill("patch", json(self.patch()));
             }
             Method::Coupled1d => {
-                fill("patch", value(serde_json::to_value(self.patch())));
-                fill(
-                    "local_domain",
-                    value(serde_json::to_value(self.local_domain())),
-                );
+                fill("patch", json(self.patch()));
+                fill("local_domain", json(self.local_domain()));
             }
-        }
-        if self.method == Method::Feti {
-            fill(
-                "preconditioner",
-                value(serde_json::to_value(self.preconditioner())),
-            );
         }
         serde_json::Value::Object(fields)
     }
