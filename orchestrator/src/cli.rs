@@ -780,20 +780,15 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
 
 /// Of the superseded records, those of the fingerprint that ran last.
 fn latest_superseded(history: Vec<serde_json::Value>) -> Option<Vec<serde_json::Value>> {
-    let text = |r: &serde_json::Value, f: &str| {
-        r.pointer(&format!("/provenance/{f}"))
-            .and_then(serde_json::Value::as_str)
-            .unwrap_or("")
-            .to_string()
-    };
+    use crate::store::{fingerprint_of, provenance};
     let latest = history
         .iter()
-        .max_by_key(|r| text(r, "timestamp"))
-        .map(|r| text(r, "fingerprint"))?;
+        .max_by_key(|r| provenance(r, "timestamp"))
+        .map(|r| fingerprint_of(r).to_string())?;
     Some(
         history
             .into_iter()
-            .filter(|r| text(r, "fingerprint") == latest)
+            .filter(|r| fingerprint_of(r) == latest)
             .collect(),
     )
 }

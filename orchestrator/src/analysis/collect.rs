@@ -98,15 +98,8 @@ pub fn collect(
     allow_mixed: bool,
 ) -> Result<Option<Collected>, String> {
     let records = crate::store::by_key(store.records());
-    let mut rows = Vec::new();
-    let mut missing = 0;
-    // Points of different branches may be one case: each gets its row from the one record.
-    for p in planned {
-        match records.get(&p.key) {
-            Some(record) => rows.push(run_row(p, record)),
-            None => missing += 1,
-        }
-    }
+    let rows = run_rows(planned, &records);
+    let missing = planned.len() - rows.len();
     let used: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
     let left_out = records
         .keys()
@@ -145,11 +138,16 @@ pub fn collect(
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would
 /// write them: for comparing what two result sets derive (speedups, orders).
 pub fn summary_of(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
-    let rows: Vec<Row> = planned
+    summary::summarize(&run_rows(planned, records))
+}
+
+/// The run rows of the points whose records `records` holds. Points of different branches may
+/// be one case: each gets its row from the one record.
+fn run_rows(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
+    planned
         .iter()
         .filter_map(|p| Some(run_row(p, records.get(&p.key)?)))
-        .collect();
-    summary::summarize(&rows)
+        .collect()
 }
 
 /// What a timing or an error depends on, as the record's provenance names it.

@@ -249,7 +249,7 @@ pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
 }
 
 /// The records that measured something (`ok`, `diverged`).
-fn measured<'a>(records: &[&'a Value]) -> Vec<&'a Value> {
+pub fn measured<'a>(records: &[&'a Value]) -> Vec<&'a Value> {
     records
         .iter()
         .copied()
@@ -278,11 +278,7 @@ fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
 pub fn median(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
-    let n = sorted.len();
-    match n % 2 {
-        1 => sorted[n / 2],
-        _ => 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]),
-    }
+    crate::analysis::summary::quantile(&sorted, 0.5)
 }
 
 /// The percentile interval of median(B*)/median(A*) over resamples of each side's repeats.
@@ -331,11 +327,9 @@ pub fn machines(records: &[&Value]) -> Vec<String> {
     let mut machines: Vec<String> = measured(records)
         .iter()
         .map(|r| {
-            let field = |f: &str| {
-                r.pointer(&format!("/provenance/{f}"))
-                    .and_then(Value::as_str)
-                    .unwrap_or("unknown")
-                    .to_string()
+            let field = |f: &str| match crate::store::provenance(r, f) {
+                "" => "unknown",
+                text => text,
             };
             let cores = r
                 .pointer("/provenance/cores_online")

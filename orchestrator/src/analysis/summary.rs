@@ -179,7 +179,7 @@ fn reduce(repeats: &[&Row]) -> Row {
 }
 
 /// The q-quantile of sorted values, interpolating linearly between order statistics.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
+pub fn quantile(sorted: &[f64], q: f64) -> f64 {
     let at = q * (sorted.len() - 1) as f64;
     let (below, above) = (at.floor() as usize, at.ceil() as usize);
     sorted[below] + (at - below as f64) * (sorted[above] - sorted[below])

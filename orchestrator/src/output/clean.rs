@@ -32,7 +32,7 @@ pub fn clean(
     let drawn: HashSet<String> = study
         .figures
         .iter()
-        .flat_map(|f| [format!("{}.svg", f.name), format!(".{}.stamp", f.name)])
+        .flat_map(|f| crate::output::plot::files(&f.name))
         .collect();
     let stale =
         |name: &str| (name.ends_with(".svg") || name.ends_with(".stamp")) && !drawn.contains(name);

@@ -4,6 +4,7 @@
 
 use crate::analysis::compare::median;
 use crate::output::draw::{Axis, Chart, Guide, Panel, Series};
+use crate::store::{fingerprint_of, provenance};
 use serde_json::Value;
 use std::collections::BTreeMap;
 
@@ -16,19 +17,15 @@ pub fn chart(
     records: &[Value],
 ) -> Result<Chart, String> {
     let field = metric.strip_suffix("_median").unwrap_or(metric);
-    let text = |r: &Value, f: &str| {
-        r.pointer(&format!("/provenance/{f}"))
-            .and_then(Value::as_str)
-            .unwrap_or("")
-            .to_string()
-    };
     // Each build by its first run's day.
     let mut first_day: BTreeMap<String, f64> = BTreeMap::new();
     for record in records {
-        let Some(day) = day_of(&text(record, "timestamp")) else {
+        let Some(day) = day_of(provenance(record, "timestamp")) else {
             continue;
         };
-        let entry = first_day.entry(text(record, "fingerprint")).or_insert(day);
+        let entry = first_day
+            .entry(fingerprint_of(record).to_string())
+            .or_insert(day);
         *entry = entry.min(day);
     }
     let origin = first_day.values().copied().fold(f64::INFINITY, f64::min);
@@ -46,7 +43,7 @@ pub fn chart(
                 .filter(|x| x.is_finite())
             {
                 by_build
-                    .entry(text(record, "fingerprint"))
+                    .entry(fingerprint_of(record).to_string())
                     .or_default()
                     .push(x);
             }

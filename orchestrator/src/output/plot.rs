@@ -24,6 +24,12 @@ pub struct Figure {
     pub outcome: Outcome,
 }
 
+/// The files of the figure `name` in the study's `figures/`: its SVG, and the stamp that says
+/// what it was drawn from.
+pub fn files(name: &str) -> [String; 2] {
+    [format!("{name}.svg"), format!(".{name}.stamp")]
+}
+
 /// Draws the figures whose stamps are stale, every one it can: a figure that fails does not
 /// stop the others. Fails as a whole only when the summary table cannot be read.
 pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String> {
@@ -46,8 +52,8 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String
     let mut rows = None;
     let mut outcomes = Vec::new();
     for (k, spec) in figures.iter().enumerate() {
-        let path = directory.join(format!("{}.svg", spec.name));
-        let stamp_path = directory.join(format!(".{}.stamp", spec.name));
+        let [svg, stamp_name] = files(&spec.name);
+        let (path, stamp_path) = (directory.join(svg), directory.join(stamp_name));
         let stamp = format!(
             "table {table_hash}\nspec {}\nnlstudy {program}\n",
             serde_json::to_string(spec).expect("a spec serializes"),

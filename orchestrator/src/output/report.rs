@@ -75,7 +75,8 @@ fn figures_section(
     }
     page.push_str("<h2>Figures</h2>\n");
     for (k, spec) in study.figures.iter().enumerate() {
-        let path = store.table("figures").join(format!("{}.svg", spec.name));
+        let [svg, _] = crate::output::plot::files(&spec.name);
+        let path = store.table("figures").join(svg);
         let caption = escape(spec.title.as_deref().unwrap_or(&spec.name));
         let made_by = made_by(spec, k, summary, records);
         match std::fs::read_to_string(&path) {
@@ -140,16 +141,17 @@ fn made_by(
         return String::new();
     };
     let cases: BTreeSet<&str> = rows.iter().filter_map(|r| r.text("case_id")).collect();
+    let behind: Vec<&Value> = records
+        .iter()
+        .filter(|r| r["case_id"].as_str().is_some_and(|c| cases.contains(c)))
+        .collect();
+    let behind = crate::analysis::compare::measured(&behind);
     let of = |field: &str| -> Vec<String> {
-        let set: BTreeSet<String> = records
+        let set: BTreeSet<String> = behind
             .iter()
-            .filter(|r| r["case_id"].as_str().is_some_and(|c| cases.contains(c)))
-            .filter(|r| matches!(Status::of(r), Some(Status::Ok | Status::Diverged)))
-            .map(|r| {
-                r["provenance"][field]
-                    .as_str()
-                    .unwrap_or("unknown")
-                    .to_string()
+            .map(|r| match crate::store::provenance(r, field) {
+                "" => "unknown".to_string(),
+                text => text.to_string(),
             })
             .collect();
         set.into_iter().collect()

@@ -83,10 +83,15 @@ impl Store {
     /// lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Value) -> Result<bool, FileError> {
         let failed = Status::of(record).is_none_or(|s| s == Status::Failed);
-        if failed && self.status(key).is_some_and(|s| s != Status::Failed) {
+        let stored = self.stored(key);
+        let result_stored = stored
+            .as_ref()
+            .and_then(Status::of)
+            .is_some_and(|s| s != Status::Failed);
+        if failed && result_stored {
             return Ok(false);
         }
-        if let Some(stored) = self.stored(key) {
+        if let Some(stored) = stored {
             let old = fingerprint_of(&stored);
             if old != fingerprint_of(record) {
                 let history = self.table("history");
@@ -266,12 +271,18 @@ pub fn by_key(records: Vec<Value>) -> HashMap<String, Value> {
         .collect()
 }
 
-/// The fingerprint of the solver that made `record` ("" when it does not say).
-pub fn fingerprint_of(record: &Value) -> &str {
+/// A text field of `record`'s provenance (`host`, `timestamp`, …; "" when it does not say).
+pub fn provenance<'a>(record: &'a Value, field: &str) -> &'a str {
     record
-        .pointer("/provenance/fingerprint")
+        .get("provenance")
+        .and_then(|p| p.get(field))
         .and_then(Value::as_str)
         .unwrap_or("")
+}
+
+/// The fingerprint of the solver that made `record` ("" when it does not say).
+pub fn fingerprint_of(record: &Value) -> &str {
+    provenance(record, "fingerprint")
 }
 
 /// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and
