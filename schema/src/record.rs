@@ -104,6 +104,7 @@ pub const COLUMNS: &[&str] = &[
     "halo_bytes",
     "imbalance",
     "comm_s",
+    "hosts",
     // Steady and implicit solves.
     "iterations",
     "relative_residual",

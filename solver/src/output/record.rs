@@ -376,6 +376,9 @@ pub struct Distribution {
     /// Median per step of the time spent communicating (halo exchange and the divergence check's
     /// reduction), max over ranks; 0 on one rank.
     pub comm_s: f64,
+    /// The host of each rank, in rank order (absent on one rank): where a multi-node run ran.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hosts: Vec<String>,
 }
 
 impl Distribution {
@@ -390,6 +393,7 @@ impl Distribution {
             halo_bytes: 0,
             imbalance: 1.0,
             comm_s: 0.0,
+            hosts: Vec::new(),
         }
     }
 }

@@ -153,7 +153,23 @@ pub(crate) fn distribution(
         halo_bytes: ghosts * std::mem::size_of::<f64>(),
         imbalance: ownership.imbalance(),
         comm_s: mpi.max(comm_s),
+        hosts: hosts(mpi.world),
     }
+}
+
+/// Each rank's host name, in rank order, on every rank (a few bytes each).
+fn hosts(world: &SimpleCommunicator) -> Vec<String> {
+    const LONGEST: usize = 64; // HOST_NAME_MAX on Linux
+    let name = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let name = name.trim().as_bytes();
+    let mut mine = [0u8; LONGEST];
+    let kept = name.len().min(LONGEST);
+    mine[..kept].copy_from_slice(&name[..kept]);
+    let mut all = vec![0u8; LONGEST * world.size() as usize];
+    world.all_gather_into(&mine[..], &mut all[..]);
+    all.chunks(LONGEST)
+        .map(|c| String::from_utf8_lossy(c.split(|b| *b == 0).next().unwrap_or_default()).into())
+        .collect()
 }
 
 impl<'a> Ranks<'a> {
