@@ -24,8 +24,15 @@ const SOLVER_LAYERS: [&str; 10] = [
 ];
 
 /// The orchestrator's top-level modules (its folders), lowest first.
-const ORCHESTRATOR_LAYERS: [&str; 7] = [
-    "console", "model", "store", "run", "analysis", "output", "cli",
+const ORCHESTRATOR_LAYERS: [&str; 8] = [
+    "console",
+    "statistics",
+    "model",
+    "store",
+    "run",
+    "analysis",
+    "output",
+    "cli",
 ];
 
 type Graph = BTreeMap<String, BTreeSet<String>>;

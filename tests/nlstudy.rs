@@ -245,35 +245,53 @@ fn plan_explains_a_changed_solver_version() {
 
 #[test]
 fn an_interrupted_run_resumes_with_every_record_once() {
+    // Ctrl-C, a scheduler's warning (or scancel, or a preemption), a closed session: each
+    // sent to nlstudy alone, which ends its solvers itself.
+    for (signal, status) in [("INT", 130), ("TERM", 143), ("HUP", 129)] {
+        interrupted_by(signal, status);
+    }
+}
+
+fn interrupted_by(signal: &str, status: i32) {
     let study = json!({
         "name": "long",
         "base": {"dim": 2, "m": 2, "t_end": 0.002, "cfl": 0.5},
         "sweep": [{"product": {"n": [48, 64, 80, 96, 112, 128]}}]
     });
-    let scratch = Scratch::new("interrupt", &study);
+    let scratch = Scratch::new(&format!("interrupt-{signal}"), &study);
     let mut child = Command::new(binary("nlstudy"))
         .arg("run")
         .arg(scratch.study())
         .arg("--results")
         .arg(scratch.dir.join("results"))
         .arg("--quiet")
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    // Interrupt as soon as the first record is stored, as Ctrl-C would.
+    // Interrupt as soon as the first record is stored.
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
     while records(&scratch.runs("long")).is_empty() && std::time::Instant::now() < deadline {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([&format!("-{signal}"), &child.id().to_string()])
         .status()
         .unwrap();
-    let interrupted = child.wait().unwrap();
+    let interrupted = child.wait_with_output().unwrap();
     let stored_before = records(&scratch.runs("long")).len();
     assert!(stored_before >= 1);
     if stored_before < 6 {
-        assert_eq!(interrupted.code(), Some(130), "an interrupted run says so");
+        let said = String::from_utf8_lossy(&interrupted.stderr);
+        assert_eq!(interrupted.status.code(), Some(status), "SIG{signal}: {said}");
+        assert!(said.contains(&format!("stopped by SIG{signal}")), "{said}");
     }
+    let stray: Vec<String> = std::fs::read_dir(scratch.runs("long"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|name| !name.starts_with('.') && !name.ends_with(".json"))
+        .collect();
+    assert!(stray.is_empty(), "SIG{signal} left half-written files: {stray:?}");
     let resumed = scratch.nlstudy("run", &[]);
     assert!(resumed.status.success(), "{}", text(&resumed));
     let stored = records(&scratch.runs("long"));
@@ -309,7 +327,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let results = || absolute(scratch.dir.join("results"));
     let command = |launcher: &str| {
         format!(
-            "set -euo pipefail\n'{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
+            "set -eo pipefail\nset -u\nexec '{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
             binary("nlstudy").display(),
             absolute(scratch.study()),
             results(),
@@ -325,7 +343,9 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let expected = format!(
         "#!/bin/bash\n#SBATCH --job-name=nlstudy-two-0\n#SBATCH --nodes=1\n#SBATCH --ntasks=2\n\
          #SBATCH --cpus-per-task=2\n#SBATCH --time=01:30:00\n#SBATCH --partition=normal\n\
-         #SBATCH --account=nonlocal\n#SBATCH --output=\"{jobs}/nlstudy-two-0.%j.out\"\n{}",
+         #SBATCH --account=nonlocal\n#SBATCH --exclusive\n\
+         #SBATCH --output=\"{jobs}/nlstudy-two-0.%j.out\"\n#SBATCH --open-mode=append\n\
+         #SBATCH --signal=B:TERM@60\n#SBATCH --requeue\n{}",
         command("srun --mpi=pmix -n {ranks}")
     );
     assert_eq!(script, expected);
@@ -349,7 +369,8 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.bsub")).unwrap();
     let expected = format!(
         "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 1:30\n\
-         #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -o \"{jobs}/nlstudy-two-0.%J.out\"\n{}",
+         #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -x\n#BSUB -o \"{jobs}/nlstudy-two-0.%J.out\"\n\
+         #BSUB -wa TERM\n#BSUB -wt 1\n#BSUB -r\n{}",
         command("mpirun -n {ranks}")
     );
     assert_eq!(script, expected);
@@ -376,7 +397,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         &["--scheduler", "slurm", "--dry-run", "--cases-per-job", "1"],
     );
     assert!(
-        text(&packed).contains("nlstudy-two-1 (1 cases)"),
+        text(&packed).contains("nlstudy-two-1 (1 cases, "),
         "{}",
         text(&packed)
     );
@@ -523,15 +544,17 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
             "{line}"
         );
         let option = rest.trim();
+        let switch = ["--exclusive", "--requeue", "-x", "-r"].contains(&option);
         assert!(
-            option.contains(' ') || option.contains('='),
+            switch || option.contains(' ') || option.contains('='),
             "{line}: an option without a value"
         );
     }
     let body = &lines[directives..];
-    assert_eq!(body.len(), 2, "{script}");
-    assert_eq!(body[0], "set -euo pipefail");
-    let words: Vec<&str> = body[1].split_whitespace().collect();
+    assert_eq!(body.len(), 3, "{script}");
+    assert_eq!(body[..2], ["set -eo pipefail", "set -u"]);
+    let words: Vec<&str> = body[2].split_whitespace().collect();
+    assert_eq!(words[0], "exec", "the batch shell becomes nlstudy: {script}");
     let value_of = |flag: &str| {
         let at = words
             .iter()
@@ -540,8 +563,8 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
         words[at + 1]
     };
     for path in [
-        words[0],
-        words[2],
+        words[1],
+        words[3],
         value_of("--results"),
         value_of("--solver"),
     ] {
@@ -551,12 +574,12 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
             "{path}"
         );
     }
-    assert_eq!(words[1], "run");
+    assert_eq!(words[2], "run");
     assert!(words.contains(&"--no-collect"));
     assert!(
-        body[1].contains("--launcher '") && body[1].contains("{ranks}'"),
+        body[2].contains("--launcher '") && body[2].contains("{ranks}'"),
         "{}",
-        body[1]
+        body[2]
     );
     assert_eq!(value_of("--only"), format!("'{}'", keys.join(",")));
     let asked = |option: &str| -> usize {

@@ -228,7 +228,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     let again = submit(&scratch, &slurm, &["--dry-run"]);
     assert!(again.status.success(), "{}", text(&again));
     assert!(
-        text(&again).contains("nlstudy-limit-0 (1 cases)"),
+        text(&again).contains("nlstudy-limit-0 (1 cases, "),
         "{}",
         text(&again)
     );

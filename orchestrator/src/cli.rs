@@ -2,6 +2,7 @@
 //! library's parts (study → plan → pool → store → collect → plot).
 
 use crate::model::resources::Resources;
+use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::{fields_telling_apart, Study};
 use crate::output::status;
 use crate::run::cluster::scheduler::Scheduler;
@@ -13,10 +14,9 @@ use crate::run::progress::{Mode, Progress};
 use crate::store::owner::Refusal;
 use crate::store::{FileError, Store};
 use clap::{Args, Parser, Subcommand};
+use std::num::NonZeroUsize;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 
 #[derive(Parser)]
@@ -111,8 +111,22 @@ pub struct CleanArgs {
 pub struct SubmitArgs {
     #[command(flatten)]
     common: CommonArgs,
+    /// The scheduler (default: the site profile's).
     #[arg(long, value_enum)]
-    scheduler: Scheduler,
+    scheduler: Option<Scheduler>,
+    /// The site profile: a name (NAME.toml in $NLSTUDY_SITES, ~/.config/nlstudy/sites or the
+    /// project's sites/) or a path; default: $NLSTUDY_SITE. It sets the scheduler, partition,
+    /// account, QoS, constraint, memory, exclusive nodes, modules, prologue, launcher, cores
+    /// per node and default time of every job; the study and the flags override it.
+    #[arg(long)]
+    site: Option<String>,
+    /// One job array per allocation shape (one scheduler call each), each element running a
+    /// bundle of `--cases-per-job` points (default 1) with the in-job worker pool.
+    #[arg(long)]
+    array: bool,
+    /// With --array: how many elements run at once (`%T`).
+    #[arg(long, requires = "array")]
+    throttle: Option<NonZeroUsize>,
     /// Write the scripts into results/<study>/jobs/ without submitting them.
     #[arg(long)]
     dry_run: bool,
@@ -125,9 +139,9 @@ pub struct SubmitArgs {
     /// Submit the other points when the solver refuses some (see `plan --allow-refused`).
     #[arg(long)]
     allow_refused: bool,
-    /// The MPI launcher inside each job, `{ranks}` where the rank count goes (default: `srun
-    /// --mpi=pmix -n {ranks}` under Slurm, `mpirun -n {ranks}` under LSF), e.g. for a site whose
-    /// Slurm speaks PMI-2: `srun --mpi=pmi2 -n {ranks}`.
+    /// The MPI launcher inside each job, `{ranks}` where the rank count goes (default: the
+    /// site's, else `srun --mpi=pmix -n {ranks}` under Slurm, `mpirun -n {ranks}` under LSF),
+    /// e.g. for a site whose Slurm speaks PMI-2: `srun --mpi=pmi2 -n {ranks}`.
     #[arg(long)]
     launcher: Option<Launcher>,
 }
@@ -242,7 +256,8 @@ pub mod exit {
     /// directory), or a program could not be started: nothing is stored for the cases that
     /// were running, and the next run takes them up again.
     pub const IO: u8 = 3;
-    /// Stopped by Ctrl-C; what finished is stored.
+    /// Stopped by Ctrl-C (SIGINT); what finished is stored. SIGTERM (a scheduler's warning,
+    /// `scancel`, preemption) exits 143 and SIGHUP 129: 128 + the signal, as the shell's.
     pub const INTERRUPTED: u8 = 130;
 }
 
@@ -449,10 +464,7 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
         retries: args.retries,
     };
     store.clear_abandoned_outputs()?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let handler_flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst))
-        .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
+    let stop = crate::run::signals::Stop::on_signals()?;
     let to_run = planned.iter().filter(|p| p.runs()).count();
     let duplicates = planned
         .iter()
@@ -483,9 +495,14 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
             tally.failed,
         );
     }
-    if tally.interrupted {
-        say!("nlstudy: interrupted; what finished is stored, run again to resume");
-        return Ok(ExitCode::from(exit::INTERRUPTED));
+    if let Some(signal) = stop.signal().filter(|_| tally.interrupted) {
+        say!(
+            "nlstudy: stopped by {}; what finished is stored, run again to resume",
+            crate::run::signals::name(signal)
+        );
+        return Ok(ExitCode::from(
+            stop.exit_code().unwrap_or(exit::INTERRUPTED),
+        ));
     }
     if !args.no_collect {
         let tables = crate::analysis::collect::collect(&planned, &store, &study, args.allow_mixed)
@@ -642,11 +659,41 @@ fn status_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 }
 
 fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
+    let site = match args
+        .site
+        .clone()
+        .or_else(|| std::env::var(SITE_VARIABLE).ok())
+    {
+        Some(name) => Site::find(&name)?,
+        None => Site::default(),
+    };
+    let scheduler = match (args.scheduler, site.scheduler) {
+        (Some(given), Some(site_s)) if given != site_s => {
+            return Err(format!(
+                "--scheduler {given} but the site profile {} is for {site_s}; drop one",
+                site.file.display()
+            )
+            .into())
+        }
+        (Some(s), _) | (None, Some(s)) => s,
+        (None, None) => {
+            return Err(format!(
+                "which scheduler? give --scheduler slurm|lsf, or a site profile (--site NAME or {SITE_VARIABLE})"
+            )
+            .into())
+        }
+    };
+    site.check_for(scheduler)?;
     let (study, solver, store, planned) = planned(&args.common, &Options::default(), true)?;
     no_refusals(&planned, args.allow_refused)?;
+    let explicit = study.resources.overridden_by(&args.resources);
     let target = submit::Target {
-        scheduler: args.scheduler,
-        resources: study.resources.overridden_by(&args.resources),
+        scheduler,
+        resources: site.defaults().overridden_by(&explicit),
+        time: explicit.time,
+        site,
+        array: args.array,
+        throttle: args.throttle,
         results: args.common.results.clone(),
         study_file: args.common.study.clone(),
         dry_run: args.dry_run,

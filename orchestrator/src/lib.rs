@@ -3,6 +3,7 @@
 //! the layers before it (tests/architecture.rs checks this):
 //!
 //! - `console`: printing that never panics on a closed or full stream;
+//! - `statistics`: order statistics (quantiles, the median) of measured values;
 //! - `model`: the study file, its sweeps and expressions, its figure specs — pure data;
 //! - `store`: the record store (keys, locks, atomic writes) and records as table rows;
 //! - `run`: the `nlsolve` process, the plan (make-style), the worker pool, progress, and
@@ -35,4 +36,5 @@ pub(crate) mod console;
 pub(crate) mod model;
 pub(crate) mod output;
 pub(crate) mod run;
+pub(crate) mod statistics;
 pub(crate) mod store;

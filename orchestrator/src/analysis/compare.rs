@@ -5,6 +5,7 @@
 //! reference of 0 breaks a relative one alone), not with intervals.
 
 use crate::console::number;
+use crate::statistics::median;
 use crate::store::table::Row;
 use schema::record::Status;
 use serde_json::{json, Value};
@@ -272,13 +273,6 @@ fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
         })
         .filter(|x| x.is_finite() && (kind == Kind::Deterministic || *x > 0.0))
         .collect()
-}
-
-/// The median of `values` (not empty).
-pub fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    crate::analysis::summary::quantile(&sorted, 0.5)
 }
 
 /// The percentile interval of median(B*)/median(A*) over resamples of each side's repeats.

@@ -13,6 +13,7 @@
 //!
 //! Derived values come only from points whose every repeat is `ok`.
 
+use crate::statistics::quantile;
 use crate::store::table::Row;
 use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
@@ -176,13 +177,6 @@ fn reduce(repeats: &[&Row]) -> Row {
     };
     row.set("bond_updates_per_s", updates);
     row
-}
-
-/// The q-quantile of sorted values, interpolating linearly between order statistics.
-pub fn quantile(sorted: &[f64], q: f64) -> f64 {
-    let at = q * (sorted.len() - 1) as f64;
-    let (below, above) = (at.floor() as usize, at.ceil() as usize);
-    sorted[below] + (at - below as f64) * (sorted[above] - sorted[below])
 }
 
 fn derive_scaling(rows: &mut [Row]) {

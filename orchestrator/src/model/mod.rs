@@ -4,5 +4,7 @@
 
 pub mod expression;
 pub mod figure_spec;
+pub mod launcher;
 pub mod resources;
+pub mod site;
 pub mod study;

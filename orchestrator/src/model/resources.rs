@@ -3,10 +3,27 @@
 //! what the scheduler's directive accepts, because it is written into a job script: a newline
 //! in a partition name would end the `#SBATCH` line and run the rest as a shell command.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::num::NonZeroUsize;
 use std::str::FromStr;
+
+/// The cluster schedulers nlstudy writes job scripts for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scheduler {
+    Slurm,
+    Lsf,
+}
+
+impl fmt::Display for Scheduler {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Scheduler::Slurm => "slurm",
+            Scheduler::Lsf => "lsf",
+        })
+    }
+}
 
 /// What a job asks of the scheduler: the study's `resources` section, overridden by flags.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq, clap::Args)]
@@ -18,8 +35,9 @@ pub struct Resources {
     /// MPI tasks per job (default: the largest rank count among the job's cases).
     #[arg(long)]
     pub tasks: Option<NonZeroUsize>,
-    /// Wall time per job, in Slurm's forms: MINUTES, MM:SS, HH:MM:SS, D-HH, D-HH:MM or
-    /// D-HH:MM:SS (LSF gets it in whole minutes, rounded up).
+    /// Wall time per job: MINUTES, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS (LSF gets it as
+    /// [HH:]MM, rounded up to the minute). `A:B` is refused: Slurm reads it as MM:SS, LSF as
+    /// HH:MM. Without it, a job's limit comes from its points' stored timings.
     #[arg(long)]
     pub time: Option<WallTime>,
     /// Slurm partition or LSF queue.
@@ -103,6 +121,15 @@ pub struct WallTime {
 }
 
 impl WallTime {
+    /// `seconds`, if a wall time takes it (above zero, at most 366 days).
+    pub fn from_seconds(seconds: u64) -> Option<WallTime> {
+        (seconds > 0 && seconds <= LONGEST_WALL_TIME_S).then_some(WallTime { seconds })
+    }
+
+    pub fn seconds(&self) -> u64 {
+        self.seconds
+    }
+
     /// Slurm's `--time`: `HH:MM:SS`, or `D-HH:MM:SS` from a day on.
     pub fn slurm(&self) -> String {
         let (days, rest) = (self.seconds / 86_400, self.seconds % 86_400);
@@ -139,7 +166,7 @@ impl FromStr for WallTime {
     fn from_str(text: &str) -> Result<Self, String> {
         let refuse = || {
             format!(
-                "{text:?} is not a wall time; write MINUTES, MM:SS, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS (e.g. 00:30:00)"
+                "{text:?} is not a wall time; write MINUTES, HH:MM:SS, D-HH, D-HH:MM or D-HH:MM:SS (e.g. 00:30:00)"
             )
         };
         let number = |part: &str| -> Result<u64, String> {
@@ -157,16 +184,19 @@ impl FromStr for WallTime {
             .split(':')
             .map(number)
             .collect::<Result<Vec<u64>, String>>()?;
-        // Slurm reads `A:B` as minutes and seconds without days, hours and minutes with them.
         let (h, m, s) = match (days.is_some(), parts.as_slice()) {
             (false, [m]) => (0, *m, 0),
-            (false, [m, s]) => (0, *m, *s),
+            (false, [a, b]) => {
+                return Err(format!(
+                    "{text:?} is ambiguous: Slurm reads A:B as minutes and seconds, LSF as hours and minutes; write 00:{a:02}:{b:02} or {a:02}:{b:02}:00 (HH:MM:SS)"
+                ))
+            }
             (_, [h, m, s]) => (*h, *m, *s),
             (true, [h]) => (*h, 0, 0),
             (true, [h, m]) => (*h, *m, 0),
             _ => return Err(refuse()),
         };
-        let sexagesimal = parts.len() > 1 && (m >= 60 && parts.len() == 3 || s >= 60);
+        let sexagesimal = parts.len() > 1 && (m >= 60 || s >= 60);
         if sexagesimal || (days.is_some() && h >= 24) {
             return Err(refuse());
         }
@@ -193,7 +223,6 @@ mod tests {
         let cases = [
             ("30", "00:30:00", "0:30"),
             ("90", "01:30:00", "1:30"),
-            ("05:30", "00:05:30", "0:06"),
             ("01:00:00", "01:00:00", "1:00"),
             ("2-00", "2-00:00:00", "48:00"),
             ("1-02:03", "1-02:03:00", "26:03"),
@@ -221,6 +250,7 @@ mod tests {
             "1-",
             "1-25",
             "10:60",
+            "05:30",
             "01:60:00",
             "1h",
             "01:00:00\ntouch /tmp/x",
@@ -229,7 +259,10 @@ mod tests {
             "99999999999",
         ] {
             let e = time(text).unwrap_err();
-            assert!(e.contains("wall time"), "{text:?}: {e}");
+            assert!(
+                e.contains("wall time") || e.contains("ambiguous"),
+                "{text:?}: {e}"
+            );
         }
     }
 

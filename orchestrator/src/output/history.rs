@@ -2,8 +2,8 @@
 //! records and the superseded ones in `history/`), each point's metric against the date its
 //! build first ran, as asv draws benchmarks against commits.
 
-use crate::analysis::compare::median;
 use crate::output::draw::{Axis, Chart, Guide, Panel, Series};
+use crate::statistics::median;
 use crate::store::{fingerprint_of, provenance};
 use serde_json::Value;
 use std::collections::BTreeMap;

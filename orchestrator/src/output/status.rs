@@ -3,12 +3,13 @@
 //! still missing, and, for a submitted study, each job's state and how many of its points are
 //! stored.
 
-use crate::run::cluster::{ledger, scheduler};
+use crate::run::cluster::ledger::{self, LedgerEntry};
+use crate::run::cluster::scheduler::{self, Scheduler};
 use crate::run::plan::Planned;
 use crate::store::Store;
 use schema::record::Status;
 use serde_json::Value;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 
 /// The records counted by status, as `3 ok`, `1 failed`, … (statuses in name order).
@@ -77,26 +78,20 @@ pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
     out
 }
 
-/// One line per job of the ledger: its id, name, state and stored points.
+/// One line per job of the ledger: its id, name, state (an array's elements counted by state)
+/// and stored points.
 fn jobs_report(out: &mut String, store: &Store) {
     let entries = ledger::entries(store);
     let Some(scheduler) = entries.first().map(|e| e.scheduler) else {
         return;
     };
-    let live = scheduler::live_jobs(scheduler);
-    if let Err(message) = &live {
+    let states = job_states(scheduler, &entries);
+    if let Err(message) = &states {
         let _ = writeln!(out, "jobs: cannot ask the scheduler ({message})");
     }
     for entry in &entries {
-        let state = match &live {
-            Ok(live) => match live.get(&entry.id) {
-                Some(state) => match scheduler::meaning(state) {
-                    // `running (running)` says nothing twice.
-                    same if same.eq_ignore_ascii_case(state) => same.to_string(),
-                    meaning => format!("{} ({meaning})", state.to_lowercase()),
-                },
-                None => "ended".to_string(),
-            },
+        let state_of = |id: &str| match &states {
+            Ok(states) => states.get(id).map_or("ended".to_string(), |s| described(s)),
             Err(_) => "unknown".to_string(),
         };
         let stored = entry
@@ -104,13 +99,50 @@ fn jobs_report(out: &mut String, store: &Store) {
             .iter()
             .filter(|k| store.status(k).is_some_and(|s| s != Status::Failed))
             .count();
+        let (what, state) = match entry.elements.is_empty() {
+            true => (String::new(), state_of(&entry.id)),
+            false => {
+                let mut tally: BTreeMap<String, usize> = BTreeMap::new();
+                for (id, _) in entry.parts() {
+                    *tally.entry(state_of(&id)).or_default() += 1;
+                }
+                let counts: Vec<String> = tally.iter().map(|(s, n)| format!("{n} {s}")).collect();
+                (
+                    format!(" (array of {})", entry.elements.len()),
+                    counts.join(", "),
+                )
+            }
+        };
         let _ = writeln!(
             out,
-            "job {} {}: {state}, {stored} of {} points stored",
+            "job {} {}{what}: {state}, {stored} of {} points stored",
             entry.id,
             entry.name,
             entry.keys.len()
         );
+    }
+}
+
+/// The state of each job and element: from Slurm's accounting when the cluster keeps it (one
+/// `sacct` call; it also knows how ended jobs ended), else from the queue (ended jobs absent).
+fn job_states(
+    scheduler: Scheduler,
+    entries: &[LedgerEntry],
+) -> Result<HashMap<String, String>, String> {
+    if scheduler == Scheduler::Slurm {
+        let ids: Vec<&str> = entries.iter().map(|e| e.id.as_str()).collect();
+        if let Ok(states) = scheduler::accounted_states(&ids) {
+            return Ok(states);
+        }
+    }
+    scheduler::live_jobs(scheduler)
+}
+
+/// `timeout (ended at its time limit: …)`; `running`, not `running (running)`.
+fn described(state: &str) -> String {
+    match scheduler::meaning(state) {
+        same if same.eq_ignore_ascii_case(state) => same.to_string(),
+        meaning => format!("{} ({meaning})", state.to_lowercase()),
     }
 }
 

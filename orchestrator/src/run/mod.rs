@@ -6,3 +6,4 @@ pub mod nlsolve;
 pub mod plan;
 pub mod pool;
 pub mod progress;
+pub mod signals;

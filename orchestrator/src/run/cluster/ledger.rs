@@ -1,9 +1,9 @@
 //! The jobs ledger of a study, `results/<study>/jobs/ledger/<id>.json`: one entry per job
-//! `nlstudy submit` handed to the scheduler (its id, name and keys). `submit` leaves out the points
-//! of jobs the scheduler still holds; `status` shows each job's state and how many of its points
-//! are stored.
+//! `nlstudy submit` handed to the scheduler (its id, name and keys, and an array's elements).
+//! `submit` leaves out the points of jobs the scheduler still holds; `status` shows each job's
+//! state (each element's) and how many of its points are stored.
 
-use super::scheduler::Scheduler;
+use super::scheduler::{self, Scheduler};
 use crate::store::fs::create_dir;
 use crate::store::{write_atomically, Store};
 use serde::{Deserialize, Serialize};
@@ -15,8 +15,32 @@ pub struct LedgerEntry {
     pub id: String,
     pub name: String,
     pub keys: Vec<String>,
+    /// An array's elements: the keys of each, by index from 0 (none for a plain job).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub elements: Vec<Vec<String>>,
     /// Seconds since the Unix epoch.
     pub submitted: u64,
+}
+
+impl LedgerEntry {
+    /// What the scheduler tracks of this job, each with its keys: the job itself, or each
+    /// element of an array (`42_3`, `42[4]`).
+    pub fn parts(&self) -> Vec<(String, &[String])> {
+        match self.elements.is_empty() {
+            true => vec![(self.id.clone(), &self.keys[..])],
+            false => self
+                .elements
+                .iter()
+                .enumerate()
+                .map(|(k, keys)| {
+                    (
+                        scheduler::element_id(self.scheduler, &self.id, k),
+                        &keys[..],
+                    )
+                })
+                .collect(),
+        }
+    }
 }
 
 fn ledger_dir(store: &Store) -> PathBuf {

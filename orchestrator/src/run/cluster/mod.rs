@@ -2,6 +2,8 @@
 //! `nlstudy submit`, which ties them together.
 
 pub mod ledger;
+pub mod limits;
+pub mod pack;
 pub mod scheduler;
 pub mod script;
 pub mod submit;

@@ -1,24 +1,59 @@
 //! The cluster schedulers nlstudy speaks to, Slurm and LSF: handing them a job script, reading
 //! the job id they print, and asking which jobs they still hold.
 
-use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Scheduler {
-    Slurm,
-    Lsf,
-}
+pub use crate::model::resources::Scheduler;
 
-/// The scheduler's state of each job it still holds (queued, running, completing…), by id.
+/// The scheduler's state of each job and array element it still holds (queued, running,
+/// completing…), by id: `42`, and an array's elements as `42_3` (Slurm) or `42[4]` (LSF).
 pub fn live_jobs(scheduler: Scheduler) -> Result<HashMap<String, String>, String> {
     let (program, args): (&str, &[&str]) = match scheduler {
-        Scheduler::Slurm => ("squeue", &["-h", "-o", "%i %T"]),
-        Scheduler::Lsf => ("bjobs", &["-noheader", "-o", "jobid stat"]),
+        // `-r`: one line per array element, pending ones too.
+        Scheduler::Slurm => ("squeue", &["-h", "-r", "-o", "%i %T"]),
+        Scheduler::Lsf => ("bjobs", &["-noheader", "-o", "jobid jobindex stat"]),
     };
+    let printed = run(program, args)?;
+    Ok(match scheduler {
+        Scheduler::Slurm => parse_slurm_states(&printed, ' '),
+        Scheduler::Lsf => parse_bjobs(&printed),
+    }
+    .into_iter()
+    // LSF keeps finished jobs listed for a while.
+    .filter(|(_, state)| !matches!(state.as_str(), "DONE" | "EXIT"))
+    .collect())
+}
+
+/// The final or current state of each job and array element among `ids`, from Slurm's
+/// accounting (`sacct`, one call): what became of jobs that have left the queue. `Err` where
+/// the cluster keeps no accounting (then only the queue can be asked).
+pub fn accounted_states(ids: &[&str]) -> Result<HashMap<String, String>, String> {
+    if ids.is_empty() {
+        return Ok(HashMap::new());
+    }
+    // Accounting forgets nothing, so the window starts at the epoch rather than today.
+    let list = ids.join(",");
+    let args = [
+        "-X",
+        "-n",
+        "-P",
+        "-S",
+        "1970-01-01",
+        "-o",
+        "JobID,State,ExitCode",
+        "-j",
+        &list,
+    ];
+    let printed = run("sacct", &args)?;
+    Ok(parse_slurm_states(&printed, '|'))
+}
+
+/// Not a Slurm state: a job that ended FAILED with exit status 143, nlstudy's for SIGTERM.
+pub const STOPPED_BY_SIGTERM: &str = "STOPPED_BY_SIGTERM";
+
+fn run(program: &str, args: &[&str]) -> Result<String, String> {
     let output = Command::new(program)
         .args(args)
         .output()
@@ -29,15 +64,72 @@ pub fn live_jobs(scheduler: Scheduler) -> Result<HashMap<String, String>, String
             String::from_utf8_lossy(&output.stderr).trim()
         ));
     }
-    Ok(String::from_utf8_lossy(&output.stdout)
+    Ok(String::from_utf8_lossy(&output.stdout).into_owned())
+}
+
+/// `ID STATE` lines of squeue, or `ID|STATE|EXIT` of sacct (`CANCELLED by 0` keeps its first
+/// word; a job that failed with nlstudy's status for SIGTERM, 143, is `STOPPED_BY_SIGTERM`: it stopped
+/// cleanly at its warning or a signal); an array's pending elements folded as `42_[4-19%2]` or
+/// `42_[1,3-5]` are unfolded.
+fn parse_slurm_states(printed: &str, separator: char) -> HashMap<String, String> {
+    let mut states = HashMap::new();
+    for line in printed.lines() {
+        let mut fields = line.trim().split(separator);
+        let (Some(id), Some(state)) = (fields.next(), fields.next()) else {
+            continue;
+        };
+        let state = state.split_whitespace().next().unwrap_or_default();
+        let state = match (state, fields.next()) {
+            ("FAILED", Some(exit)) if exit.starts_with("143:") => STOPPED_BY_SIGTERM.to_string(),
+            _ => state.to_string(),
+        };
+        match id.split_once("_[") {
+            Some((array, ranges)) => {
+                let ranges = ranges.trim_end_matches(']');
+                let ranges = ranges.split('%').next().unwrap_or_default();
+                for range in ranges.split(',') {
+                    let (from, to) = range.split_once('-').unwrap_or((range, range));
+                    let (Ok(from), Ok(to)) = (from.parse::<u64>(), to.parse::<u64>()) else {
+                        continue;
+                    };
+                    for k in from..=to.min(from + 100_000) {
+                        states.insert(format!("{array}_{k}"), state.clone());
+                    }
+                }
+            }
+            None => {
+                states.insert(id.to_string(), state);
+            }
+        }
+    }
+    states
+}
+
+/// `JOBID JOBINDEX STAT` lines of bjobs: an array's element as `42[4]`.
+fn parse_bjobs(printed: &str) -> HashMap<String, String> {
+    printed
         .lines()
         .filter_map(|line| {
-            let mut words = line.split_whitespace();
-            Some((words.next()?.to_string(), words.next()?.to_string()))
+            let words: Vec<&str> = line.split_whitespace().collect();
+            let [id, index, state] = words[..] else {
+                return None;
+            };
+            let id = match index {
+                "0" | "-" => id.to_string(),
+                k => format!("{id}[{k}]"),
+            };
+            Some((id, state.to_string()))
         })
-        // LSF keeps finished jobs listed for a while.
-        .filter(|(_, state)| !matches!(state.as_str(), "DONE" | "EXIT"))
-        .collect())
+        .collect()
+}
+
+/// The id the scheduler gives element `index` (from 0) of array `array`: Slurm counts from 0
+/// (`42_0`), LSF from 1 (`42[1]`), as the scripts' indices do.
+pub fn element_id(scheduler: Scheduler, array: &str, index: usize) -> String {
+    match scheduler {
+        Scheduler::Slurm => format!("{array}_{index}"),
+        Scheduler::Lsf => format!("{array}[{}]", index + 1),
+    }
 }
 
 /// What a job's state (as `squeue`, `sacct` or `bjobs` names it) means for its points, in a
@@ -59,6 +151,7 @@ pub fn meaning(state: &str) -> &'static str {
         "OUT_OF_MEMORY" => "ended out of memory: its unfinished point is missing",
         "NODE_FAIL" | "BOOT_FAIL" => "ended by a node failure: `submit` again for what is missing",
         "CANCELLED" => "cancelled: `submit` again for what is missing",
+        STOPPED_BY_SIGTERM => "stopped by SIGTERM before its limit (its warning, or a signal): its finished points are stored; `submit` again for the rest",
         "FAILED" | "EXIT" => "failed: see its output in results/<study>/jobs/",
         _ => "in a state nlstudy does not know",
     }
@@ -131,6 +224,7 @@ mod tests {
             ("NODE_FAIL", "node failure"),
             ("CANCELLED", "cancelled"),
             ("CANCELLED+", "cancelled"),
+            (STOPPED_BY_SIGTERM, "SIGTERM"),
             ("SUSPENDED", "suspended"),
             ("COMPLETING", "running"),
         ];
@@ -145,6 +239,36 @@ mod tests {
             assert_eq!(meaning(state), meaning(&state.to_lowercase()));
         }
         assert!(meaning("BOGUS").contains("does not know"));
+    }
+
+    #[test]
+    fn array_elements_are_read_one_by_one_from_squeue_sacct_and_bjobs() {
+        let squeue = "42_0 COMPLETING\n42_1 RUNNING\n42_[2-4,7%2] PENDING\n43 RUNNING\n";
+        let states = parse_slurm_states(squeue, ' ');
+        let mut ids: Vec<&str> = states.keys().map(String::as_str).collect();
+        ids.sort_unstable();
+        assert_eq!(ids, ["42_0", "42_1", "42_2", "42_3", "42_4", "42_7", "43"]);
+        assert_eq!(states["42_3"], "PENDING");
+        let sacct = "44|CANCELLED by 0|0:15\n45_0|TIMEOUT|0:0\n45_1|COMPLETED|0:0\n46|FAILED|143:0\n47|FAILED|1:0\n";
+        let states = parse_slurm_states(sacct, '|');
+        assert_eq!(states["44"], "CANCELLED");
+        assert_eq!(states["45_0"], "TIMEOUT");
+        assert_eq!(
+            (states["46"].as_str(), states["47"].as_str()),
+            (STOPPED_BY_SIGTERM, "FAILED")
+        );
+        let bjobs = "7 0 RUN\n8 1 PEND\n8 2 DONE\n";
+        let states = parse_bjobs(bjobs);
+        assert_eq!(
+            (
+                states["7"].as_str(),
+                states["8[1]"].as_str(),
+                states["8[2]"].as_str()
+            ),
+            ("RUN", "PEND", "DONE")
+        );
+        assert_eq!(element_id(Scheduler::Slurm, "42", 0), "42_0");
+        assert_eq!(element_id(Scheduler::Lsf, "8", 0), "8[1]");
     }
 
     #[test]

@@ -1,9 +1,13 @@
-//! Job scripts: one Slurm or LSF script per pack of points, whose directives ask for the
-//! allocation and whose body runs `nlstudy run --only KEYS` inside it.
+//! Job scripts: one Slurm or LSF script per submission (a job, or an array whose elements each
+//! run a bundle of points), whose directives ask for the allocation and whose body loads the
+//! site's modules, runs its prologue, then becomes `nlstudy run --only KEYS` (`exec`, so the
+//! warning signal the scheduler sends the batch shell reaches nlstudy, which stops cleanly).
 
+use super::pack::{Pack, Shape};
 use super::scheduler::Scheduler;
-use crate::model::resources::Resources;
-use crate::run::plan::Planned;
+use crate::model::launcher::Launcher;
+use crate::model::resources::{Resources, WallTime};
+use crate::model::site::Site;
 use crate::store::fs::{create_dir, FileError};
 use crate::store::write_atomically;
 use std::fmt::Write as _;
@@ -19,56 +23,70 @@ pub struct JobCommand {
     pub results: PathBuf,
     pub jobs: PathBuf,
     pub retries: usize,
-    /// The MPI launcher inside the job (`submit --launcher`); the scheduler's own by default.
-    pub launcher: Option<crate::run::pool::Launcher>,
+    /// The MPI launcher inside the job (`submit --launcher`, else the site's); the scheduler's
+    /// own by default.
+    pub launcher: Option<Launcher>,
 }
+
+/// What every script of one submit asks of the scheduler besides its points' allocation.
+pub struct Settings<'a> {
+    pub scheduler: Scheduler,
+    /// The partition, account and nodes (the time limit is each job's own).
+    pub resources: &'a Resources,
+    pub site: &'a Site,
+    /// Whole nodes: the default unless the study shares the machine.
+    pub exclusive: bool,
+    /// How many elements of an array run at once.
+    pub throttle: Option<NonZeroUsize>,
+}
+
+/// The warning before the time limit when the site gives none.
+const DEFAULT_WARNING_S: u64 = 60;
+/// A job is warned only if its limit is at least this many times the warning.
+const WARNED_LIMITS: u64 = 4;
 
 /// A written job script.
 pub struct Job {
     pub name: String,
     pub script: PathBuf,
-    pub keys: Vec<String>,
+    /// The keys of each element (one bundle for a job that is not an array).
+    pub bundles: Vec<Vec<String>>,
+    pub array: bool,
 }
 
-/// Writes one script per pack of runnable points into `command.jobs`; the scripts of an earlier
-/// submit move to `jobs/archive/` first, so the folder holds only the jobs of this one.
+/// Writes one script per pack into `command.jobs`, each with its time limit; the scripts of an
+/// earlier submit move to `jobs/archive/` first, so the folder holds only the jobs of this one.
 pub fn write_jobs(
-    study_name: &str,
-    runnable: &[&Planned],
-    scheduler: Scheduler,
-    resources: &Resources,
+    packs: &[(&Pack, Option<WallTime>)],
+    settings: &Settings,
     command: &JobCommand,
 ) -> Result<Vec<Job>, String> {
     create_dir(&command.jobs)?;
     archive_earlier_scripts(&command.jobs)?;
-    let per_job = resources
-        .cases_per_job
-        .map_or(runnable.len(), NonZeroUsize::get)
-        .max(1);
     let mut jobs = Vec::new();
-    for (k, pack) in runnable.chunks(per_job).enumerate() {
-        let name = format!("nlstudy-{study_name}-{k}");
-        let keys: Vec<String> = pack.iter().map(|p| p.key.clone()).collect();
-        let largest = |field: &str| {
-            pack.iter()
-                .filter_map(|p| p.case.as_ref().ok()?.resolved.get(field)?.as_u64())
-                .max()
-                .unwrap_or(1)
-                .max(1) as usize
+    for (pack, time) in packs {
+        let bundles: Vec<Vec<String>> = pack
+            .bundles
+            .iter()
+            .map(|b| b.iter().map(|p| p.key.clone()).collect())
+            .collect();
+        let job = Spec {
+            name: &pack.name,
+            bundles: &bundles,
+            array: pack.array,
+            shape: pack.shape,
+            time: *time,
         };
-        let shape = Shape {
-            tasks: resources.tasks.map_or(largest("ranks"), NonZeroUsize::get),
-            threads: largest("threads"),
-        };
-        let script = script(scheduler, &name, &keys, shape, resources, command)?;
+        let script = script(&job, settings, command)?;
         let path = command
             .jobs
-            .join(format!("{name}.{}", extension(scheduler)));
+            .join(format!("{}.{}", pack.name, extension(settings.scheduler)));
         write_atomically(&path, script.as_bytes())?;
         jobs.push(Job {
-            name,
+            name: pack.name.clone(),
             script: path,
-            keys,
+            bundles,
+            array: pack.array,
         });
     }
     Ok(jobs)
@@ -80,7 +98,6 @@ fn extension(scheduler: Scheduler) -> &'static str {
         Scheduler::Lsf => "bsub",
     }
 }
-
 /// Moves the job scripts in `jobs` to `jobs/archive/<seconds since the epoch>-<name>`: a
 /// script of an earlier submit holds keys this one may no longer have, and is kept, not lost.
 fn archive_earlier_scripts(jobs: &Path) -> Result<(), String> {
@@ -105,97 +122,197 @@ fn archive_earlier_scripts(jobs: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// The allocation of one job: MPI tasks and threads per task.
-#[derive(Clone, Copy)]
-struct Shape {
-    tasks: usize,
-    threads: usize,
+/// One job to render: its name, bundles (one unless an array), allocation and limit.
+struct Spec<'a> {
+    name: &'a str,
+    bundles: &'a [Vec<String>],
+    array: bool,
+    shape: Shape,
+    time: Option<WallTime>,
 }
 
-/// The whole script of one job. Every value from a study file or a flag reaches it either
-/// checked against what its directive accepts (`Resources` holds only such values) or quoted.
-fn script(
-    scheduler: Scheduler,
-    name: &str,
-    keys: &[String],
-    shape: Shape,
-    r: &Resources,
-    command: &JobCommand,
-) -> Result<String, String> {
-    let mut directives: Vec<String> = Vec::new();
-    let (prefix, launcher) = match scheduler {
-        Scheduler::Slurm => {
-            directives.push(format!("--job-name={name}"));
-            directives.push(format!("--nodes={}", r.nodes.map_or(1, NonZeroUsize::get)));
-            directives.push(format!("--ntasks={}", shape.tasks));
-            directives.push(format!("--cpus-per-task={}", shape.threads));
-            if let Some(time) = r.time {
-                directives.push(format!("--time={}", time.slurm()));
-            }
-            if let Some(queue) = &r.queue {
-                directives.push(format!("--partition={queue}"));
-            }
-            if let Some(account) = &r.account {
-                directives.push(format!("--account={account}"));
-            }
-            directives.push(format!(
-                "--output={}",
-                directive_path(&command.jobs, &format!("{name}.%j.out"))?
-            ));
-            // Debian's Open MPI 4.1 starts under srun through PMIx (PMI-2 aborts in MPI_Init).
-            ("#SBATCH", "srun --mpi=pmix -n {ranks}")
-        }
-        Scheduler::Lsf => {
-            directives.push(format!("-J {name}"));
-            // LSF counts slots: every task's threads.
-            let slots = shape.tasks * shape.threads;
-            directives.push(format!("-n {slots}"));
-            match r.nodes {
-                Some(nodes) => {
-                    let per_node = slots.div_ceil(nodes.get());
-                    directives.push(format!("-R \"span[ptile={per_node}]\""));
-                }
-                // A job of threads on one node: its slots may not spread over hosts.
-                None => directives.push("-R \"span[hosts=1]\"".to_string()),
-            }
-            if let Some(time) = r.time {
-                directives.push(format!("-W {}", time.lsf()));
-            }
-            if let Some(queue) = &r.queue {
-                directives.push(format!("-q {queue}"));
-            }
-            if let Some(account) = &r.account {
-                directives.push(format!("-P {account}"));
-            }
-            let output = directive_path(&command.jobs, &format!("{name}.%J.out"))?;
-            directives.push(format!("-o {output}"));
-            ("#BSUB", "mpirun -n {ranks}")
-        }
+/// The whole script of one job. Every value from a study file, a site profile or a flag reaches
+/// it either checked against what its directive accepts or quoted; the profile's prologue lines
+/// are its own shell code, one line each.
+fn script(job: &Spec, settings: &Settings, command: &JobCommand) -> Result<String, String> {
+    let (prefix, directives) = match settings.scheduler {
+        Scheduler::Slurm => ("#SBATCH", slurm_directives(job, settings, command)?),
+        Scheduler::Lsf => ("#BSUB", lsf_directives(job, settings, command)?),
     };
+    let site = settings.site;
     let mut text = String::from("#!/bin/bash\n");
     for directive in &directives {
-        // Slurm stops reading directives at the first command: all of them come first.
+        // The schedulers stop reading directives at the first command: all of them come first.
         writeln!(text, "{prefix} {directive}").expect("a String");
     }
-    text.push_str("set -euo pipefail\n");
-    let launcher = command
-        .launcher
-        .as_ref()
-        .map_or(launcher.to_string(), |l| l.text());
-    text.push_str(&body(keys, shape, &launcher, command)?);
+    // Module scripts often read unset variables: `-u` only once they have run.
+    text.push_str("set -eo pipefail\n");
+    for module in &site.modules {
+        writeln!(text, "module load {}", shell_word(&module.0)?).expect("a String");
+    }
+    for line in &site.prologue {
+        writeln!(text, "{}", line.0).expect("a String");
+    }
+    text.push_str("set -u\n");
+    let keys = match job.array {
+        false => shell_word(&job.bundles[0].join(","))?,
+        true => {
+            text.push_str("bundles=(\n");
+            for bundle in job.bundles {
+                writeln!(text, "{}", shell_word(&bundle.join(","))?).expect("a String");
+            }
+            text.push_str(")\n");
+            match settings.scheduler {
+                Scheduler::Slurm => "\"${bundles[$SLURM_ARRAY_TASK_ID]}\"".to_string(),
+                Scheduler::Lsf => "\"${bundles[$((LSB_JOBINDEX - 1))]}\"".to_string(),
+            }
+        }
+    };
+    let launcher = command.launcher.as_ref().map_or(
+        default_launcher(settings.scheduler).to_string(),
+        Launcher::text,
+    );
+    text.push_str(&body(&keys, job.shape, &launcher, command)?);
     Ok(text)
 }
 
-/// The command of a job: run its keys of the study inside the allocation, every argument a
-/// quoted shell word. Jobs of one study may run at once, so none writes the study's tables:
-/// `nlstudy collect` does, once they are done.
-fn body(
-    keys: &[String],
-    shape: Shape,
-    launcher: &str,
+/// The launcher of MPI cases when neither `--launcher` nor the site names one.
+fn default_launcher(scheduler: Scheduler) -> &'static str {
+    match scheduler {
+        // Debian's Open MPI 4.1 starts under srun through PMIx (PMI-2 aborts in MPI_Init).
+        Scheduler::Slurm => "srun --mpi=pmix -n {ranks}",
+        Scheduler::Lsf => "mpirun -n {ranks}",
+    }
+}
+
+/// Seconds before the limit at which the job is warned: the site's or a minute; none for a
+/// limit under `WARNED_LIMITS` × that, since Slurm may send it up to a minute early and a short
+/// job would be stopped at its start.
+fn warning_s(job: &Spec, site: &Site) -> Option<u64> {
+    let warning = site.warning.map_or(DEFAULT_WARNING_S, |w| w.seconds());
+    match job.time {
+        Some(limit) if limit.seconds() < WARNED_LIMITS * warning.max(DEFAULT_WARNING_S) => None,
+        _ => Some(warning),
+    }
+}
+
+fn slurm_directives(
+    job: &Spec,
+    settings: &Settings,
     command: &JobCommand,
-) -> Result<String, String> {
+) -> Result<Vec<String>, String> {
+    let (r, site) = (settings.resources, settings.site);
+    let mut d = vec![format!("--job-name={}", job.name)];
+    if job.array {
+        let throttle = settings.throttle.map_or(String::new(), |t| format!("%{t}"));
+        d.push(format!("--array=0-{}{throttle}", job.bundles.len() - 1));
+    }
+    d.push(format!("--nodes={}", job.shape.nodes));
+    d.push(format!("--ntasks={}", job.shape.tasks));
+    d.push(format!("--cpus-per-task={}", job.shape.threads));
+    if let Some(time) = job.time {
+        d.push(format!("--time={}", time.slurm()));
+    }
+    if let Some(queue) = &r.queue {
+        d.push(format!("--partition={queue}"));
+    }
+    if let Some(account) = &r.account {
+        d.push(format!("--account={account}"));
+    }
+    if let Some(qos) = &site.qos {
+        d.push(format!("--qos={qos}"));
+    }
+    if let Some(constraint) = &site.constraint {
+        d.push(format!("--constraint={}", constraint.0));
+    }
+    if settings.exclusive {
+        d.push("--exclusive".into());
+    }
+    match site.memory.map(|m| m.megabytes) {
+        // Slurm's "all of the node's memory".
+        Some(0) => d.push("--mem=0".into()),
+        Some(megabytes) => d.push(format!("--mem={megabytes}M")),
+        None => {}
+    }
+    let log = match job.array {
+        false => format!("{}.%j.out", job.name),
+        true => format!("{}.%A_%a.out", job.name),
+    };
+    d.push(format!("--output={}", directive_path(&command.jobs, &log)?));
+    // A requeued job appends to its log rather than erasing the first run's.
+    d.push("--open-mode=append".into());
+    if let Some(warning) = warning_s(job, site) {
+        d.push(format!("--signal=B:TERM@{warning}"));
+    }
+    d.push(match site.requeue.unwrap_or(true) {
+        true => "--requeue".into(),
+        false => "--no-requeue".into(),
+    });
+    d.extend(site.directives.iter().map(|x| x.0.clone()));
+    Ok(d)
+}
+
+fn lsf_directives(
+    job: &Spec,
+    settings: &Settings,
+    command: &JobCommand,
+) -> Result<Vec<String>, String> {
+    let (r, site) = (settings.resources, settings.site);
+    site.check_for(Scheduler::Lsf)?;
+    let mut d = vec![match job.array {
+        false => format!("-J {}", job.name),
+        true => {
+            let throttle = settings.throttle.map_or(String::new(), |t| format!("%{t}"));
+            format!("-J \"{}[1-{}]{throttle}\"", job.name, job.bundles.len())
+        }
+    }];
+    // LSF counts slots: every task's threads.
+    let slots = job.shape.cores();
+    d.push(format!("-n {slots}"));
+    match job.shape.nodes {
+        // A job of one node: its slots may not spread over hosts.
+        1 => d.push("-R \"span[hosts=1]\"".into()),
+        nodes => d.push(format!("-R \"span[ptile={}]\"", slots.div_ceil(nodes))),
+    }
+    if let Some(time) = job.time {
+        d.push(format!("-W {}", time.lsf()));
+    }
+    if let Some(queue) = &r.queue {
+        d.push(format!("-q {queue}"));
+    }
+    if let Some(account) = &r.account {
+        d.push(format!("-P {account}"));
+    }
+    if settings.exclusive {
+        d.push("-x".into());
+    }
+    // `0` (Slurm's "all of it") has no LSF form: an exclusive job has the node's memory.
+    if let Some(memory) = site.memory.filter(|m| m.megabytes > 0) {
+        d.push(format!("-R \"rusage[mem={}]\"", memory.megabytes));
+    }
+    let log = match job.array {
+        false => format!("{}.%J.out", job.name),
+        true => format!("{}.%J_%I.out", job.name),
+    };
+    d.push(format!("-o {}", directive_path(&command.jobs, &log)?));
+    if let Some(warning) = warning_s(job, site) {
+        d.push("-wa TERM".into());
+        d.push(format!("-wt {}", warning.div_ceil(60)));
+    }
+    if site.requeue.unwrap_or(true) {
+        d.push("-r".into());
+    }
+    d.extend(site.directives.iter().map(|x| x.0.clone()));
+    Ok(d)
+}
+
+/// The command of a job: run its keys of the study inside the allocation, every argument a
+/// quoted shell word (`keys` is one already: a bundle, or the array's element of them). Jobs of
+/// one study may run at once, so none writes the study's tables: `nlstudy collect` does, once
+/// they are done.
+fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Result<String, String> {
     let mut words = vec![
+        "exec".to_string(),
         path_word(&command.nlstudy)?,
         "run".into(),
         path_word(&command.study)?,
@@ -212,9 +329,9 @@ fn body(
     }
     words.extend([
         "-j".into(),
-        (shape.tasks * shape.threads).to_string(),
+        shape.cores().to_string(),
         "--only".into(),
-        shell_word(&keys.join(","))?,
+        keys.to_string(),
     ]);
     Ok(words.join(" ") + "\n")
 }
@@ -258,7 +375,7 @@ fn directive_path(dir: &Path, name: &str) -> Result<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::resources::{SchedulerName, WallTime};
+    use crate::model::resources::SchedulerName;
     use std::process::Command;
     use std::str::FromStr;
 
@@ -327,12 +444,13 @@ mod tests {
         let resources = Resources {
             nodes: NonZeroUsize::new(2),
             tasks: NonZeroUsize::new(2),
-            time: Some(WallTime::from_str("1-00:30:00").unwrap()),
+            time: None,
             queue: Some(SchedulerName::from_str("debug").unwrap()),
             account: Some(SchedulerName::from_str("proj-1").unwrap()),
             cases_per_job: NonZeroUsize::new(3),
         };
         let shape = Shape {
+            nodes: 2,
             tasks: 2,
             threads: 2,
         };
@@ -364,9 +482,21 @@ mod tests {
                     launcher: None,
                 };
                 for scheduler in SCHEDULERS {
-                    let Ok(text) =
-                        script(scheduler, "nlstudy-s-0", &keys, shape, &resources, &command)
-                    else {
+                    let job = Spec {
+                        name: "nlstudy-s-0",
+                        bundles: std::slice::from_ref(&keys),
+                        array: false,
+                        shape,
+                        time: Some(WallTime::from_str("1-00:30:00").unwrap()),
+                    };
+                    let settings = Settings {
+                        scheduler,
+                        resources: &resources,
+                        site: &Site::default(),
+                        exclusive: true,
+                        throttle: None,
+                    };
+                    let Ok(text) = script(&job, &settings, &command) else {
                         let has_control = value.chars().any(char::is_control);
                         let refused_in_directive = slot == 2 && value.contains(['"', '\\', '%']);
                         assert!(
@@ -445,21 +575,26 @@ mod tests {
             retries: 0,
             launcher: Some(launcher),
         };
-        let shape = Shape {
-            tasks: 1,
-            threads: 2,
+        let job = Spec {
+            name: "j",
+            bundles: &[vec!["00ff".to_string()]],
+            array: false,
+            shape: Shape {
+                nodes: 1,
+                tasks: 1,
+                threads: 2,
+            },
+            time: None,
         };
-        let keys = ["00ff".to_string()];
         for scheduler in SCHEDULERS {
-            let text = script(
+            let settings = Settings {
                 scheduler,
-                "j",
-                &keys,
-                shape,
-                &Resources::default(),
-                &command,
-            )
-            .unwrap();
+                resources: &Resources::default(),
+                site: &Site::default(),
+                exclusive: false,
+                throttle: None,
+            };
+            let text = script(&job, &settings, &command).unwrap();
             if scheduler == Scheduler::Lsf {
                 assert!(
                     text.contains("#BSUB -n 2\n#BSUB -R \"span[hosts=1]\"\n"),
@@ -492,7 +627,231 @@ mod tests {
         let _ = std::fs::remove_dir_all(&root);
     }
 
-    /// A shebang, then only directives (one option each), then `set -euo pipefail` and one
+    /// Every field of a site profile lands in both schedulers' scripts in its place: checked
+    /// values as directives, modules as quoted words, the prologue as its own lines before the
+    /// command; and the script still runs only the stub with the job's arguments.
+    #[test]
+    fn every_site_profile_field_lands_in_both_schedulers_scripts() {
+        let root = sandbox("site");
+        let profile = |scheduler: &str, slurm_only: &str| {
+            format!(
+                r#"
+                scheduler = "{scheduler}"
+                queue = "compute"
+                account = "proj42"
+                {slurm_only}
+                exclusive = true
+                memory = "4G"
+                cores_per_node = 4
+                time = "01:00:00"
+                warning = "00:02:00"
+                requeue = false
+                launcher = "srun --mpi=pmi2 -n {{ranks}}"
+                modules = ["openmpi/4.1.6", "gcc@12"]
+                prologue = ["export SITE_MARK=1 # a comment", "test -n \"$SITE_MARK\""]
+                directives = ["--hint=nomultithread"]
+                "#
+            )
+        };
+        let command = |site: &Site| JobCommand {
+            nlstudy: root.join("bin/nlstudy"),
+            study: root.join("s.json"),
+            results: root.join("results"),
+            jobs: root.join("results/s/jobs"),
+            nlsolve: root.join("bin/nlsolve"),
+            retries: 0,
+            launcher: site.launcher.clone(),
+        };
+        let job = Spec {
+            name: "nlstudy-s-0",
+            bundles: &[vec!["00ff".to_string()]],
+            array: false,
+            shape: Shape {
+                nodes: 2,
+                tasks: 2,
+                threads: 3,
+            },
+            time: Some(WallTime::from_str("00:10:00").unwrap()),
+        };
+        let cases = [
+            (
+                Scheduler::Slurm,
+                profile("slurm", "qos = \"normal\"\nconstraint = \"cpu&ib\""),
+                &[
+                    "#SBATCH --nodes=2",
+                    "#SBATCH --time=00:10:00",
+                    "#SBATCH --partition=compute",
+                    "#SBATCH --account=proj42",
+                    "#SBATCH --qos=normal",
+                    "#SBATCH --constraint=cpu&ib",
+                    "#SBATCH --exclusive",
+                    "#SBATCH --mem=4096M",
+                    "#SBATCH --signal=B:TERM@120",
+                    "#SBATCH --no-requeue",
+                    "#SBATCH --hint=nomultithread",
+                ][..],
+            ),
+            (
+                Scheduler::Lsf,
+                profile("lsf", ""),
+                &[
+                    "#BSUB -n 6",
+                    "#BSUB -R \"span[ptile=3]\"",
+                    "#BSUB -W 0:10",
+                    "#BSUB -q compute",
+                    "#BSUB -P proj42",
+                    "#BSUB -x",
+                    "#BSUB -R \"rusage[mem=4096]\"",
+                    "#BSUB -wa TERM",
+                    "#BSUB -wt 2",
+                    "#BSUB --hint=nomultithread",
+                ][..],
+            ),
+        ];
+        for (scheduler, toml, directives) in cases {
+            let site = Site::parse(&toml, true).unwrap();
+            let settings = Settings {
+                scheduler,
+                resources: &site.defaults(),
+                site: &site,
+                exclusive: site.exclusive.unwrap(),
+                throttle: None,
+            };
+            let command = command(&site);
+            let text = script(&job, &settings, &command).unwrap();
+            for directive in directives {
+                assert!(
+                    text.contains(&format!("{directive}\n")),
+                    "{directive}:\n{text}"
+                );
+            }
+            assert!(
+                !text.contains("#SBATCH --requeue\n") && !text.contains("#BSUB -r\n"),
+                "requeue = false: {text}"
+            );
+            let after = |line: &str| text.lines().position(|l| l == line).unwrap();
+            assert!(
+                after("module load 'openmpi/4.1.6'") < after("module load 'gcc@12'")
+                    && after("module load 'gcc@12'") < after("export SITE_MARK=1 # a comment")
+                    && after("test -n \"$SITE_MARK\"") < after("set -u"),
+                "{text}"
+            );
+            // Run with a `module` that records its arguments: the job loads both, then runs.
+            let path = root.join("job.sh");
+            let module = root.join("modules");
+            let text = text.replacen(
+                "set -eo pipefail\n",
+                &format!(
+                    "set -eo pipefail\nmodule() {{ echo \"$*\" >> {}; }}\n",
+                    shell_word(module.to_str().unwrap()).unwrap()
+                ),
+                1,
+            );
+            std::fs::write(&path, &text).unwrap();
+            let args = root.join("args");
+            stub(&command.nlstudy, &args);
+            let run = Command::new("bash")
+                .arg(&path)
+                .current_dir(&root)
+                .output()
+                .unwrap();
+            assert!(
+                run.status.success(),
+                "{text}\n{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            assert_eq!(
+                std::fs::read_to_string(&module).unwrap(),
+                "load openmpi/4.1.6\nload gcc@12\n"
+            );
+            let got = std::fs::read_to_string(&args).unwrap();
+            assert!(got.ends_with("-j\n6\n--only\n00ff\n"), "{got}");
+            let lines: Vec<&str> = got.lines().collect();
+            let at = lines.iter().position(|l| *l == "--launcher").unwrap();
+            assert_eq!(
+                shlex::split(lines[at + 1]).unwrap(),
+                ["srun", "--mpi=pmi2", "-n", "{ranks}"],
+                "the site's launcher"
+            );
+            std::fs::remove_file(&module).unwrap();
+        }
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    /// An array's element runs its own bundle: Slurm's index from 0, LSF's from 1.
+    #[test]
+    fn each_array_element_runs_its_own_bundle() {
+        let root = sandbox("array");
+        let command = JobCommand {
+            nlstudy: root.join("bin/nlstudy"),
+            study: root.join("s.json"),
+            results: root.join("results"),
+            jobs: root.join("results/s/jobs"),
+            nlsolve: root.join("bin/nlsolve"),
+            retries: 0,
+            launcher: None,
+        };
+        let bundles = [
+            vec!["aa".to_string(), "bb".to_string()],
+            vec!["cc".to_string()],
+            vec!["dd".to_string()],
+        ];
+        let job = Spec {
+            name: "nlstudy-s-0",
+            bundles: &bundles,
+            array: true,
+            shape: Shape {
+                nodes: 1,
+                tasks: 1,
+                threads: 1,
+            },
+            time: None,
+        };
+        let args = root.join("args");
+        stub(&command.nlstudy, &args);
+        for (scheduler, directive, index, first) in [
+            (
+                Scheduler::Slurm,
+                "#SBATCH --array=0-2%2",
+                "SLURM_ARRAY_TASK_ID",
+                0,
+            ),
+            (
+                Scheduler::Lsf,
+                "#BSUB -J \"nlstudy-s-0[1-3]%2\"",
+                "LSB_JOBINDEX",
+                1,
+            ),
+        ] {
+            let settings = Settings {
+                scheduler,
+                resources: &Resources::default(),
+                site: &Site::default(),
+                exclusive: false,
+                throttle: NonZeroUsize::new(2),
+            };
+            let text = script(&job, &settings, &command).unwrap();
+            assert!(text.contains(directive), "{text}");
+            let path = root.join("job.sh");
+            std::fs::write(&path, &text).unwrap();
+            for (element, bundle) in bundles.iter().enumerate() {
+                let run = Command::new("bash")
+                    .arg(&path)
+                    .env(index, (element + first).to_string())
+                    .output()
+                    .unwrap();
+                assert!(run.status.success(), "{text}");
+                let got = std::fs::read_to_string(&args).unwrap();
+                assert!(
+                    got.ends_with(&format!("--only\n{}\n", bundle.join(","))),
+                    "{got}"
+                );
+            }
+        }
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    /// A shebang, then only directives (one option each), then the shell options and one
     /// command: no line a value could have added.
     fn check_structure(scheduler: Scheduler, text: &str) {
         let prefix = match scheduler {
@@ -506,16 +865,17 @@ mod tests {
             .take_while(|l| l.starts_with(prefix))
             .count();
         let expected = match scheduler {
-            Scheduler::Slurm => 8,
-            Scheduler::Lsf => 7,
+            Scheduler::Slurm => 12,
+            Scheduler::Lsf => 11,
         };
         assert_eq!(directives, expected, "{text}");
         assert_eq!(
-            &lines[1 + directives..][..1],
-            ["set -euo pipefail"],
+            &lines[1 + directives..][..2],
+            ["set -eo pipefail", "set -u"],
             "{text}"
         );
-        assert_eq!(lines.len(), directives + 3, "{text}");
+        assert_eq!(lines.len(), directives + 4, "{text}");
+        assert!(lines[directives + 3].starts_with("exec "), "{text}");
     }
 
     fn walk(dir: &Path) -> Vec<PathBuf> {

@@ -1,11 +1,16 @@
-//! Cluster jobs: Slurm or LSF scripts for the points of a study not yet stored. Each job packs
-//! several cases into one allocation and runs `nlstudy run --only KEYS` inside it, so the same
-//! record store and the same make-style skipping serve the cluster and the workstation.
+//! Cluster jobs: Slurm or LSF scripts for the points of a study not yet stored. Each job (or
+//! array element) packs several cases into one allocation and runs `nlstudy run --only KEYS`
+//! inside it, so the same record store and the same make-style skipping serve the cluster and
+//! the workstation, and a requeued job runs only what is missing.
 
 use super::ledger::{self, LedgerEntry};
+use super::limits::History;
+use super::pack::pack;
 use super::scheduler::{self, Scheduler};
-use super::script::{write_jobs, JobCommand};
-use crate::model::resources::Resources;
+use super::script::{write_jobs, JobCommand, Settings};
+use crate::model::launcher::Launcher;
+use crate::model::resources::{Resources, WallTime};
+use crate::model::site::Site;
 use crate::model::study::Study;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::Planned;
@@ -13,19 +18,26 @@ use crate::store::Store;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-/// Where and how `nlstudy submit` sends a study: the scheduler, the resources (the study's,
-/// overridden by flags), the results directory and study file as given, and whether to stop
-/// after writing the scripts.
+/// Where and how `nlstudy submit` sends a study: the scheduler and site, the resources (the
+/// site's defaults, the study's, then the flags'), the results directory and study file as
+/// given, and whether to stop after writing the scripts.
 pub struct Target {
     pub scheduler: Scheduler,
+    pub site: Site,
     pub resources: Resources,
+    /// The time limit the study or a flag gave (it wins over stored timings).
+    pub time: Option<WallTime>,
+    /// One job array per allocation shape rather than one job per pack.
+    pub array: bool,
+    /// Elements of an array running at once.
+    pub throttle: Option<std::num::NonZeroUsize>,
     pub results: PathBuf,
     pub study_file: PathBuf,
     pub dry_run: bool,
     /// `nlstudy run --retries` inside each job.
     pub retries: usize,
-    /// The MPI launcher inside each job (the scheduler's own when `None`).
-    pub launcher: Option<crate::run::pool::Launcher>,
+    /// The MPI launcher inside each job (the site's, else the scheduler's own, when `None`).
+    pub launcher: Option<Launcher>,
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
@@ -84,23 +96,55 @@ pub fn submit_study(
         jobs: results.join(&study.name).join("jobs"),
         results,
         retries: target.retries,
-        launcher: target.launcher.clone(),
+        launcher: target
+            .launcher
+            .clone()
+            .or_else(|| target.site.launcher.clone()),
     };
-    let jobs = write_jobs(
+    let packs = pack(
         &study.name,
         &runnable,
-        target.scheduler,
         &target.resources,
-        &command,
-    )
-    .map_err(|e| format!("cannot write the job scripts: {e}"))?;
-    for job in &jobs {
-        tell!(
-            "{} ({} cases): {}",
-            job.name,
-            job.keys.len(),
-            job.script.display()
-        );
+        target.site.cores_per_node,
+        target.array,
+    );
+    let history = History::read(planned, store);
+    let packs: Vec<_> = packs
+        .into_iter()
+        .map(|pack| {
+            let (time, from) = time_limit(&pack.bundles, &history, target);
+            (pack, time, from)
+        })
+        .collect();
+    let settings = Settings {
+        scheduler: target.scheduler,
+        resources: &target.resources,
+        site: &target.site,
+        exclusive: target.site.exclusive.unwrap_or(!study.share_machine),
+        throttle: target.throttle,
+    };
+    let timed: Vec<_> = packs.iter().map(|(p, t, _)| (p, *t)).collect();
+    let jobs = write_jobs(&timed, &settings, &command)
+        .map_err(|e| format!("cannot write the job scripts: {e}"))?;
+    for (job, (_, time, from)) in jobs.iter().zip(&packs) {
+        let limit = time.map_or("no time limit".to_string(), |t| {
+            format!("time {}", t.slurm())
+        });
+        match job.array {
+            false => tell!(
+                "{} ({} cases, {limit}: {from}): {}",
+                job.name,
+                job.bundles[0].len(),
+                job.script.display()
+            ),
+            true => tell!(
+                "{} (array of {} elements, {} cases, {limit}: {from}): {}",
+                job.name,
+                job.bundles.len(),
+                job.bundles.iter().map(Vec::len).sum::<usize>(),
+                job.script.display()
+            ),
+        }
         if !target.dry_run {
             let id = scheduler::submit(target.scheduler, &job.script)?;
             tell!("  submitted as job {id}");
@@ -111,13 +155,42 @@ pub fn submit_study(
                     scheduler: target.scheduler,
                     id,
                     name: job.name.clone(),
-                    keys: job.keys.clone(),
+                    keys: job.bundles.concat(),
+                    elements: match job.array {
+                        true => job.bundles.clone(),
+                        false => Vec::new(),
+                    },
                     submitted,
                 },
             )?;
         }
     }
     Ok(())
+}
+
+/// A job's time limit and where it came from: `--time` or the study's; else its points'
+/// stored timings (an array's longest element); else the site's default; else none.
+fn time_limit(
+    bundles: &[Vec<&Planned>],
+    history: &History,
+    target: &Target,
+) -> (Option<WallTime>, String) {
+    if let Some(time) = target.time {
+        return (Some(time), "as given".into());
+    }
+    let limits: Result<Vec<(WallTime, String)>, String> =
+        bundles.iter().map(|b| history.limit(b)).collect();
+    let fallback = |why: String| match target.site.time {
+        Some(time) => (Some(time), format!("the site's default; {why}")),
+        None => (None, format!("the scheduler's default; {why}")),
+    };
+    match limits {
+        Ok(limits) => match limits.into_iter().max_by_key(|(t, _)| t.seconds()) {
+            Some((time, from)) => (Some(time), format!("from {from}")),
+            None => fallback("no points".into()),
+        },
+        Err(why) => fallback(why),
+    }
 }
 
 /// The keys of the ledger's jobs that the scheduler still holds, each with its job's id. Where
@@ -136,7 +209,13 @@ fn in_flight(store: &Store, scheduler: Scheduler) -> HashMap<String, String> {
     };
     entries
         .into_iter()
-        .filter(|e| e.scheduler == scheduler && live.contains_key(&e.id))
-        .flat_map(|e| e.keys.into_iter().map(move |k| (k, e.id.clone())))
+        .filter(|e| e.scheduler == scheduler)
+        .flat_map(|e| {
+            e.parts()
+                .into_iter()
+                .filter(|(id, _)| live.contains_key(id))
+                .flat_map(|(id, keys)| keys.iter().map(move |k| (k.clone(), id.clone())))
+                .collect::<Vec<_>>()
+        })
         .collect()
 }

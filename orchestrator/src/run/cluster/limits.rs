@@ -1,0 +1,240 @@
+//! Time limits from history: a job's wall time from the stored timings of its points, or of
+//! their nearest neighbours in the sweep (the same refinement series, a smaller grid), so a
+//! study is neither killed at a guessed limit nor kept waiting in the queue by a huge one.
+//!
+//! A point's estimate is the median wall time (set-up + solve) of its stored runs; without
+//! them, the median at the largest smaller `n` of its series, scaled to its own `n` by the
+//! power law the two largest such grids show (time ∝ n^b), or by n^(dim+2) (an explicit step
+//! count at a fixed CFL number) when only one is stored. A job's limit is the sum over its
+//! points × `SAFETY` plus `START_S` per point, rounded up to the minute and at least `FLOOR_S`.
+
+use crate::model::resources::WallTime;
+use crate::run::plan::Planned;
+use crate::statistics::median;
+use crate::store::Store;
+use schema::record::Status;
+use std::collections::HashMap;
+
+/// The margin over the estimate: timings vary between nodes and runs.
+pub const SAFETY: f64 = 2.0;
+/// Seconds per point for what the timings leave out: starting the process, MPI's start-up.
+pub const START_S: f64 = 10.0;
+/// The shortest limit set from history.
+pub const FLOOR_S: u64 = 5 * 60;
+
+/// One point's estimated wall time and where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    pub seconds: f64,
+    /// Stored runs of the point itself, or the neighbour grids it was scaled from.
+    pub from: Source,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Source {
+    Itself { runs: usize },
+    Neighbours { n: Vec<u64>, exponent: f64 },
+}
+
+/// The stored wall times of a study's points, by refinement series and grid.
+pub struct History {
+    /// Series → n → wall times of stored ok or diverged runs.
+    times: HashMap<String, HashMap<u64, Vec<f64>>>,
+}
+
+impl History {
+    /// Reads the stored record of every planned point (a point that runs again because it is
+    /// stale still has its old timings).
+    pub fn read(planned: &[Planned], store: &Store) -> History {
+        let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
+        for p in planned {
+            let Some(record) = store.stored(&p.key) else {
+                continue;
+            };
+            let measured = matches!(Status::of(&record), Some(Status::Ok | Status::Diverged));
+            let setup = record["setup_s"].as_f64().unwrap_or(0.0);
+            let wall = record["solve_s"].as_f64().map(|solve| setup + solve);
+            let (Some(n), Some(wall)) = (grid(p), wall.filter(|w| w.is_finite() && *w >= 0.0))
+            else {
+                continue;
+            };
+            if measured {
+                let series = times.entry(p.point.series.refinement.clone()).or_default();
+                series.entry(n).or_default().push(wall);
+            }
+        }
+        History { times }
+    }
+
+    /// The estimate for `point`, if it or a neighbour was timed.
+    pub fn estimate(&self, point: &Planned) -> Option<Estimate> {
+        let n = grid(point)?;
+        let series = self.times.get(&point.point.series.refinement)?;
+        if let Some(own) = series.get(&n) {
+            return Some(Estimate {
+                seconds: median(own),
+                from: Source::Itself { runs: own.len() },
+            });
+        }
+        let mut below: Vec<(u64, f64)> = series
+            .iter()
+            .filter(|(m, _)| **m < n)
+            .map(|(m, t)| (*m, median(t)))
+            .collect();
+        below.sort_by_key(|(m, _)| *m);
+        let dim = point
+            .point
+            .fields
+            .get("dim")
+            .and_then(|d| d.as_u64())
+            .unwrap_or(1);
+        let (n1, t1) = *below.last()?;
+        let exponent = match below.len() {
+            1 => (dim + 2) as f64,
+            k => {
+                let (n0, t0) = below[k - 2];
+                // A time that fell with the grid (noise at tiny n) says nothing: assume one
+                // pass over the points at least.
+                ((t1 / t0).ln() / (n1 as f64 / n0 as f64).ln()).max(dim as f64)
+            }
+        };
+        let exponent = if exponent.is_finite() {
+            exponent
+        } else {
+            (dim + 2) as f64
+        };
+        Some(Estimate {
+            seconds: t1 * (n as f64 / n1 as f64).powf(exponent),
+            from: Source::Neighbours {
+                n: below.iter().rev().take(2).map(|(m, _)| *m).collect(),
+                exponent,
+            },
+        })
+    }
+
+    /// The limit of a job running `points` one after another, and a sentence of where it came
+    /// from; `None` when a point has no estimate (then the job's limit is the site's or none).
+    pub fn limit(&self, points: &[&Planned]) -> Result<(WallTime, String), String> {
+        let mut total = 0.0;
+        let (mut own, mut scaled) = (0, 0);
+        for p in points {
+            let Some(estimate) = self.estimate(p) else {
+                return Err(format!(
+                    "{} has no stored timing, nor a smaller grid of its series",
+                    p.point.label()
+                ));
+            };
+            total += estimate.seconds * SAFETY + START_S;
+            match estimate.from {
+                Source::Itself { .. } => own += 1,
+                Source::Neighbours { .. } => scaled += 1,
+            }
+        }
+        let seconds = ((total / 60.0).ceil() as u64 * 60).max(FLOOR_S);
+        let time = WallTime::from_seconds(seconds).ok_or_else(|| {
+            format!("the stored timings ask for {seconds} s, beyond a wall time's 366 days")
+        })?;
+        let points = |k: usize| match k {
+            1 => "1 point".to_string(),
+            k => format!("{k} points"),
+        };
+        let from = match (own, scaled) {
+            (o, 0) => format!("the stored timings of {}", points(o)),
+            (0, s) => format!("{} scaled from smaller grids", points(s)),
+            (o, s) => format!(
+                "the stored timings of {}, {} scaled from smaller grids",
+                points(o),
+                points(s)
+            ),
+        };
+        Ok((
+            time,
+            format!(
+                "{from} × {SAFETY} + {START_S} s each, at least {} min",
+                FLOOR_S / 60
+            ),
+        ))
+    }
+}
+
+fn grid(point: &Planned) -> Option<u64> {
+    point.point.fields.get("n")?.as_u64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::study::{Point, PointSeries};
+    use crate::run::plan::{Decision, Reason};
+    use serde_json::json;
+
+    fn point(series: &str, dim: u64, n: u64) -> Planned {
+        let fields = json!({"dim": dim, "n": n}).as_object().unwrap().clone();
+        Planned {
+            point: Point {
+                fields,
+                branch: None,
+                swept: vec!["n".into()],
+                repeat: 0,
+                series: PointSeries {
+                    refinement: series.into(),
+                    scaling: String::new(),
+                },
+            },
+            case: Err("not checked".into()),
+            key: format!("{series}-{n}"),
+            case_id: String::new(),
+            decision: Decision::Run(Reason::Missing),
+        }
+    }
+
+    fn history(series: &str, runs: &[(u64, &[f64])]) -> History {
+        let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
+        History {
+            times: HashMap::from([(series.to_string(), times)]),
+        }
+    }
+
+    #[test]
+    fn a_point_is_timed_by_its_own_runs_else_scaled_from_its_series_smaller_grids() {
+        let h = history("a", &[(64, &[1.0, 9.0, 2.0]), (128, &[8.0])]);
+        let own = h.estimate(&point("a", 1, 64)).unwrap();
+        assert_eq!(
+            own,
+            Estimate {
+                seconds: 2.0,
+                from: Source::Itself { runs: 3 }
+            }
+        );
+        // 2 s at 64, 8 s at 128: time ∝ n², so 32 s at 256.
+        let scaled = h.estimate(&point("a", 1, 256)).unwrap();
+        assert!((scaled.seconds - 32.0).abs() < 1e-9, "{scaled:?}");
+        assert_eq!(
+            scaled.from,
+            Source::Neighbours {
+                n: vec![128, 64],
+                exponent: 2.0
+            }
+        );
+        // One smaller grid in 2D: n^(dim+2) = n⁴.
+        let h = history("b", &[(100, &[1.0])]);
+        assert!((h.estimate(&point("b", 2, 200)).unwrap().seconds - 16.0).abs() < 1e-9);
+        assert_eq!(h.estimate(&point("b", 2, 50)), None, "no smaller grid");
+        assert_eq!(h.estimate(&point("c", 2, 200)), None, "another series");
+    }
+
+    #[test]
+    fn a_jobs_limit_sums_its_points_with_the_margin_rounds_up_and_has_a_floor() {
+        let h = history("a", &[(64, &[100.0]), (128, &[400.0])]);
+        let (p, q) = (point("a", 1, 64), point("a", 1, 128));
+        // (100 + 400) × 2 + 2 × 10 s = 1020 s → 17 min.
+        let (time, from) = h.limit(&[&p, &q]).unwrap();
+        assert_eq!(time.seconds(), 17 * 60);
+        assert!(from.contains("the stored timings of 2 points"), "{from}");
+        let tiny = history("t", &[(8, &[0.01])]);
+        let (time, _) = tiny.limit(&[&point("t", 1, 8)]).unwrap();
+        assert_eq!(time.seconds(), FLOOR_S);
+        let e = h.limit(&[&p, &point("z", 1, 64)]).unwrap_err();
+        assert!(e.contains("no stored timing"), "{e}");
+    }
+}

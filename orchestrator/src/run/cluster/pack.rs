@@ -1,0 +1,113 @@
+//! Packing a study's points into scheduler submissions: jobs of `cases_per_job` points each
+//! (all of them in one job by default), or, with `--array`, one job array per allocation shape
+//! whose elements each run a bundle of points. One array is one `sbatch` or `bsub` call however
+//! many points it holds, which spares the scheduler the per-job overhead (Slurm's RPC limits)
+//! that hundreds of small jobs meet.
+
+use crate::model::resources::Resources;
+use crate::run::plan::Planned;
+use std::num::NonZeroUsize;
+
+/// The most elements one array holds: Slurm's default `MaxArraySize` is 1001 (indices 0 to
+/// 1000). Bundles grow to keep a larger study within it.
+pub const MOST_ELEMENTS: usize = 1000;
+
+/// The allocation of one job or array element: nodes, MPI tasks, threads per task.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Shape {
+    pub nodes: usize,
+    pub tasks: usize,
+    pub threads: usize,
+}
+
+impl Shape {
+    /// Cores of the allocation: each task's threads.
+    pub fn cores(&self) -> usize {
+        self.tasks * self.threads
+    }
+}
+
+/// One submission: a job running one bundle of points, or an array of bundles.
+pub struct Pack<'a> {
+    pub name: String,
+    pub bundles: Vec<Vec<&'a Planned>>,
+    pub shape: Shape,
+    pub array: bool,
+}
+
+/// The submissions for `runnable`, in plan order: jobs of `cases_per_job` points, or with
+/// `array` one array per shape whose bundles hold `cases_per_job` points (one by default, more
+/// when the shape has over `MOST_ELEMENTS` of them).
+pub fn pack<'a>(
+    study_name: &str,
+    runnable: &[&'a Planned],
+    resources: &Resources,
+    cores_per_node: Option<NonZeroUsize>,
+    array: bool,
+) -> Vec<Pack<'a>> {
+    let name = |k: usize| format!("nlstudy-{study_name}-{k}");
+    if !array {
+        let per_job = resources
+            .cases_per_job
+            .map_or(runnable.len(), NonZeroUsize::get)
+            .max(1);
+        return runnable
+            .chunks(per_job)
+            .enumerate()
+            .map(|(k, pack)| Pack {
+                name: name(k),
+                bundles: vec![pack.to_vec()],
+                shape: shape(pack, resources, cores_per_node),
+                array: false,
+            })
+            .collect();
+    }
+    let mut by_shape: Vec<(Shape, Vec<&'a Planned>)> = Vec::new();
+    for &p in runnable {
+        let own = shape(&[p], resources, cores_per_node);
+        match by_shape.iter_mut().find(|(s, _)| *s == own) {
+            Some((_, points)) => points.push(p),
+            None => by_shape.push((own, vec![p])),
+        }
+    }
+    by_shape
+        .into_iter()
+        .enumerate()
+        .map(|(k, (shape, points))| {
+            let per_bundle = resources
+                .cases_per_job
+                .map_or(1, NonZeroUsize::get)
+                .max(points.len().div_ceil(MOST_ELEMENTS));
+            Pack {
+                name: name(k),
+                bundles: points.chunks(per_bundle).map(<[_]>::to_vec).collect(),
+                shape,
+                array: true,
+            }
+        })
+        .collect()
+}
+
+/// The allocation that fits every point of `pack`: the largest rank and thread counts (tasks
+/// as `resources` sets them), on as many nodes as `resources` asks, or as the cores need.
+fn shape(pack: &[&Planned], resources: &Resources, cores_per_node: Option<NonZeroUsize>) -> Shape {
+    let largest = |field: &str| {
+        pack.iter()
+            .filter_map(|p| p.case.as_ref().ok()?.resolved.get(field)?.as_u64())
+            .max()
+            .unwrap_or(1)
+            .max(1) as usize
+    };
+    let tasks = resources.tasks.map_or(largest("ranks"), NonZeroUsize::get);
+    let threads = largest("threads");
+    let nodes = match (resources.nodes, cores_per_node) {
+        (Some(nodes), _) => nodes.get(),
+        (None, Some(cores)) => (tasks * threads).div_ceil(cores.get()).min(tasks),
+        (None, None) => 1,
+    };
+    Shape {
+        nodes: nodes.max(1),
+        tasks,
+        threads,
+    }
+}
