@@ -12,7 +12,7 @@ use crate::run::plan::{Decision, Options, Planned};
 use crate::run::pool::{Launcher, PoolOptions, DEFAULT_LAUNCHER};
 use crate::run::progress::{Mode, Progress};
 use crate::store::owner::Refusal;
-use crate::store::{FileError, Store};
+use crate::store::{FileError, Index, Store};
 use clap::{Args, Parser, Subcommand};
 use std::num::NonZeroUsize;
 use std::path::PathBuf;
@@ -373,6 +373,16 @@ fn planned(
     options: &Options,
     writes: bool,
 ) -> Result<(Study, Nlsolve, Store, Vec<Planned>), Failure> {
+    let (study, solver, store, _, planned) = planned_and_index(args, options, writes)?;
+    Ok((study, solver, store, planned))
+}
+
+/// `planned`, with the store's index it planned against.
+fn planned_and_index(
+    args: &CommonArgs,
+    options: &Options,
+    writes: bool,
+) -> Result<(Study, Nlsolve, Store, Index, Vec<Planned>), Failure> {
     let study = read_study(&args.study)?;
     let solver = Nlsolve::locate(args.solver.as_deref())?;
     let store = open_store(args, &study, writes)?;
@@ -382,7 +392,7 @@ fn planned(
     }
     let planned =
         crate::run::plan::plan(&study, &solver, &index, options).map_err(|e| e.to_string())?;
-    Ok((study, solver, store, planned))
+    Ok((study, solver, store, index, planned))
 }
 
 fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
@@ -653,8 +663,8 @@ fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
 }
 
 fn status_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(args, &Options::default(), false)?;
-    tell_raw!("{}", status::render(&study.name, &store, &planned));
+    let (study, _, store, index, planned) = planned_and_index(args, &Options::default(), false)?;
+    tell_raw!("{}", status::render(&study.name, &store, &index, &planned));
     Ok(ExitCode::SUCCESS)
 }
 

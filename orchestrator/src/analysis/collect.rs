@@ -58,11 +58,10 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     for (name, value) in rest {
         // The case with its defaults filled in, as the solver resolves it now (records keep
         // the case as keyed, which leaves some defaults out).
-        let value = match (name.as_str(), &planned.case) {
-            ("case", Ok(checked)) => &checked.resolved,
-            _ => value,
-        };
-        row.set_flattened(name, value);
+        match (name.as_str(), &planned.case) {
+            ("case", Ok(checked)) => row.set_flattened(name, &checked.resolved()),
+            _ => row.set_flattened(name, value),
+        }
     }
     row
 }

@@ -6,7 +6,7 @@
 use crate::run::cluster::ledger::{self, LedgerEntry};
 use crate::run::cluster::scheduler::{self, Scheduler};
 use crate::run::plan::Planned;
-use crate::store::Store;
+use crate::store::{Index, Store};
 use schema::record::Status;
 use serde_json::Value;
 use std::collections::{BTreeMap, HashMap};
@@ -14,9 +14,16 @@ use std::fmt::Write as _;
 
 /// The records counted by status, as `3 ok`, `1 failed`, … (statuses in name order).
 pub fn counts_by_status(records: &[Value]) -> Vec<String> {
+    counts(
+        records
+            .iter()
+            .map(|r| r["status"].as_str().unwrap_or("unknown")),
+    )
+}
+
+fn counts<'a>(statuses: impl Iterator<Item = &'a str>) -> Vec<String> {
     let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
-    for record in records {
-        let status = record["status"].as_str().unwrap_or("unknown");
+    for status in statuses {
         *counts.entry(status).or_default() += 1;
     }
     counts.iter().map(|(s, n)| format!("{n} {s}")).collect()
@@ -29,24 +36,26 @@ pub fn noisy_runs(records: &[Value]) -> Option<String> {
         .iter()
         .filter(|r| r.pointer("/provenance/noisy") == Some(&Value::Bool(true)))
         .count();
+    noisy_sentence(noisy, records.len())
+}
+
+fn noisy_sentence(noisy: usize, runs: usize) -> Option<String> {
     (noisy > 0).then(|| {
         format!(
-            "{noisy} of {} runs are noisy: timed while other tasks wanted the cores the run left free; rerun them (`--force`) on a quiet machine before trusting their timings",
-            records.len()
+            "{noisy} of {runs} runs are noisy: timed while other tasks wanted the cores the run left free; rerun them (`--force`) on a quiet machine before trusting their timings"
         )
     })
 }
 
-/// The report: one line of counts, one line per failed run, the missing points, the jobs.
-pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
-    let scan = store.scan();
-    let records = scan.records;
-    let summary = counts_by_status(&records);
+/// The report, from the store's index: one line of counts, one line per failed run, the
+/// missing points, the jobs.
+pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) -> String {
+    let summary = counts(index.status.values().map(|s| s.as_str()));
     let mut out = String::new();
     let _ = writeln!(
         out,
         "study {study}: {} records in {}: {}",
-        records.len(),
+        index.status.len(),
         store.runs.display(),
         if summary.is_empty() {
             "none".to_string()
@@ -54,33 +63,24 @@ pub fn render(study: &str, store: &Store, planned: &[Planned]) -> String {
             summary.join(", ")
         }
     );
-    for record in records
-        .iter()
-        .filter(|r| Status::of(r) == Some(Status::Failed))
-    {
-        let message = record["message"].as_str().unwrap_or("");
-        let _ = writeln!(
-            out,
-            "failed {}: {}",
-            record["key"].as_str().unwrap_or("?"),
-            message.lines().next().unwrap_or("")
-        );
+    for (key, message) in &index.failed {
+        let _ = writeln!(out, "failed {key}: {message}");
     }
-    if let Some(noisy) = noisy_runs(&records) {
+    if let Some(noisy) = noisy_sentence(index.noisy, index.status.len()) {
         let _ = writeln!(out, "{noisy}");
     }
-    for unreadable in &scan.unreadable {
+    for unreadable in &index.unreadable {
         let _ = writeln!(out, "unreadable: {unreadable}");
     }
     let missing = planned.iter().filter(|p| p.runs()).count();
     let _ = writeln!(out, "{missing} of {} points to run", planned.len());
-    jobs_report(&mut out, store);
+    jobs_report(&mut out, store, index);
     out
 }
 
 /// One line per job of the ledger: its id, name, state (an array's elements counted by state)
 /// and stored points.
-fn jobs_report(out: &mut String, store: &Store) {
+fn jobs_report(out: &mut String, store: &Store, index: &Index) {
     let entries = ledger::entries(store);
     let Some(scheduler) = entries.first().map(|e| e.scheduler) else {
         return;
@@ -97,7 +97,7 @@ fn jobs_report(out: &mut String, store: &Store) {
         let stored = entry
             .keys
             .iter()
-            .filter(|k| store.status(k).is_some_and(|s| s != Status::Failed))
+            .filter(|k| index.status.get(*k).is_some_and(|s| *s != Status::Failed))
             .count();
         let (what, state) = match entry.elements.is_empty() {
             true => (String::new(), state_of(&entry.id)),

@@ -3,7 +3,7 @@
 
 use crate::model::study::Point;
 use serde_json::Value;
-use std::io::Write;
+use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -16,14 +16,35 @@ pub struct Nlsolve {
     pub fingerprint: Option<String>,
 }
 
-/// A case the solver accepted, in its two forms.
+/// A case the solver accepted, in its two forms, each kept as its compact JSON (a study of 10⁵
+/// points holds 10⁵ of them; a parsed map is eight times larger).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checked {
     /// Keys sorted, some defaults left out: what a run's key is taken from (stable across
-    /// versions that fill in more defaults).
-    pub canonical: Value,
+    /// versions that fill in more defaults). Printed by nlstudy from the parsed answer.
+    canonical: Box<str>,
     /// Every field the method uses, defaults filled in: what tables and messages show.
-    pub resolved: Value,
+    resolved: Box<str>,
+}
+
+impl Checked {
+    /// The canonical case as text: what keys hash and what `nlsolve run` reads.
+    pub fn canonical_text(&self) -> &str {
+        &self.canonical
+    }
+
+    pub fn canonical(&self) -> Value {
+        serde_json::from_str(&self.canonical).expect("nlstudy printed it")
+    }
+
+    pub fn resolved(&self) -> Value {
+        serde_json::from_str(&self.resolved).expect("nlstudy printed it")
+    }
+
+    /// A whole-number field of the resolved case (`threads`, `ranks`).
+    pub fn resolved_count(&self, field: &str) -> Option<u64> {
+        self.resolved().get(field)?.as_u64()
+    }
 }
 
 impl Nlsolve {
@@ -63,7 +84,7 @@ impl Nlsolve {
     }
 
     /// Each point's case as the solver reads it, or the solver's sentence saying which field is
-    /// wrong; one `nlsolve check` for all points.
+    /// wrong; one `nlsolve check` for all points, its answers read as they come.
     pub fn check(&self, points: &[Point]) -> Result<Vec<Result<Checked, String>>, String> {
         let mut child = Command::new(&self.binary)
             .arg("check")
@@ -72,50 +93,37 @@ impl Nlsolve {
             .stderr(Stdio::piped())
             .spawn()
             .map_err(|e| format!("cannot start {}: {e}", self.binary.display()))?;
-        let mut input = String::new();
-        for point in points {
-            input.push_str(&Value::Object(point.fields.clone()).to_string());
-            input.push('\n');
-        }
-        let mut stdin = child.stdin.take().expect("stdin is piped");
-        // Written from a thread, so that a full stdout pipe cannot stall both processes.
-        let writer = std::thread::spawn(move || stdin.write_all(input.as_bytes()));
+        let stdin = child.stdin.take().expect("stdin is piped");
+        let stdout = child.stdout.take().expect("stdout is piped");
+        let (verdicts, written) = std::thread::scope(|scope| {
+            // Written from a thread, so that a full stdout pipe cannot stall both processes.
+            let writer = scope.spawn(move || {
+                let mut stdin = std::io::BufWriter::with_capacity(1 << 16, stdin);
+                for point in points {
+                    serde_json::to_writer(&mut stdin, &point.fields)?;
+                    stdin.write_all(b"\n")?;
+                }
+                stdin.flush()
+            });
+            let verdicts: Vec<Result<Checked, String>> = std::io::BufReader::new(stdout)
+                .lines()
+                .map(|line| verdict(&line.map_err(|e| format!("cannot read nlsolve check: {e}"))?))
+                .collect();
+            (
+                verdicts,
+                writer.join().expect("the writer thread does not panic"),
+            )
+        });
         let output = child
             .wait_with_output()
             .map_err(|e| format!("nlsolve check failed: {e}"))?;
-        writer
-            .join()
-            .expect("the writer thread does not panic")
-            .map_err(|e| format!("cannot send cases to nlsolve check: {e}"))?;
         if !output.status.success() {
             return Err(format!(
                 "nlsolve check failed: {}",
                 String::from_utf8_lossy(&output.stderr).trim()
             ));
         }
-        let verdicts: Vec<Result<Checked, String>> = String::from_utf8_lossy(&output.stdout)
-            .lines()
-            .map(|line| {
-                let mut verdict: Value = serde_json::from_str(line)
-                    .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
-                if let Some(case) = verdict.get_mut("case") {
-                    let canonical = case.take();
-                    // A solver from before `resolved` was printed: its case as it is.
-                    let resolved = match verdict.get_mut("resolved") {
-                        Some(resolved) => resolved.take(),
-                        None => canonical.clone(),
-                    };
-                    return Ok(Checked {
-                        canonical,
-                        resolved,
-                    });
-                }
-                match verdict.get("error").and_then(Value::as_str) {
-                    Some(error) => Err(error.to_string()),
-                    None => Err("nlsolve check printed neither a case nor an error".to_string()),
-                }
-            })
-            .collect();
+        written.map_err(|e| format!("cannot send cases to nlsolve check: {e}"))?;
         if verdicts.len() != points.len() {
             return Err(format!(
                 "nlsolve check answered {} of {} cases",
@@ -124,5 +132,38 @@ impl Nlsolve {
             ));
         }
         Ok(verdicts)
+    }
+}
+
+/// One line of `nlsolve check`: the case in its two forms, or the refusal.
+#[derive(serde::Deserialize)]
+struct Verdict {
+    case: Option<Value>,
+    resolved: Option<Value>,
+    error: Option<String>,
+}
+
+fn verdict(line: &str) -> Result<Checked, String> {
+    let verdict: Verdict = serde_json::from_str(line)
+        .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
+    match verdict {
+        Verdict {
+            case: Some(canonical),
+            resolved,
+            ..
+        } => {
+            let canonical = canonical.to_string();
+            Ok(Checked {
+                // A solver from before `resolved` was printed: its case as it is.
+                resolved: resolved
+                    .map_or_else(|| canonical.clone(), |r| r.to_string())
+                    .into(),
+                canonical: canonical.into(),
+            })
+        }
+        Verdict {
+            error: Some(error), ..
+        } => Err(error),
+        _ => Err("nlsolve check printed neither a case nor an error".to_string()),
     }
 }

@@ -4,8 +4,7 @@ use crate::model::study::{Point, Study, StudyError};
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::store::{self, Index};
 use schema::record::Status;
-use serde_json::Value;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 /// What the command line asks beyond the study.
@@ -102,12 +101,15 @@ pub fn plan(
         .zip(cases)
         .map(|(point, case)| {
             // A refused case is keyed by its fields as written.
+            let written;
             let identity = match &case {
-                Ok(checked) => checked.canonical.clone(),
-                Err(_) => Value::Object(point.fields.clone()),
+                Ok(checked) => checked.canonical_text(),
+                Err(_) => {
+                    written = serde_json::to_string(&point.fields).expect("a map prints");
+                    written.as_str()
+                }
             };
-            let case_id = store::case_id(&identity);
-            let key = store::key(&identity, &solver.version, point.repeat);
+            let (case_id, key) = store::case_id_and_key(identity, &solver.version, point.repeat);
             let stored = index.status.get(&key);
             let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
             let first = seen.insert(key.clone());
@@ -168,15 +170,19 @@ pub struct Refusal {
 /// The solver's refusals, one per distinct sentence, in the order they first appear.
 pub fn refusals(planned: &[Planned]) -> Vec<Refusal> {
     let mut refusals: Vec<Refusal> = Vec::new();
+    let mut at: HashMap<&str, usize> = HashMap::new();
     for p in planned.iter().filter(|p| p.point.repeat == 0) {
         let Err(message) = &p.case else { continue };
-        match refusals.iter_mut().find(|r| r.message == *message) {
-            Some(refusal) => refusal.points += 1,
-            None => refusals.push(Refusal {
-                message: message.clone(),
-                points: 1,
-                first: p.point.label_without_repeat(),
-            }),
+        match at.get(message.as_str()) {
+            Some(&k) => refusals[k].points += 1,
+            None => {
+                at.insert(message, refusals.len());
+                refusals.push(Refusal {
+                    message: message.clone(),
+                    points: 1,
+                    first: p.point.label_without_repeat(),
+                });
+            }
         }
     }
     refusals

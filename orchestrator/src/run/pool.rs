@@ -237,8 +237,15 @@ fn run_cases(
                     finish(store, planned, record, &mut tally, progress)?;
                 }
                 Ok(case) => {
-                    let mut job =
-                        start(next, &case.canonical, planned, solver, store, options, lock)?;
+                    let mut job = start(
+                        next,
+                        &case.canonical(),
+                        planned,
+                        solver,
+                        store,
+                        options,
+                        lock,
+                    )?;
                     job.attempt = attempt;
                     running.push(job);
                 }
@@ -332,7 +339,7 @@ fn cores_of(planned: &Planned) -> usize {
             .case
             .as_ref()
             .ok()
-            .and_then(|c| c.resolved.get(name)?.as_u64())
+            .and_then(|c| c.resolved_count(name))
             .unwrap_or(1) as usize
     };
     field("threads").max(1) * field("ranks").max(1)
@@ -464,7 +471,7 @@ fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
 
 fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Value {
     let case = match &planned.case {
-        Ok(case) => case.canonical.clone(),
+        Ok(case) => case.canonical(),
         Err(_) => Value::Object(planned.point.fields.clone()),
     };
     let mut record = json!({ "case": case, "status": Status::Failed.as_str(), "message": message });

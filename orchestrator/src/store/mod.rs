@@ -25,27 +25,29 @@ pub struct Store {
     pub runs: PathBuf,
 }
 
-/// The first 16 bytes of SHA-256, in hex.
-fn digest(text: &str) -> String {
-    hex(&Sha256::digest(text.as_bytes())[..16])
-}
-
 pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// The identity of a case whatever the solver version: the hash of its canonical JSON.
-pub fn case_id(case: &Value) -> String {
-    digest(&case.to_string())
-}
-
-/// The key of one run: the case, the solver version and, beyond the first, the repeat.
-pub fn key(case: &Value, solver_version: &str, repeat: usize) -> String {
-    let mut text = format!("{case}\n{solver_version}");
-    if repeat > 0 {
-        text.push_str(&format!("\nrepeat {repeat}"));
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut text = String::with_capacity(2 * bytes.len());
+    for b in bytes {
+        text.push(DIGITS[usize::from(b >> 4)] as char);
+        text.push(DIGITS[usize::from(b & 15)] as char);
     }
-    digest(&text)
+    text
+}
+
+/// A case's identity whatever the solver version (the first 16 bytes of the SHA-256 of its
+/// canonical JSON, in hex), and the key of one run of it: the case, the solver version and,
+/// beyond the first, the repeat. `case` is the compact JSON of the case (as `Value` prints it).
+pub fn case_id_and_key(case: &str, solver_version: &str, repeat: usize) -> (String, String) {
+    let mut hasher = Sha256::new();
+    hasher.update(case.as_bytes());
+    let case_id = hex(&hasher.clone().finalize()[..16]);
+    hasher.update(b"\n");
+    hasher.update(solver_version.as_bytes());
+    if repeat > 0 {
+        hasher.update(format!("\nrepeat {repeat}").as_bytes());
+    }
+    (case_id, hex(&hasher.finalize()[..16]))
 }
 
 impl Store {
@@ -192,18 +194,7 @@ impl Store {
     /// Every stored record, and the files of the store that are not whole records.
     pub fn scan(&self) -> Scan {
         let mut scan = Scan::default();
-        let Ok(entries) = std::fs::read_dir(&self.runs) else {
-            return scan;
-        };
-        let mut paths: Vec<PathBuf> = entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                !p.file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-            })
-            .collect();
-        paths.sort();
-        for path in paths {
+        for path in self.record_paths() {
             let read = std::fs::read_to_string(&path).map_err(|e| e.to_string());
             match read.and_then(|text| read_record(&path, &text)) {
                 Ok(record) => scan.records.push(record),
@@ -239,28 +230,115 @@ impl Store {
 
     /// What the stored records say, read once: the status of each key and the solver version
     /// each case id was run with. An unreadable file counts as absent (its point runs again).
+    /// Only the fields the index keeps are parsed into values; the files are read on every
+    /// core.
     pub fn index(&self) -> Index {
-        let scan = self.scan();
-        let mut index = Index {
-            unreadable: scan.unreadable,
-            ..Index::default()
-        };
-        for record in scan.records {
-            let text = |field: &str| record.get(field)?.as_str().map(str::to_string);
-            if let (Some(key), Some(status)) = (text("key"), Status::of(&record)) {
-                index.status.insert(key, status);
-            }
-            if let (Some(id), Some(version)) = (text("case_id"), text("solver_version")) {
+        use rayon::prelude::*;
+        let read: Vec<Result<Indexed, Unreadable>> = self
+            .record_paths()
+            .into_par_iter()
+            .map(|path| {
+                let read = std::fs::read_to_string(&path).map_err(|e| e.to_string());
+                read.and_then(|text| read_indexed(&path, &text))
+                    .map_err(|problem| Unreadable { path, problem })
+            })
+            .collect();
+        let mut index = Index::default();
+        for entry in read {
+            let record = match entry {
+                Ok(record) => record,
+                Err(unreadable) => {
+                    index.unreadable.push(unreadable);
+                    continue;
+                }
+            };
+            if let (Some(id), Some(version)) = (record.case_id, record.solver_version) {
                 index.version_by_case.insert(id, version);
             }
-            if let Some(key) = text("key") {
-                index
-                    .fingerprint
-                    .insert(key, fingerprint_of(&record).to_string());
+            index.noisy += usize::from(record.noisy);
+            if let Some(message) = record.failure {
+                index.failed.push((record.key.clone(), message));
             }
+            index
+                .fingerprint
+                .insert(record.key.clone(), record.fingerprint);
+            index.status.insert(record.key, record.status);
         }
         index
     }
+
+    /// The paths of the store's files (hidden ones left out), in name order.
+    fn record_paths(&self) -> Vec<PathBuf> {
+        let Ok(entries) = std::fs::read_dir(&self.runs) else {
+            return Vec::new();
+        };
+        let mut paths: Vec<PathBuf> = entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                !p.file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+            })
+            .collect();
+        paths.sort_unstable();
+        paths
+    }
+}
+
+/// The fields of a record the index keeps; serde skips the rest without building values.
+#[derive(serde::Deserialize)]
+struct IndexedFields {
+    key: Option<Value>,
+    status: Option<Value>,
+    case_id: Option<Value>,
+    solver_version: Option<Value>,
+    provenance: Option<IndexedProvenance>,
+    message: Option<Value>,
+}
+
+#[derive(serde::Deserialize)]
+struct IndexedProvenance {
+    fingerprint: Option<Value>,
+    noisy: Option<Value>,
+}
+
+/// What the index keeps of one whole record (its key and status checked as `read_record`
+/// checks them).
+struct Indexed {
+    key: String,
+    status: Status,
+    case_id: Option<String>,
+    solver_version: Option<String>,
+    fingerprint: String,
+    noisy: bool,
+    /// The first line of a failed record's message.
+    failure: Option<String>,
+}
+
+fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
+    check_record_path(path)?;
+    let fields: IndexedFields =
+        serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
+    let text = |v: &Option<Value>| v.as_ref().and_then(Value::as_str).map(str::to_string);
+    let (key, status) = check_key_and_status(
+        path,
+        fields.key.as_ref().and_then(Value::as_str),
+        fields.status.as_ref().and_then(Value::as_str),
+    )?;
+    let provenance = fields.provenance.as_ref();
+    Ok(Indexed {
+        key: key.to_string(),
+        status,
+        case_id: text(&fields.case_id),
+        solver_version: text(&fields.solver_version),
+        fingerprint: provenance
+            .and_then(|p| text(&p.fingerprint))
+            .unwrap_or_default(),
+        noisy: provenance.and_then(|p| p.noisy.as_ref()) == Some(&Value::Bool(true)),
+        failure: (status == Status::Failed).then(|| {
+            let message = text(&fields.message).unwrap_or_default();
+            message.lines().next().unwrap_or("").to_string()
+        }),
+    })
 }
 
 /// Records by their key (a record without one is left out).
@@ -288,18 +366,35 @@ pub fn fingerprint_of(record: &Value) -> &str {
 /// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and
 /// whose `status` is one the schema knows. Anything else is named in the error.
 fn read_record(path: &Path, text: &str) -> Result<Value, String> {
-    if path.extension().is_none_or(|x| x != "json") {
-        return Err("not a record (records are <key>.json)".into());
-    }
+    check_record_path(path)?;
     let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
-    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
-    if record.get("key").and_then(Value::as_str) != stem.as_deref() {
-        return Err("its `key` is not its file name".into());
-    }
-    if Status::of(&record).is_none() {
-        return Err("it has no known `status`".into());
-    }
+    let key = record.get("key").and_then(Value::as_str);
+    let status = record.get("status").and_then(Value::as_str);
+    check_key_and_status(path, key, status)?;
     Ok(record)
+}
+
+fn check_record_path(path: &Path) -> Result<(), String> {
+    match path.extension().is_some_and(|x| x == "json") {
+        true => Ok(()),
+        false => Err("not a record (records are <key>.json)".into()),
+    }
+}
+
+/// A record's key is its file's name and its status one the schema knows.
+fn check_key_and_status<'a>(
+    path: &Path,
+    key: Option<&'a str>,
+    status: Option<&str>,
+) -> Result<(&'a str, Status), String> {
+    let stem = path.file_stem().map(|s| s.to_string_lossy());
+    let key = key
+        .filter(|k| stem.as_deref() == Some(*k))
+        .ok_or("its `key` is not its file name")?;
+    let status = status
+        .and_then(Status::parse)
+        .ok_or("it has no known `status`")?;
+    Ok((key, status))
 }
 
 /// A file of the store that is not a whole record: truncated, garbage, or not a record at all.
@@ -333,11 +428,33 @@ pub struct Index {
     pub fingerprint: HashMap<String, String>,
     pub version_by_case: HashMap<String, String>,
     pub unreadable: Vec<Unreadable>,
+    /// Failed records, by key in name order, with the first line of their message.
+    pub failed: Vec<(String, String)>,
+    /// Records whose provenance says they were timed on a busy machine.
+    pub noisy: usize,
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Keys are the first 16 bytes of SHA-256 of the case's compact JSON, the solver version
+    /// and the repeat, joined by newlines (values computed by Python's hashlib): records
+    /// stored by earlier versions of nlstudy keep their keys.
+    #[test]
+    fn keys_are_the_hashes_they_always_were_and_a_point_prints_as_its_case() {
+        let case = r#"{"dim":1,"m":2,"n":16}"#;
+        let (case_id, key) = case_id_and_key(case, "0.1.0", 0);
+        assert_eq!(case_id, "b37555f0171b457510a13b46362b7615");
+        assert_eq!(key, "1d4e5939b0079690e5b28ce7cde5d851");
+        let (_, repeated) = case_id_and_key(case, "0.1.0", 2);
+        assert_eq!(repeated, "52596724b90431acd907190c9ed73ac4");
+        // A refused point is keyed by its fields printed as a map: the text a `Value` prints.
+        let fields =
+            serde_json::json!({"z": null, "a": 1.5e-300, "s": "é\n\"q\"", "o": {"k": [1, 0.1]}});
+        let map = fields.as_object().unwrap();
+        assert_eq!(serde_json::to_string(map).unwrap(), fields.to_string());
+    }
     use serde_json::json;
 
     fn scratch(name: &str) -> Store {

@@ -15,7 +15,7 @@ use solver::case::{Case, Method};
 use solver::output::record::Record;
 use solver::output::vtk;
 use solver::{Outcome, ValidCase};
-use std::io::{Read, Write};
+use std::io::{BufRead, Read, Write};
 use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -682,23 +682,38 @@ fn check_cases() -> Result<(), Failure> {
     let failed = |e: std::io::Error| {
         Failure::Output(format!("cannot write the verdicts to standard output: {e}"))
     };
-    // Flushed at each line, as `stdout()` is, so that a reader sees each verdict as its case is
-    // read; on `standard_output()`, so that a closed descriptor is an error too.
-    let mut out = std::io::LineWriter::new(standard_output().map_err(failed)?);
-    for line in std::io::stdin().lines() {
-        let line = line.map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
-        if line.trim().is_empty() {
-            continue;
+    // Flushed whenever no more input is waiting, so that a reader sending one case at a time
+    // sees each verdict as its case is read, and many cases go out in large writes; on
+    // `standard_output()`, so that a closed descriptor is an error too.
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, standard_output().map_err(failed)?);
+    let mut input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin().lock());
+    let mut line = String::new();
+    let mut printed = Vec::new();
+    loop {
+        line.clear();
+        let read = input
+            .read_line(&mut line)
+            .map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
+        if read == 0 {
+            break;
         }
-        let verdict = match schema::json::parse(&line) {
-            Ok(fields) => match ValidCase::from_json(fields) {
-                // `case` keys the run; `resolved` is the same case as people read it.
-                Ok(case) => serde_json::json!({ "case": *case, "resolved": case.resolved() }),
-                Err(e) => serde_json::json!({ "error": e.to_string() }),
-            },
-            Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
-        };
-        writeln!(out, "{verdict}").map_err(failed)?;
+        if !line.trim().is_empty() {
+            let verdict = match schema::json::parse(&line) {
+                Ok(fields) => match ValidCase::from_json(fields) {
+                    // `case` keys the run; `resolved` is the same case as people read it.
+                    Ok(case) => serde_json::json!({ "case": *case, "resolved": case.resolved() }),
+                    Err(e) => serde_json::json!({ "error": e.to_string() }),
+                },
+                Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+            };
+            printed.clear();
+            serde_json::to_writer(&mut printed, &verdict).expect("a Value prints");
+            printed.push(b'\n');
+            out.write_all(&printed).map_err(failed)?;
+        }
+        if input.buffer().is_empty() {
+            out.flush().map_err(failed)?;
+        }
     }
     out.flush().map_err(failed)
 }

@@ -93,7 +93,7 @@ pub fn pack<'a>(
 fn shape(pack: &[&Planned], resources: &Resources, cores_per_node: Option<NonZeroUsize>) -> Shape {
     let largest = |field: &str| {
         pack.iter()
-            .filter_map(|p| p.case.as_ref().ok()?.resolved.get(field)?.as_u64())
+            .filter_map(|p| p.case.as_ref().ok()?.resolved_count(field))
             .max()
             .unwrap_or(1)
             .max(1) as usize
