@@ -3,7 +3,8 @@
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
 # a person would, and Python's vtk, whose readers open the solver's VTK files. With --slurm, the
-# packages of a single-node Slurm (scripts/slurm-local).
+# packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its accounting
+# (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs (iproute2).
 # Cheap when everything is there, so `make run` and `make test` call it every time.
 set -euo pipefail
 
@@ -14,7 +15,13 @@ for option in "$@"; do
     --tests) for_tests=true; packages+=(chromium) ;;
     # A single-node Slurm (scripts/slurm-local).
     --slurm) packages+=(munge slurmctld slurmd slurm-client) ;;
-    *) echo "setup: unknown option $option (the options are --tests and --slurm)" >&2; exit 2 ;;
+    --slurm-accounting) packages+=(slurmdbd mariadb-server) ;;
+    --slurm-nodes) packages+=(iproute2) ;;
+    *)
+      echo "setup: unknown option $option" \
+        "(the options are --tests, --slurm, --slurm-accounting and --slurm-nodes)" >&2
+      exit 2
+      ;;
   esac
 done
 
@@ -31,6 +38,16 @@ if ((${#missing[@]})); then
   if [ "$(id -u)" -ne 0 ]; then
     command -v sudo >/dev/null || { echo "setup: need root (or sudo) to install ${missing[*]}" >&2; exit 1; }
     sudo=sudo
+  fi
+  # Without systemd, a package's maintainer script starts its system service (MariaDB on port
+  # 3306, slurmdbd without a configuration) through invoke-rc.d wherever init is in a runlevel;
+  # scripts/slurm-local starts its own daemons, so deny those starts while installing, the way
+  # Debian's container images do.
+  policy=/usr/sbin/policy-rc.d
+  if [ ! -d /run/systemd/system ] && [ ! -e "$policy" ]; then
+    trap '$sudo rm -f "$policy"' EXIT
+    printf '#!/bin/sh\nexit 101\n' | $sudo tee "$policy" >/dev/null
+    $sudo chmod 755 "$policy"
   fi
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
