@@ -282,7 +282,11 @@ fn interrupted_by(signal: &str, status: i32) {
     assert!(stored_before >= 1);
     if stored_before < 6 {
         let said = String::from_utf8_lossy(&interrupted.stderr);
-        assert_eq!(interrupted.status.code(), Some(status), "SIG{signal}: {said}");
+        assert_eq!(
+            interrupted.status.code(),
+            Some(status),
+            "SIG{signal}: {said}"
+        );
         assert!(said.contains(&format!("stopped by SIG{signal}")), "{said}");
     }
     let stray: Vec<String> = std::fs::read_dir(scratch.runs("long"))
@@ -291,7 +295,10 @@ fn interrupted_by(signal: &str, status: i32) {
         .map(|e| e.file_name().to_string_lossy().into_owned())
         .filter(|name| !name.starts_with('.') && !name.ends_with(".json"))
         .collect();
-    assert!(stray.is_empty(), "SIG{signal} left half-written files: {stray:?}");
+    assert!(
+        stray.is_empty(),
+        "SIG{signal} left half-written files: {stray:?}"
+    );
     let resumed = scratch.nlstudy("run", &[]);
     assert!(resumed.status.success(), "{}", text(&resumed));
     let stored = records(&scratch.runs("long"));
@@ -554,7 +561,10 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
     assert_eq!(body.len(), 3, "{script}");
     assert_eq!(body[..2], ["set -eo pipefail", "set -u"]);
     let words: Vec<&str> = body[2].split_whitespace().collect();
-    assert_eq!(words[0], "exec", "the batch shell becomes nlstudy: {script}");
+    assert_eq!(
+        words[0], "exec",
+        "the batch shell becomes nlstudy: {script}"
+    );
     let value_of = |flag: &str| {
         let at = words
             .iter()

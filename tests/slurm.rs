@@ -1,11 +1,14 @@
-//! A real cluster in the test suite: `scripts/slurm-local` starts Debian's munge, slurmctld and
-//! slurmd on this machine, `nlstudy submit` packs a study into jobs that `sbatch` queues, the jobs
-//! run `nlstudy run --only …` (an MPI case through `srun --mpi=pmix`) into the record store, and
-//! `nlstudy collect` builds the tables. A job past its time limit is killed by Slurm; its
-//! unfinished point stays missing and the next `submit` packs only that point.
+//! A real cluster in the test suite: `scripts/slurm-local` starts Debian's munge, slurmctld,
+//! slurmdbd on a MariaDB server (accounting, so `sacct` and `status` know how jobs ended) and two
+//! slurmd, each in its own network namespace, on this machine. `nlstudy submit` packs a study into
+//! jobs that `sbatch` queues, the jobs run `nlstudy run --only …` (an MPI case through `srun
+//! --mpi=pmix`) into the record store, and `nlstudy collect` builds the tables. Then, on the same
+//! cluster: a job past its time limit (TIMEOUT, its unfinished point packed again), a job array
+//! of 20 points with a throttle, a job requeued mid-run, a job sent its warning signal, a
+//! cancelled job, and an MPI case with one rank on each node.
 //!
 //! One test, one Slurm: the daemons listen on fixed ports. It is skipped, saying so, only where
-//! the packages cannot be installed.
+//! the packages cannot be installed; the two-node stage only where namespaces cannot be made.
 
 use nonlocal_study::{planned_keys, records, stored_keys, text, Scratch};
 use serde_json::json;
@@ -98,11 +101,24 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     }
     let dir = std::env::temp_dir().join(format!("nlstudy-slurm-test-{}", std::process::id()));
     let slurm = LocalSlurm { dir: dir.clone() };
-    let started = Command::new(script("slurm-local"))
-        .arg("start")
-        .arg(&dir)
-        .output()
-        .unwrap();
+    let start = |extra: &[&str]| {
+        Command::new(script("slurm-local"))
+            .arg("start")
+            .arg(&dir)
+            .args(["--accounting"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let mut started = start(&["--nodes", "2"]);
+    let two_nodes = started.status.code() != Some(3);
+    if !two_nodes {
+        eprintln!(
+            "two-node stage skipped: {}; starting one node",
+            text(&started).trim()
+        );
+        started = start(&[]);
+    }
     assert!(
         started.status.success(),
         "slurm-local start: {}",
@@ -152,7 +168,12 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         stored.iter().any(|r| r["ranks"] == 2),
         "the MPI case ran on 2 ranks"
     );
-    let collected = scratch.nlstudy("collect", &[]);
+    wait_until(Duration::from_secs(30), "accounting of both jobs", || {
+        let said = text(&nlstudy(&scratch, &slurm, "status", &[]));
+        said.matches(": completed, 2 of 2 points stored").count() == 2
+    });
+    // The jobs ran on both nodes: a table of several hosts, asked for.
+    let collected = scratch.nlstudy("collect", &["--allow-mixed"]);
     assert!(collected.status.success(), "{}", text(&collected));
     assert!(scratch.dir.join("results/cluster/cluster.parquet").exists());
     let again = submit(&scratch, &slurm, &["--dry-run"]);
@@ -204,11 +225,17 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         text(&twice)
     );
     slurm.wait_for_jobs(Duration::from_secs(300));
+    status_says(
+        &scratch,
+        &slurm,
+        "nlstudy-limit-0: timeout (ended at its time limit",
+    );
     let ended = status(&scratch);
     assert!(
-        ended.contains("nlstudy-limit-0: ended, 2 of 3 points stored")
+        ended.contains("nlstudy-limit-0: timeout (ended at its time limit")
+            && ended.contains("2 of 3 points stored")
             && ended.contains("1 of 3 points to run"),
-        "{ended}"
+        "accounting tells a timeout: {ended}"
     );
     let runs = scratch.runs("limit");
     let stored = records(&runs);
@@ -231,5 +258,273 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         text(&again).contains("nlstudy-limit-0 (1 cases, "),
         "{}",
         text(&again)
+    );
+
+    array_with_a_throttle(&scratch, &slurm);
+    requeued_mid_run(&scratch, &slurm);
+    warned_before_the_limit_and_cancelled(&scratch, &slurm);
+    if two_nodes {
+        one_rank_on_each_node(&scratch, &slurm);
+    }
+}
+
+/// Waits for `status` to say `expected`: accounting learns of a job's end a moment after the
+/// queue forgets it.
+fn status_says(scratch: &Scratch, slurm: &LocalSlurm, expected: &str) {
+    let mut said = String::new();
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_secs(30) {
+        said = text(&nlstudy(scratch, slurm, "status", &[]));
+        if said.contains(expected) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    panic!("status never said {expected:?}: {said}");
+}
+
+/// The id `submit` printed for its only job.
+fn job_id(out: &Output) -> String {
+    let said = text(out);
+    let ids: Vec<&str> = said
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("submitted as job "))
+        .collect();
+    assert_eq!(ids.len(), 1, "one job: {said}");
+    ids[0].to_string()
+}
+
+/// Waits until `done` holds, failing with `what` after `limit`.
+fn wait_until(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
+    let started = Instant::now();
+    while !done() {
+        assert!(started.elapsed() < limit, "{what} within {limit:?}");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// The job logs of `study`, joined.
+fn logs(scratch: &Scratch, study: &str) -> String {
+    let jobs = scratch.dir.join("results").join(study).join("jobs");
+    std::fs::read_dir(&jobs)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.path().extension().is_some_and(|x| x == "out"))
+        .map(|e| std::fs::read_to_string(e.path()).unwrap_or_default())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The files of a store that are not whole records (none may be left half-written).
+fn stray_files(runs: &Path) -> Vec<String> {
+    std::fs::read_dir(runs)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|name| !name.starts_with('.') && !name.ends_with(".json"))
+        .collect()
+}
+
+/// 20 points as one array of 20 elements, two at a time: one `sbatch` call, every record stored
+/// once, and `status` counts the elements by their accounted state.
+fn array_with_a_throttle(scratch: &Scratch, slurm: &LocalSlurm) {
+    let n: Vec<u64> = (16..36).collect();
+    let study = json!({
+        "name": "array",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"product": {"n": n}}],
+        "share_machine": true
+    });
+    scratch.write_study(&study);
+    let out = submit(scratch, slurm, &["--array", "--throttle", "2"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("array of 20 elements"),
+        "{}",
+        text(&out)
+    );
+    let id = job_id(&out);
+    let script = std::fs::read_to_string(
+        scratch
+            .dir
+            .join("results/array/jobs/nlstudy-array-0.sbatch"),
+    )
+    .unwrap();
+    assert!(script.contains("#SBATCH --array=0-19%2\n"), "{script}");
+    slurm.wait_for_jobs(Duration::from_secs(300));
+    let stored = records(&scratch.runs("array"));
+    assert_eq!(stored.len(), 20, "{}", logs(scratch, "array"));
+    assert_eq!(stored_keys(&stored), planned_keys(scratch));
+    assert!(
+        stored
+            .iter()
+            .all(|r| r["status"] == "ok" && r["attempt"] == 1),
+        "{stored:?}"
+    );
+    status_says(
+        scratch,
+        slurm,
+        &format!("job {id} nlstudy-array-0 (array of 20): 20 completed, 20 of 20 points stored"),
+    );
+}
+
+/// A job requeued while it runs (as a preemption would) runs again and takes up only what is
+/// missing: every point stored once, none lost.
+fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "requeue",
+        "base": {"dim": 2, "m": 4, "t_end": 0.01, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"product": {"n": [448, 464, 480, 496, 512, 528]}}]
+    });
+    scratch.write_study(&study);
+    let out = submit(scratch, slurm, &["--time", "00:10:00"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let id = job_id(&out);
+    let runs = scratch.runs("requeue");
+    wait_until(Duration::from_secs(120), "a first record", || {
+        !records(&runs).is_empty()
+    });
+    let requeue = slurm
+        .command("scontrol")
+        .args(["requeue", &id])
+        .output()
+        .unwrap();
+    assert!(
+        requeue.status.success(),
+        "scontrol requeue: {}",
+        text(&requeue)
+    );
+    // Slurm holds a requeued job about two minutes before it is eligible again (a requeue
+    // loop's brake); the test makes it eligible now.
+    wait_until(Duration::from_secs(60), "the job pending again", || {
+        let q = slurm
+            .command("squeue")
+            .args(["-h", "-j", &id, "-o", "%T"])
+            .output()
+            .unwrap();
+        text(&q).contains("PENDING")
+    });
+    let now = slurm
+        .command("scontrol")
+        .args(["update", &format!("jobid={id}"), "StartTime=now"])
+        .output()
+        .unwrap();
+    assert!(
+        now.status.success(),
+        "scontrol update StartTime: {}",
+        text(&now)
+    );
+    slurm.wait_for_jobs(Duration::from_secs(600));
+    let stored = records(&runs);
+    let log = logs(scratch, "requeue");
+    assert_eq!(stored.len(), 6, "{log}");
+    assert_eq!(stored_keys(&stored), planned_keys(scratch), "{log}");
+    assert!(stray_files(&runs).is_empty(), "{:?}", stray_files(&runs));
+    assert!(
+        log.contains("stopped by SIGTERM"),
+        "the first run was stopped: {log}"
+    );
+    assert!(
+        log.contains("already stored"),
+        "the second run took up what was missing: {log}"
+    );
+}
+
+/// The warning before the time limit (`--signal=B:TERM@…`; sent here by hand, as Slurm would,
+/// to the batch shell alone) stops the job cleanly: whole records, the unfinished point missing,
+/// and `status` says so; a cancelled job is shown as cancelled.
+fn warned_before_the_limit_and_cancelled(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "warned",
+        "base": {"m": 2, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"zip": {
+            "dim": [1, 1, 2],
+            "n": [16, 32, 1024],
+            "m": [2, 2, 8],
+            "t_end": [0.001, 0.001, 1e-4],
+            "cfl": [0.5, 0.5, null],
+            "dt": [null, null, 1e-8]
+        }}]
+    });
+    scratch.write_study(&study);
+    let out = submit(scratch, slurm, &["--time", "00:10:00"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let id = job_id(&out);
+    let script = std::fs::read_to_string(
+        scratch
+            .dir
+            .join("results/warned/jobs/nlstudy-warned-0.sbatch"),
+    )
+    .unwrap();
+    assert!(script.contains("#SBATCH --signal=B:TERM@60\n"), "{script}");
+    let runs = scratch.runs("warned");
+    wait_until(Duration::from_secs(120), "the quick points", || {
+        records(&runs).len() >= 2
+    });
+    std::thread::sleep(Duration::from_millis(500)); // the slow point's solver is running
+    let warn = slurm
+        .command("scancel")
+        .args(["--signal=TERM", "--batch", &id])
+        .output()
+        .unwrap();
+    assert!(warn.status.success(), "{}", text(&warn));
+    slurm.wait_for_jobs(Duration::from_secs(120));
+    assert_eq!(records(&runs).len(), 2, "{}", logs(scratch, "warned"));
+    assert!(stray_files(&runs).is_empty(), "{:?}", stray_files(&runs));
+    assert!(logs(scratch, "warned").contains("stopped by SIGTERM"));
+    status_says(
+        scratch,
+        slurm,
+        &format!(
+            "job {id} nlstudy-warned-0: stopped_by_sigterm (stopped by SIGTERM before its limit"
+        ),
+    );
+
+    // The slow point again, cancelled while it runs.
+    let out = submit(scratch, slurm, &["--time", "00:10:00"]);
+    let id = job_id(&out);
+    wait_until(Duration::from_secs(60), "the job running", || {
+        let q = slurm
+            .command("squeue")
+            .args(["-h", "-j", &id, "-o", "%T"])
+            .output()
+            .unwrap();
+        text(&q).contains("RUNNING")
+    });
+    let cancel = slurm.command("scancel").arg(&id).output().unwrap();
+    assert!(cancel.status.success(), "{}", text(&cancel));
+    slurm.wait_for_jobs(Duration::from_secs(120));
+    status_says(
+        scratch,
+        slurm,
+        &format!("job {id} nlstudy-warned-0: cancelled (cancelled: `submit` again"),
+    );
+}
+
+/// A 2-rank case on two nodes: one rank on each, and the record names both hosts.
+fn one_rank_on_each_node(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "twonode",
+        "base": {"dim": 2, "n": 64, "m": 2, "t_end": 0.001, "cfl": 0.5, "source": "discrete", "ranks": 2}
+    });
+    scratch.write_study(&study);
+    let out = submit(scratch, slurm, &["--nodes", "2"]);
+    assert!(out.status.success(), "{}", text(&out));
+    slurm.wait_for_jobs(Duration::from_secs(180));
+    let stored = records(&scratch.runs("twonode"));
+    assert_eq!(stored.len(), 1, "{}", logs(scratch, "twonode"));
+    assert_eq!(stored[0]["status"], "ok", "{:?}", stored[0]);
+    let hosts: std::collections::BTreeSet<&str> = stored[0]["hosts"]
+        .as_array()
+        .expect("a distributed record names its hosts")
+        .iter()
+        .map(|h| h.as_str().unwrap())
+        .collect();
+    assert_eq!(
+        hosts.len(),
+        2,
+        "one rank on each node: {:?}",
+        stored[0]["hosts"]
     );
 }

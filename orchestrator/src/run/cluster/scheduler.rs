@@ -50,7 +50,8 @@ pub fn accounted_states(ids: &[&str]) -> Result<HashMap<String, String>, String>
     Ok(parse_slurm_states(&printed, '|'))
 }
 
-/// Not a Slurm state: a job that ended FAILED with exit status 143, nlstudy's for SIGTERM.
+/// Not a Slurm state: a job that ended FAILED with exit status 143, nlstudy's for SIGTERM
+/// (which Slurm 22.05 accounts as `15:0`).
 pub const STOPPED_BY_SIGTERM: &str = "STOPPED_BY_SIGTERM";
 
 fn run(program: &str, args: &[&str]) -> Result<String, String> {
@@ -80,7 +81,8 @@ fn parse_slurm_states(printed: &str, separator: char) -> HashMap<String, String>
         };
         let state = state.split_whitespace().next().unwrap_or_default();
         let state = match (state, fields.next()) {
-            ("FAILED", Some(exit)) if exit.starts_with("143:") => STOPPED_BY_SIGTERM.to_string(),
+            // Slurm records an exit status of 128 + n as n: 143 shows as `15:0`.
+            ("FAILED", Some("143:0" | "15:0")) => STOPPED_BY_SIGTERM.to_string(),
             _ => state.to_string(),
         };
         match id.split_once("_[") {
@@ -249,13 +251,17 @@ mod tests {
         ids.sort_unstable();
         assert_eq!(ids, ["42_0", "42_1", "42_2", "42_3", "42_4", "42_7", "43"]);
         assert_eq!(states["42_3"], "PENDING");
-        let sacct = "44|CANCELLED by 0|0:15\n45_0|TIMEOUT|0:0\n45_1|COMPLETED|0:0\n46|FAILED|143:0\n47|FAILED|1:0\n";
+        let sacct = "44|CANCELLED by 0|0:15\n45_0|TIMEOUT|0:0\n45_1|COMPLETED|0:0\n46|FAILED|15:0\n47|FAILED|1:0\n48|FAILED|143:0\n";
         let states = parse_slurm_states(sacct, '|');
         assert_eq!(states["44"], "CANCELLED");
         assert_eq!(states["45_0"], "TIMEOUT");
         assert_eq!(
-            (states["46"].as_str(), states["47"].as_str()),
-            (STOPPED_BY_SIGTERM, "FAILED")
+            (
+                states["46"].as_str(),
+                states["47"].as_str(),
+                states["48"].as_str()
+            ),
+            (STOPPED_BY_SIGTERM, "FAILED", STOPPED_BY_SIGTERM)
         );
         let bjobs = "7 0 RUN\n8 1 PEND\n8 2 DONE\n";
         let states = parse_bjobs(bjobs);

@@ -59,13 +59,17 @@ pub fn submit_study(
     holding.sort_unstable();
     holding.dedup();
     if !holding.is_empty() {
+        // An array's elements each have an id: a few name the rest.
+        let named = match holding.len() {
+            n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
+            _ => holding.join(", "),
+        };
         say!(
-            "nlstudy: {} points are in jobs still queued or running ({}); not submitted again",
+            "nlstudy: {} points are in jobs still queued or running ({named}); not submitted again",
             planned
                 .iter()
                 .filter(|p| p.runs() && in_flight.contains_key(&p.key))
                 .count(),
-            holding.join(", ")
         );
     }
     for p in &refused {
