@@ -963,3 +963,93 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
         text(&single)
     );
 }
+
+/// A scheduler stand-in on PATH (`sbatch`, `squeue`, `sacct`) that logs each call and answers
+/// as Slurm does: `submit --array` hands a study of 10⁴ points of one shape to the scheduler in
+/// one array of 1000 elements, with at most five calls in all.
+#[test]
+fn ten_thousand_points_are_submitted_as_one_array_in_a_few_scheduler_calls() {
+    let t_end: Vec<f64> = (1..=100).map(|k| 1e-4 * k as f64).collect();
+    let study = json!({
+        "name": "many",
+        "base": {"dim": 1, "m": 2, "cfl": 0.5},
+        "sweep": [{"product": {"n": (16..116).collect::<Vec<u64>>(), "t_end": t_end}}]
+    });
+    let scratch = Scratch::new("many", &study);
+    let bin = scratch.dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let calls = scratch.dir.join("calls.log");
+    for (program, answer) in [("sbatch", "42"), ("squeue", ""), ("sacct", "")] {
+        let path = bin.join(program);
+        let script = format!(
+            "#!/bin/bash\necho \"{program} $*\" >> '{}'\necho '{answer}'\n",
+            calls.display()
+        );
+        std::fs::write(&path, script).unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap());
+    let submit = |extra: &[&str]| {
+        let mut args = vec!["--scheduler", "slurm", "--array", "--throttle", "4"];
+        args.extend(extra);
+        scratch
+            .command("submit", &args)
+            .env("PATH", &path)
+            .output()
+            .unwrap()
+    };
+    let out = submit(&[]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("nlstudy-many-0 (array of 1000 elements, 10000 cases, "),
+        "{}",
+        text(&out)
+    );
+    let logged = std::fs::read_to_string(&calls).unwrap();
+    assert!(logged.lines().count() <= 5, "{logged}");
+    assert_eq!(logged.matches("sbatch --parsable").count(), 1, "{logged}");
+    let script =
+        std::fs::read_to_string(scratch.dir.join("results/many/jobs/nlstudy-many-0.sbatch"))
+            .unwrap();
+    assert!(script.contains("#SBATCH --array=0-999%4\n"), "{script}");
+    let ledger: Value = serde_json::from_str(
+        &std::fs::read_to_string(scratch.dir.join("results/many/jobs/ledger/42.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(ledger["elements"].as_array().unwrap().len(), 1000);
+    assert_eq!(ledger["keys"].as_array().unwrap().len(), 10_000);
+}
+
+/// A job's time limit from stored timings: two grids run here, the next ones scaled from them,
+/// and `submit` says where the limit came from; `--time` wins.
+#[test]
+fn time_limits_come_from_stored_timings_unless_given() {
+    let study = small_study(&[16, 32]);
+    let scratch = Scratch::new("limits", &study);
+    let ran = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(ran.status.success(), "{}", text(&ran));
+    scratch.write_study(&small_study(&[16, 32, 64, 128]));
+    let out = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("time 00:05:00: from 4 points scaled from smaller grids × 2 + 10 s each, at least 5 min"),
+        "{}",
+        text(&out)
+    );
+    let out = scratch.nlstudy(
+        "submit",
+        &["--scheduler", "slurm", "--dry-run", "--time", "02:00:00"],
+    );
+    assert!(
+        text(&out).contains("time 02:00:00: as given"),
+        "{}",
+        text(&out)
+    );
+    let out = scratch.nlstudy(
+        "submit",
+        &["--scheduler", "slurm", "--dry-run", "--time", "1:30"],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("ambiguous"), "{}", text(&out));
+}
