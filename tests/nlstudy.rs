@@ -259,7 +259,7 @@ fn interrupted_by(signal: &str, status: i32) {
         "sweep": [{"product": {"n": [48, 64, 80, 96, 112, 128]}}]
     });
     let scratch = Scratch::new(&format!("interrupt-{signal}"), &study);
-    let mut child = Command::new(binary("nlstudy"))
+    let child = Command::new(binary("nlstudy"))
         .arg("run")
         .arg(scratch.study())
         .arg("--results")

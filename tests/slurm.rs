@@ -11,7 +11,7 @@
 //! the packages cannot be installed; the two-node stage only where namespaces cannot be made.
 
 use nonlocal_study::{planned_keys, records, stored_keys, text, Scratch};
-use serde_json::json;
+use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -146,18 +146,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     );
     slurm.wait_for_jobs(Duration::from_secs(300));
     let stored = records(&scratch.runs("cluster"));
-    let logs = || {
-        let jobs = scratch.dir.join("results/cluster/jobs");
-        std::fs::read_dir(&jobs)
-            .into_iter()
-            .flatten()
-            .flatten()
-            .filter(|e| e.path().extension().is_some_and(|x| x == "out"))
-            .map(|e| std::fs::read_to_string(e.path()).unwrap_or_default())
-            .collect::<Vec<_>>()
-            .join("\n")
-    };
-    assert_eq!(stored.len(), 4, "job output: {}", logs());
+    assert_eq!(stored.len(), 4, "job output: {}", logs(&scratch, "cluster"));
     assert!(stored.iter().all(|r| r["status"] == "ok"), "{stored:?}");
     assert_eq!(
         stored_keys(&stored),
@@ -185,18 +174,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
 
     // A job past its one-minute limit: its quick points are stored, the slow one (about
     // 10 000 steps at n = 1024) is killed and left missing, and only it is packed again.
-    let study = json!({
-        "name": "limit",
-        "base": {"m": 2, "cfl": 0.5, "source": "discrete"},
-        "sweep": [{"zip": {
-            "dim": [1, 1, 2],
-            "n": [16, 32, 1024],
-            "m": [2, 2, 8],
-            "t_end": [0.001, 0.001, 1e-4],
-            "cfl": [0.5, 0.5, null],
-            "dt": [null, null, 1e-8]
-        }}]
-    });
+    let study = quick_and_slow("limit");
     scratch.write_study(&study);
     let out = submit(&scratch, &slurm, &["--time", "00:01:00"]);
     assert!(out.status.success(), "{}", text(&out));
@@ -206,7 +184,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         assert!(
             waiting.elapsed() < Duration::from_secs(60),
             "the quick points never ran: {}",
-            logs()
+            logs(&scratch, "limit")
         );
         std::thread::sleep(Duration::from_millis(200));
     }
@@ -243,7 +221,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         stored.len(),
         2,
         "the two quick points: {stored:?}\n{}",
-        logs()
+        logs(&scratch, "limit")
     );
     let stray: Vec<String> = std::fs::read_dir(&runs)
         .unwrap()
@@ -281,6 +259,22 @@ fn status_says(scratch: &Scratch, slurm: &LocalSlurm, expected: &str) {
         std::thread::sleep(Duration::from_millis(500));
     }
     panic!("status never said {expected:?}: {said}");
+}
+
+/// Two quick points and a slow one (about 10 000 steps at n = 1024, well over a minute here).
+fn quick_and_slow(name: &str) -> Value {
+    json!({
+        "name": name,
+        "base": {"m": 2, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"zip": {
+            "dim": [1, 1, 2],
+            "n": [16, 32, 1024],
+            "m": [2, 2, 8],
+            "t_end": [0.001, 0.001, 1e-4],
+            "cfl": [0.5, 0.5, null],
+            "dt": [null, null, 1e-8]
+        }}]
+    })
 }
 
 /// The id `submit` printed for its only job.
@@ -435,18 +429,7 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
 /// to the batch shell alone) stops the job cleanly: whole records, the unfinished point missing,
 /// and `status` says so; a cancelled job is shown as cancelled.
 fn warned_before_the_limit_and_cancelled(scratch: &Scratch, slurm: &LocalSlurm) {
-    let study = json!({
-        "name": "warned",
-        "base": {"m": 2, "cfl": 0.5, "source": "discrete"},
-        "sweep": [{"zip": {
-            "dim": [1, 1, 2],
-            "n": [16, 32, 1024],
-            "m": [2, 2, 8],
-            "t_end": [0.001, 0.001, 1e-4],
-            "cfl": [0.5, 0.5, null],
-            "dt": [null, null, 1e-8]
-        }}]
-    });
+    let study = quick_and_slow("warned");
     scratch.write_study(&study);
     let out = submit(scratch, slurm, &["--time", "00:10:00"]);
     assert!(out.status.success(), "{}", text(&out));

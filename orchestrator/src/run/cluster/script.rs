@@ -404,6 +404,22 @@ mod tests {
         dir
     }
 
+    /// Runs the script at `path` with bash in `dir` (and `env`), asserting it succeeds.
+    fn run_script(path: &Path, dir: &Path, env: &[(&str, String)]) {
+        let run = Command::new("bash")
+            .arg(path)
+            .current_dir(dir)
+            .envs(env.iter().map(|(k, v)| (k, v)))
+            .output()
+            .unwrap();
+        let text = std::fs::read_to_string(path).unwrap();
+        assert!(
+            run.status.success(),
+            "{text}\n{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+
     /// A stub `nlstudy` at `path` that writes its arguments, one per line, to `args`.
     fn stub(path: &Path, args: &Path) {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
@@ -512,16 +528,7 @@ mod tests {
                     let syntax = Command::new("bash").arg("-n").arg(&path).status().unwrap();
                     assert!(syntax.success(), "bash -n refuses:\n{text}");
                     stub(&command.nlstudy, &args);
-                    let run = Command::new("bash")
-                        .arg(&path)
-                        .current_dir(&case)
-                        .output()
-                        .unwrap();
-                    assert!(
-                        run.status.success(),
-                        "{text}\n{}",
-                        String::from_utf8_lossy(&run.stderr)
-                    );
+                    run_script(&path, &case, &[]);
                     let got = std::fs::read_to_string(&args).unwrap();
                     let expected = [
                         "run",
@@ -605,12 +612,7 @@ mod tests {
             std::fs::write(&path, &text).unwrap();
             let args = root.join("args");
             stub(&command.nlstudy, &args);
-            let run = Command::new("bash")
-                .arg(&path)
-                .current_dir(&root)
-                .output()
-                .unwrap();
-            assert!(run.status.success(), "{text}");
+            run_script(&path, &root, &[]);
             let got = std::fs::read_to_string(&args).unwrap();
             let lines: Vec<&str> = got.lines().collect();
             let at = lines.iter().position(|l| *l == "--launcher").unwrap();
@@ -750,16 +752,7 @@ mod tests {
             std::fs::write(&path, &text).unwrap();
             let args = root.join("args");
             stub(&command.nlstudy, &args);
-            let run = Command::new("bash")
-                .arg(&path)
-                .current_dir(&root)
-                .output()
-                .unwrap();
-            assert!(
-                run.status.success(),
-                "{text}\n{}",
-                String::from_utf8_lossy(&run.stderr)
-            );
+            run_script(&path, &root, &[]);
             assert_eq!(
                 std::fs::read_to_string(&module).unwrap(),
                 "load openmpi/4.1.6\nload gcc@12\n"
@@ -835,12 +828,7 @@ mod tests {
             let path = root.join("job.sh");
             std::fs::write(&path, &text).unwrap();
             for (element, bundle) in bundles.iter().enumerate() {
-                let run = Command::new("bash")
-                    .arg(&path)
-                    .env(index, (element + first).to_string())
-                    .output()
-                    .unwrap();
-                assert!(run.status.success(), "{text}");
+                run_script(&path, &root, &[(index, (element + first).to_string())]);
                 let got = std::fs::read_to_string(&args).unwrap();
                 assert!(
                     got.ends_with(&format!("--only\n{}\n", bundle.join(","))),
