@@ -7,7 +7,7 @@ use crate::model::resources::Resources;
 use schema::error::{FieldError, Subject};
 use serde::Deserialize;
 use serde_json::{Map, Value};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 /// A study file, as written.
@@ -374,30 +374,46 @@ impl Study {
             fields
         };
         let branches = self.branches()?;
+        // The fields that move along each branch's series, worked out once per branch.
+        let mut series_fields: HashMap<Option<String>, (Vec<String>, Vec<String>)> = HashMap::new();
         let mut kept = Vec::with_capacity(points.len());
         for mut point in points {
             self.derive_fields(&mut point)?;
             if self.keeps(&point, &branches)? {
-                let branch = point.branch.as_deref();
-                let (refined, scaled) = (moving(REFINED, branch), moving(SCALED, branch));
+                let (refined, scaled) =
+                    series_fields
+                        .entry(point.branch.clone())
+                        .or_insert_with(|| {
+                            let branch = point.branch.as_deref();
+                            (moving(REFINED, branch), moving(SCALED, branch))
+                        });
                 point.series = PointSeries {
-                    refinement: point.label_without(&refined),
-                    scaling: point.label_without(&scaled),
+                    refinement: point.label_without(refined),
+                    scaling: point.label_without(scaled),
                 };
                 kept.push(point);
             }
         }
-        Ok(kept
-            .into_iter()
-            .flat_map(|point| {
-                let own = point.branch.as_ref().and_then(|b| branches.get(b));
-                let repeats = own.and_then(|(_, b)| b.repeat).unwrap_or(self.repeat);
-                (0..repeats).map(move |repeat| Point {
+        // Each point once per repeat: moved, not copied, into its last repeat.
+        let mut expanded = Vec::with_capacity(kept.len());
+        for point in kept {
+            let own = point.branch.as_ref().and_then(|b| branches.get(b));
+            let repeats = own.and_then(|(_, b)| b.repeat).unwrap_or(self.repeat);
+            if repeats == 0 {
+                continue;
+            }
+            for repeat in 0..repeats - 1 {
+                expanded.push(Point {
                     repeat,
                     ..point.clone()
-                })
-            })
-            .collect())
+                });
+            }
+            expanded.push(Point {
+                repeat: repeats - 1,
+                ..point
+            });
+        }
+        Ok(expanded)
     }
 
     /// Every branch of the sweep, nested ones too, by name, with its place in the file. Names
