@@ -37,6 +37,7 @@ pub enum Source {
 }
 
 /// The stored wall times of a study's points, by refinement series and grid.
+#[derive(Default)]
 pub struct History {
     /// Series → n → wall times of stored ok or diverged runs.
     times: HashMap<String, HashMap<u64, Vec<f64>>>,
