@@ -1027,6 +1027,12 @@ fn ten_thousand_points_are_submitted_as_one_array_in_a_few_scheduler_calls() {
 fn time_limits_come_from_stored_timings_unless_given() {
     let study = small_study(&[16, 32]);
     let scratch = Scratch::new("limits", &study);
+    let first = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
+    assert!(
+        text(&first).contains("time: the scheduler's default (n=16 threads=1 has no stored timing"),
+        "{}",
+        text(&first)
+    );
     let ran = scratch.nlstudy("run", &["--no-collect"]);
     assert!(ran.status.success(), "{}", text(&ran));
     scratch.write_study(&small_study(&[16, 32, 64, 128]));

@@ -135,9 +135,7 @@ pub fn submit_study(
     let jobs = write_jobs(&timed, &settings, &command)
         .map_err(|e| format!("cannot write the job scripts: {e}"))?;
     for (job, (_, time, from)) in jobs.iter().zip(&packs) {
-        let limit = time.map_or("no time limit".to_string(), |t| {
-            format!("time {}", t.slurm())
-        });
+        let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
         match job.array {
             false => tell!(
                 "{} ({} cases, {limit}: {from}): {}",
@@ -189,8 +187,8 @@ fn time_limit(
     let limits: Result<Vec<(WallTime, String)>, String> =
         bundles.iter().map(|b| history.limit(b)).collect();
     let fallback = |why: String| match target.site.time {
-        Some(time) => (Some(time), format!("the site's default; {why}")),
-        None => (None, format!("the scheduler's default; {why}")),
+        Some(time) => (Some(time), format!("the site's default ({why})")),
+        None => (None, format!("the scheduler's default ({why})")),
     };
     match limits {
         Ok(limits) => match limits.into_iter().max_by_key(|(t, _)| t.seconds()) {
