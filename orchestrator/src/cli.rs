@@ -1,6 +1,7 @@
 //! The `nlstudy` command line: its commands and flags, and what each command does with the
 //! library's parts (study → plan → pool → store → collect → plot).
 
+use crate::model::launcher::{Launcher, DEFAULT_LAUNCHER};
 use crate::model::resources::Resources;
 use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::{fields_telling_apart, Study};
@@ -9,7 +10,7 @@ use crate::run::cluster::scheduler::Scheduler;
 use crate::run::cluster::submit;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Decision, Options, Planned};
-use crate::run::pool::{Launcher, PoolOptions, DEFAULT_LAUNCHER};
+use crate::run::pool::PoolOptions;
 use crate::run::progress::{Mode, Progress};
 use crate::store::owner::Refusal;
 use crate::store::{FileError, Index, Store};
@@ -703,7 +704,8 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         }
     };
     site.check_for(scheduler)?;
-    let (study, solver, store, planned) = planned(&args.common, &Options::default(), true)?;
+    let (study, solver, store, index, planned) =
+        planned_and_index(&args.common, &Options::default(), true)?;
     no_refusals(&planned, args.allow_refused)?;
     let explicit = study.resources.overridden_by(&args.resources);
     let target = submit::Target {
@@ -719,7 +721,7 @@ fn submit_command(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         retries: args.retries,
         launcher: args.launcher.clone(),
     };
-    submit::submit_study(&study, &solver, &planned, &store, &target)?;
+    submit::submit_study(&study, &solver, &planned, &store, &index, &target)?;
     Ok(ExitCode::SUCCESS)
 }
 

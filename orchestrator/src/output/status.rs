@@ -50,12 +50,12 @@ fn noisy_sentence(noisy: usize, runs: usize) -> Option<String> {
 /// The report, from the store's index: one line of counts, one line per failed run, the
 /// missing points, the jobs.
 pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) -> String {
-    let summary = counts(index.status.values().map(|s| s.as_str()));
+    let summary = counts(index.stored.values().map(|s| s.status.as_str()));
     let mut out = String::new();
     let _ = writeln!(
         out,
         "study {study}: {} records in {}: {}",
-        index.status.len(),
+        index.stored.len(),
         store.runs.display(),
         if summary.is_empty() {
             "none".to_string()
@@ -66,7 +66,7 @@ pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) ->
     for (key, message) in &index.failed {
         let _ = writeln!(out, "failed {key}: {message}");
     }
-    if let Some(noisy) = noisy_sentence(index.noisy, index.status.len()) {
+    if let Some(noisy) = noisy_sentence(index.noisy, index.stored.len()) {
         let _ = writeln!(out, "{noisy}");
     }
     for unreadable in &index.unreadable {
@@ -97,19 +97,21 @@ fn jobs_report(out: &mut String, store: &Store, index: &Index) {
         let stored = entry
             .keys
             .iter()
-            .filter(|k| index.status.get(*k).is_some_and(|s| *s != Status::Failed))
+            .filter(|k| {
+                index
+                    .stored
+                    .get(*k)
+                    .is_some_and(|s| s.status != Status::Failed)
+            })
             .count();
         let (what, state) = match entry.elements.is_empty() {
             true => (String::new(), state_of(&entry.id)),
             false => {
-                let mut tally: BTreeMap<String, usize> = BTreeMap::new();
-                for (id, _) in entry.parts() {
-                    *tally.entry(state_of(&id)).or_default() += 1;
-                }
-                let counts: Vec<String> = tally.iter().map(|(s, n)| format!("{n} {s}")).collect();
+                let states: Vec<String> =
+                    entry.parts().iter().map(|(id, _)| state_of(id)).collect();
                 (
                     format!(" (array of {})", entry.elements.len()),
-                    counts.join(", "),
+                    counts(states.iter().map(String::as_str)).join(", "),
                 )
             }
         };

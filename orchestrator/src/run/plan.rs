@@ -110,10 +110,10 @@ pub fn plan(
                 }
             };
             let (case_id, key) = store::case_id_and_key(identity, &solver.version, point.repeat);
-            let stored = index.status.get(&key);
+            let stored = index.stored.get(&key);
             let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
             let first = seen.insert(key.clone());
-            let decision = match stored {
+            let decision = match stored.map(|s| &s.status) {
                 _ if !selected => Decision::Skip("not among --only".into()),
                 // Another point (of another branch) is the same case: it runs once.
                 _ if !first => Decision::Duplicate,
@@ -125,7 +125,7 @@ pub fn plan(
                     _ => Decision::Run(Reason::Missing),
                 },
                 Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
-                Some(status) => match (&solver.fingerprint, index.fingerprint.get(&key)) {
+                Some(status) => match (&solver.fingerprint, stored.map(|s| &s.fingerprint)) {
                     (Some(now), Some(then)) if now != then && *status != Status::Failed => {
                         let (from, to) = (short(then), short(now));
                         match options.keep_stale {

@@ -6,7 +6,7 @@
 //! A solver process dies with this one (its parent-death signal), so a killed `nlstudy` leaves
 //! no case running unowned.
 
-pub use crate::model::launcher::{Launcher, DEFAULT_LAUNCHER};
+use crate::model::launcher::Launcher;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;

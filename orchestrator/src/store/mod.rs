@@ -259,10 +259,7 @@ impl Store {
             if let Some(message) = record.failure {
                 index.failed.push((record.key.clone(), message));
             }
-            index
-                .fingerprint
-                .insert(record.key.clone(), record.fingerprint);
-            index.status.insert(record.key, record.status);
+            index.stored.insert(record.key, record.stored);
         }
         index
     }
@@ -293,6 +290,8 @@ struct IndexedFields {
     solver_version: Option<Value>,
     provenance: Option<IndexedProvenance>,
     message: Option<Value>,
+    setup_s: Option<Value>,
+    solve_s: Option<Value>,
 }
 
 #[derive(serde::Deserialize)]
@@ -305,10 +304,9 @@ struct IndexedProvenance {
 /// checks them).
 struct Indexed {
     key: String,
-    status: Status,
+    stored: Stored,
     case_id: Option<String>,
     solver_version: Option<String>,
-    fingerprint: String,
     noisy: bool,
     /// The first line of a failed record's message.
     failure: Option<String>,
@@ -325,14 +323,20 @@ fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
         fields.status.as_ref().and_then(Value::as_str),
     )?;
     let provenance = fields.provenance.as_ref();
+    let seconds = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
+    let wall_s =
+        seconds(&fields.solve_s).map(|solve| seconds(&fields.setup_s).unwrap_or(0.0) + solve);
     Ok(Indexed {
         key: key.to_string(),
-        status,
+        stored: Stored {
+            status,
+            fingerprint: provenance
+                .and_then(|p| text(&p.fingerprint))
+                .unwrap_or_default(),
+            wall_s: wall_s.filter(|w| w.is_finite() && *w >= 0.0),
+        },
         case_id: text(&fields.case_id),
         solver_version: text(&fields.solver_version),
-        fingerprint: provenance
-            .and_then(|p| text(&p.fingerprint))
-            .unwrap_or_default(),
         noisy: provenance.and_then(|p| p.noisy.as_ref()) == Some(&Value::Bool(true)),
         failure: (status == Status::Failed).then(|| {
             let message = text(&fields.message).unwrap_or_default();
@@ -397,6 +401,15 @@ fn check_key_and_status<'a>(
     Ok((key, status))
 }
 
+/// What the index keeps of a whole record.
+pub struct Stored {
+    pub status: Status,
+    /// The fingerprint of the solver that made it ("" when it does not say).
+    pub fingerprint: String,
+    /// Its wall time, set-up + solve, in seconds, when it says.
+    pub wall_s: Option<f64>,
+}
+
 /// A file of the store that is not a whole record: truncated, garbage, or not a record at all.
 #[derive(Clone, Debug)]
 pub struct Unreadable {
@@ -423,9 +436,8 @@ pub struct Scan {
 
 #[derive(Default)]
 pub struct Index {
-    pub status: HashMap<String, Status>,
-    /// The fingerprint of the solver that made each key's record ("" when it does not say).
-    pub fingerprint: HashMap<String, String>,
+    /// What each whole record says, by key.
+    pub stored: HashMap<String, Stored>,
     pub version_by_case: HashMap<String, String>,
     pub unreadable: Vec<Unreadable>,
     /// Failed records, by key in name order, with the first line of their message.
@@ -437,6 +449,7 @@ pub struct Index {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     /// Keys are the first 16 bytes of SHA-256 of the case's compact JSON, the solver version
     /// and the repeat, joined by newlines (values computed by Python's hashlib): records
@@ -455,7 +468,6 @@ mod tests {
         let map = fields.as_object().unwrap();
         assert_eq!(serde_json::to_string(map).unwrap(), fields.to_string());
     }
-    use serde_json::json;
 
     fn scratch(name: &str) -> Store {
         let dir = std::env::temp_dir().join(format!("store-{name}-{}", std::process::id()));

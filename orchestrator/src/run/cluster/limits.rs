@@ -11,7 +11,7 @@
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
-use crate::store::Store;
+use crate::store::Index;
 use schema::record::Status;
 use std::collections::HashMap;
 
@@ -44,22 +44,16 @@ pub struct History {
 }
 
 impl History {
-    /// Reads the stored record of every planned point (a point that runs again because it is
-    /// stale still has its old timings).
-    pub fn read(planned: &[Planned], store: &Store) -> History {
+    /// The wall times the store's index holds for the planned points (a point that runs again
+    /// because it is stale still has its old timings).
+    pub fn of(planned: &[Planned], index: &Index) -> History {
         let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
         for p in planned {
-            let Some(record) = store.stored(&p.key) else {
+            let Some(stored) = index.stored.get(&p.key) else {
                 continue;
             };
-            let measured = matches!(Status::of(&record), Some(Status::Ok | Status::Diverged));
-            let setup = record["setup_s"].as_f64().unwrap_or(0.0);
-            let wall = record["solve_s"].as_f64().map(|solve| setup + solve);
-            let (Some(n), Some(wall)) = (grid(p), wall.filter(|w| w.is_finite() && *w >= 0.0))
-            else {
-                continue;
-            };
-            if measured {
+            let measured = matches!(stored.status, Status::Ok | Status::Diverged);
+            if let (true, Some(n), Some(wall)) = (measured, grid(p), stored.wall_s) {
                 let series = times.entry(p.point.series.refinement.clone()).or_default();
                 series.entry(n).or_default().push(wall);
             }

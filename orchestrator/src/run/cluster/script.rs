@@ -258,7 +258,6 @@ fn lsf_directives(
     command: &JobCommand,
 ) -> Result<Vec<String>, String> {
     let (r, site) = (settings.resources, settings.site);
-    site.check_for(Scheduler::Lsf)?;
     let mut d = vec![match job.array {
         false => format!("-J {}", job.name),
         true => {
@@ -572,7 +571,7 @@ mod tests {
     fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
         let root = sandbox("launcher");
         let given = "env \"A=$(touch MARK) b\" srun --mpi=pmi2 -n {ranks}";
-        let launcher: crate::run::pool::Launcher = given.parse().unwrap();
+        let launcher: Launcher = given.parse().unwrap();
         let command = JobCommand {
             nlstudy: root.join("bin/nlstudy"),
             study: root.join("s.json"),

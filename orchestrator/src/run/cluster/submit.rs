@@ -14,7 +14,7 @@ use crate::model::site::Site;
 use crate::model::study::Study;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::Planned;
-use crate::store::Store;
+use crate::store::{Index, Store};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -48,6 +48,7 @@ pub fn submit_study(
     solver: &Nlsolve,
     planned: &[Planned],
     store: &Store,
+    index: &Index,
     target: &Target,
 ) -> Result<(), String> {
     let in_flight = in_flight(store, target.scheduler);
@@ -112,11 +113,7 @@ pub fn submit_study(
         target.site.cores_per_node,
         target.array,
     );
-    // Stored timings are read only when they set the limits.
-    let history = match target.time {
-        Some(_) => History::default(),
-        None => History::read(planned, store),
-    };
+    let history = History::of(planned, index);
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {
