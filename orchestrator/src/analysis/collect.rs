@@ -32,10 +32,10 @@ const LEADING: &[&str] = &["key", "case_id", "repeat", "status", "message"];
 /// One run's row: the point's label and series, then the record, flattened.
 fn run_row(planned: &Planned, record: &Value) -> Row {
     let mut row = Row::default();
-    let series = &planned.point.series;
+    let series = planned.point.series();
     row.set("point", json!(planned.point.label_without_repeat()));
     if let Some(branch) = &planned.point.branch {
-        row.set("branch", json!(branch));
+        row.set("branch", json!(&**branch));
     }
     row.set("refinement_series", json!(series.refinement));
     row.set("scaling_series", json!(series.scaling));
@@ -145,7 +145,7 @@ pub fn summary_of(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<
 fn run_rows(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
     planned
         .iter()
-        .filter_map(|p| Some(run_row(p, records.get(&p.key)?)))
+        .filter_map(|p| Some(run_row(p, records.get(p.key.as_str())?)))
         .collect()
 }
 

@@ -9,6 +9,7 @@ use serde::Deserialize;
 use serde_json::{Map, Value};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
+use std::sync::Arc;
 
 /// A study file, as written.
 #[derive(Debug, Deserialize)]
@@ -137,14 +138,28 @@ pub enum PathSpec {
 
 /// One point of a study: the case fields before the solver checks them, which of them the
 /// sweep set (for messages and tables), and the series the point belongs to.
+///
+/// A point holds only what sets it apart: the study's `base` and the list of swept names are
+/// shared by every point that has them, so 10⁶ points cost a few hundred bytes each, not the
+/// kilobyte and more of a full map.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Point {
-    pub fields: Map<String, Value>,
+    base: Arc<Map<String, Value>>,
+    /// The fields the sweep set and `derive` computed, in that order; `values` holds theirs.
+    swept: Names,
+    values: Vec<Value>,
     /// The `branches` alternative the point lies on, if any.
-    pub branch: Option<String>,
-    pub swept: Vec<String>,
+    pub branch: Option<Arc<str>>,
     pub repeat: usize,
-    pub series: PointSeries,
+    /// The fields that move along its series, shared by its branch's points.
+    moving: Arc<Moving>,
+}
+
+/// The fields a refinement moves, and those a scaling moves.
+#[derive(Debug, Default, PartialEq)]
+struct Moving {
+    refined: Vec<String>,
+    scaled: Vec<String>,
 }
 
 /// The lines of a study's tables a point lies on, named by the swept fields held fixed along
@@ -163,6 +178,59 @@ const REFINED: &[&str] = &["n"];
 const SCALED: &[&str] = &["threads", "ranks", "px", "py"];
 
 impl Point {
+    /// A point of `fields` alone, none of them swept.
+    pub fn of(fields: Map<String, Value>) -> Point {
+        Point {
+            base: Arc::new(fields),
+            swept: Arc::from([]),
+            values: Vec::new(),
+            branch: None,
+            repeat: 0,
+            moving: Arc::default(),
+        }
+    }
+
+    /// The series the point lies on, named by the fields that stay along them.
+    pub fn series(&self) -> PointSeries {
+        PointSeries {
+            refinement: self.label_without(&self.moving.refined),
+            scaling: self.label_without(&self.moving.scaled),
+        }
+    }
+
+    /// The field's value, swept or from `base`.
+    pub fn get(&self, field: &str) -> Option<&Value> {
+        match self.swept.iter().position(|f| f == field) {
+            Some(k) => Some(&self.values[k]),
+            None => self.base.get(field),
+        }
+    }
+
+    /// Every field, keys sorted: the case as written.
+    pub fn fields(&self) -> Map<String, Value> {
+        let mut fields = (*self.base).clone();
+        for (field, value) in self.swept.iter().zip(&self.values) {
+            fields.insert(field.clone(), value.clone());
+        }
+        fields
+    }
+
+    /// `fields()` as compact JSON, written without building the map: what `nlsolve check`
+    /// reads, and what keys a case the solver refused.
+    pub fn write_fields(&self, out: impl std::io::Write) -> serde_json::Result<()> {
+        let mut entries: Vec<(&str, &Value)> = self
+            .base
+            .iter()
+            .filter(|(field, _)| !self.swept.contains(field))
+            .map(|(field, value)| (field.as_str(), value))
+            .chain(self.swept.iter().map(String::as_str).zip(&self.values))
+            .collect();
+        // The order of a `Map`, so the text is that of `fields()`.
+        entries.sort_unstable_by_key(|(field, _)| *field);
+        let mut serializer = serde_json::Serializer::new(out);
+        serde::Serializer::collect_map(&mut serializer, entries)
+    }
+
     /// `n=64 threads=2` – the swept fields, for messages.
     pub fn label(&self) -> String {
         let mut label = self.label_without_repeat();
@@ -183,11 +251,11 @@ impl Point {
             .chain(
                 self.swept
                     .iter()
-                    .filter(|f| !left_out.contains(f))
-                    .map(|f| match self.fields.get(f) {
-                        Some(Value::String(s)) => format!("{f}={s}"),
-                        Some(v) => format!("{f}={v}"),
-                        None => format!("{f}=?"),
+                    .zip(&self.values)
+                    .filter(|(f, _)| !left_out.contains(f))
+                    .map(|(f, v)| match v {
+                        Value::String(s) => format!("{f}={s}"),
+                        v => format!("{f}={v}"),
                     }),
             )
             .collect();
@@ -196,12 +264,113 @@ impl Point {
 
     /// The fields an expression sees: the case's, and the branch.
     fn scope(&self) -> Scope {
-        let mut fields = self.fields.clone();
+        let mut fields = self.fields();
         if let Some(branch) = &self.branch {
-            fields.insert(BRANCH.into(), Value::from(branch.clone()));
+            fields.insert(BRANCH.into(), Value::from(branch.to_string()));
         }
         Scope::of(&fields)
     }
+
+    /// The point with `assignment` applied, whose names (the point's swept ones and the
+    /// assignment's) are `swept`.
+    fn assigned(&self, assignment: &Assignment, swept: Names) -> Point {
+        let mut values = Vec::with_capacity(swept.len());
+        values.extend_from_slice(&self.values);
+        values.extend_from_slice(&assignment.values);
+        Point {
+            base: self.base.clone(),
+            swept,
+            values,
+            branch: assignment.branch.clone().or_else(|| self.branch.clone()),
+            repeat: 0,
+            moving: Arc::default(),
+        }
+    }
+}
+
+/// An assignment as its sweep group writes it: fields and values, `branch` among them.
+type Pairs = Vec<(String, Value)>;
+
+/// One choice of a sweep group: the fields it sets and their values, and the branch it names.
+struct Assignment {
+    fields: Vec<String>,
+    values: Vec<Value>,
+    branch: Option<Arc<str>>,
+}
+
+impl From<Pairs> for Assignment {
+    fn from(pairs: Pairs) -> Assignment {
+        let mut assignment = Assignment {
+            fields: Vec::new(),
+            values: Vec::new(),
+            branch: None,
+        };
+        for (field, value) in pairs {
+            if field == BRANCH {
+                assignment.branch = value.as_str().map(Arc::from);
+            } else {
+                assignment.fields.push(field);
+                assignment.values.push(value);
+            }
+        }
+        assignment
+    }
+}
+
+/// Lists of swept names, one per distinct list: the points that extend the same list the same
+/// way share the result. Keyed by the address of the list extended, which the map keeps alive
+/// so that no other list can take that address while it is a key.
+#[derive(Default)]
+struct SharedNames(HashMap<(usize, usize), (Names, Names)>);
+
+/// A list of swept field names, shared.
+type Names = Arc<[String]>;
+
+impl SharedNames {
+    /// `names` extended in the way numbered `how`, made by `extend` the first time.
+    fn extended(
+        &mut self,
+        names: &Names,
+        how: usize,
+        extend: impl FnOnce(&[String]) -> Result<Vec<String>, StudyError>,
+    ) -> Result<Names, StudyError> {
+        let key = (Arc::as_ptr(names) as *const String as usize, how);
+        if let Some((_, extended)) = self.0.get(&key) {
+            return Ok(extended.clone());
+        }
+        let extended: Names = extend(names)?.into();
+        self.0.insert(key, (names.clone(), extended.clone()));
+        Ok(extended)
+    }
+}
+
+/// Every point of `points` with every one of `assignments` (of sweep group `g`), in that order.
+fn assign(
+    points: &[Point],
+    assignments: &[Assignment],
+    g: usize,
+) -> Result<Vec<Point>, StudyError> {
+    let mut names = SharedNames::default();
+    let mut next = Vec::with_capacity(points.len() * assignments.len());
+    for point in points {
+        for (a, assignment) in assignments.iter().enumerate() {
+            let swept = names.extended(&point.swept, a, |earlier| {
+                let mut swept = earlier.to_vec();
+                for field in &assignment.fields {
+                    if swept.contains(field) {
+                        return Err(StudyError::new(
+                            format!("sweep[{g}].{field}"),
+                            "is swept by an earlier group too; sweep each field in one group",
+                        ));
+                    }
+                    swept.push(field.clone());
+                }
+                Ok(swept)
+            })?;
+            next.push(point.assigned(assignment, swept));
+        }
+    }
+    Ok(next)
 }
 
 /// The fields that tell a study's points apart, for the columns of its tables: `branch` when
@@ -213,7 +382,7 @@ pub fn fields_telling_apart<'a>(points: impl IntoIterator<Item = &'a Point>) -> 
         if point.branch.is_some() && !fields.iter().any(|f| f == BRANCH) {
             fields.insert(0, BRANCH.to_string());
         }
-        for field in &point.swept {
+        for field in point.swept.iter() {
             if !fields.contains(field) {
                 fields.push(field.clone());
             }
@@ -331,40 +500,16 @@ impl Study {
                 ),
             ));
         }
-        let mut points = vec![Point {
-            fields: self.base.clone(),
-            branch: None,
-            swept: Vec::new(),
-            repeat: 0,
-            series: PointSeries::default(),
-        }];
+        let mut points = vec![Point::of(self.base.clone())];
         for (g, group) in self.sweep.iter().enumerate() {
-            let assignments = group.assignments(g)?;
-            let mut next = Vec::with_capacity(points.len() * assignments.len());
-            for point in &points {
-                for assignment in &assignments {
-                    let mut point = point.clone();
-                    for (field, value) in assignment {
-                        if field == BRANCH {
-                            point.branch = value.as_str().map(str::to_string);
-                            continue;
-                        }
-                        if point.swept.contains(field) {
-                            return Err(StudyError::new(
-                                format!("sweep[{g}].{field}"),
-                                "is swept by an earlier group too; sweep each field in one group",
-                            ));
-                        }
-                        point.fields.insert(field.clone(), value.clone());
-                        point.swept.push(field.clone());
-                    }
-                    next.push(point);
-                }
+            for stage in group.stages(g)? {
+                let assignments: Vec<Assignment> =
+                    stage.into_iter().map(Assignment::from).collect();
+                points = assign(&points, &assignments, g)?;
             }
-            points = next;
         }
         let derived: Vec<String> = self.derive.keys().cloned().collect();
-        let moving = |triggers: &[&str], branch: Option<&str>| -> Vec<String> {
+        let fields_moving = |triggers: &[&str], branch: Option<&str>| -> Vec<String> {
             let mut fields: Vec<String> = self
                 .sweep
                 .iter()
@@ -375,30 +520,46 @@ impl Study {
         };
         let branches = self.branches()?;
         // The fields that move along each branch's series, worked out once per branch.
-        let mut series_fields: HashMap<Option<String>, (Vec<String>, Vec<String>)> = HashMap::new();
-        let mut kept = Vec::with_capacity(points.len());
-        for mut point in points {
-            self.derive_fields(&mut point)?;
-            if self.keeps(&point, &branches)? {
-                let (refined, scaled) =
-                    series_fields
-                        .entry(point.branch.clone())
-                        .or_insert_with(|| {
-                            let branch = point.branch.as_deref();
-                            (moving(REFINED, branch), moving(SCALED, branch))
-                        });
-                point.series = PointSeries {
-                    refinement: point.label_without(refined),
-                    scaling: point.label_without(scaled),
-                };
-                kept.push(point);
+        let mut moving: HashMap<Option<Arc<str>>, Arc<Moving>> = HashMap::new();
+        let mut names = SharedNames::default();
+        for point in &mut points {
+            self.derive_fields(point, &mut names)?;
+        }
+        // Filtered in place: at 10⁶ points a second list is a hundred megabytes more.
+        let mut failure = None;
+        points.retain(|point| match self.keeps(point, &branches) {
+            Ok(keep) => keep && failure.is_none(),
+            Err(e) => {
+                failure.get_or_insert(e);
+                false
             }
+        });
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        for point in &mut points {
+            let branch = point.branch.as_deref();
+            point.moving = moving
+                .entry(point.branch.clone())
+                .or_insert_with(|| {
+                    Arc::new(Moving {
+                        refined: fields_moving(REFINED, branch),
+                        scaled: fields_moving(SCALED, branch),
+                    })
+                })
+                .clone();
+        }
+        let repeats = |point: &Point| {
+            let own = point.branch.as_deref().and_then(|b| branches.get(b));
+            own.and_then(|(_, b)| b.repeat).unwrap_or(self.repeat)
+        };
+        if points.iter().all(|p| repeats(p) == 1) {
+            return Ok(points);
         }
         // Each point once per repeat: moved, not copied, into its last repeat.
-        let mut expanded = Vec::with_capacity(kept.len());
-        for point in kept {
-            let own = point.branch.as_ref().and_then(|b| branches.get(b));
-            let repeats = own.and_then(|(_, b)| b.repeat).unwrap_or(self.repeat);
+        let mut expanded = Vec::with_capacity(points.len() * self.repeat);
+        for point in points {
+            let repeats = repeats(&point);
             if repeats == 0 {
                 continue;
             }
@@ -447,18 +608,33 @@ impl Study {
         Ok(found)
     }
 
-    fn derive_fields(&self, point: &mut Point) -> Result<(), StudyError> {
+    fn derive_fields(&self, point: &mut Point, names: &mut SharedNames) -> Result<(), StudyError> {
+        if self.derive.is_empty() {
+            return Ok(());
+        }
         let scope = point.scope();
-        let mut derived = Vec::new();
+        let mut derived = Vec::with_capacity(self.derive.len());
         for (field, formula) in &self.derive {
             let value = expression::evaluate_number(formula, &scope)
                 .map_err(|e| StudyError::new(format!("derive.{field}"), e))?;
-            derived.push((field.clone(), value));
+            derived.push(value);
         }
-        for (field, value) in derived {
-            point.fields.insert(field.clone(), value);
-            if !point.swept.contains(&field) {
-                point.swept.push(field);
+        // A derived field the sweep set too keeps its place; the others follow the swept ones.
+        point.swept = names.extended(&point.swept, 0, |swept| {
+            let mut swept = swept.to_vec();
+            swept.extend(
+                self.derive
+                    .keys()
+                    .filter(|f| !swept.contains(f))
+                    .cloned()
+                    .collect::<Vec<_>>(),
+            );
+            Ok(swept)
+        })?;
+        for (field, value) in self.derive.keys().zip(derived) {
+            match point.swept.iter().position(|f| f == field) {
+                Some(k) if k < point.values.len() => point.values[k] = value,
+                _ => point.values.push(value),
             }
         }
         Ok(())
@@ -470,13 +646,17 @@ impl Study {
         point: &Point,
         branches: &BTreeMap<String, (String, &Branch)>,
     ) -> Result<bool, StudyError> {
-        let scope = point.scope();
         let study = self.filter.iter().map(|c| ("where".to_string(), c));
-        let own = point.branch.as_ref().and_then(|b| branches.get(b));
+        let own = point.branch.as_deref().and_then(|b| branches.get(b));
         let branch = own
             .into_iter()
             .flat_map(|(place, b)| b.filter.iter().map(move |c| (format!("{place}.where"), c)));
-        for (k, (place, condition)) in study.enumerate().chain(branch.enumerate()) {
+        let mut conditions = study.enumerate().chain(branch.enumerate()).peekable();
+        if conditions.peek().is_none() {
+            return Ok(true);
+        }
+        let scope = point.scope();
+        for (k, (place, condition)) in conditions {
             let holds = expression::condition(condition, &scope).map_err(|e| {
                 StudyError::new(
                     format!("{place}[{k}]"),
@@ -500,7 +680,8 @@ fn is_file_stem(name: &str) -> bool {
 }
 
 /// The most points a study may expand to (repeats included), counted before they are made: a
-/// point costs about a kilobyte here and a line of `nlsolve check`, so 10⁶ is a gigabyte.
+/// planned point costs 800 bytes or so and a line of `nlsolve check`, so 10⁶ is most of a
+/// gigabyte.
 pub const MOST_POINTS: usize = 1_000_000;
 
 impl SweepGroup {
@@ -557,26 +738,38 @@ impl SweepGroup {
     }
 
     /// The group's points, as field assignments; `g` is its index, for messages.
-    fn assignments(&self, g: usize) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+    /// The group's assignments as stages whose points multiply in order: a product's axes one
+    /// stage each (the first outermost), so that a product of 10⁶ points is never 10⁶
+    /// assignments at once; any other group one stage.
+    fn stages(&self, g: usize) -> Result<Vec<Vec<Pairs>>, StudyError> {
+        let SweepGroup::Product(axes) = self else {
+            return Ok(vec![self.assignments(g)?]);
+        };
+        axes.iter()
+            .map(|(field, values)| match values.is_empty() {
+                true => Err(StudyError::new(
+                    format!("sweep[{g}].product.{field}"),
+                    "has no values; give at least one or remove the axis",
+                )),
+                false => Ok(values
+                    .iter()
+                    .map(|v| vec![(field.clone(), v.clone())])
+                    .collect()),
+            })
+            .collect()
+    }
+
+    fn assignments(&self, g: usize) -> Result<Vec<Pairs>, StudyError> {
         let place = |what: &str| format!("sweep[{g}].{what}");
         match self {
-            SweepGroup::Product(axes) => {
+            SweepGroup::Product(_) => {
                 let mut assignments = vec![Vec::new()];
-                for (field, values) in axes {
-                    if values.is_empty() {
-                        return Err(StudyError::new(
-                            place(&format!("product.{field}")),
-                            "has no values; give at least one or remove the axis",
-                        ));
-                    }
+                for axis in self.stages(g)? {
                     assignments = assignments
                         .into_iter()
                         .flat_map(|a: Vec<(String, Value)>| {
-                            values.iter().map(move |v| {
-                                let mut a = a.clone();
-                                a.push((field.clone(), v.clone()));
-                                a
-                            })
+                            axis.iter()
+                                .map(move |b| a.iter().chain(b).cloned().collect())
                         })
                         .collect();
                 }
@@ -646,7 +839,7 @@ impl SweepGroup {
 }
 
 impl PathSpec {
-    fn assignments(&self, place: &str) -> Result<Vec<Vec<(String, Value)>>, StudyError> {
+    fn assignments(&self, place: &str) -> Result<Vec<Pairs>, StudyError> {
         let sizes = match self {
             PathSpec::FixedM { n, .. }
             | PathSpec::FixedEps { n, .. }
@@ -688,11 +881,41 @@ mod tests {
 
     fn points(study: Value) -> Result<Vec<Map<String, Value>>, StudyError> {
         let study = Study::parse(&study.to_string())?;
-        Ok(study.expand()?.into_iter().map(|p| p.fields).collect())
+        Ok(study.expand()?.into_iter().map(|p| p.fields()).collect())
     }
 
     fn fields(value: Value) -> Map<String, Value> {
         value.as_object().expect("an object").clone()
+    }
+
+    #[test]
+    fn a_point_writes_its_fields_as_their_map_prints_and_a_swept_value_beats_the_base() {
+        let study = Study::parse(
+            &json!({
+                "name": "t",
+                "base": {"z": null, "a": 1.5e-300, "n": 8, "s": "é \"q\"", "o": {"k": [1, 0.1]}},
+                "sweep": [{"product": {"n": [16], "b": ["x"]}}, {"zip": {"m": [2], "a": [3]}}],
+                "derive": {"eps": "m * h"},
+            })
+            .to_string(),
+        )
+        .unwrap();
+        let points = study.expand().unwrap();
+        let point = &points[0];
+        let mut written = Vec::new();
+        point.write_fields(&mut written).unwrap();
+        let fields = point.fields();
+        assert_eq!(
+            String::from_utf8(written).unwrap(),
+            Value::Object(fields.clone()).to_string()
+        );
+        assert_eq!(
+            (fields["n"].clone(), fields["a"].clone()),
+            (json!(16), json!(3))
+        );
+        assert_eq!(point.get("eps"), Some(&json!(2.0 / 16.0)));
+        assert_eq!(point.get("z"), Some(&Value::Null));
+        assert_eq!(point.label(), "b=x n=16 a=3 m=2 eps=0.125");
     }
 
     #[test]
@@ -775,7 +998,7 @@ mod tests {
         assert_eq!((on("fixed_m"), on("fixed_eps"), points.len()), (8, 2, 10));
         for p in &points {
             assert!(
-                !p.fields.contains_key("branch"),
+                !p.fields().contains_key("branch"),
                 "the solver must not see it"
             );
             assert!(p
@@ -788,17 +1011,17 @@ mod tests {
             ["branch", "n", "eps", "kernel", "m", "source"]
         );
         // A refinement series runs along n within one branch.
-        let eps_series: Vec<&str> = points
+        let eps_series: Vec<String> = points
             .iter()
             .filter(|p| p.branch.as_deref() == Some("fixed_eps"))
-            .map(|p| p.series.refinement.as_str())
+            .map(|p| p.series().refinement)
             .collect();
         assert_eq!(eps_series, ["branch=fixed_eps kernel=linear"; 2]);
         // The other branch's path moves m with n; this one's m stays in its series.
         let m_series = points
             .iter()
             .find(|p| p.branch.as_deref() == Some("fixed_m"))
-            .map(|p| p.series.refinement.clone());
+            .map(|p| p.series().refinement);
         assert_eq!(
             m_series.as_deref(),
             Some("branch=fixed_m m=2 source=local kernel=constant")
@@ -834,7 +1057,7 @@ mod tests {
             points
                 .iter()
                 .filter(|p| p.branch.as_deref() == Some(b))
-                .map(|p| (p.fields.get("threads").cloned(), p.repeat))
+                .map(|p| (p.get("threads").cloned(), p.repeat))
                 .collect::<Vec<_>>()
         };
         let threads: Vec<_> = [1, 2]
@@ -844,7 +1067,7 @@ mod tests {
         assert_eq!(on("threads"), threads);
         assert_eq!(on("steps"), [(None, 0), (None, 0)]);
         // `null` in a zip leaves the field out of the case (here: dt from cfl).
-        assert_eq!(points[0].fields.get("dt"), Some(&Value::Null));
+        assert_eq!(points[0].get("dt"), Some(&Value::Null));
 
         let refused = |branches: Value| {
             Study::parse(
@@ -884,7 +1107,7 @@ mod tests {
         let json = Study::parse(commented).unwrap().expand().unwrap();
         let from_toml = Study::parse_toml(toml).unwrap().expand().unwrap();
         assert_eq!(json, from_toml);
-        assert_eq!(json[1].fields["note"], "a // in a string stays");
+        assert_eq!(json[1].fields()["note"], "a // in a string stays");
         // Comments become spaces: an error still names its line in the file.
         let error = Study::parse("// one\n// two\n{\"name\": }").unwrap_err();
         assert!(error.message.contains("line 3"), "{error}");
@@ -942,13 +1165,15 @@ mod tests {
         let points = study.expand().unwrap();
         // 2 sizes × 3 shapes with px·py ≤ 2, twice each.
         assert_eq!(points.len(), 12);
-        let first = &points[0].fields;
+        let first = points[0].fields();
         assert_eq!(first["n"], json!(16));
         assert_eq!(first["m"], json!(3));
         assert_eq!(first["ranks"], json!(1));
         assert_eq!(first["eps_check"], json!(3.0 / 16.0));
         assert_eq!((points[0].repeat, points[1].repeat), (0, 1));
-        assert!(points.iter().all(|p| p.fields["ranks"].as_u64() <= Some(2)));
+        assert!(points
+            .iter()
+            .all(|p| p.fields()["ranks"].as_u64() <= Some(2)));
 
         let eps_paths = points_of_path(json!({"kind": "fixed_eps", "eps": 0.25, "n": [8, 16]}));
         assert_eq!(eps_paths, vec![(8, json!(0.25)), (16, json!(0.25))]);
@@ -963,7 +1188,8 @@ mod tests {
             let points = study.expand().unwrap();
             points
                 .into_iter()
-                .map(|p| (p.series.refinement, p.series.scaling))
+                .map(|p| p.series())
+                .map(|s| (s.refinement, s.scaling))
                 .collect()
         };
         // A product moves only its `n`; a zip moves all its fields with its worker counts.

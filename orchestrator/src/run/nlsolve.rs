@@ -2,10 +2,12 @@
 //! that turns a point into a canonical case, and the command line of one run.
 
 use crate::model::study::Point;
-use serde_json::Value;
+use serde_json::{Map, Value};
+use std::collections::HashMap;
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::Arc;
 
 pub struct Nlsolve {
     pub binary: PathBuf,
@@ -16,15 +18,24 @@ pub struct Nlsolve {
     pub fingerprint: Option<String>,
 }
 
-/// A case the solver accepted, in its two forms, each kept as its compact JSON (a study of 10⁵
-/// points holds 10⁵ of them; a parsed map is eight times larger).
+/// A case the solver accepted, in its two forms. The canonical one is kept as its compact JSON
+/// (a study of 10⁶ points holds 10⁶ of them; a parsed map is eight times larger); the resolved
+/// one as what it adds, which most points share.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checked {
     /// Keys sorted, some defaults left out: what a run's key is taken from (stable across
     /// versions that fill in more defaults). Printed by nlstudy from the parsed answer.
     canonical: Box<str>,
     /// Every field the method uses, defaults filled in: what tables and messages show.
-    resolved: Box<str>,
+    resolved: Resolved,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Resolved {
+    /// The canonical case and these fields (the defaults filled in), as a JSON object.
+    Adds(Arc<str>),
+    /// A resolved case that drops a canonical field, whole.
+    Whole(Box<str>),
 }
 
 impl Checked {
@@ -38,7 +49,19 @@ impl Checked {
     }
 
     pub fn resolved(&self) -> Value {
-        serde_json::from_str(&self.resolved).expect("nlstudy printed it")
+        match &self.resolved {
+            Resolved::Whole(text) => serde_json::from_str(text).expect("nlstudy printed it"),
+            Resolved::Adds(adds) => {
+                let mut resolved = self.canonical();
+                let adds: Map<String, Value> =
+                    serde_json::from_str(adds).expect("nlstudy printed it");
+                resolved
+                    .as_object_mut()
+                    .expect("a case is an object")
+                    .extend(adds);
+                resolved
+            }
+        }
     }
 
     /// A whole-number field of the resolved case (`threads`, `ranks`).
@@ -85,7 +108,11 @@ impl Nlsolve {
 
     /// Each point's case as the solver reads it, or the solver's sentence saying which field is
     /// wrong; one `nlsolve check` for all points, its answers read as they come.
-    pub fn check(&self, points: &[Point]) -> Result<Vec<Result<Checked, String>>, String> {
+    pub fn check<'a>(
+        &self,
+        points: impl ExactSizeIterator<Item = &'a Point> + Send,
+    ) -> Result<Vec<Result<Checked, String>>, String> {
+        let count = points.len();
         let mut child = Command::new(&self.binary)
             .arg("check")
             .stdin(Stdio::piped())
@@ -100,14 +127,18 @@ impl Nlsolve {
             let writer = scope.spawn(move || {
                 let mut stdin = std::io::BufWriter::with_capacity(1 << 16, stdin);
                 for point in points {
-                    serde_json::to_writer(&mut stdin, &point.fields)?;
+                    point.write_fields(&mut stdin)?;
                     stdin.write_all(b"\n")?;
                 }
                 stdin.flush()
             });
+            let mut shared = HashMap::new();
             let verdicts: Vec<Result<Checked, String>> = std::io::BufReader::new(stdout)
                 .lines()
-                .map(|line| verdict(&line.map_err(|e| format!("cannot read nlsolve check: {e}"))?))
+                .map(|line| {
+                    let line = line.map_err(|e| format!("cannot read nlsolve check: {e}"))?;
+                    verdict(&line, &mut shared)
+                })
                 .collect();
             (
                 verdicts,
@@ -124,11 +155,10 @@ impl Nlsolve {
             ));
         }
         written.map_err(|e| format!("cannot send cases to nlsolve check: {e}"))?;
-        if verdicts.len() != points.len() {
+        if verdicts.len() != count {
             return Err(format!(
-                "nlsolve check answered {} of {} cases",
+                "nlsolve check answered {} of {count} cases",
                 verdicts.len(),
-                points.len()
             ));
         }
         Ok(verdicts)
@@ -138,12 +168,13 @@ impl Nlsolve {
 /// One line of `nlsolve check`: the case in its two forms, or the refusal.
 #[derive(serde::Deserialize)]
 struct Verdict {
-    case: Option<Value>,
-    resolved: Option<Value>,
+    case: Option<Map<String, Value>>,
+    resolved: Option<Map<String, Value>>,
     error: Option<String>,
 }
 
-fn verdict(line: &str) -> Result<Checked, String> {
+/// The verdict on one line; `shared` holds the distinct sets of filled-in defaults seen so far.
+fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked, String> {
     let verdict: Verdict = serde_json::from_str(line)
         .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
     match verdict {
@@ -152,18 +183,73 @@ fn verdict(line: &str) -> Result<Checked, String> {
             resolved,
             ..
         } => {
-            let canonical = canonical.to_string();
+            // A solver from before `resolved` was printed: its case as it is.
+            let resolved = resolved.unwrap_or_else(|| canonical.clone());
+            let resolved = match canonical.keys().all(|k| resolved.contains_key(k)) {
+                true => {
+                    let adds: Map<String, Value> = resolved
+                        .into_iter()
+                        .filter(|(k, v)| canonical.get(k) != Some(v))
+                        .collect();
+                    let adds = Value::Object(adds).to_string();
+                    let shared = shared
+                        .entry(adds)
+                        .or_insert_with_key(|adds| adds.as_str().into());
+                    Resolved::Adds(shared.clone())
+                }
+                false => Resolved::Whole(Value::Object(resolved).to_string().into()),
+            };
             Ok(Checked {
-                // A solver from before `resolved` was printed: its case as it is.
-                resolved: resolved
-                    .map_or_else(|| canonical.clone(), |r| r.to_string())
-                    .into(),
-                canonical: canonical.into(),
+                canonical: Value::Object(canonical).to_string().into(),
+                resolved,
             })
         }
         Verdict {
             error: Some(error), ..
         } => Err(error),
         _ => Err("nlsolve check printed neither a case nor an error".to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn a_verdict_keeps_both_forms_of_the_case_and_shares_what_the_resolved_one_adds() {
+        let mut shared = HashMap::new();
+        let canonical = json!({"m": 2, "n": 16, "threads": 1});
+        let lines = [
+            // Defaults filled in, and a value the resolution changed.
+            json!({"m": 2, "n": 16, "threads": 2, "integrator": "forward_euler"}),
+            json!({"m": 2, "n": 16, "threads": 2, "integrator": "forward_euler"}),
+            // A canonical field the resolved case drops.
+            json!({"m": 2, "n": 16}),
+        ];
+        let checked: Vec<Checked> = lines
+            .iter()
+            .map(|resolved| {
+                let line = json!({"case": canonical, "resolved": resolved}).to_string();
+                verdict(&line, &mut shared).unwrap()
+            })
+            .collect();
+        for (checked, resolved) in checked.iter().zip(&lines) {
+            assert_eq!(checked.canonical(), canonical);
+            assert_eq!(checked.canonical_text(), canonical.to_string());
+            assert_eq!(&checked.resolved(), resolved);
+        }
+        assert_eq!(checked[0].resolved_count("threads"), Some(2));
+        assert_eq!(shared.len(), 1, "the two alike share one text");
+        let old_solver = json!({"case": canonical}).to_string();
+        assert_eq!(
+            verdict(&old_solver, &mut shared).unwrap().resolved(),
+            canonical
+        );
+        let refused = json!({"error": "case field `m`: too big"}).to_string();
+        assert_eq!(
+            verdict(&refused, &mut shared),
+            Err("case field `m`: too big".into())
+        );
     }
 }

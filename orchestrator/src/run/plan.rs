@@ -2,7 +2,7 @@
 
 use crate::model::study::{Point, Study, StudyError};
 use crate::run::nlsolve::{Checked, Nlsolve};
-use crate::store::{self, Index};
+use crate::store::{self, Id, Index};
 use schema::record::Status;
 use std::collections::{HashMap, HashSet};
 use std::fmt;
@@ -51,8 +51,8 @@ pub enum Decision {
 pub struct Planned {
     pub point: Point,
     pub case: Result<Checked, String>,
-    pub key: String,
-    pub case_id: String,
+    pub key: Id,
+    pub case_id: Id,
     pub decision: Decision,
 }
 
@@ -91,65 +91,71 @@ pub fn plan(
     index: &Index,
     options: &Options,
 ) -> Result<Vec<Planned>, StudyError> {
-    let points = study.expand()?;
-    let cases = solver
-        .check(&points)
-        .map_err(|e| StudyError::new("solver", e))?;
-    let mut seen = HashSet::new();
-    let planned: Vec<Planned> = points
+    // Each point becomes its plan at once, so the points' own list is gone before the
+    // solver's answers arrive (at 10⁶ points both lists together are a third of a gigabyte).
+    let mut planned: Vec<Planned> = study
+        .expand()?
         .into_iter()
-        .zip(cases)
-        .map(|(point, case)| {
-            // A refused case is keyed by its fields as written.
-            let written;
-            let identity = match &case {
-                Ok(checked) => checked.canonical_text(),
-                Err(_) => {
-                    written = serde_json::to_string(&point.fields).expect("a map prints");
-                    written.as_str()
-                }
-            };
-            let (case_id, key) = store::case_id_and_key(identity, &solver.version, point.repeat);
-            let stored = index.stored.get(&key);
-            let selected = options.only.as_ref().is_none_or(|keys| keys.contains(&key));
-            let first = seen.insert(key.clone());
-            let decision = match stored.map(|s| &s.status) {
-                _ if !selected => Decision::Skip("not among --only".into()),
-                // Another point (of another branch) is the same case: it runs once.
-                _ if !first => Decision::Duplicate,
-                _ if options.force => Decision::Run(Reason::Forced),
-                None => match index.version_by_case.get(&case_id) {
-                    Some(from) if *from != solver.version => {
-                        Decision::Run(Reason::SolverChanged { from: from.clone() })
-                    }
-                    _ => Decision::Run(Reason::Missing),
-                },
-                Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
-                Some(status) => match (&solver.fingerprint, stored.map(|s| &s.fingerprint)) {
-                    (Some(now), Some(then)) if now != then && *status != Status::Failed => {
-                        let (from, to) = (short(then), short(now));
-                        match options.keep_stale {
-                            true => {
-                                Decision::Skip(format!("{status}, stale but kept: {from} → {to}"))
-                            }
-                            false => Decision::Run(Reason::Stale {
-                                from: then.clone(),
-                                to: now.clone(),
-                            }),
-                        }
-                    }
-                    _ => Decision::Skip(status.to_string()),
-                },
-            };
-            Planned {
-                point,
-                case,
-                key,
-                case_id,
-                decision,
-            }
+        .map(|point| Planned {
+            point,
+            case: Err(String::new()),
+            key: Id::default(),
+            case_id: Id::default(),
+            decision: Decision::Duplicate,
         })
         .collect();
+    let cases = solver
+        .check(planned.iter().map(|p| &p.point))
+        .map_err(|e| StudyError::new("solver", e))?;
+    // Keys seen so far, as their 128 bits.
+    let mut seen = HashSet::with_capacity(planned.len());
+    for (p, case) in planned.iter_mut().zip(cases) {
+        // A refused case is keyed by its fields as written.
+        let written;
+        let identity = match &case {
+            Ok(checked) => checked.canonical_text(),
+            Err(_) => {
+                let mut text = Vec::new();
+                p.point.write_fields(&mut text).expect("a map prints");
+                written = String::from_utf8(text).expect("JSON is UTF-8");
+                written.as_str()
+            }
+        };
+        let (case_id, key) = store::case_id_and_key(identity, &solver.version, p.point.repeat);
+        let stored = index.stored.get(key.as_str());
+        let selected = options
+            .only
+            .as_ref()
+            .is_none_or(|keys| keys.contains(key.as_str()));
+        let first = seen.insert(key.bits());
+        p.decision = match stored.map(|s| &s.status) {
+            _ if !selected => Decision::Skip("not among --only".into()),
+            // Another point (of another branch) is the same case: it runs once.
+            _ if !first => Decision::Duplicate,
+            _ if options.force => Decision::Run(Reason::Forced),
+            None => match index.version_by_case.get(case_id.as_str()) {
+                Some(from) if *from != solver.version => {
+                    Decision::Run(Reason::SolverChanged { from: from.clone() })
+                }
+                _ => Decision::Run(Reason::Missing),
+            },
+            Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
+            Some(status) => match (&solver.fingerprint, stored.map(|s| &s.fingerprint)) {
+                (Some(now), Some(then)) if now != then && *status != Status::Failed => {
+                    let (from, to) = (short(then), short(now));
+                    match options.keep_stale {
+                        true => Decision::Skip(format!("{status}, stale but kept: {from} → {to}")),
+                        false => Decision::Run(Reason::Stale {
+                            from: then.clone(),
+                            to: now.clone(),
+                        }),
+                    }
+                }
+                _ => Decision::Skip(status.to_string()),
+            },
+        };
+        (p.case, p.key, p.case_id) = (case, key, case_id);
+    }
     if let Some(only) = &options.only {
         unknown_keys(only, &planned)?;
     }

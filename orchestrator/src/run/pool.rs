@@ -472,7 +472,7 @@ fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
 fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Value {
     let case = match &planned.case {
         Ok(case) => case.canonical(),
-        Err(_) => Value::Object(planned.point.fields.clone()),
+        Err(_) => Value::Object(planned.point.fields()),
     };
     let mut record = json!({ "case": case, "status": Status::Failed.as_str(), "message": message });
     let object = record.as_object_mut().expect("an object");

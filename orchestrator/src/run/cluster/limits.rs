@@ -49,12 +49,12 @@ impl History {
     pub fn of(planned: &[Planned], index: &Index) -> History {
         let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
         for p in planned {
-            let Some(stored) = index.stored.get(&p.key) else {
+            let Some(stored) = index.stored.get(p.key.as_str()) else {
                 continue;
             };
             let measured = matches!(stored.status, Status::Ok | Status::Diverged);
             if let (true, Some(n), Some(wall)) = (measured, grid(p), stored.wall_s) {
-                let series = times.entry(p.point.series.refinement.clone()).or_default();
+                let series = times.entry(p.point.series().refinement).or_default();
                 series.entry(n).or_default().push(wall);
             }
         }
@@ -64,7 +64,7 @@ impl History {
     /// The estimate for `point`, if it or a neighbour was timed.
     pub fn estimate(&self, point: &Planned) -> Option<Estimate> {
         let n = grid(point)?;
-        let series = self.times.get(&point.point.series.refinement)?;
+        let series = self.times.get(&point.point.series().refinement)?;
         if let Some(own) = series.get(&n) {
             return Some(Estimate {
                 seconds: median(own),
@@ -77,12 +77,7 @@ impl History {
             .map(|(m, t)| (*m, median(t)))
             .collect();
         below.sort_by_key(|(m, _)| *m);
-        let dim = point
-            .point
-            .fields
-            .get("dim")
-            .and_then(|d| d.as_u64())
-            .unwrap_or(1);
+        let dim = point.point.get("dim").and_then(|d| d.as_u64()).unwrap_or(1);
         let (n1, t1) = *below.last()?;
         let exponent = match below.len() {
             1 => (dim + 2) as f64,
@@ -153,32 +148,29 @@ impl History {
 }
 
 fn grid(point: &Planned) -> Option<u64> {
-    point.point.fields.get("n")?.as_u64()
+    point.point.get("n")?.as_u64()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::study::{Point, PointSeries};
+    use crate::model::study::Study;
     use crate::run::plan::{Decision, Reason};
     use serde_json::json;
 
+    /// A point of grid `n` on the refinement series `family=<series>`.
     fn point(series: &str, dim: u64, n: u64) -> Planned {
-        let fields = json!({"dim": dim, "n": n}).as_object().unwrap().clone();
+        let study = json!({
+            "name": "limits",
+            "base": {"dim": dim},
+            "sweep": [{"product": {"family": [series], "n": [n]}}],
+        });
+        let point = Study::parse(&study.to_string()).unwrap().expand().unwrap();
         Planned {
-            point: Point {
-                fields,
-                branch: None,
-                swept: vec!["n".into()],
-                repeat: 0,
-                series: PointSeries {
-                    refinement: series.into(),
-                    scaling: String::new(),
-                },
-            },
+            point: point.into_iter().next().unwrap(),
             case: Err("not checked".into()),
-            key: format!("{series}-{n}"),
-            case_id: String::new(),
+            key: crate::store::case_id_and_key(&format!("{series}-{n}"), "", 0).1,
+            case_id: Default::default(),
             decision: Decision::Run(Reason::Missing),
         }
     }
@@ -186,7 +178,7 @@ mod tests {
     fn history(series: &str, runs: &[(u64, &[f64])]) -> History {
         let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
         History {
-            times: HashMap::from([(series.to_string(), times)]),
+            times: HashMap::from([(format!("family={series}"), times)]),
         }
     }
 

@@ -68,7 +68,7 @@ pub fn write_jobs(
         let bundles: Vec<Vec<String>> = pack
             .bundles
             .iter()
-            .map(|b| b.iter().map(|p| p.key.clone()).collect())
+            .map(|b| b.iter().map(|p| p.key.to_string()).collect())
             .collect();
         let job = Spec {
             name: &pack.name,

@@ -54,7 +54,7 @@ pub fn submit_study(
     let in_flight = in_flight(store, target.scheduler);
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
         .iter()
-        .filter(|p| p.runs() && !in_flight.contains_key(&p.key))
+        .filter(|p| p.runs() && !in_flight.contains_key(p.key.as_str()))
         .partition(|p| p.case.is_ok());
     let mut holding: Vec<&str> = in_flight.values().map(String::as_str).collect();
     holding.sort_unstable();
@@ -69,7 +69,7 @@ pub fn submit_study(
             "nlstudy: {} points are in jobs still queued or running ({named}); not submitted again",
             planned
                 .iter()
-                .filter(|p| p.runs() && in_flight.contains_key(&p.key))
+                .filter(|p| p.runs() && in_flight.contains_key(p.key.as_str()))
                 .count(),
         );
     }
