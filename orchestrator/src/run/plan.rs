@@ -194,23 +194,38 @@ pub fn refusals(planned: &[Planned]) -> Vec<Refusal> {
     refusals
 }
 
-/// The refusals as lines for people: `60 points (first: n=8 m=2): case field …`.
+/// The most distinct refusals said; a sweep past the solver's limits can refuse thousands of
+/// points each in its own words (`m = 9 with n = 16 …`), and the plan listing marks each.
+const MOST_REFUSALS_SAID: usize = 10;
+
+/// The refusals as lines for people: `60 points (first: n=8 m=2): case field …`, the first
+/// `MOST_REFUSALS_SAID` of them, then how many more.
 pub fn describe_refusals(refusals: &[Refusal]) -> String {
-    refusals
+    let count = |points: usize| match points {
+        1 => "1 point".to_string(),
+        n => format!("{n} points"),
+    };
+    let mut lines: Vec<String> = refusals
         .iter()
+        .take(MOST_REFUSALS_SAID)
         .map(|r| {
-            let points = match r.points {
-                1 => "1 point".to_string(),
-                n => format!("{n} points"),
-            };
             let first = match r.first.as_str() {
                 "" => String::new(),
                 label => format!(" (first: {label})"),
             };
-            format!("  {points}{first}: {}", r.message)
+            format!("  {}{first}: {}", count(r.points), r.message)
         })
-        .collect::<Vec<_>>()
-        .join("\n")
+        .collect();
+    let rest = &refusals[refusals.len().min(MOST_REFUSALS_SAID)..];
+    if !rest.is_empty() {
+        let points = rest.iter().map(|r| r.points).sum();
+        lines.push(format!(
+            "  and {} more refusals of {}: `nlstudy plan` marks every refused point",
+            rest.len(),
+            count(points)
+        ));
+    }
+    lines.join("\n")
 }
 
 /// Refuses `--only` keys that are no point of the study: a job script written before the study
@@ -237,4 +252,30 @@ fn unknown_keys(only: &HashSet<String>, planned: &[Planned]) -> Result<(), Study
             unknown.join(", ")
         ),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_are_said_once_each_and_past_ten_counted() {
+        let refusal = |k: usize| Refusal {
+            message: format!("case field `m`: m = {k} is too big"),
+            points: k,
+            first: format!("m={k}"),
+        };
+        let few: Vec<Refusal> = (1..=2).map(refusal).collect();
+        assert_eq!(
+            describe_refusals(&few),
+            "  1 point (first: m=1): case field `m`: m = 1 is too big\n  2 points (first: m=2): case field `m`: m = 2 is too big"
+        );
+        let many: Vec<Refusal> = (1..=13).map(refusal).collect();
+        let text = describe_refusals(&many);
+        assert_eq!(text.lines().count(), 11);
+        assert!(text.contains("(first: m=10)") && !text.contains("m=11"));
+        assert!(text.ends_with(
+            "and 3 more refusals of 36 points: `nlstudy plan` marks every refused point"
+        ));
+    }
 }
