@@ -301,18 +301,23 @@ fn the_fft_backend_over_ranks_equals_the_serial_fft_run() {
     }
 }
 
-/// The implicit integrators run over ranks: CG applies the distributed operator, and each rank
-/// applies the sine-transform preconditioner to the gathered whole residual. The inner products
-/// are summed over ranks in another order, so the fields agree to the solves' tolerance (here
-/// 1e-13), not bit for bit.
+/// The implicit integrators run over ranks: CG applies the distributed operator, and the
+/// sine-transform preconditioner runs on slabs of rows (2D; `parallel/slab_sine.rs`), reached
+/// from the block partition's own slabs, from 2 × 2 blocks or from METIS's parts by an
+/// all-to-all, or on the gathered row (1D). The inner products are summed over ranks in another
+/// order, so the fields agree to the solves' tolerance (here 1e-13), not bit for bit.
 #[test]
 fn implicit_integrators_over_ranks_equal_the_serial_run() {
-    for integrator in ["backward_euler", "crank_nicolson"] {
+    for (dim, n, integrator) in [
+        ("2", "40", "backward_euler"),
+        ("2", "40", "crank_nicolson"),
+        ("1", "101", "crank_nicolson"),
+    ] {
         let case = [
             "--dim",
-            "2",
+            dim,
             "--n",
-            "40",
+            n,
             "--m",
             "3",
             "--kernel",
@@ -329,15 +334,35 @@ fn implicit_integrators_over_ranks_equal_the_serial_run() {
         let reference = serial(&case);
         let iterations = |r: &Run| r.record["solve_iterations_max"].as_u64().unwrap();
         assert!(iterations(&reference) >= 2, "{integrator}: a real solve");
-        for (ranks, partition) in [(2, "block"), (3, "graph")] {
+        let runs: &[(usize, &str, &[&str])] = match dim {
+            "2" => &[
+                (2, "block", &[]),
+                (3, "block", &[]),
+                (4, "block", &[]),
+                (4, "block", &["--px", "2", "--py", "2"]),
+                (3, "graph", &[]),
+                (4, "graph", &[]),
+            ],
+            _ => &[(3, "block", &[]), (2, "graph", &[])],
+        };
+        for &(ranks, partition, shape) in runs {
+            let case: Vec<&str> = case.iter().chain(shape).copied().collect();
             let run = distributed(ranks, partition, 1, &case);
-            let what = format!("{integrator}, {ranks} ranks, {partition}");
+            let what = format!("{dim}D {integrator}, {ranks} ranks, {partition} {shape:?}");
             assert_agrees(&reference, &run, ranks, partition, &what);
             assert_eq!(run.record["solves_unconverged"], 0, "{what}");
             assert!(
                 iterations(&run).abs_diff(iterations(&reference)) <= 1,
                 "{what}"
             );
+            // The block partition gives the implicit integrators the transform's slabs.
+            if partition == "block" && shape.is_empty() && dim == "2" {
+                assert_eq!(
+                    (run.record["px"].as_u64(), run.record["py"].as_u64()),
+                    (Some(1), Some(ranks as u64)),
+                    "{what}"
+                );
+            }
         }
     }
 }

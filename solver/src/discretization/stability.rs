@@ -16,6 +16,7 @@
 use crate::case::Integrator;
 use crate::discretization::stencil::Stencil;
 use std::f64::consts::PI;
+use std::ops::Range;
 
 /// Zoom steps after the coarse search: each halves the spacing, far below round-off after 50.
 const ZOOM_STEPS: usize = 50;
@@ -109,11 +110,11 @@ impl Symbol {
             .fold(f64::NEG_INFINITY, f64::max)
     }
 
-    /// σ at the n sine modes θ_k = πk/period for k = 1 ..= n along each axis (in 2D at
-    /// [k₂ − 1][k₁ − 1]): with period n + 1 the eigenvalues of −L_h's τ approximation (DST-I),
-    /// with period n those of its DST-II approximation; the sine-transform preconditioner's
-    /// (`operator::sine`).
-    pub fn on_sine_modes(&self, n: usize, period: usize) -> Vec<f64> {
+    /// σ at the n sine modes θ_k = πk/period for k = 1 ..= n along y and those of `columns`
+    /// along x (in 2D at [k₂ − 1][k₁ − 1 − columns.start]): with period n + 1 the eigenvalues of
+    /// −L_h's τ approximation (DST-I), with period n those of its DST-II approximation; the
+    /// sine-transform preconditioner's (`operator::sine`), of which a rank holds some columns.
+    pub fn on_sine_modes(&self, n: usize, period: usize, columns: Range<usize>) -> Vec<f64> {
         let angle = |k: usize| PI * (k + 1) as f64 / period as f64;
         let cosines: Vec<Vec<f64>> = (0..n).map(|k| self.cosines(angle(k))).collect();
         let rows = if self.dim == 2 { n } else { 1 };
@@ -126,7 +127,11 @@ impl Symbol {
                 &[1.0][..]
             };
             self.column_sums(cos_xi2, &mut g);
-            values.extend(cosines.iter().map(|cos_xi1| self.value_with(cos_xi1, &g)));
+            values.extend(
+                cosines[columns.clone()]
+                    .iter()
+                    .map(|cos_xi1| self.value_with(cos_xi1, &g)),
+            );
         }
         values
     }

@@ -9,7 +9,7 @@ mod fft;
 mod linear;
 mod neighbour_list;
 mod rows;
-mod sine;
+pub(crate) mod sine;
 pub(crate) mod stencil;
 
 pub use cost::{choose, Cost};

@@ -34,11 +34,12 @@ use crate::discretization::stencil::Stencil;
 use crate::threads::row_tasks;
 use rayon::prelude::*;
 use rustdct::{DctPlanner, Dst1, TransformType2And3};
+use std::ops::Range;
 use std::sync::Arc;
 
 /// The sine transform along one axis.
 #[derive(Clone)]
-enum Transform {
+pub(crate) enum Transform {
     /// DST-I, its own inverse up to (n + 1)/2.
     SineI(Arc<dyn Dst1<f64>>),
     /// DST-II forward, DST-III back (their product is n/2).
@@ -56,7 +57,7 @@ impl Transform {
         }
     }
 
-    fn scratch_len(&self) -> usize {
+    pub(crate) fn scratch_len(&self) -> usize {
         match self {
             Transform::SineI(dst) => dst.get_scratch_len(),
             Transform::SineII(dst) => dst.get_scratch_len(),
@@ -101,6 +102,58 @@ pub struct SinePreconditioner {
     scaled_inverse: Vec<f64>,
 }
 
+/// The transform for the grid of `stencil`, and (2/period)^d / (1 + s σ(θ_k)) for the modes k₁
+/// in `columns` and every k₂, at [k₁ − columns.start][k₂] (the transposed layout the
+/// preconditioner scales in; 1D: `columns` is every mode).
+pub(crate) fn transform_and_scaled_inverse(
+    stencil: &Stencil,
+    shift: f64,
+    columns: Range<usize>,
+) -> (Transform, Vec<f64>) {
+    let grid = stencil.grid;
+    let (dim, n) = (grid.dim, grid.n);
+    let (transform, period) = Transform::for_nodes(n);
+    let normalisation = (2.0 / period as f64).powi(dim as i32);
+    let width = columns.len();
+    let sigma = Symbol::new(stencil).on_sine_modes(n, period, columns);
+    let inverse = |k: usize| normalisation / (1.0 + shift * sigma[k]);
+    let scaled_inverse = if dim == 2 {
+        // σ is at [k₂][k₁]; store at [k₁][k₂].
+        (0..width * n)
+            .map(|t| inverse((t % n) * width + t / n))
+            .collect()
+    } else {
+        (0..width).map(inverse).collect()
+    };
+    (transform, scaled_inverse)
+}
+
+/// Transforms every row (of `n` values) of `rows` forward (or back), one task per block of rows
+/// with a scratch buffer each: a row's result does not depend on the task that transforms it.
+pub(crate) fn transform_rows(
+    transform: &Transform,
+    n: usize,
+    rows: &mut [f64],
+    scratch: &mut [Vec<f64>],
+    forward: bool,
+) {
+    if rows.is_empty() {
+        return;
+    }
+    let rows_per_task = (rows.len() / n).div_ceil(scratch.len());
+    rows.par_chunks_mut(rows_per_task * n)
+        .zip(scratch.par_iter_mut())
+        .for_each(|(block, scratch)| {
+            for row in block.chunks_mut(n) {
+                if forward {
+                    transform.forward(row, scratch);
+                } else {
+                    transform.backward(row, scratch);
+                }
+            }
+        });
+}
+
 /// A transposed copy (2D) and one transform scratch buffer per task.
 pub struct SineWork {
     transposed: Vec<f64>,
@@ -110,41 +163,14 @@ pub struct SineWork {
 impl SinePreconditioner {
     /// Preconditions I − shift · L_h for the grid and weights of `stencil`.
     pub fn new(stencil: &Stencil, shift: f64) -> Self {
-        let grid = stencil.grid;
-        let (dim, n) = (grid.dim, grid.n);
-        let (transform, period) = Transform::for_nodes(n);
-        let normalisation = (2.0 / period as f64).powi(dim as i32);
-        let sigma = Symbol::new(stencil).on_sine_modes(n, period);
-        let inverse = |k: usize| normalisation / (1.0 + shift * sigma[k]);
-        let scaled_inverse = if dim == 2 {
-            // σ is at [k₂][k₁]; store at [k₁][k₂].
-            (0..n * n).map(|t| inverse((t % n) * n + t / n)).collect()
-        } else {
-            (0..n).map(inverse).collect()
-        };
+        let (dim, n) = (stencil.grid.dim, stencil.grid.n);
+        let (transform, scaled_inverse) = transform_and_scaled_inverse(stencil, shift, 0..n);
         SinePreconditioner {
             dim,
             n,
             transform,
             scaled_inverse,
         }
-    }
-
-    /// Transforms every row of `rows` forward (or back), one task per block of rows.
-    fn transform_rows(&self, rows: &mut [f64], scratch: &mut [Vec<f64>], forward: bool) {
-        let n = self.n;
-        let rows_per_task = (rows.len() / n).div_ceil(scratch.len());
-        rows.par_chunks_mut(rows_per_task * n)
-            .zip(scratch.par_iter_mut())
-            .for_each(|(block, scratch)| {
-                for row in block.chunks_mut(n) {
-                    if forward {
-                        self.transform.forward(row, scratch);
-                    } else {
-                        self.transform.backward(row, scratch);
-                    }
-                }
-            });
     }
 }
 
@@ -187,19 +213,19 @@ impl LinearOperator for SinePreconditioner {
         };
         out.copy_from_slice(u);
         if self.dim == 1 {
-            self.transform_rows(out, scratch, true);
+            transform_rows(&self.transform, self.n, out, scratch, true);
             scale(out);
-            self.transform_rows(out, scratch, false);
+            transform_rows(&self.transform, self.n, out, scratch, false);
             return;
         }
         let n = self.n;
-        self.transform_rows(out, scratch, true);
+        transform_rows(&self.transform, self.n, out, scratch, true);
         transpose(out, transposed, n);
-        self.transform_rows(transposed, scratch, true);
+        transform_rows(&self.transform, self.n, transposed, scratch, true);
         scale(transposed);
-        self.transform_rows(transposed, scratch, false);
+        transform_rows(&self.transform, self.n, transposed, scratch, false);
         transpose(transposed, out, n);
-        self.transform_rows(out, scratch, false);
+        transform_rows(&self.transform, self.n, out, scratch, false);
     }
 }
 

@@ -1,12 +1,14 @@
 //! Running one case over MPI ranks: how the nodes are divided (`partition`), what each rank
 //! holds (`share`: its window, row runs and neighbours), the collectives and partner swaps the
-//! methods need (`exchange`, over MPI in `world`), L_h on a rank's nodes with its ghost exchange (`operator`), and a
-//! whole-grid operator on a spread vector (`gathered`).
+//! methods need (`exchange`, over MPI in `world`), L_h on a rank's nodes with its ghost exchange (`operator`), a
+//! whole-grid operator on a spread vector (`gathered`), and the 2D sine-transform preconditioner
+//! on slabs of rows (`slab_sine`).
 
 pub mod exchange;
 pub mod gathered;
 pub mod operator;
 pub mod partition;
 pub mod share;
+pub mod slab_sine;
 #[cfg(feature = "mpi")]
 pub mod world;

@@ -1,7 +1,8 @@
 //! How the nodes of D are divided among ranks (seed 000, section 3): which rank owns each node.
 //!
 //! - `block`: px × py rectangles, boundaries at ⌊i·n/p⌋ so uneven splits differ by at most one
-//!   node; px·py = R is chosen to minimise the halo unless the case gives it.
+//!   node; px·py = R is chosen to minimise the halo unless the case gives it, or, for the
+//!   implicit integrators, 1 × R: the slabs of rows their sine transform runs on.
 //! - `graph`: METIS k-way partition of the lattice's nearest-neighbour graph. Its edge cut is the
 //!   subdomains' perimeter, and the ε-halo is that perimeter times the reach, so minimising one
 //!   minimises the other while the graph stays 2d edges per node instead of the ~πm² bonds of the
@@ -145,6 +146,10 @@ fn block_shape(case: &Case, stencil: &Stencil) -> Result<(usize, usize), CaseErr
         (Some(px), Some(py)) => Some((px, py)),
         (Some(px), None) => ranks.is_multiple_of(px).then(|| (px, ranks / px)),
         (None, Some(py)) => ranks.is_multiple_of(py).then(|| (ranks / py, py)),
+        // The implicit integrators' preconditioner transforms slabs of rows: with those as the
+        // blocks no value changes rank before it (the halo grows from the perimeter of a
+        // square to two rows, a few values per node against the N/P two all-to-alls would move).
+        (None, None) if case.integrator.is_implicit() && fits(1, ranks) => Some((1, ranks)),
         (None, None) => (1..=ranks)
             .filter(|&px| ranks.is_multiple_of(px) && fits(px, ranks / px))
             .map(|px| (px, ranks / px))

@@ -9,8 +9,10 @@ use crate::parallel::exchange::{Exchange, Ranks};
 use crate::parallel::partition::{self, Ownership};
 use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
+use mpi::datatype::{Partition as Pieces, PartitionMut as PiecesMut};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use mpi::Count;
 use rayon::ThreadPool;
 use std::cell::Cell;
 use std::time::Instant;
@@ -92,6 +94,31 @@ impl Exchange for Mpi<'_> {
             })
         });
         self.seconds.set(self.seconds.get() - overlap_s);
+    }
+    fn all_to_all(
+        &self,
+        send: &[f64],
+        send_counts: &[usize],
+        receive: &mut [f64],
+        receive_counts: &[usize],
+    ) {
+        let counts = |c: &[usize]| -> Vec<Count> { c.iter().map(|&k| k as Count).collect() };
+        let displacements = |c: &[Count]| -> Vec<Count> {
+            c.iter()
+                .scan(0, |at, &k| {
+                    let here = *at;
+                    *at += k;
+                    Some(here)
+                })
+                .collect()
+        };
+        let (sc, rc) = (counts(send_counts), counts(receive_counts));
+        let (sd, rd) = (displacements(&sc), displacements(&rc));
+        self.timed(|| {
+            let send = Pieces::new(send, &sc[..], &sd[..]);
+            let mut receive = PiecesMut::new(receive, &rc[..], &rd[..]);
+            self.world.all_to_all_varcount_into(&send, &mut receive);
+        })
     }
     fn seconds(&self) -> f64 {
         self.seconds.get()

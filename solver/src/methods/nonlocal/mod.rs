@@ -23,6 +23,7 @@ use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
 use crate::parallel::exchange::Ranks;
 use crate::parallel::gathered::Gathered;
+use crate::parallel::slab_sine::SlabSine;
 use crate::problem::source::PointwiseSource;
 use crate::problem::{self, manufactured_solution, Source};
 use rayon::prelude::*;
@@ -214,21 +215,29 @@ pub(crate) fn solve<Op: LinearOperator>(
     let volume = plan.stencil.grid.volume();
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
     let len = u0.len();
-    let preconditioner = case
-        .integrator
-        .is_implicit()
-        .then(|| SinePreconditioner::new(&plan.stencil, theta(case.integrator) * plan.dt));
-    // Over ranks each rank applies it to the gathered whole vector.
-    let gathered = preconditioner
+    let implicit = case.integrator.is_implicit();
+    let shift = theta(case.integrator) * plan.dt;
+    let grid = plan.stencil.grid;
+    // Over ranks in 2D the transform runs on slabs of rows; in 1D each rank applies it to the
+    // gathered row (n values: a 1D grid is small enough to hold whole).
+    let slabs = nodes
+        .filter(|_| implicit && grid.dim == 2)
+        .map(|nodes| SlabSine::new(&plan.stencil, shift, nodes, ranks));
+    let whole =
+        (implicit && slabs.is_none()).then(|| SinePreconditioner::new(&plan.stencil, shift));
+    let gathered = whole
         .as_ref()
         .zip(nodes)
-        .map(|(whole, nodes)| Gathered::new(whole, nodes, plan.stencil.grid.nodes(), ranks));
+        .map(|(whole, nodes)| Gathered::new(whole, nodes, grid.nodes(), ranks));
     let trajectory = {
         let source = source.as_ref();
-        let mut stepper = match (&gathered, &preconditioner) {
-            (Some(gathered), _) => stepper(case, operator, source, ranks, len, &stepping, gathered),
-            (None, Some(whole)) => stepper(case, operator, source, ranks, len, &stepping, whole),
-            (None, None) => stepper(case, operator, source, ranks, len, &stepping, &Identity),
+        let mut stepper = match (&slabs, &gathered, &whole) {
+            (Some(slabs), ..) => stepper(case, operator, source, ranks, len, &stepping, slabs),
+            (_, Some(gathered), _) => {
+                stepper(case, operator, source, ranks, len, &stepping, gathered)
+            }
+            (_, _, Some(whole)) => stepper(case, operator, source, ranks, len, &stepping, whole),
+            _ => stepper(case, operator, source, ranks, len, &stepping, &Identity),
         };
         integrate(stepper.as_mut(), ranks, u0, source, &stepping)
     };
