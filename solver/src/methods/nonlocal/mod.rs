@@ -216,15 +216,16 @@ pub(crate) fn solve<Op: LinearOperator>(
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
     let len = u0.len();
     let implicit = case.integrator.is_implicit();
-    let shift = theta(case.integrator) * plan.dt;
+    // θ dt: the implicit integrators' shift (θ exists for them only).
+    let shift = || theta(case.integrator) * plan.dt;
     let grid = plan.stencil.grid;
     // Over ranks in 2D the transform runs on slabs of rows; in 1D each rank applies it to the
     // gathered row (n values: a 1D grid is small enough to hold whole).
     let slabs = nodes
         .filter(|_| implicit && grid.dim == 2)
-        .map(|nodes| SlabSine::new(&plan.stencil, shift, nodes, ranks));
+        .map(|nodes| SlabSine::new(&plan.stencil, shift(), nodes, ranks));
     let whole =
-        (implicit && slabs.is_none()).then(|| SinePreconditioner::new(&plan.stencil, shift));
+        (implicit && slabs.is_none()).then(|| SinePreconditioner::new(&plan.stencil, shift()));
     let gathered = whole
         .as_ref()
         .zip(nodes)
