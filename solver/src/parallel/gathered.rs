@@ -15,7 +15,7 @@ use rayon::prelude::*;
 pub struct Gathered<'a, P: LinearOperator> {
     whole: &'a P,
     /// The grid index of each of this rank's values, in its compact order.
-    nodes: &'a [usize],
+    nodes: Vec<usize>,
     len: usize,
     ranks: Ranks<'a>,
 }
@@ -29,7 +29,7 @@ pub struct GatheredWork<W> {
 
 impl<'a, P: LinearOperator + Sync> Gathered<'a, P> {
     /// `whole` acts on the `len` values of the grid; this rank holds those at `nodes`.
-    pub fn new(whole: &'a P, nodes: &'a [usize], len: usize, ranks: Ranks<'a>) -> Self {
+    pub fn new(whole: &'a P, nodes: Vec<usize>, len: usize, ranks: Ranks<'a>) -> Self {
         Gathered {
             whole,
             nodes,
@@ -59,7 +59,7 @@ where
             output,
             whole,
         } = work;
-        let (nodes, operator) = (self.nodes, self.whole);
+        let (nodes, operator) = (&self.nodes, self.whole);
         self.ranks.on(|| {
             input.par_iter_mut().for_each(|v| *v = 0.0);
             for (&i, &v) in nodes.iter().zip(u) {
@@ -100,7 +100,7 @@ mod tests {
     fn a_rank_gets_the_whole_operators_values_at_its_nodes() {
         let nodes = [3, 0, 4, 1, 2];
         let u: Vec<f64> = nodes.iter().map(|&i| 10.0 + i as f64).collect();
-        let gathered = Gathered::new(&Reverse, &nodes, 5, Ranks::single());
+        let gathered = Gathered::new(&Reverse, nodes.to_vec(), 5, Ranks::single());
         let mut out = vec![0.0; 5];
         gathered.apply_once(&u, &mut out);
         let expected: Vec<f64> = nodes.iter().map(|&i| 10.0 + (4 - i) as f64).collect();

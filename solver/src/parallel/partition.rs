@@ -38,6 +38,24 @@ impl Ownership {
         let max = self.owned_counts().into_iter().max().unwrap_or(0);
         max as f64 * self.ranks as f64 / self.grid.nodes() as f64
     }
+
+    /// What a run reports of its partition: kept once each rank has taken its share, so that the
+    /// map of every node's owner (the whole grid) is not held through the run.
+    pub fn summary(&self) -> PartitionSummary {
+        PartitionSummary {
+            ranks: self.ranks,
+            blocks: self.blocks,
+            imbalance: self.imbalance(),
+        }
+    }
+}
+
+/// A partition as the record describes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartitionSummary {
+    pub ranks: usize,
+    pub blocks: Option<(usize, usize)>,
+    pub imbalance: f64,
 }
 
 /// The partition the case asks for.

@@ -39,11 +39,34 @@ pub struct SlabSine<'a> {
 enum Route {
     /// Each rank's values are its slab, in order.
     Slab,
-    /// Each rank's values are its slab's, in another order (a block partition's compact order):
-    /// the place of each in the slab.
-    Permuted(Vec<usize>),
+    /// Each rank's values are its slab's, in another order (a block partition's compact order:
+    /// interior row runs, then boundary ones), as runs of consecutive nodes.
+    Permuted(Vec<Run>),
     /// Values change ranks, by one all-to-all each way.
     Moved(Redistribution),
+}
+
+/// `len` consecutive values at `from` in the operator's order, at `to` in the slab.
+struct Run {
+    from: usize,
+    to: usize,
+    len: usize,
+}
+
+/// The runs of consecutive nodes of `nodes`, each placed in the slab that starts at node `first`.
+fn runs(nodes: &[usize], first: usize) -> Vec<Run> {
+    let mut runs: Vec<Run> = Vec::new();
+    for (k, &i) in nodes.iter().enumerate() {
+        match runs.last_mut() {
+            Some(run) if run.to + run.len == i - first => run.len += 1,
+            _ => runs.push(Run {
+                from: k,
+                to: i - first,
+                len: 1,
+            }),
+        }
+    }
+    runs
 }
 
 /// The operator's partition to the slabs and back: where each of this rank's values goes in
@@ -55,7 +78,8 @@ struct Redistribution {
     receive_counts: Vec<usize>,
 }
 
-/// The slab, the transposed columns, the messages and a transform scratch per task.
+/// The slab (when values change ranks; otherwise the output vector is the slab), the transposed
+/// columns, the messages and a transform scratch per task.
 pub struct SlabWork {
     slab: Vec<f64>,
     columns: Vec<f64>,
@@ -83,7 +107,7 @@ impl<'a> SlabSine<'a> {
         // Every rank takes the same route: the all-to-alls are collective.
         let route = match ranks.max(here) as u8 {
             0 => Route::Slab,
-            1 => Route::Permuted(nodes.iter().map(|i| i - slab.start).collect()),
+            1 => Route::Permuted(runs(nodes, slab.start)),
             _ => Route::Moved(Redistribution::new(nodes, n, &bounds, rank, ranks)),
         };
         SlabSine {
@@ -109,20 +133,12 @@ impl<'a> SlabSine<'a> {
     }
 
     /// Slab rows [y₀, y₁) × all x → columns [x₀, x₁) × all y, at [x − x₀][y].
-    fn transpose(&self, work: &mut SlabWork) {
-        let (n, mine) = (self.n, self.rows(self.rank));
-        // Rows and columns are split alike: this rank's slab is `height` rows, its columns
-        // `width`.
-        let (height, width) = (mine.len(), mine.len());
-        let SlabWork {
-            slab,
-            columns,
-            send,
-            receive,
-            ..
-        } = work;
-        let (to, from) = (self.block_counts(height), self.block_counts(width));
-        let (send, receive) = (&mut send[..height * n], &mut receive[..width * n]);
+    fn transpose(&self, slab: &[f64], columns: &mut [f64], send: &mut [f64], receive: &mut [f64]) {
+        let n = self.n;
+        // Rows and columns are split alike: this rank's slab is `mine` rows, its columns `mine`.
+        let mine = self.rows(self.rank).len();
+        let (to, from) = (self.block_counts(mine), self.block_counts(mine));
+        let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
         let bounds = &self.bounds[..];
         // To rank q: my rows × q's columns, row by row.
         self.ranks.on(|| {
@@ -138,45 +154,42 @@ impl<'a> SlabSine<'a> {
         // From rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
             let blocks = split(receive, &from);
-            columns
-                .par_chunks_mut(n)
-                .enumerate()
-                .for_each(|(c, column)| {
-                    for (p, block) in blocks.iter().enumerate() {
-                        let theirs = span(bounds, p);
-                        for (r, y) in theirs.enumerate() {
-                            column[y] = block[r * width + c];
-                        }
+            columns.par_chunks_mut(n).enumerate().for_each(|(c, column)| {
+                for (p, block) in blocks.iter().enumerate() {
+                    for (r, y) in span(bounds, p).enumerate() {
+                        column[y] = block[r * mine + c];
                     }
-                });
+                }
+            });
         });
     }
 
     /// The inverse of `transpose`.
-    fn transpose_back(&self, work: &mut SlabWork) {
-        let (n, mine) = (self.n, self.rows(self.rank));
-        let (height, width) = (mine.len(), mine.len());
-        let SlabWork {
-            slab,
-            columns,
-            send,
-            receive,
-            ..
-        } = work;
-        let (to, from) = (self.block_counts(width), self.block_counts(height));
-        let (send, receive) = (&mut send[..width * n], &mut receive[..height * n]);
+    fn transpose_back(
+        &self,
+        columns: &[f64],
+        slab: &mut [f64],
+        send: &mut [f64],
+        receive: &mut [f64],
+    ) {
+        let n = self.n;
+        let mine = self.rows(self.rank).len();
+        let (to, from) = (self.block_counts(mine), self.block_counts(mine));
+        let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
         let bounds = &self.bounds[..];
+        // To rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
             let mut blocks = split(send, &to);
             blocks.par_iter_mut().enumerate().for_each(|(p, block)| {
                 for (r, y) in span(bounds, p).enumerate() {
                     for (c, column) in columns.chunks(n).enumerate() {
-                        block[r * width + c] = column[y];
+                        block[r * mine + c] = column[y];
                     }
                 }
             });
         });
         self.ranks.exchange.all_to_all(send, &to, receive, &from);
+        // From rank q: my rows × q's columns.
         self.ranks.on(|| {
             let blocks = split(receive, &from);
             slab.par_chunks_mut(n).enumerate().for_each(|(r, row)| {
@@ -270,12 +283,12 @@ impl LinearOperator for SlabSine<'_> {
 
     fn workspace(&self) -> SlabWork {
         let (n, mine) = (self.n, self.rows(self.rank).len());
-        let moved = match &self.route {
-            Route::Moved(r) => r.send_at.len(),
-            _ => 0,
+        let (slab, moved) = match &self.route {
+            Route::Moved(r) => (mine * n, r.send_at.len()),
+            _ => (0, 0),
         };
         SlabWork {
-            slab: vec![0.0; mine * n],
+            slab: vec![0.0; slab],
             columns: vec![0.0; mine * n],
             send: vec![0.0; (mine * n).max(moved)],
             receive: vec![0.0; (mine * n).max(moved)],
@@ -286,38 +299,47 @@ impl LinearOperator for SlabSine<'_> {
     fn apply(&self, u: &[f64], out: &mut [f64], work: &mut SlabWork) {
         let (n, mine) = (self.n, self.rows(self.rank).len());
         let tasks = self.ranks.on(|| row_tasks(2, mine.max(1)));
-        while work.scratch.len() < tasks {
-            work.scratch.push(vec![0.0; self.transform.scratch_len()]);
+        let SlabWork {
+            slab,
+            columns,
+            send,
+            receive,
+            scratch,
+        } = work;
+        while scratch.len() < tasks {
+            scratch.push(vec![0.0; self.transform.scratch_len()]);
         }
-        let transform = &self.transform;
-        match &self.route {
-            Route::Slab => work.slab.copy_from_slice(u),
-            Route::Permuted(at) => {
-                for (&v, &at) in u.iter().zip(at) {
-                    work.slab[at] = v;
+        let (scratch, transform) = (&mut scratch[..tasks], &self.transform);
+        let exchange = self.ranks.exchange;
+        // This rank's slab: `out` itself unless values change ranks.
+        let slab: &mut [f64] = match &self.route {
+            Route::Slab => {
+                out.copy_from_slice(u);
+                out
+            }
+            Route::Permuted(runs) => {
+                for run in runs {
+                    out[run.to..run.to + run.len].copy_from_slice(&u[run.from..run.from + run.len]);
                 }
+                out
             }
             Route::Moved(r) => {
-                let send = &mut work.send[..u.len()];
+                let send = &mut send[..u.len()];
                 for (&v, &at) in u.iter().zip(&r.send_at) {
                     send[at] = v;
                 }
-                let receive = &mut work.receive[..r.receive_at.len()];
-                let exchange = self.ranks.exchange;
+                let receive = &mut receive[..r.receive_at.len()];
                 exchange.all_to_all(send, &r.send_counts, receive, &r.receive_counts);
                 for (&v, &at) in receive.iter().zip(&r.receive_at) {
-                    work.slab[at] = v;
+                    slab[at] = v;
                 }
+                slab
             }
-        }
-        let scratch = &mut work.scratch[..tasks];
+        };
         self.ranks
-            .on(|| transform_rows(transform, n, &mut work.slab, scratch, true));
-        self.transpose(work);
-        let SlabWork {
-            columns, scratch, ..
-        } = work;
-        let (scratch, scaled_inverse) = (&mut scratch[..tasks], &self.scaled_inverse);
+            .on(|| transform_rows(transform, n, slab, scratch, true));
+        self.transpose(slab, columns, send, receive);
+        let scaled_inverse = &self.scaled_inverse;
         self.ranks.on(|| {
             transform_rows(transform, n, columns, scratch, true);
             columns
@@ -326,25 +348,25 @@ impl LinearOperator for SlabSine<'_> {
                 .for_each(|(v, &d)| *v *= d);
             transform_rows(transform, n, columns, scratch, false);
         });
-        self.transpose_back(work);
-        let scratch = &mut work.scratch[..tasks];
+        self.transpose_back(columns, slab, send, receive);
         self.ranks
-            .on(|| transform_rows(transform, n, &mut work.slab, scratch, false));
+            .on(|| transform_rows(transform, n, slab, scratch, false));
         match &self.route {
-            Route::Slab => out.copy_from_slice(&work.slab),
-            Route::Permuted(at) => {
-                for (o, &at) in out.iter_mut().zip(at) {
-                    *o = work.slab[at];
+            Route::Slab => {}
+            Route::Permuted(runs) => {
+                let slab = &mut send[..slab.len()];
+                slab.copy_from_slice(out);
+                for run in runs {
+                    out[run.from..run.from + run.len].copy_from_slice(&slab[run.to..run.to + run.len]);
                 }
             }
             Route::Moved(r) => {
-                let send = &mut work.send[..r.receive_at.len()];
-                for (v, &at) in send.iter_mut().zip(&r.receive_at) {
-                    *v = work.slab[at];
+                let back = &mut send[..r.receive_at.len()];
+                for (v, &at) in back.iter_mut().zip(&r.receive_at) {
+                    *v = slab[at];
                 }
-                let receive = &mut work.receive[..out.len()];
-                let exchange = self.ranks.exchange;
-                exchange.all_to_all(send, &r.receive_counts, receive, &r.send_counts);
+                let receive = &mut receive[..out.len()];
+                exchange.all_to_all(back, &r.receive_counts, receive, &r.send_counts);
                 for (o, &at) in out.iter_mut().zip(&r.send_at) {
                     *o = receive[at];
                 }

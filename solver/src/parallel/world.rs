@@ -6,7 +6,7 @@ use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
 use crate::output::record::Distribution;
 use crate::parallel::exchange::{Exchange, Ranks};
-use crate::parallel::partition::{self, Ownership};
+use crate::parallel::partition::{self, Ownership, PartitionSummary};
 use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
 use mpi::datatype::{Partition as Pieces, PartitionMut as PiecesMut};
@@ -166,22 +166,29 @@ pub(crate) fn ownership(
 pub(crate) fn distribution(
     mpi: &Mpi,
     case: &Case,
-    ownership: &Ownership,
+    partition: &PartitionSummary,
     share: &RankShare,
     comm_s: f64,
 ) -> Distribution {
     let ghosts = mpi.sum(share.ghosts() as f64) as usize;
     Distribution {
-        ranks: ownership.ranks,
+        ranks: partition.ranks,
         partition: case.partition,
-        px: ownership.blocks.map(|(px, _)| px),
-        py: ownership.blocks.map(|(_, py)| py),
+        px: partition.blocks.map(|(px, _)| px),
+        py: partition.blocks.map(|(_, py)| py),
         halo_nodes: ghosts,
         halo_bytes: ghosts * std::mem::size_of::<f64>(),
-        imbalance: ownership.imbalance(),
+        imbalance: partition.imbalance,
         comm_s: mpi.max(comm_s),
         hosts: hosts(mpi.world),
     }
+}
+
+/// The largest peak resident memory of any rank so far (None where /proc does not tell): what
+/// a distributed record reports, taken before rank 0 gathers a field it was asked for.
+pub(crate) fn peak_memory_over_ranks(mpi: &Mpi) -> Option<u64> {
+    let mine = crate::output::record::peak_memory_bytes().unwrap_or(0);
+    Some(mpi.max(mine as f64) as u64).filter(|&bytes| bytes > 0)
 }
 
 /// Each rank's host name, in rank order, on every rank (a few bytes each).

@@ -17,10 +17,11 @@ use crate::case::CaseError;
 use crate::case::ValidCase;
 use crate::integrate::measure::measure;
 use crate::output::outcome::{self, Outcome};
+use crate::output::record::Record;
 use crate::parallel::exchange::Ranks;
 use crate::parallel::operator::DistributedOperator;
 use crate::parallel::share::RankShare;
-use crate::parallel::world::{distribution, ownership, Mpi};
+use crate::parallel::world::{distribution, ownership, peak_memory_over_ranks, Mpi};
 use mpi::point_to_point::Source as _;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -40,14 +41,16 @@ pub fn run(
     let ownership = ownership(world, case, &plan.stencil)?;
     let rank = world.rank() as usize;
     let share = RankShare::new(&ownership, &plan.stencil, rank);
+    let partition = ownership.summary();
+    drop(ownership); // the whole grid's owners: not held through the run
     let mpi = Mpi::new(world);
     let ranks = Ranks::mpi(&mpi, &pool);
     let operator = DistributedOperator::new(&plan.stencil, &share, ranks, plan.backend);
     let grid = plan.stencil.grid;
     let nodes = share.node_indices(grid.n);
-    let (solved, trajectory) = solve(case, &plan, &operator, ranks, Some(&nodes), setup_started);
+    let (solved, trajectory) = solve(case, &plan, &operator, ranks, Some(nodes), setup_started);
 
-    let distribution = distribution(&mpi, case, &ownership, &share, trajectory.step_comm_s);
+    let distribution = distribution(&mpi, case, &partition, &share, trajectory.step_comm_s);
     let exact = solved.exact(trajectory.timing.steps_done);
     let measured = measure(
         ranks,
@@ -59,11 +62,15 @@ pub fn run(
         exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
         distribution,
     );
+    let peak_memory_bytes = peak_memory_over_ranks(&mpi);
     let field = gather_field
-        .then(|| gather(world, &nodes, &trajectory.u, grid.nodes()))
+        .then(|| gather(world, &share.node_indices(grid.n), &trajectory.u, grid.nodes()))
         .flatten();
     Ok((rank == 0).then(|| Outcome {
-        record: outcome::record(case, plan.resolved(), measured),
+        record: Record {
+            peak_memory_bytes,
+            ..outcome::record(case, plan.resolved(), measured)
+        },
         field: field.unwrap_or_default(),
         lattice: grid.lattice(),
         frames: Vec::new(), // refused for ranks > 1 by the case's validation

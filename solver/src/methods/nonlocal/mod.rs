@@ -197,16 +197,18 @@ impl Solved {
 }
 
 /// Samples the case's initial state and source on `nodes` (all of D when None), in their order,
-/// and integrates it with `operator` on `ranks`. Setup time counts from `setup_started`.
+/// and integrates it with `operator` on `ranks`. Setup time counts from `setup_started`. The
+/// node list is let go once sampled unless the 1D preconditioner gathers with it: a rank holds
+/// nothing the size of its share that it does not use.
 pub(crate) fn solve<Op: LinearOperator>(
     case: &Case,
     plan: &Plan,
     operator: &Op,
     ranks: Ranks,
-    nodes: Option<&[usize]>,
+    nodes: Option<Vec<usize>>,
     setup_started: Instant,
 ) -> (Solved, Trajectory) {
-    let (u0, source) = initial_state(case, &plan.stencil, operator, ranks, nodes);
+    let (u0, source) = initial_state(case, &plan.stencil, operator, ranks, nodes.as_deref());
     let setup_s = setup_started.elapsed().as_secs_f64();
     let source_max = source
         .as_ref()
@@ -222,6 +224,7 @@ pub(crate) fn solve<Op: LinearOperator>(
     // Over ranks in 2D the transform runs on slabs of rows; in 1D each rank applies it to the
     // gathered row (n values: a 1D grid is small enough to hold whole).
     let slabs = nodes
+        .as_deref()
         .filter(|_| implicit && grid.dim == 2)
         .map(|nodes| SlabSine::new(&plan.stencil, shift(), nodes, ranks));
     let whole =
@@ -230,6 +233,9 @@ pub(crate) fn solve<Op: LinearOperator>(
         .as_ref()
         .zip(nodes)
         .map(|(whole, nodes)| Gathered::new(whole, nodes, grid.nodes(), ranks));
+    if ranks.exchange.ranks() > 1 {
+        crate::parallel::release_freed_memory();
+    }
     let trajectory = {
         let source = source.as_ref();
         let mut stepper = match (&slabs, &gathered, &whole) {

@@ -17,7 +17,7 @@ use crate::output::record::SteadySolve;
 use crate::parallel::exchange::{Exchange, Ranks};
 use crate::parallel::operator::DistributedOperator;
 use crate::parallel::share::RankShare;
-use crate::parallel::world::{distribution, ownership, Mpi};
+use crate::parallel::world::{distribution, ownership, peak_memory_over_ranks, Mpi};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -37,6 +37,8 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let ownership = ownership(world, case, stencil)?;
     let rank = world.rank() as usize;
     let share = RankShare::new(&ownership, stencil, rank);
+    let partition = ownership.summary();
+    drop(ownership);
     let nodes = share.node_indices(grid.n);
     let b: Vec<f64> = pool.install(|| nodes.par_iter().map(|&i| problem.load(i)).collect());
     let mpi = Mpi::new(world);
@@ -70,16 +72,17 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     }
     let local = field.clone();
     world.all_reduce_into(&local[..], &mut field[..], SystemOperation::sum());
-    let distribution = distribution(&mpi, case, &ownership, &share, comm_s);
+    let distribution = distribution(&mpi, case, &partition, &share, comm_s);
     let timings = Timings {
         setup_s: mpi.max(setup_s),
         solve_s: mpi.max(solve_s),
     };
+    let peak_memory_bytes = peak_memory_over_ranks(&mpi);
     if rank != 0 {
         return Ok(None);
     }
     Ok(Some(pool.install(|| {
-        outcome(
+        let mut outcome = outcome(
             case,
             &problem,
             Some(backend),
@@ -88,6 +91,8 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
             SteadySolve::cg(convergence.iterations),
             distribution,
             field,
-        )
+        );
+        outcome.record.peak_memory_bytes = peak_memory_bytes;
+        outcome
     })))
 }
