@@ -355,13 +355,33 @@ fn implicit_integrators_over_ranks_equal_the_serial_run() {
                 iterations(&run).abs_diff(iterations(&reference)) <= 1,
                 "{what}"
             );
-            // The block partition gives the implicit integrators the transform's slabs.
-            if partition == "block" && shape.is_empty() && dim == "2" {
+            let traffic = &run.record["traffic"];
+            let count = |field: &str| traffic[field].as_u64().unwrap();
+            // Every halo exchange sends what the ghosts receive.
+            assert_eq!(
+                count("halo_bytes"),
+                count("halo_exchanges") * run.record["halo_bytes"].as_u64().unwrap(),
+                "{what}"
+            );
+            if dim == "2" && partition == "block" && shape.is_empty() {
+                // The block partition gives the implicit integrators the transform's slabs, so
+                // every all-to-all is a transpose: rank q sends its h_q rows of each other
+                // rank's h_p columns, n² − Σ h_q² values in all.
                 assert_eq!(
                     (run.record["px"].as_u64(), run.record["py"].as_u64()),
                     (Some(1), Some(ranks as u64)),
                     "{what}"
                 );
+                let n: u64 = n.parse().unwrap();
+                let p = ranks as u64;
+                let rows = (0..p).map(|q| (q + 1) * n / p - q * n / p);
+                let moved = n * n - rows.map(|h| h * h).sum::<u64>();
+                assert_eq!(
+                    count("all_to_all_bytes"),
+                    count("all_to_alls") * 8 * moved,
+                    "{what}"
+                );
+                assert!(count("all_to_alls") >= 2 * iterations(&run), "{what}");
             }
         }
     }
@@ -616,5 +636,64 @@ fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
         );
         let iterations = |r: &Run| r.record["iterations"].as_i64().unwrap();
         assert!((iterations(&one) - iterations(&many)).abs() <= 1);
+    }
+}
+
+/// A rank holds its share of the grid, not the whole of it: the record's peak memory (the
+/// largest rank's), less a trivial case's on as many ranks (the binary and the MPI library),
+/// falls with the rank count, for forward Euler and Crank–Nicolson (2D, n = 1024, m = 4).
+#[test]
+fn peak_memory_per_rank_falls_with_the_rank_count() {
+    let peak = |ranks: usize, case: &[&str]| -> f64 {
+        let output = if ranks == 1 {
+            nlsolve(case, None)
+        } else {
+            let exe = binary("nlsolve");
+            let ranks_text = ranks.to_string();
+            let mut program = vec![exe.to_str().unwrap()];
+            program.extend(case);
+            program.extend(["--ranks", &ranks_text]);
+            mpirun(ranks, &program)
+        };
+        assert!(output.status.success(), "{ranks} ranks: {case:?}");
+        record(&output)["peak_memory_bytes"].as_f64().unwrap()
+    };
+    let trivial = [
+        "run", "--dim", "2", "--n", "16", "--m", "2", "--t-end", "1e-3", "--cfl", "0.5",
+    ];
+    let fixed: Vec<f64> = [1, 2, 4].iter().map(|&p| peak(p, &trivial)).collect();
+    for (integrator, t_end, cfl) in [
+        ("forward_euler", "5e-7", "0.9"),
+        ("crank_nicolson", "1e-4", "100"),
+    ] {
+        let case = [
+            "run",
+            "--dim",
+            "2",
+            "--n",
+            "1024",
+            "--m",
+            "4",
+            "--source",
+            "discrete",
+            "--threads",
+            "1",
+            "--integrator",
+            integrator,
+            "--t-end",
+            t_end,
+            "--cfl",
+            cfl,
+        ];
+        let net: Vec<f64> = [1, 2, 4]
+            .iter()
+            .zip(&fixed)
+            .map(|(&p, fixed)| peak(p, &case) - fixed)
+            .collect();
+        let (half, quarter) = (net[1] / net[0], net[2] / net[0]);
+        assert!(
+            half <= 0.65 && quarter <= 0.4,
+            "{integrator}: per-rank peak at 2 and 4 ranks is {half:.2} and {quarter:.2} of one rank's ({net:?} bytes above the trivial case's {fixed:?})"
+        );
     }
 }

@@ -105,6 +105,7 @@ pub const COLUMNS: &[&str] = &[
     "imbalance",
     "comm_s",
     "hosts",
+    "traffic.*",
     // Steady and implicit solves.
     "iterations",
     "relative_residual",

@@ -380,6 +380,25 @@ pub struct Distribution {
     /// The host of each rank, in rank order (absent on one rank): where a multi-node run ran.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub hosts: Vec<String>,
+    /// What the ranks sent each other over the whole run, set-up included (absent on one rank):
+    /// the inputs of the scaling model (docs/scaling.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub traffic: Option<Traffic>,
+}
+
+/// Communication counted by kind: calls as one rank made them (every rank makes the same), bytes
+/// sent to other ranks summed over all of them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Traffic {
+    /// Halo exchanges (partner swaps) and their bytes.
+    pub halo_exchanges: u64,
+    pub halo_bytes: u64,
+    /// All-reduces (sums and maxima, of one value or a vector) and the bytes put in.
+    pub reductions: u64,
+    pub reduction_bytes: u64,
+    /// All-to-alls (the 2D sine transform's transposes and redistributions) and their bytes.
+    pub all_to_alls: u64,
+    pub all_to_all_bytes: u64,
 }
 
 impl Distribution {
@@ -395,6 +414,7 @@ impl Distribution {
             imbalance: 1.0,
             comm_s: 0.0,
             hosts: Vec::new(),
+            traffic: None,
         }
     }
 }

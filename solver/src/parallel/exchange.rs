@@ -5,6 +5,7 @@
 //! `mpi` feature) is a communicator of ranks (MPI_Isend/MPI_Irecv and MPI_Allreduce, as in the seeds).
 
 use crate::output::diagnostics;
+use crate::output::record::Traffic;
 use rayon::ThreadPool;
 
 pub trait Exchange {
@@ -37,6 +38,10 @@ pub trait Exchange {
     );
     /// Seconds spent communicating so far (overlapped computation excluded).
     fn seconds(&self) -> f64;
+    /// What this rank has sent so far (`Traffic`'s bytes are this rank's here).
+    fn traffic(&self) -> Traffic {
+        Traffic::default()
+    }
 
     fn swap(&self, peers: &[usize], send: &[Vec<f64>], receive: &mut [Vec<f64>]) {
         self.swap_overlapped(peers, send, receive, &mut || {});

@@ -154,13 +154,16 @@ impl<'a> SlabSine<'a> {
         // From rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
             let blocks = split(receive, &from);
-            columns.par_chunks_mut(n).enumerate().for_each(|(c, column)| {
-                for (p, block) in blocks.iter().enumerate() {
-                    for (r, y) in span(bounds, p).enumerate() {
-                        column[y] = block[r * mine + c];
+            columns
+                .par_chunks_mut(n)
+                .enumerate()
+                .for_each(|(c, column)| {
+                    for (p, block) in blocks.iter().enumerate() {
+                        for (r, y) in span(bounds, p).enumerate() {
+                            column[y] = block[r * mine + c];
+                        }
                     }
-                }
-            });
+                });
         });
     }
 
@@ -357,7 +360,8 @@ impl LinearOperator for SlabSine<'_> {
                 let slab = &mut send[..slab.len()];
                 slab.copy_from_slice(out);
                 for run in runs {
-                    out[run.from..run.from + run.len].copy_from_slice(&slab[run.to..run.to + run.len]);
+                    out[run.from..run.from + run.len]
+                        .copy_from_slice(&slab[run.to..run.to + run.len]);
                 }
             }
             Route::Moved(r) => {

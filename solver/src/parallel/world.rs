@@ -4,7 +4,7 @@
 
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
-use crate::output::record::Distribution;
+use crate::output::record::{Distribution, Traffic};
 use crate::parallel::exchange::{Exchange, Ranks};
 use crate::parallel::partition::{self, Ownership, PartitionSummary};
 use crate::parallel::share::RankShare;
@@ -21,6 +21,7 @@ use std::time::Instant;
 pub struct Mpi<'a> {
     pub world: &'a SimpleCommunicator,
     seconds: Cell<f64>,
+    traffic: Cell<Traffic>,
 }
 
 impl<'a> Mpi<'a> {
@@ -28,10 +29,22 @@ impl<'a> Mpi<'a> {
         Mpi {
             world,
             seconds: Cell::new(0.0),
+            traffic: Cell::new(Traffic::default()),
         }
     }
 
+    /// Adds one call to the counts.
+    fn count(&self, add: impl FnOnce(&mut Traffic)) {
+        let mut traffic = self.traffic.get();
+        add(&mut traffic);
+        self.traffic.set(traffic);
+    }
+
     fn reduce(&self, local: f64, operation: SystemOperation) -> f64 {
+        self.count(|t| {
+            t.reductions += 1;
+            t.reduction_bytes += 8;
+        });
         let mut global = 0.0;
         self.world.all_reduce_into(&local, &mut global, operation);
         global
@@ -54,6 +67,10 @@ impl Exchange for Mpi<'_> {
         self.world.size() as usize
     }
     fn all_sum(&self, values: &mut [f64]) {
+        self.count(|t| {
+            t.reductions += 1;
+            t.reduction_bytes += 8 * values.len() as u64;
+        });
         self.timed(|| {
             let local = values.to_vec();
             self.world
@@ -73,6 +90,10 @@ impl Exchange for Mpi<'_> {
         receive: &mut [Vec<f64>],
         overlap: &mut dyn FnMut(),
     ) {
+        self.count(|t| {
+            t.halo_exchanges += 1;
+            t.halo_bytes += 8 * send.iter().map(|s| s.len() as u64).sum::<u64>();
+        });
         let mut overlap_s = 0.0;
         self.timed(|| {
             mpi::request::scope(|scope| {
@@ -102,6 +123,11 @@ impl Exchange for Mpi<'_> {
         receive: &mut [f64],
         receive_counts: &[usize],
     ) {
+        let others: usize = send_counts.iter().sum::<usize>() - send_counts[self.rank()];
+        self.count(|t| {
+            t.all_to_alls += 1;
+            t.all_to_all_bytes += 8 * others as u64;
+        });
         let counts = |c: &[usize]| -> Vec<Count> { c.iter().map(|&k| k as Count).collect() };
         let displacements = |c: &[Count]| -> Vec<Count> {
             c.iter()
@@ -122,6 +148,9 @@ impl Exchange for Mpi<'_> {
     }
     fn seconds(&self) -> f64 {
         self.seconds.get()
+    }
+    fn traffic(&self) -> Traffic {
+        self.traffic.get()
     }
 }
 
@@ -170,6 +199,15 @@ pub(crate) fn distribution(
     share: &RankShare,
     comm_s: f64,
 ) -> Distribution {
+    // Counted before the reductions below, which only report.
+    let mine = mpi.traffic();
+    let total = |bytes: u64| mpi.sum(bytes as f64) as u64;
+    let traffic = Traffic {
+        halo_bytes: total(mine.halo_bytes),
+        reduction_bytes: total(mine.reduction_bytes),
+        all_to_all_bytes: total(mine.all_to_all_bytes),
+        ..mine
+    };
     let ghosts = mpi.sum(share.ghosts() as f64) as usize;
     Distribution {
         ranks: partition.ranks,
@@ -181,6 +219,7 @@ pub(crate) fn distribution(
         imbalance: partition.imbalance,
         comm_s: mpi.max(comm_s),
         hosts: hosts(mpi.world),
+        traffic: Some(traffic),
     }
 }
 

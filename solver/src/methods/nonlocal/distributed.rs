@@ -64,7 +64,14 @@ pub fn run(
     );
     let peak_memory_bytes = peak_memory_over_ranks(&mpi);
     let field = gather_field
-        .then(|| gather(world, &share.node_indices(grid.n), &trajectory.u, grid.nodes()))
+        .then(|| {
+            gather(
+                world,
+                &share.node_indices(grid.n),
+                &trajectory.u,
+                grid.nodes(),
+            )
+        })
         .flatten();
     Ok((rank == 0).then(|| Outcome {
         record: Record {
