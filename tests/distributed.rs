@@ -636,6 +636,20 @@ fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
         );
         let iterations = |r: &Run| r.record["iterations"].as_i64().unwrap();
         assert!((iterations(&one) - iterations(&many)).abs() <= 1);
+        // Measured rank by rank and summed, without the whole field on any rank.
+        let residual = many.record["relative_residual"].as_f64().unwrap();
+        assert!(
+            residual <= 2e-10,
+            "{ranks} ranks {partition}: residual {residual}"
+        );
+        for field in ["error_max", "error_l2", "mass", "max_abs"] {
+            let (a, b) = (&one.record[field], &many.record[field]);
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(
+                (a - b).abs() <= 1e-6 * a.abs(),
+                "{ranks} ranks {partition}: {field} {a} vs {b}"
+            );
+        }
     }
 }
 

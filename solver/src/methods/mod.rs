@@ -195,7 +195,7 @@ pub fn run_on_ranks(
     }
     let outcome = match case.method {
         Method::Nonlocal => nonlocal::distributed::run(world, &case, gather_field),
-        Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case),
+        Method::SteadyCg | Method::Feti => steady::distributed::run(world, &case, gather_field),
         Method::FdExplicit | Method::Adi | Method::Pse | Method::PatchTest | Method::Coupled1d => {
             unreachable!("refused above")
         }

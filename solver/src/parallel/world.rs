@@ -10,6 +10,7 @@ use crate::parallel::partition::{self, Ownership, PartitionSummary};
 use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
 use mpi::datatype::{Partition as Pieces, PartitionMut as PiecesMut};
+use mpi::point_to_point::Source as _;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
@@ -228,6 +229,37 @@ pub(crate) fn distribution(
 pub(crate) fn peak_memory_over_ranks(mpi: &Mpi) -> Option<u64> {
     let mine = crate::output::record::peak_memory_bytes().unwrap_or(0);
     Some(mpi.max(mine as f64) as u64).filter(|&bytes| bytes > 0)
+}
+
+/// The whole field of `len` nodes on rank 0 (None elsewhere), from every rank's values at its
+/// `nodes`.
+pub(crate) fn gather(
+    world: &SimpleCommunicator,
+    nodes: &[usize],
+    values: &[f64],
+    len: usize,
+) -> Option<Vec<f64>> {
+    let nodes: Vec<u64> = nodes.iter().map(|&i| i as u64).collect();
+    if world.rank() != 0 {
+        let root = world.process_at_rank(0);
+        root.send(&nodes[..]);
+        root.send(values);
+        return None;
+    }
+    let mut field = vec![0.0; len];
+    let mut place = |nodes: &[u64], values: &[f64]| {
+        for (&i, &v) in nodes.iter().zip(values) {
+            field[i as usize] = v;
+        }
+    };
+    place(&nodes, values);
+    for r in 1..world.size() {
+        let source = world.process_at_rank(r);
+        let (nodes, _) = source.receive_vec::<u64>();
+        let (values, _) = source.receive_vec::<f64>();
+        place(&nodes, &values);
+    }
+    Some(field)
 }
 
 /// Each rank's host name, in rank order, on every rank (a few bytes each).

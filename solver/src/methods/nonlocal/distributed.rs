@@ -21,8 +21,7 @@ use crate::output::record::Record;
 use crate::parallel::exchange::Ranks;
 use crate::parallel::operator::DistributedOperator;
 use crate::parallel::share::RankShare;
-use crate::parallel::world::{distribution, ownership, peak_memory_over_ranks, Mpi};
-use mpi::point_to_point::Source as _;
+use crate::parallel::world::{distribution, gather, ownership, peak_memory_over_ranks, Mpi};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use std::time::Instant;
@@ -82,35 +81,4 @@ pub fn run(
         lattice: grid.lattice(),
         frames: Vec::new(), // refused for ranks > 1 by the case's validation
     }))
-}
-
-/// The whole field of `len` nodes on rank 0 (None elsewhere), from every rank's values at its
-/// `nodes`.
-fn gather(
-    world: &SimpleCommunicator,
-    nodes: &[usize],
-    values: &[f64],
-    len: usize,
-) -> Option<Vec<f64>> {
-    let nodes: Vec<u64> = nodes.iter().map(|&i| i as u64).collect();
-    if world.rank() != 0 {
-        let root = world.process_at_rank(0);
-        root.send(&nodes[..]);
-        root.send(values);
-        return None;
-    }
-    let mut field = vec![0.0; len];
-    let mut place = |nodes: &[u64], values: &[f64]| {
-        for (&i, &v) in nodes.iter().zip(values) {
-            field[i as usize] = v;
-        }
-    };
-    place(&nodes, values);
-    for r in 1..world.size() {
-        let source = world.process_at_rank(r);
-        let (nodes, _) = source.receive_vec::<u64>();
-        let (values, _) = source.receive_vec::<f64>();
-        place(&nodes, &values);
-    }
-    Some(field)
 }

@@ -7,25 +7,29 @@
 
 use super::feti;
 use super::problem::negate_into;
-use super::problem::{outcome, SteadyProblem, Stop, Timings};
+use super::problem::{exact, outcome, Fit, SteadyProblem, Stop, Summary, Timings};
 use crate::case::ValidCase;
 use crate::case::{CaseError, Method};
 use crate::linalg::cg::{self, Cg};
 use crate::operator::{self, LinearOperator};
+use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
 use crate::parallel::exchange::{Exchange, Ranks};
 use crate::parallel::operator::DistributedOperator;
 use crate::parallel::share::RankShare;
-use crate::parallel::world::{distribution, ownership, peak_memory_over_ranks, Mpi};
-use mpi::collective::SystemOperation;
+use crate::parallel::world::{distribution, gather, ownership, peak_memory_over_ranks, Mpi};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rayon::prelude::*;
 use std::time::Instant;
 
 /// Runs a steady case on `world` (its size already checked against `case.ranks`).
-pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcome>, CaseError> {
+pub fn run(
+    world: &SimpleCommunicator,
+    case: &ValidCase,
+    gather_field: bool,
+) -> Result<Option<Outcome>, CaseError> {
     let started = Instant::now();
     let pool = crate::threads::pool(case.threads)?;
     let problem = pool.install(|| SteadyProblem::new(case));
@@ -65,13 +69,40 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
     let solve_s = solve_started.elapsed().as_secs_f64();
     let comm_s = mpi.seconds() - comm_before;
 
-    // The whole field on every rank (each node from its owner), for the residual and the error.
-    let mut field = vec![0.0; grid.nodes()];
-    for (&i, &value) in nodes.iter().zip(&u) {
-        field[i] = value;
-    }
-    let local = field.clone();
-    world.all_reduce_into(&local[..], &mut field[..], SystemOperation::sum());
+    // Measured where the values are, each rank on its nodes, then summed over ranks: no rank
+    // holds the whole field unless it was asked for.
+    operator.apply(&u, &mut lp, &mut workspace);
+    let summary = pool.install(|| {
+        let exact = |k: usize| exact(grid.position(nodes[k]));
+        let volume = grid.volume();
+        let local = [
+            (0..u.len())
+                .into_par_iter()
+                .map(|k| (b[k] + lp[k]).powi(2))
+                .sum::<f64>(),
+            b.par_iter().map(|v| v * v).sum::<f64>(),
+            diagnostics::squared_l2_error(exact, &u, volume),
+            diagnostics::total_mass(&u, volume),
+        ];
+        (
+            local,
+            diagnostics::max_error(exact, &u),
+            diagnostics::max_abs(&u),
+        )
+    });
+    let ([residual2, load2, error_l2, mass], error_max, max_abs) = summary;
+    let summary = Summary {
+        fit: Fit {
+            relative_residual: (mpi.sum(residual2) / mpi.sum(load2)).sqrt(),
+            error_max: mpi.max(error_max),
+            error_l2: mpi.sum(error_l2),
+        },
+        mass: mpi.sum(mass),
+        max_abs: mpi.max(max_abs),
+    };
+    let field = gather_field
+        .then(|| gather(world, &nodes, &u, grid.nodes()))
+        .flatten();
     let distribution = distribution(&mpi, case, &partition, &share, comm_s);
     let timings = Timings {
         setup_s: mpi.max(setup_s),
@@ -90,7 +121,8 @@ pub fn run(world: &SimpleCommunicator, case: &ValidCase) -> Result<Option<Outcom
             Stop::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             distribution,
-            field,
+            summary,
+            field.unwrap_or_default(),
         );
         outcome.record.peak_memory_bytes = peak_memory_bytes;
         outcome

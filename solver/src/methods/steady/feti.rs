@@ -921,6 +921,7 @@ pub fn run_on(
         },
         solve,
         distribution,
+        problem.summarise(&field),
         field,
     )))
 }

@@ -212,6 +212,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             Stop::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             Distribution::serial(case),
+            problem.summarise(&u),
             u,
         ))
     })

@@ -137,6 +137,24 @@ impl SteadyProblem {
     }
 }
 
+/// A solution's numbers for its record: its fit, its mass and its largest value.
+pub(crate) struct Summary {
+    pub fit: Fit,
+    pub mass: f64,
+    pub max_abs: f64,
+}
+
+impl SteadyProblem {
+    /// The numbers of u on every node of Ω.
+    pub(crate) fn summarise(&self, u: &[f64]) -> Summary {
+        Summary {
+            fit: self.measure(u),
+            mass: crate::output::diagnostics::total_mass(u, self.grid().volume()),
+            max_abs: crate::output::diagnostics::max_abs(u),
+        }
+    }
+}
+
 /// A solution measured against the system and the manufactured u.
 pub struct Fit {
     /// ‖b − A u‖ / ‖b‖.
@@ -183,7 +201,8 @@ impl Stop {
     }
 }
 
-/// The record of a finished steady solve, its residual and error measured on the whole field.
+/// The record of a finished steady solve, with its numbers (`summary`) and the field when held
+/// (empty when distributed and not asked for).
 // Each argument is one stage's product of the same solve; a struct of them would only rename them.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn outcome(
@@ -194,14 +213,20 @@ pub(crate) fn outcome(
     stop: Stop,
     mut solve: SteadySolve,
     distribution: Distribution,
-    u: Vec<f64>,
+    summary: Summary,
+    field: Vec<f64>,
 ) -> Outcome {
     let grid = problem.grid();
-    let Fit {
-        relative_residual,
-        error_max,
-        error_l2,
-    } = problem.measure(&u);
+    let Summary {
+        fit:
+            Fit {
+                relative_residual,
+                error_max,
+                error_l2,
+            },
+        mass,
+        max_abs,
+    } = summary;
     solve.relative_residual = Some(relative_residual);
     let iterations = solve.iterations.unwrap_or(0);
     let (status, message) = if !relative_residual.is_finite() {
@@ -229,14 +254,14 @@ pub(crate) fn outcome(
         error_l2: Some(error_l2),
         error_l2_norm: Some(error_l2.sqrt()),
         error_max: Some(error_max),
-        mass: Some(crate::output::diagnostics::total_mass(&u, grid.volume())),
-        max_abs: Some(crate::output::diagnostics::max_abs(&u)),
+        mass: Some(mass),
+        max_abs: Some(max_abs),
         steady: solve,
         ..Record::new(case, problem.resolved(backend), distribution)
     };
     Outcome {
         record,
-        field: u,
+        field,
         lattice: grid.lattice(),
         frames: Vec::new(),
     }
