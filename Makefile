@@ -1,5 +1,5 @@
 # The two commands of README.md. Both run the set-up first (system packages, once).
-.PHONY: setup run test figures docs-figures ac-docs native perf-docs feti-docs integrators-docs variable-horizon-docs coupling-docs
+.PHONY: setup run test figures docs-figures ac-docs native perf-docs scaling-docs feti-docs integrators-docs variable-horizon-docs coupling-docs
 
 setup:
 	@scripts/setup.sh
@@ -75,6 +75,13 @@ perf-docs: setup
 	target/release/nlstudy run studies/perf.json
 	mkdir -p docs/figures/perf
 	cp results/perf/figures/throughput.svg docs/figures/perf/throughput.svg
+
+# The scaling model's runs here (about 40 seconds) and its figure in docs/figures/scaling/.
+scaling-docs: setup
+	cargo build --release --workspace
+	target/release/nlstudy run studies/scaling_model.json
+	mkdir -p docs/figures/scaling
+	cp results/scaling_model/figures/scaling_model.svg docs/figures/scaling/scaling_model.svg
 
 # The steady solvers' weak and strong scaling studies (seed 001; about 11 minutes) and their
 # comparison figures in docs/figures/feti/.

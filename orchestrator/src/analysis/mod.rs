@@ -5,4 +5,5 @@ pub mod collect;
 pub mod compare;
 pub mod figure_columns;
 pub mod pivot;
+pub mod scaling_model;
 pub mod summary;

@@ -53,6 +53,10 @@ pub enum FigureKind {
     /// per method and preconditioner. CG has no subdomains: its points sit at the subdomain count
     /// of the FETI points that solve the same L.
     SolverComparison,
+    /// The scaling model fitted to the study's runs (one rank and over ranks, each path):
+    /// predicted strong scaling of 16384² to 4096 ranks and weak scaling at 1024² per rank on
+    /// InfiniBand HDR and 10 GbE, and the model against the runs (docs/scaling.md).
+    ScalingModel,
 }
 
 impl FigureKind {
@@ -69,6 +73,7 @@ impl FigureKind {
             FigureKind::Throughput => ("case.m", "bond_updates_per_s", "backend"),
             FigureKind::Field => ("field.values", "field.error", "point"),
             FigureKind::SolverComparison => ("subdomains", "iterations", "case.method"),
+            FigureKind::ScalingModel => ("ranks", "step_s_median", "case.method"),
         }
     }
 }

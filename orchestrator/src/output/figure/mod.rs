@@ -8,6 +8,7 @@ use crate::store::table::Row;
 mod convergence;
 mod field;
 mod scaling;
+mod scaling_model;
 mod series;
 mod solver_comparison;
 mod stability;
@@ -123,6 +124,12 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             solver_comparison::solver_comparison(&kept, &series_columns, &x, &y)
         }
         FigureKind::Throughput => throughput::throughput(&kept, &series_columns, &x, &y),
+        FigureKind::ScalingModel => {
+            let (panels, text) =
+                scaling_model::scaling_model(&kept).map_err(|e| fault(k, spec, e))?;
+            subtitle_text = text;
+            panels
+        }
         FigureKind::Field => {
             field::field(&kept, &x, &y).map_err(|e| fault(k, spec, format!("where {e}")))?
         }
@@ -138,9 +145,10 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
                 }
                 FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
                 FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
-                FigureKind::SolverComparison | FigureKind::Throughput | FigureKind::Field => {
-                    unreachable!("drawn from the rows above")
-                }
+                FigureKind::SolverComparison
+                | FigureKind::Throughput
+                | FigureKind::Field
+                | FigureKind::ScalingModel => unreachable!("drawn from the rows above"),
             }
         }
     };
