@@ -48,6 +48,19 @@ pub trait Exchange {
     }
 }
 
+/// Where each rank's piece starts in a buffer of pieces of `counts` values, in rank order (the
+/// displacements of MPI_Alltoallv).
+pub fn offsets(counts: &[usize]) -> Vec<usize> {
+    counts
+        .iter()
+        .scan(0, |at, &c| {
+            let here = *at;
+            *at += c;
+            Some(here)
+        })
+        .collect()
+}
+
 /// One process: nothing to send, sums over one rank.
 pub struct Serial;
 

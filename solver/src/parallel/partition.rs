@@ -17,18 +17,96 @@ use crate::discretization::stencil::Stencil;
 pub struct Ownership {
     pub grid: Grid,
     pub ranks: usize,
-    /// owner[i] for node index i.
-    pub owner: Vec<u32>,
+    owners: Owners,
     /// px × py of a block partition (py = 1 in 1D).
     pub blocks: Option<(usize, usize)>,
 }
 
+/// Who owns each node: for blocks a rule (the block of each column and of each row, O(n) to
+/// hold, so that no rank of a block partition holds anything the size of the grid); for a graph
+/// partition METIS's map of every node.
+#[derive(Clone, Debug, PartialEq)]
+enum Owners {
+    Blocks { column: Vec<u32>, row: Vec<u32> },
+    Map(Vec<u32>),
+}
+
 impl Ownership {
+    /// A graph partition's map: `owner[i]` for node index i.
+    pub fn of_map(grid: Grid, ranks: usize, owner: Vec<u32>) -> Self {
+        Ownership {
+            grid,
+            ranks,
+            owners: Owners::Map(owner),
+            blocks: None,
+        }
+    }
+
+    /// The rank that owns node i.
+    pub fn owner(&self, i: usize) -> u32 {
+        match &self.owners {
+            Owners::Blocks { column, row } => {
+                let px = self.blocks.map_or(1, |(px, _)| px) as u32;
+                row[i / self.grid.n] * px + column[i % self.grid.n]
+            }
+            Owners::Map(owner) => owner[i],
+        }
+    }
+
+    /// The map of every node's owner, for a graph partition (None for blocks, which need none).
+    pub fn into_map(self) -> Option<Vec<u32>> {
+        match self.owners {
+            Owners::Map(owner) => Some(owner),
+            Owners::Blocks { .. } => None,
+        }
+    }
+
+    /// The smallest box [x₀, x₁) × [y₀, y₁) holding the nodes `rank` owns, as ([x₀, y₀], [x₁, y₁]);
+    /// None if it owns none.
+    pub fn bounding_box(&self, rank: usize) -> Option<([usize; 2], [usize; 2])> {
+        let mine = rank as u32;
+        match &self.owners {
+            Owners::Blocks { column, row } => {
+                let px = self.blocks.map_or(1, |(px, _)| px) as u32;
+                let span = |of: &[u32], block: u32| {
+                    let first = of.iter().position(|&b| b == block)?;
+                    let last = of.iter().rposition(|&b| b == block)?;
+                    Some((first, last + 1))
+                };
+                let (x0, x1) = span(column, mine % px)?;
+                let (y0, y1) = span(row, mine / px)?;
+                Some(([x0, y0], [x1, y1]))
+            }
+            Owners::Map(owner) => {
+                let n = self.grid.n;
+                let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+                for (i, _) in owner.iter().enumerate().filter(|(_, &r)| r == mine) {
+                    let (x, y) = (i % n, i / n);
+                    lo = [lo[0].min(x), lo[1].min(y)];
+                    hi = [hi[0].max(x + 1), hi[1].max(y + 1)];
+                }
+                (lo[0] < hi[0]).then_some((lo, hi))
+            }
+        }
+    }
+
     /// Nodes owned by each rank.
     pub fn owned_counts(&self) -> Vec<usize> {
         let mut counts = vec![0; self.ranks];
-        for &r in &self.owner {
-            counts[r as usize] += 1;
+        match &self.owners {
+            Owners::Blocks { column, row } => {
+                let px = self.blocks.map_or(1, |(px, _)| px);
+                for &by in row {
+                    for &bx in column {
+                        counts[by as usize * px + bx as usize] += 1;
+                    }
+                }
+            }
+            Owners::Map(owner) => {
+                for &r in owner {
+                    counts[r as usize] += 1;
+                }
+            }
         }
         counts
     }
@@ -70,15 +148,13 @@ pub fn of(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
 pub fn block(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
     let grid = stencil.grid;
     let (px, py) = block_shape(case, stencil)?;
-    let column_block = block_of_each_index(grid.n, px);
-    let row_block = block_of_each_index(grid.rows(), py);
-    let owner = (0..grid.nodes())
-        .map(|i| (row_block[i / grid.n] * px + column_block[i % grid.n]) as u32)
-        .collect();
     Ok(Ownership {
         grid,
         ranks: px * py,
-        owner,
+        owners: Owners::Blocks {
+            column: block_of_each_index(grid.n, px),
+            row: block_of_each_index(grid.rows(), py),
+        },
         blocks: Some((px, py)),
     })
 }
@@ -91,12 +167,7 @@ pub fn graph(case: &Case, grid: Grid) -> Result<Ownership, CaseError> {
     } else {
         metis_parts(grid, ranks)?
     };
-    let ownership = Ownership {
-        grid,
-        ranks,
-        owner,
-        blocks: None,
-    };
+    let ownership = Ownership::of_map(grid, ranks, owner);
     let empty = ownership.owned_counts().iter().filter(|&&c| c == 0).count();
     if empty > 0 {
         return Err(CaseError::new(
@@ -192,10 +263,10 @@ fn block_shape(case: &Case, stencil: &Stencil) -> Result<(usize, usize), CaseErr
 }
 
 /// block_of[i]: the block holding index i when 0..len is cut into `parts` at ⌊k·len/parts⌋.
-fn block_of_each_index(len: usize, parts: usize) -> Vec<usize> {
+fn block_of_each_index(len: usize, parts: usize) -> Vec<u32> {
     let mut block_of = vec![0; len];
     for b in 0..parts {
-        block_of[b * len / parts..(b + 1) * len / parts].fill(b);
+        block_of[b * len / parts..(b + 1) * len / parts].fill(b as u32);
     }
     block_of
 }
@@ -246,4 +317,50 @@ fn lattice_graph(grid: &Grid) -> (Vec<metis::Idx>, Vec<metis::Idx>) {
         }
     }
     (xadj, adjncy)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block partition's rule gives every node the owner, every rank the bounding box and the
+    /// node count of the literal cut at ⌊k·n/p⌋, and of the same partition held as a map.
+    #[test]
+    fn the_block_rule_owns_what_the_map_of_every_node_owns() {
+        for (dim, n, px, py) in [(2, 13, 3, 2), (2, 16, 4, 4), (2, 7, 1, 5), (1, 29, 4, 1)] {
+            let grid = Grid::new(dim, n);
+            let rows = grid.rows();
+            let literal: Vec<u32> = (0..grid.nodes())
+                .map(|i| {
+                    let (x, y) = (i % n, i / n);
+                    let bx = (0..px).find(|b| x < (b + 1) * n / px).unwrap();
+                    let by = (0..py).find(|b| y < (b + 1) * rows / py).unwrap();
+                    (by * px + bx) as u32
+                })
+                .collect();
+            let rule = Ownership {
+                grid,
+                ranks: px * py,
+                owners: Owners::Blocks {
+                    column: block_of_each_index(n, px),
+                    row: block_of_each_index(rows, py),
+                },
+                blocks: Some((px, py)),
+            };
+            let map = Ownership::of_map(grid, px * py, literal.clone());
+            for (i, &owner) in literal.iter().enumerate() {
+                assert_eq!(rule.owner(i), owner, "{dim}D n {n} {px} × {py}: node {i}");
+            }
+            assert_eq!(rule.owned_counts(), map.owned_counts());
+            for rank in 0..px * py {
+                assert_eq!(
+                    rule.bounding_box(rank),
+                    map.bounding_box(rank),
+                    "rank {rank}"
+                );
+            }
+            assert_eq!(map.into_map(), Some(literal));
+            assert_eq!(rule.into_map(), None);
+        }
+    }
 }

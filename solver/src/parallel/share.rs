@@ -51,24 +51,12 @@ impl RankShare {
         let grid = ownership.grid;
         let (n, rows) = (grid.n, grid.rows());
         let mine = rank as u32;
-        let owns = |x: usize, y: usize| ownership.owner[y * n + x] == mine;
+        let owns = |x: usize, y: usize| ownership.owner(y * n + x) == mine;
 
         // The bounding box of the owned nodes, grown by the reach and clipped to D.
-        let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
-        for (i, _) in ownership
-            .owner
-            .iter()
-            .enumerate()
-            .filter(|(_, &r)| r == mine)
-        {
-            let (x, y) = (i % n, i / n);
-            lo = [lo[0].min(x), lo[1].min(y)];
-            hi = [hi[0].max(x + 1), hi[1].max(y + 1)];
-        }
-        assert!(
-            lo[0] < hi[0],
-            "rank {rank} owns no node; partitions are checked for that"
-        );
+        let (lo, hi) = ownership
+            .bounding_box(rank)
+            .unwrap_or_else(|| panic!("rank {rank} owns no node; partitions are checked for that"));
         let reach = stencil.reach();
         let reach_y = if grid.dim == 2 { reach } else { 0 };
         let window = Window {
@@ -209,7 +197,7 @@ fn neighbours(
         let (x, y) = window.column_row(w);
         match c {
             GHOST => {
-                let owner = ownership.owner[y * n + x] as usize;
+                let owner = ownership.owner(y * n + x) as usize;
                 by_rank_entry(&mut by_rank, owner).receive.push(w);
             }
             BOUNDARY => {
@@ -224,7 +212,7 @@ fn neighbours(
                         if jx < 0 || jx >= n as i64 {
                             continue;
                         }
-                        let owner = ownership.owner[jy as usize * n + jx as usize] as usize;
+                        let owner = ownership.owner(jy as usize * n + jx as usize) as usize;
                         if owner != rank && !needs.contains(&owner) {
                             needs.push(owner);
                         }
@@ -366,7 +354,7 @@ mod tests {
         for case in layouts() {
             let stencil = Stencil::of_case(&case);
             let ownership = partition::of(&case, &stencil).expect("partitionable");
-            let owner = &ownership.owner;
+
             let shares: Vec<RankShare> = (0..case.ranks)
                 .map(|r| RankShare::new(&ownership, &stencil, r))
                 .collect();
@@ -377,10 +365,10 @@ mod tests {
                 let mut expected_ghosts = BTreeSet::new();
                 for &i in &nodes {
                     owned_anywhere[i] += 1;
-                    assert_eq!(owner[i] as usize, rank);
+                    assert_eq!(ownership.owner(i) as usize, rank);
                     let foreign: Vec<usize> = ball(&stencil, i)
                         .into_iter()
-                        .filter(|&j| owner[j] as usize != rank)
+                        .filter(|&j| ownership.owner(j) as usize != rank)
                         .collect();
                     let on_boundary = sub
                         .boundary
@@ -416,7 +404,9 @@ mod tests {
                     let received: Vec<usize> = nb.receive.iter().map(|&w| node_of(w)).collect();
                     let sent: Vec<usize> = back.send.iter().map(|&w| other_node(w)).collect();
                     assert_eq!(received, sent, "{case:?}: {rank} ← {}", nb.rank);
-                    assert!(received.iter().all(|&i| owner[i] as usize == nb.rank));
+                    assert!(received
+                        .iter()
+                        .all(|&i| ownership.owner(i) as usize == nb.rank));
                 }
             }
             assert!(

@@ -17,7 +17,7 @@
 use crate::discretization::stencil::Stencil;
 use crate::operator::sine::{transform_and_scaled_inverse, transform_rows, Transform};
 use crate::operator::LinearOperator;
-use crate::parallel::exchange::Ranks;
+use crate::parallel::exchange::{offsets, Ranks};
 use crate::threads::row_tasks;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -137,12 +137,13 @@ impl<'a> SlabSine<'a> {
         let n = self.n;
         // Rows and columns are split alike: this rank's slab is `mine` rows, its columns `mine`.
         let mine = self.rows(self.rank).len();
-        let (to, from) = (self.block_counts(mine), self.block_counts(mine));
+        // What goes to each rank and what comes from it are blocks of the same sizes.
+        let counts = self.block_counts(mine);
         let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
         let bounds = &self.bounds[..];
         // To rank q: my rows × q's columns, row by row.
         self.ranks.on(|| {
-            let mut blocks = split(send, &to);
+            let mut blocks = split(send, &counts);
             blocks.par_iter_mut().enumerate().for_each(|(q, block)| {
                 let theirs = span(bounds, q);
                 for (r, out) in block.chunks_mut(theirs.len().max(1)).enumerate() {
@@ -150,10 +151,12 @@ impl<'a> SlabSine<'a> {
                 }
             });
         });
-        self.ranks.exchange.all_to_all(send, &to, receive, &from);
+        self.ranks
+            .exchange
+            .all_to_all(send, &counts, receive, &counts);
         // From rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
-            let blocks = split(receive, &from);
+            let blocks = split(receive, &counts);
             columns
                 .par_chunks_mut(n)
                 .enumerate()
@@ -177,12 +180,13 @@ impl<'a> SlabSine<'a> {
     ) {
         let n = self.n;
         let mine = self.rows(self.rank).len();
-        let (to, from) = (self.block_counts(mine), self.block_counts(mine));
+        // What goes to each rank and what comes from it are blocks of the same sizes.
+        let counts = self.block_counts(mine);
         let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
         let bounds = &self.bounds[..];
         // To rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
-            let mut blocks = split(send, &to);
+            let mut blocks = split(send, &counts);
             blocks.par_iter_mut().enumerate().for_each(|(p, block)| {
                 for (r, y) in span(bounds, p).enumerate() {
                     for (c, column) in columns.chunks(n).enumerate() {
@@ -191,10 +195,12 @@ impl<'a> SlabSine<'a> {
                 }
             });
         });
-        self.ranks.exchange.all_to_all(send, &to, receive, &from);
+        self.ranks
+            .exchange
+            .all_to_all(send, &counts, receive, &counts);
         // From rank q: my rows × q's columns.
         self.ranks.on(|| {
-            let blocks = split(receive, &from);
+            let blocks = split(receive, &counts);
             slab.par_chunks_mut(n).enumerate().for_each(|(r, row)| {
                 for (q, block) in blocks.iter().enumerate() {
                     let theirs = span(bounds, q);
@@ -267,18 +273,6 @@ impl Redistribution {
             receive_counts,
         }
     }
-}
-
-/// Where each rank's piece starts in a buffer of pieces of `counts` values.
-fn offsets(counts: &[usize]) -> Vec<usize> {
-    counts
-        .iter()
-        .scan(0, |at, &c| {
-            let here = *at;
-            *at += c;
-            Some(here)
-        })
-        .collect()
 }
 
 impl LinearOperator for SlabSine<'_> {

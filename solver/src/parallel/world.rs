@@ -5,7 +5,7 @@
 use crate::case::{Case, CaseError, Partition};
 use crate::discretization::stencil::Stencil;
 use crate::output::record::{Distribution, Traffic};
-use crate::parallel::exchange::{Exchange, Ranks};
+use crate::parallel::exchange::{offsets, Exchange, Ranks};
 use crate::parallel::partition::{self, Ownership, PartitionSummary};
 use crate::parallel::share::RankShare;
 use mpi::collective::SystemOperation;
@@ -130,17 +130,11 @@ impl Exchange for Mpi<'_> {
             t.all_to_all_bytes += 8 * others as u64;
         });
         let counts = |c: &[usize]| -> Vec<Count> { c.iter().map(|&k| k as Count).collect() };
-        let displacements = |c: &[Count]| -> Vec<Count> {
-            c.iter()
-                .scan(0, |at, &k| {
-                    let here = *at;
-                    *at += k;
-                    Some(here)
-                })
-                .collect()
-        };
         let (sc, rc) = (counts(send_counts), counts(receive_counts));
-        let (sd, rd) = (displacements(&sc), displacements(&rc));
+        let (sd, rd) = (
+            counts(&offsets(send_counts)),
+            counts(&offsets(receive_counts)),
+        );
         self.timed(|| {
             let send = Pieces::new(send, &sc[..], &sd[..]);
             let mut receive = PiecesMut::new(receive, &rc[..], &rd[..]);
@@ -173,7 +167,7 @@ pub(crate) fn ownership(
     root.broadcast_into(&mut failed);
     let mut owner = match computed {
         Some(Err(e)) => return Err(e),
-        Some(Ok(ownership)) => ownership.owner,
+        Some(Ok(ownership)) => ownership.into_map().expect("a graph partition is a map"),
         None if failed == 1 => {
             return Err(CaseError::new(
                 "partition",
@@ -183,12 +177,7 @@ pub(crate) fn ownership(
         None => vec![0; grid.nodes()],
     };
     root.broadcast_into(&mut owner[..]);
-    Ok(Ownership {
-        grid,
-        ranks: case.ranks,
-        owner,
-        blocks: None,
-    })
+    Ok(Ownership::of_map(grid, case.ranks, owner))
 }
 
 /// How a run was spread over the ranks of `world`: the partition, the ghosts summed over ranks
