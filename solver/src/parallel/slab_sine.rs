@@ -132,15 +132,17 @@ impl<'a> SlabSine<'a> {
             .collect()
     }
 
+    /// A transpose's sizes: this rank's rows (its columns are as many: rows and columns are split
+    /// alike), and the values each rank gets from it (what comes back is blocks of the same sizes).
+    fn transpose_counts(&self) -> (usize, Vec<usize>) {
+        let mine = self.rows(self.rank).len();
+        (mine, self.block_counts(mine))
+    }
+
     /// Slab rows [y₀, y₁) × all x → columns [x₀, x₁) × all y, at [x − x₀][y].
     fn transpose(&self, slab: &[f64], columns: &mut [f64], send: &mut [f64], receive: &mut [f64]) {
-        let n = self.n;
-        // Rows and columns are split alike: this rank's slab is `mine` rows, its columns `mine`.
-        let mine = self.rows(self.rank).len();
-        // What goes to each rank and what comes from it are blocks of the same sizes.
-        let counts = self.block_counts(mine);
+        let (n, bounds, (mine, counts)) = (self.n, &self.bounds[..], self.transpose_counts());
         let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
-        let bounds = &self.bounds[..];
         // To rank q: my rows × q's columns, row by row.
         self.ranks.on(|| {
             let mut blocks = split(send, &counts);
@@ -178,12 +180,8 @@ impl<'a> SlabSine<'a> {
         send: &mut [f64],
         receive: &mut [f64],
     ) {
-        let n = self.n;
-        let mine = self.rows(self.rank).len();
-        // What goes to each rank and what comes from it are blocks of the same sizes.
-        let counts = self.block_counts(mine);
+        let (n, bounds, (mine, counts)) = (self.n, &self.bounds[..], self.transpose_counts());
         let (send, receive) = (&mut send[..mine * n], &mut receive[..mine * n]);
-        let bounds = &self.bounds[..];
         // To rank p: p's rows × my columns, row by row.
         self.ranks.on(|| {
             let mut blocks = split(send, &counts);
