@@ -9,7 +9,7 @@
 //!   full interaction graph (which at n = 1024, m = 8 would be 2·10⁸ edges for METIS to hold).
 
 use crate::case::{Case, CaseError, Partition};
-use crate::discretization::grid::Grid;
+use crate::discretization::grid::{Grid, Window};
 use crate::discretization::stencil::Stencil;
 
 /// The rank that owns each node of D.
@@ -24,11 +24,20 @@ pub struct Ownership {
 
 /// Who owns each node: for blocks a rule (the block of each column and of each row, O(n) to
 /// hold, so that no rank of a block partition holds anything the size of the grid); for a graph
-/// partition METIS's map of every node.
+/// partition METIS's map of every node, or, on a rank over MPI, the part of it in one window
+/// with every rank's count.
 #[derive(Clone, Debug, PartialEq)]
 enum Owners {
-    Blocks { column: Vec<u32>, row: Vec<u32> },
+    Blocks {
+        column: Vec<u32>,
+        row: Vec<u32>,
+    },
     Map(Vec<u32>),
+    Window {
+        window: Window,
+        owner: Vec<u32>,
+        counts: Vec<usize>,
+    },
 }
 
 impl Ownership {
@@ -42,7 +51,33 @@ impl Ownership {
         }
     }
 
-    /// The rank that owns node i.
+    /// The part of a graph partition's map a rank needs, `owner` at the nodes of `window` row by
+    /// row, with the nodes each rank owns.
+    pub fn of_window(
+        grid: Grid,
+        ranks: usize,
+        window: Window,
+        owner: Vec<u32>,
+        counts: Vec<usize>,
+    ) -> Self {
+        assert_eq!(
+            owner.len(),
+            window.nx * window.ny,
+            "a value per node of the window"
+        );
+        Ownership {
+            grid,
+            ranks,
+            owners: Owners::Window {
+                window,
+                owner,
+                counts,
+            },
+            blocks: None,
+        }
+    }
+
+    /// The rank that owns node i (within the window, for a rank's part of a map).
     pub fn owner(&self, i: usize) -> u32 {
         match &self.owners {
             Owners::Blocks { column, row } => {
@@ -50,14 +85,46 @@ impl Ownership {
                 row[i / self.grid.n] * px + column[i % self.grid.n]
             }
             Owners::Map(owner) => owner[i],
+            Owners::Window { window, owner, .. } => {
+                let (x, y) = (i % self.grid.n, i / self.grid.n);
+                assert!(
+                    (window.x0..window.x0 + window.nx).contains(&x)
+                        && (window.y0..window.y0 + window.ny).contains(&y),
+                    "node {i} lies outside this rank's part of the partition"
+                );
+                owner[window.index(x, y)]
+            }
         }
+    }
+
+    /// The nodes within `reach` (sideways; and rows too in 2D) of `rank`'s nodes' bounding box,
+    /// clipped to D: every node a rank's share looks up (`RankShare`). None if it owns none.
+    pub fn window_of(&self, rank: usize, reach: usize) -> Option<Window> {
+        let (lo, hi) = self.bounding_box(rank)?;
+        let reach_y = if self.grid.dim == 2 { reach } else { 0 };
+        let (x0, y0) = (lo[0].saturating_sub(reach), lo[1].saturating_sub(reach_y));
+        Some(Window {
+            x0,
+            y0,
+            nx: (hi[0] + reach).min(self.grid.n) - x0,
+            ny: (hi[1] + reach_y).min(self.grid.rows()) - y0,
+        })
+    }
+
+    /// The owners of the nodes of `window`, row by row.
+    pub fn owners_in(&self, window: Window) -> Vec<u32> {
+        let n = self.grid.n;
+        (window.y0..window.y0 + window.ny)
+            .flat_map(|y| (window.x0..window.x0 + window.nx).map(move |x| y * n + x))
+            .map(|i| self.owner(i))
+            .collect()
     }
 
     /// The map of every node's owner, for a graph partition (None for blocks, which need none).
     pub fn into_map(self) -> Option<Vec<u32>> {
         match self.owners {
             Owners::Map(owner) => Some(owner),
-            Owners::Blocks { .. } => None,
+            Owners::Blocks { .. } | Owners::Window { .. } => None,
         }
     }
 
@@ -77,15 +144,10 @@ impl Ownership {
                 let (y0, y1) = span(row, mine / px)?;
                 Some(([x0, y0], [x1, y1]))
             }
-            Owners::Map(owner) => {
-                let n = self.grid.n;
-                let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
-                for (i, _) in owner.iter().enumerate().filter(|(_, &r)| r == mine) {
-                    let (x, y) = (i % n, i / n);
-                    lo = [lo[0].min(x), lo[1].min(y)];
-                    hi = [hi[0].max(x + 1), hi[1].max(y + 1)];
-                }
-                (lo[0] < hi[0]).then_some((lo, hi))
+            Owners::Map(owner) => bounding_box(owner, self.grid.n, 0, 0, mine),
+            // A rank's window holds its own nodes' box.
+            Owners::Window { window, owner, .. } => {
+                bounding_box(owner, window.nx, window.x0, window.y0, mine)
             }
         }
     }
@@ -107,6 +169,7 @@ impl Ownership {
                     counts[r as usize] += 1;
                 }
             }
+            Owners::Window { counts: all, .. } => counts.clone_from(all),
         }
         counts
     }
@@ -126,6 +189,24 @@ impl Ownership {
             imbalance: self.imbalance(),
         }
     }
+}
+
+/// The box ([x₀, y₀], [x₁, y₁]) of the cells of `owner` (rows of `width`, the first at (x0, y0))
+/// that hold `rank`.
+fn bounding_box(
+    owner: &[u32],
+    width: usize,
+    x0: usize,
+    y0: usize,
+    rank: u32,
+) -> Option<([usize; 2], [usize; 2])> {
+    let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+    for (k, _) in owner.iter().enumerate().filter(|(_, &r)| r == rank) {
+        let (x, y) = (x0 + k % width, y0 + k / width);
+        lo = [lo[0].min(x), lo[1].min(y)];
+        hi = [hi[0].max(x + 1), hi[1].max(y + 1)];
+    }
+    (lo[0] < hi[0]).then_some((lo, hi))
 }
 
 /// A partition as the record describes it.
@@ -324,7 +405,8 @@ mod tests {
     use super::*;
 
     /// A block partition's rule gives every node the owner, every rank the bounding box and the
-    /// node count of the literal cut at ⌊k·n/p⌋, and of the same partition held as a map.
+    /// node count of the literal cut at ⌊k·n/p⌋, and of the same partition held as a map, and a
+    /// rank's part of that map (its window) agrees with the whole of it.
     #[test]
     fn the_block_rule_owns_what_the_map_of_every_node_owns() {
         for (dim, n, px, py) in [(2, 13, 3, 2), (2, 16, 4, 4), (2, 7, 1, 5), (1, 29, 4, 1)] {
@@ -358,6 +440,29 @@ mod tests {
                     map.bounding_box(rank),
                     "rank {rank}"
                 );
+            }
+            // A rank's part of the map (over MPI): its window, with every rank's count.
+            for rank in 0..px * py {
+                let window = map.window_of(rank, 2).unwrap();
+                let part = Ownership::of_window(
+                    grid,
+                    px * py,
+                    window,
+                    map.owners_in(window),
+                    map.owned_counts(),
+                );
+                assert_eq!(
+                    part.bounding_box(rank),
+                    map.bounding_box(rank),
+                    "rank {rank}"
+                );
+                assert_eq!(part.window_of(rank, 2), Some(window));
+                assert_eq!(part.owned_counts(), map.owned_counts());
+                for y in window.y0..window.y0 + window.ny {
+                    for x in window.x0..window.x0 + window.nx {
+                        assert_eq!(part.owner(y * n + x), literal[y * n + x]);
+                    }
+                }
             }
             assert_eq!(map.into_map(), Some(literal));
             assert_eq!(rule.into_map(), None);

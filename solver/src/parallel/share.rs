@@ -49,22 +49,14 @@ const BOUNDARY: u8 = 3;
 impl RankShare {
     pub fn new(ownership: &Ownership, stencil: &Stencil, rank: usize) -> Self {
         let grid = ownership.grid;
-        let (n, rows) = (grid.n, grid.rows());
+        let n = grid.n;
         let mine = rank as u32;
         let owns = |x: usize, y: usize| ownership.owner(y * n + x) == mine;
 
         // The bounding box of the owned nodes, grown by the reach and clipped to D.
-        let (lo, hi) = ownership
-            .bounding_box(rank)
+        let window = ownership
+            .window_of(rank, stencil.reach())
             .unwrap_or_else(|| panic!("rank {rank} owns no node; partitions are checked for that"));
-        let reach = stencil.reach();
-        let reach_y = if grid.dim == 2 { reach } else { 0 };
-        let window = Window {
-            x0: lo[0].saturating_sub(reach),
-            y0: lo[1].saturating_sub(reach_y),
-            nx: (hi[0] + reach).min(n) - lo[0].saturating_sub(reach),
-            ny: (hi[1] + reach_y).min(rows) - lo[1].saturating_sub(reach_y),
-        };
 
         let mut class = vec![UNUSED; window.len()];
         for y in window.y0..window.y0 + window.ny {

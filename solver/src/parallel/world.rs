@@ -3,6 +3,7 @@
 //! ranks, and how a run was spread over them.
 
 use crate::case::{Case, CaseError, Partition};
+use crate::discretization::grid::Window;
 use crate::discretization::stencil::Stencil;
 use crate::output::record::{Distribution, Traffic};
 use crate::parallel::exchange::{offsets, Exchange, Ranks};
@@ -159,25 +160,53 @@ pub(crate) fn ownership(
     if case.partition == Partition::Block {
         return partition::of(case, stencil); // cheap and the same everywhere
     }
-    // METIS on rank 0 and the map broadcast: one partition, however METIS would behave on
-    // other hosts.
+    // METIS on rank 0, one partition however METIS would behave on other hosts. Each rank then
+    // gets the owners of its window only (its nodes' box grown by the reach: every node its share
+    // looks up) and every rank's count, so that no rank but 0 holds the whole map.
     let root = world.process_at_rank(0);
     let computed = (world.rank() == 0).then(|| partition::of(case, stencil));
     let mut failed = i32::from(matches!(computed, Some(Err(_))));
     root.broadcast_into(&mut failed);
-    let mut owner = match computed {
-        Some(Err(e)) => return Err(e),
-        Some(Ok(ownership)) => ownership.into_map().expect("a graph partition is a map"),
-        None if failed == 1 => {
-            return Err(CaseError::new(
-                "partition",
-                "the graph partition failed on rank 0",
-            ))
+    if failed == 1 {
+        return Err(match computed {
+            Some(Err(e)) => e,
+            _ => CaseError::new("partition", "the graph partition failed on rank 0"),
+        });
+    }
+    let reach = stencil.reach();
+    let header = |w: Window| [w.x0, w.y0, w.nx, w.ny].map(|v| v as u64);
+    let (window, owners, mut counts) = match computed {
+        Some(Ok(map)) => {
+            let window_of = |rank| {
+                map.window_of(rank, reach)
+                    .expect("METIS leaves no rank empty")
+            };
+            for rank in 1..case.ranks {
+                let to = world.process_at_rank(rank as i32);
+                let window = window_of(rank);
+                to.send(&header(window)[..]);
+                to.send(&map.owners_in(window)[..]);
+            }
+            let counts: Vec<u64> = map.owned_counts().iter().map(|&c| c as u64).collect();
+            let window = window_of(0);
+            (window, map.owners_in(window), counts)
         }
-        None => vec![0; grid.nodes()],
+        _ => {
+            let (w, _) = root.receive_vec::<u64>();
+            let window = Window {
+                x0: w[0] as usize,
+                y0: w[1] as usize,
+                nx: w[2] as usize,
+                ny: w[3] as usize,
+            };
+            (window, root.receive_vec::<u32>().0, vec![0; case.ranks])
+        }
     };
-    root.broadcast_into(&mut owner[..]);
-    Ok(Ownership::of_map(grid, case.ranks, owner))
+    root.broadcast_into(&mut counts[..]);
+    let counts = counts.iter().map(|&c| c as usize).collect();
+    Ok(Ownership::of_window(
+        grid, case.ranks, window, owners, counts,
+    ))
 }
 
 /// How a run was spread over the ranks of `world`: the partition, the ghosts summed over ranks
