@@ -565,7 +565,7 @@ fn an_unstable_run_diverges_at_the_serial_step() {
 /// the one-process iterates: the same field bit for bit and the same iteration count. The
 /// one-process field equals the single-domain direct solve (solver/tests/steady.rs).
 #[test]
-fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit() {
+fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit_and_its_numbers() {
     for (p, ranks, preconditioner) in [
         ("3", 2, "dirichlet"),
         ("4", 3, "dirichlet_cg"),
@@ -595,6 +595,21 @@ fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit() {
             "p {p} on {ranks} ranks, {preconditioner}"
         );
         assert_eq!(one.record["iterations"], many.record["iterations"]);
+        // Measured rank by rank on the subdomains each holds, without the whole field.
+        for field in [
+            "error_max",
+            "error_l2",
+            "mass",
+            "max_abs",
+            "relative_residual",
+        ] {
+            let (a, b) = (&one.record[field], &many.record[field]);
+            let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+            assert!(
+                (a - b).abs() <= 1e-9 * a.abs(),
+                "p {p} on {ranks} ranks: {field} {a} vs {b}"
+            );
+        }
         assert_eq!(many.record["ranks"], ranks);
         assert_eq!(
             many.record["subdomains"].as_u64(),

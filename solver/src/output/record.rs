@@ -57,8 +57,7 @@ pub struct Record {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coupling: Option<Coupling>,
     /// The solver process's peak resident memory (VmHWM), setup included; distributed, the
-    /// largest rank's (the nonlocal method's and steady CG's, before a field gather) or rank 0's
-    /// (FETI); absent where /proc does not tell.
+    /// largest rank's, before a field gather; absent where /proc does not tell.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_memory_bytes: Option<u64>,
     /// What `nlsolve run` estimated the run would hold at its peak, per rank, before it

@@ -61,6 +61,13 @@ pub fn offsets(counts: &[usize]) -> Vec<usize> {
         .collect()
 }
 
+/// The largest peak resident memory of any rank so far (None where /proc does not tell): what
+/// a distributed record reports, taken before rank 0 gathers a field it was asked for.
+pub fn peak_memory_over_ranks(exchange: &dyn Exchange) -> Option<u64> {
+    let mine = crate::output::record::peak_memory_bytes().unwrap_or(0);
+    Some(exchange.max(mine as f64) as u64).filter(|&bytes| bytes > 0)
+}
+
 /// One process: nothing to send, sums over one rank.
 pub struct Serial;
 
@@ -121,6 +128,14 @@ impl<'a> Ranks<'a> {
         Ranks {
             exchange: &Serial,
             pool: None,
+        }
+    }
+
+    /// `exchange`'s ranks, each computing on `pool`.
+    pub fn on_pool(exchange: &'a dyn Exchange, pool: &'a ThreadPool) -> Ranks<'a> {
+        Ranks {
+            exchange,
+            pool: Some(pool),
         }
     }
 

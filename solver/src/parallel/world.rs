@@ -242,13 +242,6 @@ pub(crate) fn distribution(
     }
 }
 
-/// The largest peak resident memory of any rank so far (None where /proc does not tell): what
-/// a distributed record reports, taken before rank 0 gathers a field it was asked for.
-pub(crate) fn peak_memory_over_ranks(mpi: &Mpi) -> Option<u64> {
-    let mine = crate::output::record::peak_memory_bytes().unwrap_or(0);
-    Some(mpi.max(mine as f64) as u64).filter(|&bytes| bytes > 0)
-}
-
 /// The whole field of `len` nodes on rank 0 (None elsewhere), from every rank's values at its
 /// `nodes`.
 pub(crate) fn gather(

@@ -276,6 +276,11 @@ impl Decomposition {
     }
 
     /// The rank that owns subdomain n: contiguous runs of subdomains per rank.
+    /// The block k along an axis that holds coordinate x: ⌊k n/p⌋ ≤ x < ⌊(k+1) n/p⌋.
+    pub fn block_of(&self, x: usize) -> usize {
+        ((x + 1) * self.p - 1) / self.axis.n
+    }
+
     pub fn owner(&self, index: usize, ranks: usize) -> usize {
         index * ranks / self.subdomains.len()
     }
@@ -311,6 +316,20 @@ impl Decomposition {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_coordinate_lies_in_the_block_block_of_names() {
+        for (n, p) in [(32, 4), (33, 5), (64, 3), (7, 7)] {
+            let decomposition = Decomposition::new(n, p, 2);
+            for x in 0..n {
+                let k = decomposition.block_of(x);
+                assert!(
+                    k * n / p <= x && x < (k + 1) * n / p,
+                    "n {n} p {p} x {x}: block {k}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn even_m_leaves_strips_of_width_m_between_the_omegas() {

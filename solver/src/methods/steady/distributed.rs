@@ -15,10 +15,11 @@ use crate::operator::{self, LinearOperator};
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
+use crate::parallel::exchange::peak_memory_over_ranks;
 use crate::parallel::exchange::{Exchange, Ranks};
 use crate::parallel::operator::DistributedOperator;
 use crate::parallel::share::RankShare;
-use crate::parallel::world::{distribution, gather, ownership, peak_memory_over_ranks, Mpi};
+use crate::parallel::world::{distribution, gather, ownership, Mpi};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rayon::prelude::*;
@@ -34,7 +35,14 @@ pub fn run(
     let pool = crate::threads::pool(case.threads)?;
     let problem = pool.install(|| SteadyProblem::new(case));
     if case.method == Method::Feti {
-        return feti::run_on(case, &problem, &Mpi::new(world), &pool, started);
+        return feti::run_on(
+            case,
+            &problem,
+            &Mpi::new(world),
+            &pool,
+            started,
+            gather_field,
+        );
     }
     let stencil = &problem.stencil;
     let grid = stencil.grid;

@@ -24,16 +24,24 @@
 
 use super::assembly::assemble;
 use super::decomposition::{Decomposition, Subdomain};
-use super::problem::{outcome, SteadyProblem, Stop, Timings};
+use super::problem::{exact, outcome, Fit, SteadyProblem, Stop, Summary, Timings};
+use crate::case::Backend;
 use crate::case::ValidCase;
 use crate::case::{Case, CaseError, FetiPreconditioner};
+use crate::discretization::grid::Window;
 use crate::linalg::cg::{
     dot_serial, Cg, CgParams, CgSystem, Closures, NoPreconditioner, Norm, Start,
 };
 use crate::linalg::cholesky::{symmetric_product, Cholesky};
+use crate::operator::LinearOperator;
+use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, FetiPhases, SteadySolve};
 use crate::parallel::exchange::Exchange;
+use crate::parallel::exchange::Ranks;
+use crate::parallel::operator::DistributedOperator;
+use crate::parallel::partition::Ownership;
+use crate::parallel::share::RankShare;
 use faer::linalg::solvers::Solve;
 use faer::sparse::SparseColMat;
 use faer::MatMut;
@@ -768,6 +776,7 @@ pub fn run_on(
     exchange: &dyn Exchange,
     pool: &ThreadPool,
     started: Instant,
+    gather_field: bool,
 ) -> Result<Option<Outcome>, CaseError> {
     let p = case.subdomains.expect("validated: feti gives p");
     let grid = problem.grid();
@@ -861,19 +870,36 @@ pub fn run_on(
     let solve_s = exchange.max(solve_started.elapsed().as_secs_f64());
     let comm_s = exchange.max(exchange.seconds() - comm_before);
 
-    // The field on Ω: node x from the subdomain whose block Ω̃_n holds it, summed over ranks.
-    let mut field = vec![0.0; grid.nodes()];
+    // Node x's value comes from the subdomain whose block Ω̃_n holds it (None: another rank's).
+    let mut piece_of: Vec<Option<&[f64]>> = vec![None; p * p];
     for (n, u) in &pieces {
-        let subdomain = &decomposition.subdomains[*n];
-        let [kx, ky] = subdomain.block;
-        let block = |k: usize| (k * grid.n / p) as i64..((k + 1) * grid.n / p) as i64;
-        for y in block(ky) {
-            for x in block(kx) {
-                field[y as usize * grid.n + x as usize] = u[subdomain.local(x, y)];
-            }
-        }
+        piece_of[*n] = Some(u);
     }
-    exchange.all_sum(&mut field);
+    let value_at = |i: usize| -> Option<f64> {
+        let (x, y) = (i % grid.n, i / grid.n);
+        let index = decomposition.block_of(y) * p + decomposition.block_of(x);
+        Some(piece_of[index]?[decomposition.subdomains[index].local(x as i64, y as i64)])
+    };
+    // One process holds the field; over ranks it is measured where it lies, and assembled (on
+    // every rank) only when asked for.
+    let (summary, field, peak_memory_bytes) = if ranks == 1 {
+        let field: Vec<f64> = (0..grid.nodes())
+            .map(|i| value_at(i).expect("one process holds every subdomain"))
+            .collect();
+        let summary = problem.summarise(&field);
+        (summary, field, crate::output::record::peak_memory_bytes())
+    } else {
+        let summary = measured_over_ranks(problem, &decomposition, exchange, pool, &value_at);
+        let peak = crate::parallel::exchange::peak_memory_over_ranks(exchange);
+        let field = gather_field.then(|| {
+            let mut field: Vec<f64> = (0..grid.nodes())
+                .map(|i| value_at(i).unwrap_or(0.0))
+                .collect();
+            exchange.all_sum(&mut field);
+            field
+        });
+        (summary, field.unwrap_or_default(), peak)
+    };
     // Multiplier values each exchange brings in, over all ranks.
     let mut received = [feti
         .layout
@@ -910,7 +936,7 @@ pub fn run_on(
     distribution.comm_s = comm_s;
     distribution.halo_nodes = received[0] as usize;
     distribution.halo_bytes = received[0] as usize * std::mem::size_of::<f64>();
-    Ok(Some(outcome(
+    let mut outcome = outcome(
         case,
         problem,
         None,
@@ -921,9 +947,98 @@ pub fn run_on(
         },
         solve,
         distribution,
-        problem.summarise(&field),
+        summary,
         field,
-    )))
+    );
+    outcome.record.peak_memory_bytes = peak_memory_bytes;
+    Ok(Some(outcome))
+}
+
+/// The solution's numbers for the record, over ranks: each rank measures the nodes of its
+/// subdomains' blocks (`value_at` gives them, None elsewhere) with the distributed operator, and
+/// the sums and maxima are reduced; no rank holds the whole field.
+fn measured_over_ranks(
+    problem: &SteadyProblem,
+    decomposition: &Decomposition,
+    exchange: &dyn Exchange,
+    pool: &ThreadPool,
+    value_at: &(dyn Fn(usize) -> Option<f64> + Sync),
+) -> Summary {
+    let (stencil, grid) = (&problem.stencil, problem.grid());
+    let (rank, ranks) = (exchange.rank(), exchange.ranks());
+    let p = decomposition.p;
+    // Node (x, y) belongs to the rank of its block's subdomain; a rank looks up its window only.
+    let owner = |x: usize, y: usize| {
+        let index = decomposition.block_of(y) * p + decomposition.block_of(x);
+        decomposition.owner(index, ranks) as u32
+    };
+    let mine: Vec<usize> = (0..p * p)
+        .filter(|&k| decomposition.owner(k, ranks) == rank)
+        .collect();
+    let window = {
+        let span = |k: usize| (k * grid.n / p, (k + 1) * grid.n / p);
+        let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+        for &k in &mine {
+            let ((x0, x1), (y0, y1)) = (span(k % p), span(k / p));
+            lo = [lo[0].min(x0), lo[1].min(y0)];
+            hi = [hi[0].max(x1), hi[1].max(y1)];
+        }
+        let reach = stencil.reach();
+        let (x0, y0) = (lo[0].saturating_sub(reach), lo[1].saturating_sub(reach));
+        Window {
+            x0,
+            y0,
+            nx: (hi[0] + reach).min(grid.n) - x0,
+            ny: (hi[1] + reach).min(grid.rows()) - y0,
+        }
+    };
+    let owners: Vec<u32> = (window.y0..window.y0 + window.ny)
+        .flat_map(|y| (window.x0..window.x0 + window.nx).map(move |x| owner(x, y)))
+        .collect();
+    let mut counts = vec![0; ranks];
+    for k in 0..p * p {
+        let width = |k: usize| (k + 1) * grid.n / p - k * grid.n / p;
+        counts[decomposition.owner(k, ranks)] += width(k % p) * width(k / p);
+    }
+    let ownership = Ownership::of_window(grid, ranks, window, owners, counts);
+    let share = RankShare::new(&ownership, stencil, rank);
+    let ranks_of = Ranks::on_pool(exchange, pool);
+    let operator = DistributedOperator::new(stencil, &share, ranks_of, Backend::Stencil);
+    let nodes = share.node_indices(grid.n);
+    let u: Vec<f64> = nodes
+        .iter()
+        .map(|&i| value_at(i).expect("the rank's own node"))
+        .collect();
+    let mut lu = vec![0.0; u.len()];
+    operator.apply_once(&u, &mut lu);
+    let (local, error_max, max_abs) = pool.install(|| {
+        let exact = |k: usize| exact(grid.position(nodes[k]));
+        let b: Vec<f64> = nodes.par_iter().map(|&i| problem.load(i)).collect();
+        let local = [
+            (0..u.len())
+                .into_par_iter()
+                .map(|k| (b[k] + lu[k]).powi(2))
+                .sum::<f64>(),
+            b.par_iter().map(|v| v * v).sum::<f64>(),
+            diagnostics::squared_l2_error(exact, &u, grid.volume()),
+            diagnostics::total_mass(&u, grid.volume()),
+        ];
+        (
+            local,
+            diagnostics::max_error(exact, &u),
+            diagnostics::max_abs(&u),
+        )
+    });
+    let [residual2, load2, error_l2, mass] = local.map(|v| exchange.sum(v));
+    Summary {
+        fit: Fit {
+            relative_residual: (residual2 / load2).sqrt(),
+            error_max: exchange.max(error_max),
+            error_l2,
+        },
+        mass,
+        max_abs: exchange.max(max_abs),
+    }
 }
 
 #[cfg(test)]

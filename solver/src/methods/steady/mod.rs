@@ -181,7 +181,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let pool = crate::threads::pool(case.threads)?;
     let problem = SteadyProblem::new(case);
     if case.method == Method::Feti {
-        let outcome = feti::run_on(case, &problem, &exchange::Serial, &pool, started)?;
+        let outcome = feti::run_on(case, &problem, &exchange::Serial, &pool, started, true)?;
         return Ok(outcome.expect("the only rank gets the outcome"));
     }
     pool.install(|| {
