@@ -3,7 +3,7 @@
 //! step makes counted from what the runs record (`traffic.*`), and a latency–bandwidth network.
 //!
 //! Per step (per CG iteration for steady CG) on P ranks of an n × n grid (N = n² nodes):
-//! - compute: the one-rank rate times N/P (the FFT: times its window's W log₂ W);
+//! - compute: the one-rank rate times N/P (the FFT: times W log₂ W, W its padded window's points);
 //! - halo: each exchange sends the ghosts' 8 bytes, G/P per rank on average, in k messages:
 //!   k α + 8 G/(P β); G = 2mn(p_x − 1) + 2mn(p_y − 1) + πm²(p_x − 1)(p_y − 1) ghosts in all for
 //!   p_x × p_y blocks (strips of width m along each cut, quarter discs at the crossings);
@@ -166,10 +166,8 @@ pub fn predict(rates: &Rates, n: usize, ranks: usize, network: &Network) -> Pred
     let per_rank = nodes / p;
     let compute_s = match rates.path {
         Path::EulerFft => {
-            let m = rates.m;
-            let window =
-                (n as f64 / shape.0 as f64 + 2.0 * m) * (n as f64 / shape.1 as f64 + 2.0 * m);
-            rates.compute * window * window.log2()
+            let points = fft_points(n, rates.m as usize, shape);
+            rates.compute * points * points.log2()
         }
         Path::CrankNicolson => {
             (rates.iterations + 1.0)
@@ -202,6 +200,33 @@ pub fn predict(rates: &Rates, n: usize, ranks: usize, network: &Network) -> Pred
     }
 }
 
+/// Points of the FFT backend's transform on a rank of p_x × p_y blocks: along each axis its window
+/// (its block and the ghosts beyond each side that has a neighbour: two for an inner block of
+/// three or more, one for two, none for one), padded by the reach against wrap-around and rounded
+/// up to a fast length, as `FftOperator::on_window` does.
+pub fn fft_points(n: usize, m: usize, (px, py): (usize, usize)) -> f64 {
+    let axis = |parts: usize| {
+        let sides = parts.min(3) - 1;
+        fast_length(n / parts + sides * m + m) as f64
+    };
+    axis(px) * axis(py)
+}
+
+/// The least even 7-smooth number ≥ `at_least` (the solver's `transform_length`).
+fn fast_length(at_least: usize) -> usize {
+    (at_least.max(2)..)
+        .find(|&p| {
+            let mut rest = p;
+            for factor in [2, 3, 5, 7] {
+                while rest % factor == 0 {
+                    rest /= factor;
+                }
+            }
+            p % 2 == 0 && rest == 1
+        })
+        .expect("smooth numbers are unbounded")
+}
+
 /// The rates of each path from a study's summary rows: compute from its one-rank, one-thread
 /// runs at the largest n, the counts per step from its runs over the fewest ranks above one.
 /// A path without both is left out.
@@ -231,8 +256,8 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
             let iterations = alone.number("solve_iterations_mean").unwrap_or(0.0);
             let (compute, transform) = match path {
                 Path::EulerFft => {
-                    let window = (n + 2.0 * m) * (n + 2.0 * m);
-                    (step / (window * window.log2()), 0.0)
+                    let points = fft_points(n as usize, m as usize, (1, 1));
+                    (step / (points * points.log2()), 0.0)
                 }
                 Path::CrankNicolson => {
                     // The operator's share from the Euler path's rate when the study ran it,
@@ -312,6 +337,14 @@ mod tests {
     /// The counts the block partition and the transposes make, against their literal sums.
     #[test]
     fn ghosts_and_transposed_values_count_what_the_partition_makes() {
+        // The FFT's transform: 1024 + 32 is 1056 = 2⁵·3·11, not 7-smooth; 1080 = 2³·3³·5 is.
+        assert_eq!(fast_length(1056), 1080);
+        assert_eq!(fft_points(1024, 32, (1, 1)), 1080.0 * 1080.0);
+        // Two slabs: one side of ghosts along y.
+        assert_eq!(
+            fft_points(1024, 32, (1, 2)),
+            1080.0 * fast_length(512 + 64) as f64
+        );
         assert_eq!(blocks(Path::EulerStencil, 16), (4, 4));
         assert_eq!(blocks(Path::EulerStencil, 8), (2, 4));
         assert_eq!(blocks(Path::CrankNicolson, 8), (1, 8));
