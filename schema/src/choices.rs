@@ -273,6 +273,17 @@ pub enum Formulation {
     Standard,
     /// The divergence of the peridynamic partial stress: passes the patch tests for any ε(x).
     PartialStress,
+    /// Each node on its own horizon, unsymmetrised, L u(x) = Σ_ξ w_x(ξ) (u(x + ξ) − u(x)): passes
+    /// the patch tests for any ε(x) and keeps Re λ ≤ 0 (its rows sum to zero, its off-diagonal
+    /// entries are ≥ 0), but is not symmetric and does not conserve Σ u.
+    XCentred,
+}
+
+impl Formulation {
+    /// Whether L_h is symmetric (CG, which the implicit integrators solve by, needs it).
+    pub fn is_symmetric(self) -> bool {
+        self == Formulation::Standard
+    }
 }
 
 /// The field a patch test prescribes, or the exact solution of a coupled problem.

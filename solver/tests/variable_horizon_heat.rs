@@ -104,3 +104,47 @@ fn the_partial_stress_grows_in_time_where_the_horizon_varies() {
     assert!(bump("standard") < 0.1);
     assert!(bump("partial_stress") > 10.0);
 }
+
+/// A bump on the transition under the x-centred form, forward Euler at its stable step: every
+/// step is a convex combination of the values (off-diagonals ≥ 0, rows summing to at most zero
+/// with the zero collar), so 0 ≤ u ≤ max u₀ holds to the last bit over T = 2; and the implicit
+/// integrators, which solve by CG, refuse the non-symmetric forms naming the field.
+#[test]
+fn the_x_centred_form_keeps_a_bump_within_its_bounds_and_cg_refuses_it() {
+    let fields = |integrator: &str| {
+        varying(
+            TRANSITION,
+            json!({"n": 200, "problem": "bump", "t_end": 2.0, "cfl": 1.0,
+                   "integrator": integrator, "formulation": "x_centred"}),
+        )
+    };
+    let grid = solver::discretization::grid::Grid::new(1, 200);
+    let top = (0..200)
+        .map(|i| solver::problem::bump(1, grid.position(i)))
+        .fold(0.0, f64::max);
+    let outcome = run(fields("forward_euler"));
+    assert!(
+        outcome.record.steps_done > 1000,
+        "{}",
+        outcome.record.steps_done
+    );
+    let (lo, hi) = outcome
+        .field
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    assert!(
+        lo >= 0.0 && hi <= top,
+        "u in [{lo:e}, {hi:e}], max u₀ = {top}"
+    );
+    assert!(hi > 0.0, "the bump has not vanished");
+    for integrator in ["backward_euler", "crank_nicolson"] {
+        for formulation in ["x_centred", "partial_stress"] {
+            let mut case = fields(integrator);
+            case["formulation"] = json!(formulation);
+            case["allow_unstable"] = json!(true);
+            let refused = solver::case::ValidCase::from_json(case).expect_err("refused");
+            assert_eq!(refused.field, "integrator", "{integrator} {formulation}");
+            assert!(refused.message.contains("symmetric"), "{}", refused.message);
+        }
+    }
+}

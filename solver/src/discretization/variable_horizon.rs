@@ -20,6 +20,12 @@
 //!   gradient of the seed's meshless form, ∇ν(x) = Σ_ξ ω(ξ) (ν(x + ξ) − ν(x)) ξ / Σ_ξ ω(ξ) ξ²
 //!   with ω(ξ) = J(|ξ|/ε(x)), exact for a linear ν. So L u = 0 for u linear and L u = 2k for
 //!   u = x², at every node, to round-off. It does not conserve Σ u exactly.
+//! - **x-centred** (the non-divergence form): L u(x) = Σ_ξ w_x(ξ) (u(x + ξ) − u(x)), each node on
+//!   its own horizon, unsymmetrised. Its ball is symmetric about x, so it gives 0 for a linear u
+//!   and 2k for u = x² at every node whatever ε(x); its rows sum to zero and its off-diagonal
+//!   entries are ≥ 0, so by Gershgorin every eigenvalue has Re λ ≤ 0, and forward Euler with
+//!   dt ≤ 2 / max_i Σ_l |a_il| keeps 0 ≤ u ≤ max u₀. It is not symmetric and does not conserve
+//!   Σ u.
 //!
 //! Nodes sit at x = (i + ½) h as in `grid`; the bar holds D and a collar of 2R nodes on each side
 //! (R the largest reach in cells), where u is prescribed: ν at D's neighbours needs their own
@@ -115,6 +121,7 @@ impl VariableHorizonOperator {
             .map(|k| match formulation {
                 Formulation::Standard => standard_row(k, reach, &bonds_of),
                 Formulation::PartialStress => partial_stress_row(k, reach, &bonds_of, h),
+                Formulation::XCentred => x_centred_row(k, reach, &bonds_of),
             })
             .collect();
         VariableHorizonOperator {
@@ -215,6 +222,17 @@ fn standard_row(k: usize, reach: usize, bonds_of: &[Vec<(i64, f64, f64)>]) -> Ve
             row.add(l, 0.5 * w);
             row.add(k, -0.5 * w);
         }
+    }
+    row.into_row()
+}
+
+/// Row k of the x-centred form: Σ_ξ w_x(ξ) (u(x + ξ) − u(x)), node k's own bonds only.
+fn x_centred_row(k: usize, reach: usize, bonds_of: &[Vec<(i64, f64, f64)>]) -> Vec<(usize, f64)> {
+    let mut row = Window::new(k, reach);
+    let k = k as i64;
+    for &(o, w, _) in &bonds_of[k as usize] {
+        row.add(k + o, w);
+        row.add(k, -w);
     }
     row.into_row()
 }

@@ -158,7 +158,7 @@ pub(crate) fn operator_bytes(case: &Case) -> f64 {
     let (largest, mean) = (left.max(right).floor(), 0.5 * (left + right));
     let bonds = 24.0 * (n + 4.0 * largest) * 2.0 * mean;
     let row = match case.formulation() {
-        crate::case::Formulation::Standard => 2.0 * mean + 1.0,
+        crate::case::Formulation::Standard | crate::case::Formulation::XCentred => 2.0 * mean + 1.0,
         crate::case::Formulation::PartialStress => 4.0 * mean + 1.0,
     };
     let rows = 16.0 * n * row;

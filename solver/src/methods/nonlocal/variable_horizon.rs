@@ -6,7 +6,8 @@
 //! The standard formulation is symmetric and negative definite, so every integrator is stable
 //! within its usual bound. The partial stress is not symmetric, and where the horizon varies its
 //! eigenvalues reach Re λ > 0 (docs/variable_horizon.md): u grows whatever dt, so such a case
-//! runs only with `allow_unstable`, as a probe.
+//! runs only with `allow_unstable`, as a probe. The x-centred form is not symmetric either, but
+//! keeps Re λ ≤ 0. The implicit integrators solve by CG, so they refuse both non-symmetric forms.
 
 use crate::case::{
     horizon_length, Backend, Case, CaseError, Collar, Formulation, HorizonProfile, Problem,
@@ -61,6 +62,18 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "source",
             "`continuum` integrates the operator of a constant horizon; use `discrete` (the time error alone) or `local` (the distance to kΔ)",
+        ));
+    }
+    if case.integrator.is_implicit() && !case.formulation().is_symmetric() {
+        // Their names as the case writes them.
+        let name = |v: serde_json::Value| v.as_str().unwrap_or("?").to_string();
+        return Err(CaseError::new(
+            "integrator",
+            format!(
+                "`{}` solves by CG, which needs a symmetric operator, and formulation `{}` is not symmetric; use forward_euler, heun or rk4 with it, or formulation `standard`",
+                name(serde_json::json!(case.integrator)),
+                name(serde_json::json!(case.formulation())),
+            ),
         ));
     }
     if case.formulation == Some(Formulation::PartialStress)
