@@ -1,5 +1,6 @@
 //! The contract between the solver (`nlsolve`) and the orchestrator (`nlstudy`): the case's
-//! fields and choices, the grid spacing h each method defines, and a record's status and timings.
+//! fields and choices, the grid spacing h each method defines, a record's status and timings, and
+//! the FFT lengths the solver transforms at.
 //! Plain serde data, so that the orchestrator reads what the solver writes without linking the
 //! numerics.
 
@@ -8,3 +9,4 @@ pub mod choices;
 pub mod error;
 pub mod json;
 pub mod record;
+pub mod transform;

@@ -15,6 +15,7 @@
 //! compute and pessimistic about communication on a real node.
 
 use crate::store::table::Row;
+use schema::transform::transform_length;
 use std::f64::consts::PI;
 
 /// The four ways the solver runs a 2D case that the model follows.
@@ -207,24 +208,9 @@ pub fn predict(rates: &Rates, n: usize, ranks: usize, network: &Network) -> Pred
 pub fn fft_points(n: usize, m: usize, (px, py): (usize, usize)) -> f64 {
     let axis = |parts: usize| {
         let sides = parts.min(3) - 1;
-        fast_length(n / parts + sides * m + m) as f64
+        transform_length(n / parts + sides * m + m) as f64
     };
     axis(px) * axis(py)
-}
-
-/// The least even 7-smooth number ≥ `at_least` (the solver's `transform_length`).
-fn fast_length(at_least: usize) -> usize {
-    (at_least.max(2)..)
-        .find(|&p| {
-            let mut rest = p;
-            for factor in [2, 3, 5, 7] {
-                while rest % factor == 0 {
-                    rest /= factor;
-                }
-            }
-            p % 2 == 0 && rest == 1
-        })
-        .expect("smooth numbers are unbounded")
 }
 
 /// The rates of each path from a study's summary rows: compute from its one-rank, one-thread
@@ -338,12 +324,12 @@ mod tests {
     #[test]
     fn ghosts_and_transposed_values_count_what_the_partition_makes() {
         // The FFT's transform: 1024 + 32 is 1056 = 2⁵·3·11, not 7-smooth; 1080 = 2³·3³·5 is.
-        assert_eq!(fast_length(1056), 1080);
+        assert_eq!(transform_length(1056), 1080);
         assert_eq!(fft_points(1024, 32, (1, 1)), 1080.0 * 1080.0);
         // Two slabs: one side of ghosts along y.
         assert_eq!(
             fft_points(1024, 32, (1, 2)),
-            1080.0 * fast_length(512 + 64) as f64
+            1080.0 * transform_length(512 + 64) as f64
         );
         assert_eq!(blocks(Path::EulerStencil, 16), (4, 4));
         assert_eq!(blocks(Path::EulerStencil, 8), (2, 4));

@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
+pub(crate) use schema::transform::transform_length;
 use std::sync::Arc;
 
 type C64 = Complex<f64>;
@@ -335,21 +336,6 @@ impl LinearOperator for FftOperator {
             self.apply_1d(u, out, rows, &mut lanes[0]);
         }
     }
-}
-
-/// The smallest even length ≥ `at_least` with no prime factor above 7, where the FFT is fastest.
-pub(crate) fn transform_length(at_least: usize) -> usize {
-    (at_least.max(2)..)
-        .find(|&p| {
-            let mut rest = p;
-            for factor in [2, 3, 5, 7] {
-                while rest % factor == 0 {
-                    rest /= factor;
-                }
-            }
-            p % 2 == 0 && rest == 1
-        })
-        .expect("smooth numbers are unbounded")
 }
 
 #[cfg(test)]
