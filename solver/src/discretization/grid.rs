@@ -135,6 +135,19 @@ impl Window {
         }
     }
 
+    /// The box of nodes [lo, hi) grown by `reach` sideways (and by rows too in 2D), clipped to
+    /// D: every node a stencil at a node of the box reads.
+    pub fn around(grid: &Grid, lo: [usize; 2], hi: [usize; 2], reach: usize) -> Self {
+        let reach_y = if grid.dim == 2 { reach } else { 0 };
+        let (x0, y0) = (lo[0].saturating_sub(reach), lo[1].saturating_sub(reach_y));
+        Window {
+            x0,
+            y0,
+            nx: (hi[0] + reach).min(grid.n) - x0,
+            ny: (hi[1] + reach_y).min(grid.rows()) - y0,
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.nx * self.ny
     }

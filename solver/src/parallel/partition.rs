@@ -101,14 +101,7 @@ impl Ownership {
     /// clipped to D: every node a rank's share looks up (`RankShare`). None if it owns none.
     pub fn window_of(&self, rank: usize, reach: usize) -> Option<Window> {
         let (lo, hi) = self.bounding_box(rank)?;
-        let reach_y = if self.grid.dim == 2 { reach } else { 0 };
-        let (x0, y0) = (lo[0].saturating_sub(reach), lo[1].saturating_sub(reach_y));
-        Some(Window {
-            x0,
-            y0,
-            nx: (hi[0] + reach).min(self.grid.n) - x0,
-            ny: (hi[1] + reach_y).min(self.grid.rows()) - y0,
-        })
+        Some(Window::around(&self.grid, lo, hi, reach))
     }
 
     /// The owners of the nodes of `window`, row by row.

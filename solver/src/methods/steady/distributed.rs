@@ -7,12 +7,11 @@
 
 use super::feti;
 use super::problem::negate_into;
-use super::problem::{exact, outcome, Fit, SteadyProblem, Stop, Summary, Timings};
+use super::problem::{outcome, SteadyProblem, Stop, Summary, Timings};
 use crate::case::ValidCase;
 use crate::case::{CaseError, Method};
 use crate::linalg::cg::{self, Cg};
 use crate::operator::{self, LinearOperator};
-use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::SteadySolve;
 use crate::parallel::exchange::peak_memory_over_ranks;
@@ -80,34 +79,7 @@ pub fn run(
     // Measured where the values are, each rank on its nodes, then summed over ranks: no rank
     // holds the whole field unless it was asked for.
     operator.apply(&u, &mut lp, &mut workspace);
-    let summary = pool.install(|| {
-        let exact = |k: usize| exact(grid.position(nodes[k]));
-        let volume = grid.volume();
-        let local = [
-            (0..u.len())
-                .into_par_iter()
-                .map(|k| (b[k] + lp[k]).powi(2))
-                .sum::<f64>(),
-            b.par_iter().map(|v| v * v).sum::<f64>(),
-            diagnostics::squared_l2_error(exact, &u, volume),
-            diagnostics::total_mass(&u, volume),
-        ];
-        (
-            local,
-            diagnostics::max_error(exact, &u),
-            diagnostics::max_abs(&u),
-        )
-    });
-    let ([residual2, load2, error_l2, mass], error_max, max_abs) = summary;
-    let summary = Summary {
-        fit: Fit {
-            relative_residual: (mpi.sum(residual2) / mpi.sum(load2)).sqrt(),
-            error_max: mpi.max(error_max),
-            error_l2: mpi.sum(error_l2),
-        },
-        mass: mpi.sum(mass),
-        max_abs: mpi.max(max_abs),
-    };
+    let summary = Summary::over_ranks(&grid, &nodes, (&u, &b, &lp), &mpi, &pool);
     let field = gather_field
         .then(|| gather(world, &nodes, &u, grid.nodes()))
         .flatten();

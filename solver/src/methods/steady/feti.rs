@@ -24,7 +24,7 @@
 
 use super::assembly::assemble;
 use super::decomposition::{Decomposition, Subdomain};
-use super::problem::{exact, outcome, Fit, SteadyProblem, Stop, Summary, Timings};
+use super::problem::{outcome, SteadyProblem, Stop, Summary, Timings};
 use crate::case::Backend;
 use crate::case::ValidCase;
 use crate::case::{Case, CaseError, FetiPreconditioner};
@@ -34,7 +34,6 @@ use crate::linalg::cg::{
 };
 use crate::linalg::cholesky::{symmetric_product, Cholesky};
 use crate::operator::LinearOperator;
-use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, FetiPhases, SteadySolve};
 use crate::parallel::exchange::Exchange;
@@ -975,23 +974,14 @@ fn measured_over_ranks(
     let mine: Vec<usize> = (0..p * p)
         .filter(|&k| decomposition.owner(k, ranks) == rank)
         .collect();
-    let window = {
-        let span = |k: usize| (k * grid.n / p, (k + 1) * grid.n / p);
-        let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
-        for &k in &mine {
-            let ((x0, x1), (y0, y1)) = (span(k % p), span(k / p));
-            lo = [lo[0].min(x0), lo[1].min(y0)];
-            hi = [hi[0].max(x1), hi[1].max(y1)];
-        }
-        let reach = stencil.reach();
-        let (x0, y0) = (lo[0].saturating_sub(reach), lo[1].saturating_sub(reach));
-        Window {
-            x0,
-            y0,
-            nx: (hi[0] + reach).min(grid.n) - x0,
-            ny: (hi[1] + reach).min(grid.rows()) - y0,
-        }
-    };
+    let span = |k: usize| (k * grid.n / p, (k + 1) * grid.n / p);
+    let (mut lo, mut hi) = ([usize::MAX; 2], [0usize; 2]);
+    for &k in &mine {
+        let ((x0, x1), (y0, y1)) = (span(k % p), span(k / p));
+        lo = [lo[0].min(x0), lo[1].min(y0)];
+        hi = [hi[0].max(x1), hi[1].max(y1)];
+    }
+    let window = Window::around(&grid, lo, hi, stencil.reach());
     let owners: Vec<u32> = (window.y0..window.y0 + window.ny)
         .flat_map(|y| (window.x0..window.x0 + window.nx).map(move |x| owner(x, y)))
         .collect();
@@ -1011,34 +1001,8 @@ fn measured_over_ranks(
         .collect();
     let mut lu = vec![0.0; u.len()];
     operator.apply_once(&u, &mut lu);
-    let (local, error_max, max_abs) = pool.install(|| {
-        let exact = |k: usize| exact(grid.position(nodes[k]));
-        let b: Vec<f64> = nodes.par_iter().map(|&i| problem.load(i)).collect();
-        let local = [
-            (0..u.len())
-                .into_par_iter()
-                .map(|k| (b[k] + lu[k]).powi(2))
-                .sum::<f64>(),
-            b.par_iter().map(|v| v * v).sum::<f64>(),
-            diagnostics::squared_l2_error(exact, &u, grid.volume()),
-            diagnostics::total_mass(&u, grid.volume()),
-        ];
-        (
-            local,
-            diagnostics::max_error(exact, &u),
-            diagnostics::max_abs(&u),
-        )
-    });
-    let [residual2, load2, error_l2, mass] = local.map(|v| exchange.sum(v));
-    Summary {
-        fit: Fit {
-            relative_residual: (residual2 / load2).sqrt(),
-            error_max: exchange.max(error_max),
-            error_l2,
-        },
-        mass,
-        max_abs: exchange.max(max_abs),
-    }
+    let b: Vec<f64> = pool.install(|| nodes.par_iter().map(|&i| problem.load(i)).collect());
+    Summary::over_ranks(&grid, &nodes, (&u, &b, &lu), exchange, pool)
 }
 
 #[cfg(test)]

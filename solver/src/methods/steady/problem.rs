@@ -8,9 +8,12 @@ use crate::discretization::influence::Influence;
 use crate::discretization::stencil::Stencil;
 use crate::linalg::cg::{self, CgParams, Norm, Start};
 use crate::operator::{self, LinearOperator};
-use crate::output::diagnostics::{fixed_order_sum, max_error, squared_l2_error};
+use crate::output::diagnostics::{
+    fixed_order_sum, max_abs, max_error, squared_l2_error, total_mass,
+};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, Record, Resolved, Status, SteadySolve};
+use crate::parallel::exchange::Exchange;
 use rayon::prelude::*;
 use rayon::ThreadPool;
 
@@ -149,8 +152,45 @@ impl SteadyProblem {
     pub(crate) fn summarise(&self, u: &[f64]) -> Summary {
         Summary {
             fit: self.measure(u),
-            mass: crate::output::diagnostics::total_mass(u, self.grid().volume()),
-            max_abs: crate::output::diagnostics::max_abs(u),
+            mass: total_mass(u, self.grid().volume()),
+            max_abs: max_abs(u),
+        }
+    }
+}
+
+impl Summary {
+    /// The numbers of a solution spread over ranks: each rank holds u, its loads b and L_h u at
+    /// its `nodes`, measures them there, and the sums and maxima are reduced, so that no rank
+    /// needs the whole field.
+    pub(crate) fn over_ranks(
+        grid: &Grid,
+        nodes: &[usize],
+        (u, b, lu): (&[f64], &[f64], &[f64]),
+        exchange: &dyn Exchange,
+        pool: &ThreadPool,
+    ) -> Summary {
+        let (local, error_max, max_abs) = pool.install(|| {
+            let exact = |k: usize| exact(grid.position(nodes[k]));
+            let local = [
+                (0..u.len())
+                    .into_par_iter()
+                    .map(|k| (b[k] + lu[k]).powi(2))
+                    .sum::<f64>(),
+                b.par_iter().map(|v| v * v).sum::<f64>(),
+                squared_l2_error(exact, u, grid.volume()),
+                total_mass(u, grid.volume()),
+            ];
+            (local, max_error(exact, u), max_abs(u))
+        });
+        let [residual2, load2, error_l2, mass] = local.map(|v| exchange.sum(v));
+        Summary {
+            fit: Fit {
+                relative_residual: (residual2 / load2).sqrt(),
+                error_max: exchange.max(error_max),
+                error_l2,
+            },
+            mass,
+            max_abs: exchange.max(max_abs),
         }
     }
 }
