@@ -220,15 +220,11 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
     Path::ALL
         .iter()
         .filter_map(|&path| {
-            let of_path: Vec<&&Row> = rows.iter().filter(|r| Path::of(r) == Some(path)).collect();
-            let ranks = |r: &Row| r.number("ranks").unwrap_or(1.0);
-            let alone = of_path
+            let alone = alone(rows, path)?;
+            let spread = rows
                 .iter()
-                .filter(|r| ranks(r) == 1.0 && r.number("case.threads").unwrap_or(1.0) == 1.0)
-                .max_by(|a, b| grid(a).total_cmp(&grid(b)))?;
-            let spread = of_path
-                .iter()
-                .filter(|r| ranks(r) > 1.0 && r.get("traffic.halo_exchanges").is_some())
+                .filter(|r| Path::of(r) == Some(path) && ranks(r) > 1.0)
+                .filter(|r| r.get("traffic.halo_exchanges").is_some())
                 .min_by(|a, b| ranks(a).total_cmp(&ranks(b)))?;
             let n = alone.number("case.n")?;
             let m = alone.number("m").or(alone.number("case.m"))?;
@@ -268,17 +264,24 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
         .collect()
 }
 
-/// A row's n (0 if none): the largest grid is the one the rates come from.
-fn grid(row: &Row) -> f64 {
-    row.number("case.n").unwrap_or(0.0)
+/// A row's rank count (1 if none).
+fn ranks(row: &Row) -> f64 {
+    row.number("ranks").unwrap_or(1.0)
+}
+
+/// The run of `path` the compute rate comes from: on one rank and one thread, the largest n.
+fn alone<'a>(rows: &[&'a Row], path: Path) -> Option<&'a Row> {
+    let grid = |row: &Row| row.number("case.n").unwrap_or(0.0);
+    rows.iter()
+        .copied()
+        .filter(|r| Path::of(r) == Some(path) && ranks(r) == 1.0)
+        .filter(|r| r.number("case.threads").unwrap_or(1.0) == 1.0)
+        .max_by(|a, b| grid(a).total_cmp(&grid(b)))
 }
 
 /// The stencil's seconds per node per step, from the study's one-rank Euler run.
 fn fit_stencil_rate(rows: &[&Row]) -> Option<f64> {
-    let alone = rows
-        .iter()
-        .filter(|r| Path::of(r) == Some(Path::EulerStencil) && r.number("ranks") == Some(1.0))
-        .max_by(|a, b| grid(a).total_cmp(&grid(b)))?;
+    let alone = alone(rows, Path::EulerStencil)?;
     let n = alone.number("case.n")?;
     Some(alone.number("step_s_median")? / (n * n))
 }
