@@ -125,6 +125,10 @@ pub struct Case {
     /// `feti`: the preconditioner (default `dirichlet`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preconditioner: Option<FetiPreconditioner>,
+    /// The implicit integrators' Krylov method: `cg` or `bicgstab` (default: CG for a symmetric
+    /// L_h, BiCGStab for the non-symmetric forms of a varying horizon).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub krylov: Option<Krylov>,
     /// `patch_test`: how ε varies along D (default `constant`, from `eps` or `m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub horizon_profile: Option<HorizonProfile>,
@@ -224,6 +228,18 @@ impl Case {
     /// `patch_test`'s horizon profile.
     pub fn horizon_profile(&self) -> HorizonProfile {
         self.horizon_profile.unwrap_or(HorizonProfile::Constant)
+    }
+
+    /// Whether the case's L_h is symmetric: always with a constant horizon; with a varying one,
+    /// as its formulation is.
+    pub fn symmetric_operator(&self) -> bool {
+        self.horizon_profile.is_none() || self.formulation().is_symmetric()
+    }
+
+    /// The implicit integrators' Krylov method, given or chosen by L_h's symmetry.
+    pub fn krylov(&self) -> Krylov {
+        self.krylov
+            .unwrap_or_else(|| Krylov::for_symmetry(self.symmetric_operator()))
     }
 
     pub fn formulation(&self) -> Formulation {

@@ -263,6 +263,27 @@ pub enum HorizonProfile {
     },
 }
 
+/// The Krylov method of the implicit integrators' solves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Krylov {
+    /// Conjugate gradients: needs a symmetric L_h.
+    Cg,
+    /// BiCGStab: any L_h, at about twice CG's work per iteration.
+    Bicgstab,
+}
+
+impl Krylov {
+    /// The method L_h's symmetry allows when a case names none: CG needs a symmetric operator
+    /// and is never handed another.
+    pub fn for_symmetry(symmetric: bool) -> Krylov {
+        match symmetric {
+            true => Krylov::Cg,
+            false => Krylov::Bicgstab,
+        }
+    }
+}
+
 /// How a variable horizon enters the nonlocal operator (seed 003).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -280,7 +301,8 @@ pub enum Formulation {
 }
 
 impl Formulation {
-    /// Whether L_h is symmetric (CG, which the implicit integrators solve by, needs it).
+    /// Whether L_h is symmetric (CG needs it; the implicit integrators solve the others by
+    /// BiCGStab).
     pub fn is_symmetric(self) -> bool {
         self == Formulation::Standard
     }

@@ -137,12 +137,13 @@ impl Rules for Case {
             &[
                 ("rtol", self.rtol.is_some() && !solves),
                 ("max_iterations", self.max_iterations.is_some() && !solves),
+                ("krylov", self.krylov.is_some() && !solves),
                 ("subdomains", self.subdomains.is_some()),
                 ("preconditioner", self.preconditioner.is_some()),
             ],
             |field| {
                 match field {
-                "rtol" | "max_iterations" => format!(
+                "rtol" | "max_iterations" | "krylov" => format!(
                     "belongs to the steady methods and the implicit integrators (`backward_euler`, `crank_nicolson`); leave `{field}` out"
                 ),
                 _ => "belongs to the steady methods `steady_cg` and `feti`; leave it out".into(),

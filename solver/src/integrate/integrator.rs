@@ -1,5 +1,5 @@
 //! The stepper a case's `integrator` names, for any operator: forward Euler, Heun and RK4, or
-//! the θ-schemes with a preconditioned CG.
+//! the θ-schemes with a preconditioned CG (BiCGStab for a non-symmetric L_h).
 
 use super::euler::ForwardEuler;
 use super::runge_kutta::RungeKutta;
@@ -12,7 +12,8 @@ use crate::parallel::exchange::Ranks;
 use crate::problem::Source;
 
 /// The stepper of the case's integrator for `operator` on `len` nodes; the θ-schemes solve with
-/// CG preconditioned by `preconditioner` (the explicit ones ignore it).
+/// CG (BiCGStab when L_h is not symmetric) preconditioned by `preconditioner` (the explicit ones
+/// ignore it).
 pub fn stepper<'a, Op: LinearOperator, P: LinearOperator>(
     case: &Case,
     operator: &'a Op,
@@ -42,6 +43,7 @@ pub fn stepper<'a, Op: LinearOperator, P: LinearOperator>(
                 case.rtol
                     .unwrap_or_else(|| default_rtol(case.integrator, dt, steps)),
                 case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
+                case.krylov(),
             ))
         }
     }

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use rayon::ThreadPool;
 
 /// Length below which a vector operation runs on one thread; the split points of `dot`.
-const CHUNK: usize = 8192;
+pub(crate) const CHUNK: usize = 8192;
 
 /// What CG iterates with: A (symmetric positive definite on the space the iterates move in),
 /// optionally a preconditioner M ≈ A⁻¹, and the inner product (a sum over ranks when the

@@ -19,20 +19,15 @@ use crate::problem::polynomial::PolynomialField;
 use faer::Mat;
 use std::time::Instant;
 
-/// Above this many nodes the dense eigenvalues (O(n³)) are left out of the record.
+/// Above this many nodes the dense eigenvalues (O(n³)) give way to the sparse eigensolver's.
 pub const SPECTRUM_MAX_NODES: usize = 2000;
+
+/// Above this many nodes the spectrum is left out of the record: the sparse LU of a 2D L_h
+/// fills in about nodes × (2R + 1) n entries (R the reach in cells), 1.3 GB at 200².
+pub const SPARSE_SPECTRUM_MAX_NODES: usize = 20_000;
 
 /// The rules of a patch-test case.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
-    if case.dim != 1 {
-        return Err(CaseError::new(
-            "dim",
-            format!(
-                "the variable-horizon patch test is 1D (got {}); use dim = 1",
-                case.dim
-            ),
-        ));
-    }
     if case.patch == Some(PatchField::Quartic) {
         return Err(CaseError::new(
             "patch",
@@ -143,28 +138,42 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
 }
 
 /// Bytes the variable-horizon operator holds at its peak, from the case alone (nothing
-/// allocated): every bar node's bonds (about 2ε(x)/h of 24 bytes each, over n + 4R nodes, R
-/// the largest reach in cells) beside D's rows (16 bytes per coefficient: about 2ε/h + 1 of
-/// them for `standard`, twice that for `partial_stress`, whose rows reach the neighbours'
-/// neighbours); a patch test's dense spectrum (n ≤ `SPECTRUM_MAX_NODES`: the matrix and the
-/// eigensolver's copies, 32 n² bytes); for a time-dependent run, the rows copied into its
-/// operator (growing vectors: up to twice their length).
+/// allocated): D's rows (16 bytes per coefficient: a node's bonds, about 2ε/h in 1D and
+/// π (ε/h)² in 2D, plus one for `standard` and `x_centred`; 2^d times that for
+/// `partial_stress`, whose rows reach the neighbours' neighbours) and the bonds of the bar's
+/// columns (24 bytes each); a patch test's spectrum (dense up to `SPECTRUM_MAX_NODES` nodes:
+/// the matrix and the eigensolver's copies, 32 N² bytes; sparse up to
+/// `SPARSE_SPECTRUM_MAX_NODES`: the LU's fill, about N (2R + 1) n entries of 16 bytes, twice);
+/// for a time-dependent run, the rows copied into its operator (growing vectors: up to twice
+/// their length).
 pub(crate) fn operator_bytes(case: &Case) -> f64 {
     let profile = case.horizon_profile();
     let constant = horizon_length(case);
     let n = case.n as f64;
+    let dim = case.dim as i32;
     // ε(x) is monotone: its extremes are at the ends.
     let [left, right] = [0.0, 1.0].map(|x| horizon_at(profile, constant, x) * n);
     let (largest, mean) = (left.max(right).floor(), 0.5 * (left + right));
-    let bonds = 24.0 * (n + 4.0 * largest) * 2.0 * mean;
-    let row = match case.formulation() {
-        crate::case::Formulation::Standard | crate::case::Formulation::XCentred => 2.0 * mean + 1.0,
-        crate::case::Formulation::PartialStress => 4.0 * mean + 1.0,
+    let bonds_per_node = match dim {
+        2 => std::f64::consts::PI * mean * mean,
+        _ => 2.0 * mean,
     };
-    let rows = 16.0 * n * row;
-    let spectrum = match case.method == Method::PatchTest && case.n <= SPECTRUM_MAX_NODES {
-        true => 32.0 * n * n,
-        false => 0.0,
+    let nodes = n.powi(dim);
+    let columns = n + 4.0 * largest;
+    let bonds = 24.0 * columns * bonds_per_node;
+    let row = match case.formulation() {
+        crate::case::Formulation::Standard | crate::case::Formulation::XCentred => {
+            bonds_per_node + 1.0
+        }
+        crate::case::Formulation::PartialStress => 2f64.powi(dim) * bonds_per_node + 1.0,
+    };
+    let rows = 16.0 * nodes * row;
+    let spectrum = match case.method == Method::PatchTest {
+        true if nodes <= SPECTRUM_MAX_NODES as f64 => 32.0 * nodes * nodes,
+        true if nodes <= SPARSE_SPECTRUM_MAX_NODES as f64 => {
+            2.0 * 16.0 * nodes * (2.0 * largest + 1.0) * n.powi(dim - 1) + 2.0 * rows
+        }
+        _ => 0.0,
     };
     let copied = match case.method == Method::Nonlocal {
         true => 2.0 * rows,
@@ -182,6 +191,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let field = case.patch();
     let formulation = case.formulation();
     let operator = VariableHorizonOperator::new(
+        case.dim,
         case.n,
         profile,
         constant,
@@ -197,29 +207,36 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let l_u = operator.apply(&u);
     let solve_s = applied.elapsed().as_secs_f64();
     let expected = field.local_operator(0.0, case.diffusivity);
-    let x: Vec<f64> = (0..case.n)
-        .map(|i| operator.x(operator.collar + i))
-        .collect();
-    let eps_d = &operator.eps[operator.collar..operator.collar + case.n];
+    let x_of = |i: usize| operator.x(operator.bar_index(i));
+    let eps_d = operator.eps_on_d();
     let eps_max = eps_d.iter().copied().fold(0.0, f64::max);
     // As the seed plots it: the nodes within the largest horizon of an end left out (there ε
     // meets its constant continuation into the collar). A NaN counts as +∞ (`f64::max` would
-    // skip it), and no node at all is a refusal, not a ghost force of 0.
+    // skip it), and no node at all is a refusal, not a ghost force of 0. In 2D the field and
+    // ε depend on x alone, and the collar holds the field, so every row of nodes counts.
     let deviation = |v: &f64| magnitude(v - expected);
-    let ghost_force = x
+    let ghost_force = l_u
         .iter()
-        .zip(&l_u)
-        .filter(|(x, _)| **x > eps_max && **x < 1.0 - eps_max)
+        .enumerate()
+        .filter(|&(i, _)| x_of(i) > eps_max && x_of(i) < 1.0 - eps_max)
         .map(|(_, v)| deviation(v))
         .reduce(f64::max)
         .ok_or_else(|| empty_interior(case, eps_max))?;
+    // Along the bar: in 2D, the middle row of nodes.
+    let first = if case.dim == 2 {
+        case.n / 2 * case.n
+    } else {
+        0
+    };
+    let along = first..first + case.n;
+    let x: Vec<f64> = along.clone().map(x_of).collect();
     let ghost_force_all = l_u.iter().map(deviation).fold(0.0, f64::max);
     let lambda = operator.lambda_bound();
     let resolved = Resolved {
         h: operator.h,
         eps: Some(eps_max),
         dt_stable: 2.0 / lambda,
-        nodes: case.n,
+        nodes: l_u.len(),
         bonds: operator.bonds,
         ..Resolved::default()
     };
@@ -233,13 +250,13 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             expected,
             eps_min: eps_d.iter().copied().fold(f64::INFINITY, f64::min),
             x,
-            l_u: l_u.clone(),
+            l_u: l_u[along].to_vec(),
             eps_x: eps_d.to_vec(),
-            spectrum: (case.n <= SPECTRUM_MAX_NODES).then(|| spectrum(&operator)),
+            spectrum: spectrum(&operator, case.diffusivity),
         }),
         ..Record::new(case, resolved, Distribution::serial(case))
     };
-    let lattice = crate::discretization::grid::Grid::new(1, case.n).lattice();
+    let lattice = crate::discretization::grid::Grid::new(case.dim, case.n).lattice();
     Ok(Outcome {
         record,
         field: l_u,
@@ -248,19 +265,32 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     })
 }
 
-/// The eigenvalues of L_h on D with a zero collar, dense: the partial-stress form is not
+/// The eigenvalues of L_h on D with a zero collar: every one, dense, up to
+/// `SPECTRUM_MAX_NODES` nodes; beyond, up to `SPARSE_SPECTRUM_MAX_NODES`, the rightmost and the
+/// largest by a sparse eigensolver (`linalg::spectrum`). The partial-stress form is not
 /// symmetric, and with a varying horizon some of its eigenvalues have Re λ > 0.
-pub fn spectrum(operator: &VariableHorizonOperator) -> Spectrum {
-    let n = operator.n;
-    let mut a = Mat::<f64>::zeros(n, n);
-    for (i, row) in operator.rows_with_zero_collar().enumerate() {
-        for (j, value) in row {
-            a[(i, j)] += value;
+pub fn spectrum(operator: &VariableHorizonOperator, diffusivity: f64) -> Option<Spectrum> {
+    let rows: Vec<Vec<(usize, f64)>> = operator.rows_with_zero_collar().collect();
+    let n = rows.len();
+    let (eigenvalues, computed) = if n <= SPECTRUM_MAX_NODES {
+        let mut a = Mat::<f64>::zeros(n, n);
+        for (i, row) in rows.iter().enumerate() {
+            for &(j, value) in row {
+                a[(i, j)] += value;
+            }
         }
-    }
-    let eigenvalues = a
-        .eigenvalues()
-        .expect("the eigenvalues of a finite dense matrix");
+        let all = a
+            .eigenvalues()
+            .expect("the eigenvalues of a finite dense matrix");
+        (all, None)
+    } else if n <= SPARSE_SPECTRUM_MAX_NODES {
+        // σ = k, right of the slowest decay −k π² d of the local limit.
+        let some = crate::linalg::spectrum::ends(&rows, diffusivity).ok()?;
+        let count = some.len();
+        (some, Some(count))
+    } else {
+        return None;
+    };
     let fold =
         |f: fn(&faer::c64) -> f64, start: f64| eigenvalues.iter().map(f).fold(start, f64::max);
     let max_real = fold(|z| z.re, f64::NEG_INFINITY);
@@ -273,10 +303,11 @@ pub fn spectrum(operator: &VariableHorizonOperator) -> Spectrum {
             .map(|(modulus2, z)| -2.0 * z.re / modulus2)
             .fold(f64::INFINITY, f64::min)
     });
-    Spectrum {
+    Some(Spectrum {
         max_real,
         max_imaginary: fold(|z| z.im.abs(), 0.0),
         max_abs: fold(|z| (z.re * z.re + z.im * z.im).sqrt(), 0.0),
         dt_forward_euler,
-    }
+        computed,
+    })
 }

@@ -267,6 +267,11 @@ pub struct Spectrum {
     /// λ); absent when some Re λ > 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dt_forward_euler: Option<f64>,
+    /// How many eigenvalues the sparse eigensolver computed (the rightmost and the largest);
+    /// absent when every eigenvalue was (dense). Then `max_imaginary` and `dt_forward_euler`
+    /// are over the computed ones.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub computed: Option<usize>,
 }
 
 /// A coupled local–nonlocal solve (seed 003): the errors of both models against the exact
