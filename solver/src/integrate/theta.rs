@@ -170,7 +170,7 @@ mod tests {
     use crate::discretization::grid::{Grid, Horizon};
     use crate::discretization::stability::forward_euler_dt_stable;
     use crate::discretization::stencil::Stencil;
-    use crate::operator::{Identity, SinePreconditioner, StencilOperator};
+    use crate::operator::{Identity, RowOperator, SinePreconditioner, StencilOperator};
     use crate::parallel::exchange::Ranks;
 
     /// Preconditioned and plain CG solve the same θ-step to the tolerance, and the sine
@@ -220,6 +220,107 @@ mod tests {
                 "{integrator:?}: {with_iterations} iterations preconditioned, {without_iterations} without"
             );
         }
+    }
+
+    /// BiCGStab's θ-step with the non-symmetric x-centred form of a varying horizon (1D
+    /// transition and 2D ramp, dt = 100× Gershgorin's explicit step), preconditioned by the sine
+    /// transform at the smallest ε and not, is the dense LU solve of the same step to the
+    /// tolerance.
+    #[test]
+    fn bicgstab_takes_the_dense_solves_step_with_a_non_symmetric_operator() {
+        use crate::case::{Formulation, HorizonProfile};
+        use crate::discretization::variable_horizon::VariableHorizonOperator;
+        use crate::operator::RowOperator;
+        use faer::linalg::solvers::Solve;
+        let transition = HorizonProfile::Transition {
+            left: 0.1,
+            right: 0.025,
+            start: 0.4,
+            end: 0.6,
+        };
+        let ramp = HorizonProfile::Linear {
+            left: 0.1,
+            right: 0.05,
+        };
+        for (dim, n, profile, eps_min) in [(1, 200, transition, 0.025), (2, 32, ramp, 0.05)] {
+            let variable = VariableHorizonOperator::new(
+                dim,
+                n,
+                profile,
+                0.1,
+                Kernel::Linear,
+                1.0,
+                Formulation::XCentred,
+            );
+            let rows: Vec<Vec<(usize, f64)>> = variable.rows_with_zero_collar().collect();
+            let operator = RowOperator::new(rows.clone());
+            let len = rows.len();
+            let dt = 100.0 * 2.0 / operator.lambda_bound();
+            let u0: Vec<f64> = (0..len)
+                .map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0)
+                .collect();
+            let grid = Grid::new(dim, n);
+            let stencil = Stencil::new(
+                grid,
+                Horizon::from_eps(&grid, eps_min),
+                Kernel::Linear,
+                Quadrature::Midpoint,
+                1.0,
+            );
+            for integrator in [Integrator::BackwardEuler, Integrator::CrankNicolson] {
+                let theta = theta(integrator);
+                let mut a = faer::Mat::<f64>::identity(len, len);
+                let mut b = faer::Mat::<f64>::from_fn(len, 1, |i, _| u0[i]);
+                for (i, row) in rows.iter().enumerate() {
+                    for &(j, v) in row {
+                        a[(i, j)] -= theta * dt * v;
+                        b[(i, 0)] += (1.0 - theta) * dt * v * u0[j];
+                    }
+                }
+                let exact = a.partial_piv_lu().solve(&b);
+                let sine = SinePreconditioner::new(&stencil, theta * dt);
+                let rtol = 1e-12;
+                for preconditioned in [true, false] {
+                    let mut u = u0.clone();
+                    let rhs = Rhs::new(&operator, None, Ranks::single());
+                    let solves = match preconditioned {
+                        true => step_with(&sine, rhs, &mut u, integrator, dt, rtol),
+                        false => step_with(&Identity, rhs, &mut u, integrator, dt, rtol),
+                    };
+                    assert_eq!(solves.solves_unconverged, Some(0));
+                    let scale = (0..len).fold(0.0f64, |m, i| m.max(exact[(i, 0)].abs()));
+                    let error = (0..len).fold(0.0f64, |m, i| m.max((u[i] - exact[(i, 0)]).abs()));
+                    assert!(
+                        error < 1e-9 * scale,
+                        "{dim}D {integrator:?} preconditioned {preconditioned}: {error:e} from LU ({solves:?})"
+                    );
+                }
+            }
+        }
+    }
+
+    /// One BiCGStab θ-step from u.
+    fn step_with<P: LinearOperator>(
+        preconditioner: &P,
+        rhs: Rhs<'_, RowOperator>,
+        u: &mut [f64],
+        integrator: Integrator,
+        dt: f64,
+        rtol: f64,
+    ) -> ImplicitSolves {
+        let len = u.len();
+        let mut theta = Theta::new(
+            integrator,
+            rhs,
+            preconditioner,
+            len,
+            dt,
+            rtol,
+            10_000,
+            Krylov::Bicgstab,
+        );
+        theta.step(u, 0.0, dt);
+        theta.solves()
     }
 
     /// One θ-step from u with `preconditioner`, and what its solve took.

@@ -152,6 +152,7 @@ fn update_direction(p: &mut [f64], r: &[f64], beta: f64, omega: f64, v: &[f64]) 
 mod tests {
     use super::*;
     use crate::linalg::cg::{dot, Closures, NoPreconditioner};
+    use faer::linalg::solvers::Solve;
     use faer::Mat;
 
     /// A non-symmetric, diagonally dominant matrix (an upwinded convection–diffusion stencil
