@@ -139,6 +139,10 @@ pub struct Case {
     /// exact solution, also `quartic` (u = x² − x⁴).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch: Option<PatchField>,
+    /// `coupled_1d`: `optimization` (default: seed 003's optimization-based coupling) or
+    /// `seamless` (one model whose horizon shrinks to one cell over the overlap).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<CouplingKind>,
     /// `coupled_1d`: the local problem's interval [Γ_c, Γ_i] (default [0.75, 1.75]); it overlaps
     /// Ω_n = (0, 1) on Ω_b = (Γ_c, 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -249,6 +253,10 @@ impl Case {
     /// The prescribed (`patch_test`) or exact (`coupled_1d`) field.
     pub fn patch(&self) -> PatchField {
         self.patch.unwrap_or_default()
+    }
+
+    pub fn coupling(&self) -> CouplingKind {
+        self.coupling.unwrap_or_default()
     }
 
     pub fn local_domain(&self) -> [f64; 2] {

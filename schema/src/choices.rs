@@ -263,6 +263,19 @@ pub enum HorizonProfile {
     },
 }
 
+/// How `coupled_1d` couples its local and nonlocal models.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CouplingKind {
+    /// D'Elia, Perego and Bochev's: two models on overlapping domains, their interface values
+    /// the controls of a least-squares mismatch on the overlap (seed 003).
+    #[default]
+    Optimization,
+    /// Tao, Tian and Du's heterogeneous localization: one model whose horizon shrinks to one
+    /// cell over the overlap, local beyond it.
+    Seamless,
+}
+
 /// The Krylov method of the implicit integrators' solves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -87,6 +87,7 @@ pub const COLUMNS: &[&str] = &[
     "error_max",
     "error_total",
     "mass",
+    "mass_drift",
     "max_abs",
     "diverged_step",
     "diverged_time",

@@ -389,8 +389,16 @@ fn summary(record: &Record) -> String {
         );
     }
     if let Some(coupled) = &record.coupling {
+        let optimum = match (coupled.mismatch, coupled.gradient) {
+            (Some(mismatch), Some(gradient)) => format!(
+                "overlap mismatch {mismatch:.3e}, ‖∇J‖/‖∇J(0)‖ {gradient:.1e} over {} controls",
+                coupled.controls_nonlocal.len() + 1
+            ),
+            _ => "no interface: the horizon shrinks to h over the overlap".into(),
+        };
         return format!(
-            "nlsolve: coupled_1d n={} ε={} {} {} field, local domain [{}, {}]: e(u_n) {:.3e}, e(u_l) {:.3e}, overlap mismatch {:.3e}, ‖∇J‖/‖∇J(0)‖ {:.1e} over {} controls; status {}",
+            "nlsolve: coupled_1d ({}) n={} ε={} {} {} field, local domain [{}, {}]: e(u_n) {:.3e}, e(u_l) {:.3e}, {optimum}; status {}",
+            label(&case.coupling()),
             case.n,
             resolved.eps.unwrap_or(f64::NAN),
             label(&case.kernel),
@@ -399,9 +407,6 @@ fn summary(record: &Record) -> String {
             coupled.local_domain[1],
             coupled.error_nonlocal,
             coupled.error_local,
-            coupled.mismatch,
-            coupled.gradient,
-            coupled.controls_nonlocal.len() + 1,
             label(&record.status),
         );
     }

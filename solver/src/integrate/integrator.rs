@@ -4,7 +4,7 @@
 use super::euler::ForwardEuler;
 use super::runge_kutta::RungeKutta;
 use super::stepper::{Rhs, Stepper};
-use super::theta::{default_rtol, Theta, DEFAULT_MAX_ITERATIONS};
+use super::theta::{default_rtol, Solves, Theta, DEFAULT_MAX_ITERATIONS};
 use super::timed::Stepping;
 use crate::case::{Case, Integrator};
 use crate::operator::LinearOperator;
@@ -40,10 +40,13 @@ pub fn stepper<'a, Op: LinearOperator, P: LinearOperator>(
                 preconditioner,
                 len,
                 dt,
-                case.rtol
-                    .unwrap_or_else(|| default_rtol(case.integrator, dt, steps)),
-                case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
-                case.krylov(),
+                Solves {
+                    rtol: case
+                        .rtol
+                        .unwrap_or_else(|| default_rtol(case.integrator, dt, steps)),
+                    max_iterations: case.max_iterations.unwrap_or(DEFAULT_MAX_ITERATIONS),
+                    krylov: case.krylov(),
+                },
             ))
         }
     }

@@ -58,10 +58,13 @@ impl<'a, Op: LinearOperator, P: LinearOperator> Theta<'a, Op, P> {
         preconditioner: &'a P,
         len: usize,
         dt: f64,
-        rtol: f64,
-        max_iterations: usize,
-        krylov: Krylov,
+        solves: Solves,
     ) -> Self {
+        let Solves {
+            rtol,
+            max_iterations,
+            krylov,
+        } = solves;
         Theta {
             rhs,
             theta: theta(integrator),
@@ -82,6 +85,14 @@ impl<'a, Op: LinearOperator, P: LinearOperator> Theta<'a, Op, P> {
             unconverged: 0,
         }
     }
+}
+
+/// How each θ-step solves: the relative tolerance, the iteration cap and the Krylov method.
+#[derive(Clone, Copy, Debug)]
+pub struct Solves {
+    pub rtol: f64,
+    pub max_iterations: usize,
+    pub krylov: Krylov,
 }
 
 /// The buffers of the `Krylov` method the solves use.
@@ -315,9 +326,11 @@ mod tests {
             preconditioner,
             len,
             dt,
-            rtol,
-            10_000,
-            Krylov::Bicgstab,
+            Solves {
+                rtol,
+                max_iterations: 10_000,
+                krylov: Krylov::Bicgstab,
+            },
         );
         theta.step(u, 0.0, dt);
         theta.solves()
@@ -339,9 +352,11 @@ mod tests {
             preconditioner,
             u.len(),
             dt,
-            rtol,
-            100_000,
-            Krylov::Cg,
+            Solves {
+                rtol,
+                max_iterations: 100_000,
+                krylov: Krylov::Cg,
+            },
         );
         theta.step(u, 0.0, dt);
         theta.solves()

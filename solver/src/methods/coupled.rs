@@ -26,7 +26,9 @@
 //! tiny smoothness term that is exact on linear data (see `least_squares`).
 //! The record carries ‖∇J(θ)‖/‖∇J(0)‖, the first-order condition's residual.
 
-use crate::case::{horizon_length, readable, Case, CaseError, Method, Rules, ValidCase, MAX_EPS};
+use crate::case::{
+    horizon_length, readable, Case, CaseError, CouplingKind, Method, Rules, ValidCase, MAX_EPS,
+};
 use crate::discretization::finite_element::{
     laplace_stiffness, nonlocal_stiffness, BandMatrix, Mesh,
 };
@@ -120,6 +122,14 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     };
     if let Some(message) = message {
         return Err(CaseError::new("local_domain", message));
+    }
+    if case.coupling() == CouplingKind::Seamless {
+        crate::methods::seamless::cells(case.n, b)?;
+        crate::case::validate_diffusivity(case.diffusivity)?;
+        case.refuse_steady_fields()?;
+        return case.refuse_time_loop_fields(
+            "the seamless coupling is steady, on one rank, solved directly by a sparse LU",
+        );
     }
     let sizes = Sizes::of(case);
     // J must determine every control: faer's least squares asserts as many rows as columns.
@@ -556,6 +566,9 @@ impl Coupled {
 /// Solves the coupled problem and measures both states against the exact solution.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::Coupled1d);
+    if case.coupling() == CouplingKind::Seamless {
+        return crate::methods::seamless::run(case);
+    }
     let started = Instant::now();
     let problem = Coupled::new(case)?;
     let setup_s = started.elapsed().as_secs_f64();
@@ -579,14 +592,14 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let coupling = Coupling {
         error_nonlocal: nonlocal.mesh.l2_distance(u_n, 0.0, 1.0, exact),
         error_local: local.mesh.l2_distance(u_l, a, b, exact),
-        mismatch: problem.mismatch(&states),
-        gradient: optimum.gradient,
-        hessian_condition: optimum.condition,
-        controls_resolved: optimum.resolved,
+        mismatch: Some(problem.mismatch(&states)),
+        gradient: Some(optimum.gradient),
+        hessian_condition: Some(optimum.condition),
+        controls_resolved: Some(optimum.resolved),
         control_nodes: nonlocal.control_nodes.clone(),
         controls_nonlocal: theta_n.to_vec(),
-        control_local: theta_l[0],
-        control_error,
+        control_local: Some(theta_l[0]),
+        control_error: Some(control_error),
         nonlocal_nodes: nonlocal.mesh.len(),
         local_nodes: local.mesh.len(),
         local_domain: [a, b],

@@ -18,6 +18,7 @@ pub mod nonlocal;
 pub mod patch_test;
 pub mod pse;
 pub mod resources;
+pub mod seamless;
 pub mod steady;
 
 use crate::case::Rules;
@@ -72,17 +73,19 @@ fn check(case: &Case) -> Result<(), CaseError> {
                     case.patch.is_some() && case.method != Method::Coupled1d,
                 ),
             ],
-            |_| {
-                "belongs to a variable horizon (`patch_test`, or `nonlocal` in 1D); leave it out"
-                    .into()
-            },
+            |_| "belongs to a variable horizon (`patch_test`, or `nonlocal`); leave it out".into(),
         )?;
     }
-    if case.method != Method::Coupled1d && case.local_domain.is_some() {
-        return Err(CaseError::new(
-            "local_domain",
-            "belongs to the local–nonlocal coupling `coupled_1d`; leave it out",
-        ));
+    for (field, given) in [
+        ("local_domain", case.local_domain.is_some()),
+        ("coupling", case.coupling.is_some()),
+    ] {
+        if case.method != Method::Coupled1d && given {
+            return Err(CaseError::new(
+                field,
+                "belongs to the local–nonlocal coupling `coupled_1d`; leave it out",
+            ));
+        }
     }
     match case.method {
         Method::Nonlocal => time_dependent(nonlocal::validate),

@@ -31,6 +31,10 @@ pub struct Record {
     pub error_total: Option<f64>,
     /// h^d Σᵢ ûᵢ at the end.
     pub mass: Option<f64>,
+    /// (mass at the end − mass at the start) / mass at the start, for a varying horizon's run
+    /// (whether its form conserves Σ u).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass_drift: Option<f64>,
     pub max_abs: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
@@ -85,6 +89,7 @@ impl Record {
             error_max: None,
             error_total: None,
             mass: None,
+            mass_drift: None,
             max_abs: None,
             diverged_step: None,
             diverged_time: None,
@@ -112,6 +117,7 @@ impl Record {
             ("error_max", self.error_max),
             ("error_total", self.error_total),
             ("mass", self.mass),
+            ("mass_drift", self.mass_drift),
             ("max_abs", self.max_abs),
             ("relative_residual", self.steady.relative_residual),
             ("dual_residual", self.steady.dual_residual),
@@ -124,8 +130,8 @@ impl Record {
             results.extend([
                 ("coupling.error_nonlocal", Some(coupling.error_nonlocal)),
                 ("coupling.error_local", Some(coupling.error_local)),
-                ("coupling.mismatch", Some(coupling.mismatch)),
-                ("coupling.control_error", Some(coupling.control_error)),
+                ("coupling.mismatch", coupling.mismatch),
+                ("coupling.control_error", coupling.control_error),
             ]);
         }
         first_non_finite(results)
@@ -275,28 +281,39 @@ pub struct Spectrum {
 }
 
 /// A coupled local–nonlocal solve (seed 003): the errors of both models against the exact
-/// solution, the optimal controls, and the optimality system's residual and conditioning.
+/// solution; for the optimization-based coupling also the optimal controls and the optimality
+/// system's residual and conditioning (absent for the seamless one, which has none).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Coupling {
     /// e(u_n) = ‖u_n − u‖ in L²(Ω_n) and e(u_l) = ‖u_l − u‖ in L²(Ω_l), the seed's columns.
     pub error_nonlocal: f64,
     pub error_local: f64,
     /// ‖u_n − u_l‖ in L²(Ω_b) at the optimum, √(2J).
-    pub mismatch: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mismatch: Option<f64>,
     /// ‖∇J(θ)‖/‖∇J(0)‖: the first-order condition's residual at the controls returned.
-    pub gradient: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gradient: Option<f64>,
     /// cond₂ of the reduced Hessian solved, ΨᵀWΨ plus the smoothness term that decides the
     /// directions J cannot resolve (see `methods::coupled`).
-    pub hessian_condition: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hessian_condition: Option<f64>,
     /// The directions of the controls J resolves (σᵢ > ε_mach^¼ σ₁), of `control_nodes` + 1.
-    pub controls_resolved: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controls_resolved: Option<usize>,
     /// The nodes of the nonlocal control collar [1, 1 + ε], and θ_n there.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub control_nodes: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub controls_nonlocal: Vec<f64>,
     /// θ_l, u_l at Γ_c.
-    pub control_local: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub control_local: Option<f64>,
     /// max |θ − u| over every control: how far the controls are from the exact solution's values.
-    pub control_error: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub control_error: Option<f64>,
+    /// Nodes of each model's mesh; for the seamless coupling, those of its one lattice in
+    /// Ω_n and in Ω_l (the overlap's in both).
     pub nonlocal_nodes: usize,
     pub local_nodes: usize,
     /// Ω_l = (Γ_c, Γ_i).

@@ -130,11 +130,12 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         }
     };
     let ranks = Ranks::single();
+    let mass0 = crate::output::diagnostics::total_mass(&u0, grid.volume());
     let source_max = source
         .as_ref()
         .map(|s| (ranks.max_abs(&s.phi), ranks.max_abs(&s.psi)));
     let bound = divergence_bound(case, ranks.max_abs(&u0), source_max);
-    let stepping = Stepping::of_case(case, dt, steps, bound, 1.0);
+    let stepping = Stepping::of_case(case, dt, steps, bound, grid.volume());
     // The implicit solves' preconditioner: the sine transform of the constant-horizon operator
     // at the smallest ε, the one whose stiff modes a small horizon adds.
     let preconditioner = case.integrator.is_implicit().then(|| {
@@ -174,7 +175,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let exact = source
         .as_ref()
         .map(|s| manufactured_solution(&s.phi, t_end));
-    Ok(serial_outcome(
+    let mut outcome = serial_outcome(
         case,
         resolved,
         setup_s,
@@ -182,5 +183,12 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         trajectory,
         grid.lattice(),
         exact.as_ref().map(|e| e as &(dyn Fn(usize) -> f64 + Sync)),
-    ))
+    );
+    let record = &mut outcome.record;
+    record.mass_drift = record
+        .mass
+        .filter(|_| mass0 != 0.0)
+        .map(|mass| (mass - mass0) / mass0)
+        .filter(|drift| drift.is_finite());
+    Ok(outcome)
 }
