@@ -241,7 +241,10 @@ fn bad_input_exits_2_naming_the_field() {
             "--dim 2 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --ranks 2 --field-snapshot 8",
             "`field_snapshot`",
         ),
-        ("--method patch_test --dim 2 --n 64 --eps 0.1", "`dim`"),
+        (
+            r#"--dim 1 --n 200 --t-end 0.1 --cfl 10 --integrator crank_nicolson --source local --formulation x_centred --krylov cg --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#,
+            "`krylov`",
+        ),
         ("--method patch_test --dim 1 --n 64 --eps 0.1 --t-end 1", "`t_end`"),
         ("--method patch_test --dim 1 --n 64", "`eps`"),
         (
@@ -257,7 +260,7 @@ fn bad_input_exits_2_naming_the_field() {
             "`eps`",
         ),
         ("--dim 1 --n 16 --m 2 --t-end 0.1 --cfl 0.5 --formulation partial_stress", "`formulation`"),
-        (r#"--dim 2 --n 64 --t-end 0.1 --cfl 0.5 --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#, "`dim`"),
+        (r#"--dim 2 --n 32 --t-end 0.1 --cfl 0.5 --source local --ranks 2 --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#, "`ranks`"),
         (r#"--dim 1 --n 64 --t-end 0.1 --cfl 0.5 --source local --ranks 2 --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#, "`ranks`"),
         (r#"--dim 1 --n 64 --t-end 0.1 --cfl 0.5 --source local --backend fft --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#, "`backend`"),
         (r#"--dim 1 --n 64 --t-end 0.1 --cfl 0.5 --source local --collar exact --horizon-profile {"kind":"linear","left":0.1,"right":0.05}"#, "`collar`"),

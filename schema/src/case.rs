@@ -129,10 +129,11 @@ pub struct Case {
     /// L_h, BiCGStab for the non-symmetric forms of a varying horizon).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub krylov: Option<Krylov>,
-    /// `patch_test`: how ε varies along D (default `constant`, from `eps` or `m`).
+    /// `patch_test` and `nonlocal`: how ε varies along x (default `constant`, from `eps` or `m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub horizon_profile: Option<HorizonProfile>,
-    /// `patch_test`: `standard` (default) or `partial_stress`.
+    /// `patch_test` and a varying-horizon `nonlocal`: `standard` (default), `x_centred` or
+    /// `partial_stress`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub formulation: Option<Formulation>,
     /// `patch_test`: the prescribed field, `linear` (default) or `quadratic`; `coupled_1d`: the

@@ -202,19 +202,29 @@ struct CaseFlags {
     /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
     #[arg(long)]
     preconditioner: Option<String>,
-    /// patch_test: how ε varies along D, as JSON: {"kind": "constant"} (from --eps or --m),
+    /// implicit integrators: the Krylov method of each step's solve, cg or bicgstab (default:
+    /// cg for a symmetric L_h, bicgstab for the x_centred and partial_stress forms).
+    #[arg(long)]
+    krylov: Option<String>,
+    /// patch_test and nonlocal: how ε varies along x, as JSON: {"kind": "constant"} (from --eps or --m),
     /// {"kind": "linear", "left": a, "right": b} or {"kind": "transition", "left": a, "right":
     /// b, "start": s, "end": e}.
     #[arg(long, value_name = "JSON")]
     #[serde(serialize_with = "json_text")]
     horizon_profile: Option<String>,
-    /// patch_test: standard (pairwise bonds; ghost forces where ε varies) or partial_stress.
+    /// patch_test and a varying-horizon nonlocal: standard (pairwise bonds, the symmetrised
+    /// dual-horizon kernel; ghost forces where ε varies), x_centred (each node on its own
+    /// horizon: exact on the patch tests and stable, not symmetric) or partial_stress.
     #[arg(long)]
     formulation: Option<String>,
     /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²); coupled_1d: the
     /// exact solution, also quartic (u = x² − x⁴).
     #[arg(long)]
     patch: Option<String>,
+    /// coupled_1d: optimization (default: seed 003's optimization-based coupling) or seamless
+    /// (one x-centred model whose horizon shrinks to h over the overlap).
+    #[arg(long)]
+    coupling: Option<String>,
     /// coupled_1d: the local problem's interval a,b (default 0.75,1.75): Γ_c = a inside (0, 1),
     /// Γ_i = b ≥ 1 + ε.
     #[arg(
