@@ -45,14 +45,17 @@ integrators-docs: setup
 	mkdir -p docs/figures/integrators
 	cp results/integrators/figures/*.svg docs/figures/integrators/
 
-# docs/variable_horizon.md's figures and tables (seed 003's patch tests), a few seconds.
+# docs/variable_horizon.md's figures and tables: seed 003's patch tests (a few seconds), then the
+# formulations compared (studies/formulations.json, about 3.5 minutes).
 variable-horizon-docs: setup
 	cargo build --release --workspace
 	target/release/nlstudy run studies/variable_horizon.json
 	mkdir -p docs/figures/variable_horizon
 	cp results/variable_horizon/figures/*.svg docs/figures/variable_horizon/
+	target/release/nlstudy run studies/formulations.json
 
-# docs/coupling.md's figures and tables (seed 003's local–nonlocal coupling), under a second.
+# docs/coupling.md's figures and tables (seed 003's local–nonlocal coupling and the seamless one),
+# a few seconds.
 coupling-docs: setup
 	cargo build --release --workspace
 	target/release/nlstudy run studies/coupling.json
