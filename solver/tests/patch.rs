@@ -558,6 +558,10 @@ fn the_x_centred_and_standard_forms_are_stable_on_every_profile_in_1d_and_2d() {
                 Formulation::Standard,
                 Formulation::PartialStress,
             ] {
+                // The partial stress is asserted on only where it is certainly unstable.
+                if formulation == Formulation::PartialStress && profile != TRANSITION {
+                    continue;
+                }
                 let op = VariableHorizonOperator::new(
                     dim,
                     n,
@@ -570,11 +574,9 @@ fn the_x_centred_and_standard_forms_are_stable_on_every_profile_in_1d_and_2d() {
                 let s = spectrum_of(&op);
                 assert_eq!(s.computed.is_some(), dim == 2, "dense in 1D, sparse in 2D");
                 match formulation {
-                    // On the ramp at n = 48 its 2D spectrum is ≤ 0 (−2.7e-3, dense), in 1D not.
-                    Formulation::PartialStress if profile == TRANSITION => {
+                    Formulation::PartialStress => {
                         assert!(s.max_real > 1.0, "{dim}D {profile:?}: {s:?}")
                     }
-                    Formulation::PartialStress => {}
                     _ => assert!(
                         s.max_real <= 1e-12 * s.max_abs,
                         "{dim}D {formulation:?} {profile:?}: {s:?}"

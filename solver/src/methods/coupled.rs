@@ -612,15 +612,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         bonds: problem.bonds,
         ..Resolved::default()
     };
-    let record = Record {
-        setup_s,
-        solve_s,
-        step_s: solve_s,
-        error_l2_norm: Some(coupling.error_nonlocal),
-        error_l2: Some(coupling.error_nonlocal.powi(2)),
-        coupling: Some(coupling),
-        ..Record::new(case, resolved, Distribution::serial(case))
-    };
+    let record = coupled_record(case, resolved, (setup_s, solve_s), coupling);
     // The field on Ω_n's lattice kh, k = 0 … n (the collars' nodes left out).
     let first = nonlocal.mesh.nodes.partition_point(|&z| z < 0.0);
     Ok(Outcome {
@@ -634,6 +626,25 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         },
         frames: Vec::new(),
     })
+}
+
+/// The record of a coupled solve (either coupling): its timings (set-up, solve) and its errors,
+/// e(u_n) standing as the record's L² error.
+pub(crate) fn coupled_record(
+    case: &ValidCase,
+    resolved: Resolved,
+    (setup_s, solve_s): (f64, f64),
+    coupling: Coupling,
+) -> Record {
+    Record {
+        setup_s,
+        solve_s,
+        step_s: solve_s,
+        error_l2_norm: Some(coupling.error_nonlocal),
+        error_l2: Some(coupling.error_nonlocal.powi(2)),
+        coupling: Some(coupling),
+        ..Record::new(case, resolved, Distribution::serial(case))
+    }
 }
 
 #[cfg(test)]

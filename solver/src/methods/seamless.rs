@@ -25,8 +25,9 @@ use crate::case::{horizon_length, readable, CaseError, Formulation, HorizonProfi
 use crate::discretization::finite_element::Mesh;
 use crate::discretization::grid::Lattice;
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
+use crate::methods::coupled::coupled_record;
 use crate::output::outcome::Outcome;
-use crate::output::record::{Coupling, Distribution, Record, Resolved};
+use crate::output::record::{Coupling, Resolved};
 use crate::problem::polynomial::PolynomialField;
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
@@ -153,15 +154,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         bonds: operator.bonds,
         ..Resolved::default()
     };
-    let record = Record {
-        setup_s,
-        solve_s,
-        step_s: solve_s,
-        error_l2_norm: Some(coupling.error_nonlocal),
-        error_l2: Some(coupling.error_nonlocal.powi(2)),
-        coupling: Some(coupling),
-        ..Record::new(case, resolved, Distribution::serial(case))
-    };
+    let record = coupled_record(case, resolved, (setup_s, solve_s), coupling);
     Ok(Outcome {
         record,
         field: solution.iter().copied().collect(),
