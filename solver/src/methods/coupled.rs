@@ -36,7 +36,7 @@ use crate::discretization::grid::Lattice;
 use crate::discretization::influence::scaling_constant;
 use crate::linalg::cholesky::{sparse_matrix, Cholesky};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Coupling, Distribution, Record, Resolved};
+use crate::output::record::{Coupling, Record, Resolved};
 use crate::problem::polynomial::PolynomialField;
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
@@ -566,9 +566,6 @@ impl Coupled {
 /// Solves the coupled problem and measures both states against the exact solution.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     debug_assert_eq!(case.method, Method::Coupled1d);
-    if case.coupling() == CouplingKind::Seamless {
-        return crate::methods::seamless::run(case);
-    }
     let started = Instant::now();
     let problem = Coupled::new(case)?;
     let setup_s = started.elapsed().as_secs_f64();
@@ -612,7 +609,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         bonds: problem.bonds,
         ..Resolved::default()
     };
-    let record = coupled_record(case, resolved, (setup_s, solve_s), coupling);
+    let record = Record::coupled(case, resolved, (setup_s, solve_s), coupling);
     // The field on Ω_n's lattice kh, k = 0 … n (the collars' nodes left out).
     let first = nonlocal.mesh.nodes.partition_point(|&z| z < 0.0);
     Ok(Outcome {
@@ -626,25 +623,6 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         },
         frames: Vec::new(),
     })
-}
-
-/// The record of a coupled solve (either coupling): its timings (set-up, solve) and its errors,
-/// e(u_n) standing as the record's L² error.
-pub(crate) fn coupled_record(
-    case: &ValidCase,
-    resolved: Resolved,
-    (setup_s, solve_s): (f64, f64),
-    coupling: Coupling,
-) -> Record {
-    Record {
-        setup_s,
-        solve_s,
-        step_s: solve_s,
-        error_l2_norm: Some(coupling.error_nonlocal),
-        error_l2: Some(coupling.error_nonlocal.powi(2)),
-        coupling: Some(coupling),
-        ..Record::new(case, resolved, Distribution::serial(case))
-    }
 }
 
 #[cfg(test)]

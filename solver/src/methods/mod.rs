@@ -22,7 +22,7 @@ pub mod seamless;
 pub mod steady;
 
 use crate::case::Rules;
-use crate::case::{refuse_given, Case, CaseError, Method, ValidCase};
+use crate::case::{refuse_given, Case, CaseError, CouplingKind, Method, ValidCase};
 use crate::discretization::stencil::Stencil;
 use crate::output::outcome::Outcome;
 use crate::parallel::share::HaloReport;
@@ -134,7 +134,10 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
         // The steady methods start their pool inside their setup timing.
         Method::SteadyCg | Method::Feti => steady::run(&case),
         Method::PatchTest => in_pool(&case, patch_test::run),
-        Method::Coupled1d => in_pool(&case, coupled::run),
+        Method::Coupled1d => match case.coupling() {
+            CouplingKind::Optimization => in_pool(&case, coupled::run),
+            CouplingKind::Seamless => in_pool(&case, seamless::run),
+        },
     };
     outcome.map(|outcome| finished(&case, outcome))
 }

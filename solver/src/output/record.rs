@@ -32,7 +32,7 @@ pub struct Record {
     /// h^d Σᵢ ûᵢ at the end.
     pub mass: Option<f64>,
     /// (mass at the end − mass at the start) / mass at the start, for a varying horizon's run
-    /// (whether its form conserves Σ u).
+    /// of the bump (whether its form conserves Σ u).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mass_drift: Option<f64>,
     pub max_abs: Option<f64>,
@@ -73,6 +73,25 @@ pub struct Record {
 }
 
 impl Record {
+    /// The record of a coupled solve (either coupling): its timings (set-up, solve) and its
+    /// errors, e(u_n) standing as the record's L² error.
+    pub fn coupled(
+        case: &Case,
+        resolved: Resolved,
+        (setup_s, solve_s): (f64, f64),
+        coupling: Coupling,
+    ) -> Record {
+        Record {
+            setup_s,
+            solve_s,
+            step_s: solve_s,
+            error_l2_norm: Some(coupling.error_nonlocal),
+            error_l2: Some(coupling.error_nonlocal.powi(2)),
+            coupling: Some(coupling),
+            ..Record::new(case, resolved, Distribution::serial(case))
+        }
+    }
+
     /// An `ok` record with nothing measured yet: each method fills in what it measured.
     pub fn new(case: &Case, resolved: Resolved, distribution: Distribution) -> Self {
         Record {
