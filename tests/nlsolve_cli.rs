@@ -247,6 +247,7 @@ fn bad_input_exits_2_naming_the_field() {
         ),
         ("--method patch_test --dim 1 --n 64 --eps 0.1 --t-end 1", "`t_end`"),
         ("--method patch_test --dim 1 --n 64", "`eps`"),
+        ("--method patch_test --dim 1 --n 40 --eps 0.025 --kernel linear", "`eps`"),
         (
             r#"--method patch_test --dim 1 --n 64 --horizon-profile {"kind":"transition","left":0.1,"right":0.05,"start":0.7,"end":0.3}"#,
             "`horizon_profile`",

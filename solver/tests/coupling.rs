@@ -174,7 +174,8 @@ fn the_seamless_coupling_passes_the_patch_tests_and_converges_at_second_order() 
 }
 
 /// The seamless coupling needs a whole number of cells on (0, b): a `local_domain` that is not
-/// is refused naming it; `coupling` on another method is refused naming `coupling`.
+/// is refused naming it; so is a kernel that vanishes at r = 1 (its one-cell horizon would have
+/// no bond), naming `kernel`; `coupling` on another method is refused naming `coupling`.
 #[test]
 fn the_seamless_coupling_refuses_a_domain_of_partial_cells() {
     let refused = ValidCase::from_json(serde_json::json!({
@@ -184,6 +185,12 @@ fn the_seamless_coupling_refuses_a_domain_of_partial_cells() {
     .expect_err("1.7 · 8 cells is not whole");
     assert_eq!(refused.field, "local_domain", "{refused}");
     assert!(refused.message.contains("whole"), "{refused}");
+    let refused = ValidCase::from_json(serde_json::json!({
+        "method": "coupled_1d", "dim": 1, "n": 8, "eps": EPS, "coupling": "seamless",
+        "kernel": "linear"
+    }))
+    .expect_err("J = 1 − r vanishes at the one-cell horizon");
+    assert_eq!(refused.field, "kernel", "{refused}");
     let refused = ValidCase::from_json(serde_json::json!({
         "method": "nonlocal", "dim": 1, "n": 8, "m": 2, "t_end": 0.1, "coupling": "seamless"
     }))

@@ -1,6 +1,7 @@
 //! The nonlocal heat equation with a varying horizon (`method: nonlocal` with a
-//! `horizon_profile`, 1D): thread-count independent, every integrator at its order, and the
-//! partial stress's growing modes seen in time as the spectrum predicts.
+//! `horizon_profile`, 1D and 2D): thread-count independent, every integrator at its order, the
+//! x-centred form within its bounds, and the partial stress's growing modes seen in time as the
+//! spectrum predicts.
 
 mod common;
 

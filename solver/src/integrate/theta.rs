@@ -241,7 +241,6 @@ mod tests {
     fn bicgstab_takes_the_dense_solves_step_with_a_non_symmetric_operator() {
         use crate::case::{Formulation, HorizonProfile};
         use crate::discretization::variable_horizon::VariableHorizonOperator;
-        use crate::operator::RowOperator;
         use faer::linalg::solvers::Solve;
         let transition = HorizonProfile::Transition {
             left: 0.1,

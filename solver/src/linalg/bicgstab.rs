@@ -38,8 +38,9 @@ impl BiCgStab {
     }
 
     /// Solves A x = b from the guess in `x` until ‖r‖ ≤ rtol ‖b‖ or `max_iterations` have run
-    /// (or the iteration breaks down: ρ or ω = 0, reported unconverged). `pool` is where the
-    /// vector updates run, as for CG.
+    /// (or the iteration breaks down: a zero or non-finite ρ, (r̂, v), (t, s) or (t, t), reported
+    /// unconverged with x as the last completed half step left it). ‖r‖ is the recursively
+    /// updated residual, as in CG. `pool` is where the vector updates run, as for CG.
     pub fn solve(
         &mut self,
         system: &mut impl CgSystem,
@@ -88,20 +89,28 @@ impl BiCgStab {
         if relative_residual <= rtol {
             return ended(0, relative_residual);
         }
+        // A breakdown (a zero or non-finite denominator) stops the solve before x is touched,
+        // unconverged, after the iterations that completed.
+        let broke_down = |done: usize, relative_residual: f64| Convergence {
+            converged: false,
+            ..ended(done, relative_residual)
+        };
+        let usable = |d: f64| d != 0.0 && d.is_finite();
         let (mut rho, mut alpha, mut omega) = (1.0, 1.0, 1.0);
         for k in 1..=max_iterations {
             let rho_next = system.dot(shadow, r);
-            if rho_next == 0.0 || omega == 0.0 || !rho_next.is_finite() {
-                return Convergence {
-                    converged: false,
-                    ..ended(k, relative_residual)
-                };
+            if !usable(rho_next) {
+                return broke_down(k - 1, relative_residual);
             }
             let beta = (rho_next / rho) * (alpha / omega);
             on(pool, || update_direction(p, r, beta, omega, v));
             precondition(system, p, y);
             system.apply(y, v);
-            alpha = rho_next / system.dot(shadow, v);
+            let shadow_v = system.dot(shadow, v);
+            if !usable(shadow_v) {
+                return broke_down(k - 1, relative_residual);
+            }
+            alpha = rho_next / shadow_v;
             // s = r − α v, kept in r.
             on(pool, || {
                 axpy(alpha, y, x);
@@ -113,7 +122,12 @@ impl BiCgStab {
             }
             precondition(system, r, z);
             system.apply(z, t);
-            omega = system.dot(t, r) / system.dot(t, t);
+            let (ts, tt) = (system.dot(t, r), system.dot(t, t));
+            if !usable(ts) || !usable(tt) {
+                // x and r are those after the half step, a consistent pair.
+                return broke_down(k, relative_residual);
+            }
+            omega = ts / tt;
             on(pool, || {
                 axpy(omega, z, x);
                 axpy(-omega, t, r);

@@ -1,6 +1,6 @@
-//! Linear algebra the methods share: conjugate gradients with fixed-order inner products, BiCGStab
-//! (faer's) for the non-symmetric systems, and
-//! sparse Cholesky factorisations by faer.
+//! Linear algebra the methods share: conjugate gradients and BiCGStab (for the non-symmetric
+//! systems) with fixed-order inner products, sparse Cholesky factorisations by faer, and the ends
+//! of a sparse operator's spectrum by faer's Krylov–Schur.
 
 pub mod bicgstab;
 pub mod cg;

@@ -123,7 +123,8 @@ const SHIFTS: [f64; 3] = [1.0, 10.0, 100.0];
 
 /// The rightmost eigenvalues (those nearest each shift of a ladder σ = k, 10k, 100k, right of
 /// the slow modes of diffusivity k) and those of largest |λ| of the square operator whose rows
-/// are `rows`.
+/// are `rows`: those that converged, the shifts' runs possibly finding one twice. An error when
+/// either end converged none (or the LU failed).
 pub fn ends(rows: &[Vec<(usize, f64)>], diffusivity: f64) -> Result<Vec<c64>, String> {
     let n = rows.len();
     let mut eigenvalues = Vec::new();
@@ -136,6 +137,14 @@ pub fn ends(rows: &[Vec<(usize, f64)>], diffusivity: f64) -> Result<Vec<c64>, St
             c64::new(sigma + mu.re / modulus2, -mu.im / modulus2)
         }));
     }
+    let rightmost = eigenvalues.len();
     eigenvalues.extend(largest(&Sparse(matrix(rows, n, 0.0)), n));
+    // Without a converged eigenvalue at either end there is no spectrum to report.
+    if rightmost == 0 || eigenvalues.len() == rightmost {
+        return Err(format!(
+            "Krylov–Schur converged {rightmost} eigenvalues near the shifts and {} of the largest within {MAX_RESTARTS} restarts",
+            eigenvalues.len() - rightmost
+        ));
+    }
     Ok(eigenvalues)
 }

@@ -33,7 +33,7 @@ use crate::discretization::finite_element::{
     laplace_stiffness, nonlocal_stiffness, BandMatrix, Mesh,
 };
 use crate::discretization::grid::Lattice;
-use crate::discretization::influence::scaling_constant;
+use crate::discretization::influence::{scaling_constant, Influence};
 use crate::linalg::cholesky::{sparse_matrix, Cholesky};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Coupling, Record, Resolved};
@@ -125,6 +125,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     }
     if case.coupling() == CouplingKind::Seamless {
         crate::methods::seamless::cells(case.n, b)?;
+        if case.kernel.influence(1.0) <= 0.0 {
+            return Err(CaseError::new(
+                "kernel",
+                "the seamless coupling's horizon is one cell h on the local part, whose only bond sits at r = 1, where this kernel's J vanishes; use constant, gaussian or inverse_distance",
+            ));
+        }
         crate::case::validate_diffusivity(case.diffusivity)?;
         case.refuse_steady_fields()?;
         return case.refuse_time_loop_fields(

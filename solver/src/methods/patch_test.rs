@@ -1,6 +1,7 @@
-//! Seed 003's patch tests of a variable horizon: the operator L_h of a formulation (`standard` or
-//! `partial_stress`, `discretization::variable_horizon`) applied to a prescribed linear or
-//! quadratic field on D = [0, 1] with its collars, in 1D. A linear field must give L_h u = 0 and
+//! Seed 003's patch tests of a variable horizon: the operator L_h of a formulation (`standard`,
+//! `x_centred` or `partial_stress`, `discretization::variable_horizon`) applied to a prescribed
+//! linear or quadratic field on D = [0, 1]^d with its collars, in 1D or 2D (ε and the field
+//! depending on x alone). A linear field must give L_h u = 0 and
 //! u = x² the constant 2k; what is left is the ghost force.
 //!
 //! The record carries L_h u along the bar (the seed's "acceleration over the length of the bar"),
@@ -11,6 +12,7 @@ use crate::case::{
     horizon_length, readable, validate_diffusivity, Case, CaseError, HorizonProfile, Method,
     PatchField, Rules, ValidCase, MAX_EPS,
 };
+use crate::discretization::influence::Influence;
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::diagnostics::magnitude;
 use crate::output::outcome::Outcome;
@@ -121,13 +123,29 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
         }
     }
     let h = 1.0 / case.n as f64;
+    let field = match profile {
+        HorizonProfile::Constant => "eps",
+        _ => "horizon_profile",
+    };
     for x in [0.0, 0.5, 1.0] {
         let eps = horizon_at(profile, constant, x);
         if !(eps >= h && eps <= MAX_EPS) {
             return Err(CaseError::new(
-                if profile == HorizonProfile::Constant { "eps" } else { "horizon_profile" },
+                field,
                 format!(
                     "ε = {} at x = {x} lies outside [h, {MAX_EPS}] = [{}, {MAX_EPS}]; every node needs a neighbour and the collar must stay narrower than D",
+                    readable(eps),
+                    readable(h)
+                ),
+            ));
+        }
+        // The nearest neighbour sits at r = h/ε: a kernel that vanishes there (J = 1 − r at
+        // ε = h) leaves the node without a bond.
+        if case.kernel.influence((h / eps).min(1.0)) <= 0.0 {
+            return Err(CaseError::new(
+                field,
+                format!(
+                    "ε = {} at x = {x} reaches only the nearest neighbour, at r = h/ε = 1, where the kernel's J vanishes, so the node has no bond; keep ε above h = {} with this kernel",
                     readable(eps),
                     readable(h)
                 ),
@@ -143,7 +161,8 @@ pub(crate) fn validate_horizon(case: &Case) -> Result<(), CaseError> {
 /// `partial_stress`, whose rows reach the neighbours' neighbours) and the bonds of the bar's
 /// columns (24 bytes each); a patch test's spectrum (dense up to `SPECTRUM_MAX_NODES` nodes:
 /// the matrix and the eigensolver's copies, 32 N² bytes; sparse up to
-/// `SPARSE_SPECTRUM_MAX_NODES`: the LU's fill, about N (2R + 1) n entries of 16 bytes, twice);
+/// `SPARSE_SPECTRUM_MAX_NODES`: the LU's fill, about N (2r + 1) n entries of 16 bytes, twice, r
+/// the rows' reach);
 /// for a time-dependent run, the rows copied into its operator (growing vectors: up to twice
 /// their length).
 pub(crate) fn operator_bytes(case: &Case) -> f64 {
@@ -171,7 +190,12 @@ pub(crate) fn operator_bytes(case: &Case) -> f64 {
     let spectrum = match case.method == Method::PatchTest {
         true if nodes <= SPECTRUM_MAX_NODES as f64 => 32.0 * nodes * nodes,
         true if nodes <= SPARSE_SPECTRUM_MAX_NODES as f64 => {
-            2.0 * 16.0 * nodes * (2.0 * largest + 1.0) * n.powi(dim - 1) + 2.0 * rows
+            // The rows' reach: R, or 2R for the partial stress.
+            let reach = match case.formulation() {
+                crate::case::Formulation::PartialStress => 2.0 * largest,
+                _ => largest,
+            };
+            2.0 * 16.0 * nodes * (2.0 * reach + 1.0) * n.powi(dim - 1) + 2.0 * rows
         }
         _ => 0.0,
     };
@@ -284,7 +308,8 @@ pub fn spectrum(operator: &VariableHorizonOperator, diffusivity: f64) -> Option<
             .expect("the eigenvalues of a finite dense matrix");
         (all, None)
     } else if n <= SPARSE_SPECTRUM_MAX_NODES {
-        // σ = k, right of the slowest decay −k π² d of the local limit.
+        // Shifts from σ = k, right of the slowest decay −k π² d of the local limit. Without
+        // converged eigenvalues the record has no spectrum rather than an invented one.
         let some = crate::linalg::spectrum::ends(&rows, diffusivity).ok()?;
         let count = some.len();
         (some, Some(count))

@@ -271,12 +271,14 @@ pub struct PatchTest {
     pub expected: f64,
     /// The smallest ε over D (`eps` of the record is the largest).
     pub eps_min: f64,
-    /// D's nodes, L_h u at them, and ε(x) there.
+    /// D's nodes along x (in 2D, the middle row's), L_h u at them, and ε(x) on D's columns.
     pub x: Vec<f64>,
     pub l_u: Vec<f64>,
     pub eps_x: Vec<f64>,
     /// The spectrum of L_h on D with u = 0 on the collar, the operator a time-dependent run
-    /// steps (dense eigenvalues, computed up to `SPECTRUM_MAX_NODES`).
+    /// steps: every eigenvalue (dense) up to `SPECTRUM_MAX_NODES` nodes, the ends of the
+    /// spectrum (sparse) up to `SPARSE_SPECTRUM_MAX_NODES`, absent beyond or when the sparse
+    /// eigensolver converged none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectrum: Option<Spectrum>,
 }
@@ -292,8 +294,8 @@ pub struct Spectrum {
     /// λ); absent when some Re λ > 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dt_forward_euler: Option<f64>,
-    /// How many eigenvalues the sparse eigensolver computed (the rightmost and the largest);
-    /// absent when every eigenvalue was (dense). Then `max_imaginary` and `dt_forward_euler`
+    /// How many eigenvalues the sparse eigensolver converged (near its shifts and the largest;
+    /// one may be counted twice); absent when every eigenvalue was computed (dense). Then `max_imaginary` and `dt_forward_euler`
     /// are over the computed ones.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub computed: Option<usize>,
