@@ -7,7 +7,7 @@
 //! takes its own inner products, while ours carry the rank exchange (not `Sync`) and sum in a
 //! fixed order, so that the iterates do not depend on the thread or rank count.
 
-use crate::linalg::cg::{axpy, CgSystem, Convergence, CHUNK};
+use crate::linalg::cg::{axpy, check_lengths, CgSystem, Convergence, CHUNK};
 use crate::threads::on;
 use rayon::prelude::*;
 use rayon::ThreadPool;
@@ -50,14 +50,7 @@ impl BiCgStab {
         max_iterations: usize,
         pool: Option<&ThreadPool>,
     ) -> Convergence {
-        let len = system.len();
-        assert!(
-            b.len() == len && x.len() == len && self.r.len() == len,
-            "BiCGStab on a system of {len} unknowns was given b of {}, x of {} and buffers of {}",
-            b.len(),
-            x.len(),
-            self.r.len()
-        );
+        check_lengths("BiCGStab", system.len(), b, x, self.r.len());
         let BiCgStab {
             r,
             shadow,

@@ -116,13 +116,7 @@ impl Cg {
         params: &CgParams,
     ) -> Convergence {
         let len = system.len();
-        assert!(
-            b.len() == len && x.len() == len && self.r.len() == len,
-            "CG on a system of {len} unknowns was given b of {}, x of {} and buffers of {}",
-            b.len(),
-            x.len(),
-            self.r.len()
-        );
+        check_lengths("CG", len, b, x, self.r.len());
         let preconditioned = system.preconditioned();
         let Cg { r, z, p, ap } = self;
         let pool = params.pool;
@@ -280,6 +274,17 @@ where
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) {
         self.precondition.apply(r, z)
     }
+}
+
+/// Refuses, with a message rather than a short read, a solve whose b, x or buffers are not of
+/// the system's length (a caller's error).
+pub(crate) fn check_lengths(method: &str, len: usize, b: &[f64], x: &[f64], buffers: usize) {
+    assert!(
+        b.len() == len && x.len() == len && buffers == len,
+        "{method} on a system of {len} unknowns was given b of {}, x of {} and buffers of {buffers}",
+        b.len(),
+        x.len(),
+    );
 }
 
 /// y += a x.
