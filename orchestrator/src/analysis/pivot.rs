@@ -267,11 +267,7 @@ mod tests {
     use serde_json::json;
 
     fn row(cells: Value) -> Row {
-        let mut row = Row::default();
-        for (name, value) in cells.as_object().unwrap() {
-            row.set(name, value.clone());
-        }
-        row
+        Row::of_cells(cells)
     }
 
     #[test]

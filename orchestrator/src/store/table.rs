@@ -66,6 +66,16 @@ impl Row {
         }
     }
 
+    /// A row of the given cells, a JSON object's fields in their order (for tests).
+    #[cfg(test)]
+    pub(crate) fn of_cells(cells: Value) -> Row {
+        let mut row = Row::default();
+        for (name, value) in cells.as_object().expect("cells as a JSON object") {
+            row.set(name, value.clone());
+        }
+        row
+    }
+
     pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
         self.0.iter().map(|(n, v)| (n.as_str(), v))
     }

@@ -232,12 +232,8 @@ mod tests {
     use super::*;
     use serde_json::json;
 
-    fn row(fields: Value) -> Row {
-        let mut row = Row::default();
-        for (k, v) in fields.as_object().unwrap() {
-            row.set(k, v.clone());
-        }
-        row
+    fn row(cells: Value) -> Row {
+        Row::of_cells(cells)
     }
 
     /// Two Euler runs (1 and 2 ranks) are enough for that path's curves; the validation
