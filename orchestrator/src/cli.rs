@@ -851,6 +851,20 @@ fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
     })
 }
 
+/// The study's superseded records; the history's files that are not whole records are named
+/// and left out.
+fn superseded(store: &Store) -> Vec<serde_json::Value> {
+    let history = store.history();
+    for unreadable in &history.unreadable {
+        say!(
+            "nlstudy: warning: {} is not a whole superseded record ({}); it is left out",
+            unreadable.path.display(),
+            unreadable.problem
+        );
+    }
+    history.records
+}
+
 /// Of the superseded records, those of the fingerprint that ran last.
 fn latest_superseded(history: Vec<serde_json::Value>) -> Option<Vec<serde_json::Value>> {
     use crate::store::{fingerprint_of, provenance};
@@ -882,7 +896,7 @@ fn repeats_by_point(planned: &[Planned]) -> Vec<(String, Vec<String>)> {
 fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
     let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
     let mut records = store.records();
-    records.extend(store.history());
+    records.extend(superseded(&store));
     let chart = crate::output::history::chart(
         &study.name,
         &args.metric,
@@ -903,7 +917,7 @@ fn of_build(
     study: &Study,
     store: &Store,
 ) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
-    let mut records = store.history();
+    let mut records = superseded(store);
     records.extend(store.records());
     records.retain(|r| !prefix.is_empty() && crate::store::fingerprint_of(r).starts_with(prefix));
     if records.is_empty() {
@@ -924,7 +938,7 @@ fn baseline(
 ) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
     use crate::store::by_key;
     if against == "history" {
-        return Ok(by_key(latest_superseded(store.history()).ok_or_else(|| {
+        return Ok(by_key(latest_superseded(superseded(store)).ok_or_else(|| {
             format!(
                 "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
                 study.name

@@ -183,7 +183,10 @@ impl Case {
         if let Some((field, c)) = crate::json::control_character(&value, &[]) {
             return Err(CaseError::new(
                 field,
-                format!("holds the control character {c:?}; case values are printable text"),
+                format!(
+                    "holds {}; case values are printable text",
+                    crate::json::describe_char(c)
+                ),
             ));
         }
         let case: Case = serde_path_to_error::deserialize(value).map_err(|e| {

@@ -1,16 +1,46 @@
 //! JSON as people write it, read strictly: a key given twice in one object is an error naming
 //! the key, where serde_json keeps the last silently (`{"dim": 2, …, "dim": 1}` would run 1D).
+//! The same reader takes TOML (through `from_deserializer`), whose `nan` and `inf` would become
+//! `null`, "not given", in a `Value`: a number that is not finite is refused where it stands,
+//! and so is a TOML date or time, which has no place in a case or a study.
 
 use serde::de::{self, Deserialize, Deserializer, MapAccess, SeqAccess, Visitor};
+
 use serde_json::{Map, Value};
 use std::fmt;
 
-/// Parses `text` as one JSON value, refusing duplicate keys.
+/// Parses `text` as one JSON value, refusing duplicate keys. A byte-order mark at the start is
+/// refused by name (serde_json would say only "expected value at line 1 column 1").
 pub fn parse(text: &str) -> Result<Value, serde_json::Error> {
+    if text.starts_with('\u{feff}') {
+        return Err(de::Error::custom(
+            "the file starts with a byte-order mark (U+FEFF); save it as UTF-8 without BOM",
+        ));
+    }
     serde_json::from_str::<Strict>(text).map(|strict| strict.0)
 }
 
-/// The first control character in a key or a string of `value` (a newline, an escape, a NUL),
+/// Whether `c` may not stand in a name or value that reaches a file name, a job script or a
+/// terminal: a control character (a newline, an escape, a NUL) or a bidirectional control
+/// (U+202A–U+202E, U+2066–U+2069, U+200E, U+200F, U+061C), which reorders what a terminal or a
+/// browser shows (`\u{202e}gnp.exe` displays as "exe.png").
+pub fn is_unsafe_char(c: char) -> bool {
+    c.is_control()
+        || matches!(c, '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}')
+        || matches!(c, '\u{200E}' | '\u{200F}' | '\u{061C}')
+}
+
+/// A character `is_unsafe_char` refuses, named for a message: `'\n'`, or `U+202E (a
+/// bidirectional control)`.
+pub fn describe_char(c: char) -> String {
+    match c.is_control() {
+        true => format!("the control character {c:?}"),
+        false => format!("the bidirectional control U+{:04X}", u32::from(c)),
+    }
+}
+
+/// The first character `is_unsafe_char` refuses in a key or a string of `value` (a newline, an
+/// escape, a NUL, a bidirectional control),
 /// with the path of where it stands (`resources.queue`, `sweep[1].zip.kernel[0]`), leaving out
 /// the strings under the paths `prose` allows (free text may hold newlines and tabs). Names and
 /// fields reach file names, job scripts and terminals, where such characters do harm.
@@ -19,7 +49,7 @@ pub fn control_character(value: &Value, prose: &[&str]) -> Option<(String, char)
         let bad = |text: &str| {
             let layout = prose.contains(&path);
             text.chars()
-                .find(|c| c.is_control() && !(layout && matches!(c, '\n' | '\t')))
+                .find(|&c| is_unsafe_char(c) && !(layout && matches!(c, '\n' | '\t')))
         };
         match value {
             Value::String(text) => bad(text).map(|c| (path.to_string(), c)),
@@ -34,7 +64,7 @@ pub fn control_character(value: &Value, prose: &[&str]) -> Option<(String, char)
                     "" => printed.to_string(),
                     _ => format!("{path}.{printed}"),
                 };
-                match key.chars().find(|c| c.is_control()) {
+                match key.chars().find(|&c| is_unsafe_char(c)) {
                     Some(c) => Some((inner, c)),
                     None => walk(item, &inner, prose),
                 }
@@ -45,7 +75,11 @@ pub fn control_character(value: &Value, prose: &[&str]) -> Option<(String, char)
     walk(value, "", prose)
 }
 
-struct Strict(Value);
+/// A value read as `parse` reads JSON, from any self-describing deserializer (the study files'
+/// TOML: `serde_path_to_error::deserialize::<_, Strict>`): a key given twice, a number that is
+/// not finite (TOML's `nan`, `inf`, which a `Value` would hold as `null`, "not given") and a
+/// TOML date or time are refused.
+pub struct Strict(pub Value);
 
 impl<'de> Deserialize<'de> for Strict {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -74,8 +108,13 @@ impl<'de> Visitor<'de> for StrictVisitor {
         Ok(Value::from(x))
     }
 
-    fn visit_f64<E>(self, x: f64) -> Result<Value, E> {
-        Ok(Value::from(x))
+    fn visit_f64<E: de::Error>(self, x: f64) -> Result<Value, E> {
+        match x.is_finite() {
+            true => Ok(Value::from(x)),
+            false => Err(E::custom(format!(
+                "{x} is not a finite number; write a number"
+            ))),
+        }
     }
 
     fn visit_str<E>(self, s: &str) -> Result<Value, E> {
@@ -101,6 +140,13 @@ impl<'de> Visitor<'de> for StrictVisitor {
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Value, A::Error> {
         let mut object = Map::new();
         while let Some(key) = map.next_key::<String>()? {
+            // How the toml crate hands over a date or a time.
+            if key == "$__toml_private_datetime" {
+                let Strict(value) = map.next_value()?;
+                return Err(de::Error::custom(format!(
+                    "{value} is a TOML date or time; quote it if it is text, or write a number"
+                )));
+            }
             if object.contains_key(&key) {
                 return Err(de::Error::custom(format!(
                     "the key `{key}` is given twice in one object; keep one"

@@ -40,8 +40,13 @@ impl std::str::FromStr for Launcher {
                 "the launcher is empty; give e.g. {DEFAULT_LAUNCHER:?}"
             ));
         }
-        if let Some(word) = words.iter().find(|w| w.chars().any(char::is_control)) {
-            return Err(format!("{word:?} holds a control character"));
+        if let Some(word) = words
+            .iter()
+            .find(|w| w.chars().any(schema::json::is_unsafe_char))
+        {
+            return Err(format!(
+                "{word:?} holds a control character or a bidirectional control"
+            ));
         }
         if !words.iter().any(|w| w.contains("{ranks}")) {
             return Err(format!(

@@ -8,3 +8,4 @@ pub mod launcher;
 pub mod resources;
 pub mod site;
 pub mod study;
+pub mod toml_file;

@@ -10,6 +10,7 @@
 
 use super::launcher::Launcher;
 use super::resources::{Resources, Scheduler, SchedulerName, WallTime};
+use schema::json::is_unsafe_char;
 use serde::Deserialize;
 use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
@@ -114,8 +115,9 @@ impl Site {
     /// A profile's text, TOML or JSON; an error names the field.
     pub fn parse(text: &str, toml: bool) -> Result<Site, String> {
         let value: serde_json::Value = match toml {
-            true => toml::from_str(text).map_err(|e| e.message().trim().to_string())?,
-            false => serde_json::from_str(text).map_err(|e| e.to_string())?,
+            true => super::toml_file::parse(text)?,
+            // Read strictly: a key given twice is refused, not settled by the last.
+            false => schema::json::parse(text).map_err(|e| e.to_string())?,
         };
         serde_path_to_error::deserialize(value).map_err(|e| {
             let message = format_serde(&e.inner().to_string());
@@ -228,7 +230,7 @@ impl TryFrom<String> for PrologueLine {
     type Error = String;
 
     fn try_from(text: String) -> Result<Self, String> {
-        checked(text, "a prologue line", |c| !c.is_control()).map(PrologueLine)
+        checked(text, "a prologue line", |c| !is_unsafe_char(c)).map(PrologueLine)
     }
 }
 
@@ -242,7 +244,7 @@ impl TryFrom<String> for Directive {
     type Error = String;
 
     fn try_from(text: String) -> Result<Self, String> {
-        let text = checked(text, "a directive", |c| !c.is_control())?;
+        let text = checked(text, "a directive", |c| !is_unsafe_char(c))?;
         match text.starts_with('-') {
             true => Ok(Directive(text)),
             false => Err(format!(

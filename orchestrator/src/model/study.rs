@@ -435,9 +435,8 @@ impl Study {
 
     /// A study from TOML (which refuses a key given twice itself).
     pub fn parse_toml(text: &str) -> Result<Study, StudyError> {
-        let value: Value = toml::from_str(text).map_err(|e| {
-            StudyError::new("file", format!("not valid TOML: {}", e.to_string().trim()))
-        })?;
+        let value = super::toml_file::parse(text)
+            .map_err(|e| StudyError::new("file", format!("not valid TOML: {e}")))?;
         Study::from_value(value)
     }
 
@@ -445,7 +444,7 @@ impl Study {
         if let Some((place, c)) = schema::json::control_character(&value, &["description"]) {
             return Err(StudyError::new(
                 place,
-                format!("holds the control character {c:?}; names and values are printable text (only `description` may hold newlines and tabs)"),
+                format!("holds {}; names and values are printable text (only `description` may hold newlines and tabs)", schema::json::describe_char(c)),
             ));
         }
         let study: Study = serde_path_to_error::deserialize(value).map_err(|e| {

@@ -136,11 +136,12 @@ mod tests {
         assert_eq!(day_of("1970-01-02T12:00:00Z"), Some(1.5));
         assert_eq!(day_of("2000-03-01T00:00:00Z"), Some(11_017.0));
         let run = |key: &str, build: &str, stamp: &str, step: f64| json!({"key": key, "step_s": step, "provenance": {"fingerprint": build, "timestamp": stamp}});
+        let (old, new) = ("0a".repeat(32), "0b".repeat(32));
         let records = [
-            run("a0", "old", "2026-01-01T00:00:00Z", 2.0),
-            run("a1", "old", "2026-01-01T00:01:00Z", 4.0),
-            run("a0", "new", "2026-01-03T00:00:00Z", 1.0),
-            run("b0", "new", "2026-01-03T00:02:00Z", 5.0),
+            run("a0", &old, "2026-01-01T00:00:00Z", 2.0),
+            run("a1", &old, "2026-01-01T00:01:00Z", 4.0),
+            run("a0", &new, "2026-01-03T00:00:00Z", 1.0),
+            run("b0", &new, "2026-01-03T00:02:00Z", 5.0),
         ];
         let points = [
             ("n=8".to_string(), vec!["a0".into(), "a1".into()]),

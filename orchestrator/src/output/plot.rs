@@ -5,6 +5,7 @@
 use crate::model::figure_spec::FigureSpec;
 use crate::output::draw;
 use crate::output::figure;
+use crate::store::fs::{read_regular, SMALL_FILE_CAP};
 use crate::store::table;
 use crate::store::{self, Store};
 use sha2::{Digest, Sha256};
@@ -58,7 +59,7 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String
             "table {table_hash}\nspec {}\nnlstudy {program}\n",
             serde_json::to_string(spec).expect("a spec serializes"),
         );
-        let current = std::fs::read_to_string(&stamp_path).is_ok_and(|s| s == stamp);
+        let current = read_regular(&stamp_path, SMALL_FILE_CAP).is_ok_and(|s| s == stamp);
         if current && path.exists() {
             outcomes.push(Figure {
                 path,

@@ -7,6 +7,7 @@
 use crate::analysis::collect::headline;
 use crate::model::study::Study;
 use crate::output::status::counts_by_status;
+use crate::store::fs::{read_regular, RECORD_CAP};
 use crate::store::table::{self, Row};
 use crate::store::{write_atomically, Store};
 use schema::record::Status;
@@ -79,7 +80,7 @@ fn figures_section(
         let path = store.table("figures").join(svg);
         let caption = escape(spec.title.as_deref().unwrap_or(&spec.name));
         let made_by = made_by(spec, k, summary, records);
-        match std::fs::read_to_string(&path) {
+        match read_regular(&path, RECORD_CAP) {
             Ok(svg) => {
                 // The SVG element itself: the XML declaration has no place inside HTML.
                 let start = svg.find("<svg").unwrap_or(0);
@@ -102,7 +103,7 @@ fn figures_section(
 
 /// The last `nlstudy compare` of the study, if any: its figure and its verdicts counted.
 fn comparison_section(page: &mut String, store: &Store) {
-    let Ok(svg) = std::fs::read_to_string(store.table("compare.svg")) else {
+    let Ok(svg) = read_regular(&store.table("compare.svg"), RECORD_CAP) else {
         return;
     };
     let verdicts = table::read_parquet(&store.table("compare.parquet"))

@@ -11,7 +11,7 @@ use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
-use crate::store::fs::create_dir;
+use crate::store::fs::{create_dir, open_regular, read_regular, RECORD_CAP};
 use crate::store::{FileError, Store};
 use schema::record::{Status, NLSOLVE_EXIT_IO};
 use serde_json::{json, Value};
@@ -422,7 +422,15 @@ impl Running {
             let said = std::io::Error::other(self.stderr_tail());
             return Err(FileError::new("write", &self.stdout, said));
         }
-        let printed = std::fs::read_to_string(&self.stdout).unwrap_or_default();
+        // A record the store could not read back is not stored as a result.
+        let printed = match read_regular(&self.stdout, RECORD_CAP) {
+            Ok(printed) => printed,
+            Err(why) if exit.success() => {
+                let why = format!("its record cannot be stored: {why}");
+                return Ok(failed_record(planned, solver, why));
+            }
+            Err(_) => String::new(),
+        };
         let record = printed.lines().rev().find_map(|line| {
             serde_json::from_str::<Value>(line)
                 .ok()
@@ -447,7 +455,7 @@ impl Running {
     }
 
     fn stderr_tail(&self) -> String {
-        let text = std::fs::read_to_string(&self.stderr).unwrap_or_default();
+        let text = tail_of(&self.stderr);
         let lines: Vec<&str> = text.lines().collect();
         lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n")
     }
@@ -457,6 +465,19 @@ impl Running {
             let _ = std::fs::remove_file(path);
         }
     }
+}
+
+/// The last 64 KiB of the regular file `path` as text ("" when it cannot be read).
+fn tail_of(path: &std::path::Path) -> String {
+    use std::io::{Read, Seek, SeekFrom};
+    const TAIL: u64 = 64 << 10;
+    let Ok((mut file, len)) = open_regular(path) else {
+        return String::new();
+    };
+    let mut bytes = Vec::new();
+    let _ = file.seek(SeekFrom::Start(len.saturating_sub(TAIL)));
+    let _ = file.take(TAIL).read_to_end(&mut bytes);
+    String::from_utf8_lossy(&bytes).into_owned()
 }
 
 /// The fields the orchestrator adds to every record: its key, case id, repeat and version.

@@ -52,6 +52,74 @@ impl From<FileError> for String {
     }
 }
 
+/// The most a record or a history entry may hold. A record is a few KB; the largest the solver
+/// writes are a patch test's profiles (three f64 per node along the bar: about 1.3 MB at 20,000
+/// nodes) and a long c_tot(t) series, so 64 MiB leaves a wide margin and still stops a file that
+/// is not a record (a link to /dev/zero, a log) from being read until memory runs out.
+pub const RECORD_CAP: u64 = 64 << 20;
+
+/// The most a small bookkeeping file (a ledger entry, the owner file, a lock) may hold.
+pub const SMALL_FILE_CAP: u64 = 1 << 20;
+
+/// Opens `path` only if it is a regular file: a symbolic link is not followed (`O_NOFOLLOW`) and
+/// a FIFO or device does not block the open (`O_NONBLOCK`); the open descriptor's own `fstat`
+/// decides, so nothing swapped in between is read. The error says what the file is instead.
+pub fn open_regular(path: &Path) -> Result<(File, u64), String> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let file = File::options()
+        .read(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| match e.raw_os_error() {
+            Some(libc::ELOOP) => "a symbolic link, which the store does not follow".to_string(),
+            _ => e.to_string(),
+        })?;
+    let meta = file.metadata().map_err(|e| e.to_string())?;
+    let kind = meta.file_type();
+    if !kind.is_file() {
+        use std::os::unix::fs::FileTypeExt;
+        let what = if kind.is_dir() {
+            "a directory"
+        } else if kind.is_fifo() {
+            "a FIFO"
+        } else if kind.is_socket() {
+            "a socket"
+        } else if kind.is_char_device() || kind.is_block_device() {
+            "a device"
+        } else {
+            "not a regular file"
+        };
+        return Err(format!("{what}, not a regular file; it is not read"));
+    }
+    Ok((file, meta.len()))
+}
+
+/// The text of the regular file `path`, refused (not read to its end, never waited on) when it is
+/// not a regular file, is larger than `cap` bytes or is not UTF-8. The error says why, without
+/// the path (callers name it).
+pub fn read_regular(path: &Path, cap: u64) -> Result<String, String> {
+    use std::io::Read;
+    let (file, len) = open_regular(path)?;
+    let too_large = |size: u64| {
+        format!(
+            "{size} bytes, more than the {} MiB a file of the store may hold",
+            cap >> 20
+        )
+    };
+    if len > cap {
+        return Err(too_large(len));
+    }
+    // The size may change after fstat: read at most one byte past the cap to know.
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(cap + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > cap {
+        return Err(too_large(bytes.len() as u64));
+    }
+    String::from_utf8(bytes).map_err(|_| "not UTF-8 text".to_string())
+}
+
 /// Where a file is written before it is renamed into place: hidden (readers skip dot files)
 /// and named for this process, so that processes writing the same file do not mix.
 pub fn partial_path(path: &Path) -> PathBuf {

@@ -7,6 +7,7 @@
 //! result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
 use schema::record::Status;
+use serde::Deserialize;
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
@@ -17,7 +18,7 @@ pub mod fs;
 pub mod owner;
 pub mod table;
 
-use fs::{create_dir, lock_file, remove_where};
+use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
 pub use fs::{write_atomically, FileError};
 
 pub struct Store {
@@ -137,29 +138,23 @@ impl Store {
     /// Stores `record` as the record of `key`, unless it is `failed` and the stored one is a
     /// result (`ok`, `diverged`): a run's fault does not erase what an earlier run computed.
     /// Returns whether it was stored. Call it holding the key's lock.
-    /// A record made by another solver (another fingerprint) is not overwritten: it moves to
-    /// the study's history first (`history/<key>.<fingerprint>.json`), so nothing computed is
-    /// lost and old and new can be compared.
+    /// A stored result, or a record made by another solver (another fingerprint), is not
+    /// overwritten: it moves to the study's history first (`history/<key>.<fingerprint>.json`,
+    /// see `history_path`), so nothing computed is lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Value) -> Result<bool, FileError> {
         let failed = Status::of(record).is_none_or(|s| s == Status::Failed);
         let stored = self.stored(key);
-        let result_stored = stored
-            .as_ref()
-            .and_then(Status::of)
-            .is_some_and(|s| s != Status::Failed);
+        let stored_status = stored.as_ref().and_then(Status::of);
+        let result_stored = stored_status.is_some_and(|s| s != Status::Failed);
         if failed && result_stored {
             return Ok(false);
         }
         if let Some(stored) = stored {
             let old = fingerprint_of(&stored);
-            if old != fingerprint_of(record) {
+            if result_stored || old != fingerprint_of(record) {
                 let history = self.table("history");
                 create_dir(&history)?;
-                let name = format!(
-                    "{key}.{}.json",
-                    if old.is_empty() { "unknown" } else { old }
-                );
-                std::fs::rename(self.path(key), history.join(&name))
+                std::fs::rename(self.path(key), history_path(&history, key, old))
                     .map_err(FileError::on("move to history", &self.path(key)))?;
             }
         }
@@ -186,7 +181,7 @@ impl Store {
     /// The stored record of `key`, read now, if whole.
     pub fn stored(&self, key: &str) -> Option<Value> {
         let path = self.path(key);
-        read_record(&path, &std::fs::read_to_string(&path).ok()?).ok()
+        read_record(&path, &read_regular(&path, RECORD_CAP).ok()?).ok()
     }
 
     /// Takes the lock of `key` for this process: `None` when another process holds it (that
@@ -252,8 +247,7 @@ impl Store {
     pub fn scan(&self) -> Scan {
         let mut scan = Scan::default();
         for path in self.record_paths() {
-            let read = std::fs::read_to_string(&path).map_err(|e| e.to_string());
-            match read.and_then(|text| read_record(&path, &text)) {
+            match read_regular(&path, RECORD_CAP).and_then(|text| read_record(&path, &text)) {
                 Ok(record) => scan.records.push(record),
                 Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
             }
@@ -266,23 +260,17 @@ impl Store {
         self.scan().records
     }
 
-    /// The superseded records in `history/` (`<key>.<fingerprint>.json`, see `save`): whole
-    /// JSON objects with a key and a known status; anything else is left out.
-    pub fn history(&self) -> Vec<Value> {
-        let Ok(entries) = std::fs::read_dir(self.table("history")) else {
-            return Vec::new();
-        };
-        let mut paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
-        paths.sort();
-        paths
-            .iter()
-            .filter_map(|path| {
-                serde_json::from_str::<Value>(&std::fs::read_to_string(path).ok()?).ok()
-            })
-            .filter(|record| {
-                record.get("key").is_some_and(Value::is_string) && Status::of(record).is_some()
-            })
-            .collect()
+    /// The superseded records in `history/` (see `save`), in name order: whole records whose
+    /// key is the first part of their file's name and matches their case; the rest is reported.
+    pub fn history(&self) -> Scan {
+        let mut scan = Scan::default();
+        for path in listing(&self.table("history")) {
+            match read_regular(&path, RECORD_CAP).and_then(|text| read_superseded(&path, &text)) {
+                Ok(record) => scan.records.push(record),
+                Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
+            }
+        }
+        scan
     }
 
     /// What the stored records say, read once: the status of each key and the solver version
@@ -295,8 +283,8 @@ impl Store {
             .record_paths()
             .into_par_iter()
             .map(|path| {
-                let read = std::fs::read_to_string(&path).map_err(|e| e.to_string());
-                read.and_then(|text| read_indexed(&path, &text))
+                read_regular(&path, RECORD_CAP)
+                    .and_then(|text| read_indexed(&path, &text))
                     .map_err(|problem| Unreadable { path, problem })
             })
             .collect();
@@ -323,28 +311,57 @@ impl Store {
 
     /// The paths of the store's files (hidden ones left out), in name order.
     fn record_paths(&self) -> Vec<PathBuf> {
-        let Ok(entries) = std::fs::read_dir(&self.runs) else {
-            return Vec::new();
-        };
-        let mut paths: Vec<PathBuf> = entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                !p.file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-            })
-            .collect();
-        paths.sort_unstable();
-        paths
+        listing(&self.runs)
     }
+}
+
+/// The paths in `dir` (hidden ones left out), in name order; none when `dir` cannot be listed.
+fn listing(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut paths: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    paths.sort_unstable();
+    paths
+}
+
+/// Where a superseded record of `key`, made by the solver of `fingerprint` ("" when unknown),
+/// goes in `history`: `<key>.<fingerprint>.json`, or `<key>.<fingerprint>.<k>.json` for the
+/// k-th record of one build (a point rerun with `--force`). The fingerprint reaches the path
+/// only as `fingerprint_of` checked it: 64 hex digits, or "unknown".
+fn history_path(history: &Path, key: &str, fingerprint: &str) -> PathBuf {
+    let build = if fingerprint.is_empty() {
+        "unknown"
+    } else {
+        fingerprint
+    };
+    let first = history.join(format!("{key}.{build}.json"));
+    if std::fs::symlink_metadata(&first).is_err() {
+        return first;
+    }
+    (2..)
+        .map(|k| history.join(format!("{key}.{build}.{k}.json")))
+        .find(|path| std::fs::symlink_metadata(path).is_err())
+        .expect("some index is free")
 }
 
 /// The fields of a record the index keeps; serde skips the rest without building values.
 #[derive(serde::Deserialize)]
 struct IndexedFields {
-    key: Option<Value>,
-    status: Option<Value>,
+    // The identity's fields, not `#[serde(flatten)] Identity`: flattening would buffer every
+    // other field of the record.
+    key: Option<String>,
+    status: Option<String>,
+    case: Option<Value>,
+    solver_version: Option<String>,
+    repeat: Option<usize>,
     case_id: Option<Value>,
-    solver_version: Option<Value>,
     provenance: Option<IndexedProvenance>,
     message: Option<Value>,
     setup_s: Option<Value>,
@@ -357,8 +374,7 @@ struct IndexedProvenance {
     noisy: Option<Value>,
 }
 
-/// What the index keeps of one whole record (its key and status checked as `read_record`
-/// checks them).
+/// What the index keeps of one whole record (its identity checked as `read_record` checks it).
 struct Indexed {
     key: String,
     stored: Stored,
@@ -370,30 +386,31 @@ struct Indexed {
 }
 
 fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
-    check_record_path(path)?;
     let fields: IndexedFields =
         serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
+    let identity = Identity {
+        key: fields.key,
+        status: fields.status,
+        case: fields.case,
+        solver_version: fields.solver_version,
+        repeat: fields.repeat,
+    };
+    let status = identity.check(&record_key(path)?)?;
     let text = |v: &Option<Value>| v.as_ref().and_then(Value::as_str).map(str::to_string);
-    let (key, status) = check_key_and_status(
-        path,
-        fields.key.as_ref().and_then(Value::as_str),
-        fields.status.as_ref().and_then(Value::as_str),
-    )?;
     let provenance = fields.provenance.as_ref();
     let seconds = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
     let wall_s =
         seconds(&fields.solve_s).map(|solve| seconds(&fields.setup_s).unwrap_or(0.0) + solve);
+    let fingerprint = provenance.and_then(|p| p.fingerprint.as_ref());
     Ok(Indexed {
-        key: key.to_string(),
+        key: identity.key.unwrap_or_default(),
         stored: Stored {
             status,
-            fingerprint: provenance
-                .and_then(|p| text(&p.fingerprint))
-                .unwrap_or_default(),
+            fingerprint: checked_fingerprint(fingerprint).to_string(),
             wall_s: wall_s.filter(|w| w.is_finite() && *w >= 0.0),
         },
         case_id: text(&fields.case_id),
-        solver_version: text(&fields.solver_version),
+        solver_version: identity.solver_version,
         noisy: provenance.and_then(|p| p.noisy.as_ref()) == Some(&Value::Bool(true)),
         failure: (status == Status::Failed).then(|| {
             let message = text(&fields.message).unwrap_or_default();
@@ -419,43 +436,91 @@ pub fn provenance<'a>(record: &'a Value, field: &str) -> &'a str {
         .unwrap_or("")
 }
 
-/// The fingerprint of the solver that made `record` ("" when it does not say).
+/// The fingerprint of the solver that made `record`: 64 hex digits, as `nlsolve fingerprint`
+/// prints them, or "" when the record does not say or says something else (a record's text is
+/// never trusted: this one reaches file names, see `history_path`).
 pub fn fingerprint_of(record: &Value) -> &str {
-    provenance(record, "fingerprint")
+    checked_fingerprint(record.get("provenance").and_then(|p| p.get("fingerprint")))
 }
 
-/// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and
-/// whose `status` is one the schema knows. Anything else is named in the error.
-fn read_record(path: &Path, text: &str) -> Result<Value, String> {
-    check_record_path(path)?;
-    let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
-    let key = record.get("key").and_then(Value::as_str);
-    let status = record.get("status").and_then(Value::as_str);
-    check_key_and_status(path, key, status)?;
-    Ok(record)
-}
-
-fn check_record_path(path: &Path) -> Result<(), String> {
-    match path.extension().is_some_and(|x| x == "json") {
-        true => Ok(()),
-        false => Err("not a record (records are <key>.json)".into()),
+fn checked_fingerprint(value: Option<&Value>) -> &str {
+    let text = value.and_then(Value::as_str).unwrap_or("");
+    let valid = text.len() == 64 && text.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'));
+    if valid {
+        text
+    } else {
+        ""
     }
 }
 
-/// A record's key is its file's name and its status one the schema knows.
-fn check_key_and_status<'a>(
-    path: &Path,
-    key: Option<&'a str>,
-    status: Option<&str>,
-) -> Result<(&'a str, Status), String> {
-    let stem = path.file_stem().map(|s| s.to_string_lossy());
-    let key = key
-        .filter(|k| stem.as_deref() == Some(*k))
-        .ok_or("its `key` is not its file name")?;
-    let status = status
-        .and_then(Status::parse)
-        .ok_or("it has no known `status`")?;
-    Ok((key, status))
+/// The fields a record's key is made of (see `case_id_and_key`), and its status.
+#[derive(serde::Deserialize)]
+struct Identity {
+    key: Option<String>,
+    status: Option<String>,
+    case: Option<Value>,
+    solver_version: Option<String>,
+    repeat: Option<usize>,
+}
+
+impl Identity {
+    /// The record's status, when its key is `file_key` (its file's name), is the hash of its
+    /// case, solver version and repeat, and its status is one the schema knows.
+    fn check(&self, file_key: &str) -> Result<Status, String> {
+        let key = self.key.as_deref();
+        if key != Some(file_key) {
+            return Err("its `key` is not its file name".into());
+        }
+        let (Some(case), Some(version)) = (&self.case, &self.solver_version) else {
+            return Err(
+                "it does not carry the `case` and `solver_version` its key is made of".into(),
+            );
+        };
+        let (_, made) = case_id_and_key(&case.to_string(), version, self.repeat.unwrap_or(0));
+        if made.as_str() != file_key {
+            return Err(format!(
+                "its key is not that of its `case`, `solver_version` and `repeat` ({made}): it was edited or moved"
+            ));
+        }
+        self.status
+            .as_deref()
+            .and_then(Status::parse)
+            .ok_or_else(|| "it has no known `status`".into())
+    }
+}
+
+/// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and the
+/// hash of its case, and whose `status` is one the schema knows. Anything else is named in the
+/// error.
+fn read_record(path: &Path, text: &str) -> Result<Value, String> {
+    check_identity(&record_key(path)?, text)
+}
+
+/// `text`, read from `path` in the history, as a superseded record: as `read_record`, its key
+/// the first part of the file's name (`<key>.<fingerprint>[.<k>].json`).
+fn read_superseded(path: &Path, text: &str) -> Result<Value, String> {
+    let key = record_key(path)?;
+    let key = key.split('.').next().unwrap_or_default();
+    check_identity(key, text)
+}
+
+fn check_identity(file_key: &str, text: &str) -> Result<Value, String> {
+    let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
+    Identity::deserialize(&record)
+        .map_err(|e| format!("not a record ({e})"))?
+        .check(file_key)?;
+    Ok(record)
+}
+
+/// The key a record's path names: its file's name without `.json`.
+fn record_key(path: &Path) -> Result<String, String> {
+    match path.extension().is_some_and(|x| x == "json") {
+        true => Ok(path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()),
+        false => Err("not a record (records are <key>.json)".into()),
+    }
 }
 
 /// What the index keeps of a whole record.
@@ -532,19 +597,203 @@ mod tests {
         Store::open(&dir, "s")
     }
 
+    /// A record of the case `{"n": n}` with `status`, keyed as the pool keys it, and its key.
+    fn keyed(n: u64, status: &str) -> (String, Value) {
+        let case = json!({ "n": n });
+        let (_, key) = case_id_and_key(&case.to_string(), "0.1.0", 0);
+        let record = json!({"key": key, "case": case, "solver_version": "0.1.0", "repeat": 0,
+                            "status": status, "message": status});
+        (key.to_string(), record)
+    }
+
+    fn with_fingerprint(mut record: Value, fingerprint: &str) -> Value {
+        record["provenance"] = json!({ "fingerprint": fingerprint });
+        record
+    }
+
+    fn remove(store: &Store) {
+        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+    }
+
     #[test]
     fn a_failed_record_never_replaces_a_result_but_a_result_replaces_a_failure() {
         let store = scratch("replace");
-        let record = |status: &str| json!({"key": "k", "status": status, "message": status});
-        assert!(store.save("k", &record("failed")).unwrap());
-        assert!(store.save("k", &record("ok")).unwrap());
-        assert!(!store.save("k", &record("failed")).unwrap());
-        assert_eq!(store.status("k"), Some(Status::Ok));
+        let record = |status: &str| keyed(1, status);
+        let (k, _) = record("ok");
+        assert!(store.save(&k, &record("failed").1).unwrap());
+        assert!(store.save(&k, &record("ok").1).unwrap());
+        assert!(!store.save(&k, &record("failed").1).unwrap());
+        assert_eq!(store.status(&k), Some(Status::Ok));
         assert!(
-            store.save("k", &record("diverged")).unwrap(),
+            store.save(&k, &record("diverged").1).unwrap(),
             "a result replaces a result"
         );
-        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
+        assert_eq!(store.status(&k), Some(Status::Diverged));
+        remove(&store);
+    }
+
+    /// A result is never deleted: replaced by a run of the same build (`--force`), it moves to
+    /// the history too, each replaced one under a name of its own.
+    #[test]
+    fn a_replaced_result_moves_to_history_even_from_the_same_build() {
+        let store = scratch("force");
+        let build = "ab".repeat(32);
+        let (k, record) = keyed(2, "ok");
+        let record = with_fingerprint(record, &build);
+        for _ in 0..3 {
+            assert!(store.save(&k, &record).unwrap());
+        }
+        let history = store.history();
+        assert!(history.unreadable.is_empty(), "{:?}", history.unreadable);
+        assert_eq!(history.records.len(), 2, "two results were replaced");
+        let names: Vec<String> = listing(&store.table("history"))
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            [format!("{k}.{build}.2.json"), format!("{k}.{build}.json")]
+        );
+        // A failed record of the same build is not a result: it is replaced, not kept.
+        let (k3, failed) = keyed(3, "failed");
+        store.save(&k3, &failed).unwrap();
+        store.save(&k3, &keyed(3, "ok").1).unwrap();
+        assert_eq!(store.history().records.len(), 2);
+        remove(&store);
+    }
+
+    /// A stored record's fingerprint reaches a file name only as 64 hex digits: a traversal, a
+    /// slash or 300 characters move the record to `<key>.unknown.json`, inside the history,
+    /// and the file the traversal aimed at stays as it was.
+    #[test]
+    fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
+        let store = scratch("traversal");
+        let root = store.runs.parent().unwrap().parent().unwrap().to_path_buf();
+        let (k, record) = keyed(4, "ok");
+        // The directory the traversal needs, and its target (inside the scratch directory).
+        std::fs::create_dir_all(store.table("history").join(format!("{k}."))).unwrap();
+        let target = root.join("PWN_target.json");
+        std::fs::write(&target, "precious").unwrap();
+        let hostile = [
+            // history/<key>./../../.. is the scratch root: the old name was root/PWN_target.json.
+            "/../../../PWN_target".to_string(),
+            "a/b".to_string(),
+            "f".repeat(300),
+            "AB".repeat(32),
+        ];
+        for fingerprint in &hostile {
+            std::fs::create_dir_all(&store.runs).unwrap();
+            let stored = with_fingerprint(record.clone(), fingerprint);
+            std::fs::write(store.path(&k), stored.to_string()).unwrap();
+            assert_eq!(
+                fingerprint_of(&stored),
+                "",
+                "{fingerprint} is not a fingerprint"
+            );
+            let new = with_fingerprint(record.clone(), &"0".repeat(64));
+            assert!(store.save(&k, &new).unwrap(), "{fingerprint}");
+        }
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "precious");
+        let history = store.history();
+        assert_eq!(history.records.len(), hostile.len());
+        assert!(listing(&store.table("history"))
+            .iter()
+            .filter(|p| p.is_file())
+            .all(|p| p.to_string_lossy().contains(&format!("{k}.unknown"))));
+        remove(&store);
+    }
+
+    /// Runs `read` on another thread: `None` when it has not returned within `limit` (a hang).
+    fn within<T: Send + 'static>(
+        limit: std::time::Duration,
+        read: impl FnOnce() -> T + Send + 'static,
+    ) -> Option<T> {
+        let (done, answer) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = done.send(read());
+        });
+        answer.recv_timeout(limit).ok()
+    }
+
+    /// Files that are not regular files are named and skipped, never followed, read to their
+    /// end or waited on: a link to /dev/zero, a FIFO, a directory, an oversized file.
+    #[test]
+    fn files_that_are_not_regular_files_are_reported_never_read() {
+        let store = scratch("not-regular");
+        let history = store.table("history");
+        std::fs::create_dir_all(&store.runs).unwrap();
+        std::fs::create_dir_all(&history).unwrap();
+        let (k, record) = keyed(5, "ok");
+        std::fs::write(store.path(&k), record.to_string()).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", store.path(&"a".repeat(32))).unwrap();
+        std::os::unix::fs::symlink(store.path(&k), store.path(&"b".repeat(32))).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", history.join("c.unknown.json")).unwrap();
+        for fifo in [store.path(&"d".repeat(32)), history.join("e.unknown.json")] {
+            let path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+            assert_eq!(unsafe { libc::mkfifo(path.as_ptr(), 0o644) }, 0);
+        }
+        std::fs::create_dir(store.path(&"f".repeat(32))).unwrap();
+        let big = store.path(&"0".repeat(32));
+        std::fs::File::create(&big)
+            .unwrap()
+            .set_len(RECORD_CAP + 1)
+            .unwrap();
+        let limit = std::time::Duration::from_secs(20);
+        let runs = Store::open(store.runs.parent().unwrap().parent().unwrap(), "s");
+        let index = within(limit, move || runs.index()).expect("the index hangs");
+        assert_eq!(index.stored.len(), 1, "the one whole record");
+        let problems: Vec<&str> = index
+            .unreadable
+            .iter()
+            .map(|u| u.problem.as_str())
+            .collect();
+        assert_eq!(problems.len(), 5, "{problems:?}");
+        for what in ["symbolic link", "FIFO", "directory", "more than the 64 MiB"] {
+            assert!(
+                problems.iter().any(|p| p.contains(what)),
+                "{what}: {problems:?}"
+            );
+        }
+        let runs = Store::open(store.runs.parent().unwrap().parent().unwrap(), "s");
+        let scan = within(limit, move || (runs.scan(), runs.history())).expect("a scan hangs");
+        assert_eq!((scan.0.records.len(), scan.0.unreadable.len()), (1, 5));
+        assert_eq!((scan.1.records.len(), scan.1.unreadable.len()), (0, 2));
+        remove(&store);
+    }
+
+    /// A record is used only when its key is the hash of its case, solver version and repeat:
+    /// an edited case, a record copied under another key, a changed repeat are reported.
+    #[test]
+    fn a_record_whose_key_is_not_its_identity_is_reported_not_used() {
+        let store = scratch("identity");
+        std::fs::create_dir_all(&store.runs).unwrap();
+        let (k, record) = keyed(6, "ok");
+        let (other, _) = keyed(7, "ok");
+        let mut edited = record.clone();
+        edited["case"]["n"] = json!(60);
+        let mut repeated = record.clone();
+        repeated["repeat"] = json!(1);
+        let mut versionless = record.clone();
+        versionless
+            .as_object_mut()
+            .unwrap()
+            .remove("solver_version");
+        for bad in [edited, repeated, versionless] {
+            std::fs::write(store.path(&k), bad.to_string()).unwrap();
+            assert_eq!(store.status(&k), None, "{bad}");
+            assert_eq!(store.scan().unreadable.len(), 1);
+            assert!(store.index().stored.is_empty());
+        }
+        let mut moved = record.clone();
+        moved["key"] = json!(other);
+        std::fs::remove_file(store.path(&k)).unwrap();
+        std::fs::write(store.path(&other), moved.to_string()).unwrap();
+        let problem = &store.index().unreadable[0].problem;
+        assert!(problem.contains("edited or moved"), "{problem}");
+        std::fs::remove_file(store.path(&other)).unwrap();
+        std::fs::write(store.path(&k), record.to_string()).unwrap();
+        assert_eq!(store.status(&k), Some(Status::Ok));
+        remove(&store);
     }
 
     #[test]
@@ -568,24 +817,25 @@ mod tests {
     fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
         let store = scratch("lock-files");
         let lock_path = |key: &str| store.work_dir().join(format!("{key}.lock"));
-        for (key, status) in [("done", "ok"), ("broken", "failed")] {
+        let (done, ok) = keyed(8, "ok");
+        let (broken, failed) = keyed(9, "failed");
+        for (key, record) in [(&done, ok), (&broken, failed)] {
             let held = store.lock(key).unwrap().expect("free");
-            let record = json!({"key": key, "status": status, "message": ""});
             assert!(store.save(key, &record).unwrap());
             store.release_lock_file(key);
             drop(held);
         }
         assert!(
-            !lock_path("done").exists(),
+            !lock_path(&done).exists(),
             "a stored result's lock file stays"
         );
         assert!(
-            lock_path("broken").exists(),
+            lock_path(&broken).exists(),
             "a failed point's lock file is its reruns'"
         );
         // A later process takes a new lock file and finds the result stored.
-        let again = store.lock("done").unwrap().expect("free");
-        assert_eq!(store.status("done"), Some(Status::Ok));
+        let again = store.lock(&done).unwrap().expect("free");
+        assert_eq!(store.status(&done), Some(Status::Ok));
         drop(again);
         let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
     }

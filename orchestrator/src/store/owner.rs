@@ -28,7 +28,9 @@ const FILE: &str = "study-file.json";
 impl Store {
     /// The owner of the results directory, if one is written.
     pub fn owner(&self) -> Option<Owner> {
-        let text = std::fs::read_to_string(self.table(FILE)).ok()?;
+        let text =
+            crate::store::fs::read_regular(&self.table(FILE), crate::store::fs::SMALL_FILE_CAP)
+                .ok()?;
         serde_json::from_str(&text).ok()
     }
 

@@ -4,7 +4,7 @@
 //! state (each element's) and how many of its points are stored.
 
 use super::scheduler::{self, Scheduler};
-use crate::store::fs::create_dir;
+use crate::store::fs::{create_dir, read_regular, RECORD_CAP};
 use crate::store::{write_atomically, Store};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -63,7 +63,7 @@ pub fn entries(store: &Store) -> Vec<LedgerEntry> {
         .flatten()
         .flatten()
         .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
-        .filter_map(|e| serde_json::from_str(&std::fs::read_to_string(e.path()).ok()?).ok())
+        .filter_map(|e| serde_json::from_str(&read_regular(&e.path(), RECORD_CAP).ok()?).ok())
         .collect();
     entries.sort_by_key(|e: &LedgerEntry| (e.submitted, e.id.parse::<u64>().unwrap_or(0)));
     entries

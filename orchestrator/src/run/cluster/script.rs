@@ -10,6 +10,7 @@ use crate::model::resources::{Resources, WallTime};
 use crate::model::site::Site;
 use crate::store::fs::{create_dir, FileError};
 use crate::store::write_atomically;
+use schema::json::is_unsafe_char;
 use std::fmt::Write as _;
 use std::num::NonZeroUsize;
 use std::path::{Path, PathBuf};
@@ -338,9 +339,10 @@ fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Resul
 /// `text` as one shell word: in single quotes, each `'` closed, escaped and reopened. Control
 /// characters are refused: a job script is no place for them.
 fn shell_word(text: &str) -> Result<String, String> {
-    if let Some(c) = text.chars().find(|c| c.is_control()) {
+    if let Some(c) = text.chars().find(|&c| is_unsafe_char(c)) {
         return Err(format!(
-            "{text:?} holds the control character {c:?}, which a job script does not carry"
+            "{text:?} holds {}, which a job script does not carry",
+            schema::json::describe_char(c)
         ));
     }
     Ok(format!("'{}'", text.replace('\'', r"'\''")))
@@ -362,7 +364,7 @@ fn path_word(path: &Path) -> Result<String, String> {
 /// or a control character is refused rather than changed.
 fn directive_path(dir: &Path, name: &str) -> Result<String, String> {
     let text = dir.to_str().unwrap_or("\u{0}");
-    match text.chars().find(|c| c.is_control() || "\"\\%".contains(*c)) {
+    match text.chars().find(|&c| is_unsafe_char(c) || "\"\\%".contains(c)) {
         Some(c) => Err(format!(
             "the job output folder {} holds {c:?}, which a scheduler directive cannot carry; choose a results directory (--results) without it",
             dir.display()
@@ -512,7 +514,7 @@ mod tests {
                         throttle: None,
                     };
                     let Ok(text) = script(&job, &settings, &command) else {
-                        let has_control = value.chars().any(char::is_control);
+                        let has_control = value.chars().any(is_unsafe_char);
                         let refused_in_directive = slot == 2 && value.contains(['"', '\\', '%']);
                         assert!(
                             has_control || refused_in_directive,
