@@ -246,6 +246,9 @@ pub struct RunArgs {
     allow_mixed: bool,
 }
 
+#[cfg(test)]
+mod fuzz;
+
 /// nlstudy's exit statuses.
 pub mod exit {
     /// Every case ran and stored `ok` or `diverged`, or the command did what it was asked.
@@ -282,6 +285,20 @@ impl From<String> for Failure {
 impl From<&str> for Failure {
     fn from(message: &str) -> Failure {
         Failure::from(message.to_string())
+    }
+}
+
+impl From<crate::store::Fault> for Failure {
+    fn from(fault: crate::store::Fault) -> Failure {
+        use crate::store::Fault;
+        let code = match &fault {
+            Fault::Input(_) => exit::BAD_INPUT,
+            Fault::Io(_) => exit::IO,
+        };
+        Failure {
+            message: fault.to_string(),
+            code,
+        }
     }
 }
 
@@ -392,8 +409,7 @@ fn planned_and_index(
     for unreadable in &index.unreadable {
         say!("nlstudy: warning: {unreadable}");
     }
-    let planned =
-        crate::run::plan::plan(&study, &solver, &index, options).map_err(|e| e.to_string())?;
+    let planned = crate::run::plan::plan(&study, &solver, &index, options)?;
     Ok((study, solver, store, index, planned))
 }
 
@@ -541,13 +557,21 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
                         print_figures_drawn(&figures);
                         say!("report: {}", page.display());
                     }
-                    crate::output::plot::all_drawn(&figures)
+                    Ok(crate::output::plot::all_drawn(&figures).err())
                 }
-                None => Ok(()),
+                None => Ok(None),
             });
-        if let Err(message) = tables {
+        // A table or figure that cannot be made of these runs exits 1; a file that cannot be
+        // read or written, 3.
+        let (message, code) = match tables {
+            Ok(None) => (None, exit::OK),
+            Ok(Some(figures)) => (Some(figures), exit::CASE_FAILED),
+            Err(crate::store::Fault::Input(m)) => (Some(m), exit::CASE_FAILED),
+            Err(crate::store::Fault::Io(m)) => (Some(m), exit::IO),
+        };
+        if let Some(message) = message {
             say!("nlstudy: {message}; the runs are stored");
-            return Ok(ExitCode::from(exit::CASE_FAILED));
+            return Ok(ExitCode::from(code));
         }
     }
     Ok(match tally.failed {
@@ -561,6 +585,12 @@ const LONGEST_TIMEOUT_S: f64 = 1e9;
 
 /// A case's timeout from `field`: a positive, finite number of seconds.
 fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
+    if !seconds.is_finite() {
+        return Err(format!(
+            "{field}: {seconds} is not a finite number; give a number of seconds, or none for no limit"
+        )
+        .into());
+    }
     if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
         return Err(format!(
             "{field}: {seconds} is not a timeout; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none for no limit"
@@ -762,8 +792,12 @@ fn clean_command(args: &CleanArgs) -> Result<ExitCode, Failure> {
 fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
     use crate::analysis::compare;
     if !(args.threshold > 0.0 && args.threshold < 10.0) {
+        let what = match args.threshold.is_finite() {
+            true => "a fraction of change",
+            false => "a finite number",
+        };
         return Err(format!(
-            "--threshold: {} is not a fraction of change; give e.g. 0.1 for 10 %",
+            "--threshold: {} is not {what}; give e.g. 0.1 for 10 %",
             args.threshold
         )
         .into());

@@ -205,5 +205,33 @@ mod tests {
             control_character(&serde_json::json!({"a": ["b", 1]}), &[]),
             None
         );
+        // A bidirectional control shows "exe.png" for "\u{202e}gnp.exe": refused, even in prose.
+        for c in [
+            '\u{202a}', '\u{202e}', '\u{2066}', '\u{2069}', '\u{200f}', '\u{061c}',
+        ] {
+            let value = serde_json::json!({"figures": [{"title": format!("{c}gnp.exe")}]});
+            assert_eq!(
+                control_character(&value, &["figures[0].title"]),
+                Some(("figures[0].title".to_string(), c))
+            );
+            assert!(describe_char(c).contains("bidirectional control U+"));
+        }
+        assert!(!is_unsafe_char('é') && !is_unsafe_char('ε'));
+    }
+
+    #[test]
+    fn a_number_that_is_not_finite_a_date_and_a_bom_are_refused() {
+        let error = parse("\u{feff}{}").unwrap_err().to_string();
+        assert!(error.contains("byte-order mark"), "{error}");
+        // JSON itself has no NaN: serde_json refuses it before the visitor sees a number.
+        assert!(parse(r#"{"dt": NaN}"#).is_err());
+        assert!(parse("[1e400]").is_err(), "an overflow is no number");
+        let visit = |x: f64| StrictVisitor.visit_f64::<serde_json::Error>(x);
+        assert!(visit(f64::NAN)
+            .unwrap_err()
+            .to_string()
+            .contains("not a finite number"));
+        assert!(visit(f64::NEG_INFINITY).is_err());
+        assert_eq!(visit(0.5).unwrap(), serde_json::json!(0.5));
     }
 }

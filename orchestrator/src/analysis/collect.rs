@@ -7,6 +7,7 @@ use crate::analysis::{pivot, summary};
 use crate::model::study::Study;
 use crate::run::plan::{short, Planned};
 use crate::store::table::{self, Row};
+use crate::store::Fault;
 use crate::store::Store;
 use schema::record::Status;
 use serde_json::{json, Value};
@@ -95,7 +96,7 @@ pub fn collect(
     store: &Store,
     study: &Study,
     allow_mixed: bool,
-) -> Result<Option<Collected>, String> {
+) -> Result<Option<Collected>, Fault> {
     let records = crate::store::by_key(store.records());
     let rows = run_rows(planned, &records);
     let missing = planned.len() - rows.len();
@@ -108,14 +109,12 @@ pub fn collect(
         return Ok(None);
     }
     if let (Some(mixed), false) = (mixed_provenance(&rows), allow_mixed) {
-        return Err(format!(
+        return Err(Fault::Input(format!(
             "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
-        ));
+        )));
     }
     let summary_rows = summary::summarize(&rows);
-    let _outputs = store
-        .lock_outputs()
-        .map_err(|e| format!("cannot lock the tables of {}: {e}", store.study))?;
+    let _outputs = store.lock_outputs()?;
     let runs = store.table(&format!("{}.parquet", store.study));
     let summary = store.table(&format!("{}-summary.parquet", store.study));
     let about = table::About {

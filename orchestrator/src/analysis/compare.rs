@@ -277,7 +277,7 @@ fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
 
 /// The percentile interval of median(B*)/median(A*) over resamples of each side's repeats.
 fn bootstrap(a: &[f64], b: &[f64], seed: u64) -> (f64, f64) {
-    let mut random = SplitMix(seed);
+    let mut random = crate::statistics::SplitMix(seed);
     let mut resample = |values: &[f64]| -> f64 {
         let drawn: Vec<f64> = (0..values.len())
             .map(|_| values[random.below(values.len())])
@@ -289,19 +289,6 @@ fn bootstrap(a: &[f64], b: &[f64], seed: u64) -> (f64, f64) {
     let tail = (1.0 - COVERAGE) / 2.0;
     let at = |q: f64| ratios[((q * (RESAMPLES - 1) as f64).round() as usize).min(RESAMPLES - 1)];
     (at(tail), at(1.0 - tail))
-}
-
-/// SplitMix64: a small, seeded generator, so that one comparison gives one answer every time.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn below(&mut self, n: usize) -> usize {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) % n as u64) as usize
-    }
 }
 
 /// A seed from the point and metric (FNV-1a), so that intervals do not depend on the order.

@@ -321,10 +321,16 @@ mod tests {
             ("scheduler = \"pbs\"", "scheduler"),
             ("partition = \"x\"", "unknown field"),
             ("modueles = []", "did you mean `modules`"),
+            ("cores_per_node = nan", "not a finite number"),
+            ("time = 01:00:00", "quote it"),
+            ("prologue = [\"echo \u{202e}gnp.exe\"]", "prologue line"),
         ] {
             let e = parse(toml).unwrap_err();
             assert!(e.contains(says), "{toml}: {e}");
         }
+        // JSON is read as strictly as study files: a key given twice is refused.
+        let twice = Site::parse(r#"{"queue": "a", "queue": "b"}"#, false).unwrap_err();
+        assert!(twice.contains("given twice"), "{twice}");
     }
 
     #[test]

@@ -460,6 +460,9 @@ impl Study {
                 ),
             ));
         }
+        if study.name.len() > LONGEST_NAME {
+            return Err(StudyError::new("name", too_long(study.name.len())));
+        }
         for (k, figure) in study.figures.iter().enumerate() {
             if !is_file_stem(&figure.name) {
                 return Err(StudyError::new(
@@ -468,6 +471,12 @@ impl Study {
                         "`{}` must be non-empty letters, digits, `_` or `-`: it names the SVG file",
                         figure.name
                     ),
+                ));
+            }
+            if figure.name.len() > LONGEST_NAME {
+                return Err(StudyError::new(
+                    format!("figures[{k}].name"),
+                    too_long(figure.name.len()),
                 ));
             }
             if study.figures[..k].iter().any(|f| f.name == figure.name) {
@@ -671,6 +680,14 @@ impl Study {
 }
 
 /// Letters, digits, `_` and `-`: a name that is safe as a file or directory name.
+/// The longest study or figure name: a file name holds at most 255 bytes, and the files named
+/// after one add up to 40 (`.<name>-summary.parquet.<pid>.partial`).
+const LONGEST_NAME: usize = 200;
+
+fn too_long(length: usize) -> String {
+    format!("is {length} characters long; names file names, so keep it to {LONGEST_NAME}")
+}
+
 fn is_file_stem(name: &str) -> bool {
     !name.is_empty()
         && name
@@ -853,23 +870,35 @@ impl PathSpec {
         if sizes.is_empty() {
             return Err(StudyError::new(format!("{place}.n"), "has no grid sizes"));
         }
-        Ok(sizes
+        sizes
             .iter()
             .map(|&n| {
                 let horizon = match self {
                     PathSpec::FixedM { m, .. } => ("m", Value::from(*m)),
-                    PathSpec::FixedEps { eps, .. } => ("eps", Value::from(*eps)),
+                    PathSpec::FixedEps { eps, .. } => ("eps", finite(*eps, place, n)?),
                     // h = 1/n: paths are for the nonlocal method on D = [0, 1]^d.
                     PathSpec::Power { c, alpha, .. } => {
-                        ("eps", Value::from(c * (1.0 / n as f64).powf(*alpha)))
+                        ("eps", finite(c * (1.0 / n as f64).powf(*alpha), place, n)?)
                     }
                 };
-                vec![
+                Ok(vec![
                     ("n".to_string(), Value::from(n)),
                     (horizon.0.to_string(), horizon.1),
-                ]
+                ])
             })
-            .collect())
+            .collect()
+    }
+}
+
+/// A path's ε at `n` as a value: a `Value` would hold a number that is not finite as `null`,
+/// which leaves the field out of the case.
+fn finite(eps: f64, place: &str, n: u64) -> Result<Value, StudyError> {
+    match eps.is_finite() {
+        true => Ok(Value::from(eps)),
+        false => Err(StudyError::new(
+            place,
+            format!("gives ε = {eps} at n = {n}, not a finite number; choose c and alpha so that ε stays a number"),
+        )),
     }
 }
 
@@ -1112,6 +1141,26 @@ mod tests {
         assert!(error.message.contains("line 3"), "{error}");
         let error = Study::parse_toml("name = \"s\"\nname = \"t\"").unwrap_err();
         assert!(error.message.contains("not valid TOML"), "{error}");
+        // nan and inf are no values (a `Value` would hold them as null: "not given"), and a
+        // date is no number.
+        for (text, place) in [
+            ("[base]\ndt = nan", "base.dt"),
+            (
+                "[[sweep]]\nproduct = { dt = [0.1, inf] }",
+                "sweep[0].product.dt[1]",
+            ),
+            ("timeout_s = inf", "timeout_s"),
+        ] {
+            let error = Study::parse_toml(&format!("name = \"s\"\n{text}")).unwrap_err();
+            assert!(
+                error.message.contains(place) && error.message.contains("not a finite number"),
+                "{text}: {error}"
+            );
+        }
+        let error = Study::parse_toml("name = \"s\"\n[base]\nt_end = 1979-05-27").unwrap_err();
+        assert!(error.message.contains("quote it"), "{error}");
+        let error = Study::parse("\u{feff}{\"name\": \"s\", \"base\": {}}").unwrap_err();
+        assert!(error.message.contains("byte-order mark"), "{error}");
         let error = Study::parse_toml("name = \"s\"\n[base]\n[[sweep]]\nproduct = { n = [] }")
             .unwrap()
             .expand()
@@ -1283,6 +1332,18 @@ mod tests {
                 json!({"name": "s", "base": {}, "sweep": [{"path": {"kind": "fixed_m", "m": 2, "n": [0]}}]})
             ),
             "sweep[0].path.n"
+        );
+        assert_eq!(place(json!({"name": "a".repeat(256), "base": {}})), "name");
+        assert_eq!(
+            place(json!({"name": "s", "base": {},
+                "figures": [{"name": "f".repeat(201), "kind": "convergence"}]})),
+            "figures[0].name"
+        );
+        assert_eq!(
+            place(json!({"name": "s", "base": {}, "sweep": [
+                {"path": {"kind": "power", "c": 1e300, "alpha": -100.0, "n": [4]}}
+            ]})),
+            "sweep[0].path"
         );
         // JSON text, not a Value: a key given twice in a map (`base`) would keep the last.
         let twice = Study::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);

@@ -6,6 +6,7 @@
 use crate::model::study::Study;
 use crate::run::plan::Planned;
 use crate::store::fs::remove_where;
+use crate::store::Fault;
 use crate::store::Store;
 use serde_json::Value;
 use std::collections::HashSet;
@@ -24,10 +25,8 @@ pub fn clean(
     store: &Store,
     planned: &[Planned],
     delete_orphans: bool,
-) -> Result<Cleaned, String> {
-    let _outputs = store
-        .lock_outputs()
-        .map_err(|e| format!("cannot lock the figures of {}: {e}", store.study))?;
+) -> Result<Cleaned, Fault> {
+    let _outputs = store.lock_outputs()?;
     let figures = store.table("figures");
     let drawn: HashSet<String> = study
         .figures

@@ -5,7 +5,7 @@
 use crate::model::figure_spec::FigureSpec;
 use crate::output::draw;
 use crate::output::figure;
-use crate::store::fs::{read_regular, SMALL_FILE_CAP};
+use crate::store::fs::{create_dir, read_regular, Fault, FileError, SMALL_FILE_CAP};
 use crate::store::table;
 use crate::store::{self, Store};
 use sha2::{Digest, Sha256};
@@ -31,26 +31,22 @@ pub fn files(name: &str) -> [String; 2] {
     [format!("{name}.svg"), format!(".{name}.stamp")]
 }
 
-/// Draws the figures whose stamps are stale, every one it can: a figure that fails does not
-/// stop the others. Fails as a whole only when the summary table cannot be read.
-pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String> {
-    let _outputs = store
-        .lock_outputs()
-        .map_err(|e| format!("cannot lock the figures of {}: {e}", store.study))?;
+/// Draws the figures whose stamps are stale, every one it can: a figure that cannot be made of
+/// the table does not stop the others. Fails as a whole when the summary table cannot be read
+/// or a figure cannot be written (the file system's fault, which the next figure would meet
+/// too).
+pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault> {
+    let _outputs = store.lock_outputs()?;
     let table_path = store.table(&format!("{}-summary.parquet", store.study));
-    let table = std::fs::read(&table_path).map_err(|e| {
-        format!(
-            "cannot read {}: {e}; `nlstudy collect` writes it from the stored runs",
-            table_path.display()
-        )
-    })?;
+    // Read whole, then parsed: its hash stamps the figures.
+    let rows = table::read_parquet(&table_path)?;
+    let table = std::fs::read(&table_path).map_err(FileError::on("read", &table_path))?;
     let table_hash = store::hex(&Sha256::digest(&table));
     let program = std::env::current_exe()
         .and_then(std::fs::read)
         .map(|bytes| store::hex(&Sha256::digest(&bytes)))
         .unwrap_or_default();
     let directory = store.table("figures");
-    let mut rows = None;
     let mut outcomes = Vec::new();
     for (k, spec) in figures.iter().enumerate() {
         let [svg, stamp_name] = files(&spec.name);
@@ -67,26 +63,28 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, String
             });
             continue;
         }
-        if rows.is_none() {
-            rows = Some(table::read_parquet(&table_path)?);
-        }
-        let rows = rows.as_deref().unwrap_or_default();
-        let drawn = figure::chart(spec, k, rows).and_then(|chart| {
-            let written = draw::render(&chart).and_then(|svg| {
-                std::fs::create_dir_all(&directory)
-                    .map_err(|e| format!("cannot create {}: {e}", directory.display()))?;
-                store::write_atomically(&path, svg.as_bytes())?;
-                Ok(store::write_atomically(&stamp_path, stamp.as_bytes())?)
-            });
-            written.map_err(|e| figure::fault(k, spec, e))
-        });
+        // `chart` names the figure in its messages itself.
+        let drawn = figure::chart(spec, k, &rows)
+            .and_then(|chart| draw::render(&chart).map_err(|e| figure::fault(k, spec, e)));
+        // A figure of an earlier table would pass for this one's.
+        let remove_stale = || {
+            let _ = std::fs::remove_file(&path);
+            let _ = std::fs::remove_file(&stamp_path);
+        };
         let outcome = match drawn {
-            Ok(()) => Outcome::Drawn,
             Err(message) => {
-                // A figure of an earlier table would pass for this one's.
-                let _ = std::fs::remove_file(&path);
-                let _ = std::fs::remove_file(&stamp_path);
+                remove_stale();
                 Outcome::Failed(message)
+            }
+            Ok(svg) => {
+                let written = create_dir(&directory)
+                    .and_then(|_| store::write_atomically(&path, svg.as_bytes()))
+                    .and_then(|_| store::write_atomically(&stamp_path, stamp.as_bytes()));
+                if let Err(e) = written {
+                    remove_stale();
+                    return Err(Fault::Io(figure::fault(k, spec, e)));
+                }
+                Outcome::Drawn
             }
         };
         outcomes.push(Figure { path, outcome });

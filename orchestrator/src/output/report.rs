@@ -7,7 +7,7 @@
 use crate::analysis::collect::headline;
 use crate::model::study::Study;
 use crate::output::status::counts_by_status;
-use crate::store::fs::{read_regular, RECORD_CAP};
+use crate::store::fs::{read_regular, Fault, RECORD_CAP};
 use crate::store::table::{self, Row};
 use crate::store::{write_atomically, Store};
 use schema::record::Status;
@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Writes the report of `study` (whose swept fields are `swept`) and returns its path.
-pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, String> {
+pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, Fault> {
     let records = store.scan().records;
     let summary_path = store.table(&format!("{}-summary.parquet", study.name));
     let summary = match summary_path.exists() {

@@ -2,6 +2,7 @@
 //! that turns a point into a canonical case, and the command line of one run.
 
 use crate::model::study::Point;
+use crate::store::Fault;
 use serde_json::{Map, Value};
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -72,25 +73,27 @@ impl Checked {
 
 impl Nlsolve {
     /// The solver at `explicit`, else `$NLSOLVE`, else `nlsolve` beside this executable.
-    pub fn locate(explicit: Option<&Path>) -> Result<Nlsolve, String> {
+    /// A solver that cannot be started or asked its version is `Fault::Io`: a program that
+    /// could not be started (exit 3).
+    pub fn locate(explicit: Option<&Path>) -> Result<Nlsolve, Fault> {
         let binary = match explicit {
             Some(path) => path.to_path_buf(),
             None => match std::env::var_os("NLSOLVE") {
                 Some(path) => PathBuf::from(path),
                 None => std::env::current_exe()
-                    .map_err(|e| format!("cannot find this executable: {e}"))?
+                    .map_err(|e| Fault::Io(format!("cannot find this executable: {e}")))?
                     .with_file_name("nlsolve"),
             },
         };
         let output = Command::new(&binary).arg("--version").output().map_err(|e| {
-            format!(
+            Fault::Io(format!(
                 "cannot start the solver {}: {e}; build it (`cargo build --release`) or give --solver",
                 binary.display()
-            )
+            ))
         })?;
         let version = String::from_utf8_lossy(&output.stdout).trim().to_string();
         if !output.status.success() || version.is_empty() {
-            return Err(format!("{} --version failed", binary.display()));
+            return Err(Fault::Io(format!("{} --version failed", binary.display())));
         }
         let fingerprint = Command::new(&binary)
             .arg("fingerprint")
@@ -111,7 +114,7 @@ impl Nlsolve {
     pub fn check<'a>(
         &self,
         points: impl ExactSizeIterator<Item = &'a Point> + Send,
-    ) -> Result<Vec<Result<Checked, String>>, String> {
+    ) -> Result<Vec<Result<Checked, String>>, Fault> {
         let count = points.len();
         let mut child = Command::new(&self.binary)
             .arg("check")
@@ -119,7 +122,7 @@ impl Nlsolve {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", self.binary.display()))?;
+            .map_err(|e| Fault::Io(format!("cannot start {}: {e}", self.binary.display())))?;
         let stdin = child.stdin.take().expect("stdin is piped");
         let stdout = child.stdout.take().expect("stdout is piped");
         let (verdicts, written) = std::thread::scope(|scope| {
@@ -147,19 +150,19 @@ impl Nlsolve {
         });
         let output = child
             .wait_with_output()
-            .map_err(|e| format!("nlsolve check failed: {e}"))?;
+            .map_err(|e| Fault::Io(format!("nlsolve check failed: {e}")))?;
         if !output.status.success() {
-            return Err(format!(
+            return Err(Fault::Io(format!(
                 "nlsolve check failed: {}",
                 String::from_utf8_lossy(&output.stderr).trim()
-            ));
+            )));
         }
-        written.map_err(|e| format!("cannot send cases to nlsolve check: {e}"))?;
+        written.map_err(|e| Fault::Io(format!("cannot send cases to nlsolve check: {e}")))?;
         if verdicts.len() != count {
-            return Err(format!(
+            return Err(Fault::Io(format!(
                 "nlsolve check answered {} of {count} cases",
                 verdicts.len(),
-            ));
+            )));
         }
         Ok(verdicts)
     }

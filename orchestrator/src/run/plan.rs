@@ -2,6 +2,7 @@
 
 use crate::model::study::{Point, Study, StudyError};
 use crate::run::nlsolve::{Checked, Nlsolve};
+use crate::store::Fault;
 use crate::store::{self, Id, Index};
 use schema::record::Status;
 use std::collections::{HashMap, HashSet};
@@ -84,17 +85,19 @@ pub fn short(fingerprint: &str) -> &str {
     }
 }
 
-/// Plans every point of `study` against what the store holds (`index`).
+/// Plans every point of `study` against what the store holds (`index`); a bad study is
+/// `Fault::Input`, a solver that cannot be asked `Fault::Io`.
 pub fn plan(
     study: &Study,
     solver: &Nlsolve,
     index: &Index,
     options: &Options,
-) -> Result<Vec<Planned>, StudyError> {
+) -> Result<Vec<Planned>, Fault> {
     // Each point becomes its plan at once, so the points' own list is gone before the
     // solver's answers arrive (at 10⁶ points both lists together are a third of a gigabyte).
     let mut planned: Vec<Planned> = study
-        .expand()?
+        .expand()
+        .map_err(|e| Fault::Input(e.to_string()))?
         .into_iter()
         .map(|point| Planned {
             point,
@@ -106,7 +109,7 @@ pub fn plan(
         .collect();
     let cases = solver
         .check(planned.iter().map(|p| &p.point))
-        .map_err(|e| StudyError::new("solver", e))?;
+        .map_err(|e| e.within("solver"))?;
     // Keys seen so far, as their 128 bits.
     let mut seen = HashSet::with_capacity(planned.len());
     for (p, case) in planned.iter_mut().zip(cases) {
@@ -157,7 +160,7 @@ pub fn plan(
         (p.case, p.key, p.case_id) = (case, key, case_id);
     }
     if let Some(only) = &options.only {
-        unknown_keys(only, &planned)?;
+        unknown_keys(only, &planned).map_err(|e| Fault::Input(e.to_string()))?;
     }
     Ok(planned)
 }

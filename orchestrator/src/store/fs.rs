@@ -46,9 +46,47 @@ impl fmt::Display for FileError {
     }
 }
 
-impl From<FileError> for String {
-    fn from(e: FileError) -> String {
-        e.to_string()
+/// Why a step that reads or writes the results did not happen, by kind, for the exit status
+/// (`cli::exit`): a request that cannot be met as made, or a file or program that failed.
+#[derive(Debug)]
+pub enum Fault {
+    /// A bad value or a request the data cannot answer (nothing stored to collect).
+    Input(String),
+    /// The results could not be read or written, or a program could not be started.
+    Io(String),
+}
+
+impl Fault {
+    pub fn message(&self) -> &str {
+        match self {
+            Fault::Input(message) | Fault::Io(message) => message,
+        }
+    }
+
+    /// The same fault with `context` before its message (`cannot collect: …`).
+    pub fn within(self, context: &str) -> Fault {
+        match self {
+            Fault::Input(m) => Fault::Input(format!("{context}: {m}")),
+            Fault::Io(m) => Fault::Io(format!("{context}: {m}")),
+        }
+    }
+}
+
+impl fmt::Display for Fault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.message())
+    }
+}
+
+impl From<FileError> for Fault {
+    fn from(e: FileError) -> Fault {
+        Fault::Io(e.to_string())
+    }
+}
+
+impl From<String> for Fault {
+    fn from(message: String) -> Fault {
+        Fault::Input(message)
     }
 }
 
@@ -118,6 +156,35 @@ pub fn read_regular(path: &Path, cap: u64) -> Result<String, String> {
         return Err(too_large(bytes.len() as u64));
     }
     String::from_utf8(bytes).map_err(|_| "not UTF-8 text".to_string())
+}
+
+/// Runs `read`, a reader of a file that may be corrupt, turning a panic inside a library (polars
+/// panics on some corrupt Parquet footers) into an error; the default hook's report of such a
+/// panic is silenced meanwhile, on every thread (polars reads on its pool), so that the user sees
+/// one sentence. A panic elsewhere at the same moment goes unprinted, but still unwinds.
+pub fn without_panicking<T>(read: impl FnOnce() -> T) -> Result<T, String> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static QUIET: AtomicUsize = AtomicUsize::new(0);
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let report = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if QUIET.load(Ordering::SeqCst) == 0 {
+                report(info);
+            }
+        }));
+    });
+    QUIET.fetch_add(1, Ordering::SeqCst);
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(read));
+    QUIET.fetch_sub(1, Ordering::SeqCst);
+    outcome.map_err(|panic| {
+        let said = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        format!("its reader failed: {said}")
+    })
 }
 
 /// Where a file is written before it is renamed into place: hidden (readers skip dot files)

@@ -19,7 +19,7 @@ pub mod owner;
 pub mod table;
 
 use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
-pub use fs::{write_atomically, FileError};
+pub use fs::{write_atomically, Fault, FileError};
 
 pub struct Store {
     pub study: String,

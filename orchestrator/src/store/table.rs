@@ -3,10 +3,18 @@
 //! says what it holds in its key–value metadata: `description` (the study's), `unit:<column>`
 //! for each column with a unit (read off its name, `unit`) and `note:<column>` for each column
 //! its writer explains.
+//!
+//! Beside each table, `<table>.sha256` holds its SHA-256 in `sha256sum`'s format (so
+//! `sha256sum -c quick.parquet.sha256` checks it by hand). A reader checks it before polars
+//! parses a byte: polars aborts the process on some corrupt data pages (it reserves what a
+//! corrupt length asks for), which no `catch_unwind` can stop. A table copied without its sum is
+//! read unchecked, under the footer check and `catch_unwind`, which catch most corruption.
 
+use crate::store::fs::Fault;
 use polars::prelude::*;
 use schema::record::Status;
 use serde_json::{Map, Value};
+use sha2::Digest;
 use std::path::Path;
 
 /// A table row: named cells in column order.
@@ -207,27 +215,30 @@ pub struct About<'a> {
 
 /// `write_parquet_about` with no description or notes: the tables tests make by hand.
 #[cfg(test)]
-pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), String> {
+pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), Fault> {
     write_parquet_about(tables, &About::default())
 }
 
 /// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
 /// process) that is synced, and only once all are written are they renamed into place.
-pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<(), String> {
+/// Every failure is the file system's (`Fault::Io`): the rows are whatever the records held.
+pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<(), Fault> {
     let mut written = Vec::new();
     let mut outcome = Ok(());
     for (path, rows) in tables {
         let partial = crate::store::fs::partial_path(path);
         written.push((partial.clone(), path.to_path_buf()));
         if let Err(e) = write_one(&partial, rows, about) {
-            outcome = Err(format!("cannot write {}: {e}", path.display()));
+            outcome = Err(Fault::Io(format!("cannot write {}: {e}", path.display())));
             break;
         }
     }
     if outcome.is_ok() {
         for (partial, path) in &written {
+            let sum = sum_text(partial, path)?;
+            crate::store::write_atomically(&sum_path(path), sum.as_bytes())?;
             std::fs::rename(partial, path)
-                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+                .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
         }
         return Ok(());
     }
@@ -277,22 +288,110 @@ fn metadata(frame: &DataFrame, about: &About) -> Vec<(String, String)> {
 }
 
 /// The rows of a Parquet file (as `write_parquet` wrote them; NaN reads back as null, a list
-/// as a JSON array).
-pub fn read_parquet(path: &Path) -> Result<Vec<Row>, String> {
-    let fail = |e: &dyn std::fmt::Display| format!("cannot read {}: {e}", path.display());
-    let file = std::fs::File::open(path).map_err(|e| fail(&e))?;
-    let frame = ParquetReader::new(file).finish().map_err(|e| fail(&e))?;
+/// as a JSON array). A missing table is asked for too early (`Fault::Input`); one that is not a
+/// regular file or not a whole Parquet table is a fault of the results (`Fault::Io`), never a
+/// panic: polars panics on some corrupt footers, so the read runs under `catch_unwind`, after a
+/// check of the frame's magic and footer length.
+pub fn read_parquet(path: &Path) -> Result<Vec<Row>, Fault> {
+    if std::fs::symlink_metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
+        return Err(Fault::Input(format!(
+            "{} does not exist; `nlstudy collect` writes it from the stored runs",
+            path.display()
+        )));
+    }
+    let corrupt = |why: &dyn std::fmt::Display| {
+        Fault::Io(format!(
+            "{} is not a whole Parquet table ({why}); `nlstudy collect` rebuilds it from the stored runs",
+            path.display()
+        ))
+    };
+    let bytes = read_whole(path).map_err(|e| corrupt(&e))?;
+    check_sum(path, &bytes).map_err(|e| corrupt(&e))?;
+    check_frame(&bytes).map_err(|e| corrupt(&e))?;
+    match crate::store::fs::without_panicking(|| rows_of(std::io::Cursor::new(bytes))) {
+        Ok(Ok(rows)) => Ok(rows),
+        Ok(Err(e)) | Err(e) => Err(corrupt(&e)),
+    }
+}
+
+/// The bytes of the regular file `path`.
+fn read_whole(path: &Path) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let (mut file, length) = crate::store::fs::open_regular(path)?;
+    let mut bytes = Vec::with_capacity(length as usize);
+    file.read_to_end(&mut bytes).map_err(|e| e.to_string())?;
+    Ok(bytes)
+}
+
+/// Where the sum of the table `path` is kept: `<table>.sha256`.
+pub fn sum_path(path: &Path) -> std::path::PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".sha256");
+    path.with_file_name(name)
+}
+
+/// The sum of the bytes of `written` as `sha256sum` prints it for the table `path`.
+fn sum_text(written: &Path, path: &Path) -> Result<String, Fault> {
+    let bytes = std::fs::read(written).map_err(crate::store::FileError::on("read", written))?;
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    Ok(format!(
+        "{}  {name}\n",
+        crate::store::hex(&sha2::Sha256::digest(&bytes))
+    ))
+}
+
+/// Checks `bytes`, read from the table `path`, against its sum when it has one.
+fn check_sum(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let sum = sum_path(path);
+    let recorded = match crate::store::fs::read_regular(&sum, crate::store::fs::SMALL_FILE_CAP) {
+        Ok(text) => text,
+        Err(_) if std::fs::symlink_metadata(&sum).is_err() => return Ok(()),
+        Err(why) => return Err(format!("its sum {} cannot be read: {why}", sum.display())),
+    };
+    let recorded = recorded.split_whitespace().next().unwrap_or_default();
+    let actual = crate::store::hex(&sha2::Sha256::digest(bytes));
+    match recorded == actual {
+        true => Ok(()),
+        false => Err(format!(
+            "its bytes do not match {}: changed since `nlstudy collect` wrote it",
+            sum.display()
+        )),
+    }
+}
+
+/// A Parquet file starts and ends with `PAR1`, and the 4 bytes before its last 4 give the length
+/// of a footer that must fit in the file.
+fn check_frame(bytes: &[u8]) -> Result<(), String> {
+    let length = bytes.len();
+    if length < 12 {
+        return Err(format!("{length} bytes, less than a Parquet frame"));
+    }
+    let tail = &bytes[length - 8..];
+    if &bytes[..4] != b"PAR1" || &tail[4..] != b"PAR1" {
+        return Err("no PAR1 magic at both ends".into());
+    }
+    let footer = u32::from_le_bytes(tail[..4].try_into().expect("4 bytes")) as usize;
+    if footer + 12 > length {
+        return Err(format!("its footer claims {footer} bytes of {length}"));
+    }
+    Ok(())
+}
+
+fn rows_of(bytes: std::io::Cursor<Vec<u8>>) -> Result<Vec<Row>, String> {
+    let frame = ParquetReader::new(bytes)
+        .finish()
+        .map_err(|e| e.to_string())?;
     let mut rows = vec![Row::default(); frame.height()];
     for column in frame.columns() {
         for (i, row) in rows.iter_mut().enumerate() {
-            let value = match column.get(i).map_err(|e| fail(&e))? {
+            let value = match column.get(i).map_err(|e| e.to_string())? {
                 AnyValue::Boolean(b) => Value::from(b),
                 AnyValue::Int64(v) => Value::from(v),
                 AnyValue::Float64(v) => json_number(Some(v)),
                 AnyValue::String(s) => Value::from(s),
                 AnyValue::StringOwned(s) => Value::from(s.as_str()),
                 AnyValue::List(items) => {
-                    let items = items.f64().map_err(|e| fail(&e))?;
+                    let items = items.f64().map_err(|e| e.to_string())?;
                     Value::Array(items.iter().map(json_number).collect())
                 }
                 _ => Value::Null,

@@ -113,7 +113,7 @@ struct CaseFlags {
     #[arg(long)]
     m: Option<usize>,
     /// Horizon as a length in (0, 0.5]; m = ceil(ε/h). For pse, the kernel width ε ≤ L/2.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     eps: Option<f64>,
     /// Influence function J: constant, linear, gaussian, inverse_distance.
     #[arg(long)]
@@ -126,7 +126,7 @@ struct CaseFlags {
     #[arg(long)]
     backend: Option<String>,
     /// Diffusivity k of the local limit kΔ (default 1).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     diffusivity: Option<f64>,
     /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi, pse).
     #[arg(long)]
@@ -138,17 +138,17 @@ struct CaseFlags {
     #[arg(long)]
     source: Option<String>,
     /// Side L of the local methods' domain (−L/2, L/2)^d (default 2).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     length: Option<f64>,
     /// Final time.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     t_end: Option<f64>,
     /// Time step (lowered to land on t_end); give --dt or --cfl.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     dt: Option<f64>,
     /// Time step as a fraction of the stable step dt_stable (implicit integrators: of forward
     /// Euler's).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     cfl: Option<f64>,
     /// nonlocal: time integrator forward_euler (default, eq. 2.1), heun, rk4, backward_euler or
     /// crank_nicolson (the last two solve by sine-preconditioned CG each step).
@@ -161,7 +161,7 @@ struct CaseFlags {
     #[arg(long)]
     error_total: bool,
     /// Time between samples of c_tot(t) (into the record; see --write-diagnostics).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     diagnostics_every: Option<f64>,
     /// Bins of a histogram of the final field's values (into the record).
     #[arg(long)]
@@ -170,7 +170,7 @@ struct CaseFlags {
     #[arg(long)]
     field_snapshot: Option<usize>,
     /// Time between the field's frames written by --write-vtk.
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     vtk_every: Option<f64>,
     /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[arg(long)]
@@ -189,7 +189,7 @@ struct CaseFlags {
     py: Option<usize>,
     /// Relative tolerance of the iteration: steady methods (default 1e-5) and the implicit
     /// integrators' solves (default tied to the time error).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_number)]
     rtol: Option<f64>,
     /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
     /// the implicit integrators (default 1000 per step).
@@ -231,9 +231,21 @@ struct CaseFlags {
         long,
         value_name = "A,B",
         value_delimiter = ',',
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = finite_number
     )]
     local_domain: Option<Vec<f64>>,
+}
+
+/// A number flag's value: a finite f64. JSON has no NaN or infinity: serde_json would write one
+/// as `null`, which the case reads as a field not given (`--diffusivity nan` would run with
+/// the default), so it is refused here, by clap, naming the flag.
+fn finite_number(text: &str) -> Result<f64, String> {
+    let x: f64 = text.trim().parse().map_err(|e| format!("{e}"))?;
+    match x.is_finite() {
+        true => Ok(x),
+        false => Err("not a finite number".into()),
+    }
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -746,6 +758,48 @@ mod tests {
             .map(|a| a.get_id().as_str())
             .collect();
         assert_eq!(flags, Case::field_names());
+    }
+
+    /// No flag takes a number that is not finite (or any value a case refuses): `nan`, `inf`
+    /// and `-inf` are refused by every flag that takes a value, the number flags saying "not a
+    /// finite number".
+    #[test]
+    fn no_flag_takes_a_number_that_is_not_finite() {
+        let command = CaseFlags::augment_args(clap::Command::new("nlsolve"));
+        let mut numbers = 0;
+        for arg in command.get_arguments() {
+            if !arg.get_action().takes_values() {
+                continue;
+            }
+            let flag = format!("--{}", arg.get_long().expect("a long flag"));
+            // `--flag=value`, so that `-inf` is a value, not a flag.
+            let given = |value: &str| format!("{flag}={value}");
+            let parses =
+                |value: &str| Cli::try_parse_from(["nlsolve", "run", &given(value)]).is_ok();
+            let takes_a_fraction = parses("0.5") && !parses("x");
+            for value in ["nan", "NaN", "inf", "-inf", "infinity", "1e400"] {
+                let refusal = match Cli::try_parse_from(["nlsolve", "run", &given(value)]) {
+                    Err(e) => e.to_string(),
+                    Ok(cli) => {
+                        let Command::Run(args) = cli.command else {
+                            panic!("a run")
+                        };
+                        match args.case.case() {
+                            Err(BadInput(message)) => message,
+                            Ok(_) => panic!("{flag} {value} was accepted"),
+                        }
+                    }
+                };
+                if takes_a_fraction {
+                    assert!(
+                        refusal.contains("not a finite number"),
+                        "{flag} {value}: {refusal}"
+                    );
+                }
+            }
+            numbers += usize::from(takes_a_fraction);
+        }
+        assert!(numbers >= 10, "the f64 flags were found: {numbers}");
     }
 
     /// A misspelt flag is one line of bad input that still carries clap's suggestion.

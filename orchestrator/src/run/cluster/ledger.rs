@@ -5,7 +5,7 @@
 
 use super::scheduler::{self, Scheduler};
 use crate::store::fs::{create_dir, read_regular, RECORD_CAP};
-use crate::store::{write_atomically, Store};
+use crate::store::{write_atomically, FileError, Store};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -48,7 +48,7 @@ fn ledger_dir(store: &Store) -> PathBuf {
 }
 
 /// Adds a submitted job to the ledger.
-pub fn add(store: &Store, entry: &LedgerEntry) -> Result<(), String> {
+pub fn add(store: &Store, entry: &LedgerEntry) -> Result<(), FileError> {
     let dir = ledger_dir(store);
     create_dir(&dir)?;
     let path = dir.join(format!("{}.json", entry.id));

@@ -1,6 +1,7 @@
 //! The cluster schedulers nlstudy speaks to, Slurm and LSF: handing them a job script, reading
 //! the job id they print, and asking which jobs they still hold.
 
+use crate::store::Fault;
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
@@ -174,8 +175,9 @@ pub fn submitted_id(scheduler: Scheduler, printed: &str) -> Option<String> {
     (!id.is_empty() && id.chars().all(|c| c.is_ascii_digit())).then(|| id.to_string())
 }
 
-/// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`) and returns the job's id.
-pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
+/// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`) and returns the job's
+/// id. Every failure is the scheduler's or the system's (the script was checked when written).
+pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, Fault> {
     let (program, output) = match scheduler {
         Scheduler::Slurm => (
             "sbatch",
@@ -190,21 +192,21 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, String> {
         ),
     };
     let output = output.map_err(|e| {
-        format!("cannot run {program}: {e}; on a machine without the scheduler use --dry-run to write the scripts only")
+        Fault::Io(format!("cannot run {program}: {e}; on a machine without the scheduler use --dry-run to write the scripts only"))
     })?;
     let printed = String::from_utf8_lossy(&output.stdout);
     if !output.status.success() {
-        return Err(format!(
+        return Err(Fault::Io(format!(
             "{program} refused {}: {}",
             script.display(),
             String::from_utf8_lossy(&output.stderr).trim()
-        ));
+        )));
     }
     submitted_id(scheduler, &printed).ok_or_else(|| {
-        format!(
+        Fault::Io(format!(
             "{program} accepted {} but printed no job id: {printed}",
             script.display()
-        )
+        ))
     })
 }
 

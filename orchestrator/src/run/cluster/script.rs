@@ -8,7 +8,7 @@ use super::scheduler::Scheduler;
 use crate::model::launcher::Launcher;
 use crate::model::resources::{Resources, WallTime};
 use crate::model::site::Site;
-use crate::store::fs::{create_dir, FileError};
+use crate::store::fs::{create_dir, Fault, FileError};
 use crate::store::write_atomically;
 use schema::json::is_unsafe_char;
 use std::fmt::Write as _;
@@ -61,7 +61,7 @@ pub fn write_jobs(
     packs: &[(&Pack, Option<WallTime>)],
     settings: &Settings,
     command: &JobCommand,
-) -> Result<Vec<Job>, String> {
+) -> Result<Vec<Job>, Fault> {
     create_dir(&command.jobs)?;
     archive_earlier_scripts(&command.jobs)?;
     let mut jobs = Vec::new();
@@ -101,7 +101,7 @@ fn extension(scheduler: Scheduler) -> &'static str {
 }
 /// Moves the job scripts in `jobs` to `jobs/archive/<seconds since the epoch>-<name>`: a
 /// script of an earlier submit holds keys this one may no longer have, and is kept, not lost.
-fn archive_earlier_scripts(jobs: &Path) -> Result<(), String> {
+fn archive_earlier_scripts(jobs: &Path) -> Result<(), FileError> {
     let earlier: Vec<PathBuf> = std::fs::read_dir(jobs)
         .map_err(FileError::on("read", jobs))?
         .flatten()

@@ -14,6 +14,7 @@ use crate::model::site::Site;
 use crate::model::study::Study;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::Planned;
+use crate::store::{Fault, FileError};
 use crate::store::{Index, Store};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -50,7 +51,7 @@ pub fn submit_study(
     store: &Store,
     index: &Index,
     target: &Target,
-) -> Result<(), String> {
+) -> Result<(), Fault> {
     let in_flight = in_flight(store, target.scheduler);
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
         .iter()
@@ -88,14 +89,13 @@ pub fn submit_study(
         tell!("study {}: nothing to submit, {why}", study.name);
         return Ok(());
     }
-    std::fs::create_dir_all(&target.results)
-        .map_err(|e| format!("cannot create {}: {e}", target.results.display()))?;
-    let absolute = |path: &Path| {
-        std::fs::canonicalize(path).map_err(|e| format!("cannot resolve {}: {e}", path.display()))
-    };
+    crate::store::fs::create_dir(&target.results)?;
+    let absolute =
+        |path: &Path| std::fs::canonicalize(path).map_err(FileError::on("resolve", path));
     let results = absolute(&target.results)?;
     let command = JobCommand {
-        nlstudy: std::env::current_exe().map_err(|e| format!("cannot find nlstudy: {e}"))?,
+        nlstudy: std::env::current_exe()
+            .map_err(|e| Fault::Io(format!("cannot find nlstudy: {e}")))?,
         nlsolve: absolute(&solver.binary)?,
         study: absolute(&target.study_file)?,
         jobs: results.join(&study.name).join("jobs"),
@@ -130,7 +130,7 @@ pub fn submit_study(
     };
     let timed: Vec<_> = packs.iter().map(|(p, t, _)| (p, *t)).collect();
     let jobs = write_jobs(&timed, &settings, &command)
-        .map_err(|e| format!("cannot write the job scripts: {e}"))?;
+        .map_err(|e| e.within("cannot write the job scripts"))?;
     for (job, (_, time, from)) in jobs.iter().zip(&packs) {
         let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
         match job.array {

@@ -1,0 +1,277 @@
+//! A results directory others can write to, as processes: what `nlstudy` reads from its own
+//! store is trusted no more than a study file. Each test reproduces a finding of the reliability
+//! review (docs/reliability.md): a record whose content would become a path, files that are not
+//! plain files, a corrupt table, and the exit status of every I/O failure.
+
+use nonlocal_study::{records, text, Scratch};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// Two tiny 1D points (milliseconds each), with a figure.
+fn tiny(name: &str) -> Value {
+    json!({
+        "name": name,
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": [16, 24]}}],
+        "figures": [{"name": "error", "kind": "convergence", "x": "n", "y": "error_l2_norm"}]
+    })
+}
+
+fn ran(scratch: &Scratch, name: &str) {
+    let out = scratch.nlstudy("run", &[]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert_eq!(records(&scratch.runs(name)).len(), 2);
+}
+
+fn assert_no_panic(out: &Output) {
+    let said = text(out);
+    assert!(!said.contains("panicked"), "{said}");
+}
+
+/// The record files of a store, in name order.
+fn record_files(runs: &Path) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .collect();
+    paths.sort();
+    paths
+}
+
+/// The reproduction: a stored record whose fingerprint is a path. The next run that
+/// replaces it (here `--force`; a new build does the same) keeps the old record inside the
+/// history, and the file the traversal aimed at is untouched; a fingerprint with a slash or of
+/// 300 characters no longer stops every later run.
+#[test]
+fn a_fingerprint_that_is_a_path_moves_nothing_outside_the_results() {
+    let scratch = Scratch::new("traversal", &tiny("traversal"));
+    ran(&scratch, "traversal");
+    let history = scratch.dir.join("results/traversal/history");
+    let paths = record_files(&scratch.runs("traversal"));
+    let key = paths[0].file_stem().unwrap().to_string_lossy().into_owned();
+    // history/<key>./../../../../PWN_target.json is <scratch>/PWN_target.json.
+    std::fs::create_dir_all(history.join(format!("{key}."))).unwrap();
+    let target = scratch.dir.join("PWN_target.json");
+    std::fs::write(&target, "precious").unwrap();
+    for fingerprint in ["/../../../../PWN_target", "a/b", &"f".repeat(300)] {
+        for path in &paths {
+            let mut record: Value =
+                serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+            record["provenance"]["fingerprint"] = json!(fingerprint);
+            std::fs::write(path, record.to_string()).unwrap();
+        }
+        let out = scratch.nlstudy("run", &["--force"]);
+        assert!(out.status.success(), "{fingerprint}: {}", text(&out));
+        assert!(text(&out).contains("2 ran (2 ok"), "{}", text(&out));
+    }
+    assert_eq!(std::fs::read_to_string(&target).unwrap(), "precious");
+    let kept: Vec<String> = std::fs::read_dir(&history)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.path().is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(kept.len(), 6, "every replaced result is kept: {kept:?}");
+    assert!(kept.iter().all(|n| n.contains(".unknown")), "{kept:?}");
+}
+
+/// Runs `nlstudy verb` and waits at most a minute: `None` when it is still running then (it
+/// hangs), and it is killed.
+fn within_a_minute(scratch: &Scratch, verb: &str, extra: &[&str]) -> Option<(Output, Duration)> {
+    let started = Instant::now();
+    let mut child = scratch
+        .command(verb, extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    while started.elapsed() < Duration::from_secs(60) {
+        if child.try_wait().unwrap().is_some() {
+            return Some((child.wait_with_output().unwrap(), started.elapsed()));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let _ = child.kill();
+    None
+}
+
+/// The reproduction: a record that is a link to /dev/zero and FIFOs in `runs/` and
+/// `history/`. `plan`, `status`, `run` and `history` name each and return at once: nothing is
+/// read to its end, followed or waited on.
+#[test]
+fn files_that_are_not_plain_files_are_named_never_read_or_waited_on() {
+    let scratch = Scratch::new("fifo", &tiny("fifo"));
+    ran(&scratch, "fifo");
+    let runs = scratch.runs("fifo");
+    let history = scratch.dir.join("results/fifo/history");
+    std::fs::create_dir_all(&history).unwrap();
+    let zero = runs.join(format!("{}.json", "a".repeat(32)));
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let fifos = [
+        runs.join(format!("{}.json", "b".repeat(32))),
+        history.join(format!("{}.unknown.json", "c".repeat(32))),
+    ];
+    for fifo in &fifos {
+        let made = Command::new("mkfifo").arg(fifo).status().unwrap();
+        assert!(made.success());
+    }
+    for (verb, extra) in [
+        ("plan", vec![]),
+        ("status", vec![]),
+        ("history", vec!["--metric", "solve_s"]),
+        ("run", vec![]),
+    ] {
+        let (out, took) = within_a_minute(&scratch, verb, &extra)
+            .unwrap_or_else(|| panic!("`nlstudy {verb}` hangs on a FIFO"));
+        assert_no_panic(&out);
+        let said = text(&out);
+        println!("nlstudy {verb} returned in {took:?}");
+        let named = match verb {
+            "history" => fifos[1].clone(),
+            _ => fifos[0].clone(),
+        };
+        assert!(
+            said.contains(&named.display().to_string()),
+            "{verb}: {said}"
+        );
+        assert!(said.contains("FIFO"), "{verb}: {said}");
+        if verb != "history" {
+            assert!(said.contains("symbolic link"), "{verb}: {said}");
+        }
+    }
+    assert!(
+        std::fs::symlink_metadata(&zero).is_ok(),
+        "reported, not removed"
+    );
+}
+
+/// A table whose bytes were changed (one byte of the footer, the fixture) makes `table`,
+/// `plot` and `report` exit 3 naming it and the fix, never panic; `collect` rebuilds it.
+#[test]
+fn a_corrupt_table_exits_3_naming_it_and_collect_rebuilds_it() {
+    let scratch = Scratch::new("corrupt-table", &tiny("broken"));
+    ran(&scratch, "broken");
+    let summary = scratch.dir.join("results/broken/broken-summary.parquet");
+    let mut bytes = std::fs::read(&summary).unwrap();
+    let at = bytes.len() - 20;
+    bytes[at] ^= 0x5a;
+    std::fs::write(&summary, &bytes).unwrap();
+    for (verb, extra) in [
+        ("table", vec!["--rows", "n", "--value", "error_l2_norm"]),
+        ("plot", vec![]),
+        ("report", vec![]),
+    ] {
+        let out = scratch.nlstudy(verb, &extra);
+        assert_eq!(out.status.code(), Some(3), "{verb}: {}", text(&out));
+        assert_no_panic(&out);
+        let said = text(&out);
+        assert!(
+            said.contains("broken-summary.parquet") && said.contains("nlstudy collect"),
+            "{verb}: {said}"
+        );
+    }
+    let collect = scratch.nlstudy("collect", &[]);
+    assert!(collect.status.success(), "{}", text(&collect));
+    let table = scratch.nlstudy("table", &["--rows", "n", "--value", "error_l2_norm"]);
+    assert!(table.status.success(), "{}", text(&table));
+}
+
+/// Every I/O failure exits 3 (README's table): a table, a report or a lock that cannot be
+/// written, and a scheduler that refuses the job.
+#[test]
+fn io_failures_exit_3() {
+    let scratch = Scratch::new("io-exit", &tiny("io"));
+    ran(&scratch, "io");
+    let study = scratch.dir.join("results/io");
+    let in_the_way = |path: PathBuf| {
+        let _ = std::fs::remove_file(&path);
+        std::fs::create_dir_all(path.join("x")).unwrap();
+        path
+    };
+    let tables = in_the_way(study.join("io.parquet"));
+    let out = scratch.nlstudy("collect", &[]);
+    assert_eq!(out.status.code(), Some(3), "collect: {}", text(&out));
+    let out = scratch.nlstudy("run", &[]);
+    assert_eq!(out.status.code(), Some(3), "run's tables: {}", text(&out));
+    std::fs::remove_dir_all(&tables).unwrap();
+    let report = in_the_way(study.join("report.html"));
+    let out = scratch.nlstudy("report", &[]);
+    assert_eq!(out.status.code(), Some(3), "report: {}", text(&out));
+    std::fs::remove_dir_all(&report).unwrap();
+    let figure = in_the_way(study.join("figures/error.svg"));
+    std::fs::remove_file(study.join("figures/.error.stamp")).unwrap();
+    let out = scratch.nlstudy("plot", &[]);
+    assert_eq!(out.status.code(), Some(3), "plot: {}", text(&out));
+    std::fs::remove_dir_all(&figure).unwrap();
+    let lock = in_the_way(study.join(".outputs.lock"));
+    for verb in ["collect", "plot"] {
+        let out = scratch.nlstudy(verb, &[]);
+        assert_eq!(out.status.code(), Some(3), "{verb}: {}", text(&out));
+        assert!(text(&out).contains(".outputs.lock"), "{}", text(&out));
+    }
+    std::fs::remove_dir_all(&lock).unwrap();
+    let everything = scratch.nlstudy("run", &[]);
+    assert!(everything.status.success(), "{}", text(&everything));
+    // A scheduler that refuses: a stub sbatch on the PATH, for a study with points to submit.
+    let scratch = Scratch::new("io-exit-submit", &tiny("submitted"));
+    let bin = scratch.dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let sbatch = bin.join("sbatch");
+    std::fs::write(
+        &sbatch,
+        "#!/bin/sh\necho 'sbatch: error: Batch job submission failed' >&2\nexit 1\n",
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&sbatch, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let path = format!(
+        "{}:{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = scratch
+        .command("submit", &["--scheduler", "slurm"])
+        .env("PATH", path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(3), "submit: {}", text(&out));
+    assert!(text(&out).contains("submission failed"), "{}", text(&out));
+}
+
+/// A TOML study's `nan` and `inf` were "not given" (two points with the key of no dt): refused
+/// naming their place, as is a TOML date where a number belongs.
+#[test]
+fn numbers_that_are_not_finite_are_refused_in_a_toml_study() {
+    let scratch = Scratch::new("toml-nan", &tiny("nan"));
+    let study = scratch.dir.join("study.toml");
+    for (text_of, names) in [
+        (
+            "name = \"nan\"\n[base]\ndim = 1\nm = 2\nt_end = 0.001\n[[sweep]]\nproduct = { n = [16], dt = [nan, inf] }\n",
+            "sweep[0].product.dt[0]",
+        ),
+        (
+            "name = \"nan\"\ntimeout_s = inf\n[base]\ndim = 1\n",
+            "timeout_s",
+        ),
+        ("name = \"nan\"\n[base]\ndim = 1\nt_end = 2026-11-25\n", "quote it"),
+    ] {
+        std::fs::write(&study, text_of).unwrap();
+        let out = Command::new(nonlocal_study::binary("nlstudy"))
+            .arg("plan")
+            .arg(&study)
+            .arg("--results")
+            .arg(scratch.dir.join("results"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+        assert!(text(&out).contains(names), "{names}: {}", text(&out));
+        if names != "quote it" {
+            assert!(text(&out).contains("not a finite number"), "{}", text(&out));
+        }
+    }
+}
