@@ -851,48 +851,40 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
     assert!(allowed.status.success(), "{}", text(&allowed));
 }
 
-/// `compare`: the current runs (B) against a baseline (A) written by a solver wrapper that
-/// reports a thousandth of every timing are worse, with an interval above 1 (a tenth was once
-/// inside the noise of these microsecond solves: interval [0.63, 9.3]); a set against itself changes nothing; a point of one side is listed;
-/// unlike machines, single runs and another study's results are refused.
+/// `compare` against a results directory. A solver wrapper reports timings of a judgeable
+/// scale (0.2 s × $FACTOR, within 1 %): a baseline a quarter as long makes every timing worse,
+/// with an interval above 1 and beyond the noise floor; a set against itself changes nothing; a
+/// point of one side is listed. Refused: unlike machines, a side of two builds, single runs, a
+/// directory that does not exist and another study's results, and a refused compare leaves the
+/// results directory's owner as it was. The same study file copied elsewhere is the same study.
 #[test]
 fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
     let mut study = small_study(&[16]);
     study["repeat"] = json!(3);
     let scratch = Scratch::new("compare", &study);
-    assert!(scratch.nlstudy("run", &["--no-collect"]).status.success());
-    // A wrapper scaling the timings by $FACTOR and naming the CPU $CPU in the records.
-    let wrapper = scratch.dir.join("scaled-nlsolve");
-    std::fs::write(
-        &wrapper,
-        format!(
-            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\nout = subprocess.run(['{}'] + sys.argv[1:], stdout=subprocess.PIPE)\ntext = out.stdout.decode()\nif sys.argv[1:2] == ['run'] and text.strip():\n    record = json.loads(text)\n    for field in ('solve_s', 'step_s', 'setup_s'):\n        record[field] *= float(os.environ.get('FACTOR', '1'))\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    text = json.dumps(record) + '\\n'\nsys.stdout.write(text)\nsys.exit(out.returncode)\n",
-            binary("nlsolve").display()
-        ),
-    )
-    .unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
-    let run_into = |study: &Path, dir: &str, solver: &Path, env: &[(&str, &str)]| {
+    let wrapper = timing_wrapper(&scratch);
+    let run_into = |study: &Path, dir: &str, env: &[(&str, &str)]| {
         let out = Command::new(binary("nlstudy"))
             .args(["run", "--no-collect", "--results"])
             .arg(scratch.dir.join(dir))
             .arg("--solver")
-            .arg(solver)
+            .arg(&wrapper)
             .arg(study)
             .envs(env.iter().copied())
             .output()
             .unwrap();
         assert!(out.status.success(), "{}", text(&out));
     };
-    let side = |dir: &str, env: &[(&str, &str)]| run_into(&scratch.study(), dir, &wrapper, env);
+    let side = |dir: &str, env: &[(&str, &str)]| run_into(&scratch.study(), dir, env);
     let compare = |against: &str, extra: &[&str]| {
         let against = scratch.dir.join(against);
-        let mut args = vec!["--against", against.to_str().unwrap()];
+        let mut args = vec!["--against", against.to_str().unwrap(), "--solver"];
+        args.push(wrapper.to_str().unwrap());
         args.extend_from_slice(extra);
         scratch.nlstudy("compare", &args)
     };
-    side("faster", &[("FACTOR", "0.001")]);
+    side("results", &[]);
+    side("faster", &[("FACTOR", "0.25")]);
     let slower = compare("faster", &[]);
     assert_eq!(slower.status.code(), Some(1), "{}", text(&slower));
     let slower = text(&slower);
@@ -916,10 +908,15 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
     }
     let compared = scratch.dir.join("results/small");
     assert!(compared.join("compare.parquet").exists() && compared.join("compare.svg").exists());
+    // The figure marks what the exit status counts.
+    let svg = std::fs::read_to_string(compared.join("compare.svg")).unwrap();
+    assert!(svg.contains("worse"), "the figure shows the regressions");
     // The same runs on both sides: nothing changed.
     let itself = compare("results", &[]);
     assert!(itself.status.success(), "{}", text(&itself));
     assert!(!text(&itself).contains("| worse |") && !text(&itself).contains("| better |"));
+    let svg = std::fs::read_to_string(compared.join("compare.svg")).unwrap();
+    assert!(!svg.contains("worse"), "no regression, no worse mark");
 
     // Unlike machines are refused unless allowed.
     side("elsewhere", &[("CPU", "another CPU")]);
@@ -932,12 +929,33 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
     );
     assert!(compare("elsewhere", &["--allow-unlike"]).status.code() != Some(2));
 
+    // A side whose runs come from two builds is refused, as `collect` refuses it.
+    let mixed = scratch.dir.join("faster/small/runs");
+    let first = std::fs::read_dir(&mixed)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "json"))
+        .unwrap();
+    let mut record: Value =
+        serde_json::from_str(&std::fs::read_to_string(&first).unwrap()).unwrap();
+    record["provenance"]["fingerprint"] = json!("ab".repeat(32));
+    std::fs::write(&first, record.to_string()).unwrap();
+    let two_builds = compare("faster", &[]);
+    assert_eq!(two_builds.status.code(), Some(2), "{}", text(&two_builds));
+    assert!(
+        text(&two_builds).contains("side A"),
+        "{}",
+        text(&two_builds)
+    );
+    assert_eq!(compare("faster", &["--allow-mixed"]).status.code(), Some(1));
+
     // A point stored on one side only is listed.
     let mut grown = small_study(&[16, 32]);
     grown["repeat"] = json!(3);
     scratch.write_study(&grown);
-    assert!(scratch.nlstudy("run", &["--no-collect"]).status.success());
-    let one_sided = compare("faster", &[]);
+    side("results", &[]);
+    let one_sided = compare("elsewhere", &["--allow-unlike"]);
     assert_eq!(
         text(&one_sided).matches("only in B: n=32").count(),
         2,
@@ -945,16 +963,46 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
         text(&one_sided)
     );
 
-    // Another study's results, and single runs, are refused.
+    // The same study in another checkout (a copy of the file, the same text) compares.
+    let copy = scratch.dir.join("checkout/study.json");
+    std::fs::create_dir_all(copy.parent().unwrap()).unwrap();
+    std::fs::copy(scratch.study(), &copy).unwrap();
+    run_into(&copy, "theirs", &[]);
+    let same = compare("theirs", &[]);
+    assert!(same.status.success(), "{}", text(&same));
+    // Another study's results, a directory that is not there, and single runs are refused; a
+    // refused compare takes no results directory.
     let other = scratch.dir.join("other.json");
-    std::fs::write(&other, grown.to_string()).unwrap();
-    run_into(&other, "theirs", &binary("nlsolve"), &[]);
-    let foreign = compare("theirs", &[]);
+    let mut different = grown.clone();
+    different["description"] = json!("another study of the same name");
+    std::fs::write(&other, different.to_string()).unwrap();
+    run_into(&other, "foreign", &[]);
+    let foreign = compare("foreign", &[]);
     assert_eq!(foreign.status.code(), Some(2), "{}", text(&foreign));
     assert!(
         text(&foreign).contains("compare result sets of one study"),
         "{}",
         text(&foreign)
+    );
+    let owner = std::fs::read_to_string(compared.join("study-file.json")).unwrap();
+    let nowhere = Command::new(binary("nlstudy"))
+        .args(["compare", "--adopt", "--against"])
+        .arg(scratch.dir.join("nowhere"))
+        .arg("--results")
+        .arg(scratch.dir.join("results"))
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert_eq!(nowhere.status.code(), Some(2), "{}", text(&nowhere));
+    assert!(
+        text(&nowhere).contains("no such directory"),
+        "{}",
+        text(&nowhere)
+    );
+    assert_eq!(
+        std::fs::read_to_string(compared.join("study-file.json")).unwrap(),
+        owner,
+        "a refused compare adopts nothing"
     );
     scratch.write_study(&small_study(&[16]));
     let single = compare("faster", &[]);
@@ -963,6 +1011,145 @@ fn compare_calls_a_true_slowdown_and_refuses_what_does_not_compare() {
         "{}",
         text(&single)
     );
+}
+
+/// A/A comparisons do not depend on timing here: a solver wrapper reports timings drawn from one
+/// distribution (0.2 s × n/16, a factor per `nlstudy run` of σ 3 % set by the test, 1 % per run
+/// from the key and a seed), as a quiet machine would. Twenty reruns with `--force`, each
+/// compared with the one it replaced (`--against history`), call no change and exit 0; then one
+/// point 1.5× slower is called worse, and only it.
+#[test]
+fn a_to_a_comparisons_call_nothing_twenty_times_and_a_slower_point_is_called() {
+    let study = json!({
+        "name": "aa",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": [16, 18, 20, 22, 24, 26, 28, 30, 32, 34], "threads": [1, 2]}}],
+        "repeat": 3,
+        "share_machine": true
+    });
+    let scratch = Scratch::new("a-to-a", &study);
+    // A shell script, not Python: 1300 runs. Each case's real record is made once and kept;
+    // its timings, timestamp and load are then drawn anew for every run.
+    let wrapper = scratch.dir.join("drawn-nlsolve");
+    let kept = scratch.dir.join("records");
+    std::fs::create_dir_all(&kept).unwrap();
+    std::fs::write(
+        &wrapper,
+        format!(
+            r#"#!/bin/sh
+[ "$1" = run ] || exec '{real}' "$@"
+case_file=$3
+key=$(basename "$case_file" .case.json)
+kept='{kept}'/$key.json
+[ -s "$kept" ] || '{real}' "$@" > "$kept" 2>/dev/null || exit $?
+awk -v factor="$RUN_FACTOR" -v seed="$RUN_SEED" -v key="$key" -v slow="$SLOW_N" -v now="$(date -u +%Y-%m-%dT%H:%M:%SZ)" '{{
+    h = 0; s = key seed
+    for (i = 1; i <= length(s); i++) h = (h * 31 + index("0123456789abcdef", substr(s, i, 1))) % 1000
+    match($0, /"n":[0-9]+/); n = substr($0, RSTART + 4, RLENGTH - 4)
+    t = 0.2 * n / 16 * factor * (1 + 0.01 * (h / 500 - 1)) * (n == slow ? 1.5 : 1)
+    match($0, /"steps_done":[0-9]+/); steps = substr($0, RSTART + 13, RLENGTH - 13)
+    gsub(/"solve_s":[^,}}]+/, "\"solve_s\":" t)
+    gsub(/"step_s":[^,}}]+/, "\"step_s\":" t / (steps > 0 ? steps : 1))
+    gsub(/"setup_s":[^,}}]+/, "\"setup_s\":" t / 4)
+    gsub(/"noisy":true/, "\"noisy\":false")
+    gsub(/"timestamp":"[^"]*"/, "\"timestamp\":\"" now "\"")
+    print
+}}' "$kept"
+"#,
+            real = binary("nlsolve").display(),
+            kept = kept.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    // The run factors: exp(0.03 z), z standard normal (Box–Muller over a fixed sequence).
+    let mut state: u64 = 0x5eed;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let mut factor = || {
+        let z = (-2.0 * uniform().ln()).sqrt() * (2.0 * std::f64::consts::PI * uniform()).cos();
+        (0.03 * z).exp().to_string()
+    };
+    let run = |k: usize, factor: &str, slow: &str| {
+        let out = scratch
+            .command(
+                "run",
+                &[
+                    "--no-collect",
+                    "--force",
+                    "--solver",
+                    wrapper.to_str().unwrap(),
+                ],
+            )
+            .env("RUN_FACTOR", factor)
+            .env("RUN_SEED", k.to_string())
+            .env("SLOW_N", slow)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", text(&out));
+    };
+    let compare = || {
+        let args = [
+            "--against",
+            "history",
+            "--solver",
+            wrapper.to_str().unwrap(),
+        ];
+        scratch.nlstudy("compare", &args)
+    };
+    run(0, &factor(), "");
+    for k in 1..=20 {
+        run(k, &factor(), "");
+        let out = compare();
+        let said = text(&out);
+        assert_eq!(out.status.code(), Some(0), "A/A {k}: {said}");
+        assert!(
+            !said.contains("| worse |") && !said.contains("| better |"),
+            "A/A {k}: {said}"
+        );
+        assert!(
+            said.contains("| speedup |"),
+            "speedups are compared too: {said}"
+        );
+    }
+    run(21, &factor(), "24");
+    let out = compare();
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    let worse: Vec<&str> = said.lines().filter(|l| l.ends_with("| worse |")).collect();
+    assert!(
+        worse
+            .iter()
+            .any(|l| l.contains("n=24") && l.contains("| solve_s |")),
+        "{said}"
+    );
+    assert!(
+        worse.iter().all(|l| l.contains("n=24")),
+        "only the slower point: {said}"
+    );
+}
+
+/// A solver wrapper whose records report timings of a scale `compare` judges: solve 0.2 s ×
+/// $FACTOR (within 1 %, per process), step and set-up in proportion, never `noisy`, and the CPU
+/// $CPU when given.
+fn timing_wrapper(scratch: &Scratch) -> PathBuf {
+    let wrapper = scratch.dir.join("timed-nlsolve");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\nout = subprocess.run(['{}'] + sys.argv[1:], stdout=subprocess.PIPE)\ntext = out.stdout.decode()\nif sys.argv[1:2] == ['run'] and text.strip():\n    record = json.loads(text)\n    scale = 0.2 * float(os.environ.get('FACTOR', '1')) * (1 + 0.01 * ((os.getpid() % 7) - 3) / 3)\n    record['solve_s'] = scale\n    record['step_s'] = scale / max(1, record['steps_done'])\n    record['setup_s'] = scale / 4\n    record['provenance']['noisy'] = False\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    text = json.dumps(record) + '\\n'\nsys.stdout.write(text)\nsys.exit(out.returncode)\n",
+            binary("nlsolve").display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    wrapper
 }
 
 /// A scheduler stand-in on PATH (`sbatch`, `squeue`, `sacct`) that logs each call and answers

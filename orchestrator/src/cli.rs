@@ -94,6 +94,9 @@ pub struct CompareArgs {
     /// Compare timings measured on unlike machines (another CPU model or instruction set).
     #[arg(long)]
     allow_unlike: bool,
+    /// Compare a side whose runs come from several builds, hosts or instruction sets.
+    #[arg(long)]
+    allow_mixed: bool,
     /// B: the records of the build whose fingerprint starts with PREFIX (`fingerprint:PREFIX`,
     /// stored or superseded) instead of the study's current records: two past builds compared.
     #[arg(long)]
@@ -246,6 +249,7 @@ pub struct RunArgs {
     allow_mixed: bool,
 }
 
+mod builds;
 #[cfg(test)]
 mod fuzz;
 
@@ -341,8 +345,8 @@ pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
         Command::Table(args) => table_command(&args),
         Command::Submit(args) => submit_command(&args),
         Command::Clean(args) => clean_command(&args),
-        Command::Compare(args) => compare_command(&args),
-        Command::History(args) => history_command(&args),
+        Command::Compare(args) => builds::compare_command(&args),
+        Command::History(args) => builds::history_command(&args),
     }
 }
 
@@ -371,9 +375,15 @@ fn read_study(path: &std::path::Path) -> Result<Study, String> {
 /// that `writes` records the file as its owner.
 fn open_store(args: &CommonArgs, study: &Study, writes: bool) -> Result<Store, Failure> {
     let store = Store::open(&args.results, &study.name);
+    claim(args, study, &store, writes)?;
+    Ok(store)
+}
+
+/// Checks that the study file owns `store`, and with `writes` records it as the owner.
+fn claim(args: &CommonArgs, study: &Study, store: &Store, writes: bool) -> Result<(), Failure> {
     let text = std::fs::read_to_string(&args.study).unwrap_or_default();
     match store.claim(&args.study, &text, args.adopt, writes) {
-        Ok(()) => Ok(store),
+        Ok(()) => Ok(()),
         Err(Refusal::Io(e)) => Err(e.into()),
         Err(Refusal::OwnedBy(owner)) => Err(format!(
             "{} holds the results of another study file of the same name `{}`: {}; give this study its own `name`, or --adopt to make {} the owner (the stored runs stay, and its points that are the same cases reuse them)",
@@ -787,212 +797,4 @@ fn clean_command(args: &CleanArgs) -> Result<ExitCode, Failure> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
-    use crate::analysis::compare;
-    if !(args.threshold > 0.0 && args.threshold < 10.0) {
-        let what = match args.threshold.is_finite() {
-            true => "a fraction of change",
-            false => "a finite number",
-        };
-        return Err(format!(
-            "--threshold: {} is not {what}; give e.g. 0.1 for 10 %",
-            args.threshold
-        )
-        .into());
-    }
-    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
-    let b = match &args.of {
-        Some(build) => match build.strip_prefix("fingerprint:") {
-            Some(prefix) => of_build(prefix, "--of", &study, &store)?,
-            None => {
-                return Err(format!(
-                    "--of {build:?}: give fingerprint:PREFIX, a build's fingerprint or its start"
-                )
-                .into())
-            }
-        },
-        None => crate::store::by_key(store.records()),
-    };
-    let a = baseline(&args.against, &study, &store)?;
-    let points = repeats_by_point(&planned);
-    let paired = compare::pair(&points, &a, &b);
-    if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
-        return Err(format!(
-            "--against {:?}: no point of study {} is stored on both sides",
-            args.against, study.name
-        )
-        .into());
-    }
-    if paired.iter().all(|p| p.a.len() < 2 && p.b.len() < 2) {
-        return Err(format!(
-            "study {} runs each point once, so no interval can be formed for its timings; set `repeat` to 5 or more and run both sides again",
-            study.name
-        )
-        .into());
-    }
-    let side_a: Vec<&serde_json::Value> = paired.iter().flat_map(|p| p.a.iter().copied()).collect();
-    let side_b: Vec<&serde_json::Value> = paired.iter().flat_map(|p| p.b.iter().copied()).collect();
-    let (machines_a, machines_b) = (compare::machines(&side_a), compare::machines(&side_b));
-    if machines_a != machines_b && !args.allow_unlike {
-        return Err(format!(
-            "the two sides ran on unlike machines (A: {}; B: {}), whose timings do not compare; give --allow-unlike to compare them anyway",
-            machines_a.join(", "),
-            machines_b.join(", ")
-        )
-        .into());
-    }
-    let mut comparison = compare::compare(&paired, args.threshold);
-    comparison.changes.extend(compare::compare_derived(
-        &crate::analysis::collect::summary_of(&planned, &a),
-        &crate::analysis::collect::summary_of(&planned, &b),
-        args.threshold,
-    ));
-    tell_raw!("{}", compare::markdown(&comparison));
-    for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
-        for point in points {
-            tell!("only in {side}: {point}");
-        }
-    }
-    let table = store.table("compare.parquet");
-    crate::store::table::write_parquet_about(
-        &[(&table, &compare::rows(&comparison))],
-        &crate::store::table::About {
-            description: &format!("{} against {}", study.name, args.against),
-            notes: &[],
-        },
-    )?;
-    let figure = store.table("compare.svg");
-    let title = format!("study {}: now (B) against {} (A)", study.name, args.against);
-    let svg = crate::output::draw::render(&crate::output::compare_figure::chart(
-        &comparison,
-        &title,
-        args.threshold,
-    ))?;
-    crate::store::write_atomically(&figure, svg.as_bytes())?;
-    let regressions = comparison.regressions();
-    say!(
-        "compare: {} metrics of {} points, {regressions} worse; table: {}, figure: {}",
-        comparison.changes.len(),
-        points.len(),
-        table.display(),
-        figure.display()
-    );
-    Ok(match regressions {
-        0 => ExitCode::SUCCESS,
-        _ => ExitCode::from(exit::CASE_FAILED),
-    })
-}
-
-/// The study's superseded records; the history's files that are not whole records are named
-/// and left out.
-fn superseded(store: &Store) -> Vec<serde_json::Value> {
-    let history = store.history();
-    for unreadable in &history.unreadable {
-        say!(
-            "nlstudy: warning: {} is not a whole superseded record ({}); it is left out",
-            unreadable.path.display(),
-            unreadable.problem
-        );
-    }
-    history.records
-}
-
-/// Of the superseded records, those of the fingerprint that ran last.
-fn latest_superseded(history: Vec<serde_json::Value>) -> Option<Vec<serde_json::Value>> {
-    use crate::store::{fingerprint_of, provenance};
-    let latest = history
-        .iter()
-        .max_by_key(|r| provenance(r, "timestamp"))
-        .map(|r| fingerprint_of(r).to_string())?;
-    Some(
-        history
-            .into_iter()
-            .filter(|r| fingerprint_of(r) == latest)
-            .collect(),
-    )
-}
-
-/// Each point's label and the keys of its repeats, in the study's order.
-fn repeats_by_point(planned: &[Planned]) -> Vec<(String, Vec<String>)> {
-    let mut points: Vec<(String, Vec<String>)> = Vec::new();
-    for p in planned {
-        let label = p.point.label_without_repeat();
-        match points.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, keys)) => keys.push(p.key.to_string()),
-            None => points.push((label, vec![p.key.to_string()])),
-        }
-    }
-    points
-}
-
-fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
-    let mut records = store.records();
-    records.extend(superseded(&store));
-    let chart = crate::output::history::chart(
-        &study.name,
-        &args.metric,
-        &repeats_by_point(&planned),
-        &records,
-    )?;
-    let path = store.table("history.svg");
-    crate::store::write_atomically(&path, crate::output::draw::render(&chart)?.as_bytes())?;
-    tell!("history: {}", path.display());
-    Ok(ExitCode::SUCCESS)
-}
-
-/// The stored or superseded records of the build whose fingerprint starts with `prefix`, by key;
-/// `flag` names where the prefix came from, for the message.
-fn of_build(
-    prefix: &str,
-    flag: &str,
-    study: &Study,
-    store: &Store,
-) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
-    let mut records = superseded(store);
-    records.extend(store.records());
-    records.retain(|r| !prefix.is_empty() && crate::store::fingerprint_of(r).starts_with(prefix));
-    if records.is_empty() {
-        return Err(format!(
-            "{flag} fingerprint:{prefix:?}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix:?}; `nlstudy history` shows the builds",
-            study.name
-        )
-        .into());
-    }
-    Ok(crate::store::by_key(records))
-}
-
-/// `compare`'s baseline A, by key: what `--against` names (see `CompareArgs::against`).
-fn baseline(
-    against: &str,
-    study: &Study,
-    store: &Store,
-) -> Result<std::collections::HashMap<String, serde_json::Value>, Failure> {
-    use crate::store::by_key;
-    if against == "history" {
-        return Ok(by_key(latest_superseded(superseded(store)).ok_or_else(|| {
-            format!(
-                "study {} has no history yet: records move there when a solver of another fingerprint runs their points again",
-                study.name
-            )
-        })?));
-    }
-    if let Some(prefix) = against.strip_prefix("fingerprint:") {
-        return of_build(prefix, "--against", study, store);
-    }
-    let other = Store::open(std::path::Path::new(against), &study.name);
-    if let (Some(theirs), Some(ours)) = (other.owner(), store.owner()) {
-        if theirs.study_file != ours.study_file {
-            return Err(format!(
-                "--against {against:?}: its study {} was made by {}, not by {}; compare result sets of one study",
-                study.name,
-                theirs.study_file.display(),
-                ours.study_file.display()
-            )
-            .into());
-        }
-    }
-    Ok(by_key(other.records()))
 }

@@ -130,6 +130,7 @@ pub const COLUMNS: &[&str] = &[
     "solver_version",
     "attempt",
     "oversubscribed",
+    "run_id",
 ];
 
 /// Whether `name` is a column of records (see `COLUMNS`).

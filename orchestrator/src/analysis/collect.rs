@@ -74,7 +74,7 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
 const LABELS: &[(&str, &str)] = &[
     (
         "point",
-        "label: the point's swept fields as `field=value`, space-separated; its repeats share it",
+        "label: the point's swept fields as `field=value`, space-separated (a value may hold spaces: split before each `name=`); its repeats share it",
     ),
     ("branch", "label: the sweep's branch the point lies on"),
     (
@@ -141,7 +141,7 @@ pub fn summary_of(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<
 
 /// The run rows of the points whose records `records` holds. Points of different branches may
 /// be one case: each gets its row from the one record.
-fn run_rows(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
+pub fn run_rows(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
     planned
         .iter()
         .filter_map(|p| Some(run_row(p, records.get(p.key.as_str())?)))

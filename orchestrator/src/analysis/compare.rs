@@ -1,35 +1,50 @@
-//! `nlstudy compare`: two result sets of one study, point by point. For each metric with a
-//! direction, the ratio B/A of the medians over the repeats with a bootstrap confidence
-//! interval; a change is called only when the interval clears 1 by more than the threshold.
+//! `nlstudy compare`: two result sets of one study, point by point.
+//!
+//! A measured metric (a timing, a rate, memory) is the ratio B/A of the medians over the repeats,
+//! with a bootstrap interval over those repeats. That interval sees only the noise *within* a
+//! run; two runs of one build differ by more, in two ways (`NoiseModel`, measured on the 2-core
+//! VM this tool is developed on, docs/provenance.md): the whole run moves (the machine's state:
+//! its clock, a neighbour's job), and each point moves on its own. So each metric's common
+//! factor is estimated from the comparison itself (the median over its points of log B/A) and
+//! judged as the run's own row, against the drift of whole runs; each point is judged relative
+//! to that factor, against the drift of single points at its timing scale. A change is called
+//! only when the bootstrap interval clears the threshold *and* the ratio clears its noise floor
+//! (`Z` robust standard deviations of that drift: from the study's own A/A history where it holds
+//! enough pairs of runs of one build, else this VM's). A wall time under `RESOLUTION_S` is too
+//! short to judge, and a point whose runs were all timed on a busy machine (`noisy`) gets none.
+//!
 //! Errors are deterministic: they are compared with a relative and an absolute tolerance (a
-//! reference of 0 breaks a relative one alone), not with intervals.
+//! reference of 0 breaks a relative one alone), and observed orders by how far they moved from
+//! the nearest whole order. A speedup is a ratio of medians of two points of one run (their
+//! common factor cancels): its B/A gets an interval by resampling the repeats of both points on
+//! both sides; an efficiency is the speedup over the same worker ratio on both sides, so its B/A
+//! is the speedup's and is not repeated.
 
 use crate::console::number;
-use crate::statistics::median;
+use crate::statistics::{median, SplitMix};
 use crate::store::table::Row;
+use crate::store::{fingerprint_of, provenance};
 use schema::record::Status;
 use serde_json::{json, Value};
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// Which way a metric improves.
 #[derive(Clone, Copy, PartialEq)]
 enum Better {
     Lower,
     Higher,
-    /// Closer to the theoretical order (a convergence order).
-    Closer,
 }
 
 /// How a metric varies between runs of one case.
 #[derive(Clone, Copy, PartialEq)]
 enum Kind {
-    /// Timings and what they give: noisy, compared by intervals over the repeats.
+    /// Timings and what they give: noisy, compared by intervals and the noise floor.
     Measured,
     /// Errors: the same bits on every run of one build, compared with tolerances.
     Deterministic,
 }
 
-/// The metrics compared, with their direction.
+/// The metrics of a record compared, with their direction.
 const METRICS: &[(&str, Better, Kind)] = &[
     ("solve_s", Better::Lower, Kind::Measured),
     ("step_s", Better::Lower, Kind::Measured),
@@ -40,16 +55,10 @@ const METRICS: &[(&str, Better, Kind)] = &[
     ("error_max", Better::Lower, Kind::Deterministic),
 ];
 
-/// What the summary derives, compared point by point: speedup and efficiency (higher is better,
-/// beyond the threshold; from medians, so without an interval), and observed orders, better
-/// when closer to the theoretical order (taken as the whole number nearest the baseline's: the
-/// orders of these methods are whole) by more than `ORDER_TOLERANCE`, worse when farther.
-const DERIVED: &[(&str, Better)] = &[
-    ("speedup", Better::Higher),
-    ("efficiency", Better::Higher),
-    ("order_l2", Better::Closer),
-    ("order_max", Better::Closer),
-];
+/// The observed orders the summary derives, better when closer to the theoretical order (the
+/// whole number nearest the baseline's: the orders of these methods are whole) by more than
+/// `ORDER_TOLERANCE`, worse when farther. Deterministic, as the errors they come from.
+const ORDERS: &[&str] = &["order_l2", "order_max"];
 
 /// How far an observed order may move before it counts as a change.
 const ORDER_TOLERANCE: f64 = 0.1;
@@ -63,6 +72,44 @@ const ABSOLUTE: f64 = 1e-14;
 const RESAMPLES: usize = 2000;
 const COVERAGE: f64 = 0.95;
 
+/// Wall times (`solve_s`, `setup_s`) shorter than this are start-up effects (page faults, the
+/// clock ramping up) more than the solver's work: too short to judge.
+const RESOLUTION_S: f64 = 1e-3;
+
+/// How many robust standard deviations of the drift a change must exceed. The drift is
+/// heavy-tailed (a neighbour's job on a shared host): on this VM's A/A pairs the largest was 4.6
+/// σ; 5 keeps the false-positive rate of A/A comparisons at zero (docs/provenance.md).
+const Z: f64 = 5.0;
+
+/// How much one point's log(B/A) of medians moves between two runs of one build on this VM, once
+/// the run's common factor is taken out: the robust σ (1.4826 · median |d|) by decade of seconds
+/// of A's median (`studies/noise.json`, 24 points × 3 repeats, run eleven times with `--force`:
+/// 10 pairs of runs, 720 point pairs).
+const DEFAULT_WITHIN: &[(i32, f64)] = &[
+    (-5, 0.16),
+    (-4, 0.17),
+    (-3, 0.16),
+    (-2, 0.14),
+    (-1, 0.13),
+    (0, 0.10),
+];
+
+/// How much a whole run's common factor moves between two runs of one build on this VM: the
+/// robust σ of the medians over points of log(B/A) (the same 10 pairs of runs, 3 timings each).
+const DEFAULT_BETWEEN: f64 = 0.05;
+
+/// The fewest points whose median is a run's common factor; with fewer, each point carries the
+/// run's drift as well as its own.
+const COMMON_POINTS: usize = 5;
+
+/// Single-run pairs a decade needs before the study's history replaces the default drift of
+/// points there, and pairs of runs (`run_id`) before it replaces the drift of whole runs.
+const CALIBRATION_SAMPLES: usize = 10;
+const CALIBRATION_RUNS: usize = 10;
+
+/// Memory is not timed: its drift is the allocator's and the page cache's, a few per cent.
+const MEMORY_DRIFT: f64 = 0.03;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Verdict {
     Better,
@@ -70,15 +117,21 @@ pub enum Verdict {
     Same,
     /// Too few repeats on a side to form an interval.
     NoInterval,
+    /// A wall time under `RESOLUTION_S`.
+    TooShort,
+    /// Every run of a side was timed on a busy machine.
+    Abstained,
 }
 
 impl Verdict {
-    fn text(self) -> &'static str {
+    pub fn text(self) -> &'static str {
         match self {
             Verdict::Better => "better",
             Verdict::Worse => "worse",
             Verdict::Same => "same",
             Verdict::NoInterval => "no interval (fewer than 2 repeats)",
+            Verdict::TooShort => "too short to judge",
+            Verdict::Abstained => "no verdict: every run noisy",
         }
     }
 }
@@ -93,6 +146,10 @@ pub struct Change {
     pub ratio: f64,
     /// The bootstrap interval of the ratio (measured metrics with repeats on both sides).
     pub interval: Option<(f64, f64)>,
+    /// The ratio beside its run's common factor: what a measured point's verdict judges.
+    pub relative: Option<f64>,
+    /// The noise floor the ratio had to clear, as a factor (measured metrics).
+    pub floor: Option<f64>,
     pub verdict: Verdict,
 }
 
@@ -119,45 +176,287 @@ impl Comparison {
     }
 }
 
+/// The run-to-run drift of measured metrics in two parts: of a whole run (its common factor)
+/// and of each point beside it, as robust standard deviations of log ratios between two runs of
+/// one build; from the study's history where it holds enough A/A pairs, else this VM's.
+pub struct NoiseModel {
+    /// Point drift by metric and decade of its value, with the single-run pairs it came from.
+    within: BTreeMap<(String, i32), (f64, usize)>,
+    /// Whole-run drift by metric, with the pairs of runs it came from.
+    between: BTreeMap<String, (f64, usize)>,
+}
+
+impl NoiseModel {
+    /// The default drift everywhere.
+    #[cfg(test)]
+    pub fn uncalibrated() -> NoiseModel {
+        NoiseModel {
+            within: BTreeMap::new(),
+            between: BTreeMap::new(),
+        }
+    }
+
+    /// The drift measured from `records` (a study's superseded and stored records, those being
+    /// judged left out): consecutive runs of one key by one build are A/A pairs. The pairs of two
+    /// `nlstudy` processes (`run_id`s) share those processes' machine state: their median is a
+    /// sample of the whole-run drift, and the pairs' distances from it of the point drift.
+    pub fn calibrate(records: &[&Value]) -> NoiseModel {
+        let mut by_key: HashMap<&str, Vec<&Value>> = HashMap::new();
+        for record in measured(records) {
+            if let Some(key) = record.get("key").and_then(Value::as_str) {
+                by_key.entry(key).or_default().push(record);
+            }
+        }
+        // log(new/old) and the decade of old, by metric and pair of runs.
+        type Pairs = Vec<(f64, i32)>;
+        let mut by_runs: BTreeMap<(&'static str, String), Pairs> = BTreeMap::new();
+        for runs in by_key.values_mut() {
+            runs.sort_by_key(|r| provenance(r, "timestamp"));
+            for pair in runs.windows(2) {
+                let build = fingerprint_of(pair[0]);
+                let run = |r: &Value| r.get("run_id").and_then(Value::as_str).map(str::to_string);
+                let (Some(old_run), Some(new_run)) = (run(pair[0]), run(pair[1])) else {
+                    continue;
+                };
+                if build.is_empty() || build != fingerprint_of(pair[1]) || old_run == new_run {
+                    continue;
+                }
+                for &(metric, _, kind) in METRICS.iter().filter(|m| m.2 == Kind::Measured) {
+                    let (old, new) = (
+                        values(&pair[..1], metric, kind),
+                        values(&pair[1..], metric, kind),
+                    );
+                    if let ([old], [new]) = (old.as_slice(), new.as_slice()) {
+                        let scale = decade(scale_of(metric, pair[0]).unwrap_or(*old));
+                        let runs = format!("{old_run} {new_run}");
+                        by_runs
+                            .entry((metric, runs))
+                            .or_default()
+                            .push(((new / old).ln(), scale));
+                    }
+                }
+            }
+        }
+        let mut within: BTreeMap<(String, i32), Vec<f64>> = BTreeMap::new();
+        let mut between: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        for ((metric, _), pairs) in by_runs {
+            let logs: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+            let common = median(&logs);
+            between
+                .entry(metric.to_string())
+                .or_default()
+                .push(common.abs());
+            for (log, scale) in pairs {
+                let at = (metric.to_string(), scale);
+                within.entry(at).or_default().push((log - common).abs());
+            }
+        }
+        NoiseModel {
+            within: robust(within, CALIBRATION_SAMPLES),
+            between: robust(between, CALIBRATION_RUNS),
+        }
+    }
+
+    /// The σ of a point's drift beside its run's (`metric` at the scale `scale`: seconds, or
+    /// bytes for memory).
+    fn within(&self, metric: &str, scale: f64) -> f64 {
+        if metric == "peak_memory_bytes" {
+            return MEMORY_DRIFT;
+        }
+        let decade = decade(scale);
+        if let Some(&(sigma, _)) = self.within.get(&(metric.to_string(), decade)) {
+            return sigma;
+        }
+        let (_, sigma) = DEFAULT_WITHIN
+            .iter()
+            .min_by_key(|(d, _)| (d - decade).abs())
+            .expect("a default drift");
+        *sigma
+    }
+
+    /// The σ of a whole run's drift.
+    fn between(&self, metric: &str) -> f64 {
+        match metric {
+            "peak_memory_bytes" => MEMORY_DRIFT,
+            _ => self.between.get(metric).map_or(DEFAULT_BETWEEN, |d| d.0),
+        }
+    }
+
+    /// The factor a point's ratio, relative to its run's, must clear.
+    pub fn point_floor(&self, metric: &str, scale: f64) -> f64 {
+        (Z * self.within(metric, scale)).exp()
+    }
+
+    /// The factor a point's ratio must clear when its run's factor is not known (too few points):
+    /// both drifts at once.
+    fn point_and_run_floor(&self, metric: &str, scale: f64) -> f64 {
+        (Z * self.within(metric, scale).hypot(self.between(metric))).exp()
+    }
+
+    /// The factor a whole run's common factor must clear.
+    pub fn run_floor(&self, metric: &str) -> f64 {
+        (Z * self.between(metric)).exp()
+    }
+
+    /// One sentence on where the floors came from.
+    pub fn describe(&self) -> String {
+        let pairs: usize = self.within.values().map(|(_, k)| k).sum();
+        let runs: usize = self.between.values().map(|(_, k)| k).sum();
+        match (pairs, runs) {
+            (0, 0) => "noise floors: the default run-to-run drift (the study's history holds no A/A pairs of one build; `nlstudy run --force` on this machine makes them)".to_string(),
+            _ => format!(
+                "noise floors: measured from the study's A/A history ({pairs} point pairs at {} metric scales, {runs} pairs of runs), the default elsewhere",
+                self.within.len()
+            ),
+        }
+    }
+}
+
+/// 1.4826 · median of absolute deviations from a centre: a robust σ, for the groups with at
+/// least `fewest` samples.
+fn robust<K: Ord>(groups: BTreeMap<K, Vec<f64>>, fewest: usize) -> BTreeMap<K, (f64, usize)> {
+    groups
+        .into_iter()
+        .filter(|(_, d)| d.len() >= fewest)
+        .map(|(at, d)| (at, (1.4826 * median(&d), d.len())))
+        .collect()
+}
+
+fn decade(x: f64) -> i32 {
+    x.log10().floor() as i32
+}
+
+/// The scale a measured metric's drift is read at: a rate's is its run's solve time.
+fn scale_of(metric: &str, record: &Value) -> Option<f64> {
+    match metric {
+        "bond_updates_per_s" => record.get("solve_s")?.as_f64(),
+        _ => record.get(metric)?.as_f64(),
+    }
+}
+
+/// The label of a metric's row for the run as a whole: its common factor.
+pub const WHOLE_RUN: &str = "all points (the run's common factor)";
+
 /// Compares each point's runs, `threshold` being the smallest change in a measured metric that
-/// counts (0.1: the interval of B/A must lie above 1.1 or below 1/1.1).
-pub fn compare(points: &[Paired], threshold: f64) -> Comparison {
+/// counts (0.1: the interval of B/A must lie above 1.1 or below 1/1.1), beyond the noise floor;
+/// a measured metric also gets a row for the whole run (`WHOLE_RUN`) when enough points have it.
+pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Comparison {
     let mut comparison = Comparison {
         changes: Vec::new(),
         only_a: Vec::new(),
         only_b: Vec::new(),
     };
+    let mut both = Vec::new();
     for paired in points {
         let (a, b) = (measured(&paired.a), measured(&paired.b));
         match (a.is_empty(), b.is_empty()) {
-            (true, true) => continue,
+            (true, true) => {}
             (false, true) => comparison.only_a.push(paired.point.clone()),
             (true, false) => comparison.only_b.push(paired.point.clone()),
-            (false, false) => {
-                for &(metric, better, kind) in METRICS {
-                    let (xa, xb) = (values(&a, metric, kind), values(&b, metric, kind));
-                    if xa.is_empty() || xb.is_empty() {
-                        continue;
-                    }
-                    let seed = seed_of(&paired.point, metric);
-                    comparison.changes.push(change(
-                        &paired.point,
-                        metric,
-                        better,
-                        kind,
-                        &xa,
-                        &xb,
-                        threshold,
-                        seed,
-                    ));
-                }
+            (false, false) => both.push((paired.point.as_str(), a, b)),
+        }
+    }
+    for &(metric, better, kind) in METRICS {
+        let mut sides = Vec::new();
+        for (point, a, b) in &both {
+            let (xa, xb) = (values(a, metric, kind), values(b, metric, kind));
+            if xa.is_empty() || xb.is_empty() {
+                continue;
             }
+            let scales: Vec<f64> = a.iter().filter_map(|r| scale_of(metric, r)).collect();
+            let scale = if scales.is_empty() {
+                median(&xa)
+            } else {
+                median(&scales)
+            };
+            let all_noisy = |side: &[&Value]| side.iter().all(|r| is_noisy(r));
+            let wall_time = matches!(metric, "solve_s" | "setup_s");
+            let short = wall_time && (median(&xa) < RESOLUTION_S || median(&xb) < RESOLUTION_S);
+            let set_aside = match (short, all_noisy(a) || all_noisy(b)) {
+                _ if kind == Kind::Deterministic => None,
+                (true, _) => Some(Verdict::TooShort),
+                (_, true) => Some(Verdict::Abstained),
+                _ => None,
+            };
+            sides.push((*point, xa, xb, scale, set_aside));
+        }
+        // The run's common factor, from the points that can be judged.
+        let logs: Vec<f64> = sides
+            .iter()
+            .filter(|side| side.4.is_none())
+            .map(|(_, xa, xb, ..)| (median(xb) / median(xa)).ln())
+            .collect();
+        let common = (kind == Kind::Measured && logs.len() >= COMMON_POINTS).then(|| median(&logs));
+        for (point, xa, xb, scale, set_aside) in &sides {
+            let setting = Setting {
+                threshold,
+                floor: match common {
+                    Some(_) => noise.point_floor(metric, *scale),
+                    None => noise.point_and_run_floor(metric, *scale),
+                },
+                common: common.unwrap_or(0.0).exp(),
+                seed: seed_of(point, metric),
+            };
+            let mut change = change(point, metric, better, kind, xa, xb, &setting);
+            if let Some(verdict) = set_aside {
+                change.verdict = *verdict;
+            }
+            comparison.changes.push(change);
+        }
+        if let Some(common) = common {
+            let mut random = SplitMix(seed_of(WHOLE_RUN, metric));
+            let interval = bootstrap(&mut random, |r| resampled(r, &logs).exp());
+            let setting = Setting {
+                threshold,
+                floor: noise.run_floor(metric),
+                common: 1.0,
+                seed: 0,
+            };
+            comparison.changes.push(Change {
+                point: WHOLE_RUN.to_string(),
+                metric,
+                a: 1.0,
+                b: common.exp(),
+                ratio: common.exp(),
+                interval: Some(interval),
+                relative: None,
+                floor: Some(setting.floor),
+                verdict: setting.verdict(common.exp(), interval, better),
+            });
         }
     }
     comparison
 }
 
-#[allow(clippy::too_many_arguments)]
+fn is_noisy(record: &Value) -> bool {
+    record.pointer("/provenance/noisy") == Some(&Value::Bool(true))
+}
+
+/// What a measured verdict is judged against.
+struct Setting {
+    threshold: f64,
+    /// The noise floor, a factor ≥ 1.
+    floor: f64,
+    /// The run's common factor, which a point's ratio is judged beside (1 for none).
+    common: f64,
+    seed: u64,
+}
+
+impl Setting {
+    /// The verdict on a ratio whose interval is (low, high), each taken beside the run's.
+    fn verdict(&self, ratio: f64, (low, high): (f64, f64), better: Better) -> Verdict {
+        let (ratio, low, high) = (ratio / self.common, low / self.common, high / self.common);
+        let beyond = |r: f64| r.ln().abs() > self.floor.ln();
+        let up = low > 1.0 + self.threshold && beyond(ratio);
+        let down = high < 1.0 / (1.0 + self.threshold) && beyond(ratio);
+        match (up, down, better) {
+            (true, _, Better::Lower) | (_, true, Better::Higher) => Verdict::Worse,
+            (true, _, Better::Higher) | (_, true, Better::Lower) => Verdict::Better,
+            _ => Verdict::Same,
+        }
+    }
+}
+
 fn change(
     point: &str,
     metric: &'static str,
@@ -165,12 +464,11 @@ fn change(
     kind: Kind,
     a: &[f64],
     b: &[f64],
-    threshold: f64,
-    seed: u64,
+    setting: &Setting,
 ) -> Change {
     let (ma, mb) = (median(a), median(b));
     let ratio = mb / ma;
-    let (interval, verdict) = match kind {
+    let (interval, floor, verdict) = match kind {
         Kind::Deterministic => {
             let differs = (mb - ma).abs() > ABSOLUTE + RELATIVE * ma.abs();
             let verdict = match (differs, mb < ma) {
@@ -178,18 +476,16 @@ fn change(
                 (true, lower) if lower == (better == Better::Lower) => Verdict::Better,
                 (true, _) => Verdict::Worse,
             };
-            (None, verdict)
+            (None, None, verdict)
         }
-        Kind::Measured if a.len() < 2 || b.len() < 2 => (None, Verdict::NoInterval),
+        Kind::Measured if a.len() < 2 || b.len() < 2 => {
+            (None, Some(setting.floor), Verdict::NoInterval)
+        }
         Kind::Measured => {
-            let (low, high) = bootstrap(a, b, seed);
-            let (up, down) = (low > 1.0 + threshold, high < 1.0 / (1.0 + threshold));
-            let verdict = match (up, down, better) {
-                (true, _, Better::Lower) | (_, true, Better::Higher) => Verdict::Worse,
-                (true, _, Better::Higher) | (_, true, Better::Lower) => Verdict::Better,
-                _ => Verdict::Same,
-            };
-            (Some((low, high)), verdict)
+            let mut random = SplitMix(setting.seed);
+            let interval = bootstrap(&mut random, |r| resampled(r, b) / resampled(r, a));
+            let verdict = setting.verdict(ratio, interval, better);
+            (Some(interval), Some(setting.floor), verdict)
         }
     };
     Change {
@@ -199,12 +495,15 @@ fn change(
         b: mb,
         ratio,
         interval,
+        relative: (kind == Kind::Measured).then_some(ratio / setting.common),
+        floor,
         verdict,
     }
 }
 
-/// What the summaries of the two sides derive for each point (`DERIVED`), by the `point` label.
-pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
+/// The observed orders of each point on both sides (`ORDERS`), by the `point` label of the
+/// summaries.
+pub fn compare_orders(a: &[Row], b: &[Row]) -> Vec<Change> {
     let mut changes = Vec::new();
     for row_a in a {
         let Some(point) = row_a.text("point") else {
@@ -213,26 +512,18 @@ pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
         let Some(row_b) = b.iter().find(|r| r.text("point") == Some(point)) else {
             continue;
         };
-        for &(metric, better) in DERIVED {
+        for &metric in ORDERS {
             let (Some(xa), Some(xb)) = (row_a.number(metric), row_b.number(metric)) else {
                 continue;
             };
             if !(xa.is_finite() && xb.is_finite()) {
                 continue;
             }
-            let ratio = xb / xa;
-            let verdict = match better {
-                Better::Closer => {
-                    let theory = xa.round();
-                    let moved = (xb - theory).abs() - (xa - theory).abs();
-                    match moved {
-                        m if m > ORDER_TOLERANCE => Verdict::Worse,
-                        m if m < -ORDER_TOLERANCE => Verdict::Better,
-                        _ => Verdict::Same,
-                    }
-                }
-                _ if ratio < 1.0 / (1.0 + threshold) => Verdict::Worse,
-                _ if ratio > 1.0 + threshold => Verdict::Better,
+            let theory = xa.round();
+            let moved = (xb - theory).abs() - (xa - theory).abs();
+            let verdict = match moved {
+                m if m > ORDER_TOLERANCE => Verdict::Worse,
+                m if m < -ORDER_TOLERANCE => Verdict::Better,
                 _ => Verdict::Same,
             };
             changes.push(Change {
@@ -240,11 +531,78 @@ pub fn compare_derived(a: &[Row], b: &[Row], threshold: f64) -> Vec<Change> {
                 metric,
                 a: xa,
                 b: xb,
-                ratio,
+                ratio: xb / xa,
                 interval: None,
+                relative: None,
+                floor: None,
                 verdict,
             });
         }
+    }
+    changes
+}
+
+/// The speedup of each point over its scaling series' baseline (`baselines`: point label →
+/// the label of the point it is measured against) on both sides: B/A of t₀/t with an interval
+/// from resampling the repeats of both points on both sides, judged as a timing at the scale of
+/// the shorter of the two.
+pub fn compare_speedups(
+    points: &[Paired],
+    baselines: &[(String, String)],
+    threshold: f64,
+    noise: &NoiseModel,
+) -> Vec<Change> {
+    let by_label: HashMap<&str, &Paired> = points.iter().map(|p| (p.point.as_str(), p)).collect();
+    let times = |runs: &[&Value]| values(&measured(runs), "solve_s", Kind::Measured);
+    let mut changes = Vec::new();
+    for (point, base) in baselines {
+        let (Some(p), Some(q)) = (by_label.get(point.as_str()), by_label.get(base.as_str())) else {
+            continue;
+        };
+        let [ta, tb, ba, bb] = [times(&p.a), times(&p.b), times(&q.a), times(&q.b)];
+        if [&ta, &tb, &ba, &bb].iter().any(|t| t.is_empty()) {
+            continue;
+        }
+        let speedup = |base: &[f64], time: &[f64]| median(base) / median(time);
+        let (sa, sb) = (speedup(&ba, &ta), speedup(&bb, &tb));
+        let shortest = [median(&ta), median(&ba)]
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        // Both points ran in one run, whose common factor cancels in their ratio.
+        let setting = Setting {
+            threshold,
+            floor: noise.point_floor("solve_s", shortest),
+            common: 1.0,
+            seed: seed_of(point, "speedup"),
+        };
+        let all_noisy = [&p.a, &p.b, &q.a, &q.b]
+            .iter()
+            .any(|side| side.iter().all(|r| is_noisy(r)));
+        let (interval, verdict) = if [&ta, &tb, &ba, &bb].iter().any(|t| t.len() < 2) {
+            (None, Verdict::NoInterval)
+        } else {
+            let mut random = SplitMix(setting.seed);
+            let interval = bootstrap(&mut random, |r| {
+                (resampled(r, &bb) / resampled(r, &tb)) / (resampled(r, &ba) / resampled(r, &ta))
+            });
+            let verdict = match (shortest < RESOLUTION_S, all_noisy) {
+                (true, _) => Verdict::TooShort,
+                (_, true) => Verdict::Abstained,
+                _ => setting.verdict(sb / sa, interval, Better::Higher),
+            };
+            (Some(interval), verdict)
+        };
+        changes.push(Change {
+            point: point.clone(),
+            metric: "speedup",
+            a: sa,
+            b: sb,
+            ratio: sb / sa,
+            interval,
+            relative: None,
+            floor: Some(setting.floor),
+            verdict,
+        });
     }
     changes
 }
@@ -275,16 +633,17 @@ fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
         .collect()
 }
 
-/// The percentile interval of median(B*)/median(A*) over resamples of each side's repeats.
-fn bootstrap(a: &[f64], b: &[f64], seed: u64) -> (f64, f64) {
-    let mut random = crate::statistics::SplitMix(seed);
-    let mut resample = |values: &[f64]| -> f64 {
-        let drawn: Vec<f64> = (0..values.len())
-            .map(|_| values[random.below(values.len())])
-            .collect();
-        median(&drawn)
-    };
-    let mut ratios: Vec<f64> = (0..RESAMPLES).map(|_| resample(b) / resample(a)).collect();
+/// The median of a resample (with replacement) of `values`.
+fn resampled(random: &mut SplitMix, values: &[f64]) -> f64 {
+    let drawn: Vec<f64> = (0..values.len())
+        .map(|_| values[random.below(values.len())])
+        .collect();
+    median(&drawn)
+}
+
+/// The percentile interval of `statistic` over `RESAMPLES` resamples.
+fn bootstrap(random: &mut SplitMix, mut statistic: impl FnMut(&mut SplitMix) -> f64) -> (f64, f64) {
+    let mut ratios: Vec<f64> = (0..RESAMPLES).map(|_| statistic(random)).collect();
     ratios.sort_by(f64::total_cmp);
     let tail = (1.0 - COVERAGE) / 2.0;
     let at = |q: f64| ratios[((q * (RESAMPLES - 1) as f64).round() as usize).min(RESAMPLES - 1)];
@@ -334,18 +693,21 @@ pub fn markdown(comparison: &Comparison) -> String {
     changes.sort_by_key(|c| match c.verdict {
         Verdict::Worse => 0,
         Verdict::Better => 1,
-        Verdict::NoInterval => 2,
+        Verdict::NoInterval | Verdict::TooShort | Verdict::Abstained => 2,
         Verdict::Same => 3,
     });
-    let mut text =
-        String::from("| point | metric | A | B | B/A | 95 % interval | verdict |\n| --- | --- | --- | --- | --- | --- | --- |\n");
+    let mut text = String::from(
+        "| point | metric | A | B | B/A | 95 % interval | beside the run | noise floor | verdict |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
     for c in changes {
         let interval = c.interval.map_or(String::new(), |(lo, hi)| {
             format!("[{}, {}]", number(lo), number(hi))
         });
+        let floor = c.floor.map_or(String::new(), |f| format!("×{}", number(f)));
+        let relative = c.relative.map_or(String::new(), number);
         text.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {interval} | {} |\n",
-            c.point,
+            "| {} | {} | {} | {} | {} | {interval} | {relative} | {floor} | {} |\n",
+            crate::analysis::pivot::cell(&c.point),
             c.metric,
             number(c.a),
             number(c.b),
@@ -374,6 +736,8 @@ pub fn rows(comparison: &Comparison) -> Vec<Row> {
             row.set("ratio", json!(c.ratio));
             row.set("low", json!(c.interval.map(|i| i.0)));
             row.set("high", json!(c.interval.map(|i| i.1)));
+            row.set("relative", json!(c.relative));
+            row.set("floor", json!(c.floor));
             row.set("verdict", json!(c.verdict.text()));
             row
         })
@@ -408,21 +772,28 @@ mod tests {
         values.iter().collect()
     }
 
+    fn one(point: &str, a: &[Value], b: &[Value]) -> Comparison {
+        let paired = [Paired {
+            point: point.into(),
+            a: refs(a),
+            b: refs(b),
+        }];
+        compare(&paired, 0.1, &NoiseModel::uncalibrated())
+    }
+
+    fn verdict(comparison: &Comparison, metric: &str) -> Verdict {
+        let change = comparison.changes.iter().find(|c| c.metric == metric);
+        change.unwrap().verdict
+    }
+
     #[test]
-    fn a_true_slowdown_is_called_and_noise_is_not() {
+    fn a_true_slowdown_is_called_and_noise_and_drift_are_not() {
         // A: times around 1 s with 3 % noise; B twice as slow; C the same as A.
         let noise = [1.0, 1.03, 0.98, 1.01, 0.97];
         let a: Vec<Value> = noise.iter().map(|t| run(*t, 1e-3)).collect();
         let b: Vec<Value> = noise.iter().rev().map(|t| run(2.0 * t, 1e-3)).collect();
         let c: Vec<Value> = noise.iter().rev().map(|t| run(*t * 1.01, 1e-3)).collect();
-        let slower = compare(
-            &[Paired {
-                point: "n=8".into(),
-                a: refs(&a),
-                b: refs(&b),
-            }],
-            0.1,
-        );
+        let slower = one("n=8", &a, &b);
         let solve = &slower.changes[0];
         assert_eq!((solve.metric, solve.verdict), ("solve_s", Verdict::Worse));
         let (low, high) = solve.interval.unwrap();
@@ -430,63 +801,296 @@ mod tests {
             low > 1.1 && high < 2.2 && (solve.ratio - 2.0).abs() < 1e-12,
             "{low} {high}"
         );
-        let rate = slower
-            .changes
-            .iter()
-            .find(|c| c.metric == "bond_updates_per_s")
-            .unwrap();
-        assert_eq!(rate.verdict, Verdict::Worse, "half the rate is worse too");
-        let error = slower
-            .changes
-            .iter()
-            .find(|c| c.metric == "error_l2_norm")
-            .unwrap();
-        assert_eq!(error.verdict, Verdict::Same);
-        assert_eq!(slower.regressions(), 2);
-
-        let same = compare(
-            &[Paired {
-                point: "n=8".into(),
-                a: refs(&a),
-                b: refs(&c),
-            }],
-            0.1,
+        assert_eq!(
+            verdict(&slower, "bond_updates_per_s"),
+            Verdict::Worse,
+            "half the rate"
         );
+        assert_eq!(verdict(&slower, "error_l2_norm"), Verdict::Same);
+        assert_eq!(slower.regressions(), 2);
+        let same = one("n=8", &a, &c);
         assert!(
             same.changes.iter().all(|c| c.verdict == Verdict::Same),
             "A/A"
         );
+        // A whole run 30 % slower, its repeats tight: the interval clears 1.1, but two runs of
+        // one build drift that much here (one point, at 1 s: the floor is ×1.75), so no verdict.
+        let drifted: Vec<Value> = noise.iter().map(|t| run(1.3 * t, 1e-3)).collect();
+        let drift = one("n=8", &a, &drifted);
+        let solve = &drift.changes[0];
+        assert!(solve.interval.unwrap().0 > 1.1, "{:?}", solve.interval);
+        assert_eq!(solve.verdict, Verdict::Same);
+        assert!(solve.floor.unwrap() > 1.3);
     }
 
     #[test]
-    fn derived_speedups_and_orders_are_compared_too() {
-        let row = |speedup: f64, order: f64| {
+    fn short_timings_and_noisy_runs_get_no_verdict() {
+        let fast: Vec<Value> = [1e-4, 1.1e-4, 0.9e-4]
+            .iter()
+            .map(|t| run(*t, 1e-3))
+            .collect();
+        let slow: Vec<Value> = [5e-4, 5.1e-4, 4.9e-4]
+            .iter()
+            .map(|t| run(*t, 1e-3))
+            .collect();
+        assert_eq!(
+            verdict(&one("p", &fast, &slow), "solve_s"),
+            Verdict::TooShort
+        );
+        let quiet: Vec<Value> = [1.0, 1.01, 0.99].iter().map(|t| run(*t, 1e-3)).collect();
+        let noisy: Vec<Value> = [5.0, 5.1, 4.9]
+            .iter()
+            .map(|t| {
+                let mut r = run(*t, 1e-3);
+                r["provenance"] = json!({"noisy": true});
+                r
+            })
+            .collect();
+        let abstained = one("p", &quiet, &noisy);
+        assert_eq!(verdict(&abstained, "solve_s"), Verdict::Abstained);
+        assert_eq!(abstained.regressions(), 0);
+    }
+
+    /// A history of two runs of one build, 12 points with 3 % jitter between them.
+    fn quiet_history() -> Vec<Value> {
+        let build = "ab".repeat(32);
+        let mut random = SplitMix(7);
+        let mut history = Vec::new();
+        for key in 0..12 {
+            for (k, stamp) in ["2026-01-01T00:00:00Z", "2026-01-01T01:00:00Z"]
+                .iter()
+                .enumerate()
+            {
+                let jitter = 1.0 + 0.02 * (random.below(100) as f64 / 50.0 - 1.0);
+                history.push(json!({"key": format!("k{key}"), "status": "ok",
+                    "solve_s": 2.0 * jitter * (1.0 + 0.01 * k as f64), "run_id": format!("run{k}"),
+                    "provenance": {"fingerprint": build, "timestamp": stamp}}));
+            }
+        }
+        history
+    }
+
+    /// A/A pairs of one build in the history make the point floor this machine's: a quiet
+    /// machine's history lowers it so that a 1.5× slowdown is called.
+    #[test]
+    fn the_floor_is_calibrated_from_pairs_of_runs_of_one_build() {
+        let history = quiet_history();
+        let quiet = NoiseModel::calibrate(&refs(&history));
+        let default = NoiseModel::uncalibrated();
+        assert!(
+            quiet.point_floor("solve_s", 2.0) < 1.2,
+            "{}",
+            quiet.point_floor("solve_s", 2.0)
+        );
+        assert!(default.point_floor("solve_s", 2.0) > 1.5);
+        assert_eq!(
+            quiet.point_floor("solve_s", 2e-3),
+            default.point_floor("solve_s", 2e-3),
+            "no pairs there"
+        );
+        assert_eq!(
+            quiet.run_floor("solve_s"),
+            default.run_floor("solve_s"),
+            "one pair of runs is not enough"
+        );
+        assert!(
+            quiet.describe().contains("12 point pairs"),
+            "{}",
+            quiet.describe()
+        );
+        let a: Vec<Value> = [2.0, 2.02, 1.98].iter().map(|t| run(*t, 1e-3)).collect();
+        let b: Vec<Value> = [3.0, 3.03, 2.97].iter().map(|t| run(*t, 1e-3)).collect();
+        let paired = [Paired {
+            point: "p".into(),
+            a: refs(&a),
+            b: refs(&b),
+        }];
+        assert_eq!(
+            verdict(&compare(&paired, 0.1, &quiet), "solve_s"),
+            Verdict::Worse
+        );
+        assert_eq!(
+            verdict(&compare(&paired, 0.1, &default), "solve_s"),
+            Verdict::Same
+        );
+        // Pairs of two builds, or of one process, are no A/A pairs.
+        for (field, other) in [
+            ("/provenance/fingerprint", json!("cd".repeat(32))),
+            ("/run_id", json!("run0")),
+        ] {
+            let changed: Vec<Value> = history
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    let mut r = r.clone();
+                    if k % 2 == 1 {
+                        *r.pointer_mut(field).unwrap() = other.clone();
+                    }
+                    r
+                })
+                .collect();
+            assert!(
+                NoiseModel::calibrate(&refs(&changed))
+                    .describe()
+                    .contains("default"),
+                "{field}"
+            );
+        }
+    }
+
+    /// Twelve points whose whole run is 20 % slower and one of them 1.5× beyond: the run's row
+    /// says 1.2, within the drift of whole runs; the one point is worse beside the others.
+    #[test]
+    fn a_point_is_judged_beside_its_run_and_the_run_on_its_own() {
+        let quiet = NoiseModel::calibrate(&refs(&quiet_history()));
+        let times = |t: f64| -> Vec<Value> {
+            [t, t * 1.01, t * 0.99]
+                .iter()
+                .map(|t| run(*t, 1e-3))
+                .collect()
+        };
+        let sides: Vec<(String, Vec<Value>, Vec<Value>)> = (0..12)
+            .map(|k| {
+                let base = 2.0 + 0.1 * k as f64;
+                let slower = if k == 5 { 1.5 } else { 1.0 };
+                (format!("n={k}"), times(base), times(1.2 * slower * base))
+            })
+            .collect();
+        let paired: Vec<Paired> = sides
+            .iter()
+            .map(|(p, a, b)| Paired {
+                point: p.clone(),
+                a: refs(a),
+                b: refs(b),
+            })
+            .collect();
+        let comparison = compare(&paired, 0.1, &quiet);
+        let solve: Vec<&Change> = comparison
+            .changes
+            .iter()
+            .filter(|c| c.metric == "solve_s")
+            .collect();
+        let whole = solve.iter().find(|c| c.point == WHOLE_RUN).unwrap();
+        assert!(
+            (whole.ratio - 1.2).abs() < 1e-9 && whole.verdict == Verdict::Same,
+            "{}",
+            whole.ratio
+        );
+        for change in solve.iter().filter(|c| c.point != WHOLE_RUN) {
+            let expected = if change.point == "n=5" {
+                Verdict::Worse
+            } else {
+                Verdict::Same
+            };
+            assert_eq!(change.verdict, expected, "{}", change.point);
+        }
+        assert!(
+            (solve
+                .iter()
+                .find(|c| c.point == "n=5")
+                .unwrap()
+                .relative
+                .unwrap()
+                - 1.5)
+                .abs()
+                < 1e-9
+        );
+        // A whole run twice as slow is beyond the drift of whole runs.
+        let doubled: Vec<(String, Vec<Value>, Vec<Value>)> = (0..6)
+            .map(|k| (format!("n={k}"), times(2.0), times(4.0)))
+            .collect();
+        let paired: Vec<Paired> = doubled
+            .iter()
+            .map(|(p, a, b)| Paired {
+                point: p.clone(),
+                a: refs(a),
+                b: refs(b),
+            })
+            .collect();
+        let comparison = compare(&paired, 0.1, &quiet);
+        assert_eq!(
+            comparison
+                .changes
+                .iter()
+                .find(|c| c.point == WHOLE_RUN && c.metric == "solve_s")
+                .unwrap()
+                .verdict,
+            Verdict::Worse
+        );
+    }
+
+    #[test]
+    fn speedups_get_intervals_from_the_repeats_of_both_points() {
+        let times = |ts: &[f64]| -> Vec<Value> { ts.iter().map(|t| run(*t, 1e-3)).collect() };
+        let (base_a, base_b) = (times(&[2.0, 2.02, 1.98]), times(&[2.0, 2.03, 1.97]));
+        let (two_a, two_b) = (times(&[1.0, 1.01, 0.99]), times(&[1.6, 1.62, 1.58]));
+        let points = [
+            Paired {
+                point: "threads=1".into(),
+                a: refs(&base_a),
+                b: refs(&base_b),
+            },
+            Paired {
+                point: "threads=2".into(),
+                a: refs(&two_a),
+                b: refs(&two_b),
+            },
+        ];
+        let baselines = [("threads=2".to_string(), "threads=1".to_string())];
+        let quiet = NoiseModel::uncalibrated();
+        let changes = compare_speedups(&points, &baselines, 0.1, &quiet);
+        assert_eq!(changes.len(), 1);
+        let speedup = &changes[0];
+        assert!((speedup.a - 2.0).abs() < 1e-12 && (speedup.b - 1.25).abs() < 1e-12);
+        let (low, high) = speedup.interval.unwrap();
+        assert!(low < 0.625 && 0.625 < high, "{low} {high}");
+        // A speedup 2 → 1.25 is a factor 1.6, within this VM's drift at 1 s (×1.76).
+        assert_eq!(speedup.verdict, Verdict::Same);
+        let (two_b, base_b) = (times(&[4.0, 4.04, 3.96]), times(&[2.0, 2.02, 1.98]));
+        let points = [
+            Paired {
+                point: "threads=1".into(),
+                a: refs(&base_a),
+                b: refs(&base_b),
+            },
+            Paired {
+                point: "threads=2".into(),
+                a: refs(&two_a),
+                b: refs(&two_b),
+            },
+        ];
+        let changes = compare_speedups(&points, &baselines, 0.1, &quiet);
+        assert_eq!(changes[0].verdict, Verdict::Worse, "speedup 2 → 0.5");
+        let single = [
+            Paired {
+                point: "threads=2".into(),
+                a: refs(&two_a[..1]),
+                b: refs(&two_b[..1]),
+            },
+            Paired {
+                point: "threads=1".into(),
+                a: refs(&base_a[..1]),
+                b: refs(&base_b[..1]),
+            },
+        ];
+        let changes = compare_speedups(&single, &baselines, 0.1, &quiet);
+        assert_eq!(changes[0].verdict, Verdict::NoInterval);
+    }
+
+    #[test]
+    fn orders_are_compared_by_their_distance_to_the_theory() {
+        let row = |order: f64| {
             let mut row = Row::default();
-            row.set("point", json!("n=64 threads=2"));
-            row.set("speedup", json!(speedup));
+            row.set("point", json!("n=64"));
             row.set("order_l2", json!(order));
             row
         };
-        let changes = compare_derived(&[row(1.8, 2.0)], &[row(1.2, 1.85)], 0.1);
-        let verdict = |m: &str| changes.iter().find(|c| c.metric == m).unwrap().verdict;
-        assert_eq!(
-            (verdict("speedup"), verdict("order_l2")),
-            (Verdict::Worse, Verdict::Worse)
-        );
-        let changes = compare_derived(&[row(1.8, 2.0)], &[row(1.85, 2.05)], 0.1);
-        assert!(changes.iter().all(|c| c.verdict == Verdict::Same));
-        // An order of 1.7 that reaches 1.98 came closer to 2.
-        let closer = compare_derived(&[row(1.8, 1.7)], &[row(1.8, 1.98)], 0.1);
-        assert_eq!(
-            closer
-                .iter()
-                .find(|c| c.metric == "order_l2")
-                .unwrap()
-                .verdict,
-            Verdict::Better
-        );
+        let verdict = |a: f64, b: f64| compare_orders(&[row(a)], &[row(b)])[0].verdict;
+        assert_eq!(verdict(2.0, 1.85), Verdict::Worse);
+        assert_eq!(verdict(2.0, 2.05), Verdict::Same);
+        assert_eq!(verdict(1.7, 1.98), Verdict::Better, "closer to 2");
         assert!(
-            compare_derived(&[row(1.8, 2.0)], &[], 0.1).is_empty(),
+            compare_orders(&[row(2.0)], &[]).is_empty(),
             "a point on one side"
         );
     }
@@ -496,35 +1100,14 @@ mod tests {
         let a = [run(1.0, 0.0)];
         let b = [run(1.0, 1e-15)];
         let worse = [run(1.0, 1e-6)];
-        let zero = compare(
-            &[Paired {
-                point: "p".into(),
-                a: refs(&a),
-                b: refs(&b),
-            }],
-            0.1,
-        );
-        let error = zero
-            .changes
-            .iter()
-            .find(|c| c.metric == "error_l2_norm")
-            .unwrap();
+        let zero = one("p", &a, &b);
         assert_eq!(
-            error.verdict,
+            verdict(&zero, "error_l2_norm"),
             Verdict::Same,
             "a reference of 0 with the absolute tolerance"
         );
-        let solve = zero.changes.iter().find(|c| c.metric == "solve_s").unwrap();
-        assert_eq!(solve.verdict, Verdict::NoInterval);
-        let changed = compare(
-            &[Paired {
-                point: "p".into(),
-                a: refs(&a),
-                b: refs(&worse),
-            }],
-            0.1,
-        );
-        assert_eq!(changed.regressions(), 1);
+        assert_eq!(verdict(&zero, "solve_s"), Verdict::NoInterval);
+        assert_eq!(one("p", &a, &worse).regressions(), 1);
         let one_sided = compare(
             &[
                 Paired {
@@ -539,6 +1122,7 @@ mod tests {
                 },
             ],
             0.1,
+            &NoiseModel::uncalibrated(),
         );
         assert_eq!(
             (one_sided.only_a, one_sided.only_b),

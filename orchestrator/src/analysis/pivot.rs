@@ -251,14 +251,24 @@ fn transpose(columns: Vec<Vec<String>>, lines: usize) -> Vec<Vec<String>> {
     out
 }
 
-/// A Markdown table: the header, its rule, one line per row.
+/// A Markdown table: the header, its rule, one line per row; every cell through `cell`.
 pub fn markdown_table(header: &[String], lines: &[Vec<String>]) -> String {
-    let mut out = format!("| {} |\n", header.join(" | "));
+    let joined = |cells: &[String]| {
+        let cells: Vec<String> = cells.iter().map(|c| cell(c)).collect();
+        cells.join(" | ")
+    };
+    let mut out = format!("| {} |\n", joined(header));
     out.push_str(&format!("|{}\n", " --- |".repeat(header.len())));
     for line in lines {
-        out.push_str(&format!("| {} |\n", line.join(" | ")));
+        out.push_str(&format!("| {} |\n", joined(line)));
     }
     out
+}
+
+/// Text as one Markdown table cell: a `|` (a branch named `a|b`) would end the cell, so it is
+/// escaped, and a line break would end the row, so it becomes a space.
+pub fn cell(text: &str) -> String {
+    text.replace('|', "\\|").replace(['\n', '\r'], " ")
 }
 
 #[cfg(test)]
@@ -268,6 +278,22 @@ mod tests {
 
     fn row(cells: Value) -> Row {
         Row::of_cells(cells)
+    }
+
+    #[test]
+    fn a_bar_in_a_label_stays_inside_its_cell() {
+        let table = markdown_table(
+            &["branch".into(), "n|m".into()],
+            &[vec!["a|b".into(), "1".into()]],
+        );
+        assert!(
+            table.contains("a\\|b") && table.contains("n\\|m"),
+            "{table}"
+        );
+        for line in table.lines() {
+            let bars = line.replace("\\|", "").matches('|').count();
+            assert_eq!(bars, 3, "{line}");
+        }
     }
 
     #[test]

@@ -122,7 +122,8 @@ fn reduce(repeats: &[&Row]) -> Row {
     let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
     let mut row = Row::default();
     for (name, value) in first.cells() {
-        let per_run = matches!(name, "key" | "repeat") || name.starts_with("provenance.");
+        let per_run =
+            matches!(name, "key" | "repeat" | "run_id") || name.starts_with("provenance.");
         if !per_run && !is_timing(name) {
             row.set(name, value.clone());
         }

@@ -890,6 +890,37 @@ impl PathSpec {
     }
 }
 
+/// The `field=value` parts of a label (`Point::label`, the tables' `point` and series columns),
+/// split where a space is followed by a name and `=`: a value may hold spaces (a branch `a b`).
+pub fn label_parts(label: &str) -> Vec<(String, String)> {
+    let starts_part = |rest: &str| {
+        let name_end = rest.find('=').unwrap_or(0);
+        let name = &rest[..name_end];
+        name_end > 0
+            && name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
+    };
+    let mut parts: Vec<(String, String)> = Vec::new();
+    let mut rest = label;
+    while !rest.is_empty() {
+        // The next space that begins a part, or the end.
+        let end = rest
+            .match_indices(' ')
+            .map(|(at, _)| at)
+            .find(|&at| starts_part(&rest[at + 1..]))
+            .unwrap_or(rest.len());
+        let part = &rest[..end];
+        if let Some((field, value)) = part.split_once('=') {
+            parts.push((field.to_string(), value.to_string()));
+        } else if let Some(last) = parts.last_mut() {
+            last.1.push(' ');
+            last.1.push_str(part);
+        }
+        rest = rest[end..].strip_prefix(' ').unwrap_or("");
+    }
+    parts
+}
+
 /// A path's ε at `n` as a value: a `Value` would hold a number that is not finite as `null`,
 /// which leaves the field out of the case.
 fn finite(eps: f64, place: &str, n: u64) -> Result<Value, StudyError> {
@@ -1290,6 +1321,21 @@ mod tests {
             .into_iter()
             .map(|f| (f["n"].as_u64().unwrap(), f["eps"].clone()))
             .collect()
+    }
+
+    #[test]
+    fn labels_split_into_their_parts_where_a_name_and_equals_follow() {
+        assert_eq!(
+            label_parts("branch=a b n=16 kernel=constant"),
+            [
+                ("branch".to_string(), "a b".to_string()),
+                ("n".to_string(), "16".to_string()),
+                ("kernel".to_string(), "constant".to_string())
+            ]
+        );
+        assert!(label_parts("").is_empty());
+        assert_eq!(label_parts("cfl=null dt=1e-8").len(), 2);
+        assert_eq!(label_parts("branch=x=y z").len(), 1, "a value may hold = and spaces");
     }
 
     #[test]

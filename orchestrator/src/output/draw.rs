@@ -20,6 +20,30 @@ pub struct Chart {
     pub title: String,
     pub subtitle: String,
     pub panels: Vec<Panel>,
+    /// What each glyph the series draw means, for the legend (`× diverged`).
+    pub glyphs: Vec<(Glyph, String)>,
+    /// Lines under the legend saying what an axis's numbers stand for (`1: n=16 threads=1`).
+    pub key: Vec<String>,
+}
+
+impl Chart {
+    /// A chart of `panels` with no glyphs and no key.
+    pub fn new(title: impl Into<String>, subtitle: impl Into<String>, panels: Vec<Panel>) -> Chart {
+        Chart {
+            title: title.into(),
+            subtitle: subtitle.into(),
+            panels,
+            glyphs: Vec::new(),
+            key: Vec::new(),
+        }
+    }
+
+    /// Says what `glyph` means, once.
+    pub fn explain(&mut self, glyph: Glyph, meaning: impl Into<String>) {
+        if !self.glyphs.iter().any(|(g, _)| *g == glyph) {
+            self.glyphs.push((glyph, meaning.into()));
+        }
+    }
 }
 
 pub struct Panel {
@@ -58,11 +82,42 @@ pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
     pub band: Vec<(f64, f64, f64)>,
-    /// Points drawn as crosses, e.g. diverged runs.
-    pub crosses: Vec<(f64, f64)>,
+    /// Whether a line joins the points; without it they are markers only (verdicts per point).
+    pub line: bool,
+    /// Points drawn with a glyph of their own in the series' colour, which the chart explains
+    /// (`Chart::glyphs`): a diverged run, a point timed on a busy machine.
+    pub marks: Vec<((f64, f64), Glyph)>,
     /// Text written beside the series' last point, e.g. its fitted slope; the notes of a panel
-    /// are moved apart so that they do not overlap.
+    /// are moved apart so that they do not overlap, and left out when they cannot be.
     pub note: Option<String>,
+}
+
+impl Series {
+    /// A line through `points`.
+    pub fn line(label: impl Into<String>, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            label: label.into(),
+            points,
+            band: Vec::new(),
+            line: true,
+            marks: Vec::new(),
+            note: None,
+        }
+    }
+
+    /// Whether it draws anything: only then does it have a legend entry.
+    fn draws(&self) -> bool {
+        !self.points.is_empty() || !self.band.is_empty() || !self.marks.is_empty()
+    }
+}
+
+/// A glyph over a point, in the colour of its series.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Glyph {
+    /// ×: a run that diverged, or workers beyond the machine's cores.
+    Cross,
+    /// A ring around the marker: a point timed on a busy machine (`noisy`).
+    Ring,
 }
 
 /// What the data is read against.
@@ -354,16 +409,25 @@ fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
     (first..=last).map(|k| k as f64 * step).collect()
 }
 
-/// Lines of at most `width` characters, broken at spaces (a longer word keeps its own line).
+/// Lines of at most `width` characters, broken at spaces; a longer word (a path) is broken
+/// into pieces of `width`.
 fn wrap(text: &str, width: usize) -> Vec<String> {
+    let width = width.max(8);
     let mut lines: Vec<String> = Vec::new();
-    for word in text.split_whitespace() {
+    let words = text.split_whitespace().flat_map(|word| {
+        let chars: Vec<char> = word.chars().collect();
+        chars
+            .chunks(width)
+            .map(|piece| piece.iter().collect::<String>())
+            .collect::<Vec<_>>()
+    });
+    for word in words {
         match lines.last_mut() {
             Some(line) if line.chars().count() + 1 + word.chars().count() <= width => {
                 line.push(' ');
-                line.push_str(word);
+                line.push_str(&word);
             }
-            _ => lines.push(word.to_string()),
+            _ => lines.push(word),
         }
     }
     lines
@@ -510,33 +574,52 @@ fn draw_heat_map(panel: &Panel, heat: &HeatMap, area: &Area, caption: bool) -> D
     Ok(())
 }
 
-/// An entry of the legend: a series (its colour and marker) or a dashed guide.
+/// An entry of the legend and what its key draws.
 struct Entry<'a> {
     label: &'a str,
     colour: RGBColor,
-    /// The series' index for its marker; none for a guide, drawn dashed.
-    marker: Option<usize>,
+    key: Key,
 }
 
-/// The legend: every labelled series and guide of the panels, once each, in order.
+#[derive(Clone, Copy, PartialEq)]
+enum Key {
+    /// A series: its marker (the series' index), on a line when it has one.
+    Series { marker: usize, line: bool },
+    /// A dashed guide.
+    Dashed,
+    /// A glyph, in black (each series draws it in its own colour).
+    Glyph(Glyph),
+}
+
+/// The legend: every labelled series that draws something and every labelled guide of the
+/// panels, once each, in order, then each glyph drawn with what it means. Nothing drawn has
+/// no entry, and nothing without an entry is drawn (`lint` checks the glyphs).
 fn legend(chart: &Chart) -> Vec<Entry<'_>> {
     let mut entries: Vec<Entry> = Vec::new();
     for panel in &chart.panels {
-        let series = panel.series.iter().enumerate().map(|(k, s)| Entry {
-            label: &s.label,
-            colour: colour(k),
-            marker: Some(k),
-        });
+        let series = panel
+            .series
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.draws() && !s.label.is_empty())
+            .map(|(k, s)| Entry {
+                label: &s.label,
+                colour: colour(k),
+                key: Key::Series {
+                    marker: k,
+                    line: s.line,
+                },
+            });
         let guides = panel.guides.iter().filter_map(|g| match g {
             Guide::Dashed { label, of, .. } => Some(Entry {
                 label: label.as_deref()?,
                 colour: of.map_or(BLACK, colour),
-                marker: None,
+                key: Key::Dashed,
             }),
             Guide::Vertical { label, .. } => Some(Entry {
                 label,
                 colour: BLACK,
-                marker: None,
+                key: Key::Dashed,
             }),
             Guide::Slope { .. } => None,
         });
@@ -546,7 +629,89 @@ fn legend(chart: &Chart) -> Vec<Entry<'_>> {
             }
         }
     }
+    for (glyph, meaning) in &chart.glyphs {
+        if drawn_glyphs(chart).contains(glyph) {
+            entries.push(Entry {
+                label: meaning,
+                colour: BLACK,
+                key: Key::Glyph(*glyph),
+            });
+        }
+    }
     entries
+}
+
+/// The glyphs some series of the chart draws.
+fn drawn_glyphs(chart: &Chart) -> Vec<Glyph> {
+    let mut glyphs: Vec<Glyph> = Vec::new();
+    let marks = chart
+        .panels
+        .iter()
+        .flat_map(|p| &p.series)
+        .flat_map(|s| &s.marks);
+    for (_, glyph) in marks {
+        if !glyphs.contains(glyph) {
+            glyphs.push(*glyph);
+        }
+    }
+    glyphs
+}
+
+/// What a reader of the chart could not make sense of: an empty title or axis label, a
+/// subtitle part with nothing on one side of its `=`, a glyph drawn that the legend does not
+/// explain or explained but not drawn, a series drawn without a label. `render` refuses such
+/// a chart; the figures' tests run it over every kind.
+pub fn lint(chart: &Chart) -> Vec<String> {
+    let mut defects = Vec::new();
+    if chart.title.trim().is_empty() {
+        defects.push("no title".to_string());
+    }
+    for part in chart.subtitle.split("; ").filter(|p| !p.is_empty()) {
+        for pair in part.split(", ") {
+            if let Some((field, value)) = pair.split_once(" = ") {
+                if field.trim().is_empty() || value.trim().is_empty() {
+                    defects.push(format!("subtitle part `{pair}` names no field or no value"));
+                }
+            } else if pair.trim() == "=" {
+                defects.push("a lone `=` in the subtitle".to_string());
+            }
+        }
+    }
+    for panel in chart.panels.iter().filter(|p| p.heat.is_none()) {
+        for (axis, name) in [(&panel.x, "x"), (&panel.y, "y")] {
+            if axis.label.trim().is_empty() {
+                defects.push(format!(
+                    "panel `{}`: its {name} axis has no label",
+                    panel.title
+                ));
+            }
+        }
+        for series in panel
+            .series
+            .iter()
+            .filter(|s| s.draws() && s.label.is_empty())
+        {
+            let _ = series;
+            defects.push(format!(
+                "panel `{}`: a series drawn without a label",
+                panel.title
+            ));
+        }
+    }
+    let drawn = drawn_glyphs(chart);
+    for glyph in &drawn {
+        if !chart.glyphs.iter().any(|(g, _)| g == glyph) {
+            defects.push(format!("{glyph:?} drawn but not explained in the legend"));
+        }
+    }
+    for (glyph, meaning) in &chart.glyphs {
+        if !drawn.contains(glyph) {
+            defects.push(format!(
+                "the legend explains {glyph:?} ({meaning}), which nothing draws"
+            ));
+        }
+    }
+    defects
 }
 
 const LEGEND_ROW: u32 = 24;
@@ -564,6 +729,9 @@ fn grid(panels: usize) -> (usize, (u32, u32)) {
 /// The chart as SVG text: the title and subtitle, the panels (wrapped two to a row), and one
 /// legend, in the grid's spare cell when it has one the legend fits in, else under the panels.
 pub fn render(chart: &Chart) -> Result<String, String> {
+    if let Some(defect) = lint(chart).first() {
+        return Err(format!("cannot draw `{}`: {defect}", chart.title));
+    }
     let count = chart.panels.len().max(1);
     let (columns, cell) = grid(count);
     let rows = count.div_ceil(columns);
@@ -579,20 +747,42 @@ pub fn render(chart: &Chart) -> Result<String, String> {
     let header = 14 + 28 * title.len() as u32 + 22 * subtitle.len() as u32;
 
     let entries = legend(chart);
-    let entry_width = entries
+    // A label longer than the figure is wide wraps onto lines of its own.
+    let label_room = ((width - LEGEND_KEY - 44) as f64 / (0.55 * LEGEND_PX)) as usize;
+    let labels: Vec<Vec<String>> = entries.iter().map(|e| wrap(e.label, label_room)).collect();
+    let lines_of = |k: usize| labels[k].len().max(1) as u32;
+    let entry_width = labels
         .iter()
-        .map(|e| LEGEND_KEY + text_width(e.label, LEGEND_PX) + 24)
+        .map(|lines| {
+            let widest = lines
+                .iter()
+                .map(|l| text_width(l, LEGEND_PX))
+                .max()
+                .unwrap_or(0);
+            LEGEND_KEY + widest + 24
+        })
         .max()
         .unwrap_or(0);
+    let tallest = (0..entries.len()).map(lines_of).max().unwrap_or(1);
+    let entry_height = LEGEND_ROW * tallest;
     let spare = !count.is_multiple_of(columns)
         && entry_width <= cell.0
-        && (entries.len() as u32 + 1) * LEGEND_ROW <= cell.1;
+        && (entries.len() as u32 + 1) * entry_height <= cell.1;
     let legend_columns = (width / entry_width.max(1)).max(1);
     let legend_height = match spare || entries.is_empty() {
         true => 0,
-        false => (entries.len() as u32).div_ceil(legend_columns) * LEGEND_ROW + 16,
+        false => (entries.len() as u32).div_ceil(legend_columns) * entry_height + 16,
     };
-    let height = header + cell.1 * rows as u32 + legend_height;
+    let key_lines: Vec<String> = chart
+        .key
+        .iter()
+        .flat_map(|line| wrap(line, ((width - 40) as f64 / (0.55 * LEGEND_PX)) as usize))
+        .collect();
+    let key_height = match key_lines.is_empty() {
+        true => 0,
+        false => key_lines.len() as u32 * LEGEND_ROW + 12,
+    };
+    let height = header + cell.1 * rows as u32 + legend_height + key_height;
 
     let mut svg = String::new();
     {
@@ -616,6 +806,7 @@ pub fn render(chart: &Chart) -> Result<String, String> {
         }
         let (_, body) = root.split_vertically(header);
         let (plots, key) = body.split_vertically(cell.1 * rows as u32);
+        let (key, below) = key.split_vertically(legend_height.max(1));
         let areas = plots.split_evenly((rows, columns));
         let captions = chart.panels.len() > 1;
         for (panel, area) in chart.panels.iter().zip(&areas) {
@@ -625,7 +816,19 @@ pub fn render(chart: &Chart) -> Result<String, String> {
             true => (&areas[count], 1),
             false => (&key, legend_columns),
         };
-        draw_legend(&entries, key, key_columns, entry_width).map_err(|e| failed(&e))?;
+        let layout = LegendLayout {
+            columns: key_columns,
+            entry: (entry_width, entry_height),
+        };
+        draw_legend(&entries, &labels, key, &layout).map_err(|e| failed(&e))?;
+        for (k, line) in key_lines.iter().enumerate() {
+            let text = Text::new(
+                line.clone(),
+                (20, 6 + (k as u32 * LEGEND_ROW) as i32),
+                TextStyle::from(font(LEGEND_PX)).pos(Pos::new(HPos::Left, VPos::Top)),
+            );
+            below.draw(&text).map_err(|e| failed(&e))?;
+        }
         root.present().map_err(|e| failed(&e))?;
     }
     Ok(svg)
@@ -634,14 +837,26 @@ pub fn render(chart: &Chart) -> Result<String, String> {
 type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 type DrawResult = Result<(), DrawingAreaErrorKind<std::io::Error>>;
 
-fn draw_legend(entries: &[Entry], area: &Area, columns: u32, entry_width: u32) -> DrawResult {
-    for (k, entry) in entries.iter().enumerate() {
-        let (row, column) = (k as u32 / columns, k as u32 % columns);
-        let x = (20 + column * entry_width) as i32;
-        let y = (8 + row * LEGEND_ROW) as i32 + LEGEND_ROW as i32 / 2;
+/// How the legend's entries are laid out: columns of cells of one size.
+struct LegendLayout {
+    columns: u32,
+    /// Each entry's cell: its width, and its height (a row per line of the longest label).
+    entry: (u32, u32),
+}
+
+fn draw_legend(
+    entries: &[Entry],
+    labels: &[Vec<String>],
+    area: &Area,
+    layout: &LegendLayout,
+) -> DrawResult {
+    for (k, (entry, lines)) in entries.iter().zip(labels).enumerate() {
+        let (row, column) = (k as u32 / layout.columns, k as u32 % layout.columns);
+        let x = (20 + column * layout.entry.0) as i32;
+        let y = (8 + row * layout.entry.1) as i32 + LEGEND_ROW as i32 / 2;
         let style = entry.colour.stroke_width(2);
-        match entry.marker {
-            None => {
+        match entry.key {
+            Key::Dashed => {
                 for dash in [0, 12, 24] {
                     area.draw(&PathElement::new(
                         vec![(x + dash, y), (x + dash + 7, y)],
@@ -649,21 +864,47 @@ fn draw_legend(entries: &[Entry], area: &Area, columns: u32, entry_width: u32) -
                     ))?;
                 }
             }
-            Some(k) => {
-                area.draw(&PathElement::new(vec![(x, y), (x + 32, y)], style))?;
-                let shape = Polygon::new(marker(k), entry.colour.filled());
-                area.draw(&(EmptyElement::at((x + 16, y)) + shape))?;
+            Key::Series { marker: k, line } => {
+                if line {
+                    area.draw(&PathElement::new(vec![(x, y), (x + 32, y)], style))?;
+                }
+                area.draw(&(EmptyElement::at((x + 16, y)) + marker_element(k, entry.colour)))?;
+            }
+            Key::Glyph(Glyph::Cross) => {
+                area.draw(&(EmptyElement::at((x + 16, y)) + cross(BLACK)))?;
+            }
+            Key::Glyph(Glyph::Ring) => {
+                area.draw(&(EmptyElement::at((x + 16, y)) + ring(BLACK)))?;
             }
         }
         let left = Pos::new(HPos::Left, VPos::Center);
-        let text = Text::new(
-            entry.label.to_string(),
-            (x + LEGEND_KEY as i32, y),
-            TextStyle::from(font(LEGEND_PX)).pos(left),
-        );
-        area.draw(&text)?;
+        for (j, line) in lines.iter().enumerate() {
+            let text = Text::new(
+                line.clone(),
+                (x + LEGEND_KEY as i32, y + (j as u32 * LEGEND_ROW) as i32),
+                TextStyle::from(font(LEGEND_PX)).pos(left),
+            );
+            area.draw(&text)?;
+        }
     }
     Ok(())
+}
+
+/// Series `k`'s marker, hollow: where two series meet at one point both stay visible.
+fn marker_element(k: usize, colour: RGBColor) -> PathElement<(i32, i32)> {
+    let mut outline = marker(k);
+    outline.push(outline[0]);
+    PathElement::new(outline, colour.stroke_width(2))
+}
+
+/// `Glyph::Cross` over a point.
+fn cross(colour: RGBColor) -> Cross<(i32, i32), i32> {
+    Cross::new((0, 0), 6, colour.stroke_width(2))
+}
+
+/// `Glyph::Ring` around a point's marker.
+fn ring(colour: RGBColor) -> Circle<(i32, i32), i32> {
+    Circle::new((0, 0), 9, colour.stroke_width(1))
 }
 
 /// Every x (`pick` 0) or y (`pick` 1) a panel's series and guides draw.
@@ -673,7 +914,8 @@ fn coordinates(panel: &Panel, pick: fn(&(f64, f64)) -> f64, bands: bool) -> Vec<
             true => vec![b.1, b.2],
             false => vec![b.0],
         });
-        s.points.iter().chain(&s.crosses).map(pick).chain(band)
+        let marks = s.marks.iter().map(|(p, _)| p);
+        s.points.iter().chain(marks).map(pick).chain(band)
     });
     let guides = panel.guides.iter().flat_map(|g| match g {
         Guide::Dashed { points, .. } => points.iter().map(pick).collect::<Vec<_>>(),
@@ -699,6 +941,12 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
         .iter()
         .enumerate()
         .filter_map(|(k, s)| Some((k, s.note.as_deref()?)))
+        .collect();
+    // At most a third of the panel: a longer note is left out (its series' label says it too).
+    let (panel_width, _) = area.dim_in_pixel();
+    let notes: Vec<(usize, &str)> = notes
+        .into_iter()
+        .filter(|(_, n)| text_width(n, NOTE_PX) + 12 <= panel_width / 3)
         .collect();
     let note_room = notes.iter().map(|(_, n)| text_width(n, NOTE_PX) + 12).max();
     let mut builder = ChartBuilder::on(area);
@@ -751,15 +999,23 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
             .filter(|p| visible(p))
             .map(|p| at(*p))
             .collect();
-        chart.draw_series(LineSeries::new(points.clone(), style.stroke_width(2)))?;
-        let shape = marker(k);
+        if series.line {
+            chart.draw_series(LineSeries::new(points.clone(), style.stroke_width(2)))?;
+        }
         chart.draw_series(
             points
                 .iter()
-                .map(|p| EmptyElement::at(*p) + Polygon::new(shape.clone(), style.filled())),
+                .map(|p| EmptyElement::at(*p) + marker_element(k, style)),
         )?;
-        let crosses = series.crosses.iter().filter(|p| visible(p));
-        chart.draw_series(crosses.map(|p| Cross::new(at(*p), 6, style.stroke_width(2))))?;
+        let marked = |glyph: Glyph| {
+            series
+                .marks
+                .iter()
+                .filter(move |(p, g)| *g == glyph && visible(p))
+                .map(|(p, _)| at(*p))
+        };
+        chart.draw_series(marked(Glyph::Cross).map(|p| EmptyElement::at(p) + cross(style)))?;
+        chart.draw_series(marked(Glyph::Ring).map(|p| EmptyElement::at(p) + ring(style)))?;
         last_points.push(points.last().copied());
     }
     // The notes beside the last points, stacked apart where they would overlap.
@@ -773,7 +1029,11 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
         .collect();
     let (_, rows) = chart.plotting_area().get_pixel_range();
     let bounds = (f64::from(rows.start) + 8.0, f64::from(rows.end) - 8.0);
-    let stacked = spread(&wanted, NOTE_PX + 4.0, bounds);
+    // Notes that cannot all stand apart within the plot are left out, not drawn past its edge.
+    let gap = NOTE_PX + 4.0;
+    let fits = gap * placed.len() as f64 <= bounds.1 - bounds.0 + gap;
+    let stacked = spread(&wanted, gap, bounds);
+    let placed = if fits { placed } else { Vec::new() };
     for ((&(k, note, point), wanted), stacked) in placed.iter().zip(&wanted).zip(&stacked) {
         let offset = (10, (stacked - wanted).round() as i32);
         let style = font(NOTE_PX)
@@ -898,11 +1158,26 @@ mod tests {
     }
 
     #[test]
-    fn long_titles_wrap_at_spaces() {
+    fn long_titles_wrap_at_spaces_and_long_words_in_pieces() {
         assert_eq!(
             wrap("Strong scaling over threads: nonlocal", 16),
             ["Strong scaling", "over threads:", "nonlocal"]
         );
         assert!(wrap("", 10).is_empty());
+        let path = format!("against /{}", "x".repeat(40));
+        let lines = wrap(&path, 16);
+        assert!(lines.iter().all(|l| l.chars().count() <= 16), "{lines:?}");
+        assert_eq!(lines.concat().replace(' ', ""), path.replace(' ', ""));
+    }
+
+    #[test]
+    fn notes_that_cannot_stand_apart_are_not_placed_outside() {
+        // Twenty notes of 18 px in 100 px: `spread` leaves some outside; the panel drops them.
+        let placed = spread(&[50.0; 20], 18.0, (0.0, 100.0));
+        assert!(placed.iter().any(|p| *p < 0.0));
+        assert!(
+            18.0 * 20.0 > 100.0 + 18.0,
+            "so draw_panel leaves every note out"
+        );
     }
 }

@@ -54,13 +54,7 @@ pub fn chart(
             .collect();
         line.sort_by(|a, b| a.0.total_cmp(&b.0));
         if !line.is_empty() {
-            series.push(Series {
-                label: label.clone(),
-                points: line,
-                band: Vec::new(),
-                crosses: Vec::new(),
-                note: None,
-            });
+            series.push(Series::line(label.clone(), line));
         }
     }
     if series.is_empty() {
@@ -78,13 +72,13 @@ pub fn chart(
             x: *day - origin,
         })
         .collect();
-    Ok(Chart {
-        title: format!("study {study}: {metric} under each solver build"),
-        subtitle: format!(
+    Ok(Chart::new(
+        format!("study {study}: {metric} under each solver build"),
+        format!(
             "{} builds; x: days since the first one ran",
             first_day.len()
         ),
-        panels: vec![Panel {
+        vec![Panel {
             title: String::new(),
             x: Axis {
                 label: "days since the first build ran".into(),
@@ -102,7 +96,7 @@ pub fn chart(
             guides: builds,
             heat: None,
         }],
-    })
+    ))
 }
 
 /// Days since 1970 of an RFC 3339 UTC time such as `2026-11-23T22:35:40Z`.

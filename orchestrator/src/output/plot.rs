@@ -115,6 +115,7 @@ pub fn all_drawn(figures: &[Figure]) -> Result<(), String> {
 mod tests {
     use super::*;
     use crate::model::figure_spec::FigureKind;
+    use crate::output::draw::Glyph;
     use crate::store::table::Row;
     use serde_json::json;
 
@@ -335,7 +336,7 @@ mod tests {
         assert!((speedup[1].1 - 1.8).abs() < 1e-12, "{speedup:?}");
         let efficiency = &chart.panels[2].series[0].points;
         assert!((efficiency[1].1 - 0.9).abs() < 1e-12);
-        assert!(chart.panels.iter().all(|p| p.series[0].crosses.is_empty()));
+        assert!(chart.panels.iter().all(|p| p.series[0].marks.is_empty()));
         // Points run on more workers than cores are crossed out in every panel, and said so.
         let mut crowded = rows.clone();
         for row in crowded
@@ -346,22 +347,20 @@ mod tests {
         }
         let chart = figure::chart(&specs[0], 0, &crowded).unwrap();
         for panel in &chart.panels {
-            assert_eq!(
-                panel.series[0].crosses,
-                panel.series[0].points[1..],
-                "{}",
-                panel.title
-            );
+            let crossed: Vec<(f64, f64)> = panel.series[0].marks.iter().map(|m| m.0).collect();
+            assert_eq!(crossed, panel.series[0].points[1..], "{}", panel.title);
         }
         assert!(
-            chart.subtitle.contains("not performance data"),
-            "{}",
-            chart.subtitle
+            chart
+                .glyphs
+                .iter()
+                .any(|(g, m)| *g == Glyph::Cross && m.contains("contention")),
+            "the legend says what a cross means"
         );
         // Stability: the diverged pse point is a cross, not a point of the line.
         let chart = figure::chart(&specs[4], 4, &rows).unwrap();
         let pse = &chart.panels[0].series[1];
-        assert_eq!((pse.points.len(), pse.crosses.len()), (2, 1));
+        assert_eq!((pse.points.len(), pse.marks.len()), (2, 1));
     }
 
     #[test]

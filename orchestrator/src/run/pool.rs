@@ -480,14 +480,28 @@ fn tail_of(path: &std::path::Path) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-/// The fields the orchestrator adds to every record: its key, case id, repeat and version.
+/// The fields the orchestrator adds to every record: its key, case id, repeat and version, and
+/// the `nlstudy` process that ran it (`run_id`: the runs of one invocation share the machine's
+/// state, which is what `compare`'s noise model tells apart from each point's own noise).
 fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
     vec![
         ("key".into(), json!(planned.key)),
         ("case_id".into(), json!(planned.case_id)),
         ("repeat".into(), json!(planned.point.repeat)),
         ("solver_version".into(), json!(solver.version)),
+        ("run_id".into(), json!(run_id())),
     ]
+}
+
+/// This `nlstudy` process: its start in seconds since the epoch and its process id.
+fn run_id() -> &'static str {
+    static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    ID.get_or_init(|| {
+        let start = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        format!("{start}-{}", std::process::id())
+    })
 }
 
 fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Value {

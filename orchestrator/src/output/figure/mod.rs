@@ -2,7 +2,7 @@
 
 use crate::model::expression::{self, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
-use crate::output::draw::{Chart, Panel};
+use crate::output::draw::{Chart, Glyph, Panel};
 use crate::store::table::Row;
 
 mod convergence;
@@ -119,7 +119,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         .clone()
         .unwrap_or_else(|| spec.name.replace('_', " "));
     let mut subtitle_text = String::new();
-    let mut panels = match spec.kind {
+    let panels = match spec.kind {
         FigureKind::SolverComparison => {
             solver_comparison::solver_comparison(&kept, &series_columns, &x, &y)
         }
@@ -156,7 +156,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         p.heat.is_some()
             || p.series
                 .iter()
-                .any(|s| !s.points.is_empty() || !s.crosses.is_empty())
+                .any(|s| !s.points.is_empty() || !s.marks.is_empty())
     };
     if !panels.iter().any(drawn) {
         return Err(fault(
@@ -168,15 +168,15 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             ),
         ));
     }
+    let mut chart = Chart::new(title, subtitle_text, panels);
     if matches!(
         spec.kind,
         FigureKind::StrongScaling | FigureKind::WeakScaling
     ) {
-        scaling::mark_oversubscribed(&kept, &x, &mut panels, &mut subtitle_text);
+        scaling::mark_oversubscribed(&kept, &x, &mut chart);
     }
-    Ok(Chart {
-        title,
-        subtitle: subtitle_text,
-        panels,
-    })
+    if spec.kind == FigureKind::Stability {
+        chart.explain(Glyph::Cross, "diverged: |u| passed the bound");
+    }
+    Ok(chart)
 }

@@ -1,7 +1,7 @@
 //! Strong and weak scaling: time, speedup and efficiency against workers (threads × ranks).
 
 use super::series::*;
-use crate::output::draw::{self, Axis, Guide, Panel, Series};
+use crate::output::draw::{self, Axis, Chart, Glyph, Guide, Panel, Series};
 use crate::store::table::Row;
 use schema::record::Status;
 use serde_json::Value;
@@ -75,13 +75,8 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
 }
 
 /// Crosses over the points run with more workers than the machine had cores (the record's
-/// `oversubscribed`), and a note in the subtitle: their times measure contention, not scaling.
-pub(super) fn mark_oversubscribed(
-    rows: &[&Row],
-    x: &str,
-    panels: &mut [Panel],
-    subtitle: &mut String,
-) {
+/// `oversubscribed`), explained in the legend: their times measure contention, not scaling.
+pub(super) fn mark_oversubscribed(rows: &[&Row], x: &str, chart: &mut Chart) {
     let beyond: Vec<f64> = rows
         .iter()
         .filter(|r| r.get("oversubscribed") == Some(&Value::Bool(true)))
@@ -90,18 +85,14 @@ pub(super) fn mark_oversubscribed(
     if beyond.is_empty() {
         return;
     }
-    for line in panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
-        line.crosses = line
-            .points
-            .iter()
-            .filter(|p| beyond.contains(&p.0))
-            .copied()
-            .collect();
+    for line in chart.panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
+        let crossed = line.points.iter().filter(|p| beyond.contains(&p.0));
+        line.marks.extend(crossed.map(|p| (*p, Glyph::Cross)));
     }
-    if !subtitle.is_empty() {
-        subtitle.push_str("; ");
-    }
-    subtitle.push_str("×: more workers than cores, not performance data");
+    chart.explain(
+        Glyph::Cross,
+        "more workers than cores: contention, not scaling",
+    );
 }
 
 /// Efficiency 1 across the workers shown.

@@ -80,10 +80,7 @@ pub(super) fn group<'a>(rows: &[&'a Row], columns: &[String]) -> Vec<Group<'a>> 
             match c.as_str() {
                 // Series columns already read `name=value name=value`.
                 "point" | "scaling_series" | "refinement_series" => {
-                    for part in value.split(' ') {
-                        let (field, value) = part.split_once('=').unwrap_or(("", part));
-                        parts.push((field.to_string(), value.to_string()));
-                    }
+                    parts.extend(crate::model::study::label_parts(&value));
                 }
                 _ => parts.push((c.strip_prefix("case.").unwrap_or(c).to_string(), value)),
             }
@@ -129,7 +126,7 @@ pub(super) fn shared_by_all(groups: &mut [Group]) -> Vec<(String, String)> {
 pub(super) fn subtitle(shared: &[(String, String)]) -> String {
     let fields: Vec<(String, String)> = shared
         .iter()
-        .filter(|(field, _)| field != "branch")
+        .filter(|(field, value)| field != "branch" && !field.is_empty() && !value.is_empty())
         .cloned()
         .collect();
     read_parts(&fields)
@@ -175,13 +172,7 @@ impl Group<'_> {
 }
 
 pub(super) fn series(label: String, points: Vec<(f64, f64)>) -> Series {
-    Series {
-        label,
-        points,
-        band: Vec::new(),
-        crosses: Vec::new(),
-        note: None,
-    }
+    Series::line(label, points)
 }
 
 pub(super) fn all<'a>(

@@ -1,7 +1,7 @@
 //! Stability: max |u| at the end against dt / dt_stable, diverged runs marked.
 
 use super::series::*;
-use crate::output::draw::{Axis, Guide, Panel, Series};
+use crate::output::draw::{Axis, Glyph, Guide, Panel, Series};
 use schema::record::Status;
 
 pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
@@ -10,23 +10,29 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
         .map(|g| {
             let mut line = series(g.label(), g.points(x, y));
             // A diverged run stops where |u| passed the bound; its cross sits at what it reached.
-            line.crosses = g
+            line.marks = g
                 .rows
                 .iter()
                 .filter(|r| r.status() == Some(Status::Diverged))
                 .filter_map(|r| Some((r.number(x)?, r.number(y).filter(|v| v.is_finite())?)))
+                .map(|p| (p, Glyph::Cross))
                 .collect();
             line
         })
         .collect();
     let ys = lines
         .iter()
-        .flat_map(|s| s.points.iter().chain(&s.crosses).map(|p| p.1))
+        .flat_map(|s| {
+            s.points
+                .iter()
+                .chain(s.marks.iter().map(|(p, _)| p))
+                .map(|p| p.1)
+        })
         .collect::<Vec<_>>();
     let mut x_axis = Axis::linear(describe(x, groups));
     x_axis.include = vec![1.0];
     Panel {
-        title: "stability (× diverged)".into(),
+        title: "stability".into(),
         x: x_axis,
         y: Axis::fitting(describe(y, groups), ys),
         series: lines,
