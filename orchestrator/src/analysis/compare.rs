@@ -22,8 +22,8 @@
 
 use crate::console::number;
 use crate::statistics::{median, SplitMix};
+use crate::store::fingerprint_of;
 use crate::store::table::Row;
-use crate::store::{fingerprint_of, provenance};
 use schema::record::Status;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, HashMap};
@@ -211,7 +211,11 @@ impl NoiseModel {
         type Pairs = Vec<(f64, i32)>;
         let mut by_runs: BTreeMap<(&'static str, String), Pairs> = BTreeMap::new();
         for runs in by_key.values_mut() {
-            runs.sort_by_key(|r| provenance(r, "timestamp"));
+            runs.retain(|r| crate::store::timestamp::of(r).is_some());
+            runs.sort_by(|a, b| {
+                let time = |r: &Value| crate::store::timestamp::of(r).unwrap_or(0.0);
+                time(a).total_cmp(&time(b))
+            });
             for pair in runs.windows(2) {
                 let build = fingerprint_of(pair[0]);
                 let run = |r: &Value| r.get("run_id").and_then(Value::as_str).map(str::to_string);

@@ -194,9 +194,11 @@ fn latest_superseded(history: Vec<Value>) -> Option<Side> {
         let Some(key) = record["key"].as_str().map(str::to_string) else {
             continue;
         };
+        // A record whose time does not read is never the latest.
+        let time = |r: &Value| crate::store::timestamp::of(r).unwrap_or(f64::NEG_INFINITY);
         let newer = latest
             .get(&key)
-            .is_none_or(|kept| provenance(&record, "timestamp") >= provenance(kept, "timestamp"));
+            .is_none_or(|kept| time(&record) >= time(kept));
         if newer {
             latest.insert(key, record);
         }

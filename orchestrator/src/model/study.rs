@@ -897,8 +897,13 @@ pub fn label_parts(label: &str) -> Vec<(String, String)> {
         let name_end = rest.find('=').unwrap_or(0);
         let name = &rest[..name_end];
         name_end > 0
-            && name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
-            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
+            && name
+                .chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
     };
     let mut parts: Vec<(String, String)> = Vec::new();
     let mut rest = label;
@@ -1335,7 +1340,11 @@ mod tests {
         );
         assert!(label_parts("").is_empty());
         assert_eq!(label_parts("cfl=null dt=1e-8").len(), 2);
-        assert_eq!(label_parts("branch=x=y z").len(), 1, "a value may hold = and spaces");
+        assert_eq!(
+            label_parts("branch=x=y z").len(),
+            1,
+            "a value may hold = and spaces"
+        );
     }
 
     #[test]

@@ -686,16 +686,27 @@ pub fn lint(chart: &Chart) -> Vec<String> {
                 ));
             }
         }
-        for series in panel
-            .series
-            .iter()
-            .filter(|s| s.draws() && s.label.is_empty())
-        {
-            let _ = series;
+        if panel.series.iter().any(|s| s.draws() && s.label.is_empty()) {
             defects.push(format!(
                 "panel `{}`: a series drawn without a label",
                 panel.title
             ));
+        }
+        let drawn = |pick: fn(&(f64, f64)) -> f64| {
+            let series = panel.series.iter();
+            let points = series.flat_map(|s| s.points.iter().chain(s.marks.iter().map(|m| &m.0)));
+            points.map(pick).collect::<Vec<f64>>()
+        };
+        for (axis, name, values) in [
+            (&panel.x, "x", drawn(|p| p.0)),
+            (&panel.y, "y", drawn(|p| p.1)),
+        ] {
+            if axis.log && !values.is_empty() && !values.iter().any(|v| *v > 0.0 && v.is_finite()) {
+                defects.push(format!(
+                    "panel `{}`: its {name} axis is logarithmic and no value is positive",
+                    panel.title
+                ));
+            }
         }
     }
     let drawn = drawn_glyphs(chart);

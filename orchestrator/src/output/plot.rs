@@ -117,7 +117,7 @@ mod tests {
     use crate::model::figure_spec::FigureKind;
     use crate::output::draw::Glyph;
     use crate::store::table::Row;
-    use serde_json::json;
+    use serde_json::{json, Value};
 
     /// A summary table with two methods, each on three grids and two worker counts, a
     /// stability sweep with one diverged point, and c_tot series.
@@ -607,6 +607,26 @@ mod tests {
             ),
             "{error}"
         );
+    }
+
+    /// A figure that cannot be made says why in the reader's terms: every run failed (not a
+    /// column the spec names), one worker count for a scaling figure.
+    #[test]
+    fn a_figure_that_cannot_be_made_says_why() {
+        let failed: Vec<Row> = summary()
+            .into_iter()
+            .map(|mut r| {
+                r.set("status", json!("failed"));
+                r.set("error_l2_norm", Value::Null);
+                r
+            })
+            .collect();
+        let error = figure::chart(&specs()[2], 2, &failed).err().unwrap();
+        assert!(error.contains("every run failed"), "{error}");
+        let mut one = specs()[0].clone();
+        one.filter = vec!["n == 64".into(), "threads == 1".into()];
+        let error = figure::chart(&one, 0, &summary()).err().unwrap();
+        assert!(error.contains("one worker count (1)"), "{error}");
     }
 
     #[test]

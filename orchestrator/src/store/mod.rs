@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 pub mod fs;
 pub mod owner;
 pub mod table;
+pub mod timestamp;
 
 use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
 pub use fs::{write_atomically, Fault, FileError};
@@ -307,6 +308,14 @@ impl Store {
             index.stored.insert(record.key, record.stored);
         }
         index
+    }
+
+    /// How many files the store holds (hidden ones left out): what a scan would read.
+    pub fn count(&self) -> usize {
+        std::fs::read_dir(&self.runs).map_or(0, |entries| {
+            let visible = |e: &std::fs::DirEntry| !e.file_name().to_string_lossy().starts_with('.');
+            entries.flatten().filter(visible).count()
+        })
     }
 
     /// The paths of the store's files (hidden ones left out), in name order.

@@ -36,7 +36,9 @@ impl Store {
 
     /// Checks that `study_file` (whose text is `text`) owns the results directory, and with
     /// `write` records it as the owner when none is, when it `adopt`s the directory, or when
-    /// its text changed. A directory another file owns is refused unless `adopt`.
+    /// its text changed. A directory another file owns is refused unless `adopt`. A writer
+    /// reads, decides and writes under the directory's owner lock: of two commands claiming one
+    /// new directory at once (`--adopt` or not), the second sees the first's claim.
     pub fn claim(
         &self,
         study_file: &Path,
@@ -48,6 +50,17 @@ impl Store {
         let me = Owner {
             study_file: path,
             sha256: hex(&Sha256::digest(text.as_bytes())),
+        };
+        let _held = match write {
+            true => {
+                let lock = crate::store::fs::lock_file(&self.table(""), ".owner.lock")
+                    .map_err(Refusal::Io)?;
+                lock.lock().map_err(|e| {
+                    Refusal::Io(FileError::new("lock", &self.table(".owner.lock"), e))
+                })?;
+                Some(lock)
+            }
+            false => None,
         };
         let owner = self.owner();
         match &owner {
@@ -98,6 +111,34 @@ mod tests {
             store.owner().unwrap().study_file,
             std::fs::canonicalize(&second).unwrap()
         );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Two commands of two study files claim one new results directory at once: one owns it,
+    /// the other is refused, every time.
+    #[test]
+    fn of_two_claims_at_once_one_wins() {
+        let dir = std::env::temp_dir().join(format!("nlstudy-owner-race-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let files = [dir.join("a.json"), dir.join("b.json")];
+        for file in &files {
+            std::fs::write(file, "{}").unwrap();
+        }
+        for k in 0..40 {
+            let results = dir.join(format!("results-{k}"));
+            let won: Vec<bool> = std::thread::scope(|scope| {
+                let claims: Vec<_> = files
+                    .iter()
+                    .map(|file| {
+                        let store = Store::open(&results, "s");
+                        scope.spawn(move || store.claim(file, "{}", false, true).is_ok())
+                    })
+                    .collect();
+                claims.into_iter().map(|c| c.join().unwrap()).collect()
+            });
+            assert_eq!(won.iter().filter(|w| **w).count(), 1, "round {k}: {won:?}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

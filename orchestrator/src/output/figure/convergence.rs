@@ -52,6 +52,13 @@ fn along(points: &[(f64, f64)], x: f64) -> f64 {
     y0 + t * (y1 - y0)
 }
 
+/// An observed order as a figure states it: two decimals (a slope read off a log–log plot has
+/// no more), and 0 for an order that rounds to 0 (`-0.0001` of a stalled error reads as 0).
+fn order_text(order: f64) -> String {
+    let rounded = (order * 100.0).round() / 100.0;
+    number(if rounded == 0.0 { 0.0 } else { rounded })
+}
+
 pub(super) fn convergence(groups: &[Group], x: &str, y: &str) -> Panel {
     let mut lines = Vec::new();
     let mut fits = Vec::new();
@@ -64,10 +71,10 @@ pub(super) fn convergence(groups: &[Group], x: &str, y: &str) -> Panel {
             line.label = format!(
                 "{}: order {} fitted, {} finest pair",
                 line.label,
-                number(fit),
-                number(finest)
+                order_text(fit),
+                order_text(finest)
             );
-            line.note = Some(number(fit));
+            line.note = Some(order_text(fit));
         }
         fits.push(fit);
         lines.push(line);
@@ -171,10 +178,14 @@ mod tests {
             panel.series[0].label,
             format!(
                 "all points: order {} fitted, {} finest pair",
-                number(fit),
-                number(finest)
+                order_text(fit),
+                order_text(finest)
             )
         );
+        // A stalled error's order is 0, not -0.0001.
+        assert_eq!(order_text(-1e-4), "0");
+        assert_eq!(order_text(1.996), "2");
+        assert_eq!(order_text(0.8449), "0.84");
         // Deterministic errors: no repeat counts.
         assert!(!panel.series[0].label.contains("repeat"));
         assert!(

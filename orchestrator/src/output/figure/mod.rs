@@ -4,6 +4,7 @@ use crate::model::expression::{self, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::output::draw::{Chart, Glyph, Panel};
 use crate::store::table::Row;
+use schema::record::Status;
 
 mod convergence;
 mod field;
@@ -50,6 +51,11 @@ pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<
 
 /// The chart of figure `k` of a study whose summary table is `rows`.
 pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String> {
+    // Before the columns are looked for: a column no run filled is no fault of the spec.
+    let has_result = |r: &&Row| matches!(r.status(), Some(Status::Ok | Status::Diverged));
+    if !rows.iter().any(|r| has_result(&r)) {
+        return Err(fault(k, spec, format!("every run failed: none of the {} points of the summary table has a result to draw; `nlstudy status` lists why", rows.len())));
+    }
     let (dx, dy, ds) = spec.kind.defaults();
     let magnitude = spec
         .y
@@ -104,6 +110,16 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
     let kept = selected(spec, k, rows)?;
     if kept.is_empty() {
         return Err(fault(k, spec, format!("where selects no row of the summary table ({} rows); compare its conditions with the table's values (`nlstudy table` shows them)", rows.len())));
+    }
+    if !kept.iter().any(has_result) {
+        return Err(fault(
+            k,
+            spec,
+            format!(
+                "every run of the {} points `where` selects failed; `nlstudy status` lists why",
+                kept.len()
+            ),
+        ));
     }
     // Points of several solver builds (a table collected with --allow-mixed) are never joined
     // into one line: the build splits the series and names them.
@@ -167,6 +183,17 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
                 kept.len()
             ),
         ));
+    }
+    if matches!(
+        spec.kind,
+        FigureKind::StrongScaling | FigureKind::WeakScaling
+    ) {
+        let mut workers: Vec<f64> = kept.iter().filter_map(|r| r.number(&x)).collect();
+        workers.sort_by(f64::total_cmp);
+        workers.dedup();
+        if workers.len() < 2 {
+            return Err(fault(k, spec, format!("the points `where` selects ran on one worker count ({}); a scaling figure needs two or more", workers.first().map_or("none".to_string(), |w| crate::console::number(*w)))));
+        }
     }
     let mut chart = Chart::new(title, subtitle_text, panels);
     if matches!(
