@@ -15,6 +15,49 @@ fn small_study(sizes: &[u64]) -> Value {
     })
 }
 
+/// What the solver can check without running is checked by `plan`: a time step above the
+/// integrator's dt_stable (from the stencil's symbol) or `cfl` above 1 without
+/// `allow_unstable`, each refused naming its field, its numbers to four significant digits.
+#[test]
+fn plan_refuses_a_time_step_the_run_would_refuse() {
+    for (base, field, said) in [
+        (
+            json!({"dim": 1, "n": 64, "m": 2, "t_end": 0.1, "dt": 0.01, "integrator": "rk4"}),
+            "`dt`",
+            "gives dt = 0.01 above dt_stable = 0.0002901",
+        ),
+        (
+            json!({"dim": 1, "n": 16, "m": 2, "t_end": 0.1, "cfl": 5}),
+            "`cfl`",
+            "above dt_stable",
+        ),
+        (
+            json!({"method": "fd_explicit", "problem": "eigenmode", "dim": 2, "n": 16, "t_end": 0.1, "cfl": 1.5}),
+            "`cfl`",
+            "above dt_stable",
+        ),
+    ] {
+        let scratch = Scratch::new("plan-dt", &json!({"name": "dt", "base": base}));
+        let out = scratch.nlstudy("plan", &[]);
+        let said_all = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{said_all}");
+        assert!(
+            said_all.contains(field) && said_all.contains(said),
+            "{said_all}"
+        );
+        let numbers = said_all
+            .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+            .filter(|w| w.contains('.') && w.parse::<f64>().is_ok());
+        for number in numbers {
+            let digits = number.split('e').next().unwrap().replace(['.', '-'], "");
+            assert!(
+                digits.trim_start_matches('0').len() <= 4,
+                "{number} in {said_all}"
+            );
+        }
+    }
+}
+
 #[test]
 fn a_second_run_runs_nothing_and_a_new_axis_value_runs_only_its_points() {
     let scratch = Scratch::new("cache", &small_study(&[16, 32]));

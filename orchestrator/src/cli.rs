@@ -473,8 +473,26 @@ fn plan_command(args: &PlanArgs) -> Result<ExitCode, Failure> {
         "{runs} to run, {} stored{shared}",
         planned.len() - runs - duplicates
     );
+    say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Names the points to run that this machine could not (memory, cores): `run` would store them
+/// failed here, a cluster may run them (`submit`), so they are said, not refused.
+fn say_what_does_not_fit(planned: &[Planned]) {
+    let crowded: Vec<(&Planned, &str)> = planned
+        .iter()
+        .filter(|p| p.runs())
+        .filter_map(|p| Some((p, p.case.as_ref().ok()?.machine.as_deref()?)))
+        .collect();
+    if let Some((first, why)) = crowded.first() {
+        say!(
+            "nlstudy: {} points to run do not fit this machine, and would fail if run here (the first, {}: {why}); `nlstudy submit` them to a cluster, or make them smaller",
+            crowded.len(),
+            first.point.label()
+        );
+    }
 }
 
 /// Stops a command when the solver refused points (unless `allowed`): each distinct refusal
@@ -499,6 +517,7 @@ fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {
 fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
     no_refusals(&planned, args.plan.allow_refused)?;
+    say_what_does_not_fit(&planned);
     let cores = crate::run::pool::machine_cores();
     let timeout = match args.timeout {
         Some(seconds) => Some(timeout(seconds, "--timeout")?),

@@ -9,4 +9,5 @@ pub mod choices;
 pub mod error;
 pub mod json;
 pub mod record;
+pub mod text;
 pub mod transform;

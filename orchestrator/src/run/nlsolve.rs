@@ -29,6 +29,9 @@ pub struct Checked {
     canonical: Box<str>,
     /// Every field the method uses, defaults filled in: what tables and messages show.
     resolved: Resolved,
+    /// Why this machine could not run it (memory, cores), when it could not: said by a plan
+    /// that runs here, never a refusal (the case may run on a cluster).
+    pub machine: Option<Box<str>>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -174,6 +177,7 @@ struct Verdict {
     case: Option<Map<String, Value>>,
     resolved: Option<Map<String, Value>>,
     error: Option<String>,
+    machine: Option<String>,
 }
 
 /// The verdict on one line; `shared` holds the distinct sets of filled-in defaults seen so far.
@@ -184,6 +188,7 @@ fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked
         Verdict {
             case: Some(canonical),
             resolved,
+            machine,
             ..
         } => {
             // A solver from before `resolved` was printed: its case as it is.
@@ -205,6 +210,7 @@ fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked
             Ok(Checked {
                 canonical: Value::Object(canonical).to_string().into(),
                 resolved,
+                machine: machine.map(String::into_boxed_str),
             })
         }
         Verdict {

@@ -705,6 +705,24 @@ fn partition_report(args: &CaseArgs) -> Result<(), Failure> {
 }
 
 /// `nlsolve check`: validates each case of standard input and prints its canonical form.
+/// `nlsolve check`'s answer on a case whose fields are valid: its time step checked as `run`
+/// would check it (`methods::preflight`), then `case` (which keys the run), `resolved` (the same
+/// case as people read it) and, when this machine could not run it, `machine`: why, which a plan
+/// reports without refusing (the case may run elsewhere).
+fn verdict(
+    case: &ValidCase,
+    memo: &mut std::collections::HashMap<String, Result<f64, solver::case::CaseError>>,
+) -> Value {
+    if let Err(e) = solver::methods::preflight(case, memo) {
+        return serde_json::json!({ "error": e.to_string() });
+    }
+    let mut verdict = serde_json::json!({ "case": **case, "resolved": case.resolved() });
+    if let Err(e) = solver::methods::resources::fit_machine(case) {
+        verdict["machine"] = Value::from(e.to_string());
+    }
+    verdict
+}
+
 fn check_cases() -> Result<(), Failure> {
     let failed = |e: std::io::Error| {
         Failure::Output(format!("cannot write the verdicts to standard output: {e}"))
@@ -716,6 +734,7 @@ fn check_cases() -> Result<(), Failure> {
     let mut input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin().lock());
     let mut line = String::new();
     let mut printed = Vec::new();
+    let mut memo = std::collections::HashMap::new();
     loop {
         line.clear();
         let read = input
@@ -727,8 +746,7 @@ fn check_cases() -> Result<(), Failure> {
         if !line.trim().is_empty() {
             let verdict = match schema::json::parse(&line) {
                 Ok(fields) => match ValidCase::from_json(fields) {
-                    // `case` keys the run; `resolved` is the same case as people read it.
-                    Ok(case) => serde_json::json!({ "case": *case, "resolved": case.resolved() }),
+                    Ok(case) => verdict(&case, &mut memo),
                     Err(e) => serde_json::json!({ "error": e.to_string() }),
                 },
                 Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),

@@ -53,15 +53,10 @@ pub fn horizon_length(case: &Case) -> f64 {
         .unwrap_or(0.0)
 }
 
-/// A number as a message shows it: plain between 10⁻⁴ and 10⁶, else in scientific notation
-/// (so 1e-300 reads as `1e-300`, not as 300 digits).
+/// A number as a message shows it: four significant digits, in scientific notation far from 1
+/// (so 1e-300 reads as `1e-300`, not as 300 digits; `schema::text::number`).
 pub fn readable(x: f64) -> String {
-    let magnitude = x.abs();
-    if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&magnitude) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
+    schema::text::number(x)
 }
 
 /// A case whose fields passed the rules of every case and of its method. Only
@@ -172,8 +167,10 @@ impl Rules for Case {
             Some(rtol) if rtol < MIN_RTOL => Err(CaseError::new(
                 "rtol",
                 format!(
-                    "{} is below {MIN_RTOL:e}, what a residual computed in double precision can reach (rounding of a few ε_mach = 2.2e-16 per term), so the solve would run to `max_iterations` and end `diverged`; use rtol ≥ {MIN_RTOL:e}",
-                    readable(rtol)
+                    "{} is below {}, what a residual computed in double precision can reach (rounding of a few ε_mach = 2.2e-16 per term), so the solve would run to `max_iterations` and end `diverged`; use rtol ≥ {}",
+                    readable(rtol),
+                    readable(MIN_RTOL),
+                    readable(MIN_RTOL)
                 ),
             )),
             _ => Ok(()),
@@ -246,8 +243,9 @@ fn validate_diagnostics(case: &Case) -> Result<(), CaseError> {
             return Err(CaseError::new(
                 "diagnostics_every",
                 format!(
-                    "asks for t_end / diagnostics_every = {} samples of c_tot(t), more than {MAX_SERIES_SAMPLES:e}; enlarge `diagnostics_every` to at least {}",
+                    "asks for t_end / diagnostics_every = {} samples of c_tot(t), more than {}; enlarge `diagnostics_every` to at least {}",
                     readable(samples),
+                    readable(MAX_SERIES_SAMPLES),
                     readable(case.t_end() / MAX_SERIES_SAMPLES)
                 ),
             ));
@@ -374,10 +372,10 @@ pub(crate) fn validate_diffusivity(k: f64) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "diffusivity",
             format!(
-                "k = {} lies outside [{:e}, {:e}]: the weights (∝ k), the sources (∝ k) and dt_stable (∝ h²/k) overflow or vanish; the problems are scaled for k of order 1, use one",
+                "k = {} lies outside [{}, {}]: the weights (∝ k), the sources (∝ k) and dt_stable (∝ h²/k) overflow or vanish; the problems are scaled for k of order 1, use one",
                 readable(k),
-                DIFFUSIVITY_RANGE.start(),
-                DIFFUSIVITY_RANGE.end()
+                readable(*DIFFUSIVITY_RANGE.start()),
+                readable(*DIFFUSIVITY_RANGE.end())
             ),
         ));
     }

@@ -53,8 +53,10 @@ pub(crate) fn time_step(
         return Err(CaseError::new(
             field,
             format!(
-                "gives dt = {requested:e} above dt_stable = {dt_stable:e} for this case; lower `dt`, \
-                 use `cfl` ≤ 1, or set `allow_unstable: true` to probe instability"
+                "gives dt = {} above dt_stable = {} for this case; lower `dt`, \
+                 use `cfl` ≤ 1, or set `allow_unstable: true` to probe instability",
+                readable(requested),
+                readable(dt_stable)
             ),
         ));
     }
@@ -66,8 +68,10 @@ pub(crate) fn time_step(
         return Err(CaseError::new(
             "diffusivity",
             format!(
-                "k = {} makes dt_stable ∝ h²/k so small that t_end needs {steps:e} steps of cfl·dt_stable, more than {MAX_STEPS:e}; use a smaller diffusivity (or a shorter `t_end`)",
-                readable(k)
+                "k = {} makes dt_stable ∝ h²/k so small that t_end needs {} steps of cfl·dt_stable, more than {}; use a smaller diffusivity (or a shorter `t_end`)",
+                readable(k),
+                readable(steps),
+                readable(MAX_STEPS as f64)
             ),
         ));
     }
@@ -75,7 +79,9 @@ pub(crate) fn time_step(
         return Err(CaseError::new(
             "t_end",
             format!(
-                "t_end / dt = {steps:e} steps, more than {MAX_STEPS:e}; shorten `t_end` or enlarge the time step"
+                "t_end / dt = {} steps, more than {}; shorten `t_end` or enlarge the time step",
+                readable(steps),
+                readable(MAX_STEPS as f64)
             ),
         ));
     }

@@ -129,11 +129,12 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         ))
     } else if (b - a) * case.n as f64 > MAX_LOCAL_ELEMENTS {
         Some(format!(
-            "meshing [a, b] = [{}, {}] at h = 1/{} takes {:.1e} elements, above {MAX_LOCAL_ELEMENTS:e}; shorten the local domain",
+            "meshing [a, b] = [{}, {}] at h = 1/{} takes {} elements, above {}; shorten the local domain",
             readable(a),
             readable(b),
             case.n,
-            (b - a) * case.n as f64
+            readable((b - a) * case.n as f64),
+            readable(MAX_LOCAL_ELEMENTS as f64)
         ))
     } else {
         None
@@ -191,9 +192,10 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             field,
             format!(
-                "the set-up would take about {} s ({:.1e} operations at {SETUP_RATE:e} per second: the nonlocal assembly grows as ε n², its factor and control responses as ε² n³, the local model as its length × n), more than the {MAX_SETUP_S} s accepted; {fix}",
+                "the set-up would take about {} s ({} operations at {} per second: the nonlocal assembly grows as ε n², its factor and control responses as ε² n³, the local model as its length × n), more than the {MAX_SETUP_S} s accepted; {fix}",
                 readable(seconds.round()),
-                nonlocal + local
+                readable(nonlocal + local),
+                readable(SETUP_RATE)
             ),
         ));
     }

@@ -295,6 +295,15 @@ fn relax_row(out: &mut [f64], row: &[f64], below: &[f64], above: &[f64], ax: f64
     diagnostics::block_max_abs(out)
 }
 
+/// The time step of a grid case, checked as `run` checks it: what `nlsolve check` refuses
+/// before anything runs.
+pub fn preflight(case: &ValidCase, implicit: bool) -> Result<f64, CaseError> {
+    let dt_stable =
+        LocalGrid::new(case.dim, case.n, case.length()).explicit_dt_stable(case.diffusivity);
+    crate::integrate::time_step::time_step(case, dt_stable, implicit)?;
+    Ok(dt_stable)
+}
+
 /// Runs a grid case (`fd_explicit`, or `adi` when `implicit`).
 pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();

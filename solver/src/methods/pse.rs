@@ -89,6 +89,43 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 }
 
 /// The refusal of a kernel so narrow that no other particle lies within its cutoff.
+/// 2/λ_max of the particles of spacing h in `dim` dimensions (module comment), or None when no
+/// other particle lies within r_c: from the lattice of offsets alone, nothing allocated.
+fn dt_stable(dim: usize, h: f64, eps: f64, diffusivity: f64) -> Option<f64> {
+    let cutoff_squared = eps * eps * CUTOFF_LOG;
+    let reach = (cutoff_squared.sqrt() / h).ceil() as i64;
+    let offsets = -reach..=reach;
+    let rows = if dim == 2 { offsets.clone() } else { 0..=0 };
+    let mut odd_sum = 0.0;
+    for oy in rows {
+        for ox in offsets.clone() {
+            let r2 = ((ox * ox + oy * oy) as f64) * h * h;
+            if (ox + oy) % 2 != 0 && r2 < cutoff_squared {
+                odd_sum += (-r2 / (eps * eps)).exp();
+            }
+        }
+    }
+    // K = D V η_ε(0) / ε², as `Particles::rate_factor`.
+    let eta0 = 4.0 / (PI.powf(dim as f64 / 2.0) * eps.powi(dim as i32));
+    let rate_factor = diffusivity * h.powi(dim as i32) * eta0 / (eps * eps);
+    let lambda_max = 2.0 * rate_factor * odd_sum;
+    (lambda_max > 0.0).then(|| 2.0 / lambda_max)
+}
+
+/// The time step of a `pse` case, checked as `run` checks it, without its particles: what
+/// `nlsolve check` refuses before anything runs.
+pub fn preflight(case: &ValidCase) -> Result<f64, CaseError> {
+    let (field, eps) = match (case.m, case.eps) {
+        (Some(m), _) => ("m", m as f64 * case.length() / case.n as f64),
+        (None, eps) => ("eps", eps.expect("validated: m or eps")),
+    };
+    let h = case.length() / case.n as f64;
+    let dt_stable =
+        dt_stable(case.dim, h, eps, case.diffusivity).ok_or_else(|| too_narrow(field, eps, h))?;
+    time_step(case, dt_stable, false)?;
+    Ok(dt_stable)
+}
+
 fn too_narrow(field: &str, eps: f64, h: f64) -> CaseError {
     CaseError::new(
         field,
@@ -313,24 +350,7 @@ impl Particles {
 
     /// 2/λ_max (module comment), or None when no other particle lies within r_c.
     pub fn dt_stable(&self, diffusivity: f64) -> Option<f64> {
-        let reach = (self.cutoff_squared.sqrt() / self.h).ceil() as i64;
-        let offsets = -reach..=reach;
-        let rows = if self.dim == 2 {
-            offsets.clone()
-        } else {
-            0..=0
-        };
-        let mut odd_sum = 0.0;
-        for oy in rows {
-            for ox in offsets.clone() {
-                let r2 = ((ox * ox + oy * oy) as f64) * self.h * self.h;
-                if (ox + oy) % 2 != 0 && r2 < self.cutoff_squared {
-                    odd_sum += (-r2 / (self.eps * self.eps)).exp();
-                }
-            }
-        }
-        let lambda_max = 2.0 * self.rate_factor(diffusivity) * odd_sum;
-        (lambda_max > 0.0).then(|| 2.0 / lambda_max)
+        dt_stable(self.dim, self.h, self.eps, diffusivity)
     }
 
     /// Particles and their images.

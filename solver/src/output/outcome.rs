@@ -1,5 +1,6 @@
 //! A finished run: what its time loop measured, turned into its record, with its final field.
 
+use crate::case::readable;
 use crate::case::Case;
 use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{Histogram, MassSeries};
@@ -47,17 +48,19 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         (None, Some((name, value))) => (
             Status::Diverged,
             format!(
-                "`{name}` is {value} at t = {t_final} although max |u| stayed below {:e}: the run produced no finite result; dt/dt_stable = {:.4}",
-                measured.divergence_bound,
-                resolved.dt / resolved.dt_stable
+                "`{name}` is {value} at t = {} although max |u| stayed below {}: the run produced no finite result; dt/dt_stable = {}",
+                readable(t_final),
+                readable(measured.divergence_bound),
+                readable(resolved.dt / resolved.dt_stable)
             ),
         ),
         (Some(step), _) => (
             Status::Diverged,
             format!(
-                "max |u| exceeded {:e} at step {step} (t = {t_final}); dt/dt_stable = {:.4}",
-                measured.divergence_bound,
-                resolved.dt / resolved.dt_stable
+                "max |u| exceeded {} at step {step} (t = {}); dt/dt_stable = {}",
+                readable(measured.divergence_bound),
+                readable(t_final),
+                readable(resolved.dt / resolved.dt_stable)
             ),
         ),
     };

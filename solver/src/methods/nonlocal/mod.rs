@@ -105,6 +105,41 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     Ok(())
 }
 
+/// Forward Euler's stable step of the stencil, once the stencil is known to have weight (see
+/// `check_operator_does_not_vanish`).
+fn operator_dt_stable(case: &Case, stencil: &Stencil) -> Result<f64, CaseError> {
+    check_operator_does_not_vanish(case, stencil)?;
+    Ok(forward_euler_dt_stable(stencil))
+}
+
+/// The integrator's dt_stable (forward Euler's for the implicit ones, which are stable at any
+/// dt: `cfl` for them is relative to it), and the time step and steps the case takes.
+fn step_of(case: &Case, euler_dt_stable: f64) -> Result<(f64, f64, usize), CaseError> {
+    let explicit_dt_stable = dt_stable(case.integrator, euler_dt_stable);
+    let dt_stable = explicit_dt_stable.unwrap_or(euler_dt_stable);
+    let (dt, steps) = time_step(case, dt_stable, explicit_dt_stable.is_none())?;
+    Ok((dt_stable, dt, steps))
+}
+
+/// The time step of a constant-horizon case, checked as `run` checks it (a horizon without
+/// weight, dt above dt_stable, too many steps) without building more than the stencil: what
+/// `nlsolve check` refuses before anything runs. Forward Euler's stable step depends only on
+/// the stencil's fields, so it is kept in `memo` by them: a plan of 10⁵ points builds few.
+pub fn preflight(
+    case: &Case,
+    memo: &mut std::collections::HashMap<String, Result<f64, CaseError>>,
+) -> Result<f64, CaseError> {
+    let key = format!(
+        "{} {} {:?} {:?} {:?} {:?} {}",
+        case.dim, case.n, case.m, case.eps, case.kernel, case.quadrature, case.diffusivity
+    );
+    let euler = memo
+        .entry(key)
+        .or_insert_with(|| operator_dt_stable(case, &Stencil::of_case(case)))
+        .clone()?;
+    step_of(case, euler).map(|(dt_stable, ..)| dt_stable)
+}
+
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
 pub(crate) struct Plan {
     pub stencil: Stencil,
@@ -120,13 +155,8 @@ pub(crate) struct Plan {
 impl Plan {
     pub fn new(case: &Case) -> Result<Plan, CaseError> {
         let stencil = Stencil::of_case(case);
-        check_operator_does_not_vanish(case, &stencil)?;
-        // The implicit integrators are stable at any dt; `cfl` for them is relative to forward
-        // Euler's bound, which the record keeps as dt_stable.
-        let euler_dt_stable = forward_euler_dt_stable(&stencil);
-        let explicit_dt_stable = dt_stable(case.integrator, euler_dt_stable);
-        let dt_stable = explicit_dt_stable.unwrap_or(euler_dt_stable);
-        let (dt, steps) = time_step(case, dt_stable, explicit_dt_stable.is_none())?;
+        let euler_dt_stable = operator_dt_stable(case, &stencil)?;
+        let (dt_stable, dt, steps) = step_of(case, euler_dt_stable)?;
         check_neighbour_list_size(case, &stencil)?;
         let backend = operator::resolve(case.backend, &stencil);
         Ok(Plan {

@@ -278,8 +278,9 @@ pub(crate) fn outcome(
         (
             Status::Diverged,
             format!(
-                "stopped after {iterations} iterations with residual {:.3e}, above rtol = {:e}",
-                stop.residual, problem.rtol
+                "stopped after {iterations} iterations with residual {}, above rtol = {}",
+                crate::case::readable(stop.residual),
+                crate::case::readable(problem.rtol)
             ),
         )
     } else {

@@ -1,0 +1,108 @@
+//! Numbers as people read them, in the messages, tables, axes and summaries of both binaries:
+//! four significant digits (`%.4g`), whole numbers in full.
+
+/// Significant digits of every number people read: tables, summaries, axes, messages.
+pub const SIGNIFICANT: usize = 4;
+
+/// A number as people read it: whole numbers in full (grid sizes, counts), others with
+/// `SIGNIFICANT` digits, trailing zeros dropped, in scientific notation (`9.451e-9`) when fixed
+/// notation would need more than four leading zeros or digits (as C's `%.4g`).
+pub fn number(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x.fract() == 0.0 && x.abs() < 1e15 {
+        return format!("{}", x as i64);
+    }
+    if scientific(x) {
+        return scientific_text(x);
+    }
+    let exponent = decimal_exponent(x);
+    let decimals = (SIGNIFICANT as i32 - 1 - exponent).max(0) as usize;
+    trim_zeros(format!("{x:.decimals$}"))
+}
+
+/// Numbers that are read side by side (one axis's ticks, one column): in one notation, so
+/// `1e-4` does not stand beside `0.01`; scientific for all when any needs it.
+pub fn numbers_alike(values: &[f64]) -> Vec<String> {
+    if values
+        .iter()
+        .any(|&x| x.is_finite() && x != 0.0 && scientific(x))
+    {
+        values
+            .iter()
+            .map(|&x| match x {
+                0.0 => "0".to_string(),
+                x if x.is_finite() => scientific_text(x),
+                x => format!("{x}"),
+            })
+            .collect()
+    } else {
+        values.iter().map(|&x| number(x)).collect()
+    }
+}
+
+/// The exponent of `x` once rounded to `SIGNIFICANT` digits (9.9996 rounds to 10: exponent 1).
+fn decimal_exponent(x: f64) -> i32 {
+    if x == 0.0 {
+        return 0;
+    }
+    let rounded: f64 = format!("{:.*e}", SIGNIFICANT - 1, x).parse().unwrap_or(x);
+    rounded.abs().log10().floor() as i32
+}
+
+fn scientific(x: f64) -> bool {
+    let exponent = decimal_exponent(x);
+    x.fract() != 0.0 && (exponent < -4 || exponent >= SIGNIFICANT as i32) || x.abs() >= 1e15
+}
+
+/// `9.451e-9`, `1e-4`, `-2.5e6`.
+fn scientific_text(x: f64) -> String {
+    let text = format!("{:.*e}", SIGNIFICANT - 1, x);
+    let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+    format!("{}e{exponent}", trim_zeros(mantissa.to_string()))
+}
+
+fn trim_zeros(text: String) -> String {
+    if !text.contains('.') {
+        return text;
+    }
+    let trimmed = text.trim_end_matches('0').trim_end_matches('.');
+    match trimmed {
+        "-0" => "0".to_string(),
+        t => t.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_read_with_four_significant_digits() {
+        let cases = [
+            (0.000003, "3e-6"),
+            (9.4513e-9, "9.451e-9"),
+            (4e-7, "4e-7"),
+            (0.03125, "0.03125"),
+            (2.0700001, "2.07"),
+            (-0.18, "-0.18"),
+            (1024.0, "1024"),
+            (16384.0, "16384"),
+            (0.0, "0"),
+            (1.0, "1"),
+            (123.456, "123.5"),
+            (12345.6, "1.235e4"),
+            (9.99996, "10"),
+            (0.00012346, "0.0001235"),
+            (-0.0, "0"),
+            (2e20, "2e20"),
+        ];
+        for (x, text) in cases {
+            assert_eq!(number(x), text, "{x}");
+        }
+        assert_eq!(numbers_alike(&[1e-5, 0.01, 1.0]), ["1e-5", "1e-2", "1e0"]);
+        assert_eq!(numbers_alike(&[1e-4, 0.01, 1.0]), ["0.0001", "0.01", "1"]);
+        assert_eq!(numbers_alike(&[0.0, 0.5, 1.0]), ["0", "0.5", "1"]);
+    }
+}
