@@ -2,7 +2,8 @@
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
-# a person would, and Python's vtk, whose readers open the solver's VTK files. With --slurm, the
+# a person would, Python's vtk, whose readers open the solver's VTK files, and pyarrow, which
+# reads the Parquet tables as the README says. With --slurm, the
 # packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its accounting
 # (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs (iproute2).
 # Cheap when everything is there, so `make run` and `make test` call it every time.
@@ -53,10 +54,11 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
-if $for_tests && ! python3 -c "import vtkmodules.vtkIOXML" 2>/dev/null; then
-  command -v python3 >/dev/null || { echo "setup: python3 not found; the tests read VTK files with Python's vtk" >&2; exit 1; }
-  echo "setup: installing Python's vtk (pip)" >&2
-  python3 -m pip install --quiet --root-user-action=ignore vtk
+# Python's vtk opens the solver's VTK files and pyarrow the Parquet tables, as users do.
+if $for_tests && ! python3 -c "import vtkmodules.vtkIOXML, pyarrow.parquet" 2>/dev/null; then
+  command -v python3 >/dev/null || { echo "setup: python3 not found; the tests read VTK files with Python's vtk and tables with pyarrow" >&2; exit 1; }
+  echo "setup: installing Python's vtk and pyarrow (pip)" >&2
+  python3 -m pip install --quiet --root-user-action=ignore vtk pyarrow
 fi
 
 command -v cargo >/dev/null || { echo "setup: cargo not found; install the Rust toolchain (rustup)" >&2; exit 1; }

@@ -169,6 +169,9 @@ fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
         "status",
         "case.n",
         "case.threads",
+        "threads",
+        "ranks",
+        "run_id",
         "case.m",
         "h",
         "eps",
@@ -188,6 +191,19 @@ fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
         );
     }
     assert_eq!(runs.column("case.n").unwrap().dtype(), &DataType::Int64);
+    // The README's recipe for the tables' metadata, as a pandas user runs it.
+    let recipe = "import pyarrow.parquet as pq, sys\nmeta = pq.ParquetFile(sys.argv[1]).metadata.metadata\nprint(meta[b'note:point'].decode(), meta[b'unit:solve_s'].decode())";
+    let read = Command::new("python3")
+        .args(["-c", recipe])
+        .arg(table("small.parquet"))
+        .output()
+        .expect("python3 starts");
+    assert!(read.status.success(), "pyarrow: {}", text(&read));
+    assert!(
+        text(&read).contains("label:") && text(&read).trim_end().ends_with(" s"),
+        "{}",
+        text(&read)
+    );
     assert_eq!(runs.column("solve_s").unwrap().dtype(), &DataType::Float64);
     assert_eq!(runs.column("status").unwrap().dtype(), &DataType::String);
     // The case as resolved: defaults the study left out are filled in, never null.
@@ -375,9 +391,9 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     std::fs::create_dir_all(scratch.dir.join("results")).unwrap();
     let absolute = |p: PathBuf| std::fs::canonicalize(p).unwrap().display().to_string();
     let results = || absolute(scratch.dir.join("results"));
-    let command = |launcher: &str| {
+    let command = |launcher: &str, export: &str| {
         format!(
-            "set -eo pipefail\nset -u\nexec '{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
+            "set -eo pipefail\nset -u\n{export}exec '{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
             binary("nlstudy").display(),
             absolute(scratch.study()),
             results(),
@@ -396,7 +412,10 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
          #SBATCH --account=nonlocal\n#SBATCH --exclusive\n\
          #SBATCH --output=\"{jobs}/nlstudy-two-0.%j.out\"\n#SBATCH --open-mode=append\n\
          #SBATCH --signal=B:TERM@60\n#SBATCH --requeue\n{}",
-        command("srun --mpi=pmix -n {ranks}")
+        command(
+            "srun --mpi=pmix -n {ranks} -c {threads}",
+            "export SRUN_CPUS_PER_TASK=\"${SLURM_CPUS_PER_TASK:-1}\"\n"
+        )
     );
     assert_eq!(script, expected);
     // The structure both schedulers' scripts share (Slurm's also runs under a real sbatch in
@@ -418,10 +437,13 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     assert!(lsf.status.success(), "{}", text(&lsf));
     let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.bsub")).unwrap();
     let expected = format!(
-        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 1:30\n\
+        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 1:30\n\
          #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -x\n#BSUB -o \"{jobs}/nlstudy-two-0.%J.out\"\n\
          #BSUB -wa TERM\n#BSUB -wt 1\n#BSUB -r\n{}",
-        command("mpirun -n {ranks}")
+        command(
+            "mpirun -n {ranks} --map-by slot:PE={threads} --bind-to core",
+            ""
+        )
     );
     assert_eq!(script, expected);
     check_job_structure(&script, "#BSUB", &keys);
@@ -600,7 +622,17 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
             "{line}: an option without a value"
         );
     }
-    let body = &lines[directives..];
+    // Slurm's steps take the job's cores per task from SRUN_CPUS_PER_TASK (Slurm ≥ 22.05).
+    let body: Vec<&str> = lines[directives..]
+        .iter()
+        .copied()
+        .filter(|l| !l.starts_with("export SRUN_CPUS_PER_TASK="))
+        .collect();
+    assert_eq!(
+        lines.len() - directives - body.len(),
+        usize::from(directive == "#SBATCH"),
+        "{script}"
+    );
     assert_eq!(body.len(), 3, "{script}");
     assert_eq!(body[..2], ["set -eo pipefail", "set -u"]);
     let words: Vec<&str> = body[2].split_whitespace().collect();
@@ -630,8 +662,10 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
     assert_eq!(words[2], "run");
     assert!(words.contains(&"--no-collect"));
     assert!(
-        body[2].contains("--launcher '") && body[2].contains("{ranks}'"),
-        "{}",
+        body[2].contains("--launcher '")
+            && body[2].contains("{ranks}")
+            && body[2].contains("{threads}"),
+        "each rank asks for its threads' cores: {}",
         body[2]
     );
     assert_eq!(value_of("--only"), format!("'{}'", keys.join(",")));

@@ -179,4 +179,60 @@ frame.addEventListener('load', () => {
         "{} bytes",
         bytes.len()
     );
+
+    // The tables alone, copied to a laptop without the runs and without the solver: the report
+    // is made from the run table, and says so; its counts and provenance are the records'.
+    let laptop = scratch.dir.join("laptop");
+    let copied = laptop.join("report");
+    std::fs::create_dir_all(copied.join("figures")).unwrap();
+    let results = scratch.dir.join("results/report");
+    for entry in std::fs::read_dir(&results).unwrap().flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".parquet") || name.ends_with(".sha256") {
+            std::fs::copy(entry.path(), copied.join(&name)).unwrap();
+        }
+    }
+    for entry in std::fs::read_dir(results.join("figures"))
+        .unwrap()
+        .flatten()
+    {
+        std::fs::copy(entry.path(), copied.join("figures").join(entry.file_name())).unwrap();
+    }
+    let offline = std::process::Command::new(nonlocal_study::binary("nlstudy"))
+        .arg("report")
+        .arg(scratch.study())
+        .arg("--results")
+        .arg(&laptop)
+        .args(["--solver", "/nonexistent/nlsolve"])
+        .env_remove("NLSOLVE")
+        .output()
+        .unwrap();
+    assert!(offline.status.success(), "{}", text(&offline));
+    let page = std::fs::read_to_string(copied.join("report.html")).unwrap();
+    let noisy = std::fs::read_dir(results.join("runs"))
+        .unwrap()
+        .flatten()
+        .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
+        .filter(|e| {
+            std::fs::read_to_string(e.path())
+                .unwrap()
+                .contains("\"noisy\":true")
+        })
+        .count();
+    for expected in [
+        "Built from the run table report.parquet alone",
+        "4 stored runs:",
+        "3 ok",
+        "1 failed",
+        &build.trim()[..8],
+    ] {
+        assert!(
+            page.contains(expected),
+            "the offline report lacks {expected:?}"
+        );
+    }
+    match noisy {
+        0 => assert!(page.contains("no run is noisy"), "no run is noisy"),
+        n => assert!(page.contains(&format!("{n} of ")), "{n} noisy runs: {page}"),
+    }
 }

@@ -243,6 +243,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
     if two_nodes {
         one_rank_on_each_node(&scratch, &slurm);
+        two_cores_for_each_of_two_ranks(&scratch, &slurm);
     }
 }
 
@@ -510,4 +511,55 @@ fn one_rank_on_each_node(scratch: &Scratch, slurm: &LocalSlurm) {
         "one rank on each node: {:?}",
         stored[0]["hosts"]
     );
+}
+
+/// A 2 × 2 case (two ranks of two threads) on two nodes of two cores: the job asks two cores per
+/// task and the default launcher (`srun -c {threads}`) gives each rank two, so each rank's
+/// affinity, which the record keeps, holds two CPUs, and the record is not oversubscribed.
+fn two_cores_for_each_of_two_ranks(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "twobytwo",
+        "base": {"dim": 2, "n": 64, "m": 2, "t_end": 0.001, "cfl": 0.5, "source": "discrete", "ranks": 2, "threads": 2}
+    });
+    scratch.write_study(&study);
+    let out = submit(scratch, slurm, &["--nodes", "2"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let script = std::fs::read_to_string(
+        scratch
+            .dir
+            .join("results/twobytwo/jobs/nlstudy-twobytwo-0.sbatch"),
+    )
+    .unwrap_or_default();
+    assert!(
+        script.contains("--cpus-per-task=2") && script.contains("SRUN_CPUS_PER_TASK"),
+        "{script}"
+    );
+    slurm.wait_for_jobs(Duration::from_secs(180));
+    let stored = records(&scratch.runs("twobytwo"));
+    assert_eq!(stored.len(), 1, "{}", logs(scratch, "twobytwo"));
+    let record = &stored[0];
+    assert_eq!(record["status"], "ok", "{record:?}");
+    let cpus: Vec<usize> = record["cpus"]
+        .as_array()
+        .expect("a distributed record keeps each rank's CPUs")
+        .iter()
+        .map(|list| cpu_count(list.as_str().unwrap()))
+        .collect();
+    assert_eq!(
+        cpus,
+        [2, 2],
+        "each rank sees two cores: {:?}",
+        record["cpus"]
+    );
+    assert_eq!(record["oversubscribed"], false, "{record:?}");
+}
+
+/// The CPUs of a list such as `0-1,4`.
+fn cpu_count(list: &str) -> usize {
+    list.split(',')
+        .map(|part| match part.split_once('-') {
+            Some((a, b)) => b.parse::<usize>().unwrap() - a.parse::<usize>().unwrap() + 1,
+            None => 1,
+        })
+        .sum()
 }

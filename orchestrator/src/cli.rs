@@ -564,6 +564,12 @@ fn run_command(args: &RunArgs) -> Result<ExitCode, Failure> {
             tally.diverged,
             tally.failed,
         );
+        if tally.noisy > 0 {
+            say!(
+                "  {} of them noisy: timed while other tasks wanted the cores they left free; their timings measure contention too (`nlstudy run --force` them on a quiet machine)",
+                tally.noisy
+            );
+        }
     }
     if let Some(signal) = stop.signal().filter(|_| tally.interrupted) {
         say!(
@@ -728,9 +734,12 @@ fn print_tables_written(collected: &crate::analysis::collect::Collected) {
     }
 }
 
+/// Needs no solver: a report of a results folder copied to a laptop is made from its tables.
 fn report_command(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(args, &Options::default(), true)?;
-    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+    let study = read_study(&args.study)?;
+    let store = open_store(args, &study, true)?;
+    let points = study.expand().map_err(|e| e.to_string())?;
+    let swept = fields_telling_apart(&points);
     let page = crate::output::report::write(&study, &store, &swept)?;
     tell!("report: {}", page.display());
     Ok(ExitCode::SUCCESS)

@@ -89,6 +89,7 @@ pub const COLUMNS: &[&str] = &[
     "mass",
     "mass_drift",
     "max_abs",
+    "growth",
     "diverged_step",
     "diverged_time",
     "c_tot.*",
@@ -131,6 +132,7 @@ pub const COLUMNS: &[&str] = &[
     "attempt",
     "oversubscribed",
     "run_id",
+    "threads",
 ];
 
 /// Whether `name` is a column of records (see `COLUMNS`).

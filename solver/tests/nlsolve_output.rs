@@ -95,6 +95,27 @@ fn a_record_sent_to_dev_null_on_purpose_is_a_success() {
     );
 }
 
+/// A worker driven from Python (a workflow tool, a notebook) that discards the record with
+/// `subprocess.DEVNULL`, which opens /dev/null for reading and writing: a place to write.
+#[test]
+fn a_record_sent_to_devnull_from_python_is_a_success() {
+    let script = format!(
+        "import subprocess, sys\nsys.exit(subprocess.run([{NLSOLVE:?}] + sys.argv[1:], stdout=subprocess.DEVNULL, stdin=subprocess.DEVNULL).returncode)"
+    );
+    let out = Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .args(TINY)
+        .stderr(Stdio::piped())
+        .output()
+        .expect("python3 starts");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[test]
 fn verdicts_that_cannot_be_written_exit_74() {
     let cases = format!("{TINY_JSON}\n{TINY_JSON}\n");

@@ -124,6 +124,33 @@ fn just_above_dt_stable_diverges_and_says_where() {
     }
 }
 
+/// A run above dt_stable that ends before its unstable mode passes the divergence bound is `ok`
+/// by the bound, but its `growth` (decades past the problem's scale) tells, and its message says
+/// so; below dt_stable the bump only decays.
+#[test]
+fn a_run_that_grew_without_diverging_says_so() {
+    let bump = |cfl: f64| {
+        json!({"dim": 1, "n": 64, "m": 4, "problem": "bump", "t_end": 0.3, "cfl": cfl,
+               "allow_unstable": true})
+    };
+    let grown = run(&case(bump(1.05))).unwrap().record;
+    assert_eq!(grown.status, Status::Ok, "{grown:?}");
+    let growth = grown
+        .growth
+        .expect("a time-dependent run measures its growth");
+    assert!((2.0..6.0).contains(&growth), "{growth}");
+    assert!(
+        grown.message.contains("likely unstable"),
+        "{}",
+        grown.message
+    );
+    let decayed = run(&case(bump(0.99))).unwrap().record;
+    assert!(
+        decayed.growth.unwrap() <= 0.0 && decayed.message.is_empty(),
+        "{decayed:?}"
+    );
+}
+
 #[test]
 fn above_dt_stable_is_refused_unless_allowed() {
     let mut refused = stability_case(2, 32, 2, 1.05, 10);

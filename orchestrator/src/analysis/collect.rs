@@ -64,6 +64,11 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
             _ => row.set_flattened(name, value),
         }
     }
+    // Beside `ranks` (the record's), the threads each rank ran: what `where` and figure specs
+    // call `threads`.
+    if let Some(threads) = row.get("case.threads").cloned() {
+        row.set("threads", threads);
+    }
     row
 }
 

@@ -5,8 +5,14 @@
 /// How `mpirun` is called by default; `{ranks}` is replaced by the case's rank count.
 pub const DEFAULT_LAUNCHER: &str = "mpirun --oversubscribe -n {ranks}";
 
+/// The placeholders a launcher may hold: the case's rank count, and its threads per rank (the
+/// cores each rank needs: `srun -c {threads}`, `mpirun --map-by slot:PE={threads}`).
+pub const PLACEHOLDERS: [&str; 2] = ["{ranks}", "{threads}"];
+
 /// The command prefix that starts an MPI case, split into words by the shell's quoting rules;
-/// one of them holds `{ranks}`, which becomes the case's rank count.
+/// one of them holds `{ranks}`, which becomes the case's rank count, and any may hold
+/// `{threads}`, its threads per rank. Any other `{…}` is refused: it would reach the command
+/// as it is.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(try_from = "String")]
 pub struct Launcher {
@@ -14,11 +20,15 @@ pub struct Launcher {
 }
 
 impl Launcher {
-    /// The words that start a case of `ranks` ranks: the program and its arguments.
-    pub fn words(&self, ranks: u64) -> Vec<String> {
+    /// The words that start a case of `ranks` ranks of `threads` threads each: the program and
+    /// its arguments.
+    pub fn words(&self, ranks: u64, threads: u64) -> Vec<String> {
         self.words
             .iter()
-            .map(|w| w.replace("{ranks}", &ranks.to_string()))
+            .map(|w| {
+                w.replace("{ranks}", &ranks.to_string())
+                    .replace("{threads}", &threads.to_string())
+            })
             .collect()
     }
 
@@ -48,6 +58,16 @@ impl std::str::FromStr for Launcher {
                 "{word:?} holds a control character or a bidirectional control"
             ));
         }
+        let unknown = words
+            .iter()
+            .flat_map(|w| placeholders(w))
+            .find(|p| !PLACEHOLDERS.contains(p));
+        if let Some(unknown) = unknown {
+            return Err(format!(
+                "{text:?} holds `{unknown}`, which is no placeholder; a launcher knows {} (a `{{` that is no placeholder has no place in a launcher)",
+                PLACEHOLDERS.join(" and ")
+            ));
+        }
         if !words.iter().any(|w| w.contains("{ranks}")) {
             return Err(format!(
                 "{text:?} has no `{{ranks}}`, so every MPI case would start with the launcher's own rank count; write it where the rank count goes, e.g. {DEFAULT_LAUNCHER:?}"
@@ -55,6 +75,26 @@ impl std::str::FromStr for Launcher {
         }
         Ok(Launcher { words })
     }
+}
+
+/// The `{…}` of a word, and a lone `{` or `}` as itself.
+fn placeholders(word: &str) -> Vec<&str> {
+    let mut found = Vec::new();
+    let mut rest = word;
+    while let Some(open) = rest.find(['{', '}']) {
+        let after = &rest[open..];
+        match (after.starts_with('{'), after.find('}')) {
+            (true, Some(close)) => {
+                found.push(&after[..=close]);
+                rest = &after[close + 1..];
+            }
+            _ => {
+                found.push(&after[..1]);
+                rest = &after[1..];
+            }
+        }
+    }
+    found
 }
 
 impl TryFrom<String> for Launcher {
@@ -74,13 +114,24 @@ mod tests {
         let launcher: Launcher =
             r#"env "A=b c" mpirun -n {ranks} --bind-to 'core'"#.parse().unwrap();
         assert_eq!(
-            launcher.words(3),
+            launcher.words(3, 1),
             ["env", "A=b c", "mpirun", "-n", "3", "--bind-to", "core"]
+        );
+        let srun: Launcher = "srun --mpi=pmi2 -n {ranks} -c {threads}".parse().unwrap();
+        assert_eq!(
+            srun.words(2, 4),
+            ["srun", "--mpi=pmi2", "-n", "2", "-c", "4"]
         );
         for (bad, says) in [
             ("", "empty"),
             ("   ", "empty"),
             ("mpirun -n 2", "{ranks}"),
+            (
+                "srun -n {ranks} -c {thread}",
+                "`{thread}`, which is no placeholder",
+            ),
+            ("srun -n {ranks} -c {threads", "`{`"),
+            ("mpirun -n {ranks} }", "`}`"),
             ("mpirun 'unclosed {ranks}", "quote"),
             ("mpirun -n {ranks} \u{1b}x", "control"),
         ] {

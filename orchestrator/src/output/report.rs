@@ -16,9 +16,20 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// Writes the report of `study` (whose swept fields are `swept`) and returns its path.
+/// Writes the report of `study` (whose swept fields are `swept`) and returns its path. It needs
+/// no solver: the records come from the store, or, when it holds none (a results folder copied
+/// without its runs), from the run table, which keeps each run's status, message, case and
+/// provenance; the page says which.
 pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, Fault> {
-    let records = store.scan().records;
+    let mut records = store.scan().records;
+    let run_table = store.table(&format!("{}.parquet", study.name));
+    let from_table = records.is_empty() && run_table.exists();
+    if from_table {
+        records = table::read_parquet(&run_table)?
+            .iter()
+            .map(nested)
+            .collect();
+    }
     let summary_path = store.table(&format!("{}-summary.parquet", study.name));
     let summary = match summary_path.exists() {
         true => table::read_parquet(&summary_path)?,
@@ -35,6 +46,13 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
             page,
             "<p class=\"description\">{}</p>",
             escape(&study.description)
+        );
+    }
+    if from_table {
+        let _ = writeln!(
+            page,
+            "<p class=\"source\">Built from the run table {} alone: the stored records are not in this folder, so what they alone hold (the c_tot series, field snapshots, the history of earlier builds) is not shown.</p>",
+            escape(&run_table.file_name().unwrap_or_default().to_string_lossy())
         );
     }
     runs_section(&mut page, &records);
@@ -55,6 +73,28 @@ figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #dd
 figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font-size:.85em}\
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
 pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}";
+
+/// A run table's row as the record it was flattened from: `provenance.host` back under
+/// `provenance`, `case.n` under `case`.
+fn nested(row: &Row) -> Value {
+    let mut record = serde_json::Map::new();
+    for (name, value) in row.cells() {
+        match name.split_once('.') {
+            Some((group @ ("case" | "provenance"), field)) => {
+                let inner = record
+                    .entry(group)
+                    .or_insert_with(|| Value::Object(serde_json::Map::new()));
+                if let Some(inner) = inner.as_object_mut() {
+                    inner.insert(field.to_string(), value.clone());
+                }
+            }
+            _ => {
+                record.insert(name.to_string(), value.clone());
+            }
+        }
+    }
+    Value::Object(record)
+}
 
 /// The stored runs counted by status.
 fn runs_section(page: &mut String, records: &[Value]) {

@@ -47,9 +47,9 @@ fn stopped_with_it(stop: &Stop, exit: std::process::ExitStatus) -> bool {
     false
 }
 
-/// The command that starts a case of `ranks` ranks through `launcher`.
-fn launcher_command(launcher: &Launcher, ranks: u64) -> Command {
-    let mut words = launcher.words(ranks).into_iter();
+/// The command that starts a case of `ranks` ranks of `threads` threads through `launcher`.
+fn launcher_command(launcher: &Launcher, ranks: u64, threads: u64) -> Command {
+    let mut words = launcher.words(ranks, threads).into_iter();
     let mut command = Command::new(words.next().expect("a launcher has a program"));
     command.args(words);
     command
@@ -86,6 +86,8 @@ pub struct Tally {
     pub failed: usize,
     /// Planned cases another process ran, or was running, meanwhile.
     pub passed: usize,
+    /// Runs timed while other tasks wanted the cores they left free (`provenance.noisy`).
+    pub noisy: usize,
     pub interrupted: bool,
 }
 
@@ -360,8 +362,9 @@ fn start(
     let stderr = work.join(format!("{}.err", planned.key));
     std::fs::write(&case_file, case.to_string()).map_err(FileError::on("write", &case_file))?;
     let ranks = case.get("ranks").and_then(Value::as_u64).unwrap_or(1);
+    let threads = case.get("threads").and_then(Value::as_u64).unwrap_or(1);
     let mut command = if ranks > 1 {
-        let mut command = launcher_command(&options.launcher, ranks);
+        let mut command = launcher_command(&options.launcher, ranks, threads);
         if is_root() {
             // Open MPI refuses root (containers, CI) unless told.
             command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
@@ -442,8 +445,11 @@ impl Running {
                 for (field, value) in identity(planned, solver) {
                     object.insert(field, value);
                 }
-                // Its timings measure contention, not scaling; figures and tables say so.
-                object.insert("oversubscribed".into(), json!(self.cores > machine_cores()));
+                // Its timings measure contention, not scaling; figures and tables say so. Over
+                // ranks, the solver judges it from each rank's affinity; here, from the cores.
+                object
+                    .entry("oversubscribed")
+                    .or_insert(json!(self.cores > machine_cores()));
                 record
             }
             _ => failed_record(
@@ -539,6 +545,7 @@ fn finish(
         Status::Diverged => tally.diverged += 1,
         Status::Failed => tally.failed += 1,
     }
+    tally.noisy += usize::from(record.pointer("/provenance/noisy") == Some(&Value::Bool(true)));
     progress.finished(&planned.point.label(), status, &message);
     Ok(())
 }
@@ -562,7 +569,7 @@ mod tests {
     fn a_launcher_starts_the_case_as_its_words_say() {
         let launcher: Launcher =
             r#"env "A=b c" mpirun -n {ranks} --bind-to 'core'"#.parse().unwrap();
-        let command = launcher_command(&launcher, 3);
+        let command = launcher_command(&launcher, 3, 1);
         let args: Vec<_> = command.get_args().map(|a| a.to_str().unwrap()).collect();
         assert_eq!(command.get_program(), "env");
         assert_eq!(args, ["A=b c", "mpirun", "-n", "3", "--bind-to", "core"]);

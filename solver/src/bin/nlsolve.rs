@@ -283,22 +283,29 @@ fn standard_output() -> std::io::Result<std::fs::File> {
     Ok(std::fs::File::from(descriptor))
 }
 
-/// Was standard output closed when nlsolve started (`nlsolve run … >&-`)? Rust's runtime then
-/// opens /dev/null for reading and writing in its place, so that no later file takes descriptor
-/// 1, and every write succeeds. A shell's `>/dev/null`, or `Stdio::null()`, opens it for writing
-/// only, so /dev/null open for reading and writing is the runtime's mark. False where /proc
-/// does not tell.
+/// Was standard output closed when nlsolve started (`nlsolve run … >&-`)? Rust's runtime opens
+/// /dev/null in its place before `main` (so that no later file takes descriptor 1), after which a
+/// closed descriptor and a /dev/null a caller chose (`>/dev/null`, Python's
+/// `subprocess.DEVNULL`, opened for reading and writing) look alike. So the descriptor is looked
+/// at before the runtime starts, by a function the loader runs first (`.init_array`).
 fn standard_output_was_closed() -> bool {
-    let on_null =
-        std::fs::read_link("/proc/self/fd/1").is_ok_and(|target| target == Path::new("/dev/null"));
-    // fdinfo's `flags:` are the open flags in octal; the access mode is their two low bits.
-    let read_write = || {
-        let info = std::fs::read_to_string("/proc/self/fdinfo/1").ok()?;
-        let flags = info.lines().find_map(|line| line.strip_prefix("flags:"))?;
-        u32::from_str_radix(flags.trim(), 8).ok()
-    };
-    on_null && read_write().is_some_and(|flags| flags & 0o3 == 0o2)
+    CLOSED_AT_START.load(std::sync::atomic::Ordering::Relaxed)
 }
+
+static CLOSED_AT_START: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Run by the loader before `main` and before Rust's runtime reopens a closed descriptor:
+/// /proc/self/fd/1 names no file when descriptor 1 is closed. (Where /proc does not tell, every
+/// descriptor counts as open.)
+extern "C" fn note_a_closed_standard_output() {
+    let closed = std::fs::symlink_metadata("/proc/self/fd")
+        .is_ok_and(|_| std::fs::read_link("/proc/self/fd/1").is_err());
+    CLOSED_AT_START.store(closed, std::sync::atomic::Ordering::Relaxed);
+}
+
+#[used]
+#[link_section = ".init_array"]
+static NOTE_A_CLOSED_STANDARD_OUTPUT: extern "C" fn() = note_a_closed_standard_output;
 
 /// Writes `line` and a newline to standard output; `what` names it in the error (`the record`).
 fn print_line(line: &str, what: &str) -> Result<(), Failure> {

@@ -54,6 +54,7 @@ pub(crate) fn measure(
         steps_done: timing.steps_done,
         diverged_at: timing.diverged_at,
         divergence_bound: stepping.divergence_bound,
+        peak_max_abs: ranks.max(timing.peak_max_abs),
         errors,
         error_total: *error_total,
         mass: ranks.sum(ranks.on(|| diagnostics::total_mass(u, stepping.volume))),

@@ -3,7 +3,8 @@
 use crate::case::{readable, Case, CaseError};
 use crate::problem::WAVENUMBER;
 
-/// Factor above the problem's natural scale at which a solution counts as diverged.
+/// Factor above the problem's natural scale at which a solution counts as diverged (the
+/// record's `growth` is measured against the same scale: `outcome::growth`).
 const DIVERGENCE_FACTOR: f64 = 1e6;
 /// Longest run accepted, in steps: beyond any study this tool serves, and a guard against a
 /// t_end/dt typo that would run for days.

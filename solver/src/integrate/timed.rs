@@ -78,6 +78,8 @@ pub struct Timing {
     pub solve_seconds: f64,
     /// Wall time of every step, or of every k-th step in runs longer than `MAX_TIMED_STEPS`.
     pub step_seconds: Vec<f64>,
+    /// The largest max |u| of any step (finite ones): how far the run grew, diverged or not.
+    pub peak_max_abs: f64,
 }
 
 /// Is step k of `steps` one whose time is kept (every k-th in runs longer than `MAX_TIMED_STEPS`)?
@@ -101,6 +103,7 @@ pub(crate) fn timed_steps<S>(
         diverged_at: None,
         solve_seconds: 0.0,
         step_seconds: Vec::with_capacity(steps.min(MAX_TIMED_STEPS)),
+        peak_max_abs: 0.0,
     };
     for k in 0..steps {
         let started = Instant::now();
@@ -111,6 +114,9 @@ pub(crate) fn timed_steps<S>(
             timing.step_seconds.push(seconds);
         }
         timing.steps_done = k + 1;
+        if max_abs.is_finite() {
+            timing.peak_max_abs = timing.peak_max_abs.max(max_abs);
+        }
         // A non-finite max |u| is diverged whatever the bound (a NaN compares false, and an
         // infinite bound would let +∞ through).
         if !(max_abs.is_finite() && max_abs <= bound) {

@@ -26,6 +26,8 @@ pub(crate) struct Measured {
     pub steps_done: usize,
     pub diverged_at: Option<usize>,
     pub divergence_bound: f64,
+    /// The largest max |u| of any step.
+    pub peak_max_abs: f64,
     /// (eᵏ, max error) at the final time, for a manufactured problem that did not diverge.
     pub errors: Option<(f64, f64)>,
     pub error_total: Option<f64>,
@@ -65,9 +67,19 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         ),
     };
     let errors = measured.errors;
+    let growth = growth(measured.peak_max_abs, measured.divergence_bound);
+    let message = match (status, growth) {
+        (Status::Ok, Some(g)) if g >= GROWING => format!(
+            "max |u| grew to 1e{} times the problem's scale without passing the divergence bound (1e{}): likely unstable",
+            readable(g.floor()),
+            readable(DIVERGENCE_DECADES)
+        ),
+        _ => message,
+    };
     Record {
         status,
         message,
+        growth,
         steps_done: measured.steps_done,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
@@ -86,6 +98,22 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         implicit: measured.implicit,
         ..Record::new(case, resolved, measured.distribution)
     }
+}
+
+/// Decades of growth past the problem's scale that mark a run `ok` by its bound as growing: a
+/// stable diffusion never grows past max(1, max |u₀|, t_end × the source's scale), and an
+/// unstable mode seeded by round-off at cfl 1.001 climbs many decades before the bound's six.
+pub(crate) const GROWING: f64 = 1.0;
+
+/// Decades between the problem's scale and the divergence bound (`time_step::divergence_bound`).
+const DIVERGENCE_DECADES: f64 = 6.0;
+
+/// log₁₀ of the largest max |u| of any step over the problem's scale (the divergence bound over
+/// 10⁶): ≤ 0 for a run that never outgrew its start or its source, the decades it grew else;
+/// `None` when nothing finite was seen.
+fn growth(peak_max_abs: f64, divergence_bound: f64) -> Option<f64> {
+    let scale = divergence_bound / 10f64.powf(DIVERGENCE_DECADES);
+    finite((peak_max_abs / scale).log10())
 }
 
 fn finite(x: f64) -> Option<f64> {
@@ -125,6 +153,7 @@ mod tests {
             steps_done: 1,
             diverged_at: None,
             divergence_bound: 1e6,
+            peak_max_abs: 1.0,
             errors,
             error_total: None,
             mass,

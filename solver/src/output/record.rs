@@ -36,6 +36,12 @@ pub struct Record {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mass_drift: Option<f64>,
     pub max_abs: Option<f64>,
+    /// log₁₀ of the largest max |u| of any step over the problem's scale (max(1, max |u₀|,
+    /// t_end × the source's scale)): ≤ 0 when the run never outgrew it; a run `ok` by its
+    /// divergence bound (six decades up) with a growth of 1 or more is said to grow in its
+    /// message (time-dependent runs only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub growth: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
     /// c_tot(t) samples (when the case sets `diagnostics_every`).
@@ -110,6 +116,7 @@ impl Record {
             mass: None,
             mass_drift: None,
             max_abs: None,
+            growth: None,
             diverged_step: None,
             diverged_time: None,
             c_tot: None,
@@ -422,6 +429,15 @@ pub struct Distribution {
     /// The host of each rank, in rank order (absent on one rank): where a multi-node run ran.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub hosts: Vec<String>,
+    /// The CPUs each rank may run on (its affinity, as /proc's `Cpus_allowed_list`: `0-1`), in
+    /// rank order (absent on one rank): how a scheduler placed the ranks' threads.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cpus: Vec<String>,
+    /// Whether some rank ran more threads than its CPUs, or the ranks of one host more threads
+    /// than their CPUs together (absent on one rank, where `nlstudy` judges it): its timings
+    /// measure contention, not scaling.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub oversubscribed: Option<bool>,
     /// What the ranks sent each other over the whole run, set-up included (absent on one rank):
     /// the inputs of the scaling model (docs/scaling.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -456,6 +472,8 @@ impl Distribution {
             imbalance: 1.0,
             comm_s: 0.0,
             hosts: Vec::new(),
+            cpus: Vec::new(),
+            oversubscribed: None,
             traffic: None,
         }
     }

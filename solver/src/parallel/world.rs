@@ -228,6 +228,8 @@ pub(crate) fn distribution(
         ..mine
     };
     let ghosts = mpi.sum(share.ghosts() as f64) as usize;
+    let hosts = all_gathered(mpi.world, &hostname());
+    let cpus = all_gathered(mpi.world, &allowed_cpus());
     Distribution {
         ranks: partition.ranks,
         partition: case.partition,
@@ -237,9 +239,51 @@ pub(crate) fn distribution(
         halo_bytes: ghosts * std::mem::size_of::<f64>(),
         imbalance: partition.imbalance,
         comm_s: mpi.max(comm_s),
-        hosts: hosts(mpi.world),
+        hosts: hosts.clone(),
+        oversubscribed: oversubscribed(&hosts, &cpus, case.threads),
+        cpus,
         traffic: Some(traffic),
     }
+}
+
+/// Whether the ranks ran more threads than they had CPUs: a rank's `threads` beyond its own
+/// affinity, or a host's ranks' threads beyond the CPUs they may use together (ranks left
+/// unbound share them all). `None` when an affinity does not read.
+fn oversubscribed(hosts: &[String], cpus: &[String], threads: usize) -> Option<bool> {
+    let sets: Option<Vec<std::collections::BTreeSet<usize>>> =
+        cpus.iter().map(|list| cpu_list(list)).collect();
+    let sets = sets?;
+    let mut by_host: std::collections::BTreeMap<&str, (usize, std::collections::BTreeSet<usize>)> =
+        std::collections::BTreeMap::new();
+    for (host, set) in hosts.iter().zip(&sets) {
+        let (ranks, union) = by_host.entry(host).or_default();
+        *ranks += 1;
+        union.extend(set);
+    }
+    let rank_over = sets.iter().any(|set| threads > set.len());
+    let host_over = by_host
+        .values()
+        .any(|(ranks, union)| threads * ranks > union.len());
+    Some(rank_over || host_over)
+}
+
+/// The CPUs of a list such as `0-3,8,10-11`; `None` when it does not read.
+fn cpu_list(list: &str) -> Option<std::collections::BTreeSet<usize>> {
+    let mut cpus = std::collections::BTreeSet::new();
+    for part in list.trim().split(',') {
+        let (first, last): (usize, usize) = match part.split_once('-') {
+            Some((a, b)) => (a.parse().ok()?, b.parse().ok()?),
+            None => {
+                let cpu = part.parse().ok()?;
+                (cpu, cpu)
+            }
+        };
+        if last < first || last - first > 1 << 16 {
+            return None;
+        }
+        cpus.extend(first..=last);
+    }
+    (!cpus.is_empty()).then_some(cpus)
 }
 
 /// The whole field of `len` nodes on rank 0 (None elsewhere), from every rank's values at its
@@ -273,16 +317,29 @@ pub(crate) fn gather(
     Some(field)
 }
 
-/// Each rank's host name, in rank order, on every rank (a few bytes each).
-fn hosts(world: &SimpleCommunicator) -> Vec<String> {
-    const LONGEST: usize = 64; // HOST_NAME_MAX on Linux
+fn hostname() -> String {
     let name = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-    let name = name.trim().as_bytes();
-    let mut mine = [0u8; LONGEST];
-    let kept = name.len().min(LONGEST);
-    mine[..kept].copy_from_slice(&name[..kept]);
+    name.trim().to_string()
+}
+
+/// The CPUs this process may run on, from /proc (`Cpus_allowed_list`); "" where it does not say.
+fn allowed_cpus() -> String {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let list = status
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"));
+    list.unwrap_or("").trim().to_string()
+}
+
+/// Each rank's `mine`, in rank order, on every rank: a short text (a host name, a CPU list), cut
+/// at `LONGEST` bytes (a cut CPU list does not read, and its rank's affinity is unknown).
+fn all_gathered(world: &SimpleCommunicator, mine: &str) -> Vec<String> {
+    const LONGEST: usize = 256;
+    let mut own = [0u8; LONGEST];
+    let kept = mine.len().min(LONGEST);
+    own[..kept].copy_from_slice(&mine.as_bytes()[..kept]);
     let mut all = vec![0u8; LONGEST * world.size() as usize];
-    world.all_gather_into(&mine[..], &mut all[..]);
+    world.all_gather_into(&own[..], &mut all[..]);
     all.chunks(LONGEST)
         .map(|c| String::from_utf8_lossy(c.split(|b| *b == 0).next().unwrap_or_default()).into())
         .collect()
@@ -295,5 +352,30 @@ impl<'a> Ranks<'a> {
             exchange: mpi,
             pool: Some(pool),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranks_are_oversubscribed_when_their_threads_outnumber_their_cpus() {
+        let hosts = |names: &[&str]| names.iter().map(|h| h.to_string()).collect::<Vec<_>>();
+        let cpus = hosts;
+        // One rank per node, each bound to two CPUs: two threads each fit.
+        let two_nodes = oversubscribed(&hosts(&["a", "b"]), &cpus(&["0-1", "0-1"]), 2);
+        assert_eq!(two_nodes, Some(false));
+        // Two unbound ranks on one node of two CPUs: four threads do not.
+        let one_node = oversubscribed(&hosts(&["a", "a"]), &cpus(&["0-1", "0-1"]), 2);
+        assert_eq!(one_node, Some(true));
+        // Bound to disjoint CPUs of a four-CPU node, they do.
+        let bound = oversubscribed(&hosts(&["a", "a"]), &cpus(&["0-1", "2,3"]), 2);
+        assert_eq!(bound, Some(false));
+        // A rank bound to one CPU runs two threads on it.
+        let narrow = oversubscribed(&hosts(&["a", "b"]), &cpus(&["0", "0-1"]), 2);
+        assert_eq!(narrow, Some(true));
+        assert_eq!(oversubscribed(&hosts(&["a"]), &cpus(&["0-"]), 1), None);
+        assert_eq!(cpu_list("0-3,8,10-11").unwrap().len(), 7);
     }
 }

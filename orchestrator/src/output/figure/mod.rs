@@ -203,7 +203,10 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         scaling::mark_oversubscribed(&kept, &x, &mut chart);
     }
     if spec.kind == FigureKind::Stability {
-        chart.explain(Glyph::Cross, "diverged: |u| passed the bound");
+        chart.explain(
+            Glyph::Cross,
+            "diverged (|u| passed the bound) or grew ten times past the problem's scale",
+        );
     }
     Ok(chart)
 }

@@ -2,6 +2,7 @@
 
 use super::series::*;
 use crate::output::draw::{Axis, Glyph, Guide, Panel, Series};
+use crate::store::table::Row;
 use schema::record::Status;
 
 pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
@@ -10,10 +11,12 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
         .map(|g| {
             let mut line = series(g.label(), g.points(x, y));
             // A diverged run stops where |u| passed the bound; its cross sits at what it reached.
+            // A run `ok` by the bound that grew a decade past its scale is unstable too.
+            let grew = |r: &Row| r.number("growth").is_some_and(|g| g >= 1.0);
             line.marks = g
                 .rows
                 .iter()
-                .filter(|r| r.status() == Some(Status::Diverged))
+                .filter(|r| r.status() == Some(Status::Diverged) || grew(r))
                 .filter_map(|r| Some((r.number(x)?, r.number(y).filter(|v| v.is_finite())?)))
                 .map(|p| (p, Glyph::Cross))
                 .collect();

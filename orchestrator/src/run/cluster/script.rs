@@ -155,6 +155,11 @@ fn script(job: &Spec, settings: &Settings, command: &JobCommand) -> Result<Strin
         writeln!(text, "{}", line.0).expect("a String");
     }
     text.push_str("set -u\n");
+    if settings.scheduler == Scheduler::Slurm {
+        // A launcher of the user's without `-c`: since Slurm 22.05 srun takes the job's
+        // --cpus-per-task only from this.
+        text.push_str("export SRUN_CPUS_PER_TASK=\"${SLURM_CPUS_PER_TASK:-1}\"\n");
+    }
     let keys = match job.array {
         false => shell_word(&job.bundles[0].join(","))?,
         true => {
@@ -177,12 +182,15 @@ fn script(job: &Spec, settings: &Settings, command: &JobCommand) -> Result<Strin
     Ok(text)
 }
 
-/// The launcher of MPI cases when neither `--launcher` nor the site names one.
+/// The launcher of MPI cases when neither `--launcher` nor the site names one. Each rank asks
+/// for its threads' cores: since Slurm 22.05 a step no longer inherits the job's
+/// `--cpus-per-task`, so without `-c` two threads of a rank could share one core; Open MPI under
+/// LSF maps each rank to `{threads}` cores of its slots.
 fn default_launcher(scheduler: Scheduler) -> &'static str {
     match scheduler {
         // Debian's Open MPI 4.1 starts under srun through PMIx (PMI-2 aborts in MPI_Init).
-        Scheduler::Slurm => "srun --mpi=pmix -n {ranks}",
-        Scheduler::Lsf => "mpirun -n {ranks}",
+        Scheduler::Slurm => "srun --mpi=pmix -n {ranks} -c {threads}",
+        Scheduler::Lsf => "mpirun -n {ranks} --map-by slot:PE={threads} --bind-to core",
     }
 }
 
@@ -266,9 +274,12 @@ fn lsf_directives(
             format!("-J \"{}[1-{}]{throttle}\"", job.name, job.bundles.len())
         }
     }];
-    // LSF counts slots: every task's threads.
+    // LSF counts slots: every task's threads, each task's on cores of its own.
     let slots = job.shape.cores();
     d.push(format!("-n {slots}"));
+    if job.shape.threads > 1 {
+        d.push(format!("-R \"affinity[core({})]\"", job.shape.threads));
+    }
     match job.shape.nodes {
         // A job of one node: its slots may not spread over hosts.
         1 => d.push("-R \"span[hosts=1]\"".into()),
@@ -539,10 +550,7 @@ mod tests {
                         "--solver",
                         command.nlsolve.to_str().unwrap(),
                         "--launcher",
-                        match scheduler {
-                            Scheduler::Slurm => "srun --mpi=pmix -n {ranks}",
-                            Scheduler::Lsf => "mpirun -n {ranks}",
-                        },
+                        default_launcher(scheduler),
                         "--no-collect",
                         "--retries",
                         "1",
@@ -605,8 +613,10 @@ mod tests {
             let text = script(&job, &settings, &command).unwrap();
             if scheduler == Scheduler::Lsf {
                 assert!(
-                    text.contains("#BSUB -n 2\n#BSUB -R \"span[hosts=1]\"\n"),
-                    "{text}"
+                    text.contains(
+                        "#BSUB -n 2\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[hosts=1]\"\n"
+                    ),
+                    "each task's threads on cores of their own, on one host: {text}"
                 );
             }
             let path = root.join("job.sh");
@@ -853,9 +863,10 @@ mod tests {
             .iter()
             .take_while(|l| l.starts_with(prefix))
             .count();
-        let expected = match scheduler {
-            Scheduler::Slurm => 12,
-            Scheduler::Lsf => 11,
+        // Slurm's steps take the job's cores per task from SRUN_CPUS_PER_TASK.
+        let (expected, exported) = match scheduler {
+            Scheduler::Slurm => (12, 1),
+            Scheduler::Lsf => (12, 0),
         };
         assert_eq!(directives, expected, "{text}");
         assert_eq!(
@@ -863,8 +874,17 @@ mod tests {
             ["set -eo pipefail", "set -u"],
             "{text}"
         );
-        assert_eq!(lines.len(), directives + 4, "{text}");
-        assert!(lines[directives + 3].starts_with("exec "), "{text}");
+        if exported == 1 {
+            assert_eq!(
+                lines[directives + 3],
+                "export SRUN_CPUS_PER_TASK=\"${SLURM_CPUS_PER_TASK:-1}\""
+            );
+        }
+        assert_eq!(lines.len(), directives + 4 + exported, "{text}");
+        assert!(
+            lines[directives + 3 + exported].starts_with("exec "),
+            "{text}"
+        );
     }
 
     fn walk(dir: &Path) -> Vec<PathBuf> {
