@@ -49,7 +49,7 @@ fn the_report_opens_in_a_browser_with_every_figure_drawn() {
         "figures": [
             {"name": "convergence", "kind": "convergence", "title": "Error against h at m = 2",
              "where": ["n > 3"]},
-            {"name": "scaling", "kind": "strong_scaling", "title": "Time against threads",
+            {"name": "cost", "kind": "work_precision", "title": "Error against time",
              "where": ["n > 3"]}
         ]
     });
