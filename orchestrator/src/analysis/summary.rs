@@ -40,6 +40,8 @@ const DERIVED: &[&str] = &[
     "repeats",
     "build",
     "workers",
+    "parallelism",
+    "noisy_repeats",
     "bond_updates_per_s",
     "baseline_workers",
     "speedup",
@@ -165,8 +167,25 @@ fn reduce(repeats: &[&Row]) -> Row {
             statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
         );
     }
-    let workers = row.count("case.threads").unwrap_or(1) * row.count("case.ranks").unwrap_or(1);
-    row.set("workers", json!(workers));
+    let (threads, ranks) = (
+        row.count("case.threads").unwrap_or(1),
+        row.count("case.ranks").unwrap_or(1),
+    );
+    row.set("workers", json!(threads * ranks));
+    // What multiplies the workers: a scaling figure draws each kind as a line of its own.
+    let parallelism = match (threads > 1, ranks > 1) {
+        (false, false) => "serial",
+        (true, false) => "threads",
+        (false, true) => "ranks",
+        (true, true) => "threads × ranks",
+    };
+    row.set("parallelism", json!(parallelism));
+    // Repeats timed while other tasks wanted the cores they left free.
+    let noisy = repeats
+        .iter()
+        .filter(|r| r.get("provenance.noisy") == Some(&Value::Bool(true)))
+        .count();
+    row.set("noisy_repeats", json!(noisy));
     let work = (
         row.number("bonds"),
         row.number("steps_done"),

@@ -75,6 +75,10 @@ pub struct Axis {
     pub include: Vec<f64>,
     /// Counts (workers): ticks on whole numbers only.
     pub whole: bool,
+    /// A scale that zooms in around a value c, to a resolution δ: v is drawn at
+    /// sign(v − c)·log₁₀(1 + |v − c|/δ), so 0.9, 0.99, 0.999, 1, 1.001, 1.01 stand apart (a
+    /// stability limit at dt = dt_stable, where everything interesting lies within 1 %).
+    pub around: Option<(f64, f64)>,
 }
 
 /// A line of measured points, with an optional band (x, low, high) around it.
@@ -213,6 +217,31 @@ impl Axis {
             log: false,
             include: Vec::new(),
             whole: false,
+            around: None,
+        }
+    }
+
+    /// Linear, or zoomed in around `centre` (`Axis::around`) when most values crowd within 5 %
+    /// of it: the resolution is their smallest distance from it.
+    pub fn zooming(label: impl Into<String>, centre: f64, values: &[f64]) -> Axis {
+        let distances: Vec<f64> = values
+            .iter()
+            .map(|v| (v - centre).abs())
+            .filter(|d| d.is_finite() && *d > 0.0)
+            .collect();
+        let near = values
+            .iter()
+            .filter(|v| (*v - centre).abs() <= 0.05 * centre.abs())
+            .count();
+        let crowded = near * 2 > values.len() && distances.len() >= 2;
+        let resolution = distances
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+            .max(1e-9);
+        Axis {
+            around: crowded.then_some((centre, resolution)),
+            ..Axis::linear(label)
         }
     }
 
@@ -247,18 +276,18 @@ impl Axis {
     }
 
     fn to(&self, v: f64) -> f64 {
-        if self.log {
-            v.log10()
-        } else {
-            v
+        match (self.log, self.around) {
+            (_, Some((c, delta))) => (v - c).signum() * (1.0 + (v - c).abs() / delta).log10(),
+            (true, None) => v.log10(),
+            (false, None) => v,
         }
     }
 
     fn from(&self, t: f64) -> f64 {
-        if self.log {
-            10f64.powf(t)
-        } else {
-            t
+        match (self.log, self.around) {
+            (_, Some((c, delta))) => c + t.signum() * delta * (10f64.powf(t.abs()) - 1.0),
+            (true, None) => 10f64.powf(t),
+            (false, None) => t,
         }
     }
 
@@ -283,6 +312,19 @@ impl Axis {
 
     /// Tick positions in drawing coordinates over the range, given the values measured.
     fn ticks(&self, (lo, hi): (f64, f64), shown: &[f64]) -> Vec<f64> {
+        if self.around.is_some() {
+            // The values measured, at most ten of them: on a zoomed scale round numbers are
+            // sparse exactly where the data is dense.
+            let mut own = shown.to_vec();
+            own.sort_by(f64::total_cmp);
+            own.dedup_by(|a, b| (*a - *b).abs() < 0.05);
+            let every = own.len().div_ceil(10).max(1);
+            return own
+                .into_iter()
+                .step_by(every)
+                .filter(|t| (lo..=hi).contains(t))
+                .collect();
+        }
         if !self.log {
             let mut ticks = linear_ticks(lo, hi);
             if self.whole {
@@ -1137,6 +1179,34 @@ mod tests {
         let h: Vec<f64> = [64.0f64, 32.0, 16.0].iter().map(|n| -n.log10()).collect();
         let range = Axis::range(&h);
         assert_eq!(labels(&log, range, &h), ["0.01563", "0.03125", "0.0625"]);
+    }
+
+    /// Values crowding around 1 (a stability limit) are drawn on a scale that zooms in there:
+    /// 0.999, 1 and 1.001 stand apart, each a tick of its own.
+    #[test]
+    fn an_axis_zooms_in_where_the_values_crowd() {
+        let cfl = [0.5, 0.9, 0.99, 0.999, 1.0, 1.001, 1.01, 1.2];
+        let axis = Axis::zooming("dt / dt_stable", 1.0, &cfl);
+        let (centre, resolution) = axis.around.expect("zoomed");
+        assert!(
+            centre == 1.0 && (resolution - 1e-3).abs() < 1e-12,
+            "{resolution}"
+        );
+        let shown = axis.shown(cfl.iter().copied());
+        // Neighbours at least a quarter of a decade apart, where a linear axis over 0.5–1.2
+        // puts 0.999, 1 and 1.001 within a pixel of each other.
+        for pair in shown.windows(2).filter(|p| p[0] != p[1]) {
+            assert!((pair[1] - pair[0]).abs() > 0.25, "{shown:?}");
+        }
+        for v in cfl {
+            assert!((axis.from(axis.to(v)) - v).abs() < 1e-12, "{v}");
+        }
+        let labels = axis.ticked(Axis::range(&shown), &shown).labels;
+        for label in ["0.999", "1", "1.001", "1.01"] {
+            assert!(labels.iter().any(|l| l == label), "{label}: {labels:?}");
+        }
+        let spread = Axis::zooming("n", 1.0, &[16.0, 32.0, 64.0]);
+        assert_eq!(spread.around, None, "values far from 1 keep a linear axis");
     }
 
     #[test]

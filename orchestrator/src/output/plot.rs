@@ -609,6 +609,50 @@ mod tests {
         );
     }
 
+    /// Points scaled over threads and over ranks in one series are two lines, each from the
+    /// serial point; the subtitle holds what is fixed and nothing empty; a noisy point is ringed
+    /// and the legend says what a ring is.
+    #[test]
+    fn scaling_lines_split_by_kind_of_parallelism_and_noisy_points_are_ringed() {
+        let row = |threads: u64, ranks: u64, time: f64, noisy: u64| {
+            let kind = match (threads > 1, ranks > 1) {
+                (false, false) => "serial",
+                (true, false) => "threads",
+                _ => "ranks",
+            };
+            Row::of_cells(json!({
+                "point": format!("threads={threads} ranks={ranks}"), "scaling_series": "",
+                "status": "ok", "repeats": 3, "case.threads": threads, "case.ranks": ranks,
+                "workers": threads * ranks, "parallelism": kind, "solve_s_median": time,
+                "noisy_repeats": noisy,
+            }))
+        };
+        let rows = [row(1, 1, 1.0, 0), row(2, 1, 0.55, 1), row(1, 2, 0.52, 0)];
+        let spec = spec("scaling", FigureKind::StrongScaling, &[]);
+        let chart = figure::chart(&spec, 0, &rows).unwrap();
+        assert!(draw::lint(&chart).is_empty(), "{:?}", draw::lint(&chart));
+        assert!(
+            !chart.subtitle.contains('='),
+            "no lone `=`: {:?}",
+            chart.subtitle
+        );
+        let times = &chart.panels[0].series;
+        let labels: Vec<&str> = times.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(labels, ["parallelism = ranks", "parallelism = threads"]);
+        assert_eq!(times[0].points, [(1.0, 1.0), (2.0, 0.52)]);
+        assert_eq!(times[1].points, [(1.0, 1.0), (2.0, 0.55)]);
+        assert_eq!(times[1].marks, [((2.0, 0.55), Glyph::Ring)]);
+        assert!(chart
+            .glyphs
+            .iter()
+            .any(|(g, m)| *g == Glyph::Ring && m.contains("noisy")));
+        let svg = draw::render(&chart).unwrap();
+        assert!(
+            svg.contains("noisy: timed while"),
+            "the ring is in the legend"
+        );
+    }
+
     /// A figure that cannot be made says why in the reader's terms: every run failed (not a
     /// column the spec names), one worker count for a scaling figure.
     #[test]

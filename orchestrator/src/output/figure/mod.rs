@@ -151,6 +151,10 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         }
         kind => {
             let mut groups = group(&kept, &series_columns);
+            let scaling = matches!(kind, FigureKind::StrongScaling | FigureKind::WeakScaling);
+            if scaling && spec.series.is_none() {
+                groups = scaling::by_parallelism(groups);
+            }
             subtitle_text = subtitle(&shared_by_all(&mut groups));
             match kind {
                 FigureKind::StrongScaling => scaling::strong_scaling(&groups, &x, &y),
@@ -201,6 +205,17 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         FigureKind::StrongScaling | FigureKind::WeakScaling
     ) {
         scaling::mark_oversubscribed(&kept, &x, &mut chart);
+    }
+    let ringed = chart
+        .panels
+        .iter()
+        .flat_map(|p| &p.series)
+        .flat_map(|s| &s.marks);
+    if ringed.into_iter().any(|(_, g)| *g == Glyph::Ring) {
+        chart.explain(
+            Glyph::Ring,
+            "noisy: timed while other tasks wanted the cores",
+        );
     }
     if spec.kind == FigureKind::Stability {
         chart.explain(

@@ -6,14 +6,61 @@ use crate::store::table::Row;
 use schema::record::Status;
 use serde_json::Value;
 
+/// The groups of a scaling figure split by the kind of parallelism that multiplies their
+/// workers (threads, ranks, both), each kind's line starting at the group's serial point: a
+/// 2-thread and a 2-rank point of one series are two lines, not one zig-zag. A group of one
+/// kind stays whole.
+pub(super) fn by_parallelism<'a>(groups: Vec<Group<'a>>) -> Vec<Group<'a>> {
+    let mut split = Vec::new();
+    for group in groups {
+        let kind = |r: &&Row| r.text("parallelism").unwrap_or("serial").to_string();
+        let mut kinds: Vec<String> = group
+            .rows
+            .iter()
+            .map(kind)
+            .filter(|k| k != "serial")
+            .collect();
+        kinds.sort();
+        kinds.dedup();
+        if kinds.len() < 2 {
+            split.push(group);
+            continue;
+        }
+        for parallel in kinds {
+            let rows = group
+                .rows
+                .iter()
+                .filter(|r| kind(r) == "serial" || kind(r) == parallel)
+                .copied()
+                .collect();
+            let mut parts = group.parts.clone();
+            parts.push(("parallelism".to_string(), parallel));
+            split.push(Group { parts, rows });
+        }
+    }
+    split
+}
+
+/// Rings over the points of `series` (one per group, in order) whose runs were noisy.
+fn ring_noisy(groups: &[Group], x: &str, series: &mut [Series]) {
+    for (g, line) in groups.iter().zip(series) {
+        let noisy = g.noisy_xs(x);
+        let ringed = line.points.iter().filter(|p| noisy.contains(&p.0));
+        line.marks.extend(ringed.map(|p| (*p, Glyph::Ring)));
+    }
+}
+
 pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
     let (mut times, mut speedups, mut efficiencies) = (Vec::new(), Vec::new(), Vec::new());
     let (mut ideal_time, mut ideal_speedup) = (Vec::new(), Vec::new());
-    for (k, g) in groups.iter().enumerate() {
+    let drawn: Vec<Group> = groups
+        .iter()
+        .filter(|g| !g.points(x, y).is_empty())
+        .cloned()
+        .collect();
+    for (k, g) in drawn.iter().enumerate() {
         let points = g.points(x, y);
-        let Some(&(p0, t0)) = points.first() else {
-            continue;
-        };
+        let &(p0, t0) = points.first().expect("drawn groups have points");
         let mut time = series(g.label(), points.clone());
         if let Some((lo, hi)) = band_columns(y) {
             let rows = g.rows.iter().filter(|r| r.status() == Some(Status::Ok));
@@ -38,6 +85,9 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
         times.push(time);
         speedups.push(series(g.label(), speedup));
         efficiencies.push(series(g.label(), efficiency));
+    }
+    for lines in [&mut times, &mut speedups, &mut efficiencies] {
+        ring_noisy(&drawn, x, lines);
     }
     let workers = all(times.iter(), |p| p.0);
     let x_axis = || Axis::fitting(describe(x, groups), workers.iter().copied()).counting();
@@ -109,17 +159,23 @@ fn ideal_efficiency(workers: &[f64]) -> Guide {
 }
 
 pub(super) fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
-    let lines: Vec<Series> = groups
+    let drawn: Vec<Group> = groups
         .iter()
-        .filter_map(|g| {
+        .filter(|g| !g.points(x, y).is_empty())
+        .cloned()
+        .collect();
+    let mut lines: Vec<Series> = drawn
+        .iter()
+        .map(|g| {
             let points = g.points(x, y);
-            let &(_, t0) = points.first()?;
-            Some(series(
+            let t0 = points[0].1;
+            series(
                 g.label(),
                 points.iter().map(|&(p, t)| (p, t0 / t)).collect(),
-            ))
+            )
         })
         .collect();
+    ring_noisy(&drawn, x, &mut lines);
     let workers = all(lines.iter(), |p| p.0);
     let mut y_axis = Axis::linear("weak-scaling efficiency T(p₀) / T(p)");
     y_axis.include = vec![0.0, 1.0];

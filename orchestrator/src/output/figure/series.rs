@@ -48,6 +48,7 @@ pub(super) fn describe(column: &str, groups: &[Group]) -> String {
 }
 
 /// Rows of one series, with the `field = value` parts that tell it apart.
+#[derive(Clone)]
 pub(super) struct Group<'a> {
     pub parts: Vec<(String, String)>,
     pub rows: Vec<&'a Row>,
@@ -156,6 +157,16 @@ impl Group<'_> {
             true => "all points".into(),
             false => read_parts(&self.parts),
         }
+    }
+
+    /// The x of the ok rows whose repeats were all or partly timed on a busy machine.
+    pub(super) fn noisy_xs(&self, x: &str) -> Vec<f64> {
+        self.rows
+            .iter()
+            .filter(|r| r.status() == Some(Status::Ok))
+            .filter(|r| r.number("noisy_repeats").is_some_and(|n| n > 0.0))
+            .filter_map(|r| r.number(x))
+            .collect()
     }
 
     /// The ok rows' (x, y), sorted by x.

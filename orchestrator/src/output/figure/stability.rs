@@ -32,7 +32,16 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
                 .map(|p| p.1)
         })
         .collect::<Vec<_>>();
-    let mut x_axis = Axis::linear(describe(x, groups));
+    let xs: Vec<f64> = lines
+        .iter()
+        .flat_map(|s| {
+            s.points
+                .iter()
+                .chain(s.marks.iter().map(|(p, _)| p))
+                .map(|p| p.0)
+        })
+        .collect();
+    let mut x_axis = Axis::zooming(describe(x, groups), 1.0, &xs);
     x_axis.include = vec![1.0];
     Panel {
         title: "stability".into(),
