@@ -3,36 +3,9 @@
 //! runs) loads it: every figure must render at a non-zero size, no console message may appear,
 //! and a screenshot is saved beside the study.
 
-use nonlocal_study::{text, Scratch};
+use nonlocal_study::{chromium, text, Scratch, CHROMIUM};
 use serde_json::{json, Value};
 use std::path::Path;
-use std::process::{Command, Output};
-
-const CHROMIUM: &str = "/usr/bin/chromium";
-
-/// Headless Chromium on `page` with `extra` flags, as root on a machine without a network or a
-/// session bus: no sandbox, no GPU, no background connections, a profile of its own.
-fn chromium(scratch: &Scratch, page: &Path, extra: &[&str]) -> Output {
-    let profile = scratch.dir.join("chromium-profile");
-    Command::new(CHROMIUM)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--enable-logging=stderr",
-            "--v=0",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .args(extra)
-        .arg(format!("file://{}", page.display()))
-        .output()
-        .expect("chromium starts")
-}
 
 #[test]
 fn the_report_opens_in_a_browser_with_every_figure_drawn() {

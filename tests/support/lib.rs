@@ -218,3 +218,34 @@ pub fn records(runs: &Path) -> Vec<Value> {
         .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("whole JSON"))
         .collect()
 }
+
+/// Debian's Chromium, which `scripts/setup.sh --tests` (run by `make test`) installs.
+pub const CHROMIUM: &str = "/usr/bin/chromium";
+
+/// Headless Chromium on `page` with `extra` flags, as root on a machine without a network or a
+/// session bus: no sandbox, no GPU, no background connections, a profile of its own.
+pub fn chromium(scratch: &Scratch, page: &Path, extra: &[&str]) -> Output {
+    assert!(
+        Path::new(CHROMIUM).exists(),
+        "{CHROMIUM} is missing: `scripts/setup.sh --tests` (run by `make test`) installs Debian's chromium"
+    );
+    let profile = scratch.dir.join("chromium-profile");
+    Command::new(CHROMIUM)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--enable-logging=stderr",
+            "--v=0",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .args(extra)
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .expect("chromium starts")
+}

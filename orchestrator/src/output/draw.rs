@@ -456,7 +456,19 @@ fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
 fn wrap(text: &str, width: usize) -> Vec<String> {
     let width = width.max(8);
     let mut lines: Vec<String> = Vec::new();
-    let words = text.split_whitespace().flat_map(|word| {
+    // `n = 64` is one word: a line never ends in `=` nor starts with one.
+    let mut glued: Vec<String> = Vec::new();
+    let mut pieces = text.split_whitespace().peekable();
+    while let Some(word) = pieces.next() {
+        match (word, glued.last_mut(), pieces.peek()) {
+            ("=", Some(field), Some(value)) => {
+                *field = format!("{field} = {value}");
+                pieces.next();
+            }
+            _ => glued.push(word.to_string()),
+        }
+    }
+    let words = glued.iter().flat_map(|word| {
         let chars: Vec<char> = word.chars().collect();
         chars
             .chunks(width)
@@ -1245,6 +1257,10 @@ mod tests {
             ["Strong scaling", "over threads:", "nonlocal"]
         );
         assert!(wrap("", 10).is_empty());
+        assert_eq!(
+            wrap("error at 2D n = 64 against h", 12),
+            ["error at 2D", "n = 64", "against h"]
+        );
         let path = format!("against /{}", "x".repeat(40));
         let lines = wrap(&path, 16);
         assert!(lines.iter().all(|l| l.chars().count() <= 16), "{lines:?}");
