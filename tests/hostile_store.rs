@@ -97,6 +97,7 @@ fn within_a_minute(scratch: &Scratch, verb: &str, extra: &[&str]) -> Option<(Out
         std::thread::sleep(Duration::from_millis(20));
     }
     let _ = child.kill();
+    let _ = child.wait();
     None
 }
 

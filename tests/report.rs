@@ -3,8 +3,8 @@
 //! runs) loads it: every figure must render at a non-zero size, no console message may appear,
 //! and a screenshot is saved beside the study.
 
-use nonlocal_study::{chromium, text, Scratch, CHROMIUM};
-use serde_json::{json, Value};
+use nonlocal_study::{chromium, measured, screenshot, text, Scratch, CHROMIUM};
+use serde_json::json;
 use std::path::Path;
 
 #[test]
@@ -100,19 +100,9 @@ frame.addEventListener('load', () => {
             "--dump-dom",
         ],
     );
-    let dom = String::from_utf8_lossy(&loaded.stdout);
     let log = String::from_utf8_lossy(&loaded.stderr);
     assert!(loaded.status.success(), "chromium failed: {log}");
-    let measured = dom
-        .split("<pre id=\"measured\">")
-        .nth(1)
-        .and_then(|rest| rest.split("</pre>").next())
-        .unwrap_or_else(|| panic!("no measurement in the page: {dom}"))
-        .replace("&amp;", "&")
-        .replace("&lt;", "<")
-        .replace("&gt;", ">");
-    let measured: Value = serde_json::from_str(&measured)
-        .unwrap_or_else(|e| panic!("the harness measured nothing ({e}): {measured}"));
+    let measured = measured(&String::from_utf8_lossy(&loaded.stdout));
     eprintln!("measured in chromium: {measured}");
     assert_eq!(measured["title"], "Study report");
     let figures = measured["figures"].as_array().unwrap();
@@ -132,21 +122,7 @@ frame.addEventListener('load', () => {
     let console: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE")).collect();
     assert!(console.is_empty(), "console messages: {console:?}");
 
-    let screenshot = scratch.dir.join("report.png");
-    let shot = chromium(
-        &scratch,
-        &report,
-        &[
-            &format!("--screenshot={}", screenshot.display()),
-            "--window-size=1200,2400",
-        ],
-    );
-    assert!(
-        shot.status.success(),
-        "{}",
-        String::from_utf8_lossy(&shot.stderr)
-    );
-    let bytes = std::fs::read(&screenshot).expect("the screenshot was saved");
+    let bytes = screenshot(&scratch, &report, "1200,2400", &[]);
     assert!(
         bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
         "{} bytes",

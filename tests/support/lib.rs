@@ -249,3 +249,38 @@ pub fn chromium(scratch: &Scratch, page: &Path, extra: &[&str]) -> Output {
         .output()
         .expect("chromium starts")
 }
+
+/// A PNG of `page` as Chromium draws it in a window of `size` (`1200,2400`), checked to be one.
+pub fn screenshot(scratch: &Scratch, page: &Path, size: &str, extra: &[&str]) -> Vec<u8> {
+    let png = scratch.dir.join("screenshot.png");
+    let mut flags = vec![
+        format!("--screenshot={}", png.display()),
+        format!("--window-size={size}"),
+    ];
+    flags.extend(extra.iter().map(|f| f.to_string()));
+    let flags: Vec<&str> = flags.iter().map(String::as_str).collect();
+    let shot = chromium(scratch, page, &flags);
+    assert!(
+        shot.status.success(),
+        "{}",
+        String::from_utf8_lossy(&shot.stderr)
+    );
+    let bytes = std::fs::read(&png).expect("the screenshot was saved");
+    assert!(bytes.starts_with(b"\x89PNG"), "not a PNG");
+    bytes
+}
+
+/// The JSON a harness page wrote into its `<pre id="measured">`, from Chromium's `--dump-dom`.
+pub fn measured(dom: &str) -> Value {
+    let text = dom
+        .split("<pre id=\"measured\">")
+        .nth(1)
+        .and_then(|rest| rest.split("</pre>").next())
+        .unwrap_or_else(|| panic!("no measurement in the page: {dom}"))
+        .replace("&quot;", "\"")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&amp;", "&");
+    serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("the page measured nothing ({e}): {text}"))
+}

@@ -506,6 +506,11 @@ fn spread(wanted: &[f64], gap: f64, (lo, hi): (f64, f64)) -> Vec<f64> {
     placed
 }
 
+/// Whether `count` notes `gap` apart fit within [lo, hi].
+fn notes_fit(count: usize, gap: f64, (lo, hi): (f64, f64)) -> bool {
+    gap * count as f64 <= hi - lo + gap
+}
+
 /// Linear interpolation between colour stops at equal spacing over [0, 1].
 fn interpolate(stops: &[(u8, u8, u8)], t: f64) -> RGBColor {
     let at = t.clamp(0.0, 1.0) * (stops.len() - 1) as f64;
@@ -1096,9 +1101,11 @@ fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
     let bounds = (f64::from(rows.start) + 8.0, f64::from(rows.end) - 8.0);
     // Notes that cannot all stand apart within the plot are left out, not drawn past its edge.
     let gap = NOTE_PX + 4.0;
-    let fits = gap * placed.len() as f64 <= bounds.1 - bounds.0 + gap;
     let stacked = spread(&wanted, gap, bounds);
-    let placed = if fits { placed } else { Vec::new() };
+    let placed = match notes_fit(placed.len(), gap, bounds) {
+        true => placed,
+        false => Vec::new(),
+    };
     for ((&(k, note, point), wanted), stacked) in placed.iter().zip(&wanted).zip(&stacked) {
         let offset = (10, (stacked - wanted).round() as i32);
         let style = font(NOTE_PX)
@@ -1273,8 +1280,9 @@ mod tests {
         let placed = spread(&[50.0; 20], 18.0, (0.0, 100.0));
         assert!(placed.iter().any(|p| *p < 0.0));
         assert!(
-            18.0 * 20.0 > 100.0 + 18.0,
+            !notes_fit(20, 18.0, (0.0, 100.0)),
             "so draw_panel leaves every note out"
         );
+        assert!(notes_fit(6, 18.0, (0.0, 100.0)));
     }
 }

@@ -134,7 +134,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             readable(b),
             case.n,
             readable((b - a) * case.n as f64),
-            readable(MAX_LOCAL_ELEMENTS as f64)
+            readable(MAX_LOCAL_ELEMENTS)
         ))
     } else {
         None

@@ -23,24 +23,12 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
             line
         })
         .collect();
-    let ys = lines
+    let drawn: Vec<(f64, f64)> = lines
         .iter()
-        .flat_map(|s| {
-            s.points
-                .iter()
-                .chain(s.marks.iter().map(|(p, _)| p))
-                .map(|p| p.1)
-        })
-        .collect::<Vec<_>>();
-    let xs: Vec<f64> = lines
-        .iter()
-        .flat_map(|s| {
-            s.points
-                .iter()
-                .chain(s.marks.iter().map(|(p, _)| p))
-                .map(|p| p.0)
-        })
+        .flat_map(|s| s.points.iter().chain(s.marks.iter().map(|(p, _)| p)))
+        .copied()
         .collect();
+    let (xs, ys): (Vec<f64>, Vec<f64>) = drawn.into_iter().unzip();
     let mut x_axis = Axis::zooming(describe(x, groups), 1.0, &xs);
     x_axis.include = vec![1.0];
     Panel {

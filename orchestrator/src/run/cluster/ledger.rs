@@ -53,7 +53,7 @@ pub fn add(store: &Store, entry: &LedgerEntry) -> Result<(), FileError> {
     create_dir(&dir)?;
     let path = dir.join(format!("{}.json", entry.id));
     let text = serde_json::to_string_pretty(entry).expect("an entry serializes");
-    Ok(write_atomically(&path, text.as_bytes())?)
+    write_atomically(&path, text.as_bytes())
 }
 
 /// Every job submitted for the study, oldest first; unreadable entries are skipped.
