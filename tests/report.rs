@@ -137,10 +137,14 @@ frame.addEventListener('load', () => {
     let results = scratch.dir.join("results/report");
     for entry in std::fs::read_dir(&results).unwrap().flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
-        if name.ends_with(".parquet") || name.ends_with(".sha256") {
+        let table = name.ends_with(".parquet") || name.ends_with(".sha256");
+        if table || name == "study-file.json" {
             std::fs::copy(entry.path(), copied.join(&name)).unwrap();
         }
     }
+    // The study file too, elsewhere: the owner file names the cluster's path, the text is the same.
+    let study = laptop.join("study.json");
+    std::fs::copy(scratch.study(), &study).unwrap();
     for entry in std::fs::read_dir(results.join("figures"))
         .unwrap()
         .flatten()
@@ -149,7 +153,7 @@ frame.addEventListener('load', () => {
     }
     let offline = std::process::Command::new(nonlocal_study::binary("nlstudy"))
         .arg("report")
-        .arg(scratch.study())
+        .arg(&study)
         .arg("--results")
         .arg(&laptop)
         .args(["--solver", "/nonexistent/nlsolve"])

@@ -687,6 +687,8 @@ fn table_command(args: &TableArgs) -> Result<ExitCode, Failure> {
         )
         .into());
     }
+    // A table and its sum are read as one collect wrote them (on a read-only copy, unlocked).
+    let _outputs = store.lock_outputs().ok();
     let spec = crate::analysis::pivot::PivotSpec {
         rows: args.rows.clone(),
         column: args.column.clone(),

@@ -172,8 +172,9 @@ fn fits_in_memory(runs: usize, available: Option<u64>) -> Result<(), Fault> {
     }
 }
 
-/// The memory free for this process: /proc/meminfo's MemAvailable, lowered to the cgroup's
-/// limit (a Slurm job's share of a node); `None` where /proc does not tell.
+/// The memory free for this process: /proc/meminfo's MemAvailable, lowered to the limits of its
+/// cgroup (v2) and the cgroups above it (a Slurm job's share of a node); `None` where /proc
+/// does not tell.
 fn available_memory() -> Option<u64> {
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
     let kib: u64 = meminfo
@@ -184,10 +185,29 @@ fn available_memory() -> Option<u64> {
         .trim()
         .parse()
         .ok()?;
-    let limit = std::fs::read_to_string("/sys/fs/cgroup/memory.max")
-        .ok()
-        .and_then(|t| t.trim().parse::<u64>().ok());
-    Some(limit.map_or(kib << 10, |l| l.min(kib << 10)))
+    Some(cgroup_limit().map_or(kib << 10, |l| l.min(kib << 10)))
+}
+
+/// The smallest `memory.max` of this process's cgroup and its ancestors (`max` is none).
+fn cgroup_limit() -> Option<u64> {
+    const ROOT: &str = "/sys/fs/cgroup";
+    let membership = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let own = membership.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let mut dir = std::path::Path::new(ROOT).join(own.trim().trim_start_matches('/'));
+    let mut limit: Option<u64> = None;
+    while dir.starts_with(ROOT) {
+        let here = std::fs::read_to_string(dir.join("memory.max"))
+            .ok()
+            .and_then(|t| t.trim().parse::<u64>().ok());
+        limit = match (limit, here) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        if !dir.pop() {
+            break;
+        }
+    }
+    limit
 }
 
 /// What a timing or an error depends on, as the record's provenance names it.

@@ -679,7 +679,6 @@ impl Study {
     }
 }
 
-/// Letters, digits, `_` and `-`: a name that is safe as a file or directory name.
 /// The longest study or figure name: a file name holds at most 255 bytes, and the files named
 /// after one add up to 40 (`.<name>-summary.parquet.<pid>.partial`).
 const LONGEST_NAME: usize = 200;
@@ -688,6 +687,7 @@ fn too_long(length: usize) -> String {
     format!("is {length} characters long; names file names, so keep it to {LONGEST_NAME}")
 }
 
+/// Letters, digits, `_` and `-`: a name that is safe as a file or directory name.
 fn is_file_stem(name: &str) -> bool {
     !name.is_empty()
         && name

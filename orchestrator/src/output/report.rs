@@ -21,6 +21,8 @@ use std::path::PathBuf;
 /// without its runs), from the run table, which keeps each run's status, message, case and
 /// provenance; the page says which.
 pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, Fault> {
+    // The tables and their sums as one collect wrote them.
+    let _outputs = store.lock_outputs()?;
     let mut records = store.scan().records;
     let run_table = store.table(&format!("{}.parquet", study.name));
     let from_table = records.is_empty() && run_table.exists();

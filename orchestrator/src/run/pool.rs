@@ -11,7 +11,7 @@ use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
-use crate::store::fs::{create_dir, open_regular, read_regular, RECORD_CAP};
+use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
 use crate::store::{FileError, Store};
 use schema::record::{Status, NLSOLVE_EXIT_IO};
 use serde_json::{json, Value};
@@ -360,7 +360,9 @@ fn start(
     let case_file = work.join(format!("{}.case.json", planned.key));
     let stdout = work.join(format!("{}.out", planned.key));
     let stderr = work.join(format!("{}.err", planned.key));
-    std::fs::write(&case_file, case.to_string()).map_err(FileError::on("write", &case_file))?;
+    create_fresh(&case_file)
+        .and_then(|mut file| std::io::Write::write_all(&mut file, case.to_string().as_bytes()))
+        .map_err(FileError::on("write", &case_file))?;
     let ranks = case.get("ranks").and_then(Value::as_u64).unwrap_or(1);
     let threads = case.get("threads").and_then(Value::as_u64).unwrap_or(1);
     let mut command = if ranks > 1 {
@@ -381,8 +383,8 @@ fn start(
     }
     command
         .stdin(Stdio::null())
-        .stdout(File::create(&stdout).map_err(FileError::on("create", &stdout))?)
-        .stderr(File::create(&stderr).map_err(FileError::on("create", &stderr))?);
+        .stdout(create_fresh(&stdout).map_err(FileError::on("create", &stdout))?)
+        .stderr(create_fresh(&stderr).map_err(FileError::on("create", &stderr))?);
     // SAFETY: prctl is async-signal-safe and touches no memory of the parent.
     unsafe {
         command.pre_exec(|| {
@@ -499,14 +501,16 @@ fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
     ]
 }
 
-/// This `nlstudy` process: its start in seconds since the epoch and its process id.
+/// This `nlstudy` process: its host, its start in nanoseconds since the epoch and its process
+/// id (the jobs of a cluster start processes of the same id on many hosts, in namespaces).
 fn run_id() -> &'static str {
     static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     ID.get_or_init(|| {
         let start = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs());
-        format!("{start}-{}", std::process::id())
+            .map_or(0, |d| d.as_nanos());
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        format!("{}-{start}-{}", host.trim(), std::process::id())
     })
 }
 

@@ -96,7 +96,7 @@ impl From<String> for Fault {
 /// is not a record (a link to /dev/zero, a log) from being read until memory runs out.
 pub const RECORD_CAP: u64 = 64 << 20;
 
-/// The most a small bookkeeping file (a ledger entry, the owner file, a lock) may hold.
+/// The most a small bookkeeping file (the owner file, a figure's stamp, a table's sum) may hold.
 pub const SMALL_FILE_CAP: u64 = 1 << 20;
 
 /// Opens `path` only if it is a regular file: a symbolic link is not followed (`O_NOFOLLOW`) and
@@ -197,10 +197,25 @@ pub fn partial_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
+/// A new, empty regular file at `path` for writing: whatever stood there (a leftover, or a
+/// link someone planted to make this write land elsewhere) is removed first, never followed,
+/// and the file is created anew (`create_new`, `O_NOFOLLOW`), so the bytes go only there.
+pub fn create_fresh(path: &Path) -> io::Result<File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let _ = std::fs::remove_file(path);
+    File::options()
+        .write(true)
+        .create_new(true)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(path)
+}
+
 /// Writes a file whole or not at all: to its partial path, then a rename.
 pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), FileError> {
+    use std::io::Write;
     let partial = partial_path(path);
-    std::fs::write(&partial, contents)
+    create_fresh(&partial)
+        .and_then(|mut file| file.write_all(contents))
         .map_err(FileError::on("write", &partial))
         .and_then(|_| std::fs::rename(&partial, path).map_err(FileError::on("write", path)))
         .inspect_err(|_| {
@@ -213,16 +228,32 @@ pub fn create_dir(dir: &Path) -> Result<(), FileError> {
     std::fs::create_dir_all(dir).map_err(FileError::on("create", dir))
 }
 
-/// The lock file `name` in `dir` (both made when missing), not yet locked.
+/// The lock file `name` in `dir` (both made when missing), not yet locked. Only a regular file
+/// is taken: a link is not followed (`O_NOFOLLOW`) and a FIFO does not block the open
+/// (`O_NONBLOCK`: with no reader it fails at once), so a planted one is an error naming it.
 pub fn lock_file(dir: &Path, name: &str) -> Result<File, FileError> {
+    use std::os::unix::fs::OpenOptionsExt;
     create_dir(dir)?;
     let path = dir.join(name);
-    File::options()
+    let file = File::options()
         .create(true)
         .truncate(false)
         .write(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
         .open(&path)
-        .map_err(FileError::on("open", &path))
+        .map_err(FileError::on("open", &path))?;
+    match file
+        .metadata()
+        .map_err(FileError::on("open", &path))?
+        .is_file()
+    {
+        true => Ok(file),
+        false => Err(FileError::new(
+            "lock",
+            &path,
+            io::Error::other("not a regular file"),
+        )),
+    }
 }
 
 /// Removes the files of `dir` whose names `stale` picks (a missing `dir` has none). A `dir`
@@ -270,6 +301,35 @@ mod tests {
             std::fs::symlink_metadata(results.join(".link.partial")).is_err(),
             "the link itself is a leftover and goes"
         );
+        let _ = std::fs::remove_dir_all(&root);
+    }
+
+    /// A link planted where a write's partial file goes is removed, not followed; a FIFO or a
+    /// link where a lock file goes is an error, never waited on.
+    #[test]
+    fn planted_links_and_fifos_never_take_a_write_or_a_lock() {
+        let root = std::env::temp_dir().join(format!("fs-planted-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        std::fs::create_dir_all(&root).unwrap();
+        let precious = root.join("precious");
+        std::fs::write(&precious, "years").unwrap();
+        let report = root.join("report.html");
+        std::os::unix::fs::symlink(&precious, partial_path(&report)).unwrap();
+        write_atomically(&report, b"<html>").unwrap();
+        assert_eq!(std::fs::read_to_string(&precious).unwrap(), "years");
+        assert_eq!(std::fs::read_to_string(&report).unwrap(), "<html>");
+        let fifo = std::ffi::CString::new(root.join(".outputs.lock").to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o644) }, 0);
+        assert!(
+            lock_file(&root, ".outputs.lock").is_err(),
+            "a FIFO is no lock file"
+        );
+        std::os::unix::fs::symlink(&precious, root.join(".owner.lock")).unwrap();
+        assert!(
+            lock_file(&root, ".owner.lock").is_err(),
+            "a link is not followed"
+        );
+        assert_eq!(std::fs::read_to_string(&precious).unwrap(), "years");
         let _ = std::fs::remove_dir_all(&root);
     }
 

@@ -261,11 +261,27 @@ impl Store {
         self.scan().records
     }
 
-    /// The superseded records in `history/` (see `save`), in name order: whole records whose
-    /// key is the first part of their file's name and matches their case; the rest is reported.
+    /// The superseded records in `history/` (see `save`), each key's in the order they were
+    /// superseded (`<key>.<fp>.json`, then `.2`, `.3`, …: timestamps of one second may tie):
+    /// whole records whose key is the first part of their file's name and matches their case;
+    /// the rest is reported.
     pub fn history(&self) -> Scan {
         let mut scan = Scan::default();
-        for path in listing(&self.table("history")) {
+        let mut paths = listing(&self.table("history"));
+        paths.sort_by_cached_key(|path| {
+            let name = path
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            let parts: Vec<&str> = name.split('.').collect();
+            let k = match parts.as_slice() {
+                [_, _, k, "json"] => k.parse::<u64>().unwrap_or(0),
+                _ => 1,
+            };
+            (parts[0].to_string(), k, name.clone())
+        });
+        for path in paths {
             match read_regular(&path, RECORD_CAP).and_then(|text| read_superseded(&path, &text)) {
                 Ok(record) => scan.records.push(record),
                 Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
@@ -649,12 +665,24 @@ mod tests {
         let build = "ab".repeat(32);
         let (k, record) = keyed(2, "ok");
         let record = with_fingerprint(record, &build);
-        for _ in 0..3 {
+        for message in ["first", "second", "third"] {
+            let mut record = record.clone();
+            record["message"] = json!(message);
             assert!(store.save(&k, &record).unwrap());
         }
         let history = store.history();
         assert!(history.unreadable.is_empty(), "{:?}", history.unreadable);
         assert_eq!(history.records.len(), 2, "two results were replaced");
+        let order: Vec<&str> = history
+            .records
+            .iter()
+            .map(|r| r["message"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            order,
+            ["first", "second"],
+            "in the order they were superseded"
+        );
         let names: Vec<String> = listing(&store.table("history"))
             .iter()
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())

@@ -63,8 +63,12 @@ impl Store {
             false => None,
         };
         let owner = self.owner();
+        // The same text is the same study wherever its file lies (another checkout, a results
+        // folder copied to a laptop); another file of another text needs `adopt`.
+        let another =
+            |owner: &Owner| owner.study_file != me.study_file && owner.sha256 != me.sha256;
         match &owner {
-            Some(owner) if owner.study_file != me.study_file && !adopt => {
+            Some(owner) if another(owner) && !adopt => {
                 return Err(Refusal::OwnedBy(owner.study_file.clone()))
             }
             Some(owner) if *owner == me => return Ok(()),
@@ -89,7 +93,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let (first, second) = (dir.join("a.json"), dir.join("b.json"));
         std::fs::write(&first, "{}").unwrap();
-        std::fs::write(&second, "{}").unwrap();
+        std::fs::write(&second, "{\"other\": 1}").unwrap();
         let store = Store::open(&dir.join("results"), "s");
 
         // Reading does not write; the first command that writes makes the file the owner.
@@ -111,6 +115,10 @@ mod tests {
             store.owner().unwrap().study_file,
             std::fs::canonicalize(&second).unwrap()
         );
+        // The same text at another path (a checkout elsewhere, a copied folder) is the same study.
+        let copy = dir.join("copy.json");
+        std::fs::write(&copy, "{}").unwrap();
+        store.claim(&copy, "{}", false, false).unwrap();
         let _ = std::fs::remove_dir_all(&dir);
     }
 
@@ -132,7 +140,8 @@ mod tests {
                     .iter()
                     .map(|file| {
                         let store = Store::open(&results, "s");
-                        scope.spawn(move || store.claim(file, "{}", false, true).is_ok())
+                        let text = file.display().to_string();
+                        scope.spawn(move || store.claim(file, &text, false, true).is_ok())
                     })
                     .collect();
                 claims.into_iter().map(|c| c.join().unwrap()).collect()

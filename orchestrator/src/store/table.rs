@@ -233,14 +233,24 @@ pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<
             break;
         }
     }
-    if outcome.is_ok() {
-        for (partial, path) in &written {
-            let sum = sum_text(partial, path)?;
-            crate::store::write_atomically(&sum_path(path), sum.as_bytes())?;
-            std::fs::rename(partial, path)
-                .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+    // Each table's sum, then the table: a reader (under the outputs lock, as every reader of
+    // the tables is) sees both of one collect; a writer killed between them leaves a table its
+    // sum refuses, which the next collect rebuilds.
+    for (partial, path) in &written {
+        if outcome.is_err() {
+            break;
         }
-        return Ok(());
+        outcome = sum_text(partial, path)
+            .and_then(|sum| {
+                Ok(crate::store::write_atomically(
+                    &sum_path(path),
+                    sum.as_bytes(),
+                )?)
+            })
+            .and_then(|_| {
+                std::fs::rename(partial, path)
+                    .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))
+            });
     }
     for (partial, _) in &written {
         let _ = std::fs::remove_file(partial);
@@ -293,6 +303,11 @@ fn metadata(frame: &DataFrame, about: &About) -> Vec<(String, String)> {
 /// panic: polars panics on some corrupt footers, so the read runs under `catch_unwind`, after a
 /// check of the frame's magic and footer length.
 pub fn read_parquet(path: &Path) -> Result<Vec<Row>, Fault> {
+    read_parquet_hashed(path).map(|(rows, _)| rows)
+}
+
+/// `read_parquet`, and the SHA-256 of the bytes it parsed (what a figure's stamp records).
+pub fn read_parquet_hashed(path: &Path) -> Result<(Vec<Row>, String), Fault> {
     if std::fs::symlink_metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
         return Err(Fault::Input(format!(
             "{} does not exist; `nlstudy collect` writes it from the stored runs",
@@ -306,20 +321,32 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, Fault> {
         ))
     };
     let bytes = read_whole(path).map_err(|e| corrupt(&e))?;
-    check_sum(path, &bytes).map_err(|e| corrupt(&e))?;
+    let sum = crate::store::hex(&sha2::Sha256::digest(&bytes));
+    check_sum(path, &sum).map_err(|e| corrupt(&e))?;
     check_frame(&bytes).map_err(|e| corrupt(&e))?;
     match crate::store::fs::without_panicking(|| rows_of(std::io::Cursor::new(bytes))) {
-        Ok(Ok(rows)) => Ok(rows),
+        Ok(Ok(rows)) => Ok((rows, sum)),
         Ok(Err(e)) | Err(e) => Err(corrupt(&e)),
     }
 }
 
-/// The bytes of the regular file `path`.
+/// The most a table may hold: 8 GiB, beyond any study's (10⁶ runs make about 1 GB), so that a
+/// sparse file of a terabyte is refused before it is read, not allocated.
+const TABLE_CAP: u64 = 8 << 30;
+
+/// The bytes of the regular file `path`, at most `TABLE_CAP` of them.
 fn read_whole(path: &Path) -> Result<Vec<u8>, String> {
     use std::io::Read;
-    let (mut file, length) = crate::store::fs::open_regular(path)?;
+    let (file, length) = crate::store::fs::open_regular(path)?;
+    if length > TABLE_CAP {
+        return Err(format!(
+            "{length} bytes, more than the 8 GiB a table may hold"
+        ));
+    }
     let mut bytes = Vec::with_capacity(length as usize);
-    file.read_to_end(&mut bytes).map_err(|e| e.to_string())?;
+    file.take(TABLE_CAP + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| e.to_string())?;
     Ok(bytes)
 }
 
@@ -340,8 +367,9 @@ fn sum_text(written: &Path, path: &Path) -> Result<String, Fault> {
     ))
 }
 
-/// Checks `bytes`, read from the table `path`, against its sum when it has one.
-fn check_sum(path: &Path, bytes: &[u8]) -> Result<(), String> {
+/// Checks `actual`, the sum of the bytes read from the table `path`, against its recorded sum
+/// when it has one.
+fn check_sum(path: &Path, actual: &str) -> Result<(), String> {
     let sum = sum_path(path);
     let recorded = match crate::store::fs::read_regular(&sum, crate::store::fs::SMALL_FILE_CAP) {
         Ok(text) => text,
@@ -349,7 +377,6 @@ fn check_sum(path: &Path, bytes: &[u8]) -> Result<(), String> {
         Err(why) => return Err(format!("its sum {} cannot be read: {why}", sum.display())),
     };
     let recorded = recorded.split_whitespace().next().unwrap_or_default();
-    let actual = crate::store::hex(&sha2::Sha256::digest(bytes));
     match recorded == actual {
         true => Ok(()),
         false => Err(format!(
@@ -411,7 +438,7 @@ fn json_number(x: Option<f64>) -> Value {
 fn write_one(path: &Path, rows: &[Row], about: &About) -> Result<(), String> {
     let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
     let metadata = KeyValueMetadata::from_static(metadata(&frame, about));
-    let mut file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    let mut file = crate::store::fs::create_fresh(path).map_err(|e| e.to_string())?;
     ParquetWriter::new(&mut file)
         .with_key_value_metadata(Some(metadata))
         .finish(&mut frame)
