@@ -9,6 +9,11 @@ use std::fmt;
 /// nlsolve's exit status when it computed a result but could not write it (standard output
 /// closed or full, a broken pipe, a `--write-*` path): sysexits' EX_IOERR. The orchestrator
 /// reads it as the file system's fault, not the case's, and stores nothing for the run.
+/// Decades of `growth` (log₁₀ of a run's largest max |u| over the problem's scale) that mark a
+/// run `ok` by its divergence bound as growing: a stable diffusion never grows past its scale.
+/// The solver says so in the record's message and the stability figure crosses such runs.
+pub const GROWING: f64 = 1.0;
+
 pub const NLSOLVE_EXIT_IO: u8 = 74;
 
 /// What became of a run: `nlsolve` writes `ok` or `diverged`; nlstudy stores `failed` for a run

@@ -719,12 +719,13 @@ fn partition_report(args: &CaseArgs) -> Result<(), Failure> {
 fn verdict(
     case: &ValidCase,
     memo: &mut std::collections::HashMap<String, Result<f64, solver::case::CaseError>>,
+    machine: solver::methods::resources::Machine,
 ) -> Value {
     if let Err(e) = solver::methods::preflight(case, memo) {
         return serde_json::json!({ "error": e.to_string() });
     }
     let mut verdict = serde_json::json!({ "case": **case, "resolved": case.resolved() });
-    if let Err(e) = solver::methods::resources::fit_machine(case) {
+    if let Err(e) = solver::methods::resources::fit(case, machine) {
         verdict["machine"] = Value::from(e.to_string());
     }
     verdict
@@ -742,6 +743,7 @@ fn check_cases() -> Result<(), Failure> {
     let mut line = String::new();
     let mut printed = Vec::new();
     let mut memo = std::collections::HashMap::new();
+    let machine = solver::methods::resources::Machine::now();
     loop {
         line.clear();
         let read = input
@@ -753,7 +755,7 @@ fn check_cases() -> Result<(), Failure> {
         if !line.trim().is_empty() {
             let verdict = match schema::json::parse(&line) {
                 Ok(fields) => match ValidCase::from_json(fields) {
-                    Ok(case) => verdict(&case, &mut memo),
+                    Ok(case) => verdict(&case, &mut memo, machine),
                     Err(e) => serde_json::json!({ "error": e.to_string() }),
                 },
                 Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),

@@ -3,9 +3,7 @@
 use crate::case::{readable, Case, CaseError};
 use crate::problem::WAVENUMBER;
 
-/// Factor above the problem's natural scale at which a solution counts as diverged (the
-/// record's `growth` is measured against the same scale: `outcome::growth`).
-const DIVERGENCE_FACTOR: f64 = 1e6;
+use crate::output::outcome::DIVERGENCE_FACTOR;
 /// Longest run accepted, in steps: beyond any study this tool serves, and a guard against a
 /// t_end/dt typo that would run for days.
 const MAX_STEPS: usize = 100_000_000;

@@ -157,7 +157,7 @@ pub fn preflight(
         }
         Method::FdExplicit => Some(local::preflight(case, false)?),
         Method::Adi => Some(local::preflight(case, true)?),
-        Method::Pse => Some(pse::preflight(case)?),
+        Method::Pse => Some(pse::preflight(case, memo)?),
         _ => None,
     })
 }

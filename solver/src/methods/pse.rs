@@ -113,15 +113,24 @@ fn dt_stable(dim: usize, h: f64, eps: f64, diffusivity: f64) -> Option<f64> {
 }
 
 /// The time step of a `pse` case, checked as `run` checks it, without its particles: what
-/// `nlsolve check` refuses before anything runs.
-pub fn preflight(case: &ValidCase) -> Result<f64, CaseError> {
+/// `nlsolve check` refuses before anything runs. `memo` keeps each particle lattice's stable
+/// step (O(reach^d) to compute) between cases.
+pub fn preflight(
+    case: &ValidCase,
+    memo: &mut std::collections::HashMap<String, Result<f64, CaseError>>,
+) -> Result<f64, CaseError> {
     let (field, eps) = match (case.m, case.eps) {
         (Some(m), _) => ("m", m as f64 * case.length() / case.n as f64),
         (None, eps) => ("eps", eps.expect("validated: m or eps")),
     };
     let h = case.length() / case.n as f64;
-    let dt_stable =
-        dt_stable(case.dim, h, eps, case.diffusivity).ok_or_else(|| too_narrow(field, eps, h))?;
+    let key = format!("pse {} {h} {field} {eps} {}", case.dim, case.diffusivity);
+    let dt_stable = memo
+        .entry(key)
+        .or_insert_with(|| {
+            dt_stable(case.dim, h, eps, case.diffusivity).ok_or_else(|| too_narrow(field, eps, h))
+        })
+        .clone()?;
     time_step(case, dt_stable, false)?;
     Ok(dt_stable)
 }

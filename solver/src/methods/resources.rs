@@ -30,10 +30,32 @@ const CGROUP_MOUNT: &str = "/sys/fs/cgroup";
 /// largest page-aligned i64, 0x7FFFFFFFFFFFF000.
 const CGROUP_V1_UNLIMITED: u64 = 1 << 62;
 
+/// What this machine offers a case: its cores and the memory available (`None` where /proc does
+/// not tell), read once by whoever checks many cases (`nlsolve check`).
+#[derive(Clone, Copy)]
+pub struct Machine {
+    pub cores: usize,
+    pub available: Option<f64>,
+}
+
+impl Machine {
+    pub fn now() -> Machine {
+        Machine {
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            available: available_memory(),
+        }
+    }
+}
+
 /// Refuses a case this machine cannot run: too many threads for its cores, or more memory than
 /// it has available.
 pub fn fit_machine(case: &ValidCase) -> Result<(), CaseError> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    fit(case, Machine::now())
+}
+
+/// `fit_machine` against a machine read before.
+pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
+    let cores = machine.cores;
     let most = OVERSUBSCRIPTION * cores;
     if case.threads > most {
         return Err(CaseError::new(
@@ -44,7 +66,7 @@ pub fn fit_machine(case: &ValidCase) -> Result<(), CaseError> {
             ),
         ));
     }
-    let Some(available) = available_memory() else {
+    let Some(available) = machine.available else {
         return Ok(());
     };
     // The ranks Open MPI started on this node share its memory.

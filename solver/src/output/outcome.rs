@@ -8,6 +8,7 @@ use crate::output::field::{FieldSnapshot, Frame};
 use crate::output::record::{
     first_non_finite, Distribution, ImplicitSolves, Record, Resolved, Status,
 };
+use schema::record::GROWING;
 
 /// A finished run: its record, the final field on the nodes of D (empty when a distributed run
 /// did not gather it), where its values sit, and the frames the case asked for.
@@ -72,7 +73,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         (Status::Ok, Some(g)) if g >= GROWING => format!(
             "max |u| grew to 1e{} times the problem's scale without passing the divergence bound (1e{}): likely unstable",
             readable(g.floor()),
-            readable(DIVERGENCE_DECADES)
+            readable(DIVERGENCE_FACTOR.log10())
         ),
         _ => message,
     };
@@ -100,19 +101,15 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
     }
 }
 
-/// Decades of growth past the problem's scale that mark a run `ok` by its bound as growing: a
-/// stable diffusion never grows past max(1, max |u₀|, t_end × the source's scale), and an
-/// unstable mode seeded by round-off at cfl 1.001 climbs many decades before the bound's six.
-pub(crate) const GROWING: f64 = 1.0;
-
-/// Decades between the problem's scale and the divergence bound (`time_step::divergence_bound`).
-const DIVERGENCE_DECADES: f64 = 6.0;
+/// Factor above the problem's natural scale at which a solution counts as diverged
+/// (`time_step::divergence_bound`); the record's `growth` is measured against the same scale.
+pub(crate) const DIVERGENCE_FACTOR: f64 = 1e6;
 
 /// log₁₀ of the largest max |u| of any step over the problem's scale (the divergence bound over
 /// 10⁶): ≤ 0 for a run that never outgrew its start or its source, the decades it grew else;
 /// `None` when nothing finite was seen.
 fn growth(peak_max_abs: f64, divergence_bound: f64) -> Option<f64> {
-    let scale = divergence_bound / 10f64.powf(DIVERGENCE_DECADES);
+    let scale = divergence_bound / DIVERGENCE_FACTOR;
     finite((peak_max_abs / scale).log10())
 }
 
