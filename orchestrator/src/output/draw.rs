@@ -38,9 +38,11 @@ impl Chart {
         }
     }
 
-    /// Says what `glyph` means, once.
+    /// Says what `glyph` means, once, when some series draws it (a legend entry of nothing
+    /// drawn would be a defect: `lint`).
     pub fn explain(&mut self, glyph: Glyph, meaning: impl Into<String>) {
-        if !self.glyphs.iter().any(|(g, _)| *g == glyph) {
+        let explained = self.glyphs.iter().any(|(g, _)| *g == glyph);
+        if !explained && drawn_glyphs(self).contains(&glyph) {
             self.glyphs.push((glyph, meaning.into()));
         }
     }

@@ -5,7 +5,7 @@
 use crate::model::figure_spec::FigureSpec;
 use crate::output::draw;
 use crate::output::figure;
-use crate::store::fs::{create_dir, read_regular, Fault, FileError, SMALL_FILE_CAP};
+use crate::store::fs::{create_dir, read_regular, Fault, SMALL_FILE_CAP};
 use crate::store::table;
 use crate::store::{self, Store};
 use sha2::{Digest, Sha256};
@@ -38,10 +38,8 @@ pub fn files(name: &str) -> [String; 2] {
 pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault> {
     let _outputs = store.lock_outputs()?;
     let table_path = store.table(&format!("{}-summary.parquet", store.study));
-    // Read whole, then parsed: its hash stamps the figures.
-    let rows = table::read_parquet(&table_path)?;
-    let table = std::fs::read(&table_path).map_err(FileError::on("read", &table_path))?;
-    let table_hash = store::hex(&Sha256::digest(&table));
+    // The hash of the bytes parsed stamps the figures.
+    let (rows, table_hash) = table::read_parquet_hashed(&table_path)?;
     let program = std::env::current_exe()
         .and_then(std::fs::read)
         .map(|bytes| store::hex(&Sha256::digest(&bytes)))
@@ -667,6 +665,16 @@ mod tests {
             .collect();
         let error = figure::chart(&specs()[2], 2, &failed).err().unwrap();
         assert!(error.contains("every run failed"), "{error}");
+        // A stability sweep where nothing diverged is drawn, and its legend explains no cross.
+        let stable: Vec<Row> = summary()
+            .into_iter()
+            .map(|mut r| {
+                r.set("status", json!("ok"));
+                r
+            })
+            .collect();
+        let chart = figure::chart(&specs()[4], 4, &stable).unwrap();
+        assert!(draw::lint(&chart).is_empty() && chart.glyphs.is_empty());
         let mut one = specs()[0].clone();
         one.filter = vec!["n == 64".into(), "threads == 1".into()];
         let error = figure::chart(&one, 0, &summary()).err().unwrap();

@@ -199,29 +199,20 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             return Err(fault(k, spec, format!("the points `where` selects ran on one worker count ({}); a scaling figure needs two or more", workers.first().map_or("none".to_string(), |w| crate::console::number(*w)))));
         }
     }
+    // Each glyph's meaning, given only where some series draws it.
     let mut chart = Chart::new(title, subtitle_text, panels);
-    if matches!(
-        spec.kind,
-        FigureKind::StrongScaling | FigureKind::WeakScaling
-    ) {
-        scaling::mark_oversubscribed(&kept, &x, &mut chart);
-    }
-    let ringed = chart
-        .panels
-        .iter()
-        .flat_map(|p| &p.series)
-        .flat_map(|s| &s.marks);
-    if ringed.into_iter().any(|(_, g)| *g == Glyph::Ring) {
-        chart.explain(
-            Glyph::Ring,
-            "noisy: timed while other tasks wanted the cores",
-        );
-    }
-    if spec.kind == FigureKind::Stability {
-        chart.explain(
-            Glyph::Cross,
-            "diverged (|u| passed the bound) or grew ten times past the problem's scale",
-        );
-    }
+    chart.explain(
+        Glyph::Ring,
+        "noisy: timed while other tasks wanted the cores",
+    );
+    chart.explain(
+        Glyph::Cross,
+        match spec.kind {
+            FigureKind::Stability => {
+                "diverged (|u| passed the bound) or grew ten times past the problem's scale"
+            }
+            _ => "more workers than cores: contention, not scaling",
+        },
+    );
     Ok(chart)
 }

@@ -1,10 +1,9 @@
 //! Strong and weak scaling: time, speedup and efficiency against workers (threads × ranks).
 
 use super::series::*;
-use crate::output::draw::{self, Axis, Chart, Glyph, Guide, Panel, Series};
+use crate::output::draw::{self, Axis, Glyph, Guide, Panel, Series};
 use crate::store::table::Row;
 use schema::record::Status;
-use serde_json::Value;
 
 /// The groups of a scaling figure split by the kind of parallelism that multiplies their
 /// workers (threads, ranks, both), each kind's line starting at the group's serial point: a
@@ -41,12 +40,21 @@ pub(super) fn by_parallelism<'a>(groups: Vec<Group<'a>>) -> Vec<Group<'a>> {
     split
 }
 
-/// Rings over the points of `series` (one per group, in order) whose runs were noisy.
-fn ring_noisy(groups: &[Group], x: &str, series: &mut [Series]) {
+/// The glyphs over the points of `series` (one per group, in order), by their own rows: a ring
+/// where the runs were noisy, a cross where they ran more workers than the machine had cores
+/// (the record's `oversubscribed`: their times measure contention, not scaling).
+fn mark_by_row(groups: &[Group], x: &str, series: &mut [Series]) {
     for (g, line) in groups.iter().zip(series) {
         let noisy = g.noisy_xs(x);
-        let ringed = line.points.iter().filter(|p| noisy.contains(&p.0));
-        line.marks.extend(ringed.map(|p| (*p, Glyph::Ring)));
+        let crowded = g.oversubscribed_xs(x);
+        for &point in &line.points {
+            if noisy.contains(&point.0) {
+                line.marks.push((point, Glyph::Ring));
+            }
+            if crowded.contains(&point.0) {
+                line.marks.push((point, Glyph::Cross));
+            }
+        }
     }
 }
 
@@ -87,7 +95,7 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
         efficiencies.push(series(g.label(), efficiency));
     }
     for lines in [&mut times, &mut speedups, &mut efficiencies] {
-        ring_noisy(&drawn, x, lines);
+        mark_by_row(&drawn, x, lines);
     }
     let workers = all(times.iter(), |p| p.0);
     let x_axis = || Axis::fitting(describe(x, groups), workers.iter().copied()).counting();
@@ -124,27 +132,6 @@ pub(super) fn strong_scaling(groups: &[Group], x: &str, y: &str) -> Vec<Panel> {
     ]
 }
 
-/// Crosses over the points run with more workers than the machine had cores (the record's
-/// `oversubscribed`), explained in the legend: their times measure contention, not scaling.
-pub(super) fn mark_oversubscribed(rows: &[&Row], x: &str, chart: &mut Chart) {
-    let beyond: Vec<f64> = rows
-        .iter()
-        .filter(|r| r.get("oversubscribed") == Some(&Value::Bool(true)))
-        .filter_map(|r| r.number(x))
-        .collect();
-    if beyond.is_empty() {
-        return;
-    }
-    for line in chart.panels.iter_mut().flat_map(|p| p.series.iter_mut()) {
-        let crossed = line.points.iter().filter(|p| beyond.contains(&p.0));
-        line.marks.extend(crossed.map(|p| (*p, Glyph::Cross)));
-    }
-    chart.explain(
-        Glyph::Cross,
-        "more workers than cores: contention, not scaling",
-    );
-}
-
 /// Efficiency 1 across the workers shown.
 fn ideal_efficiency(workers: &[f64]) -> Guide {
     let (lo, hi) = draw::span(workers.iter().copied());
@@ -175,7 +162,7 @@ pub(super) fn weak_scaling(groups: &[Group], x: &str, y: &str) -> Panel {
             )
         })
         .collect();
-    ring_noisy(&drawn, x, &mut lines);
+    mark_by_row(&drawn, x, &mut lines);
     let workers = all(lines.iter(), |p| p.0);
     let mut y_axis = Axis::linear("weak-scaling efficiency T(p₀) / T(p)");
     y_axis.include = vec![0.0, 1.0];

@@ -161,10 +161,18 @@ impl Group<'_> {
 
     /// The x of the ok rows whose repeats were all or partly timed on a busy machine.
     pub(super) fn noisy_xs(&self, x: &str) -> Vec<f64> {
+        self.ok_xs(x, |r| r.number("noisy_repeats").is_some_and(|n| n > 0.0))
+    }
+
+    /// The x of the ok rows run with more workers than cores.
+    pub(super) fn oversubscribed_xs(&self, x: &str) -> Vec<f64> {
+        self.ok_xs(x, |r| r.get("oversubscribed") == Some(&Value::Bool(true)))
+    }
+
+    fn ok_xs(&self, x: &str, marked: impl Fn(&Row) -> bool) -> Vec<f64> {
         self.rows
             .iter()
-            .filter(|r| r.status() == Some(Status::Ok))
-            .filter(|r| r.number("noisy_repeats").is_some_and(|n| n > 0.0))
+            .filter(|r| r.status() == Some(Status::Ok) && marked(r))
             .filter_map(|r| r.number(x))
             .collect()
     }
