@@ -437,7 +437,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     assert!(lsf.status.success(), "{}", text(&lsf));
     let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.bsub")).unwrap();
     let expected = format!(
-        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 4\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[ptile=2]\"\n#BSUB -W 1:30\n\
+        "#!/bin/bash\n#BSUB -J nlstudy-two-0\n#BSUB -n 2\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[ptile=1]\"\n#BSUB -W 1:30\n\
          #BSUB -q short\n#BSUB -P nonlocal\n#BSUB -x\n#BSUB -o \"{jobs}/nlstudy-two-0.%J.out\"\n\
          #BSUB -wa TERM\n#BSUB -wt 1\n#BSUB -r\n{}",
         command(
@@ -678,7 +678,14 @@ fn check_job_structure(script: &str, directive: &str, keys: &[&str]) {
     };
     let slots = match directive {
         "#SBATCH" => asked("--ntasks") * asked("--cpus-per-task"),
-        _ => asked("-n"),
+        // LSF: `-n` tasks, each with the cores of its `affinity[core(k)]` (one when absent).
+        _ => {
+            let cores = lines[..directives]
+                .iter()
+                .find_map(|l| l.split("affinity[core(").nth(1))
+                .map_or(1, |rest| rest.split(')').next().unwrap().parse().unwrap());
+            asked("-n") * cores
+        }
     };
     assert_eq!(value_of("-j"), slots.to_string(), "{script}");
 }

@@ -274,11 +274,19 @@ fn lsf_directives(
             format!("-J \"{}[1-{}]{throttle}\"", job.name, job.bundles.len())
         }
     }];
-    // LSF counts slots: every task's threads, each task's on cores of its own.
-    let slots = job.shape.cores();
-    d.push(format!("-n {slots}"));
-    if job.shape.threads > 1 {
-        d.push(format!("-R \"affinity[core({})]\"", job.shape.threads));
+    // LSF counts slots: one per core when each task runs one thread; with more, one per task,
+    // whose `affinity[core(threads)]` gives it that many cores of its own (with an affinity
+    // request LSF reads -n as tasks, and -n of every core would ask threads² per task).
+    let slots = match job.shape.threads {
+        1 => job.shape.cores(),
+        threads => {
+            d.push(format!("-n {}", job.shape.tasks));
+            d.push(format!("-R \"affinity[core({threads})]\""));
+            job.shape.tasks
+        }
+    };
+    if job.shape.threads == 1 {
+        d.push(format!("-n {slots}"));
     }
     match job.shape.nodes {
         // A job of one node: its slots may not spread over hosts.
@@ -614,7 +622,7 @@ mod tests {
             if scheduler == Scheduler::Lsf {
                 assert!(
                     text.contains(
-                        "#BSUB -n 2\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[hosts=1]\"\n"
+                        "#BSUB -n 1\n#BSUB -R \"affinity[core(2)]\"\n#BSUB -R \"span[hosts=1]\"\n"
                     ),
                     "each task's threads on cores of their own, on one host: {text}"
                 );
@@ -708,8 +716,10 @@ mod tests {
                 Scheduler::Lsf,
                 profile("lsf", ""),
                 &[
-                    "#BSUB -n 6",
-                    "#BSUB -R \"span[ptile=3]\"",
+                    // Two tasks of three threads: two slots, each three cores of its own.
+                    "#BSUB -n 2",
+                    "#BSUB -R \"affinity[core(3)]\"",
+                    "#BSUB -R \"span[ptile=1]\"",
                     "#BSUB -W 0:10",
                     "#BSUB -q compute",
                     "#BSUB -P proj42",
