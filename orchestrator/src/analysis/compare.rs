@@ -61,7 +61,19 @@ const METRICS: &[(&str, Better, Kind)] = &[
 const ORDERS: &[&str] = &["order_l2", "order_max"];
 
 /// How far an observed order may move before it counts as a change.
-const ORDER_TOLERANCE: f64 = 0.1;
+pub const ORDER_TOLERANCE: f64 = 0.1;
+
+/// Whether `metric` is an observed order (judged by `order_shift`, not by a ratio).
+pub fn is_order(metric: &str) -> bool {
+    ORDERS.contains(&metric)
+}
+
+/// How much farther B's observed order lies from the theoretical one (the whole number nearest
+/// A's) than A's: positive when B is worse. What an order's verdict judges.
+pub fn order_shift(a: f64, b: f64) -> f64 {
+    let theory = a.round();
+    (b - theory).abs() - (a - theory).abs()
+}
 
 /// Errors differ when |b − a| > ABSOLUTE + RELATIVE·|a|: round-off of a changed summation order
 /// stays below, a changed discretization does not.
@@ -243,7 +255,12 @@ impl NoiseModel {
         }
         let mut within: BTreeMap<(String, i32), Vec<f64>> = BTreeMap::new();
         let mut between: BTreeMap<String, Vec<f64>> = BTreeMap::new();
-        for ((metric, _), pairs) in by_runs {
+        // A pair of runs of fewer points has no common factor to speak of (the distances of a
+        // single point from its own median are 0): it calibrates nothing.
+        for ((metric, _), pairs) in by_runs
+            .into_iter()
+            .filter(|(_, p)| p.len() >= COMMON_POINTS)
+        {
             let logs: Vec<f64> = pairs.iter().map(|p| p.0).collect();
             let common = median(&logs);
             between
@@ -291,6 +308,11 @@ impl NoiseModel {
         (Z * self.within(metric, scale)).exp()
     }
 
+    /// The factor a ratio of two points of one run (a speedup) must clear: both points drift.
+    pub fn pair_floor(&self, metric: &str, scale: f64, other: f64) -> f64 {
+        (Z * self.within(metric, scale).hypot(self.within(metric, other))).exp()
+    }
+
     /// The factor a point's ratio must clear when its run's factor is not known (too few points):
     /// both drifts at once.
     fn point_and_run_floor(&self, metric: &str, scale: f64) -> f64 {
@@ -304,12 +326,13 @@ impl NoiseModel {
 
     /// One sentence on where the floors came from.
     pub fn describe(&self) -> String {
-        let pairs: usize = self.within.values().map(|(_, k)| k).sum();
-        let runs: usize = self.between.values().map(|(_, k)| k).sum();
+        // The pairs of the best-measured metric: each pair of runs gives one per metric.
+        let pairs = self.within.values().map(|(_, k)| *k).max().unwrap_or(0);
+        let runs = self.between.values().map(|(_, k)| *k).max().unwrap_or(0);
         match (pairs, runs) {
             (0, 0) => "noise floors: the default run-to-run drift (the study's history holds no A/A pairs of one build; `nlstudy run --force` on this machine makes them)".to_string(),
             _ => format!(
-                "noise floors: measured from the study's A/A history ({pairs} point pairs at {} metric scales, {runs} pairs of runs), the default elsewhere",
+                "noise floors: measured from the study's A/A history (up to {pairs} point pairs at each of {} metric scales, {runs} pairs of runs), the default elsewhere",
                 self.within.len()
             ),
         }
@@ -326,8 +349,12 @@ fn robust<K: Ord>(groups: BTreeMap<K, Vec<f64>>, fewest: usize) -> BTreeMap<K, (
         .collect()
 }
 
+/// The decade of a positive scale (0 for one that is not: it has no decade to look up).
 fn decade(x: f64) -> i32 {
-    x.log10().floor() as i32
+    match x > 0.0 && x.is_finite() {
+        true => x.log10().floor() as i32,
+        false => 0,
+    }
 }
 
 /// The scale a measured metric's drift is read at: a rate's is its run's solve time.
@@ -374,8 +401,15 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
                 median(&scales)
             };
             let all_noisy = |side: &[&Value]| side.iter().all(|r| is_noisy(r));
-            let wall_time = matches!(metric, "solve_s" | "setup_s");
-            let short = wall_time && (median(&xa) < RESOLUTION_S || median(&xb) < RESOLUTION_S);
+            // A rate is its run's solve time inverted: as short as that.
+            let wall_time = matches!(metric, "solve_s" | "setup_s" | "bond_updates_per_s");
+            let scale_b: Vec<f64> = b.iter().filter_map(|r| scale_of(metric, r)).collect();
+            let shortest = scale.min(if scale_b.is_empty() {
+                scale
+            } else {
+                median(&scale_b)
+            });
+            let short = wall_time && shortest < RESOLUTION_S;
             let set_aside = match (short, all_noisy(a) || all_noisy(b)) {
                 _ if kind == Kind::Deterministic => None,
                 (true, _) => Some(Verdict::TooShort),
@@ -523,9 +557,7 @@ pub fn compare_orders(a: &[Row], b: &[Row]) -> Vec<Change> {
             if !(xa.is_finite() && xb.is_finite()) {
                 continue;
             }
-            let theory = xa.round();
-            let moved = (xb - theory).abs() - (xa - theory).abs();
-            let verdict = match moved {
+            let verdict = match order_shift(xa, xb) {
                 m if m > ORDER_TOLERANCE => Verdict::Worse,
                 m if m < -ORDER_TOLERANCE => Verdict::Better,
                 _ => Verdict::Same,
@@ -569,13 +601,11 @@ pub fn compare_speedups(
         }
         let speedup = |base: &[f64], time: &[f64]| median(base) / median(time);
         let (sa, sb) = (speedup(&ba, &ta), speedup(&bb, &tb));
-        let shortest = [median(&ta), median(&ba)]
-            .into_iter()
-            .fold(f64::INFINITY, f64::min);
-        // Both points ran in one run, whose common factor cancels in their ratio.
+        let shortest = median(&ta).min(median(&ba));
+        // Both points ran in one run, whose common factor cancels in their ratio; each drifts.
         let setting = Setting {
             threshold,
-            floor: noise.point_floor("solve_s", shortest),
+            floor: noise.pair_floor("solve_s", median(&ta), median(&ba)),
             common: 1.0,
             seed: seed_of(point, "speedup"),
         };
@@ -921,6 +951,19 @@ mod tests {
             verdict(&compare(&paired, 0.1, &default), "solve_s"),
             Verdict::Same
         );
+        // Reruns of one key at a time (`run --force --only KEY`) have no common factor: each
+        // point is its own median, 0 from it, and would make the floor 1. They calibrate nothing.
+        let build = "ab".repeat(32);
+        let one_key: Vec<Value> = (0..12)
+            .map(|k| {
+                json!({"key": "k0", "status": "ok", "solve_s": 2.0 + 0.01 * k as f64,
+                       "run_id": format!("run{k}"),
+                       "provenance": {"fingerprint": build,
+                                      "timestamp": format!("2026-01-01T00:{k:02}:00Z")}})
+            })
+            .collect();
+        let alone = NoiseModel::calibrate(&refs(&one_key));
+        assert!(alone.describe().contains("default"), "{}", alone.describe());
         // Pairs of two builds, or of one process, are no A/A pairs.
         for (field, other) in [
             ("/provenance/fingerprint", json!("cd".repeat(32))),
@@ -1044,7 +1087,8 @@ mod tests {
         assert!((speedup.a - 2.0).abs() < 1e-12 && (speedup.b - 1.25).abs() < 1e-12);
         let (low, high) = speedup.interval.unwrap();
         assert!(low < 0.625 && 0.625 < high, "{low} {high}");
-        // A speedup 2 → 1.25 is a factor 1.6, within this VM's drift of a point at 1 s (×1.65).
+        // A speedup 2 → 1.25 is a factor 1.6, within this VM's drift of two points near 1 s
+        // (×2.0: they drift by σ 0.10 at 1 s and 0.13 at 0.1 s).
         assert_eq!(speedup.verdict, Verdict::Same);
         let (two_b, base_b) = (times(&[4.0, 4.04, 3.96]), times(&[2.0, 2.02, 1.98]));
         let points = [

@@ -6,7 +6,7 @@ use super::{claim, exit, planned, CommonArgs, CompareArgs, Failure, HistoryArgs}
 use crate::analysis::compare::{self, NoiseModel};
 use crate::model::study::Study;
 use crate::run::plan::{Options, Planned};
-use crate::store::{by_key, fingerprint_of, provenance, Fault, Store};
+use crate::store::{by_key, fingerprint_of, provenance, Store};
 use serde_json::Value;
 use sha2::Digest;
 use std::collections::{HashMap, HashSet};
@@ -119,8 +119,11 @@ pub(super) fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         args.against
     );
     let chart = crate::output::compare_figure::chart(&comparison, &title, args.threshold);
-    let svg = crate::output::draw::render(&chart).map_err(Fault::Io)?;
-    crate::store::write_atomically(&figure, svg.as_bytes())?;
+    // A figure that cannot be drawn stops nothing: the table holds every verdict.
+    match crate::output::draw::render(&chart) {
+        Ok(svg) => crate::store::write_atomically(&figure, svg.as_bytes())?,
+        Err(why) => say!("nlstudy: the comparison's figure is not drawn: {why}"),
+    }
     let regressions = comparison.regressions();
     say!("{}", noise.describe());
     say!(
@@ -230,7 +233,10 @@ pub(super) fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
         &records,
     )?;
     let path = store.table("history.svg");
-    let svg = crate::output::draw::render(&chart).map_err(Fault::Io)?;
+    let svg = crate::output::draw::render(&chart).map_err(|message| Failure {
+        message,
+        code: exit::CASE_FAILED,
+    })?;
     crate::store::write_atomically(&path, svg.as_bytes())?;
     tell!("history: {}", path.display());
     Ok(ExitCode::SUCCESS)
