@@ -45,7 +45,7 @@ integrators-docs: setup
 	mkdir -p docs/figures/integrators
 	cp results/integrators/figures/*.svg docs/figures/integrators/
 
-# docs/variable_horizon.md's figures and tables: seed 003's patch tests (a few seconds), then the
+# docs/variable_horizon.md's figures and tables: [LSSM]'s patch tests (a few seconds), then the
 # formulations compared (studies/formulations.json, about 3.5 minutes).
 variable-horizon-docs: setup
 	cargo build --release --workspace
@@ -54,7 +54,7 @@ variable-horizon-docs: setup
 	cp results/variable_horizon/figures/*.svg docs/figures/variable_horizon/
 	target/release/nlstudy run studies/formulations.json
 
-# docs/coupling.md's figures and tables (seed 003's local–nonlocal coupling and the seamless one),
+# docs/coupling.md's figures and tables ([LSSM]'s local–nonlocal coupling and the seamless one),
 # a few seconds.
 coupling-docs: setup
 	cargo build --release --workspace
@@ -86,7 +86,7 @@ scaling-docs: setup
 	mkdir -p docs/figures/scaling
 	cp results/scaling_model/figures/scaling_model.svg docs/figures/scaling/scaling_model.svg
 
-# The steady solvers' weak and strong scaling studies (seed 001; about 11 minutes) and their
+# The steady solvers' weak and strong scaling studies ([XGDF]; about 11 minutes) and their
 # comparison figures in docs/figures/feti/.
 feti-docs: setup
 	cargo build --release --workspace

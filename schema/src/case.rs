@@ -10,13 +10,13 @@ use crate::choices::*;
 use crate::error::{field_names, FieldError, Subject};
 use serde::{Deserialize, Serialize};
 
-/// Seed 001's relative tolerance for the steady solvers.
+/// \[XGDF]'s relative tolerance for the steady solvers.
 pub const DEFAULT_RTOL: f64 = 1e-5;
 
 /// Default iteration limit of a steady solve: far beyond the L/m that CG needs.
 pub const MAX_ITERATIONS: usize = 100_000;
 
-/// Default side L of the local methods' domain (seed 004's).
+/// Default side L of the local methods' domain (\[HPCSE]'s).
 pub const DEFAULT_LENGTH: f64 = 2.0;
 
 /// `coupled_1d`'s default local interval [Γ_c, Γ_i]: it overlaps Ω_n = (0, 1) on (0.75, 1).
@@ -40,7 +40,7 @@ pub struct Case {
     pub eps: Option<f64>,
     #[serde(default = "default_kernel")]
     pub kernel: Kernel,
-    /// The nonlocal operator's quadrature: `midpoint` (seed 000), `partial_volume` or `ac`.
+    /// The nonlocal operator's quadrature: `midpoint` (\[JD]), `partial_volume` or `ac`.
     /// Left out of the case's JSON when `midpoint`, so keys of earlier runs stay valid.
     #[serde(default, skip_serializing_if = "Quadrature::is_midpoint")]
     pub quadrature: Quadrature,
@@ -58,7 +58,7 @@ pub struct Case {
     /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source: Option<SourceMode>,
-    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in seed 004).
+    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in \[HPCSE]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length: Option<f64>,
     /// Final time T (time-dependent methods).
@@ -80,11 +80,11 @@ pub struct Case {
     /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
     #[serde(default)]
     pub error_total: bool,
-    /// Time between samples of c_tot(t) = h^d Σ c (seed 004's diagnostics.dat), rounded to whole
+    /// Time between samples of c_tot(t) = h^d Σ c (\[HPCSE]'s diagnostics.dat), rounded to whole
     /// steps; the series goes into the record. Absent: no series.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub diagnostics_every: Option<f64>,
-    /// Bins of a histogram of the final field's values over [min, max] (seed 004's
+    /// Bins of a histogram of the final field's values over [min, max] (\[HPCSE]'s
     /// compute_histogram). Absent: no histogram.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub histogram_bins: Option<usize>,
@@ -111,7 +111,7 @@ pub struct Case {
     /// Blocks along y of a `block` partition (2D).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub py: Option<usize>,
-    /// Relative tolerance of the iteration: steady methods (default 1e-5, seed 001's) and the
+    /// Relative tolerance of the iteration: steady methods (default 1e-5, \[XGDF]'s) and the
     /// implicit integrators' solves (default: tied to the time error, see `integrate::theta`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rtol: Option<f64>,
@@ -140,7 +140,7 @@ pub struct Case {
     /// exact solution, also `quartic` (u = x² − x⁴).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub patch: Option<PatchField>,
-    /// `coupled_1d`: `optimization` (default: seed 003's optimization-based coupling) or
+    /// `coupled_1d`: `optimization` (default: \[LSSM]'s optimization-based coupling) or
     /// `seamless` (one model whose horizon shrinks to one cell over the overlap).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coupling: Option<CouplingKind>,

@@ -9,25 +9,25 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
-    /// The nonlocal heat equation of seed 000, in time by the case's `integrator` (forward Euler,
+    /// The nonlocal heat equation of \[JD], in time by the case's `integrator` (forward Euler,
     /// eq. 2.1, by default).
     #[default]
     Nonlocal,
-    /// Local diffusion (seed 004): central differences, forward Euler.
+    /// Local diffusion (\[HPCSE]): central differences, forward Euler.
     FdExplicit,
-    /// Local diffusion (seed 004): Peaceman–Rachford ADI with the Thomas algorithm.
+    /// Local diffusion (\[HPCSE]): Peaceman–Rachford ADI with the Thomas algorithm.
     Adi,
-    /// Local diffusion (seed 004): particle strength exchange, forward Euler.
+    /// Local diffusion (\[HPCSE]): particle strength exchange, forward Euler.
     Pse,
-    /// Steady nonlocal diffusion (seed 001): unpreconditioned conjugate gradients on A u = f.
+    /// Steady nonlocal diffusion (\[XGDF]): unpreconditioned conjugate gradients on A u = f.
     SteadyCg,
-    /// Steady nonlocal diffusion (seed 001): FETI with p × p subdomains, projected CG on the
+    /// Steady nonlocal diffusion (\[XGDF]): FETI with p × p subdomains, projected CG on the
     /// Lagrange multipliers.
     Feti,
-    /// Seed 003's patch tests: L_h of a variable horizon (`horizon_profile`, `formulation`)
+    /// \[LSSM]'s patch tests: L_h of a variable horizon (`horizon_profile`, `formulation`)
     /// applied to a prescribed linear or quadratic field (`patch`), 1D; no time.
     PatchTest,
-    /// Seed 003's optimization-based local–nonlocal coupling in 1D (D'Elia, Perego, Bochev): a
+    /// \[LSSM]'s optimization-based local–nonlocal coupling in 1D (D'Elia, Perego, Bochev): a
     /// steady nonlocal problem on Ω_n = (0, 1) and a Poisson problem on `local_domain`, their
     /// mismatch on the overlap minimised over the interface controls; exact field `patch`.
     #[serde(rename = "coupled_1d")]
@@ -55,7 +55,7 @@ impl Method {
         matches!(self, Method::FdExplicit | Method::Adi | Method::Pse)
     }
 
-    /// Does the method solve the steady problem −L u = f of seed 001 (no time)?
+    /// Does the method solve the steady problem −L u = f of \[XGDF] (no time)?
     pub fn is_steady(self) -> bool {
         matches!(self, Method::SteadyCg | Method::Feti)
     }
@@ -65,7 +65,7 @@ impl Method {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Integrator {
-    /// Seed 000's eq. 2.1: order 1, stable for dt ≤ 2/λ_max.
+    /// \[JD]'s eq. 2.1: order 1, stable for dt ≤ 2/λ_max.
     #[default]
     ForwardEuler,
     /// Heun's method (explicit trapezoidal RK2): order 2, stable for dt ≤ 2/λ_max.
@@ -98,7 +98,7 @@ impl Integrator {
     }
 }
 
-/// The preconditioner of FETI's projected CG (seed 001, section 3.1.1).
+/// The preconditioner of FETI's projected CG (\[XGDF], section 3.1.1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FetiPreconditioner {
@@ -111,7 +111,7 @@ pub enum FetiPreconditioner {
     DirichletCg,
     /// The Dirichlet preconditioner with multiplicity scaling (Rixen & Farhat, IJNME 44, 1999):
     /// each interface value weighted by 1/(subdomains sharing its node) on the way in and out.
-    /// Not in seed 001; about half the iterations of `dirichlet`.
+    /// Not in \[XGDF]; about half the iterations of `dirichlet`.
     DirichletScaled,
 }
 
@@ -125,7 +125,7 @@ pub enum Kernel {
     Linear,
     /// J = exp(−r²), cut at r = 1.
     Gaussian,
-    /// J = 1/r: singular at the origin, integrable in the moments used by c (seed 001's kernel).
+    /// J = 1/r: singular at the origin, integrable in the moments used by c (\[XGDF]'s kernel).
     InverseDistance,
 }
 
@@ -141,7 +141,7 @@ impl Kernel {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Quadrature {
-    /// Full cell volume for every node in the closed ball (seed 000).
+    /// Full cell volume for every node in the closed ball (\[JD]).
     #[default]
     Midpoint,
     /// The part of each cell inside the ball.
@@ -173,7 +173,7 @@ pub enum Backend {
     Stencil,
     /// Zero-padded FFT convolution with the weights (uniform grids): O(N log N) for any m.
     Fft,
-    /// Algorithm 1 of seed 000 literally: a neighbour list per node, distances and J recomputed
+    /// Algorithm 1 of \[JD] literally: a neighbour list per node, distances and J recomputed
     /// for every bond at every application. The oracle the fast backends are tested against.
     NeighbourList,
 }
@@ -184,7 +184,7 @@ pub enum Partition {
     /// px × py rectangles of the grid.
     #[default]
     Block,
-    /// A METIS partition of the grid graph: irregular subdomains, like seed 000's Figure 3.
+    /// A METIS partition of the grid graph: irregular subdomains, like \[JD]'s Figure 3.
     Graph,
 }
 
@@ -198,7 +198,7 @@ pub enum Problem {
     Bump,
     /// Local methods: c = Π_a cos(π x_a / L) on (−L/2, L/2)^d, decaying as exp(−dπ²Dt/L²).
     Eigenmode,
-    /// Local methods, seed 004's setup: c = 1 where every |x_a| < L/4, else 0.
+    /// Local methods, \[HPCSE]'s setup: c = 1 where every |x_a| < L/4, else 0.
     Square,
 }
 
@@ -245,7 +245,7 @@ impl Problem {
     }
 }
 
-/// How the horizon varies along D = [0, 1] (seed 003); outside D it keeps its value at the
+/// How the horizon varies along D = [0, 1] (\[LSSM]); outside D it keeps its value at the
 /// nearer end.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -268,7 +268,7 @@ pub enum HorizonProfile {
 #[serde(rename_all = "snake_case")]
 pub enum CouplingKind {
     /// D'Elia, Perego and Bochev's: two models on overlapping domains, their interface values
-    /// the controls of a least-squares mismatch on the overlap (seed 003).
+    /// the controls of a least-squares mismatch on the overlap (\[LSSM]).
     #[default]
     Optimization,
     /// Tao, Tian and Du's heterogeneous localization: one model whose horizon shrinks to one
@@ -297,7 +297,7 @@ impl Krylov {
     }
 }
 
-/// How a variable horizon enters the nonlocal operator (seed 003).
+/// How a variable horizon enters the nonlocal operator (\[LSSM]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Formulation {
@@ -330,6 +330,6 @@ pub enum PatchField {
     Linear,
     /// u = x²: L u = 2k.
     Quadratic,
-    /// u = x² − x⁴ (`coupled_1d` only, seed 003's Example 2): L u = 2k − 12k x² − 2k ε² M₄/M₂.
+    /// u = x² − x⁴ (`coupled_1d` only, \[LSSM]'s Example 2): L u = 2k − 12k x² − 2k ε² M₄/M₂.
     Quartic,
 }

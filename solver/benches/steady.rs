@@ -1,5 +1,5 @@
 //! FETI's coarse problem at the seed's sizes (`cargo bench -p solver --bench steady`): GᵀG of
-//! p × p subdomains at L/p = 288 and m = 4 (seed 001's largest run: p = 48), factored once
+//! p × p subdomains at L/p = 288 and m = 4 (\[XGDF]'s largest run: p = 48), factored once
 //! and solved twice per projected-CG iteration. What a projection to p = 48 needs and a run on
 //! this machine cannot reach; the subdomain products are measured by the `feti` records.
 

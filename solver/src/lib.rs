@@ -1,6 +1,6 @@
 //! Nonlocal and local diffusion solvers: the partitioned nonlocal heat equation of Jha & Diehl
-//! (seed 000), the local grid and particle methods of seed 004, the asymptotically compatible
-//! quadratures of seed 002 and the steady problem with CG and FETI of seed 001.
+//! (\[JD]), the local grid and particle methods of \[HPCSE], the asymptotically compatible
+//! quadratures of \[RKAC] and the steady problem with CG and FETI of \[XGDF].
 //!
 //! The modules are layers; each imports only those above it in this list (a test checks it):
 //!

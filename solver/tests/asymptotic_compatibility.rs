@@ -1,4 +1,4 @@
-//! Asymptotic compatibility (seed 002): which quadrature converges to which limit along the
+//! Asymptotic compatibility (\[RKAC]): which quadrature converges to which limit along the
 //! paths of the (ε, h) plane, measured on the manufactured solution.
 
 mod common;

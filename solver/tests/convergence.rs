@@ -1,4 +1,4 @@
-//! Measured convergence orders of the manufactured solution (seed 000, Appendix A).
+//! Measured convergence orders of the manufactured solution (\[JD], Appendix A).
 
 mod common;
 

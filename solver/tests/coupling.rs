@@ -1,4 +1,4 @@
-//! Seed 003's optimization-based local–nonlocal coupling (`coupled_1d`), run through the
+//! \[LSSM]'s optimization-based local–nonlocal coupling (`coupled_1d`), run through the
 //! library as a user's case: the patch test to round-off, the seed's two examples at second
 //! order and near the seed's own numbers, and the optimality system's first-order condition.
 

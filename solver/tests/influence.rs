@@ -41,7 +41,7 @@ fn moments_match_quadrature_for_every_kernel() {
 
 #[test]
 fn moments_of_seed_000_examples() {
-    // Seed 000, after eq. 1.6: J = 1 gives M_i = 1/(i+1); J = 1 − r gives M_2 = 1/12, M_3 = 1/20.
+    // [JD], after eq. 1.6: J = 1 gives M_i = 1/(i+1); J = 1 − r gives M_2 = 1/12, M_3 = 1/20.
     for i in 0..6 {
         assert_eq!(Kernel::Constant.moment(i), 1.0 / (i as f64 + 1.0));
     }

@@ -1,4 +1,4 @@
-//! The local diffusion methods of seed 004 (explicit FD, Peaceman–Rachford ADI and particle
+//! The local diffusion methods of \[HPCSE] (explicit FD, Peaceman–Rachford ADI and particle
 //! strength exchange) against the exact eigenmode: measured orders in h, dt and ε, the stability
 //! bounds, ADI far beyond the explicit one, PSE's pair count, the c_tot(t) series and histogram
 //! of the seed's setup, and thread-count independence.
@@ -142,7 +142,7 @@ fn explicit_fd_beyond_its_bound_diverges_and_adi_at_100_times_it_does_not() {
     assert!(l2_error(&adi) < 2.0 * explicit_error);
 }
 
-/// Seed 004's setup (D = 1, L = 2, c = 1 on the inner square): mass leaves through the zero
+/// \[HPCSE]'s setup (D = 1, L = 2, c = 1 on the inner square): mass leaves through the zero
 /// boundary, so the sampled c_tot(t) falls strictly over t ∈ [0, 0.5], from the square's mass.
 #[test]
 fn total_concentration_of_the_seed_setup_decreases() {

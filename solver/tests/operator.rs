@@ -194,7 +194,7 @@ fn results_do_not_depend_on_the_thread_count() {
 #[test]
 fn a_horizon_landing_on_a_node_keeps_that_node() {
     // ε = 0.1, n = 30: ε/h = 3.0000000000000004 in floating point; the closed ball holds the
-    // nodes at distance exactly 3h (seed 000 uses |x_j − x_i| ≤ ε), so m = 3 and 6 bonds in 1D.
+    // nodes at distance exactly 3h ([JD] uses |x_j − x_i| ≤ ε), so m = 3 and 6 bonds in 1D.
     let (stencil, _) = operator_pair(
         1,
         30,

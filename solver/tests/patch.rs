@@ -1,4 +1,4 @@
-//! Patch tests (seed 003's idea, for diffusion): L_h of a linear field vanishes and L_h of |x|²
+//! Patch tests (\[LSSM]'s idea, for diffusion): L_h of a linear field vanishes and L_h of |x|²
 //! is 2dk, checked on the operators themselves (both backends) at the nodes whose ball lies in D,
 //! for every quadrature, kernel and m from 1 to 10.
 
@@ -170,7 +170,7 @@ fn patch_errors_match_their_closed_forms_and_only_ac_is_exact_in_2d() {
     }
 }
 
-// ---- A horizon that varies along the bar (seed 003): standard and partial-stress forms ----
+// ---- A horizon that varies along the bar ([LSSM]): standard and partial-stress forms ----
 
 use solver::case::{Formulation, HorizonProfile};
 use solver::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};

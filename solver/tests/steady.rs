@@ -1,4 +1,4 @@
-//! The steady problem of seed 001: the assembled system against the stencil, its quadratic
+//! The steady problem of \[XGDF]: the assembled system against the stencil, its quadratic
 //! exactness, CG and FETI against the single-domain direct solve, and how iteration counts scale.
 
 mod common;

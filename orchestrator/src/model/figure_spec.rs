@@ -49,7 +49,7 @@ pub enum FigureKind {
     /// Heat maps (profiles in 1D) of one point's final field and of its error, from the
     /// snapshot the case's `field_snapshot` puts into the record.
     Field,
-    /// Steady solvers (seed 001): iterations and solve time against the subdomains, one series
+    /// Steady solvers (\[XGDF]): iterations and solve time against the subdomains, one series
     /// per method and preconditioner. CG has no subdomains: its points sit at the subdomain count
     /// of the FETI points that solve the same L.
     SolverComparison,

@@ -72,7 +72,7 @@ struct RunArgs {
     /// Also write the final field to FILE: little-endian f64 values in node order (iy·n + ix).
     #[arg(long, value_name = "FILE")]
     write_field: Option<PathBuf>,
-    /// Also write the c_tot(t) series to FILE as CSV (`t,c_tot`, seed 004's diagnostics.dat);
+    /// Also write the c_tot(t) series to FILE as CSV (`t,c_tot`, [HPCSE]'s diagnostics.dat);
     /// needs --diagnostics-every.
     #[arg(long, value_name = "FILE")]
     write_diagnostics: Option<PathBuf>,
@@ -98,8 +98,8 @@ struct CaseArgs {
 #[derive(Args, Serialize)]
 struct CaseFlags {
     /// Method: nonlocal (eq. 2.1, stepped by --integrator); fd_explicit, adi or pse (local diffusion,
-    /// seed 004); steady_cg or feti (the steady problem of seed 001); patch_test (a variable
-    /// horizon's patch tests, seed 003); coupled_1d (seed 003's optimization-based local–nonlocal
+    /// [HPCSE]); steady_cg or feti (the steady problem of [XGDF]); patch_test (a variable
+    /// horizon's patch tests, [LSSM]); coupled_1d ([LSSM]'s optimization-based local–nonlocal
     /// coupling).
     #[arg(long)]
     method: Option<String>,
@@ -118,7 +118,7 @@ struct CaseFlags {
     /// Influence function J: constant, linear, gaussian, inverse_distance.
     #[arg(long)]
     kernel: Option<String>,
-    /// Quadrature of the nonlocal operator: midpoint (seed 000), partial_volume, ac (exact on quadratics).
+    /// Quadrature of the nonlocal operator: midpoint ([JD]), partial_volume, ac (exact on quadratics).
     #[arg(long)]
     quadrature: Option<String>,
     /// Operator backend: auto (default: stencil or fft by the cost model), stencil (precomputed
@@ -221,7 +221,7 @@ struct CaseFlags {
     /// exact solution, also quartic (u = x² − x⁴).
     #[arg(long)]
     patch: Option<String>,
-    /// coupled_1d: optimization (default: seed 003's optimization-based coupling) or seamless
+    /// coupled_1d: optimization (default: [LSSM]'s optimization-based coupling) or seamless
     /// (one x-centred model whose horizon shrinks to h over the overlap).
     #[arg(long)]
     coupling: Option<String>,

@@ -160,7 +160,7 @@ impl Rules for Case {
             Some(rtol) if !(rtol > 0.0 && rtol < 1.0) => Err(CaseError::new(
                 "rtol",
                 format!(
-                    "must lie in (0, 1) (got {}); seed 001 uses 1e-5",
+                    "must lie in (0, 1) (got {}); [XGDF] uses 1e-5",
                     readable(rtol)
                 ),
             )),
@@ -177,7 +177,7 @@ impl Rules for Case {
         }
     }
 
-    /// For a one-shot method on one rank (seed 003's): refuses the fields of a time loop, of the
+    /// For a one-shot method on one rank (\[LSSM]'s): refuses the fields of a time loop, of the
     /// lattice operator's choices, of ranks and of the outputs a time loop makes; `why` says
     /// what the method does instead.
     fn refuse_time_loop_fields(&self, why: &str) -> Result<(), CaseError> {

@@ -1,4 +1,4 @@
-//! Piecewise-linear finite elements in 1D, for seed 003's local–nonlocal coupling: a mesh and its
+//! Piecewise-linear finite elements in 1D, for \[LSSM]'s local–nonlocal coupling: a mesh and its
 //! hat functions, the stiffness matrices of −k u'' and of the nonlocal form, loads and L²
 //! distances. Unlike the lattice schemes, they stay valid for h ≥ ε (the seed's coarse grids).
 //!
@@ -8,7 +8,7 @@
 //! B(u, v) = (c/2) ∫∫_{D×D, |y−x|<ε} J(|y−x|/ε) (u(y) − u(x)) (v(y) − v(x)) dy dx
 //!         = c ∫₀^ε J(s/ε) I(s) ds,  I(s) = ∫_{x, x+s ∈ D} (u(x+s) − u(x)) (v(x+s) − v(x)) dx
 //!
-//! (the half s < 0 equals the half s > 0 by x → x + s). Written so, seed 003's singular kernel
+//! (the half s < 0 equals the half s > 0 by x → x + s). Written so, \[LSSM]'s singular kernel
 //! γ = 1/(ε²|x − y|) is harmless: for P1 functions I(s) = O(s²).
 //!
 //! **Quadrature.** For fixed s the x-integrand is a product of two linear functions between the

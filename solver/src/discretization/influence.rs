@@ -1,4 +1,4 @@
-//! Influence functions J(r) on r ∈ [0, 1], their moments M_i = ∫₀¹ J(r) rⁱ dr (seed 000, eq. 1.6),
+//! Influence functions J(r) on r ∈ [0, 1], their moments M_i = ∫₀¹ J(r) rⁱ dr (\[JD], eq. 1.6),
 //! and the scaling constant c of eq. 1.5 that makes the nonlocal operator tend to kΔ as ε → 0.
 
 use crate::case::Kernel;
@@ -62,7 +62,7 @@ impl Influence for Kernel {
 
 /// The constant c of eq. 1.5: k/(ε³ M₂) in 1D and 2k/(π ε⁴ M₃) in 2D.
 ///
-/// Pinned to the formula by a test: the public HPX code of seed 000 drops the π in 2D and
+/// Pinned to the formula by a test: the public HPX code of \[JD] drops the π in 2D and
 /// truncates c to an integer in 1D, which changes the limit the scheme converges to.
 pub fn scaling_constant(dim: usize, kernel: Kernel, eps: f64, diffusivity: f64) -> f64 {
     match dim {

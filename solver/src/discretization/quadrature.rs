@@ -1,7 +1,7 @@
 //! Quadrature rules of the discrete nonlocal operator: the volume V_o each lattice bond offset o
 //! carries in L_h u_i = Σ_o c J(|o|h/ε) V_o (u_{i+o} − u_i).
 //!
-//! - `midpoint` (seed 000, eq. 2.1): V_o = h^d when |o|h ≤ ε, else 0.
+//! - `midpoint` (\[JD], eq. 2.1): V_o = h^d when |o|h ≤ ε, else 0.
 //! - `partial_volume`: V_o = |cell_o ∩ B_ε|, the part of node o's cell inside the ball, computed
 //!   exactly (1D: an interval overlap; 2D: a square ∩ disc area in closed form). Cells cut by the
 //!   sphere count even when their node lies outside; their J is taken at r = 1 (J(min(r, 1))),
@@ -14,7 +14,7 @@
 //!   continuum operator of eq. 1.1 with c of eq. 1.5 is) if and only if the one moment condition
 //!   Σ_o w_o |o h|² = 2 d k,   i.e.   Σ_o J_o V_o |o h|² = ∫_{B_ε} J(|z|/ε) |z|² dz
 //!   holds (the right side is 2ε³M₂ in 1D and 2πε⁴M₃ in 2D). This is the quadratic exactness of
-//!   seed 002 (Lemma 5), whose quasi-discrete operator gets it from reproducing-kernel quadrature
+//!   \[RKAC] (Lemma 5), whose quasi-discrete operator gets it from reproducing-kernel quadrature
 //!   weights; on our symmetric lattice the generalized-moving-least-squares weight fit of Trask,
 //!   You, Yu & Parks (CMAME 343, 2019) reduces to the same single condition, since the linear and
 //!   mixed quadratic constraints hold by symmetry. Of the weights that meet it we take the
@@ -89,7 +89,7 @@ impl BondVolumes {
         bond_volumes
     }
 
-    /// h² for every offset of the square |o|∞ ≤ m but the origin (2D): seed 001's ω_j.
+    /// h² for every offset of the square |o|∞ ≤ m but the origin (2D): \[XGDF]'s ω_j.
     pub fn square(grid: &Grid, m: usize) -> Self {
         let side = 2 * m + 1;
         let mut volumes = vec![grid.volume(); side * side];

@@ -2,7 +2,7 @@
 //!
 //! Eq. 2.1 on the lattice hℤ^d is translation invariant: bond offset o ≠ 0 carries
 //! w_o = c J(|o|h/ε) V_o, with V_o the volume the case's quadrature gives it (h^d inside the ball
-//! for seed 000's midpoint rule; see `quadrature`). Since the collar nodes count (with u = 0), every node of D sees the same
+//! for \[JD]'s midpoint rule; see `quadrature`). Since the collar nodes count (with u = 0), every node of D sees the same
 //! total weight W = Σ_o w_o, and
 //!     L_h u_i = Σ_o w_o u_{i+o} − W u_i   (u = 0 outside D).
 //! The stencil backend applies this form, the stability bound reads its symbol, and later backends
@@ -103,7 +103,7 @@ impl Stencil {
         Stencil::from_rows(grid, horizon, kernel, quadrature, c, volumes, rows)
     }
 
-    /// The stencil of the square (ℓ∞) neighbourhood |o|∞ ≤ m of seed 001, bond o weighted
+    /// The stencil of the square (ℓ∞) neighbourhood |o|∞ ≤ m of \[XGDF], bond o weighted
     /// `weight(dx, dy)`: every row spans −m ..= m.
     pub fn square(
         grid: Grid,
@@ -161,7 +161,7 @@ impl Stencil {
         }
     }
 
-    /// L_h|x|² / (2dk) − 1: the relative error of the quadratic patch test (seed 003) on the
+    /// L_h|x|² / (2dk) − 1: the relative error of the quadratic patch test (\[LSSM]) on the
     /// lattice, where L_h|x|² = Σ_o w_o |o h|² at every node whose ball lies in D. Zero up to
     /// round-off for `ac`; 2dk = c ∫_{B_ε} J |z|² dz by eq. 1.5.
     pub fn patch_error(&self) -> f64 {

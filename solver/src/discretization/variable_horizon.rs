@@ -1,5 +1,5 @@
 //! A horizon that varies along the bar, ε = ε(x) on D = [0, 1], and the two ways of building
-//! the nonlocal diffusion operator from it that seed 003 compares: the standard (pairwise)
+//! the nonlocal diffusion operator from it that \[LSSM] compares: the standard (pairwise)
 //! formulation, whose patch tests fail where ε varies ("ghost forces"), and the partial-stress
 //! formulation, which passes them whatever ε(x).
 //!

@@ -1,6 +1,6 @@
 //! Conjugate gradients, once for every solver: the steady problem's unpreconditioned CG from
-//! zero (seed 001, section 4.1's baseline), the θ-steps' preconditioned CG from the previous
-//! step, and FETI's projected CG on the interface (seed 001's Algorithm 1). A solve is a
+//! zero (\[XGDF], section 4.1's baseline), the θ-steps' preconditioned CG from the previous
+//! step, and FETI's projected CG on the interface (\[XGDF]'s Algorithm 1). A solve is a
 //! `CgSystem` (A, optionally M ≈ A⁻¹, and the inner product, threaded on one process or summed
 //! over ranks) and its `CgParams` (where x starts, the tolerance and its norm, the iteration cap).
 //!
@@ -56,7 +56,7 @@ pub enum Start<'a> {
 pub enum Norm {
     /// ‖r‖ / ‖b‖.
     Residual,
-    /// √(rᵀz / r₀ᵀz₀), the preconditioned residual against the first one (FETI's, seed 001:
+    /// √(rᵀz / r₀ᵀz₀), the preconditioned residual against the first one (FETI's, \[XGDF]:
     /// "until rᵀy is small enough").
     Preconditioned,
 }

@@ -1,4 +1,4 @@
-//! Seed 003's optimization-based local–nonlocal coupling in 1D (D'Elia, Perego and Bochev).
+//! \[LSSM]'s optimization-based local–nonlocal coupling in 1D (D'Elia, Perego and Bochev).
 //!
 //! **Layout** (the seed's slides fix the local problem's far end at x = 1.75 and an overlap;
 //! the rest is our choice, and consistent with the seed's tables: its finest errors are those of
@@ -666,7 +666,7 @@ mod tests {
     /// Without `local_domain` the local problem lies on the seed's [0.75, 1.75]: the same
     /// problem as one that writes it, overlapping Ω_n on Ω_b = (0.75, 1).
     #[test]
-    fn the_default_layout_is_the_seeds() {
+    fn the_default_layout_is_the_papers() {
         let implicit = case(16, "quadratic");
         let explicit = Case {
             local_domain: Some([0.75, 1.75]),

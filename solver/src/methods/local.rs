@@ -1,4 +1,4 @@
-//! The local diffusion equation ∂c/∂t = D∇²c of seed 004 on the grid: explicit finite differences
+//! The local diffusion equation ∂c/∂t = D∇²c of \[HPCSE] on the grid: explicit finite differences
 //! and Peaceman–Rachford ADI, on D = (−L/2, L/2)^d with c = 0 on the boundary.
 //!
 //! The grid has n interior nodes per side, x_i = −L/2 + (i + 1) h with h = L/(n + 1), so the
@@ -36,7 +36,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     validate_domain(case)
 }
 
-/// The rules every local method (FD, ADI, PSE) obeys: seed 004's problems on (−L/2, L/2)^d, no
+/// The rules every local method (FD, ADI, PSE) obeys: \[HPCSE]'s problems on (−L/2, L/2)^d, no
 /// source and no nonlocal fields, one rank.
 pub(crate) fn validate_domain(case: &Case) -> Result<(), CaseError> {
     let method = serde_json::to_value(case.method).unwrap_or_default();
@@ -44,7 +44,7 @@ pub(crate) fn validate_domain(case: &Case) -> Result<(), CaseError> {
         return Err(CaseError::new(
             "problem",
             format!(
-                "method {method} solves `eigenmode` or `square` (seed 004's setup); set `problem`"
+                "method {method} solves `eigenmode` or `square` ([HPCSE]'s setup); set `problem`"
             ),
         ));
     }
@@ -133,7 +133,7 @@ impl LocalGrid {
 pub(crate) fn initial_value(problem: Problem, x: &[f64], length: f64) -> f64 {
     match problem {
         Problem::Eigenmode => x.iter().map(|&s| (PI * s / length).cos()).product(),
-        // c = 1 where every |x_a| < L/4 (seed 004), 0 elsewhere.
+        // c = 1 where every |x_a| < L/4 ([HPCSE]), 0 elsewhere.
         _ => f64::from(u8::from(x.iter().all(|s| s.abs() < length / 4.0))),
     }
 }
@@ -371,7 +371,7 @@ pub(crate) fn outcome(
 /// Peaceman–Rachford ADI: per step of dt, a half step implicit in x and explicit in y, then one
 /// implicit in y and explicit in x, each of dt/2:
 ///     (1 − ½dt D δx²) c* = (1 + ½dt D δy²) cⁿ,   (1 − ½dt D δy²) cⁿ⁺¹ = (1 + ½dt D δx²) c*.
-/// Seed 004 writes each half step with Δt; its Δt is our dt/2. In 1D there is no y: the two
+/// \[HPCSE] writes each half step with Δt; its Δt is our dt/2. In 1D there is no y: the two
 /// halves compose to Crank–Nicolson. Both are second order in dt and unconditionally stable.
 pub struct Adi {
     grid: LocalGrid,

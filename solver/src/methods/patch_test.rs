@@ -1,4 +1,4 @@
-//! Seed 003's patch tests of a variable horizon: the operator L_h of a formulation (`standard`,
+//! \[LSSM]'s patch tests of a variable horizon: the operator L_h of a formulation (`standard`,
 //! `x_centred` or `partial_stress`, `discretization::variable_horizon`) applied to a prescribed
 //! linear or quadratic field on D = [0, 1]^d with its collars, in 1D or 2D (ε and the field
 //! depending on x alone). A linear field must give L_h u = 0 and

@@ -1,4 +1,4 @@
-//! Particle strength exchange (seed 004, question 2) for ∂c/∂t = D∇²c on (−L/2, L/2)^d with
+//! Particle strength exchange (\[HPCSE], question 2) for ∂c/∂t = D∇²c on (−L/2, L/2)^d with
 //! c = 0 on the boundary.
 //!
 //! N = n^d particles sit at the cell centres x_i = −L/2 + (i + ½)h, h = L/n, each of volume

@@ -1,7 +1,7 @@
 //! A seamless local–nonlocal coupling in the sense of Tao, Tian and Du (nonlocal models with
 //! heterogeneous localization): one model on the whole body Ω = (0, b), whose horizon shrinks
 //! from ε on the nonlocal part to one cell over the overlap (a, 1), so that it becomes local
-//! without an interface, controls or an optimization. It solves seed 003's Examples 1 and 2 on
+//! without an interface, controls or an optimization. It solves \[LSSM]'s Examples 1 and 2 on
 //! the layout of `coupled_1d` (Ω_n = (0, 1), Ω_l = `local_domain` = (a, b)), for comparison with
 //! the optimization-based coupling.
 //!

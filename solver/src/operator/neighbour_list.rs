@@ -1,7 +1,7 @@
-//! The neighbour-list backend: Algorithm 1 of seed 000, literally.
+//! The neighbour-list backend: Algorithm 1 of \[JD], literally.
 //!
 //! The list of node i holds every node j of D ∪ D_c that the quadrature gives a volume V_ij > 0
-//! (for seed 000's midpoint rule: 0 < |x_j − x_i| ≤ ε), by its index on the grid extended by the
+//! (for \[JD]'s midpoint rule: 0 < |x_j − x_i| ≤ ε), by its index on the grid extended by the
 //! collar. Each application recomputes |x_j − x_i| and J for every bond and sums
 //! c J (U[j] − U[i]) V_ij, with U = 0 on the collar. This is the slow, obviously right oracle.
 

@@ -1,5 +1,5 @@
 //! An operator held as its rows, each a list of (column, coefficient): what a discretization
-//! whose weights change from node to node assembles (a varying horizon, seed 003). Each output
+//! whose weights change from node to node assembles (a varying horizon, \[LSSM]). Each output
 //! is its row's sum in the stored order, computed by one thread, so the result does not depend
 //! on the thread count.
 

@@ -14,7 +14,7 @@ pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) ->
     partials.iter().sum()
 }
 
-/// e^k = h^d Σᵢ |exact(i) − uᵢ|² (seed 000, eq. A.3): the square of the discrete L² error.
+/// e^k = h^d Σᵢ |exact(i) − uᵢ|² (\[JD], eq. A.3): the square of the discrete L² error.
 pub fn squared_l2_error(exact: impl Fn(usize) -> f64 + Sync, u: &[f64], volume: f64) -> f64 {
     volume * fixed_order_sum(u.len(), |i| (exact(i) - u[i]).powi(2))
 }
@@ -109,7 +109,7 @@ impl Schedule {
     }
 }
 
-/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (seed 004's diagnostics.dat): at t = 0 and at the
+/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (\[HPCSE]'s diagnostics.dat): at t = 0 and at the
 /// steps its schedule makes due.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MassSeries {
@@ -158,7 +158,7 @@ pub struct Histogram {
     pub counts: Vec<u64>,
 }
 
-/// The histogram of u over [min u, max u] in `bins` bins (seed 004's compute_histogram), counted
+/// The histogram of u over [min u, max u] in `bins` bins (\[HPCSE]'s compute_histogram), counted
 /// in parallel by blocks; integer counts make the result independent of the thread count. A
 /// field that is not finite everywhere has no histogram.
 pub fn histogram(u: &[f64], bins: usize) -> Option<Histogram> {

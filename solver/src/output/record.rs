@@ -21,7 +21,7 @@ pub struct Record {
     pub setup_s: f64,
     pub solve_s: f64,
     pub step_s: f64,
-    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (seed 000, eq. A.3): the *squared*
+    /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (\[JD], eq. A.3): the *squared*
     /// discrete L² error, as the contract names it.
     pub error_l2: Option<f64>,
     /// √(eᵏ), the discrete L² norm of the error, whose orders are the usual ones.
@@ -266,7 +266,7 @@ pub struct ImplicitSolves {
     pub solve_rtol: Option<f64>,
 }
 
-/// A patch test (seed 003): L_h of a variable horizon applied to a prescribed field.
+/// A patch test (\[LSSM]): L_h of a variable horizon applied to a prescribed field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PatchTest {
     /// max |L_h u − k u''| over D's nodes farther than the largest ε from both ends (the seed
@@ -308,7 +308,7 @@ pub struct Spectrum {
     pub computed: Option<usize>,
 }
 
-/// A coupled local–nonlocal solve (seed 003): the errors of both models against the exact
+/// A coupled local–nonlocal solve (\[LSSM]): the errors of both models against the exact
 /// solution; for the optimization-based coupling also the optimal controls and the optimality
 /// system's residual and conditioning (absent for the seamless one, which has none).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -348,7 +348,7 @@ pub struct Coupling {
     pub local_domain: [f64; 2],
 }
 
-/// What a steady solve (seed 001) did; every field absent for the time-dependent methods.
+/// What a steady solve (\[XGDF]) did; every field absent for the time-dependent methods.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SteadySolve {
     /// CG iterations (`steady_cg`) or projected-CG iterations on the multipliers (`feti`).

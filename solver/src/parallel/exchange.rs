@@ -1,8 +1,8 @@
 //! The communication every distributed solver needs: a swap of blocks with some other ranks (the
-//! halo exchange of seed 000's Algorithm 3, FETI's R^D exchange of seed 001's Algorithm 1), with
+//! halo exchange of \[JD]'s Algorithm 3, FETI's R^D exchange of \[XGDF]'s Algorithm 1), with
 //! computation overlapped while the messages fly, and sums and maxima over all ranks (FETI's R^C
 //! gather and the reductions). `Serial` is one process owning everything; `world::Mpi` (with the
-//! `mpi` feature) is a communicator of ranks (MPI_Isend/MPI_Irecv and MPI_Allreduce, as in the seeds).
+//! `mpi` feature) is a communicator of ranks (MPI_Isend/MPI_Irecv and MPI_Allreduce, as in \[JD]).
 
 use crate::output::diagnostics;
 use crate::output::record::Traffic;

@@ -1,4 +1,4 @@
-//! L_h on one rank's nodes (seed 000, Algorithm 3): the owned values go into the rank's padded
+//! L_h on one rank's nodes (\[JD], Algorithm 3): the owned values go into the rank's padded
 //! window, the values other ranks need go out and the ghosts come in (non-blocking), and while
 //! the messages fly the interior nodes, whose balls hold no ghost, are computed; the boundary
 //! nodes follow. The kernel is the serial stencil operator's, so every value equals the serial

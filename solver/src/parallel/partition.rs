@@ -1,4 +1,4 @@
-//! How the nodes of D are divided among ranks (seed 000, section 3): which rank owns each node.
+//! How the nodes of D are divided among ranks (\[JD], section 3): which rank owns each node.
 //!
 //! - `block`: px × py rectangles, boundaries at ⌊i·n/p⌋ so uneven splits differ by at most one
 //!   node; px·py = R is chosen to minimise the halo unless the case gives it, or, for the

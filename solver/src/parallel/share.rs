@@ -1,4 +1,4 @@
-//! One rank's share of the grid, planned once before time stepping (seed 000, Algorithm 3): the
+//! One rank's share of the grid, planned once before time stepping (\[JD], Algorithm 3): the
 //! nodes it owns, the ghosts it needs (nodes of other ranks within ε of its own), and per other
 //! rank the ghosts it receives and the nodes it sends (`neighborsOutside`).
 //!

@@ -1,4 +1,4 @@
-//! The problems a case can solve: the manufactured solution of seed 000's Appendix A with its
+//! The problems a case can solve: the manufactured solution of \[JD]'s Appendix A with its
 //! three source modes, and a source-free Gaussian bump for demonstrations.
 //!
 //! The manufactured solution is w(t, x) = cos(2πt) φ(x) with φ = sin(2πx₁)[sin(2πx₂)] in D and 0

@@ -1,10 +1,10 @@
-//! The polynomial fields of seed 003's patch tests and coupling examples, with what the local and
+//! The polynomial fields of \[LSSM]'s patch tests and coupling examples, with what the local and
 //! the nonlocal operator give on them: u = x, x² and x² − x⁴.
 //!
 //! With c = k/(ε³ M₂) (eq. 1.5 in 1D, M_i = ∫₀¹ J(r) rⁱ dr) the 1D operator
 //! L u(x) = c ∫_{−ε}^{ε} J(|s|/ε)(u(x + s) − u(x)) ds keeps only the even powers of s:
 //! L x² = 2c ε³ M₂ = 2k and L x⁴ = 12x² · c ε³ M₂ + 2c ε⁵ M₄ = 12k x² + 2k ε² M₄/M₂
-//! (kε² for seed 003's γ = 1/(ε²|x − y|), J = 1/r, M₄/M₂ = ½: its f_n = −2 + 12x² + ε²).
+//! (kε² for \[LSSM]'s γ = 1/(ε²|x − y|), J = 1/r, M₄/M₂ = ½: its f_n = −2 + 12x² + ε²).
 
 use crate::case::{Kernel, PatchField};
 use crate::discretization::influence::Influence;
@@ -80,7 +80,7 @@ mod tests {
                 );
             }
         }
-        // Seed 003's Example 2: f_n = −L u = −2 + 12x² + ε².
+        // [LSSM]'s Example 2: f_n = −L u = −2 + 12x² + ε².
         let (x, eps) = (0.6, 0.065);
         let f_n = -PatchField::Quartic.nonlocal_operator(x, 1.0, Kernel::InverseDistance, eps);
         assert!((f_n - (-2.0 + 12.0 * x * x + eps * eps)).abs() < 1e-14);

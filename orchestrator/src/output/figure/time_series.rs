@@ -16,7 +16,7 @@ pub(super) fn time_series(groups: &[Group], x: &str, y: &str) -> Panel {
             series(g.label(), points)
         })
         .collect();
-    // The whole range from 0, as seed 004 draws c_tot(t).
+    // The whole range from 0, as [HPCSE] draws c_tot(t).
     let mut y_axis = Axis::linear(describe(y, groups));
     y_axis.include = vec![0.0];
     Panel {

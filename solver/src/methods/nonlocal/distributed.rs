@@ -1,4 +1,4 @@
-//! The fully distributed solver (seed 000, section 3 and Algorithm 3) over MPI.
+//! The fully distributed solver (\[JD], section 3 and Algorithm 3) over MPI.
 //!
 //! Every rank plans its `RankShare` once from the ownership map (a block partition each rank
 //! computes alike, or a METIS partition made on rank 0 and broadcast), then runs the case's

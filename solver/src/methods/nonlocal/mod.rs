@@ -1,4 +1,4 @@
-//! The nonlocal heat equation of seed 000: plan the operator, resolve the time step, step with
+//! The nonlocal heat equation of \[JD]: plan the operator, resolve the time step, step with
 //! the case's integrator (eq. 2.1's forward Euler by default) on one process (`run`) or over MPI
 //! ranks (`distributed`), measure.
 
@@ -29,7 +29,7 @@ use crate::problem::{self, manufactured_solution, Source};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// The nonlocal method's own rules: seed 000's problems on D = [0,1]^d and a horizon in (0, 1/2].
+/// The nonlocal method's own rules: \[JD]'s problems on D = [0,1]^d and a horizon in (0, 1/2].
 pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.problem.is_local() {
         return Err(CaseError::new(

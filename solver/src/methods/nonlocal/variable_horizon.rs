@@ -1,4 +1,4 @@
-//! The nonlocal heat equation with a horizon that varies along x (seed 003), in 1D or 2D on one
+//! The nonlocal heat equation with a horizon that varies along x (\[LSSM]), in 1D or 2D on one
 //! process: the rows of `VariableHorizonOperator` with u = 0 on the collar (eq. 2.2), stepped by
 //! any of the method's integrators. The implicit ones solve by CG for the symmetric standard
 //! form and by BiCGStab for the others, preconditioned by the sine transform of the

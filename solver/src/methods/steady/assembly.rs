@@ -1,4 +1,4 @@
-//! The subdomain stiffness matrices A_n and loads f_n of seed 001, eq. 23 (divided by ω, as in
+//! The subdomain stiffness matrices A_n and loads f_n of \[XGDF], eq. 23 (divided by ω, as in
 //! `steady`), assembled as faer sparse matrices. The single-domain A and f of eqs. 19–20 are the
 //! case p = 1, where ζ = 1 and Λ is all of Ω.
 

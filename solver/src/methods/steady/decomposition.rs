@@ -1,4 +1,4 @@
-//! The p × p subdomains of seed 001 (section 2.1) on the particle lattice, and what they share.
+//! The p × p subdomains of \[XGDF] (section 2.1) on the particle lattice, and what they share.
 //!
 //! Along each axis the L particles are cut into p blocks Ω̃_k = [a_k, b_k) (boundaries ⌊k L/p⌋).
 //! - Ω_n (eq. 8) keeps the particles of Ω̃_n farther than δ/2 from every other block: ⌊m/2⌋

@@ -1,4 +1,4 @@
-//! Nonlocal FETI (seed 001, section 3): the subdomain problems joined by Lagrange multipliers,
+//! Nonlocal FETI (\[XGDF], section 3): the subdomain problems joined by Lagrange multipliers,
 //! solved by the distributed preconditioned projected CG of Algorithm 1.
 //!
 //! Each rank owns a contiguous run of subdomains (`Decomposition::owner`) and keeps, per
@@ -50,7 +50,7 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 use std::time::Instant;
 
-/// Iterations of CG for the interior solves of `dirichlet_cg` (seed 001, section 4.1).
+/// Iterations of CG for the interior solves of `dirichlet_cg` (\[XGDF], section 4.1).
 const INTERIOR_CG_ITERATIONS: usize = 5;
 
 /// Non-zeros of the Cholesky factor of a subdomain matrix on `s` nodes with the square stencil
@@ -682,7 +682,7 @@ struct DualSolve {
     phases: FetiPhases,
 }
 
-/// The interface problem P₀ K λ = P₀ e as CG sees it: A = P₀ K, M = P₀ Q (seed 001's
+/// The interface problem P₀ K λ = P₀ e as CG sees it: A = P₀ K, M = P₀ Q (\[XGDF]'s
 /// Algorithm 1), the inner product over the multipliers. The phases are timed from the first
 /// iteration's product on, not over the start-up.
 struct DualSystem<'f, 'd> {

@@ -1,11 +1,11 @@
-//! Steady nonlocal diffusion (seed 001): −L u = f on Ω = [0,1]², u = g on the interaction layer Γ,
+//! Steady nonlocal diffusion (\[XGDF]): −L u = f on Ω = [0,1]², u = g on the interaction layer Γ,
 //! solved by unpreconditioned CG on the single-domain system (`steady_cg`) or by FETI on p × p
 //! subdomains (`feti`).
 //!
-//! **Discretization** (seed 001, section 4). L × L particles x_i = ((i₁ + ½)h, (i₂ + ½)h), h = 1/L,
+//! **Discretization** (\[XGDF], section 4). L × L particles x_i = ((i₁ + ½)h, (i₂ + ½)h), h = 1/L,
 //! each with volume ω = h²; Γ is the layer of m particles around Ω. Particle i interacts with the
 //! (2m + 1)² − 1 particles of the square |x_j − x_i|∞ ≤ δ = m h, with the kernel
-//! γ(x, y) = c J(|x − y|/δ) (J = 1/r gives seed 001's C/|x − y| with C = c δ). The energy of
+//! γ(x, y) = c J(|x − y|/δ) (J = 1/r gives \[XGDF]'s C/|x − y| with C = c δ). The energy of
 //! eq. 19 has the gradient A u − f with
 //!     (A u)_i = 2 Σ_j γ_ij ω_i ω_j (u_i − u_j),  f_i = ω_i f(x_i) + 2 Σ_{j ∈ Γ} γ_ij ω_i ω_j g(x_j),
 //! where u_j = 0 for j ∈ Γ in the first sum. (The seed prints f with a minus and without the 2;
@@ -26,7 +26,7 @@
 //! ω_j = h²) the scheme is *not* exact for the manufactured u = x₁² + x₂², and since the sum's
 //! relative error depends on m only, the error does not shrink as h → 0 at fixed m. With
 //! `quadrature: ac`, c is instead fitted to the lattice, c = 2k / (h⁴ Σ_o J(|o|/m) |o|²), which
-//! makes L_h exact on quadratics (as seed 002's AC quadrature is), so the discrete solution is
+//! makes L_h exact on quadratics (as \[RKAC]'s AC quadrature is), so the discrete solution is
 //! u itself and the error measures the solver alone.
 
 pub mod assembly;
@@ -56,7 +56,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.dim != 2 {
         return Err(CaseError::new(
             "dim",
-            format!("method {method} solves seed 001's problem on [0,1]^2; set `dim` to 2"),
+            format!("method {method} solves [XGDF]'s problem on [0,1]^2; set `dim` to 2"),
         ));
     }
     let Some(m) = case.m else {
@@ -74,13 +74,13 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.kernel == Kernel::Linear {
         return Err(CaseError::new(
             "kernel",
-            "J = 1 − r is negative in the corners of the square neighbourhood; use inverse_distance (seed 001), constant or gaussian",
+            "J = 1 − r is negative in the corners of the square neighbourhood; use inverse_distance ([XGDF]), constant or gaussian",
         ));
     }
     if case.quadrature == Quadrature::PartialVolume {
         return Err(CaseError::new(
             "quadrature",
-            "the square neighbourhood covers whole cells, so there are no partial volumes; use midpoint (seed 001) or ac (exact on quadratics)",
+            "the square neighbourhood covers whole cells, so there are no partial volumes; use midpoint ([XGDF]) or ac (exact on quadratics)",
         ));
     }
     if case.problem != Problem::Manufactured {
@@ -115,7 +115,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.backend == Backend::NeighbourList {
         return Err(CaseError::new(
             "backend",
-            "the neighbour list follows seed 000's Euclidean ball; the square neighbourhood runs on `stencil`, `fft` or `auto`",
+            "the neighbour list follows [JD]'s Euclidean ball; the square neighbourhood runs on `stencil`, `fft` or `auto`",
         ));
     }
     match case.method {

@@ -67,7 +67,7 @@ impl SteadyProblem {
         }
     }
 
-    /// How its CG runs (seed 001, section 4.1): from zero until ‖r‖/‖b‖ ≤ rtol, at most the
+    /// How its CG runs (\[XGDF], section 4.1): from zero until ‖r‖/‖b‖ ≤ rtol, at most the
     /// case's iterations; the vector updates on `pool`.
     pub fn cg_params<'a>(&self, pool: Option<&'a ThreadPool>) -> CgParams<'a> {
         CgParams {
