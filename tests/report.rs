@@ -78,10 +78,11 @@ const frame = document.getElementById('report');
 frame.addEventListener('load', () => {
   const doc = frame.contentDocument;
   const figures = [...doc.querySelectorAll('figure')].map(figure => {
-    const svg = figure.querySelector('svg');
-    const box = svg ? svg.getBoundingClientRect() : {width: 0, height: 0};
+    const image = figure.querySelector('img');
+    const box = image ? image.getBoundingClientRect() : {width: 0, height: 0};
     const caption = figure.querySelector('figcaption');
     return {id: figure.id, width: box.width, height: box.height,
+            decoded: image ? image.complete && image.naturalWidth > 0 : false,
             caption: caption ? caption.textContent : ''};
   });
   const rows = doc.querySelectorAll('tr').length;
@@ -109,7 +110,9 @@ frame.addEventListener('load', () => {
     assert_eq!(figures.len(), 2, "{measured}");
     for figure in figures {
         assert!(
-            figure["width"].as_f64().unwrap() > 100.0 && figure["height"].as_f64().unwrap() > 100.0,
+            figure["decoded"] == true
+                && figure["width"].as_f64().unwrap() > 100.0
+                && figure["height"].as_f64().unwrap() > 100.0,
             "a figure did not render: {figure}"
         );
     }
@@ -151,6 +154,13 @@ frame.addEventListener('load', () => {
     {
         std::fs::copy(entry.path(), copied.join("figures").join(entry.file_name())).unwrap();
     }
+    // Someone who can write to the results plants a figure with a script: the page shows it as
+    // an image, which runs no script, and holds none of its markup.
+    std::fs::write(
+        copied.join("figures/convergence.svg"),
+        r#"<svg xmlns="http://www.w3.org/2000/svg" onload="alert(1)"><script>alert(2)</script></svg>"#,
+    )
+    .unwrap();
     let offline = std::process::Command::new(nonlocal_study::binary("nlstudy"))
         .arg("report")
         .arg(&study)
@@ -183,6 +193,14 @@ frame.addEventListener('load', () => {
             page.contains(expected),
             "the offline report lacks {expected:?}"
         );
+    }
+    let figure = std::fs::read_to_string(copied.join("figures/convergence.svg")).unwrap();
+    assert!(
+        figure.contains("alert(2)"),
+        "the planted figure is the one shown"
+    );
+    for planted in ["<script", "onload", "alert("] {
+        assert!(!page.contains(planted), "the page holds {planted:?}");
     }
     match noisy {
         0 => assert!(page.contains("no run is noisy"), "no run is noisy"),

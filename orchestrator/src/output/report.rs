@@ -71,7 +71,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
 
 const STYLE: &str =
     "body{font-family:sans-serif;max-width:70em;margin:2em auto;padding:0 1em;color:#222}\
-figure{margin:1.5em 0}figure svg{max-width:100%;height:auto;border:1px solid #ddd}\
+figure{margin:1.5em 0}figure img{max-width:100%;height:auto;border:1px solid #ddd}\
 figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font-size:.85em}\
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
 pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}";
@@ -124,13 +124,11 @@ fn figures_section(
         let made_by = made_by(spec, k, summary, records);
         match read_regular(&path, RECORD_CAP) {
             Ok(svg) => {
-                // The SVG element itself: the XML declaration has no place inside HTML.
-                let start = svg.find("<svg").unwrap_or(0);
                 let _ = writeln!(
                     page,
                     "<figure id=\"figure-{}\">\n{}\n<figcaption>{caption}{made_by}</figcaption>\n</figure>",
                     escape(&spec.name),
-                    &svg[start..]
+                    image(&svg, &caption)
                 );
             }
             Err(_) => {
@@ -163,13 +161,22 @@ fn comparison_section(page: &mut String, store: &Store) {
                 .join(", ")
         })
         .unwrap_or_default();
-    let start = svg.find("<svg").unwrap_or(0);
     let _ = writeln!(
         page,
         "<h2>Comparison</h2>\n<p>The last <code>nlstudy compare</code>: {} (metrics of points; compare.parquet holds each).</p>\n<figure id=\"compare\">\n{}\n</figure>",
         escape(&verdicts),
-        &svg[start..]
+        image(&svg, "the last comparison")
     );
+}
+
+/// A figure of the results directory as an image, never as markup of the page: anyone who can
+/// write there could plant an SVG with a script, and a browser runs none from an `<img>`.
+fn image(svg: &str, alt: &str) -> String {
+    use base64::Engine;
+    format!(
+        "<img alt=\"{alt}\" src=\"data:image/svg+xml;base64,{}\">",
+        base64::engine::general_purpose::STANDARD.encode(svg)
+    )
 }
 
 /// ` (runs of build e27b0c1a on vm: Intel Xeon, avx512f)`: the builds and machines of the runs
