@@ -161,6 +161,21 @@ impl Symbol {
     }
 }
 
+/// A floor under forward Euler's dt_stable for one pass over the weights: σ(ξ) = Σ_o w_o (1 −
+/// cos(o·ξ)) ≤ 2 Σ_o |w_o|, so dt_stable = 2 / max σ ≥ 1 / Σ_o |w_o|. None unless W = Σ_o w_o
+/// is positive (σ averages W over ξ, so then max σ ≥ W > 0 and dt_stable is finite too) and the
+/// floor is a positive finite number.
+pub fn forward_euler_dt_stable_floor(stencil: &Stencil) -> Option<f64> {
+    let absolute: f64 = stencil
+        .rows
+        .iter()
+        .flat_map(|row| row.bonds())
+        .map(|(_, w)| w.abs())
+        .sum();
+    let floor = 1.0 / absolute;
+    (stencil.total_weight > 0.0 && floor > 0.0 && floor.is_finite()).then_some(floor)
+}
+
 /// dt_stable = 2 / max σ for forward Euler.
 pub fn forward_euler_dt_stable(stencil: &Stencil) -> f64 {
     2.0 / Symbol::new(stencil).maximum()

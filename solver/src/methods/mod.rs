@@ -145,21 +145,19 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
 /// What `nlsolve check` verifies beyond `validate` without running: for the time-stepping
 /// methods whose stable step is known before setup (a constant-horizon `nonlocal`, `fd_explicit`,
 /// `adi`, `pse`), the time step against dt_stable and the count of steps, the refusals `run`
-/// would make after its setup; their dt_stable when known. `memo` keeps the stencils' stable
-/// steps between cases (see `nonlocal::preflight`).
+/// would make after its setup. `memo` keeps the stencils' stable steps between cases (see
+/// `nonlocal::preflight`).
 pub fn preflight(
     case: &ValidCase,
     memo: &mut std::collections::HashMap<String, Result<f64, CaseError>>,
-) -> Result<Option<f64>, CaseError> {
-    Ok(match case.method {
-        Method::Nonlocal if case.horizon_profile.is_none() => {
-            Some(nonlocal::preflight(case, memo)?)
-        }
-        Method::FdExplicit => Some(local::preflight(case, false)?),
-        Method::Adi => Some(local::preflight(case, true)?),
-        Method::Pse => Some(pse::preflight(case, memo)?),
-        _ => None,
-    })
+) -> Result<(), CaseError> {
+    match case.method {
+        Method::Nonlocal if case.horizon_profile.is_none() => nonlocal::preflight(case, memo),
+        Method::FdExplicit => local::preflight(case, false),
+        Method::Adi => local::preflight(case, true),
+        Method::Pse => pse::preflight(case, memo),
+        _ => Ok(()),
+    }
 }
 
 /// Every outcome leaves through here: an `ok` record may hold no result that is not finite, and

@@ -10,7 +10,9 @@ use crate::case::ValidCase;
 use crate::case::{
     readable, Backend, Case, CaseError, Collar, Integrator, Problem, SourceMode, MAX_EPS,
 };
-use crate::discretization::stability::{dt_stable, forward_euler_dt_stable};
+use crate::discretization::stability::{
+    dt_stable, forward_euler_dt_stable, forward_euler_dt_stable_floor,
+};
 use crate::discretization::stencil::Stencil;
 use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
@@ -128,16 +130,30 @@ fn step_of(case: &Case, euler_dt_stable: f64) -> Result<(f64, f64, usize), CaseE
 pub fn preflight(
     case: &Case,
     memo: &mut std::collections::HashMap<String, Result<f64, CaseError>>,
-) -> Result<f64, CaseError> {
+) -> Result<(), CaseError> {
     let key = format!(
         "{} {} {:?} {:?} {:?} {:?} {}",
         case.dim, case.n, case.m, case.eps, case.kernel, case.quadrature, case.diffusivity
     );
+    // With `cfl`, whether dt ≤ dt_stable does not depend on dt_stable, and the steps are fewest
+    // at the exact dt_stable: when a floor under it passes, so does the exact one, and the
+    // symbol's maximum (O(m^2d), most of a plan's time at 10⁵ points) is left uncomputed.
+    if case.dt.is_none() {
+        let floor = memo
+            .entry(format!("floor {key}"))
+            .or_insert_with(|| {
+                Ok(forward_euler_dt_stable_floor(&Stencil::of_case(case)).unwrap_or(0.0))
+            })
+            .clone()?;
+        if floor > 0.0 && step_of(case, floor).is_ok() {
+            return Ok(());
+        }
+    }
     let euler = memo
         .entry(key)
         .or_insert_with(|| operator_dt_stable(case, &Stencil::of_case(case)))
         .clone()?;
-    step_of(case, euler).map(|(dt_stable, ..)| dt_stable)
+    step_of(case, euler).map(drop)
 }
 
 /// What a case resolves to before its time loop: the weights of L_h and the time step.
@@ -373,4 +389,70 @@ fn initial_state(
         SourceMode::None => unreachable!("validated: the manufactured problem has a source"),
     };
     (phi.clone(), Some(Source { phi, psi }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// `preflight` refuses what `Plan::new` (run's own check) refuses, on the same field, and
+    /// nothing else: on both sides of dt = dt_stable, and of the step limit for `cfl`, where it
+    /// decides from the floor under dt_stable alone.
+    #[test]
+    fn the_preflight_refuses_exactly_what_the_run_refuses() {
+        let mut memo = std::collections::HashMap::new();
+        let mut checked = 0;
+        for (dim, m, kernel, quadrature) in [
+            (1, 1, "constant", "midpoint"),
+            (1, 3, "linear", "partial_volume"),
+            (1, 4, "inverse_distance", "ac"),
+            (2, 2, "constant", "ac"),
+            (2, 3, "gaussian", "midpoint"),
+            (2, 1, "linear", "midpoint"),
+        ] {
+            let base = json!({"dim": dim, "n": 32, "m": m, "kernel": kernel,
+                              "quadrature": quadrature, "t_end": 0.01, "cfl": 0.5});
+            let exact = Plan::new(&Case::parse(base.clone()).unwrap()).map(|p| p.dt_stable);
+            let Ok(dt_stable) = exact else {
+                // J = 1 − r at m = 1: no weight. Both refuse it, naming m.
+                let case = Case::parse(base).unwrap();
+                let refused = preflight(&case, &mut memo).unwrap_err();
+                assert_eq!(refused.field, exact.unwrap_err().field);
+                continue;
+            };
+            let limit = 1e8 * dt_stable;
+            for (fields, t_end) in [
+                (json!({"cfl": 0.5}), 0.01),
+                (json!({"cfl": 1.0}), 0.01),
+                (json!({"cfl": 1.01}), 0.01),
+                (json!({"cfl": 1.0}), 0.999 * limit),
+                (json!({"cfl": 1.0}), 1.001 * limit),
+                (json!({"cfl": 0.5}), 0.499 * limit),
+                (json!({"cfl": 0.5}), 0.501 * limit),
+                (json!({"dt": 0.99 * dt_stable, "cfl": null}), 0.01),
+                (json!({"dt": 1.01 * dt_stable, "cfl": null}), 0.01),
+                (json!({"integrator": "rk4", "cfl": 1.0}), 0.01),
+                (json!({"integrator": "crank_nicolson", "cfl": 4.0}), 0.01),
+            ] {
+                let mut fields_of = base.clone();
+                for (name, value) in fields.as_object().unwrap() {
+                    match value.is_null() {
+                        true => fields_of.as_object_mut().unwrap().remove(name),
+                        false => fields_of
+                            .as_object_mut()
+                            .unwrap()
+                            .insert(name.clone(), value.clone()),
+                    };
+                }
+                fields_of["t_end"] = json!(t_end);
+                let case = Case::parse(fields_of.clone()).unwrap();
+                let run = Plan::new(&case).map(drop).map_err(|e| e.field);
+                let check = preflight(&case, &mut memo).map_err(|e| e.field);
+                assert_eq!(check, run, "{fields_of}");
+                checked += usize::from(run.is_err());
+            }
+        }
+        assert!(checked >= 20, "{checked} refusals compared");
+    }
 }
