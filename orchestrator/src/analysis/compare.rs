@@ -991,6 +991,11 @@ mod tests {
 
     /// Twelve points whose whole run is 20 % slower and one of them 1.5× beyond: the run's row
     /// says 1.2, within the drift of whole runs; the one point is worse beside the others.
+    /// Each point's runs of both sides, as `compare` takes them.
+    fn all_paired(sides: &[(String, Vec<Value>, Vec<Value>)]) -> Vec<Paired<'_>> {
+        sides.iter().map(|(p, a, b)| paired(p, a, b)).collect()
+    }
+
     #[test]
     fn a_point_is_judged_beside_its_run_and_the_run_on_its_own() {
         let quiet = NoiseModel::calibrate(&refs(&quiet_history()));
@@ -1007,15 +1012,7 @@ mod tests {
                 (format!("n={k}"), times(base), times(1.2 * slower * base))
             })
             .collect();
-        let paired: Vec<Paired> = sides
-            .iter()
-            .map(|(p, a, b)| Paired {
-                point: p.clone(),
-                a: refs(a),
-                b: refs(b),
-            })
-            .collect();
-        let comparison = compare(&paired, 0.1, &quiet);
+        let comparison = compare(&all_paired(&sides), 0.1, &quiet);
         let solve: Vec<&Change> = comparison
             .changes
             .iter()
@@ -1050,15 +1047,7 @@ mod tests {
         let doubled: Vec<(String, Vec<Value>, Vec<Value>)> = (0..6)
             .map(|k| (format!("n={k}"), times(2.0), times(4.0)))
             .collect();
-        let paired: Vec<Paired> = doubled
-            .iter()
-            .map(|(p, a, b)| Paired {
-                point: p.clone(),
-                a: refs(a),
-                b: refs(b),
-            })
-            .collect();
-        let comparison = compare(&paired, 0.1, &quiet);
+        let comparison = compare(&all_paired(&doubled), 0.1, &quiet);
         assert_eq!(
             comparison
                 .changes
