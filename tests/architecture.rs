@@ -24,7 +24,7 @@ const SOLVER_LAYERS: [&str; 10] = [
 ];
 
 /// The orchestrator's top-level modules (its folders), lowest first.
-const ORCHESTRATOR_LAYERS: [&str; 8] = [
+const ORCHESTRATOR_LAYERS: [&str; 9] = [
     "console",
     "statistics",
     "model",
@@ -33,6 +33,7 @@ const ORCHESTRATOR_LAYERS: [&str; 8] = [
     "analysis",
     "output",
     "cli",
+    "commands",
 ];
 
 type Graph = BTreeMap<String, BTreeSet<String>>;
@@ -366,4 +367,21 @@ fn cycles(graph: &Graph) -> Vec<Vec<String>> {
         }
     }
     state.found
+}
+
+/// The README prints the exit statuses from the one table both binaries exit by.
+#[test]
+fn the_readme_prints_the_exit_status_table() {
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let printed = readme
+        .split("<!-- exit statuses: begin -->\n")
+        .nth(1)
+        .and_then(|rest| rest.split("<!-- exit statuses: end -->").next())
+        .expect("README.md holds the exit statuses between their markers");
+    assert_eq!(
+        printed,
+        schema::exit::markdown(),
+        "README.md's exit statuses differ from schema::exit: paste schema::exit::markdown()"
+    );
 }

@@ -510,18 +510,24 @@ fn output_nobody_reads_never_stops_a_study_nor_panics() {
     }
 }
 
-/// A tmpfs of `size` mounted at `dir` for the life of the value (root only).
+/// A tmpfs of `size` mounted at `dir` for the life of the value. The tests run as root (the
+/// set-up needs it): a mount that fails fails the test rather than skip what it shows.
 struct Tmpfs(PathBuf);
 
 impl Tmpfs {
-    fn mount(dir: &Path, size: &str) -> Option<Tmpfs> {
+    fn mount(dir: &Path, size: &str) -> Tmpfs {
         std::fs::create_dir_all(dir).unwrap();
-        let mounted = Command::new("mount")
+        let out = Command::new("mount")
             .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
             .arg(dir)
             .output()
-            .is_ok_and(|o| o.status.success());
-        mounted.then(|| Tmpfs(dir.to_path_buf()))
+            .expect("mount starts");
+        assert!(
+            out.status.success(),
+            "mounting a tmpfs (the tests run as root): {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Tmpfs(dir.to_path_buf())
     }
 }
 
@@ -546,10 +552,7 @@ fn fill(filler: &Path) {
 fn a_full_disk_stores_nothing_failed_and_the_next_run_resumes() {
     let scratch = Scratch::new("full-disk", &short_study("full", &[16]));
     let results = scratch.dir.join("results");
-    let Some(_mounted) = Tmpfs::mount(&results, "1m") else {
-        eprintln!("skipped: mounting a tmpfs needs root");
-        return;
-    };
+    let _mounted = Tmpfs::mount(&results, "1m");
     let filler = results.join("filler");
     fill(&filler);
     let out = scratch.nlstudy("run", &[]);
@@ -567,7 +570,50 @@ fn a_full_disk_stores_nothing_failed_and_the_next_run_resumes() {
     assert_whole(&scratch, "full", 2, "after space is freed");
 }
 
-/// nlsolve's exit 74 (it computed a record but could not write it): the file system's fault, not
+/// A full disk while each command writes its outputs: the Parquet tables (`collect`), the report
+/// (`report`) and a figure (`plot`) each exit 3 naming the results, panic not, leave no partial
+/// file, and lose no stored record; with space again each succeeds.
+#[test]
+fn a_full_disk_while_writing_tables_the_report_or_a_figure_exits_3() {
+    let mut study = short_study("outputs", &[16]);
+    study["figures"] = json!([{"name": "threads", "kind": "strong_scaling"}]);
+    let scratch = Scratch::new("full-outputs", &study);
+    let results = scratch.dir.join("results");
+    let _mounted = Tmpfs::mount(&results, "2m");
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    let stored = records(&scratch.runs("outputs")).len();
+    let figures = results.join("outputs").join("figures");
+    let filler = results.join("filler");
+    for verb in ["collect", "report", "plot"] {
+        // Stale figures, so that `plot` has one to write.
+        let _ = std::fs::remove_dir_all(&figures);
+        fill(&filler);
+        let out = scratch.nlstudy(verb, &[]);
+        assert_eq!(out.status.code(), Some(3), "{verb}: {}", text(&out));
+        assert!(
+            text(&out).contains(&results.display().to_string()),
+            "{verb} names the path: {}",
+            text(&out)
+        );
+        assert_no_panic(&out);
+        let partials: Vec<PathBuf> = files_under(&results)
+            .into_iter()
+            .filter(|p| p.to_string_lossy().ends_with(".partial"))
+            .collect();
+        assert!(partials.is_empty(), "{verb} left {partials:?}");
+        assert_eq!(records(&scratch.runs("outputs")).len(), stored, "{verb}");
+        std::fs::remove_file(&filler).unwrap();
+        let again = scratch.nlstudy(verb, &[]);
+        assert!(
+            again.status.success(),
+            "{verb} with space: {}",
+            text(&again)
+        );
+    }
+}
+
+/// nlsolve's exit 3 (it computed a record but could not write it): the file system's fault, not
 /// the case's. The run stops with the I/O exit status naming the file, stores nothing, and the
 /// point runs again next time.
 #[test]
@@ -577,7 +623,7 @@ fn a_record_nlsolve_could_not_write_is_not_stored_as_a_failure() {
     std::fs::write(
         &solver,
         format!(
-            "#!/bin/sh\nif [ \"$1\" = run ]; then echo 'nlsolve: cannot write the record to standard output: No space left on device (os error 28)' >&2; exit 74; fi\nexec '{}' \"$@\"\n",
+            "#!/bin/sh\nif [ \"$1\" = run ]; then echo 'nlsolve: cannot write the record to standard output: No space left on device (os error 28)' >&2; exit 3; fi\nexec '{}' \"$@\"\n",
             nonlocal_study::binary("nlsolve").display()
         ),
     )

@@ -10,28 +10,31 @@
 //!   `run::cluster` for job scripts, schedulers and the jobs ledger;
 //! - `analysis`: records → run and summary tables (speedups, orders), pivots;
 //! - `output`: SVG drawing and figures, the HTML report, the status of a study;
-//! - `cli`: the command line, one function per command.
+//! - `cli`: the command line, every command and flag in one table (`cli::args`);
+//! - `commands`: each command given its flags, one module each, and the exit status it ends with
+//!   (`schema::exit`, the table both binaries share).
 //!
 //! The record's status and timings and the case's fields come from the `schema` crate, which
 //! `nlsolve` writes from.
 
 /// `println!` that never panics (see `console`).
-macro_rules! tell {
+macro_rules! outln {
     ($($arg:tt)*) => { $crate::console::out(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
 /// `print!` that never panics.
-macro_rules! tell_raw {
+macro_rules! out {
     ($($arg:tt)*) => { $crate::console::out(format_args!($($arg)*)) };
 }
 
 /// `eprintln!` that never panics.
-macro_rules! say {
+macro_rules! errln {
     ($($arg:tt)*) => { $crate::console::err(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
 pub(crate) mod analysis;
 pub mod cli;
+pub mod commands;
 pub(crate) mod console;
 pub(crate) mod model;
 pub(crate) mod output;

@@ -1,12 +1,12 @@
 //! `nlstudy`: runs studies of the nonlocal and local diffusion solvers. A study file expands to
 //! cases; each case runs as an `nlsolve` process (or under mpirun) unless its record is already
 //! stored; records are gathered into tables and figures. The work is done in the library
-//! (`orchestrator::cli`); this is the process boundary.
+//! (`orchestrator::commands`, given the flags of `orchestrator::cli`); this is the process boundary.
 
 use clap::Parser;
-use orchestrator::cli::{self, Cli};
+use orchestrator::cli::Cli;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    cli::main(Cli::parse())
+    orchestrator::commands::main(Cli::parse())
 }

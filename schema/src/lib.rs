@@ -1,12 +1,14 @@
 //! The contract between the solver (`nlsolve`) and the orchestrator (`nlstudy`): the case's
-//! fields and choices, the grid spacing h each method defines, a record's status and timings, and
+//! fields and choices, the exit statuses of both binaries, the grid spacing h each method defines, a record's status and timings, and
 //! the FFT lengths the solver transforms at.
-//! Plain serde data, so that the orchestrator reads what the solver writes without linking the
+//! Plain serde data (and the whole-or-nothing write both binaries share), so that the orchestrator reads what the solver writes without linking the
 //! numerics.
 
+pub mod atomic;
 pub mod case;
 pub mod choices;
 pub mod error;
+pub mod exit;
 pub mod json;
 pub mod record;
 pub mod text;

@@ -6,15 +6,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::fmt;
 
-/// nlsolve's exit status when it computed a result but could not write it (standard output
-/// closed or full, a broken pipe, a `--write-*` path): sysexits' EX_IOERR. The orchestrator
-/// reads it as the file system's fault, not the case's, and stores nothing for the run.
 /// Decades of `growth` (log₁₀ of a run's largest max |u| over the problem's scale) that mark a
 /// run `ok` by its divergence bound as growing: a stable diffusion never grows past its scale.
 /// The solver says so in the record's message and the stability figure crosses such runs.
 pub const GROWING: f64 = 1.0;
-
-pub const NLSOLVE_EXIT_IO: u8 = 74;
 
 /// What became of a run: `nlsolve` writes `ok` or `diverged`; nlstudy stores `failed` for a run
 /// the solver refused, or that crashed or timed out.
@@ -42,7 +37,7 @@ impl Status {
     }
 
     /// The status of a record; `None` when it has none that both sides know.
-    pub fn of(record: &Value) -> Option<Status> {
+    pub fn of_record(record: &Value) -> Option<Status> {
         record.get("status")?.as_str().and_then(Status::parse)
     }
 }
@@ -159,7 +154,7 @@ mod tests {
             assert_eq!(json, Value::from(status.as_str()));
             assert_eq!(Status::parse(status.as_str()), Some(status));
             assert_eq!(
-                Status::of(&serde_json::json!({ "status": json })),
+                Status::of_record(&serde_json::json!({ "status": json })),
                 Some(status)
             );
         }

@@ -262,7 +262,7 @@ fn auto_picks_the_backend_measured_faster_where_the_two_differ_widely() {
             Quadrature::Midpoint,
             1.0,
         );
-        let cost = Cost::of(&stencil);
+        let cost = Cost::of_stencil(&stencil);
         let predicted = (cost.fft / cost.stencil).max(cost.stencil / cost.fft);
         assert!(
             predicted >= 4.0,

@@ -128,7 +128,7 @@ fn kept_rows<'a>(spec: &PivotSpec, table: &'a [Row]) -> Result<Vec<Kept<'a>>, St
     let mut kept = Vec::new();
     for row in table {
         let named = row.expression_fields();
-        let scope = Scope::of(&named);
+        let scope = Scope::from_fields(&named);
         let mut keep = true;
         for (k, condition) in spec.filter.iter().enumerate() {
             keep &= expression::condition(condition, &scope)

@@ -20,7 +20,7 @@ use std::f64::consts::PI;
 
 /// The four ways the solver runs a 2D case that the model follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Path {
+pub enum SolverPath {
     /// Forward Euler, stencil backend.
     EulerStencil,
     /// Forward Euler, FFT backend.
@@ -31,27 +31,27 @@ pub enum Path {
     SteadyCg,
 }
 
-impl Path {
-    pub const ALL: [Path; 4] = [
-        Path::EulerStencil,
-        Path::EulerFft,
-        Path::CrankNicolson,
-        Path::SteadyCg,
+impl SolverPath {
+    pub const ALL: [SolverPath; 4] = [
+        SolverPath::EulerStencil,
+        SolverPath::EulerFft,
+        SolverPath::CrankNicolson,
+        SolverPath::SteadyCg,
     ];
 
     pub fn label(self) -> &'static str {
         match self {
-            Path::EulerStencil => "Euler, stencil",
-            Path::EulerFft => "Euler, FFT",
-            Path::CrankNicolson => "Crank–Nicolson",
-            Path::SteadyCg => "steady CG (per iteration)",
+            SolverPath::EulerStencil => "Euler, stencil",
+            SolverPath::EulerFft => "Euler, FFT",
+            SolverPath::CrankNicolson => "Crank–Nicolson",
+            SolverPath::SteadyCg => "steady CG (per iteration)",
         }
     }
 
     /// The path a summary row ran, from its case and resolved backend.
-    pub fn of(row: &Row) -> Option<Path> {
+    pub fn of_row(row: &Row) -> Option<SolverPath> {
         if row.text("case.method") == Some("steady_cg") {
-            return Some(Path::SteadyCg);
+            return Some(SolverPath::SteadyCg);
         }
         if row.text("case.method").is_some_and(|m| m != "nonlocal")
             || row.number("case.dim") != Some(2.0)
@@ -59,16 +59,16 @@ impl Path {
             return None;
         }
         match (row.text("case.integrator"), row.text("backend")) {
-            (Some("crank_nicolson"), _) => Some(Path::CrankNicolson),
-            (Some("forward_euler") | None, Some("fft")) => Some(Path::EulerFft),
-            (Some("forward_euler") | None, _) => Some(Path::EulerStencil),
+            (Some("crank_nicolson"), _) => Some(SolverPath::CrankNicolson),
+            (Some("forward_euler") | None, Some("fft")) => Some(SolverPath::EulerFft),
+            (Some("forward_euler") | None, _) => Some(SolverPath::EulerStencil),
             _ => None,
         }
     }
 
     /// Whether the block partition gives this path slabs of rows (the implicit integrators).
     fn slabs(self) -> bool {
-        self == Path::CrankNicolson
+        self == SolverPath::CrankNicolson
     }
 }
 
@@ -99,7 +99,7 @@ pub const TEN_GBE: Network = Network {
 /// What one step of a path costs and sends, from the runs of a study.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rates {
-    pub path: Path,
+    pub path: SolverPath,
     /// Horizon in cells.
     pub m: f64,
     /// Seconds per node per step on one core (the FFT: per W log₂ W of its window).
@@ -135,7 +135,7 @@ impl Prediction {
 
 /// p_x × p_y blocks for P ranks as the block partition chooses them: slabs (1 × P) for the
 /// implicit integrators, else the most nearly square factorisation.
-pub fn blocks(path: Path, ranks: usize) -> (usize, usize) {
+pub fn blocks(path: SolverPath, ranks: usize) -> (usize, usize) {
     if path.slabs() {
         return (1, ranks);
     }
@@ -166,16 +166,16 @@ pub fn predict(rates: &Rates, n: usize, ranks: usize, network: &Network) -> Pred
     let shape = blocks(rates.path, ranks);
     let per_rank = nodes / p;
     let compute_s = match rates.path {
-        Path::EulerFft => {
+        SolverPath::EulerFft => {
             let points = fft_points(n, rates.m as usize, shape);
             rates.compute * points * points.log2()
         }
-        Path::CrankNicolson => {
+        SolverPath::CrankNicolson => {
             (rates.iterations + 1.0)
                 * per_rank
                 * (rates.compute + rates.transform * (n as f64).log2())
         }
-        Path::EulerStencil | Path::SteadyCg => rates.compute * per_rank,
+        SolverPath::EulerStencil | SolverPath::SteadyCg => rates.compute * per_rank,
     };
     if ranks == 1 {
         return Prediction {
@@ -217,13 +217,13 @@ pub fn fft_points(n: usize, m: usize, (px, py): (usize, usize)) -> f64 {
 /// runs at the largest n, the counts per step from its runs over the fewest ranks above one.
 /// A path without both is left out.
 pub fn fit(rows: &[&Row]) -> Vec<Rates> {
-    Path::ALL
+    SolverPath::ALL
         .iter()
         .filter_map(|&path| {
             let alone = alone(rows, path)?;
             let spread = rows
                 .iter()
-                .filter(|r| Path::of(r) == Some(path) && ranks(r) > 1.0)
+                .filter(|r| SolverPath::of_row(r) == Some(path) && ranks(r) > 1.0)
                 .filter(|r| r.get("traffic.halo_exchanges").is_some())
                 .min_by(|a, b| ranks(a).total_cmp(&ranks(b)))?;
             let n = alone.number("case.n")?;
@@ -231,17 +231,17 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
             let step = alone.number("step_s_median")?;
             // Counts per step, or per iteration for steady CG.
             let per = match path {
-                Path::SteadyCg => spread.number("iterations")?,
+                SolverPath::SteadyCg => spread.number("iterations")?,
                 _ => spread.number("steps_done")?,
             };
             let count = |name: &str| spread.number(&format!("traffic.{name}")).map(|c| c / per);
             let iterations = alone.number("solve_iterations_mean").unwrap_or(0.0);
             let (compute, transform) = match path {
-                Path::EulerFft => {
+                SolverPath::EulerFft => {
                     let points = fft_points(n as usize, m as usize, (1, 1));
                     (step / (points * points.log2()), 0.0)
                 }
-                Path::CrankNicolson => {
+                SolverPath::CrankNicolson => {
                     // The operator's share from the Euler path's rate when the study ran it,
                     // the rest the transform's.
                     let stencil = fit_stencil_rate(rows).unwrap_or(0.0);
@@ -270,18 +270,18 @@ fn ranks(row: &Row) -> f64 {
 }
 
 /// The run of `path` the compute rate comes from: on one rank and one thread, the largest n.
-fn alone<'a>(rows: &[&'a Row], path: Path) -> Option<&'a Row> {
+fn alone<'a>(rows: &[&'a Row], path: SolverPath) -> Option<&'a Row> {
     let grid = |row: &Row| row.number("case.n").unwrap_or(0.0);
     rows.iter()
         .copied()
-        .filter(|r| Path::of(r) == Some(path) && ranks(r) == 1.0)
+        .filter(|r| SolverPath::of_row(r) == Some(path) && ranks(r) == 1.0)
         .filter(|r| r.number("case.threads").unwrap_or(1.0) == 1.0)
         .max_by(|a, b| grid(a).total_cmp(&grid(b)))
 }
 
 /// The stencil's seconds per node per step, from the study's one-rank Euler run.
 fn fit_stencil_rate(rows: &[&Row]) -> Option<f64> {
-    let alone = alone(rows, Path::EulerStencil)?;
+    let alone = alone(rows, SolverPath::EulerStencil)?;
     let n = alone.number("case.n")?;
     Some(alone.number("step_s_median")? / (n * n))
 }
@@ -305,7 +305,7 @@ pub fn half_efficiency(
 mod tests {
     use super::*;
 
-    fn rates(path: Path) -> Rates {
+    fn rates(path: SolverPath) -> Rates {
         Rates {
             path,
             m: 4.0,
@@ -315,7 +315,7 @@ mod tests {
             halos: 1.0,
             reductions: 1.0,
             // Two transposes per preconditioner application, one per iteration and one more.
-            all_to_alls: if path == Path::CrankNicolson {
+            all_to_alls: if path == SolverPath::CrankNicolson {
                 8.0
             } else {
                 0.0
@@ -334,9 +334,9 @@ mod tests {
             fft_points(1024, 32, (1, 2)),
             1080.0 * transform_length(512 + 64) as f64
         );
-        assert_eq!(blocks(Path::EulerStencil, 16), (4, 4));
-        assert_eq!(blocks(Path::EulerStencil, 8), (2, 4));
-        assert_eq!(blocks(Path::CrankNicolson, 8), (1, 8));
+        assert_eq!(blocks(SolverPath::EulerStencil, 16), (4, 4));
+        assert_eq!(blocks(SolverPath::EulerStencil, 8), (2, 4));
+        assert_eq!(blocks(SolverPath::CrankNicolson, 8), (1, 8));
         // Two slabs: each side of the one cut sends m rows of n.
         assert_eq!(ghosts(100.0, 4.0, (1, 2)), 800.0);
         // n = 40 over 3 slabs of 13, 13, 14 rows: 1600 − 169 − 169 − 196.
@@ -349,7 +349,7 @@ mod tests {
     /// between 1 and 4096 ranks on 10 GbE for a small grid.
     #[test]
     fn a_prediction_divides_the_work_and_pays_for_the_network() {
-        for path in Path::ALL {
+        for path in SolverPath::ALL {
             let r = rates(path);
             let one = predict(&r, 1024, 1, &HDR);
             assert_eq!(one.total_s(), one.compute_s, "{path:?}");
@@ -362,11 +362,11 @@ mod tests {
                 "{path:?}"
             );
         }
-        let cn = predict(&rates(Path::CrankNicolson), 1024, 4, &HDR);
+        let cn = predict(&rates(SolverPath::CrankNicolson), 1024, 4, &HDR);
         assert_eq!(cn.all_to_all_bytes, 8.0 * transposed_values(1024, 4));
         assert!(cn.all_to_all_s > 0.0);
         assert_eq!(
-            predict(&rates(Path::EulerStencil), 1024, 4, &HDR).all_to_all_s,
+            predict(&rates(SolverPath::EulerStencil), 1024, 4, &HDR).all_to_all_s,
             0.0
         );
     }

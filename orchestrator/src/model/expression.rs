@@ -29,7 +29,7 @@ pub struct Scope {
 }
 
 impl Scope {
-    pub fn of(fields: &Map<String, Value>) -> Scope {
+    pub fn from_fields(fields: &Map<String, Value>) -> Scope {
         let mut names: BTreeMap<String, Val> = fields
             .iter()
             .filter_map(|(name, value)| {
@@ -376,7 +376,7 @@ mod tests {
     use serde_json::json;
 
     fn scope(fields: Value) -> Scope {
-        Scope::of(fields.as_object().expect("an object"))
+        Scope::from_fields(fields.as_object().expect("an object"))
     }
 
     #[test]
@@ -454,7 +454,7 @@ mod tests {
 
     #[test]
     fn nesting_is_refused_past_a_depth_not_overflowing_the_stack() {
-        let s = Scope::of(&serde_json::Map::new());
+        let s = Scope::from_fields(&serde_json::Map::new());
         let deep =
             |open: &str, n: usize, close: &str| format!("{}1{}", open.repeat(n), close.repeat(n));
         assert_eq!(evaluate_number(&deep("(", DEEPEST, ")"), &s), Ok(json!(1)));

@@ -22,7 +22,7 @@ pub struct Launcher {
 impl Launcher {
     /// The words that start a case of `ranks` ranks of `threads` threads each: the program and
     /// its arguments.
-    pub fn words(&self, ranks: u64, threads: u64) -> Vec<String> {
+    pub fn argv(&self, ranks: u64, threads: u64) -> Vec<String> {
         self.words
             .iter()
             .map(|w| {
@@ -114,12 +114,12 @@ mod tests {
         let launcher: Launcher =
             r#"env "A=b c" mpirun -n {ranks} --bind-to 'core'"#.parse().unwrap();
         assert_eq!(
-            launcher.words(3, 1),
+            launcher.argv(3, 1),
             ["env", "A=b c", "mpirun", "-n", "3", "--bind-to", "core"]
         );
         let srun: Launcher = "srun --mpi=pmi2 -n {ranks} -c {threads}".parse().unwrap();
         assert_eq!(
-            srun.words(2, 4),
+            srun.argv(2, 4),
             ["srun", "--mpi=pmi2", "-n", "2", "-c", "4"]
         );
         for (bad, says) in [

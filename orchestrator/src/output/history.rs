@@ -31,7 +31,7 @@ pub fn chart(
     // Each run at the median time of its records; records whose time does not read are left out.
     let mut times: BTreeMap<Run, Vec<f64>> = BTreeMap::new();
     for record in records {
-        if let Some(t) = timestamp::of(record) {
+        if let Some(t) = timestamp::record_time(record) {
             times.entry(run_of(record)).or_default().push(t);
         }
     }

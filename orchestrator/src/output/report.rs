@@ -247,7 +247,7 @@ fn summary_section(page: &mut String, summary: &[Row], swept: &[String]) {
 fn failures_section(page: &mut String, records: &[Value]) {
     let failed: Vec<&Value> = records
         .iter()
-        .filter(|r| Status::of(r) == Some(Status::Failed))
+        .filter(|r| Status::of_record(r) == Some(Status::Failed))
         .collect();
     if failed.is_empty() {
         return;

@@ -142,7 +142,7 @@ fn job_states(
 
 /// `timeout (ended at its time limit: …)`; `running`, not `running (running)`.
 fn described(state: &str) -> String {
-    match scheduler::meaning(state) {
+    match scheduler::state_meaning(state) {
         same if same.eq_ignore_ascii_case(state) => same.to_string(),
         meaning => format!("{} ({meaning})", state.to_lowercase()),
     }

@@ -173,7 +173,7 @@ impl Nlsolve {
 
 /// One line of `nlsolve check`: the case in its two forms, or the refusal.
 #[derive(serde::Deserialize)]
-struct Verdict {
+struct CheckLine {
     case: Option<Map<String, Value>>,
     resolved: Option<Map<String, Value>>,
     error: Option<String>,
@@ -182,10 +182,10 @@ struct Verdict {
 
 /// The verdict on one line; `shared` holds the distinct sets of filled-in defaults seen so far.
 fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked, String> {
-    let verdict: Verdict = serde_json::from_str(line)
+    let verdict: CheckLine = serde_json::from_str(line)
         .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
     match verdict {
-        Verdict {
+        CheckLine {
             case: Some(canonical),
             resolved,
             machine,
@@ -213,7 +213,7 @@ fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked
                 machine: machine.map(String::into_boxed_str),
             })
         }
-        Verdict {
+        CheckLine {
             error: Some(error), ..
         } => Err(error),
         _ => Err("nlsolve check printed neither a case nor an error".to_string()),

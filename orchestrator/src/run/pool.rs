@@ -13,7 +13,8 @@ use crate::run::progress::Progress;
 use crate::run::signals::Stop;
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
 use crate::store::{FileError, Store};
-use schema::record::{Status, NLSOLVE_EXIT_IO};
+use schema::exit;
+use schema::record::Status;
 use serde_json::{json, Value};
 use std::fs::File;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
@@ -49,7 +50,7 @@ fn stopped_with_it(stop: &Stop, exit: std::process::ExitStatus) -> bool {
 
 /// The command that starts a case of `ranks` ranks of `threads` threads through `launcher`.
 fn launcher_command(launcher: &Launcher, ranks: u64, threads: u64) -> Command {
-    let mut words = launcher.words(ranks, threads).into_iter();
+    let mut words = launcher.argv(ranks, threads).into_iter();
     let mut command = Command::new(words.next().expect("a launcher has a program"));
     command.args(words);
     command
@@ -315,7 +316,7 @@ fn run_cases(
                 job.record(planned, solver, exit)?
             };
             job.remove_files();
-            let failed = Status::of(&record).is_none_or(|s| s == Status::Failed);
+            let failed = Status::of_record(&record).is_none_or(|s| s == Status::Failed);
             if failed && outside_the_case && job.attempt <= options.retries {
                 let message = record["message"].as_str().unwrap_or("");
                 progress.retrying(&planned.point.label(), job.attempt + 1, message);
@@ -421,16 +422,16 @@ impl Running {
         &self,
         planned: &Planned,
         solver: &Nlsolve,
-        exit: std::process::ExitStatus,
+        ended: std::process::ExitStatus,
     ) -> Result<Value, FileError> {
-        if exit.code() == Some(i32::from(NLSOLVE_EXIT_IO)) {
+        if ended.code() == Some(i32::from(exit::IO)) {
             let said = std::io::Error::other(self.stderr_tail());
             return Err(FileError::new("write", &self.stdout, said));
         }
         // A record the store could not read back is not stored as a result.
         let printed = match read_regular(&self.stdout, RECORD_CAP) {
             Ok(printed) => printed,
-            Err(why) if exit.success() => {
+            Err(why) if ended.success() => {
                 let why = format!("its record cannot be stored: {why}");
                 return Ok(failed_record(planned, solver, why));
             }
@@ -441,7 +442,7 @@ impl Running {
                 .ok()
                 .filter(Value::is_object)
         });
-        Ok(match (exit.success(), record) {
+        Ok(match (ended.success(), record) {
             (true, Some(mut record)) => {
                 let object = record.as_object_mut().expect("checked: an object");
                 for (field, value) in identity(planned, solver) {
@@ -457,7 +458,7 @@ impl Running {
             _ => failed_record(
                 planned,
                 solver,
-                format!("nlsolve exited with {exit}: {}", self.stderr_tail()),
+                format!("nlsolve exited with {ended}: {}", self.stderr_tail()),
             ),
         })
     }
@@ -534,7 +535,7 @@ fn finish(
     tally: &mut Tally,
     progress: &mut Progress,
 ) -> Result<(), FileError> {
-    let status = Status::of(&record).unwrap_or(Status::Failed);
+    let status = Status::of_record(&record).unwrap_or(Status::Failed);
     let mut message = record
         .get("message")
         .and_then(Value::as_str)

@@ -73,7 +73,7 @@ impl Progress {
                     Status::Failed => format!(": {}", first_line(message)),
                     Status::Ok | Status::Diverged => String::new(),
                 };
-                say!("[{}/{}] {status} {label}{detail}", self.done, self.total);
+                errln!("[{}/{}] {status} {label}{detail}", self.done, self.total);
             }
             Mode::Quiet => {}
         }
@@ -87,7 +87,7 @@ impl Progress {
         );
         match self.mode {
             Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
-            Mode::Lines => say!("{line}"),
+            Mode::Lines => errln!("{line}"),
             Mode::Quiet => {}
         }
     }
@@ -103,7 +103,7 @@ impl Progress {
                 bar.inc(1);
                 self.update_message();
             }
-            Mode::Lines => say!("[{}/{}] skipped {label}: {why}", self.done, self.total),
+            Mode::Lines => errln!("[{}/{}] skipped {label}: {why}", self.done, self.total),
             Mode::Quiet => {}
         }
     }

@@ -47,7 +47,7 @@ impl fmt::Display for FileError {
 }
 
 /// Why a step that reads or writes the results did not happen, by kind, for the exit status
-/// (`cli::exit`): a request that cannot be met as made, or a file or program that failed.
+/// (`schema::exit`): a request that cannot be met as made, or a file or program that failed.
 #[derive(Debug)]
 pub enum Fault {
     /// A bad value or a request the data cannot answer (nothing stored to collect).
@@ -187,40 +187,12 @@ pub fn without_panicking<T>(read: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
-/// Where a file is written before it is renamed into place: hidden (readers skip dot files)
-/// and named for this process, so that processes writing the same file do not mix.
-pub fn partial_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
-}
+pub use schema::atomic::{create_fresh, partial_path};
 
-/// A new, empty regular file at `path` for writing: whatever stood there (a leftover, or a
-/// link someone planted to make this write land elsewhere) is removed first, never followed,
-/// and the file is created anew (`create_new`, `O_NOFOLLOW`), so the bytes go only there.
-pub fn create_fresh(path: &Path) -> io::Result<File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    let _ = std::fs::remove_file(path);
-    File::options()
-        .write(true)
-        .create_new(true)
-        .custom_flags(libc::O_NOFOLLOW)
-        .open(path)
-}
-
-/// Writes a file whole or not at all: to its partial path, then a rename.
+/// Writes a file whole or not at all (`schema::atomic`), the path that failed named.
 pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), FileError> {
-    use std::io::Write;
-    let partial = partial_path(path);
-    create_fresh(&partial)
-        .and_then(|mut file| file.write_all(contents))
-        .map_err(FileError::on("write", &partial))
-        .and_then(|_| std::fs::rename(&partial, path).map_err(FileError::on("write", path)))
-        .inspect_err(|_| {
-            let _ = std::fs::remove_file(&partial);
-        })
+    schema::atomic::write_atomically(path, contents)
+        .map_err(|(failed, e)| FileError::new("write", &failed, e))
 }
 
 /// Makes `dir` and its parents.

@@ -43,7 +43,7 @@ pub fn hex(bytes: &[u8]) -> String {
 pub struct Id([u8; 32]);
 
 impl Id {
-    fn of(digest: &[u8]) -> Id {
+    fn from_digest(digest: &[u8]) -> Id {
         const DIGITS: &[u8; 16] = b"0123456789abcdef";
         let mut id = [0; 32];
         for (k, b) in digest[..16].iter().enumerate() {
@@ -100,13 +100,13 @@ impl serde::Serialize for Id {
 pub fn case_id_and_key(case: &str, solver_version: &str, repeat: usize) -> (Id, Id) {
     let mut hasher = Sha256::new();
     hasher.update(case.as_bytes());
-    let case_id = Id::of(&hasher.clone().finalize());
+    let case_id = Id::from_digest(&hasher.clone().finalize());
     hasher.update(b"\n");
     hasher.update(solver_version.as_bytes());
     if repeat > 0 {
         hasher.update(format!("\nrepeat {repeat}").as_bytes());
     }
-    (case_id, Id::of(&hasher.finalize()))
+    (case_id, Id::from_digest(&hasher.finalize()))
 }
 
 impl Store {
@@ -143,9 +143,9 @@ impl Store {
     /// overwritten: it moves to the study's history first (`history/<key>.<fingerprint>.json`,
     /// see `history_path`), so nothing computed is lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Value) -> Result<bool, FileError> {
-        let failed = Status::of(record).is_none_or(|s| s == Status::Failed);
+        let failed = Status::of_record(record).is_none_or(|s| s == Status::Failed);
         let stored = self.stored(key);
-        let stored_status = stored.as_ref().and_then(Status::of);
+        let stored_status = stored.as_ref().and_then(Status::of_record);
         let result_stored = stored_status.is_some_and(|s| s != Status::Failed);
         if failed && result_stored {
             return Ok(false);
@@ -176,7 +176,7 @@ impl Store {
 
     /// The status of the stored record of `key`, read now; `None` when absent or not whole.
     pub fn status(&self, key: &str) -> Option<Status> {
-        Status::of(&self.stored(key)?)
+        Status::of_record(&self.stored(key)?)
     }
 
     /// The stored record of `key`, read now, if whole.
@@ -594,302 +594,4 @@ pub struct Index {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use serde_json::json;
-
-    /// Keys are the first 16 bytes of SHA-256 of the case's compact JSON, the solver version
-    /// and the repeat, joined by newlines (values computed by Python's hashlib): records
-    /// stored by earlier versions of nlstudy keep their keys.
-    #[test]
-    fn keys_are_the_hashes_they_always_were_and_a_point_prints_as_its_case() {
-        let case = r#"{"dim":1,"m":2,"n":16}"#;
-        let (case_id, key) = case_id_and_key(case, "0.1.0", 0);
-        assert_eq!(case_id.as_str(), "b37555f0171b457510a13b46362b7615");
-        assert_eq!(key.as_str(), "1d4e5939b0079690e5b28ce7cde5d851");
-        let (_, repeated) = case_id_and_key(case, "0.1.0", 2);
-        assert_eq!(repeated.as_str(), "52596724b90431acd907190c9ed73ac4");
-        // A refused point is keyed by its fields printed as a map: the text a `Value` prints.
-        let fields =
-            serde_json::json!({"z": null, "a": 1.5e-300, "s": "é\n\"q\"", "o": {"k": [1, 0.1]}});
-        let map = fields.as_object().unwrap();
-        assert_eq!(serde_json::to_string(map).unwrap(), fields.to_string());
-    }
-
-    fn scratch(name: &str) -> Store {
-        let dir = std::env::temp_dir().join(format!("store-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        Store::open(&dir, "s")
-    }
-
-    /// A record of the case `{"n": n}` with `status`, keyed as the pool keys it, and its key.
-    fn keyed(n: u64, status: &str) -> (String, Value) {
-        let case = json!({ "n": n });
-        let (_, key) = case_id_and_key(&case.to_string(), "0.1.0", 0);
-        let record = json!({"key": key, "case": case, "solver_version": "0.1.0", "repeat": 0,
-                            "status": status, "message": status});
-        (key.to_string(), record)
-    }
-
-    fn with_fingerprint(mut record: Value, fingerprint: &str) -> Value {
-        record["provenance"] = json!({ "fingerprint": fingerprint });
-        record
-    }
-
-    fn remove(store: &Store) {
-        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
-    }
-
-    #[test]
-    fn a_failed_record_never_replaces_a_result_but_a_result_replaces_a_failure() {
-        let store = scratch("replace");
-        let record = |status: &str| keyed(1, status);
-        let (k, _) = record("ok");
-        assert!(store.save(&k, &record("failed").1).unwrap());
-        assert!(store.save(&k, &record("ok").1).unwrap());
-        assert!(!store.save(&k, &record("failed").1).unwrap());
-        assert_eq!(store.status(&k), Some(Status::Ok));
-        assert!(
-            store.save(&k, &record("diverged").1).unwrap(),
-            "a result replaces a result"
-        );
-        assert_eq!(store.status(&k), Some(Status::Diverged));
-        remove(&store);
-    }
-
-    /// A result is never deleted: replaced by a run of the same build (`--force`), it moves to
-    /// the history too, each replaced one under a name of its own.
-    #[test]
-    fn a_replaced_result_moves_to_history_even_from_the_same_build() {
-        let store = scratch("force");
-        let build = "ab".repeat(32);
-        let (k, record) = keyed(2, "ok");
-        let record = with_fingerprint(record, &build);
-        for message in ["first", "second", "third"] {
-            let mut record = record.clone();
-            record["message"] = json!(message);
-            assert!(store.save(&k, &record).unwrap());
-        }
-        let history = store.history();
-        assert!(history.unreadable.is_empty(), "{:?}", history.unreadable);
-        assert_eq!(history.records.len(), 2, "two results were replaced");
-        let order: Vec<&str> = history
-            .records
-            .iter()
-            .map(|r| r["message"].as_str().unwrap())
-            .collect();
-        assert_eq!(
-            order,
-            ["first", "second"],
-            "in the order they were superseded"
-        );
-        let names: Vec<String> = listing(&store.table("history"))
-            .iter()
-            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
-            .collect();
-        assert_eq!(
-            names,
-            [format!("{k}.{build}.2.json"), format!("{k}.{build}.json")]
-        );
-        // A failed record of the same build is not a result: it is replaced, not kept.
-        let (k3, failed) = keyed(3, "failed");
-        store.save(&k3, &failed).unwrap();
-        store.save(&k3, &keyed(3, "ok").1).unwrap();
-        assert_eq!(store.history().records.len(), 2);
-        remove(&store);
-    }
-
-    /// A stored record's fingerprint reaches a file name only as 64 hex digits: a traversal, a
-    /// slash or 300 characters move the record to `<key>.unknown.json`, inside the history,
-    /// and the file the traversal aimed at stays as it was.
-    #[test]
-    fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
-        let store = scratch("traversal");
-        let root = store.runs.parent().unwrap().parent().unwrap().to_path_buf();
-        let (k, record) = keyed(4, "ok");
-        // The directory the traversal needs, and its target (inside the scratch directory).
-        std::fs::create_dir_all(store.table("history").join(format!("{k}."))).unwrap();
-        let target = root.join("PWN_target.json");
-        std::fs::write(&target, "precious").unwrap();
-        let hostile = [
-            // history/<key>./../../.. is the scratch root: the old name was root/PWN_target.json.
-            "/../../../PWN_target".to_string(),
-            "a/b".to_string(),
-            "f".repeat(300),
-            "AB".repeat(32),
-        ];
-        for fingerprint in &hostile {
-            std::fs::create_dir_all(&store.runs).unwrap();
-            let stored = with_fingerprint(record.clone(), fingerprint);
-            std::fs::write(store.path(&k), stored.to_string()).unwrap();
-            assert_eq!(
-                fingerprint_of(&stored),
-                "",
-                "{fingerprint} is not a fingerprint"
-            );
-            let new = with_fingerprint(record.clone(), &"0".repeat(64));
-            assert!(store.save(&k, &new).unwrap(), "{fingerprint}");
-        }
-        assert_eq!(std::fs::read_to_string(&target).unwrap(), "precious");
-        let history = store.history();
-        assert_eq!(history.records.len(), hostile.len());
-        assert!(listing(&store.table("history"))
-            .iter()
-            .filter(|p| p.is_file())
-            .all(|p| p.to_string_lossy().contains(&format!("{k}.unknown"))));
-        remove(&store);
-    }
-
-    /// Runs `read` on another thread: `None` when it has not returned within `limit` (a hang).
-    fn within<T: Send + 'static>(
-        limit: std::time::Duration,
-        read: impl FnOnce() -> T + Send + 'static,
-    ) -> Option<T> {
-        let (done, answer) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let _ = done.send(read());
-        });
-        answer.recv_timeout(limit).ok()
-    }
-
-    /// Files that are not regular files are named and skipped, never followed, read to their
-    /// end or waited on: a link to /dev/zero, a FIFO, a directory, an oversized file.
-    #[test]
-    fn files_that_are_not_regular_files_are_reported_never_read() {
-        let store = scratch("not-regular");
-        let history = store.table("history");
-        std::fs::create_dir_all(&store.runs).unwrap();
-        std::fs::create_dir_all(&history).unwrap();
-        let (k, record) = keyed(5, "ok");
-        std::fs::write(store.path(&k), record.to_string()).unwrap();
-        std::os::unix::fs::symlink("/dev/zero", store.path(&"a".repeat(32))).unwrap();
-        std::os::unix::fs::symlink(store.path(&k), store.path(&"b".repeat(32))).unwrap();
-        std::os::unix::fs::symlink("/dev/zero", history.join("c.unknown.json")).unwrap();
-        for fifo in [store.path(&"d".repeat(32)), history.join("e.unknown.json")] {
-            let path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-            assert_eq!(unsafe { libc::mkfifo(path.as_ptr(), 0o644) }, 0);
-        }
-        std::fs::create_dir(store.path(&"f".repeat(32))).unwrap();
-        let big = store.path(&"0".repeat(32));
-        std::fs::File::create(&big)
-            .unwrap()
-            .set_len(RECORD_CAP + 1)
-            .unwrap();
-        let limit = std::time::Duration::from_secs(20);
-        let runs = Store::open(store.runs.parent().unwrap().parent().unwrap(), "s");
-        let index = within(limit, move || runs.index()).expect("the index hangs");
-        assert_eq!(index.stored.len(), 1, "the one whole record");
-        let problems: Vec<&str> = index
-            .unreadable
-            .iter()
-            .map(|u| u.problem.as_str())
-            .collect();
-        assert_eq!(problems.len(), 5, "{problems:?}");
-        for what in ["symbolic link", "FIFO", "directory", "more than the 64 MiB"] {
-            assert!(
-                problems.iter().any(|p| p.contains(what)),
-                "{what}: {problems:?}"
-            );
-        }
-        let runs = Store::open(store.runs.parent().unwrap().parent().unwrap(), "s");
-        let scan = within(limit, move || (runs.scan(), runs.history())).expect("a scan hangs");
-        assert_eq!((scan.0.records.len(), scan.0.unreadable.len()), (1, 5));
-        assert_eq!((scan.1.records.len(), scan.1.unreadable.len()), (0, 2));
-        remove(&store);
-    }
-
-    /// A record is used only when its key is the hash of its case, solver version and repeat:
-    /// an edited case, a record copied under another key, a changed repeat are reported.
-    #[test]
-    fn a_record_whose_key_is_not_its_identity_is_reported_not_used() {
-        let store = scratch("identity");
-        std::fs::create_dir_all(&store.runs).unwrap();
-        let (k, record) = keyed(6, "ok");
-        let (other, _) = keyed(7, "ok");
-        let mut edited = record.clone();
-        edited["case"]["n"] = json!(60);
-        let mut repeated = record.clone();
-        repeated["repeat"] = json!(1);
-        let mut versionless = record.clone();
-        versionless
-            .as_object_mut()
-            .unwrap()
-            .remove("solver_version");
-        for bad in [edited, repeated, versionless] {
-            std::fs::write(store.path(&k), bad.to_string()).unwrap();
-            assert_eq!(store.status(&k), None, "{bad}");
-            assert_eq!(store.scan().unreadable.len(), 1);
-            assert!(store.index().stored.is_empty());
-        }
-        let mut moved = record.clone();
-        moved["key"] = json!(other);
-        std::fs::remove_file(store.path(&k)).unwrap();
-        std::fs::write(store.path(&other), moved.to_string()).unwrap();
-        let problem = &store.index().unreadable[0].problem;
-        assert!(problem.contains("edited or moved"), "{problem}");
-        std::fs::remove_file(store.path(&other)).unwrap();
-        std::fs::write(store.path(&k), record.to_string()).unwrap();
-        assert_eq!(store.status(&k), Some(Status::Ok));
-        remove(&store);
-    }
-
-    #[test]
-    fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
-        let store = scratch("lock");
-        std::fs::create_dir_all(store.work_dir()).unwrap();
-        let leftover = store.work_dir().join("k.out");
-        let partial = store.runs.join(".k.json.999.partial");
-        std::fs::write(&leftover, "half").unwrap();
-        std::fs::write(&partial, "{").unwrap();
-        let held = store.lock("k").unwrap().expect("free");
-        assert!(!leftover.exists() && !partial.exists());
-        assert!(store.lock("k").unwrap().is_none(), "a held key is refused");
-        assert!(store.lock("other").unwrap().is_some());
-        drop(held);
-        assert!(store.lock("k").unwrap().is_some(), "released with its file");
-        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
-    }
-
-    #[test]
-    fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
-        let store = scratch("lock-files");
-        let lock_path = |key: &str| store.work_dir().join(format!("{key}.lock"));
-        let (done, ok) = keyed(8, "ok");
-        let (broken, failed) = keyed(9, "failed");
-        for (key, record) in [(&done, ok), (&broken, failed)] {
-            let held = store.lock(key).unwrap().expect("free");
-            assert!(store.save(key, &record).unwrap());
-            store.release_lock_file(key);
-            drop(held);
-        }
-        assert!(
-            !lock_path(&done).exists(),
-            "a stored result's lock file stays"
-        );
-        assert!(
-            lock_path(&broken).exists(),
-            "a failed point's lock file is its reruns'"
-        );
-        // A later process takes a new lock file and finds the result stored.
-        let again = store.lock(&done).unwrap().expect("free");
-        assert_eq!(store.status(&done), Some(Status::Ok));
-        drop(again);
-        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
-    }
-
-    #[test]
-    fn abandoned_output_partials_are_cleared_only_while_no_writer_holds_the_outputs() {
-        let store = scratch("outputs");
-        std::fs::create_dir_all(&store.runs).unwrap();
-        let partial = store.table(".t.parquet.999.partial");
-        std::fs::write(&partial, "PAR1").unwrap();
-        let writer = store.lock_outputs().unwrap();
-        std::fs::write(&partial, "PAR1").unwrap();
-        store.clear_abandoned_outputs().unwrap();
-        assert!(partial.exists(), "a live writer's partial file is kept");
-        drop(writer);
-        store.clear_abandoned_outputs().unwrap();
-        assert!(!partial.exists(), "an abandoned partial file is cleared");
-        let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
-    }
-}
+mod tests;

@@ -59,7 +59,7 @@ pub fn seconds(stamp: &str) -> Option<f64> {
 }
 
 /// The time `record` was made, when its provenance says one that reads.
-pub fn of(record: &Value) -> Option<f64> {
+pub fn record_time(record: &Value) -> Option<f64> {
     seconds(crate::store::provenance(record, "timestamp"))
 }
 

@@ -67,7 +67,7 @@ pub(crate) fn measure(
         field: case
             .field_snapshot
             .filter(|_| single)
-            .map(|side| ranks.on(|| FieldSnapshot::of(lattice, u, exact, side))),
+            .map(|side| ranks.on(|| FieldSnapshot::sample(lattice, u, exact, side))),
         distribution,
         implicit: trajectory.implicit,
     }

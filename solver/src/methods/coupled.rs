@@ -156,7 +156,7 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
             "the seamless coupling is steady, on one rank, solved directly by a sparse LU",
         );
     }
-    let sizes = Sizes::of(case);
+    let sizes = Sizes::of_case(case);
     // J must determine every control: faer's least squares asserts as many rows as columns.
     let (rows, columns) = sizes.least_squares_shape(sizes.overlap_breaks.0);
     if rows < columns {
@@ -220,7 +220,7 @@ pub(crate) struct Sizes {
 }
 
 impl Sizes {
-    pub(crate) fn of(case: &Case) -> Sizes {
+    pub(crate) fn of_case(case: &Case) -> Sizes {
         let n = case.n as f64;
         let h = 1.0 / n;
         let eps = horizon_length(case);
@@ -741,7 +741,7 @@ mod tests {
                 "method": "coupled_1d", "dim": 1, "n": n, "eps": eps, "local_domain": [a, b]
             }))
             .unwrap();
-            let sizes = Sizes::of(&case);
+            let sizes = Sizes::of_case(&case);
             let problem = Coupled::new(&case).unwrap();
             let context = format!("n={n} ε={eps} [{a}, {b}]");
             assert_eq!(
@@ -796,7 +796,7 @@ mod tests {
             }))
             .unwrap()
         };
-        let seconds = |case: &Case| Sizes::of(case).setup_seconds();
+        let seconds = |case: &Case| Sizes::of_case(case).setup_seconds();
         assert!(seconds(&case(128, 1.75)) < 0.1);
         let at_cap = case(10, 0.75 + 0.999e7);
         assert!(validate(&at_cap).is_ok(), "{:?}", validate(&at_cap));

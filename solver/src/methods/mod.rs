@@ -188,7 +188,7 @@ pub fn partition_report(case: &Case) -> Result<HaloReport, CaseError> {
             "the partition report is for the nonlocal method, the one that runs on many ranks",
         ));
     }
-    HaloReport::of(&case, &Stencil::of_case(&case))
+    HaloReport::measure(&case, &Stencil::of_case(&case))
 }
 
 #[cfg(feature = "mpi")]

@@ -194,7 +194,7 @@ fn memory_estimate(case: &ValidCase) -> Estimate {
             "the variable horizon's bonds and rows",
         ),
         Method::Coupled1d => add(
-            coupled::Sizes::of(case).peak_bytes(),
+            coupled::Sizes::of_case(case).peak_bytes(),
             "the stiffness band, control responses and dense least squares",
         ),
         Method::FdExplicit | Method::Adi | Method::SteadyCg => {}

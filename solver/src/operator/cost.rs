@@ -29,7 +29,7 @@ pub struct Cost {
 }
 
 impl Cost {
-    pub fn of(stencil: &Stencil) -> Self {
+    pub fn of_stencil(stencil: &Stencil) -> Self {
         let grid = stencil.grid;
         let nodes = grid.nodes() as f64;
         let reach = stencil.reach().min(grid.n - 1);
@@ -43,7 +43,7 @@ impl Cost {
 
 /// The backend `auto` runs: the FFT when the model predicts it faster, else the stencil.
 pub fn choose(stencil: &Stencil) -> Backend {
-    let cost = Cost::of(stencil);
+    let cost = Cost::of_stencil(stencil);
     if cost.fft < cost.stencil {
         Backend::Fft
     } else {

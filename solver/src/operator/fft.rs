@@ -51,7 +51,7 @@ pub struct FftOperator {
 }
 
 /// The spectra between passes, and one set of scratch buffers per task.
-pub struct Work {
+pub struct FftWorkspace {
     /// Row spectra, ny × (px/2 + 1), row-major.
     rows: Vec<C64>,
     /// The filtered spectra by column, (px/2 + 1) × ny, column-major (2D only).
@@ -306,11 +306,11 @@ impl FftOperator {
 }
 
 impl LinearOperator for FftOperator {
-    type Workspace = Work;
+    type Workspace = FftWorkspace;
 
-    fn workspace(&self) -> Work {
+    fn workspace(&self) -> FftWorkspace {
         let (ny, k) = (self.ny, self.frequencies());
-        Work {
+        FftWorkspace {
             rows: vec![C64::default(); ny * k],
             columns: vec![C64::default(); if self.dim == 2 { ny * k } else { 0 }],
             lanes: (0..row_tasks(self.dim, self.ny))
@@ -319,8 +319,8 @@ impl LinearOperator for FftOperator {
         }
     }
 
-    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut Work) {
-        let Work {
+    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut FftWorkspace) {
+        let FftWorkspace {
             rows,
             columns,
             lanes,

@@ -155,7 +155,7 @@ pub(crate) fn transform_rows(
 }
 
 /// A transposed copy (2D) and one transform scratch buffer per task.
-pub struct SineWork {
+pub struct SineWorkspace {
     transposed: Vec<f64>,
     scratch: Vec<Vec<f64>>,
 }
@@ -184,11 +184,11 @@ fn transpose(from: &[f64], to: &mut [f64], n: usize) {
 }
 
 impl LinearOperator for SinePreconditioner {
-    type Workspace = SineWork;
+    type Workspace = SineWorkspace;
 
-    fn workspace(&self) -> SineWork {
+    fn workspace(&self) -> SineWorkspace {
         let transposed = if self.dim == 2 { self.n * self.n } else { 0 };
-        SineWork {
+        SineWorkspace {
             transposed: vec![0.0; transposed],
             scratch: (0..row_tasks(self.dim, self.n))
                 .map(|_| vec![0.0; self.transform.scratch_len()])
@@ -196,8 +196,8 @@ impl LinearOperator for SinePreconditioner {
         }
     }
 
-    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut SineWork) {
-        let SineWork {
+    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut SineWorkspace) {
+        let SineWorkspace {
             transposed,
             scratch,
         } = work;

@@ -30,7 +30,7 @@ pub struct FieldSnapshot {
 impl FieldSnapshot {
     /// The snapshot of `u` on `lattice` with at most `side` blocks per side, and of its error
     /// against `exact` when given.
-    pub fn of(
+    pub fn sample(
         lattice: &Lattice,
         u: &[f64],
         exact: Option<&(dyn Fn(usize) -> f64 + Sync)>,
@@ -81,7 +81,7 @@ mod tests {
         };
         let u: Vec<f64> = (0..25).map(|i| i as f64).collect();
         let zero = |_: usize| 0.0;
-        let snapshot = FieldSnapshot::of(&lattice, &u, Some(&zero), 3);
+        let snapshot = FieldSnapshot::sample(&lattice, &u, Some(&zero), 3);
         assert_eq!((snapshot.nx, snapshot.ny), (3, 3));
         assert!((snapshot.lower - 0.0).abs() < 1e-15 && (snapshot.upper - 1.0).abs() < 1e-15);
         // Block (0, 0) holds nodes 0, 1, 5, 6; block (2, 2) holds node 24 alone.
@@ -100,7 +100,7 @@ mod tests {
             spacing: 0.25,
         };
         let u = [1.0, -2.0, 3.0, 0.5];
-        let snapshot = FieldSnapshot::of(&lattice, &u, None, 64);
+        let snapshot = FieldSnapshot::sample(&lattice, &u, None, 64);
         assert_eq!((snapshot.nx, snapshot.ny), (4, 1));
         assert_eq!(snapshot.values, u);
         assert_eq!(snapshot.error, None);

@@ -122,7 +122,7 @@ impl Record {
             c_tot: None,
             histogram: None,
             field: None,
-            provenance: Provenance::here(case.threads, distribution.ranks),
+            provenance: Provenance::of_this_run(case.threads, distribution.ranks),
             distribution,
             steady: SteadySolve::default(),
             implicit: ImplicitSolves::default(),
@@ -549,7 +549,7 @@ pub fn note_start() {
 pub const FINGERPRINT: &str = env!("NLSOLVE_FINGERPRINT");
 
 impl Provenance {
-    pub fn here(threads: usize, ranks: usize) -> Self {
+    pub fn of_this_run(threads: usize, ranks: usize) -> Self {
         Provenance {
             solver_version: env!("CARGO_PKG_VERSION").to_string(),
             fingerprint: FINGERPRINT.to_string(),
@@ -601,7 +601,7 @@ mod tests {
     #[test]
     fn a_run_is_noisy_when_others_wanted_the_cores_it_left_free() {
         // 4 cores, a 2-thread run: 2 free.
-        let mut provenance = Provenance::here(2, 1);
+        let mut provenance = Provenance::of_this_run(2, 1);
         provenance.cores_online = 4;
         let load = |others: usize| {
             Some(Load {

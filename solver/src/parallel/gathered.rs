@@ -21,7 +21,7 @@ pub struct Gathered<'a, P: LinearOperator> {
 }
 
 /// The whole grid's input and output, and the operator's workspace.
-pub struct GatheredWork<W> {
+pub struct GatheredWorkspace<W> {
     input: Vec<f64>,
     output: Vec<f64>,
     whole: W,
@@ -43,10 +43,10 @@ impl<P: LinearOperator + Sync> LinearOperator for Gathered<'_, P>
 where
     P::Workspace: Send,
 {
-    type Workspace = GatheredWork<P::Workspace>;
+    type Workspace = GatheredWorkspace<P::Workspace>;
 
     fn workspace(&self) -> Self::Workspace {
-        GatheredWork {
+        GatheredWorkspace {
             input: vec![0.0; self.len],
             output: vec![0.0; self.len],
             whole: self.whole.workspace(),
@@ -54,7 +54,7 @@ where
     }
 
     fn apply(&self, u: &[f64], out: &mut [f64], work: &mut Self::Workspace) {
-        let GatheredWork {
+        let GatheredWorkspace {
             input,
             output,
             whole,

@@ -44,11 +44,11 @@ pub struct HaloWorkspace {
     padded: Vec<f64>,
     send: Vec<Vec<f64>>,
     receive: Vec<Vec<f64>>,
-    fft: Option<FftWork>,
+    fft: Option<DistributedFftWorkspace>,
 }
 
 /// The FFT backend's window values, before and after the convolution, and its workspace.
-pub struct FftWork {
+pub struct DistributedFftWorkspace {
     window: Vec<f64>,
     convolved: Vec<f64>,
     work: <FftOperator as LinearOperator>::Workspace,
@@ -102,9 +102,9 @@ impl<'a> DistributedOperator<'a> {
         fft: &FftOperator,
         padded: &[f64],
         out: &mut [f64],
-        work: &mut FftWork,
+        work: &mut DistributedFftWorkspace,
     ) {
-        let FftWork {
+        let DistributedFftWorkspace {
             window,
             convolved,
             work,
@@ -138,7 +138,7 @@ impl LinearOperator for DistributedOperator<'_> {
             padded: vec![0.0; self.kernel.layout().len()],
             send: buffers(&self.sends),
             receive: buffers(&self.receives),
-            fft: self.fft.as_ref().map(|fft| FftWork {
+            fft: self.fft.as_ref().map(|fft| DistributedFftWorkspace {
                 window: vec![0.0; window],
                 convolved: vec![0.0; window],
                 work: self.ranks.on(|| fft.workspace()),

@@ -211,7 +211,7 @@ pub struct PartitionSummary {
 }
 
 /// The partition the case asks for.
-pub fn of(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
+pub fn ownership(case: &Case, stencil: &Stencil) -> Result<Ownership, CaseError> {
     match case.partition {
         Partition::Block => block(case, stencil),
         Partition::Graph => graph(case, stencil.grid),

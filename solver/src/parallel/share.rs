@@ -250,9 +250,9 @@ pub struct HaloReport {
 
 impl HaloReport {
     /// The report of a validated case whose weights `stencil` holds.
-    pub fn of(case: &Case, stencil: &Stencil) -> Result<HaloReport, CaseError> {
+    pub fn measure(case: &Case, stencil: &Stencil) -> Result<HaloReport, CaseError> {
         let started = std::time::Instant::now();
-        let ownership = partition::of(case, stencil)?;
+        let ownership = partition::ownership(case, stencil)?;
         let partition_s = started.elapsed().as_secs_f64();
         let started = std::time::Instant::now();
         let shares: Vec<RankShare> = (0..ownership.ranks)
@@ -345,7 +345,7 @@ mod tests {
     fn every_rank_plan_matches_brute_force() {
         for case in layouts() {
             let stencil = Stencil::of_case(&case);
-            let ownership = partition::of(&case, &stencil).expect("partitionable");
+            let ownership = partition::ownership(&case, &stencil).expect("partitionable");
 
             let shares: Vec<RankShare> = (0..case.ranks)
                 .map(|r| RankShare::new(&ownership, &stencil, r))
@@ -421,7 +421,7 @@ mod tests {
     fn operator_on_a_window_equals_the_serial_operator_bit_for_bit() {
         for case in layouts() {
             let stencil = Stencil::of_case(&case);
-            let ownership = partition::of(&case, &stencil).expect("partitionable");
+            let ownership = partition::ownership(&case, &stencil).expect("partitionable");
             let nodes = stencil.grid.nodes();
             let u: Vec<f64> = (0..nodes)
                 .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.4)
@@ -476,7 +476,7 @@ mod tests {
         // The graph partition's jagged boundary where it exists, else blocks.
         let case = case(2, 30, 3, 4, *partitions().last().unwrap());
         let stencil = Stencil::of_case(&case);
-        let ownership = partition::of(&case, &stencil).unwrap();
+        let ownership = partition::ownership(&case, &stencil).unwrap();
         for rank in 0..case.ranks {
             let sub = RankShare::new(&ownership, &stencil, rank);
             let kernel = WindowKernel::new(&stencil, sub.window);

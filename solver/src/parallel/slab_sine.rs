@@ -80,7 +80,7 @@ struct Redistribution {
 
 /// The slab (when values change ranks; otherwise the output vector is the slab), the transposed
 /// columns, the messages and a transform scratch per task.
-pub struct SlabWork {
+pub struct SlabWorkspace {
     slab: Vec<f64>,
     columns: Vec<f64>,
     send: Vec<f64>,
@@ -274,15 +274,15 @@ impl Redistribution {
 }
 
 impl LinearOperator for SlabSine<'_> {
-    type Workspace = SlabWork;
+    type Workspace = SlabWorkspace;
 
-    fn workspace(&self) -> SlabWork {
+    fn workspace(&self) -> SlabWorkspace {
         let (n, mine) = (self.n, self.rows(self.rank).len());
         let (slab, moved) = match &self.route {
             Route::Moved(r) => (mine * n, r.send_at.len()),
             _ => (0, 0),
         };
-        SlabWork {
+        SlabWorkspace {
             slab: vec![0.0; slab],
             columns: vec![0.0; mine * n],
             send: vec![0.0; (mine * n).max(moved)],
@@ -291,10 +291,10 @@ impl LinearOperator for SlabSine<'_> {
         }
     }
 
-    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut SlabWork) {
+    fn apply(&self, u: &[f64], out: &mut [f64], work: &mut SlabWorkspace) {
         let (n, mine) = (self.n, self.rows(self.rank).len());
         let tasks = self.ranks.on(|| row_tasks(2, mine.max(1)));
-        let SlabWork {
+        let SlabWorkspace {
             slab,
             columns,
             send,

@@ -158,13 +158,13 @@ pub(crate) fn ownership(
 ) -> Result<Ownership, CaseError> {
     let grid = stencil.grid;
     if case.partition == Partition::Block {
-        return partition::of(case, stencil); // cheap and the same everywhere
+        return partition::ownership(case, stencil); // cheap and the same everywhere
     }
     // METIS on rank 0, one partition however METIS would behave on other hosts. Each rank then
     // gets the owners of its window only (its nodes' box grown by the reach: every node its share
     // looks up) and every rank's count, so that no rank but 0 holds the whole map.
     let root = world.process_at_rank(0);
-    let computed = (world.rank() == 0).then(|| partition::of(case, stencil));
+    let computed = (world.rank() == 0).then(|| partition::ownership(case, stencil));
     let mut failed = i32::from(matches!(computed, Some(Err(_))));
     root.broadcast_into(&mut failed);
     if failed == 1 {

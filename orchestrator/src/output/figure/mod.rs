@@ -36,7 +36,7 @@ fn column(rows: &[Row], name: &str) -> Option<String> {
 pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<&'a Row>, String> {
     let mut kept = Vec::new();
     for row in rows {
-        let scope = Scope::of(&row.expression_fields());
+        let scope = Scope::from_fields(&row.expression_fields());
         let mut keep = true;
         for (j, condition) in spec.filter.iter().enumerate() {
             keep &= expression::condition(condition, &scope)

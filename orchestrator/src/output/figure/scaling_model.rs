@@ -4,7 +4,7 @@
 
 use super::series::*;
 use crate::analysis::scaling_model::{
-    fit, half_efficiency, predict, Network, Path, Rates, HDR, TEN_GBE,
+    fit, half_efficiency, predict, Network, Rates, SolverPath, HDR, TEN_GBE,
 };
 use crate::output::draw::{Axis, Guide, Panel, Series};
 use crate::store::table::Row;
@@ -145,9 +145,9 @@ pub(super) fn scaling_model(rows: &[&Row]) -> Result<(Vec<Panel>, String), Strin
 /// Crank–Nicolson run moved per second of communication, its latency what is left of the
 /// two-rank Euler run's communication per message.
 fn this_machine(rows: &[&Row], fitted: &[Rates]) -> Network {
-    let two = |path: Path| {
+    let two = |path: SolverPath| {
         rows.iter().find(|r| {
-            Path::of(r) == Some(path)
+            SolverPath::of_row(r) == Some(path)
                 && r.number("ranks") == Some(2.0)
                 && r.number("comm_s_median").is_some()
         })
@@ -157,12 +157,12 @@ fn this_machine(rows: &[&Row], fitted: &[Rates]) -> Network {
             r.number("traffic.halo_bytes")? + r.number("traffic.all_to_all_bytes").unwrap_or(0.0);
         Some(bytes / 2.0 / r.number("steps_done")?)
     };
-    let bandwidth = two(Path::CrankNicolson)
+    let bandwidth = two(SolverPath::CrankNicolson)
         .and_then(|r| Some(sent_per_step(r)? / r.number("comm_s_median")?))
         .filter(|b| b.is_finite() && *b > 0.0)
         .unwrap_or(5e9);
-    let latency = two(Path::EulerStencil)
-        .zip(fitted.iter().find(|r| r.path == Path::EulerStencil))
+    let latency = two(SolverPath::EulerStencil)
+        .zip(fitted.iter().find(|r| r.path == SolverPath::EulerStencil))
         .and_then(|(r, rates)| {
             let comm = r.number("comm_s_median")? - sent_per_step(r)? / bandwidth;
             Some(comm / (rates.halos + 2.0 * rates.reductions))
@@ -180,12 +180,13 @@ fn this_machine(rows: &[&Row], fitted: &[Rates]) -> Network {
 /// one-rank runs are what the model is fitted to; more ranks oversubscribe this machine), and
 /// the ghosts and all-to-all bytes of every one; with each path's time ratio at 2 ranks and the
 /// worst relative error of the counts.
-fn validation(rows: &[&Row], fitted: &[Rates]) -> (Vec<Series>, Vec<(Path, f64)>, f64) {
+fn validation(rows: &[&Row], fitted: &[Rates]) -> (Vec<Series>, Vec<(SolverPath, f64)>, f64) {
     let here = this_machine(rows, fitted);
     let (mut times, mut ghosts, mut moved) = (Vec::new(), Vec::new(), Vec::new());
     let mut at_two = Vec::new();
     for row in rows {
-        let Some(rates) = Path::of(row).and_then(|p| fitted.iter().find(|r| r.path == p)) else {
+        let Some(rates) = SolverPath::of_row(row).and_then(|p| fitted.iter().find(|r| r.path == p))
+        else {
             continue;
         };
         let (Some(n), Some(p)) = (row.number("case.n"), row.number("ranks")) else {

@@ -46,7 +46,7 @@ pub struct History {
 impl History {
     /// The wall times the store's index holds for the planned points (a point that runs again
     /// because it is stale still has its old timings).
-    pub fn of(planned: &[Planned], index: &Index) -> History {
+    pub fn from_index(planned: &[Planned], index: &Index) -> History {
         let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
         for p in planned {
             let Some(stored) = index.stored.get(p.key.as_str()) else {

@@ -138,7 +138,7 @@ pub fn element_id(scheduler: Scheduler, array: &str, index: usize) -> String {
 /// What a job's state (as `squeue`, `sacct` or `bjobs` names it) means for its points, in a
 /// phrase for `status`. Preempted and requeued jobs are not failures: the points they finished
 /// are stored, and what is missing runs again (by the requeued job, or the next `submit`).
-pub fn meaning(state: &str) -> &'static str {
+pub fn state_meaning(state: &str) -> &'static str {
     match state.to_ascii_uppercase().trim_end_matches('+') {
         "PENDING" | "PEND" | "CONFIGURING" | "REQUEUE_HOLD" | "REQUEUE_FED" | "RESV_DEL_HOLD" => {
             "waiting for its allocation"
@@ -239,10 +239,14 @@ mod tests {
             ("EXIT", "failed"),
         ];
         for (state, says) in slurm.into_iter().chain(lsf) {
-            assert!(meaning(state).contains(says), "{state}: {}", meaning(state));
-            assert_eq!(meaning(state), meaning(&state.to_lowercase()));
+            assert!(
+                state_meaning(state).contains(says),
+                "{state}: {}",
+                state_meaning(state)
+            );
+            assert_eq!(state_meaning(state), state_meaning(&state.to_lowercase()));
         }
-        assert!(meaning("BOGUS").contains("does not know"));
+        assert!(state_meaning("BOGUS").contains("does not know"));
     }
 
     #[test]

@@ -66,7 +66,7 @@ pub fn submit_study(
             n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
             _ => holding.join(", "),
         };
-        say!(
+        errln!(
             "nlstudy: {} points are in jobs still queued or running ({named}); not submitted again",
             planned
                 .iter()
@@ -75,7 +75,7 @@ pub fn submit_study(
         );
     }
     for p in &refused {
-        say!(
+        errln!(
             "nlstudy: not submitted, the solver refuses {}: {}",
             p.point.label(),
             p.case.as_ref().err().map_or("", String::as_str)
@@ -86,7 +86,7 @@ pub fn submit_study(
             true => "every point is stored",
             false => "every point is stored or in a job still queued or running",
         };
-        tell!("study {}: nothing to submit, {why}", study.name);
+        outln!("study {}: nothing to submit, {why}", study.name);
         return Ok(());
     }
     crate::store::fs::create_dir(&target.results)?;
@@ -113,7 +113,7 @@ pub fn submit_study(
         target.site.cores_per_node,
         target.array,
     );
-    let history = History::of(planned, index);
+    let history = History::from_index(planned, index);
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {
@@ -134,13 +134,13 @@ pub fn submit_study(
     for (job, (_, time, from)) in jobs.iter().zip(&packs) {
         let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
         match job.array {
-            false => tell!(
+            false => outln!(
                 "{} ({} cases, {limit}: {from}): {}",
                 job.name,
                 job.bundles[0].len(),
                 job.script.display()
             ),
-            true => tell!(
+            true => outln!(
                 "{} (array of {} elements, {} cases, {limit}: {from}): {}",
                 job.name,
                 job.bundles.len(),
@@ -150,7 +150,7 @@ pub fn submit_study(
         }
         if !target.dry_run {
             let id = scheduler::submit(target.scheduler, &job.script)?;
-            tell!("  submitted as job {id}");
+            outln!("  submitted as job {id}");
             let submitted = super::unix_seconds();
             ledger::add(
                 store,
@@ -206,7 +206,7 @@ fn in_flight(store: &Store, scheduler: Scheduler) -> HashMap<String, String> {
     let live = match scheduler::live_jobs(scheduler) {
         Ok(live) => live,
         Err(message) => {
-            say!("nlstudy: warning: cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
+            errln!("nlstudy: warning: cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
             return HashMap::new();
         }
     };

@@ -7,7 +7,7 @@
 
 use super::feti;
 use super::problem::negate_into;
-use super::problem::{outcome, SteadyProblem, Stop, Summary, Timings};
+use super::problem::{outcome, SteadyProblem, Summary, Termination, Timings};
 use crate::case::ValidCase;
 use crate::case::{CaseError, Method};
 use crate::linalg::cg::{self, Cg};
@@ -98,7 +98,7 @@ pub fn run(
             &problem,
             Some(backend),
             timings,
-            Stop::of_cg(&convergence),
+            Termination::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             distribution,
             summary,

@@ -47,7 +47,7 @@ use crate::operator::{self, LinearOperator};
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, SteadySolve};
 use crate::parallel::exchange;
-use problem::{negate_into, outcome, SteadyProblem, Stop, Timings};
+use problem::{negate_into, outcome, SteadyProblem, Termination, Timings};
 use std::time::Instant;
 
 /// The steady methods' rules; every other field of a time-dependent case is refused by name.
@@ -209,10 +209,10 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             &problem,
             Some(backend),
             Timings { setup_s, solve_s },
-            Stop::of_cg(&convergence),
+            Termination::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             Distribution::serial(case),
-            problem.summarise(&u),
+            problem.summarize(&u),
             u,
         ))
     })

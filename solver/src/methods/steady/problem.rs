@@ -149,7 +149,7 @@ pub(crate) struct Summary {
 
 impl SteadyProblem {
     /// The numbers of u on every node of Ω.
-    pub(crate) fn summarise(&self, u: &[f64]) -> Summary {
+    pub(crate) fn summarize(&self, u: &[f64]) -> Summary {
         Summary {
             fit: self.measure(u),
             mass: total_mass(u, self.grid().volume()),
@@ -227,14 +227,14 @@ pub(crate) struct Timings {
 
 /// How the iteration ended: within `rtol`, or stopped at the case's `max_iterations` (or on a
 /// non-finite residual), with the residual it measures.
-pub(crate) struct Stop {
+pub(crate) struct Termination {
     pub reached_tolerance: bool,
     pub residual: f64,
 }
 
-impl Stop {
+impl Termination {
     pub(crate) fn of_cg(convergence: &cg::Convergence) -> Self {
-        Stop {
+        Termination {
             reached_tolerance: convergence.converged,
             residual: convergence.relative_residual,
         }
@@ -250,7 +250,7 @@ pub(crate) fn outcome(
     problem: &SteadyProblem,
     backend: Option<Backend>,
     timings: Timings,
-    stop: Stop,
+    stop: Termination,
     mut solve: SteadySolve,
     distribution: Distribution,
     summary: Summary,

@@ -1,21 +1,21 @@
-//! The commands that look across runs of a study: `compare` (two result sets, point by point)
-//! and `history` (a metric under every build), and how they find their records: the current
-//! store, its history, another results directory, or a build named by its fingerprint.
+//! `nlstudy compare`: two result sets of a study, point by point, with verdicts only where a
+//! change clears the noise of this machine; exits 1 when something got worse.
 
-use super::{claim, exit, planned, CommonArgs, CompareArgs, Failure, HistoryArgs};
+use super::builds::{latest_superseded, of_build, repeats_by_point, superseded, Side};
+use super::failure::Failure;
+use super::open::{claim, planned};
 use crate::analysis::compare::{self, NoiseModel};
+use crate::cli::args::{CommonArgs, CompareArgs};
 use crate::model::study::Study;
-use crate::run::plan::{Options, Planned};
-use crate::store::{by_key, fingerprint_of, provenance, Store};
+use crate::run::plan::Options;
+use crate::store::{by_key, provenance, Store};
+use schema::exit;
 use serde_json::Value;
 use sha2::Digest;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 use std::process::ExitCode;
 
-/// Records by key, as one side of a comparison holds them.
-type Side = HashMap<String, Value>;
-
-pub(super) fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
+pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
     if !(args.threshold > 0.0 && args.threshold < 10.0) {
         let what = match args.threshold.is_finite() {
             true => "a fraction of change",
@@ -97,10 +97,10 @@ pub(super) fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
         .changes
         .extend(compare::compare_orders(&summary_a, &summary_b));
     claim(&args.common, &study, &store, true)?;
-    tell_raw!("{}", compare::markdown(&comparison));
+    out!("{}", compare::markdown(&comparison));
     for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
         for point in points {
-            tell!("only in {side}: {point}");
+            outln!("only in {side}: {point}");
         }
     }
     let table = store.table("compare.parquet");
@@ -122,11 +122,11 @@ pub(super) fn compare_command(args: &CompareArgs) -> Result<ExitCode, Failure> {
     // A figure that cannot be drawn stops nothing: the table holds every verdict.
     match crate::output::draw::render(&chart) {
         Ok(svg) => crate::store::write_atomically(&figure, svg.as_bytes())?,
-        Err(why) => say!("nlstudy: the comparison's figure is not drawn: {why}"),
+        Err(why) => errln!("nlstudy: the comparison's figure is not drawn: {why}"),
     }
     let regressions = comparison.regressions();
-    say!("{}", noise.describe());
-    say!(
+    errln!("{}", noise.describe());
+    errln!(
         "compare: {} metrics of {} points, {regressions} worse; table: {}, figure: {}",
         comparison.changes.len(),
         points.len(),
@@ -173,103 +173,6 @@ fn scaling_baselines(summary: &[crate::store::table::Row]) -> Vec<(String, Strin
             (point != base).then(|| (point.to_string(), base.to_string()))
         })
         .collect()
-}
-
-/// The study's superseded records; the history's files that are not whole records are named
-/// and left out.
-fn superseded(store: &Store) -> Vec<Value> {
-    let history = store.history();
-    for unreadable in &history.unreadable {
-        say!(
-            "nlstudy: warning: {} is not a whole superseded record ({}); it is left out",
-            unreadable.path.display(),
-            unreadable.problem
-        );
-    }
-    history.records
-}
-
-/// Each key's most recent superseded record: what the current runs replaced, whether a new
-/// build or `run --force` replaced it.
-fn latest_superseded(history: Vec<Value>) -> Option<Side> {
-    let mut latest: Side = HashMap::new();
-    for record in history {
-        let Some(key) = record["key"].as_str().map(str::to_string) else {
-            continue;
-        };
-        // A record whose time does not read is never the latest.
-        let time = |r: &Value| crate::store::timestamp::of(r).unwrap_or(f64::NEG_INFINITY);
-        let newer = latest
-            .get(&key)
-            .is_none_or(|kept| time(&record) >= time(kept));
-        if newer {
-            latest.insert(key, record);
-        }
-    }
-    (!latest.is_empty()).then_some(latest)
-}
-
-/// Each point's label and the keys of its repeats, in the study's order.
-fn repeats_by_point(planned: &[Planned]) -> Vec<(String, Vec<String>)> {
-    let mut points: Vec<(String, Vec<String>)> = Vec::new();
-    for p in planned {
-        let label = p.point.label_without_repeat();
-        match points.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, keys)) => keys.push(p.key.to_string()),
-            None => points.push((label, vec![p.key.to_string()])),
-        }
-    }
-    points
-}
-
-pub(super) fn history_command(args: &HistoryArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
-    let mut records = store.records();
-    records.extend(superseded(&store));
-    let chart = crate::output::history::chart(
-        &study.name,
-        &args.metric,
-        &repeats_by_point(&planned),
-        &records,
-    )?;
-    let path = store.table("history.svg");
-    let svg = crate::output::draw::render(&chart).map_err(|message| Failure {
-        message,
-        code: exit::CASE_FAILED,
-    })?;
-    crate::store::write_atomically(&path, svg.as_bytes())?;
-    tell!("history: {}", path.display());
-    Ok(ExitCode::SUCCESS)
-}
-
-/// The stored or superseded records of the one build whose fingerprint starts with `prefix`,
-/// by key; `flag` names where the prefix came from, for the message.
-fn of_build(prefix: &str, flag: &str, study: &Study, store: &Store) -> Result<Side, Failure> {
-    if prefix.is_empty() || !prefix.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(format!(
-            "{flag} fingerprint:{prefix:?}: a fingerprint is hex digits (`nlsolve fingerprint`, `nlstudy history`)"
-        )
-        .into());
-    }
-    let mut records = superseded(store);
-    records.extend(store.records());
-    records.retain(|r| fingerprint_of(r).starts_with(prefix));
-    let mut builds: Vec<&str> = records.iter().map(fingerprint_of).collect();
-    builds.sort_unstable();
-    builds.dedup();
-    match builds.len() {
-        0 => Err(format!(
-            "{flag} fingerprint:{prefix}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix}; `nlstudy history` shows the builds",
-            study.name
-        )
-        .into()),
-        1 => Ok(latest_superseded(records).unwrap_or_default()),
-        n => Err(format!(
-            "{flag} fingerprint:{prefix}: {n} builds start so ({}); give more of the fingerprint",
-            builds.iter().map(|b| &b[..12]).collect::<Vec<_>>().join(", ")
-        )
-        .into()),
-    }
 }
 
 /// `compare`'s baseline A, by key: what `--against` names (see `CompareArgs::against`).

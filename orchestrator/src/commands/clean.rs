@@ -3,24 +3,57 @@
 //! current ones); records no point of the study has are listed, and deleted only when asked:
 //! they were computed, and an edit of the study may bring their points back.
 
+use super::failure::Failure;
+use super::open::planned;
+use crate::cli::args::CleanArgs;
 use crate::model::study::Study;
-use crate::run::plan::Planned;
+use crate::run::plan::{Options, Planned};
 use crate::store::fs::remove_where;
-use crate::store::Fault;
-use crate::store::Store;
+use crate::store::{Fault, Store};
 use serde_json::Value;
 use std::collections::HashSet;
+use std::process::ExitCode;
 
-pub struct Cleaned {
-    /// Figure files removed (`old.svg` and its stamp).
-    pub figures: Vec<String>,
-    /// Records of no current point: (key, label of their case).
-    pub orphans: Vec<(String, String)>,
-    /// Whether the orphans were deleted.
-    pub deleted: bool,
+pub(super) fn clean(args: &CleanArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
+    let cleaned = clean_results(&study, &store, &planned, args.yes)?;
+    for figure in &cleaned.figures {
+        outln!("removed figures/{figure}: no figure of the study draws it");
+    }
+    if cleaned.orphans.is_empty() {
+        outln!("every stored record is a point of study {}", study.name);
+        return Ok(ExitCode::SUCCESS);
+    }
+    for (key, case) in &cleaned.orphans {
+        // A record on disk may hold anything: escaped for the terminal.
+        outln!("{key}  {}", case.escape_debug());
+    }
+    let count = cleaned.orphans.len();
+    if cleaned.deleted {
+        outln!(
+            "deleted {count} records that are no point of study {}",
+            study.name
+        );
+    } else {
+        outln!(
+            "{count} stored records are no point of study {} (removed from its sweep, or run by another solver version); `nlstudy clean --yes` deletes them",
+            study.name
+        );
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
-pub fn clean(
+/// What `clean` removed and found.
+struct Cleaned {
+    /// Figure files removed (`old.svg` and its stamp).
+    figures: Vec<String>,
+    /// Records of no current point: (key, label of their case).
+    orphans: Vec<(String, String)>,
+    /// Whether the orphans were deleted.
+    deleted: bool,
+}
+
+fn clean_results(
     study: &Study,
     store: &Store,
     planned: &[Planned],

@@ -1,0 +1,5 @@
+//! The command line: its flags (`args`), parsed by clap; `commands` runs them.
+
+pub mod args;
+
+pub use args::Cli;

@@ -1,0 +1,28 @@
+//! `nlstudy collect`: the stored records gathered into the study's run and summary tables.
+
+use super::failure::Failure;
+use super::open::{planned, print_tables_written};
+use crate::cli::args::CollectArgs;
+use crate::model::study::fields_telling_apart;
+use crate::run::plan::Options;
+use std::process::ExitCode;
+
+pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
+    let allow_mixed = args.allow_mixed;
+    let args = &args.common;
+    let (study, _, store, planned) = planned(args, &Options::default(), true)?;
+    let collected = crate::analysis::collect::collect(&planned, &store, &study, allow_mixed)?
+        .ok_or_else(|| {
+            format!(
+                "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
+                store.study
+            )
+        })?;
+    print_tables_written(&collected);
+    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+    out!(
+        "{}",
+        crate::analysis::collect::overview(&collected.table, &swept)
+    );
+    Ok(ExitCode::SUCCESS)
+}

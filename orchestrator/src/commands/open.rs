@@ -1,0 +1,145 @@
+//! What every command opens first: the study file, its solver, its store (once the file owns
+//! it) and the plan of its points; and what several commands say of a plan and of what they
+//! wrote.
+
+use super::failure::Failure;
+use crate::cli::args::CommonArgs;
+use crate::model::study::Study;
+use crate::run::nlsolve::Nlsolve;
+use crate::run::plan::{Options, Planned};
+use crate::store::owner::Refusal;
+use crate::store::{Index, Store};
+
+/// The study file, its figures checked against the columns its tables will have.
+pub(super) fn read_study(path: &std::path::Path) -> Result<Study, String> {
+    let study = Study::read(path).map_err(|e| e.to_string())?;
+    crate::analysis::figure_columns::check(&study).map_err(|e| e.to_string())?;
+    Ok(study)
+}
+
+/// The study's store, once the study file is known to own it (see `store::owner`); a command
+/// that `writes` records the file as its owner.
+pub(super) fn open_store(args: &CommonArgs, study: &Study, writes: bool) -> Result<Store, Failure> {
+    let store = Store::open(&args.results, &study.name);
+    claim(args, study, &store, writes)?;
+    Ok(store)
+}
+
+/// Checks that the study file owns `store`, and with `writes` records it as the owner.
+pub(super) fn claim(
+    args: &CommonArgs,
+    study: &Study,
+    store: &Store,
+    writes: bool,
+) -> Result<(), Failure> {
+    let text = std::fs::read_to_string(&args.study).unwrap_or_default();
+    match store.claim(&args.study, &text, args.adopt, writes) {
+        Ok(()) => Ok(()),
+        Err(Refusal::Io(e)) => Err(e.into()),
+        Err(Refusal::OwnedBy(owner)) => Err(format!(
+            "{} holds the results of another study file of the same name `{}`: {}; give this study its own `name`, or --adopt to make {} the owner (the stored runs stay, and its points that are the same cases reuse them)",
+            store.table("").display(),
+            study.name,
+            owner.display(),
+            args.study.display()
+        )
+        .into()),
+    }
+}
+
+/// The study, its solver and store, and the plan of its points; see `open_store` for `writes`.
+pub(super) fn planned(
+    args: &CommonArgs,
+    options: &Options,
+    writes: bool,
+) -> Result<(Study, Nlsolve, Store, Vec<Planned>), Failure> {
+    let (study, solver, store, _, planned) = planned_and_index(args, options, writes)?;
+    Ok((study, solver, store, planned))
+}
+
+/// `planned`, with the store's index it planned against.
+pub(super) fn planned_and_index(
+    args: &CommonArgs,
+    options: &Options,
+    writes: bool,
+) -> Result<(Study, Nlsolve, Store, Index, Vec<Planned>), Failure> {
+    let study = read_study(&args.study)?;
+    let solver = Nlsolve::locate(args.solver.as_deref())?;
+    let store = open_store(args, &study, writes)?;
+    let index = store.index();
+    for unreadable in &index.unreadable {
+        errln!("nlstudy: warning: {unreadable}");
+    }
+    let planned = crate::run::plan::plan(&study, &solver, &index, options)?;
+    Ok((study, solver, store, index, planned))
+}
+
+/// Names the points to run that this machine could not (memory, cores): `run` would store them
+/// failed here, a cluster may run them (`submit`), so they are said, not refused.
+pub(super) fn say_what_does_not_fit(planned: &[Planned]) {
+    let crowded: Vec<(&Planned, &str)> = planned
+        .iter()
+        .filter(|p| p.runs())
+        .filter_map(|p| Some((p, p.case.as_ref().ok()?.machine.as_deref()?)))
+        .collect();
+    if let Some((first, why)) = crowded.first() {
+        errln!(
+            "nlstudy: {} points to run do not fit this machine, and would fail if run here (the first, {}: {why}); `nlstudy submit` them to a cluster, or make them smaller",
+            crowded.len(),
+            first.point.label()
+        );
+    }
+}
+
+/// Stops a command when the solver refused points (unless `allowed`): each distinct refusal
+/// once, with the number of points it refused.
+pub(super) fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {
+    let refusals = crate::run::plan::refusals(planned);
+    if refusals.is_empty() {
+        return Ok(());
+    }
+    let points: usize = refusals.iter().map(|r| r.points).sum();
+    let text = crate::run::plan::describe_refusals(&refusals);
+    if allowed {
+        errln!("nlstudy: warning: the solver refuses {points} points; they are stored as failed:\n{text}");
+        return Ok(());
+    }
+    Err(format!(
+        "the solver refuses {points} of the study's points, so nothing runs:\n{text}\nfix the study file, or give --allow-refused to run the other points and store these as failed"
+    )
+    .into())
+}
+
+pub(super) fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {
+    use crate::output::plot::Outcome;
+    for figure in figures {
+        let what = match figure.outcome {
+            Outcome::Drawn => "drawn",
+            Outcome::UpToDate => "up to date",
+            Outcome::Failed(_) => "not drawn",
+        };
+        errln!("figure {what}: {}", figure.path.display());
+    }
+}
+
+pub(super) fn print_tables_written(collected: &crate::analysis::collect::Collected) {
+    errln!(
+        "tables: {} ({} runs), {} ({} points)",
+        collected.runs.display(),
+        collected.rows,
+        collected.summary.display(),
+        collected.points
+    );
+    if collected.missing > 0 {
+        errln!(
+            "  {} runs of the study are not stored yet",
+            collected.missing
+        );
+    }
+    if collected.left_out > 0 {
+        errln!(
+            "  {} stored records are left out: their points are no longer in the study or were run by another solver version",
+            collected.left_out
+        );
+    }
+}

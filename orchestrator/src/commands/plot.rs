@@ -1,0 +1,27 @@
+//! `nlstudy plot`: the study's figures drawn from its summary table.
+
+use super::failure::Failure;
+use super::open::{open_store, print_figures_drawn, read_study};
+use crate::cli::args::CommonArgs;
+use schema::exit;
+use std::process::ExitCode;
+
+pub(super) fn plot(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let study = read_study(&args.study)?;
+    if study.figures.is_empty() {
+        return Err(format!(
+            "study {} lists no figures; add a `figures` list to {}",
+            study.name,
+            args.study.display()
+        )
+        .into());
+    }
+    let store = open_store(args, &study, true)?;
+    let figures = crate::output::plot::plot(&study.figures, &store)?;
+    print_figures_drawn(&figures);
+    crate::output::plot::all_drawn(&figures).map_err(|message| Failure {
+        message,
+        code: exit::CASE_FAILED,
+    })?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,136 @@
+//! `nlstudy run`: the points not yet stored run on the worker pool, their records are stored,
+//! and the study's tables, figures and report are made of them.
+
+use super::failure::Failure;
+use super::open::{
+    no_refusals, planned, print_figures_drawn, print_tables_written, say_what_does_not_fit,
+};
+use crate::cli::args::RunArgs;
+use crate::model::study::fields_telling_apart;
+use crate::run::plan::Decision;
+use crate::run::pool::PoolOptions;
+use crate::run::progress::{Mode, Progress};
+use schema::exit;
+use std::process::ExitCode;
+use std::time::Duration;
+
+pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
+    let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
+    no_refusals(&planned, args.plan.allow_refused)?;
+    say_what_does_not_fit(&planned);
+    let cores = crate::run::pool::machine_cores();
+    let timeout = match args.timeout {
+        Some(seconds) => Some(timeout(seconds, "--timeout")?),
+        None => study
+            .timeout_s
+            .map(|s| timeout(s, "timeout_s"))
+            .transpose()?,
+    };
+    let options = PoolOptions {
+        cores: args.jobs.unwrap_or(cores).max(1),
+        exclusive: !study.share_machine,
+        timeout,
+        launcher: args.launcher.clone(),
+        retries: args.retries,
+    };
+    store.clear_abandoned_outputs()?;
+    let stop = crate::run::signals::Stop::on_signals()?;
+    let to_run = planned.iter().filter(|p| p.runs()).count();
+    let duplicates = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    let skipped = planned.len() - to_run - duplicates;
+    let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
+    let tally = crate::run::pool::run(&planned, &solver, &store, &options, &stop, &mut progress);
+    progress.close();
+    let tally = tally.map_err(|e| Failure {
+        message: format!("{e}; the cases that were running are not stored and run again next time"),
+        code: exit::IO,
+    })?;
+    if !args.quiet {
+        let passed = match tally.passed {
+            0 => String::new(),
+            n => format!(", {n} run by another nlstudy"),
+        } + &match duplicates {
+            0 => String::new(),
+            n => format!(", {n} the same case as an earlier point"),
+        };
+        errln!(
+            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored{passed}",
+            study.name,
+            tally.ok + tally.diverged + tally.failed,
+            tally.ok,
+            tally.diverged,
+            tally.failed,
+        );
+        if tally.noisy > 0 {
+            errln!(
+                "  {} of them noisy: timed while other tasks wanted the cores they left free; their timings measure contention too (`nlstudy run --force` them on a quiet machine)",
+                tally.noisy
+            );
+        }
+    }
+    if let Some(signal) = stop.signal().filter(|_| tally.interrupted) {
+        errln!(
+            "nlstudy: stopped by {}; what finished is stored, run again to resume",
+            crate::run::signals::name(signal)
+        );
+        return Ok(ExitCode::from(
+            stop.exit_code().unwrap_or(exit::INTERRUPTED),
+        ));
+    }
+    if !args.no_collect {
+        let tables = crate::analysis::collect::collect(&planned, &store, &study, args.allow_mixed)
+            .and_then(|collected| match collected {
+                Some(collected) => {
+                    let figures = crate::output::plot::plot(&study.figures, &store)?;
+                    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+                    let page = crate::output::report::write(&study, &store, &swept)?;
+                    if !args.quiet {
+                        print_tables_written(&collected);
+                        print_figures_drawn(&figures);
+                        errln!("report: {}", page.display());
+                    }
+                    Ok(crate::output::plot::all_drawn(&figures).err())
+                }
+                None => Ok(None),
+            });
+        // A table or figure that cannot be made of these runs exits 1; a file that cannot be
+        // read or written, 3.
+        let (message, code) = match tables {
+            Ok(None) => (None, exit::OK),
+            Ok(Some(figures)) => (Some(figures), exit::CASE_FAILED),
+            Err(crate::store::Fault::Input(m)) => (Some(m), exit::CASE_FAILED),
+            Err(crate::store::Fault::Io(m)) => (Some(m), exit::IO),
+        };
+        if let Some(message) = message {
+            errln!("nlstudy: {message}; the runs are stored");
+            return Ok(ExitCode::from(code));
+        }
+    }
+    Ok(match tally.failed {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(exit::CASE_FAILED),
+    })
+}
+
+/// The longest timeout taken: about 31 years, past any allocation.
+const LONGEST_TIMEOUT_S: f64 = 1e9;
+
+/// A case's timeout from `field`: a positive, finite number of seconds.
+fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
+    if !seconds.is_finite() {
+        return Err(format!(
+            "{field}: {seconds} is not a finite number; give a number of seconds, or none for no limit"
+        )
+        .into());
+    }
+    if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
+        return Err(format!(
+            "{field}: {seconds} is not a timeout; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none for no limit"
+        )
+        .into());
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}

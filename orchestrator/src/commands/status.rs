@@ -1,0 +1,14 @@
+//! `nlstudy status`: the stored records counted by status, the failures and the jobs.
+
+use super::failure::Failure;
+use super::open::planned_and_index;
+use crate::cli::args::CommonArgs;
+use crate::output::status;
+use crate::run::plan::Options;
+use std::process::ExitCode;
+
+pub(super) fn status(args: &CommonArgs) -> Result<ExitCode, Failure> {
+    let (study, _, store, index, planned) = planned_and_index(args, &Options::default(), false)?;
+    out!("{}", status::render(&study.name, &store, &index, &planned));
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,33 @@
+//! `nlstudy table`: values of the summary table as a Markdown pivot.
+
+use super::failure::Failure;
+use super::open::{open_store, read_study};
+use crate::cli::args::TableArgs;
+use std::process::ExitCode;
+
+pub(super) fn table(args: &TableArgs) -> Result<ExitCode, Failure> {
+    let study = read_study(&args.common.study)?;
+    let store = open_store(&args.common, &study, false)?;
+    let path = store.table(&format!("{}-summary.parquet", study.name));
+    if !path.exists() {
+        return Err(format!(
+            "{} does not exist; `nlstudy collect {}` writes it",
+            path.display(),
+            args.common.study.display()
+        )
+        .into());
+    }
+    // A table and its sum are read as one collect wrote them (on a read-only copy, unlocked).
+    let _outputs = store.lock_outputs().ok();
+    let spec = crate::analysis::pivot::PivotSpec {
+        rows: args.rows.clone(),
+        column: args.column.clone(),
+        values: args.value.clone(),
+        filter: args.filter.clone(),
+    };
+    out!(
+        "{}",
+        crate::analysis::pivot::markdown(&spec, &crate::store::table::read_parquet(&path)?)?
+    );
+    Ok(ExitCode::SUCCESS)
+}

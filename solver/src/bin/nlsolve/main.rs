@@ -1,0 +1,336 @@
+//! `nlsolve`: runs one case and prints its record as one JSON line on stdout, with a short human
+//! summary on stderr.
+//!
+//! Exit statuses (`schema::exit`, also in `--help`): 0 when the record (the report, the
+//! verdicts) was written; 1 when MPI could not start; 2 for bad input, with one sentence naming
+//! the field; 3 when the record, the verdicts or a `--write-*` file could not be written, with
+//! one line saying what and why. A failed write to stderr (the summary, a message) is ignored:
+//! there is nowhere left to report it, and it says nothing about the result.
+
+mod files;
+mod flags;
+mod stdout;
+mod summary;
+
+use clap::error::ErrorKind;
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use files::{write_atomically, write_vtk};
+use flags::CaseArgs;
+use schema::exit;
+use serde_json::Value;
+use solver::case::Case;
+use solver::ValidCase;
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use stdout::{note, print_line, standard_output};
+use summary::summary;
+
+#[derive(Parser)]
+#[command(
+    name = "nlsolve",
+    version,
+    about = "Runs one nonlocal diffusion case and prints its JSON record."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run one case, given as a JSON file, as flags, or as a file with flags overriding its fields.
+    /// With ranks > 1, start it as `mpirun -n <ranks> nlsolve run … --ranks <ranks>`.
+    Run(RunArgs),
+    /// Report the partition and halo a distributed run of the case would use (ghost nodes, bytes
+    /// per step, imbalance) without running it or starting MPI; the time fields may be left out.
+    Partition(CaseArgs),
+    /// Check cases without running them: reads one JSON case per line on standard input and
+    /// prints one line for each: `{"case": …, "resolved": …}` (`case` in canonical form, keys
+    /// sorted, what a run's key is taken from; `resolved` the same case with every default the
+    /// method uses filled in) or `{"error": "…"}` naming the field at fault.
+    Check,
+    /// Print the build's fingerprint: the hash of everything that decides a record's numbers
+    /// (the solver's and schema's sources, Cargo.lock, the compiler, target, flags, profile and
+    /// features), which every record carries in its provenance.
+    Fingerprint,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    case: CaseArgs,
+    /// Also write the final field to FILE: little-endian f64 values in node order (iy·n + ix).
+    #[arg(long, value_name = "FILE")]
+    write_field: Option<PathBuf>,
+    /// Also write the c_tot(t) series to FILE as CSV (`t,c_tot`, [HPCSE]'s diagnostics.dat);
+    /// needs --diagnostics-every.
+    #[arg(long, value_name = "FILE")]
+    write_diagnostics: Option<PathBuf>,
+    /// Also write the field for ParaView into DIR: u_<k>.vti (VTK image data) at each time the
+    /// case's `vtk_every` asks for, else the final field only, and u.pvd listing them by time.
+    #[arg(long, value_name = "DIR")]
+    write_vtk: Option<PathBuf>,
+}
+
+/// Bad input: a message for the user, exit code 2.
+struct BadInput(String);
+
+/// Why nlsolve stops without success; each kind has its exit status.
+enum ErrorExit {
+    /// Bad input: one sentence naming the field, `exit::BAD_INPUT`.
+    BadInput(String),
+    /// An output could not be written (the message names it and the error): `exit::IO`.
+    Output(String),
+}
+
+impl From<BadInput> for ErrorExit {
+    fn from(BadInput(message): BadInput) -> Self {
+        ErrorExit::BadInput(message)
+    }
+}
+
+/// Parses the command line. `nlsolve --help` also lists the flags of `run`; a usage error is one
+/// line and exit code 2, like every other kind of bad input.
+fn parse_command_line() -> Result<Cli, BadInput> {
+    let mut command = Cli::command();
+    let run_help = command
+        .find_subcommand_mut("run")
+        .expect("the run subcommand exists")
+        .render_help();
+    let command = command.after_help(format!(
+        "{}\n`nlsolve run` takes these flags:\n\n{run_help}",
+        exit::plain("nlsolve")
+    ));
+    let matches = command.try_get_matches().map_err(|e| match e.kind() {
+        ErrorKind::DisplayHelp
+        | ErrorKind::DisplayVersion
+        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => e.exit(),
+        _ => BadInput(usage_error(&e.to_string())),
+    })?;
+    Cli::from_arg_matches(&matches).map_err(|e| BadInput(e.to_string()))
+}
+
+/// clap's error as one line: its first line and its tips (`a similar argument exists:
+/// '--integrator'`), without the usage block.
+fn usage_error(text: &str) -> String {
+    let first = text.lines().next().unwrap_or_default();
+    let tips = text
+        .lines()
+        .filter_map(|line| line.trim().strip_prefix("tip: "))
+        .map(|tip| format!("; {tip}"));
+    std::iter::once(first.trim_start_matches("error: ").to_string())
+        .chain(tips)
+        .collect()
+}
+
+/// MPI, with the `mpi` feature: the ranks of the launcher that started this process.
+#[cfg(feature = "mpi")]
+mod ranks {
+    use mpi::topology::Communicator;
+    pub use mpi::topology::SimpleCommunicator as World;
+
+    /// Was this process started by an MPI launcher (mpirun, mpiexec, srun)?
+    fn launched_by_mpi() -> bool {
+        ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"]
+            .iter()
+            .any(|name| std::env::var_os(name).is_some())
+    }
+
+    /// MPI initialised when a launcher started this process (None otherwise), or Err when it
+    /// could not be.
+    pub fn start() -> Result<Option<mpi::environment::Universe>, ()> {
+        match launched_by_mpi() {
+            true => mpi::initialize_with_threading(mpi::Threading::Funneled)
+                .map(|(universe, _)| Some(universe))
+                .ok_or(()),
+            false => Ok(None),
+        }
+    }
+
+    pub fn world(universe: &Option<mpi::environment::Universe>) -> Option<World> {
+        universe.as_ref().map(|u| u.world())
+    }
+
+    pub fn is_rank0(world: Option<&World>) -> bool {
+        world.is_none_or(|w| w.rank() == 0)
+    }
+
+    pub use solver::run_on_ranks as run;
+}
+
+/// No MPI without the `mpi` feature: one process, and no value of `World` exists.
+#[cfg(not(feature = "mpi"))]
+mod ranks {
+    pub enum World {}
+
+    pub fn start() -> Result<Option<()>, ()> {
+        Ok(None)
+    }
+
+    pub fn world(_: &Option<()>) -> Option<World> {
+        None
+    }
+
+    pub fn is_rank0(_: Option<&World>) -> bool {
+        true
+    }
+
+    pub fn run(
+        world: &World,
+        _: &solver::Case,
+        _: bool,
+    ) -> Result<Option<solver::Outcome>, solver::CaseError> {
+        match *world {}
+    }
+}
+
+fn main() -> ExitCode {
+    // The machine's load before this run adds to it, for the record's provenance.
+    solver::output::record::note_start();
+    // MPI starts before anything can fail, so that every rank of a bad run finalizes and exits
+    // with the same code instead of leaving mpirun to report a crash.
+    let Ok(universe) = ranks::start() else {
+        note("nlsolve: MPI could not be initialised");
+        return ExitCode::from(exit::CASE_FAILED);
+    };
+    let world = ranks::world(&universe);
+    let rank0 = ranks::is_rank0(world.as_ref());
+    let result = parse_command_line()
+        .map_err(ErrorExit::from)
+        .and_then(|cli| match cli.command {
+            Command::Run(args) => run(&args, world.as_ref()),
+            Command::Partition(args) => partition_report(&args),
+            Command::Check => check_cases(),
+            Command::Fingerprint => {
+                print_line(solver::output::record::FINGERPRINT, "the fingerprint")
+            }
+        });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(failure) => {
+            let (status, message) = match failure {
+                ErrorExit::BadInput(message) => (exit::BAD_INPUT, message),
+                ErrorExit::Output(message) => (exit::IO, message),
+            };
+            if rank0 {
+                note(&format!("nlsolve: {message}"));
+            }
+            ExitCode::from(status)
+        }
+    }
+}
+
+/// Runs the case (on every rank of `world` when started by MPI); rank 0 prints the record.
+fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
+    let case = args.case.case()?;
+    if args.write_diagnostics.is_some() && case.diagnostics_every.is_none() {
+        return Err(ErrorExit::BadInput(
+            "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
+        ));
+    }
+    let outcome = match world {
+        Some(world) => ranks::run(
+            world,
+            &case,
+            args.write_field.is_some() || args.write_vtk.is_some(),
+        ),
+        None => solver::run(&case).map(Some),
+    }
+    .map_err(|e| BadInput(e.to_string()))?;
+    let Some(outcome) = outcome else {
+        return Ok(()); // not rank 0
+    };
+    if let Some(path) = &args.write_field {
+        let bytes: Vec<u8> = outcome.field.iter().flat_map(|v| v.to_le_bytes()).collect();
+        write_atomically(path, &bytes, "--write-field")?;
+    }
+    if let (Some(path), Some(series)) = (&args.write_diagnostics, &outcome.record.c_tot) {
+        write_atomically(path, series.to_csv().as_bytes(), "--write-diagnostics")?;
+    }
+    if let Some(dir) = &args.write_vtk {
+        write_vtk(dir, &outcome)?;
+    }
+    let line = serde_json::to_string(&outcome.record)
+        .map_err(|e| ErrorExit::Output(format!("cannot write the record: {e}")))?;
+    print_line(&line, "the record")?;
+    note(&summary(&outcome.record));
+    Ok(())
+}
+
+/// Prints the halo report of the case as one JSON line.
+fn partition_report(args: &CaseArgs) -> Result<(), ErrorExit> {
+    let mut fields = args.fields()?;
+    // The time step does not shape the partition; fill it in when absent.
+    fields.entry("t_end").or_insert(Value::from(1.0));
+    if !fields.contains_key("dt") {
+        fields.entry("cfl").or_insert(Value::from(1.0));
+    }
+    let case = Case::parse(Value::Object(fields)).map_err(|e| BadInput(e.to_string()))?;
+    let report = solver::partition_report(&case).map_err(|e| BadInput(e.to_string()))?;
+    print_line(
+        &serde_json::to_string(&report).expect("the report serializes"),
+        "the partition report",
+    )
+}
+
+/// `nlsolve check`: validates each case of standard input and prints its canonical form.
+/// `nlsolve check`'s answer on a case whose fields are valid: its time step checked as `run`
+/// would check it (`methods::preflight`), then `case` (which keys the run), `resolved` (the same
+/// case as people read it) and, when this machine could not run it, `machine`: why, which a plan
+/// reports without refusing (the case may run elsewhere).
+fn verdict(
+    case: &ValidCase,
+    memo: &mut std::collections::HashMap<String, Result<f64, solver::case::CaseError>>,
+    machine: solver::methods::resources::Machine,
+) -> Value {
+    if let Err(e) = solver::methods::preflight(case, memo) {
+        return serde_json::json!({ "error": e.to_string() });
+    }
+    let mut verdict = serde_json::json!({ "case": **case, "resolved": case.resolved() });
+    if let Err(e) = solver::methods::resources::fit(case, machine) {
+        verdict["machine"] = Value::from(e.to_string());
+    }
+    verdict
+}
+
+fn check_cases() -> Result<(), ErrorExit> {
+    let failed = |e: std::io::Error| {
+        ErrorExit::Output(format!("cannot write the verdicts to standard output: {e}"))
+    };
+    // Flushed whenever no more input is waiting, so that a reader sending one case at a time
+    // sees each verdict as its case is read, and many cases go out in large writes; on
+    // `standard_output()`, so that a closed descriptor is an error too.
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, standard_output().map_err(failed)?);
+    let mut input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin().lock());
+    let mut line = String::new();
+    let mut printed = Vec::new();
+    let mut memo = std::collections::HashMap::new();
+    let machine = solver::methods::resources::Machine::now();
+    loop {
+        line.clear();
+        let read = input
+            .read_line(&mut line)
+            .map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
+        if read == 0 {
+            break;
+        }
+        if !line.trim().is_empty() {
+            let verdict = match schema::json::parse(&line) {
+                Ok(fields) => match ValidCase::from_json(fields) {
+                    Ok(case) => verdict(&case, &mut memo, machine),
+                    Err(e) => serde_json::json!({ "error": e.to_string() }),
+                },
+                Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+            };
+            printed.clear();
+            serde_json::to_writer(&mut printed, &verdict).expect("a Value prints");
+            printed.push(b'\n');
+            out.write_all(&printed).map_err(failed)?;
+        }
+        if input.buffer().is_empty() {
+            out.flush().map_err(failed)?;
+        }
+    }
+    out.flush().map_err(failed)
+}
