@@ -391,13 +391,15 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     std::fs::create_dir_all(scratch.dir.join("results")).unwrap();
     let absolute = |p: PathBuf| std::fs::canonicalize(p).unwrap().display().to_string();
     let results = || absolute(scratch.dir.join("results"));
+    // Each word as the scripts quote it (shlex: a path of plain characters stays bare).
+    let word = |w: String| shlex::try_quote(&w).unwrap().into_owned();
     let command = |launcher: &str, export: &str| {
         format!(
-            "set -eo pipefail\nset -u\n{export}exec '{}' run '{}' --results '{}' --solver '{}' --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
-            binary("nlstudy").display(),
-            absolute(scratch.study()),
-            results(),
-            absolute(binary("nlsolve")),
+            "set -eo pipefail\nset -u\n{export}exec {} run {} --results {} --solver {} --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
+            word(binary("nlstudy").display().to_string()),
+            word(absolute(scratch.study())),
+            word(results()),
+            word(absolute(binary("nlsolve"))),
             keys.join(",")
         )
     };
@@ -475,7 +477,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     );
     let second = std::fs::read_to_string(format!("{jobs}/nlstudy-two-1.sbatch")).unwrap();
     assert!(
-        second.ends_with(&format!("--only '{}'\n", keys[1])),
+        second.ends_with(&format!("--only {}\n", shlex::try_quote(keys[1]).unwrap())),
         "{second}"
     );
 }

@@ -1,0 +1,40 @@
+//! Percentile bootstrap intervals over the repeats, seeded by point and metric so that a
+//! comparison gives the same intervals every time.
+
+use crate::statistics::{median, SplitMix};
+
+/// Bootstrap resamples per interval, and the interval's coverage.
+pub(super) const RESAMPLES: usize = 2000;
+
+pub(super) const COVERAGE: f64 = 0.95;
+
+/// The median of a resample (with replacement) of `values`.
+pub(super) fn resampled(random: &mut SplitMix, values: &[f64]) -> f64 {
+    let drawn: Vec<f64> = (0..values.len())
+        .map(|_| values[random.below(values.len())])
+        .collect();
+    median(&drawn)
+}
+
+/// The percentile interval of `statistic` over `RESAMPLES` resamples.
+pub(super) fn bootstrap(
+    random: &mut SplitMix,
+    mut statistic: impl FnMut(&mut SplitMix) -> f64,
+) -> (f64, f64) {
+    let mut ratios: Vec<f64> = (0..RESAMPLES).map(|_| statistic(random)).collect();
+    ratios.sort_by(f64::total_cmp);
+    let tail = (1.0 - COVERAGE) / 2.0;
+    let at = |q: f64| ratios[((q * (RESAMPLES - 1) as f64).round() as usize).min(RESAMPLES - 1)];
+    (at(tail), at(1.0 - tail))
+}
+
+/// A seed from the point and metric (FNV-1a), so that intervals do not depend on the order.
+pub(super) fn seed_of(point: &str, metric: &str) -> u64 {
+    point
+        .bytes()
+        .chain([0])
+        .chain(metric.bytes())
+        .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
+            (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3)
+        })
+}
