@@ -276,3 +276,68 @@ fn numbers_that_are_not_finite_are_refused_in_a_toml_study() {
         }
     }
 }
+
+/// Every command's bad-input status: a study file that is not there, and a flag value that is
+/// no number, each exit 2 with one line naming what is wrong, and write nothing.
+#[test]
+fn every_command_exits_2_on_a_missing_study_file_and_a_flag_that_is_no_number() {
+    let scratch = Scratch::new("bad-input-every-command", &tiny("bad"));
+    let missing = scratch.dir.join("no-such-study.json");
+    let commands: [(&str, &[&str]); 11] = [
+        ("plan", &[]),
+        ("run", &[]),
+        ("collect", &[]),
+        ("plot", &[]),
+        ("status", &[]),
+        ("report", &[]),
+        ("table", &["--value", "error_l2_norm"]),
+        ("submit", &["--scheduler", "slurm", "--dry-run"]),
+        ("clean", &[]),
+        ("compare", &["--against", "history"]),
+        ("history", &[]),
+    ];
+    let results = scratch.dir.join("results");
+    for (verb, extra) in commands {
+        let out = Command::new(nonlocal_study::binary("nlstudy"))
+            .arg(verb)
+            .arg(&missing)
+            .args(["--results", results.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{verb}: {}", text(&out));
+        assert!(
+            text(&out).contains("no-such-study.json"),
+            "{verb} names the file: {}",
+            text(&out)
+        );
+        // A value clap must parse as a number.
+        let flag = match verb {
+            "run" => Some(["--timeout", "soon"]),
+            "compare" => Some(["--threshold", "ten"]),
+            _ => None,
+        };
+        if let Some(flag) = flag {
+            let out = Command::new(nonlocal_study::binary("nlstudy"))
+                .arg(verb)
+                .arg(scratch.study())
+                .args(["--results", results.to_str().unwrap()])
+                .args(extra)
+                .args(flag)
+                .output()
+                .unwrap();
+            assert_eq!(
+                out.status.code(),
+                Some(2),
+                "{verb} {flag:?}: {}",
+                text(&out)
+            );
+            assert!(text(&out).contains(flag[0]), "{verb}: {}", text(&out));
+        }
+    }
+    assert!(
+        !results.exists(),
+        "a refused command wrote {}",
+        results.display()
+    );
+}
