@@ -67,15 +67,11 @@ pub fn markdown() -> String {
     out
 }
 
-/// The table as plain lines, as `nlsolve --help` prints it.
-pub fn plain(binary: &str) -> String {
+/// `nlsolve`'s column as plain lines, as `nlsolve --help` prints it.
+pub fn nlsolve_help() -> String {
     let mut out = String::from("Exit status:\n");
     for row in &TABLE {
-        let meaning = match binary {
-            "nlsolve" => row.nlsolve,
-            _ => row.nlstudy,
-        };
-        out += &format!("  {:<14} {meaning}\n", row.code);
+        out += &format!("  {:<14} {}\n", row.code, row.nlsolve);
     }
     out
 }

@@ -185,7 +185,7 @@ fn help_lists_the_exit_statuses() {
     // clap wraps long lines: compared with every run of whitespace as one space.
     let words = |text: &str| text.split_whitespace().collect::<Vec<_>>().join(" ");
     assert!(
-        words(&help).contains(&words(&schema::exit::plain("nlsolve"))),
+        words(&help).contains(&words(&schema::exit::nlsolve_help())),
         "{help}"
     );
 }

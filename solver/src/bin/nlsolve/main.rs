@@ -100,7 +100,7 @@ fn parse_command_line() -> Result<Cli, BadInput> {
         .render_help();
     let command = command.after_help(format!(
         "{}\n`nlsolve run` takes these flags:\n\n{run_help}",
-        exit::plain("nlsolve")
+        exit::nlsolve_help()
     ));
     let matches = command.try_get_matches().map_err(|e| match e.kind() {
         ErrorKind::DisplayHelp
