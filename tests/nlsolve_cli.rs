@@ -465,7 +465,7 @@ fn every_method_reports_the_grid_spacing_and_the_columns_of_the_schema() {
         for column in flattened_names("", &rec) {
             assert!(
                 schema::record::is_column(&column),
-                "{case}: the record's column `{column}` is not in schema::record::COLUMNS"
+                "{case}: the record's column `{column}` is not a column of schema::record"
             );
         }
     }

@@ -7,22 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
 /// The record's fields that describe the result (timings and provenance left out).
-pub const RESULT_FIELDS: [&str; 14] = [
-    "h",
-    "eps",
-    "c",
-    "dt",
-    "dt_stable",
-    "steps",
-    "nodes",
-    "bonds",
-    "error_l2",
-    "error_l2_norm",
-    "error_max",
-    "error_total",
-    "mass",
-    "max_abs",
-];
+pub use schema::record::RESULTS as RESULT_FIELDS;
 
 /// Path of a workspace binary built in the same profile as this test (target/<profile>/<name>).
 pub fn binary(name: &str) -> PathBuf {

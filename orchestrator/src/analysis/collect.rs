@@ -9,7 +9,8 @@ use crate::run::plan::{short, Planned};
 use crate::store::table::{self, Row};
 use crate::store::Fault;
 use crate::store::Store;
-use schema::record::Status;
+use schema::record::columns;
+use schema::record::{Status, Stored};
 use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
@@ -28,10 +29,17 @@ pub struct Collected {
 }
 
 /// The fields that lead a run's row; the case follows, then the results, then provenance.
-const LEADING: &[&str] = &["key", "case_id", "repeat", "status", "message"];
+const LEADING: &[&str] = &[
+    columns::KEY,
+    columns::CASE_ID,
+    columns::REPEAT,
+    columns::STATUS,
+    columns::MESSAGE,
+];
 
-/// One run's row: the point's label and series, then the record, flattened.
-fn run_row(planned: &Planned, record: &Value) -> Row {
+/// One run's row: the point's label and series, then the record, flattened: its columns are
+/// what `Stored` serializes.
+fn run_row(planned: &Planned, stored: &Stored) -> Row {
     let mut row = Row::default();
     let series = planned.point.series();
     row.set("point", json!(planned.point.label_without_repeat()));
@@ -40,6 +48,7 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     }
     row.set("refinement_series", json!(series.refinement));
     row.set("scaling_series", json!(series.scaling));
+    let record = stored.to_value();
     let Some(record) = record.as_object() else {
         return row;
     };
@@ -67,7 +76,7 @@ fn run_row(planned: &Planned, record: &Value) -> Row {
     // Beside `ranks` (the record's), the threads each rank ran: what `where` and figure specs
     // call `threads`.
     if let Some(threads) = row.get("case.threads").cloned() {
-        row.set("threads", threads);
+        row.set(columns::THREADS, threads);
     }
     row
 }
@@ -141,13 +150,13 @@ pub fn collect(
 
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would
 /// write them: for comparing what two result sets derive (speedups, orders).
-pub fn summary_of(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
+pub fn summary_of(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
     summary::summarize(&run_rows(planned, records))
 }
 
 /// The run rows of the points whose records `records` holds. Points of different branches may
 /// be one case: each gets its row from the one record.
-pub fn run_rows(planned: &[Planned], records: &HashMap<String, Value>) -> Vec<Row> {
+pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
     planned
         .iter()
         .filter_map(|p| Some(run_row(p, records.get(p.key.as_str())?)))
@@ -212,9 +221,9 @@ fn cgroup_limit() -> Option<u64> {
 
 /// What a timing or an error depends on, as the record's provenance names it.
 const PROVENANCE: &[(&str, &str)] = &[
-    ("solver fingerprints", "provenance.fingerprint"),
-    ("hosts", "provenance.host"),
-    ("instruction sets", "provenance.instruction_set"),
+    ("solver fingerprints", columns::FINGERPRINT),
+    ("hosts", columns::HOST),
+    ("instruction sets", columns::INSTRUCTION_SET),
 ];
 
 /// Whether the runs that measured something (`ok`, `diverged`) came from more than one solver
@@ -251,10 +260,10 @@ pub fn mixed_provenance(rows: &[Row]) -> Option<String> {
 /// or derived by the solver), then the headline results the study has.
 fn headline_columns(summary: &[Row], swept: &[String]) -> Vec<(String, String)> {
     const RESULTS: &[&str] = &[
-        "status",
+        columns::STATUS,
         "solve_s_median",
         "solve_s_iqr",
-        "error_l2_norm",
+        columns::ERROR_L2_NORM,
         "order_l2",
         "speedup",
         "efficiency",

@@ -23,7 +23,8 @@
 use crate::console::number;
 use crate::statistics::{median, SplitMix};
 use crate::store::table::Row;
-use serde_json::{json, Value};
+use schema::record::Stored;
+use serde_json::json;
 use std::collections::HashMap;
 
 mod bootstrap;
@@ -36,6 +37,7 @@ pub use noise::NoiseModel;
 use bootstrap::*;
 use metrics::*;
 use noise::*;
+use schema::record::columns;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Verdict {
@@ -83,8 +85,8 @@ pub struct Change {
 /// A point's runs on each side: its label and each side's records (one per repeat).
 pub struct Paired<'a> {
     pub point: String,
-    pub a: Vec<&'a Value>,
-    pub b: Vec<&'a Value>,
+    pub a: Vec<&'a Stored>,
+    pub b: Vec<&'a Stored>,
 }
 
 pub struct Comparison {
@@ -125,10 +127,11 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
             (false, false) => both.push((paired.point.as_str(), a, b)),
         }
     }
-    for &(metric, better, kind) in METRICS {
+    for metric in METRICS {
+        let (better, kind) = (metric.better, metric.kind);
         let mut sides = Vec::new();
         for (point, a, b) in &both {
-            let (xa, xb) = (values(a, metric, kind), values(b, metric, kind));
+            let (xa, xb) = (values(a, metric), values(b, metric));
             if xa.is_empty() || xb.is_empty() {
                 continue;
             }
@@ -138,9 +141,12 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
             } else {
                 median(&scales)
             };
-            let all_noisy = |side: &[&Value]| side.iter().all(|r| is_noisy(r));
+            let all_noisy = |side: &[&Stored]| side.iter().all(|r| r.noisy());
             // A rate is its run's solve time inverted: as short as that.
-            let wall_time = matches!(metric, "solve_s" | "setup_s" | "bond_updates_per_s");
+            let wall_time = matches!(
+                metric.name,
+                columns::SOLVE_S | columns::SETUP_S | "bond_updates_per_s"
+            );
             let scale_b: Vec<f64> = b.iter().filter_map(|r| scale_of(metric, r)).collect();
             let shortest = scale.min(if scale_b.is_empty() {
                 scale
@@ -167,30 +173,30 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
             let setting = Setting {
                 threshold,
                 floor: match common {
-                    Some(_) => noise.point_floor(metric, *scale),
-                    None => noise.point_and_run_floor(metric, *scale),
+                    Some(_) => noise.point_floor(metric.name, *scale),
+                    None => noise.point_and_run_floor(metric.name, *scale),
                 },
                 common: common.unwrap_or(0.0).exp(),
-                seed: seed_of(point, metric),
+                seed: seed_of(point, metric.name),
             };
-            let mut change = change(point, metric, better, kind, xa, xb, &setting);
+            let mut change = change(point, metric.name, better, kind, xa, xb, &setting);
             if let Some(verdict) = set_aside {
                 change.verdict = *verdict;
             }
             comparison.changes.push(change);
         }
         if let Some(common) = common {
-            let mut random = SplitMix(seed_of(WHOLE_RUN, metric));
+            let mut random = SplitMix(seed_of(WHOLE_RUN, metric.name));
             let interval = bootstrap(&mut random, |r| resampled(r, &logs).exp());
             let setting = Setting {
                 threshold,
-                floor: noise.run_floor(metric),
+                floor: noise.run_floor(metric.name),
                 common: 1.0,
                 seed: 0,
             };
             comparison.changes.push(Change {
                 point: WHOLE_RUN.to_string(),
-                metric,
+                metric: metric.name,
                 a: 1.0,
                 b: common.exp(),
                 ratio: common.exp(),
@@ -323,7 +329,7 @@ pub fn compare_speedups(
     noise: &NoiseModel,
 ) -> Vec<Change> {
     let by_label: HashMap<&str, &Paired> = points.iter().map(|p| (p.point.as_str(), p)).collect();
-    let times = |runs: &[&Value]| values(&measured(runs), "solve_s", Kind::Measured);
+    let times = |runs: &[&Stored]| values(&measured(runs), metric(columns::SOLVE_S));
     let mut changes = Vec::new();
     for (point, base) in baselines {
         let (Some(p), Some(q)) = (by_label.get(point.as_str()), by_label.get(base.as_str())) else {
@@ -339,13 +345,13 @@ pub fn compare_speedups(
         // Both points ran in one run, whose common factor cancels in their ratio; each drifts.
         let setting = Setting {
             threshold,
-            floor: noise.pair_floor("solve_s", median(&ta), median(&ba)),
+            floor: noise.pair_floor(columns::SOLVE_S, median(&ta), median(&ba)),
             common: 1.0,
             seed: seed_of(point, "speedup"),
         };
         let all_noisy = [&p.a, &p.b, &q.a, &q.b]
             .iter()
-            .any(|side| side.iter().all(|r| is_noisy(r)));
+            .any(|side| side.iter().all(|r| r.noisy()));
         let (interval, verdict) = if [&ta, &tb, &ba, &bb].iter().any(|t| t.len() < 2) {
             (None, Verdict::NoInterval)
         } else {
@@ -377,22 +383,23 @@ pub fn compare_speedups(
 
 /// The machines the measured records of a side ran on: their CPU models, instruction sets and
 /// cores online.
-pub fn machines(records: &[&Value]) -> Vec<String> {
+pub fn machines(records: &[&Stored]) -> Vec<String> {
     let mut machines: Vec<String> = measured(records)
         .iter()
-        .map(|r| {
-            let field = |f: &str| match crate::store::provenance(r, f) {
-                "" => "unknown",
-                text => text,
+        .filter_map(|r| r.provenance())
+        .map(|p| {
+            let known = |text: &str| match text {
+                "" => "unknown".to_string(),
+                text => text.to_string(),
             };
-            let cores = r
-                .pointer("/provenance/cores_online")
-                .and_then(Value::as_u64)
-                .map_or("unknown".to_string(), |n| n.to_string());
+            let cores = match p.cores_online {
+                0 => "unknown".to_string(),
+                n => n.to_string(),
+            };
             format!(
                 "{} ({}, {cores} cores)",
-                field("cpu"),
-                field("instruction_set")
+                known(&p.cpu),
+                known(&p.instruction_set)
             )
         })
         .collect();
@@ -461,8 +468,8 @@ pub fn rows(comparison: &Comparison) -> Vec<Row> {
 /// Pairs each point's repeats (their keys) with the records each side holds for them.
 pub fn pair<'a>(
     points: &[(String, Vec<String>)],
-    a: &'a HashMap<String, Value>,
-    b: &'a HashMap<String, Value>,
+    a: &'a HashMap<String, Stored>,
+    b: &'a HashMap<String, Stored>,
 ) -> Vec<Paired<'a>> {
     points
         .iter()

@@ -8,6 +8,7 @@
 use crate::console::numbers_alike;
 use crate::model::expression::{self, Scope};
 use crate::store::table::Row;
+use schema::record::columns;
 use serde_json::{Map, Value};
 
 pub struct PivotSpec {
@@ -190,7 +191,7 @@ fn null_in(name: &str, rows: &[&Row], kept: usize) -> String {
         .take(SHOWN)
         .map(|row| {
             row.text("point")
-                .or(row.text("case_id"))
+                .or(row.text(columns::CASE_ID))
                 .unwrap_or("(no label)")
         })
         .collect();

@@ -15,6 +15,7 @@
 //! compute and pessimistic about communication on a real node.
 
 use crate::store::table::Row;
+use schema::record::columns;
 use schema::transform::transform_length;
 use std::f64::consts::PI;
 
@@ -58,7 +59,7 @@ impl SolverPath {
         {
             return None;
         }
-        match (row.text("case.integrator"), row.text("backend")) {
+        match (row.text("case.integrator"), row.text(columns::BACKEND)) {
             (Some("crank_nicolson"), _) => Some(SolverPath::CrankNicolson),
             (Some("forward_euler") | None, Some("fft")) => Some(SolverPath::EulerFft),
             (Some("forward_euler") | None, _) => Some(SolverPath::EulerStencil),
@@ -224,18 +225,18 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
             let spread = rows
                 .iter()
                 .filter(|r| SolverPath::of_row(r) == Some(path) && ranks(r) > 1.0)
-                .filter(|r| r.get("traffic.halo_exchanges").is_some())
+                .filter(|r| r.get(columns::HALO_EXCHANGES).is_some())
                 .min_by(|a, b| ranks(a).total_cmp(&ranks(b)))?;
             let n = alone.number("case.n")?;
-            let m = alone.number("m").or(alone.number("case.m"))?;
+            let m = alone.number(columns::M).or(alone.number("case.m"))?;
             let step = alone.number("step_s_median")?;
             // Counts per step, or per iteration for steady CG.
             let per = match path {
-                SolverPath::SteadyCg => spread.number("iterations")?,
-                _ => spread.number("steps_done")?,
+                SolverPath::SteadyCg => spread.number(columns::ITERATIONS)?,
+                _ => spread.number(columns::STEPS_DONE)?,
             };
             let count = |name: &str| spread.number(&format!("traffic.{name}")).map(|c| c / per);
-            let iterations = alone.number("solve_iterations_mean").unwrap_or(0.0);
+            let iterations = alone.number(columns::SOLVE_ITERATIONS_MEAN).unwrap_or(0.0);
             let (compute, transform) = match path {
                 SolverPath::EulerFft => {
                     let points = fft_points(n as usize, m as usize, (1, 1));
@@ -266,7 +267,7 @@ pub fn fit(rows: &[&Row]) -> Vec<Rates> {
 
 /// A row's rank count (1 if none).
 fn ranks(row: &Row) -> f64 {
-    row.number("ranks").unwrap_or(1.0)
+    row.number(columns::RANKS).unwrap_or(1.0)
 }
 
 /// The run of `path` the compute rate comes from: on one rank and one thread, the largest n.

@@ -15,6 +15,7 @@
 
 use crate::statistics::quantile;
 use crate::store::table::Row;
+use schema::record::columns;
 use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
 
@@ -24,8 +25,8 @@ const MIXED: &str = "mixed";
 /// The errors whose observed orders are derived, and the order columns' names (`coupled_1d`'s
 /// two models each have their own).
 const ORDERS: &[(&str, &str)] = &[
-    ("error_l2_norm", "order_l2"),
-    ("error_max", "order_max"),
+    (columns::ERROR_L2_NORM, "order_l2"),
+    (columns::ERROR_MAX, "order_max"),
     ("coupling.error_nonlocal", "order_nonlocal"),
     ("coupling.error_local", "order_local"),
 ];
@@ -52,7 +53,7 @@ const DERIVED: &[&str] = &[
 /// The statistics each timing `T_s` becomes (`T_s_median`, …).
 const STATISTICS: &[&str] = &["median", "min", "max", "iqr"];
 
-/// Whether `name` is a column of a summary table: a record's (`schema::record::COLUMNS`), or
+/// Whether `name` is a column of a summary table: a record's (`schema::record::columns`), or
 /// one the summary derives.
 pub fn is_column(name: &str) -> bool {
     let statistic = STATISTICS.iter().any(|s| {
@@ -66,15 +67,14 @@ pub fn is_column(name: &str) -> bool {
         || statistic
 }
 
-/// Every column name a summary may have, groups written `group.*`: for suggestions.
+/// Every column name a summary may have (the case's written `case.*`): for suggestions.
 pub fn column_names() -> Vec<String> {
     let statistics = TIMINGS
         .iter()
         .flat_map(|t| STATISTICS.iter().map(move |s| format!("{t}_{s}")));
-    schema::record::COLUMNS
-        .iter()
-        .chain(DERIVED)
-        .map(|c| c.to_string())
+    std::iter::once("case.*".to_string())
+        .chain(schema::record::columns().iter().cloned())
+        .chain(DERIVED.iter().map(|c| c.to_string()))
         .chain(ORDERS.iter().map(|(_, order)| order.to_string()))
         .chain(statistics)
         .collect()
@@ -84,7 +84,7 @@ pub fn column_names() -> Vec<String> {
 /// where rows have no label), in the order points first appear. Points of different branches
 /// that are one case share its records but keep a row each.
 pub fn summarize(runs: &[Row]) -> Vec<Row> {
-    let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text("case_id")))
+    let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text(columns::CASE_ID)))
         .iter()
         .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
         .collect();
@@ -119,13 +119,13 @@ fn is_ok(row: &Row) -> bool {
 fn reduce(repeats: &[&Row]) -> Row {
     let statuses: Vec<&str> = repeats
         .iter()
-        .map(|r| r.text("status").unwrap_or(""))
+        .map(|r| r.text(columns::STATUS).unwrap_or(""))
         .collect();
     let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
     let mut row = Row::default();
     for (name, value) in first.cells() {
-        let per_run =
-            matches!(name, "key" | "repeat" | "run_id") || name.starts_with("provenance.");
+        let per_run = matches!(name, columns::KEY | columns::REPEAT | columns::RUN_ID)
+            || name.starts_with("provenance.");
         if !per_run && !is_timing(name) {
             row.set(name, value.clone());
         }
@@ -143,7 +143,7 @@ fn reduce(repeats: &[&Row]) -> Row {
     // mixes builds (`collect --allow-mixed`).
     let builds: Vec<&str> = ran
         .iter()
-        .map(|r| r.text("provenance.fingerprint").unwrap_or(""))
+        .map(|r| r.text(columns::FINGERPRINT).unwrap_or(""))
         .collect();
     if let Some(first_build) = builds.first() {
         let build = match builds.iter().all(|b| b == first_build) {
@@ -175,20 +175,20 @@ fn reduce(repeats: &[&Row]) -> Row {
     // What multiplies the workers: a scaling figure draws each kind as a line of its own.
     let parallelism = match (threads > 1, ranks > 1) {
         (false, false) => "serial",
-        (true, false) => "threads",
-        (false, true) => "ranks",
+        (true, false) => columns::THREADS,
+        (false, true) => columns::RANKS,
         (true, true) => "threads × ranks",
     };
     row.set("parallelism", json!(parallelism));
     // Repeats timed while other tasks wanted the cores they left free.
     let noisy = repeats
         .iter()
-        .filter(|r| r.get("provenance.noisy") == Some(&Value::Bool(true)))
+        .filter(|r| r.get(columns::NOISY) == Some(&Value::Bool(true)))
         .count();
     row.set("noisy_repeats", json!(noisy));
     let work = (
-        row.number("bonds"),
-        row.number("steps_done"),
+        row.number(columns::BONDS),
+        row.number(columns::STEPS_DONE),
         row.number("solve_s_median"),
     );
     let updates = match work {
@@ -229,7 +229,7 @@ fn derive_scaling(rows: &mut [Row]) {
 
 fn derive_orders(rows: &mut [Row]) {
     for mut members in groups(rows, |r| r.text("refinement_series").filter(|_| is_ok(r))) {
-        let h = |i: usize| rows[i].number("h").unwrap_or(f64::NAN);
+        let h = |i: usize| rows[i].number(columns::H).unwrap_or(f64::NAN);
         members.sort_by(|&a, &b| h(b).total_cmp(&h(a))); // coarse first
         let mut orders = Vec::new();
         for pair in members.windows(2) {

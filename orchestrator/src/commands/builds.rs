@@ -6,15 +6,15 @@ use super::failure::Failure;
 use crate::model::study::Study;
 use crate::run::plan::Planned;
 use crate::store::{fingerprint_of, Store};
-use serde_json::Value;
+use schema::record::Stored;
 use std::collections::HashMap;
 
 /// Records by key, as one side of a comparison holds them.
-pub(super) type Side = HashMap<String, Value>;
+pub(super) type Side = HashMap<String, Stored>;
 
 /// The study's superseded records; the history's files that are not whole records are named
 /// and left out.
-pub(super) fn superseded(store: &Store) -> Vec<Value> {
+pub(super) fn superseded(store: &Store) -> Vec<Stored> {
     let history = store.history();
     for unreadable in &history.unreadable {
         errln!(
@@ -28,19 +28,17 @@ pub(super) fn superseded(store: &Store) -> Vec<Value> {
 
 /// Each key's most recent superseded record: what the current runs replaced, whether a new
 /// build or `run --force` replaced it.
-pub(super) fn latest_superseded(history: Vec<Value>) -> Option<Side> {
+pub(super) fn latest_superseded(history: Vec<Stored>) -> Option<Side> {
     let mut latest: Side = HashMap::new();
     for record in history {
-        let Some(key) = record["key"].as_str().map(str::to_string) else {
-            continue;
-        };
         // A record whose time does not read is never the latest.
-        let time = |r: &Value| crate::store::timestamp::record_time(r).unwrap_or(f64::NEG_INFINITY);
+        let time =
+            |r: &Stored| crate::store::timestamp::record_time(r).unwrap_or(f64::NEG_INFINITY);
         let newer = latest
-            .get(&key)
+            .get(&record.key)
             .is_none_or(|kept| time(&record) >= time(kept));
         if newer {
-            latest.insert(key, record);
+            latest.insert(record.key.clone(), record);
         }
     }
     (!latest.is_empty()).then_some(latest)

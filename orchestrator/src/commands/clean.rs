@@ -10,6 +10,7 @@ use crate::model::study::Study;
 use crate::run::plan::{Options, Planned};
 use crate::store::fs::remove_where;
 use crate::store::{Fault, Store};
+use schema::record::Stored;
 use serde_json::Value;
 use std::collections::HashSet;
 use std::process::ExitCode;
@@ -82,10 +83,8 @@ fn clean_results(
     let mut orphans: Vec<(String, String)> = store
         .records()
         .iter()
-        .filter_map(|record| {
-            let key = record.get("key")?.as_str()?;
-            (!current.contains(key)).then(|| (key.to_string(), case_label(record)))
-        })
+        .filter(|record| !current.contains(record.key.as_str()))
+        .map(|record| (record.key.clone(), case_label(record)))
         .collect();
     orphans.sort();
     if delete_orphans {
@@ -100,8 +99,8 @@ fn clean_results(
 }
 
 /// `method=nonlocal n=64 …`: a record's case, for the list.
-fn case_label(record: &Value) -> String {
-    let Some(case) = record.get("case").and_then(Value::as_object) else {
+fn case_label(record: &Stored) -> String {
+    let Some(case) = record.case().as_object() else {
         return String::new();
     };
     case.iter()

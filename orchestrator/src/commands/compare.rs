@@ -8,9 +8,9 @@ use crate::analysis::compare::{self, NoiseModel};
 use crate::cli::args::{CommonArgs, CompareArgs};
 use crate::model::study::Study;
 use crate::run::plan::Options;
-use crate::store::{by_key, provenance, Store};
+use crate::store::{by_key, Store};
 use schema::exit;
-use serde_json::Value;
+use schema::record::Stored;
 use sha2::Digest;
 use std::collections::HashSet;
 use std::process::ExitCode;
@@ -70,7 +70,7 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
             .into());
         }
     }
-    let side = |records: Vec<&Value>| compare::machines(&records);
+    let side = |records: Vec<&Stored>| compare::machines(&records);
     let (machines_a, machines_b) = (
         side(paired.iter().flat_map(|p| p.a.iter().copied()).collect()),
         side(paired.iter().flat_map(|p| p.b.iter().copied()).collect()),
@@ -142,17 +142,16 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
 /// The drift of this study's runs on this machine: A/A pairs of its stored and superseded
 /// records, those of side B left out (B is what is judged).
 fn noise_model(store: &Store, b: &Side) -> NoiseModel {
-    let judged: HashSet<(&str, &str)> = b
-        .values()
-        .map(|r| (r["key"].as_str().unwrap_or(""), provenance(r, "timestamp")))
-        .collect();
+    let made = |r: &Stored| -> (String, String) {
+        let timestamp = r.provenance().map(|p| p.timestamp.clone());
+        (r.key.clone(), timestamp.unwrap_or_default())
+    };
+    let judged: HashSet<(String, String)> = b.values().map(made).collect();
     let mut known = superseded(store);
     known.extend(store.records());
-    let calibration: Vec<&Value> = known
+    let calibration: Vec<&Stored> = known
         .iter()
-        .filter(|r| {
-            !judged.contains(&(r["key"].as_str().unwrap_or(""), provenance(r, "timestamp")))
-        })
+        .filter(|r| !judged.contains(&made(r)))
         .collect();
     NoiseModel::calibrate(&calibration)
 }

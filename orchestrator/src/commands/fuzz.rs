@@ -178,6 +178,13 @@ fn fuzz_records_and_history_entries() {
     };
     let keys: Vec<String> = corpus.iter().map(|r| key(r)).collect();
     assert!(keys.iter().all(|k| k.len() == 32), "{keys:?}");
+    for (bytes, name) in corpus.iter().zip(&keys) {
+        std::fs::write(store.path(name), bytes).unwrap();
+        assert!(
+            store.stored(name).is_some(),
+            "the corpus holds whole records"
+        );
+    }
     let mut k = 0;
     fuzz("record", &corpus, |bytes| {
         k += 1;

@@ -1,6 +1,7 @@
 //! A figure as a study file names it: which kind, which columns, which rows. Drawing it is the
 //! output layer's work (`output::figure`); the study model only reads and checks the spec.
 
+use schema::record::columns;
 use serde::{Deserialize, Serialize};
 
 /// One figure of a study file, e.g.
@@ -66,14 +67,16 @@ impl FigureKind {
             FigureKind::StrongScaling | FigureKind::WeakScaling => {
                 ("workers", "solve_s_median", "scaling_series")
             }
-            FigureKind::Convergence => ("h", "error_l2_norm", "refinement_series"),
-            FigureKind::WorkPrecision => ("error_l2_norm", "solve_s_median", "case.method"),
-            FigureKind::Stability => ("case.cfl", "max_abs", "case.method"),
-            FigureKind::TimeSeries => ("c_tot.time", "c_tot.c_tot", "point"),
-            FigureKind::Throughput => ("case.m", "bond_updates_per_s", "backend"),
-            FigureKind::Field => ("field.values", "field.error", "point"),
-            FigureKind::SolverComparison => ("subdomains", "iterations", "case.method"),
-            FigureKind::ScalingModel => ("ranks", "step_s_median", "case.method"),
+            FigureKind::Convergence => (columns::H, columns::ERROR_L2_NORM, "refinement_series"),
+            FigureKind::WorkPrecision => (columns::ERROR_L2_NORM, "solve_s_median", "case.method"),
+            FigureKind::Stability => ("case.cfl", columns::MAX_ABS, "case.method"),
+            FigureKind::TimeSeries => (columns::C_TOT_TIME, columns::C_TOT, "point"),
+            FigureKind::Throughput => ("case.m", "bond_updates_per_s", columns::BACKEND),
+            FigureKind::Field => (columns::FIELD_VALUES, columns::FIELD_ERROR, "point"),
+            FigureKind::SolverComparison => {
+                (columns::SUBDOMAINS, columns::ITERATIONS, "case.method")
+            }
+            FigureKind::ScalingModel => (columns::RANKS, "step_s_median", "case.method"),
         }
     }
 }

@@ -7,15 +7,15 @@
 use crate::output::draw::{Axis, Chart, Guide, Panel, Series};
 use crate::statistics::median;
 use crate::store::{fingerprint_of, timestamp};
-use serde_json::Value;
+use schema::record::{column, Stored};
 use std::collections::BTreeMap;
 
 /// A run: the build that made it and the `nlstudy` process (`run_id`; records made before it was
 /// kept are one run per build).
 type Run = (String, String);
 
-fn run_of(record: &Value) -> Run {
-    let id = record.get("run_id").and_then(Value::as_str).unwrap_or("");
+fn run_of(record: &Stored) -> Run {
+    let id = record.run_id.as_deref().unwrap_or("");
     (fingerprint_of(record).to_string(), id.to_string())
 }
 
@@ -25,7 +25,7 @@ pub fn chart(
     study: &str,
     metric: &str,
     points: &[(String, Vec<String>)],
-    records: &[Value],
+    records: &[Stored],
 ) -> Result<Chart, String> {
     let field = metric.strip_suffix("_median").unwrap_or(metric);
     // Each run at the median time of its records; records whose time does not read are left out.
@@ -46,13 +46,9 @@ pub fn chart(
     let mut series = Vec::new();
     for (label, keys) in points {
         let mut by_run: BTreeMap<Run, Vec<f64>> = BTreeMap::new();
-        let ran = records.iter().filter(|r| {
-            r.get("key")
-                .and_then(Value::as_str)
-                .is_some_and(|k| keys.iter().any(|key| key == k))
-        });
+        let ran = records.iter().filter(|r| keys.contains(&r.key));
         for record in ran {
-            let value = record.get(field).and_then(Value::as_f64);
+            let value = column(record, field).and_then(|v| v.as_f64());
             if let Some(v) = value.filter(|v| v.is_finite() && *v > 0.0) {
                 by_run.entry(run_of(record)).or_default().push(v);
             }
@@ -122,13 +118,14 @@ fn unit_for(seconds: f64) -> (&'static str, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::store::example::record;
     use serde_json::json;
 
     #[test]
     fn each_point_follows_its_metric_over_the_runs() {
         let run = |key: &str, build: &str, id: &str, stamp: &str, step: f64| {
-            json!({"key": key, "step_s": step, "run_id": id,
-                   "provenance": {"fingerprint": build, "timestamp": stamp}})
+            record(json!({"key": key, "step_s": step, "run_id": id,
+                   "provenance": {"fingerprint": build, "timestamp": stamp}}))
         };
         let (old, new) = ("0a".repeat(32), "0b".repeat(32));
         let records = [

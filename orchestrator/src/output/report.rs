@@ -10,7 +10,8 @@ use crate::output::status::counts_by_status;
 use crate::store::fs::{read_regular, Fault, RECORD_CAP};
 use crate::store::table::{self, Row};
 use crate::store::{write_atomically, Store};
-use schema::record::Status;
+use schema::record::columns;
+use schema::record::{Provenance, Status, Stored};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -29,8 +30,17 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
     if from_table {
         records = table::read_parquet(&run_table)?
             .iter()
-            .map(nested)
-            .collect();
+            .enumerate()
+            .map(|(k, row)| {
+                stored_of_row(row).map_err(|why| {
+                    Fault::Input(format!(
+                        "{}: row {} is not a run's record ({why}); collect the study again",
+                        run_table.display(),
+                        k + 1
+                    ))
+                })
+            })
+            .collect::<Result<_, _>>()?;
     }
     let summary_path = store.table(&format!("{}-summary.parquet", study.name));
     let summary = match summary_path.exists() {
@@ -78,9 +88,10 @@ pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:
 
 /// A run table's row as the record it was flattened from: `provenance.host` back under
 /// `provenance`, `case.n` under `case`.
-fn nested(row: &Row) -> Value {
+fn stored_of_row(row: &Row) -> Result<Stored, String> {
     let mut record = serde_json::Map::new();
-    for (name, value) in row.cells() {
+    // A null cell is a field the run's record did not have.
+    for (name, value) in row.cells().filter(|(_, value)| !value.is_null()) {
         match name.split_once('.') {
             Some((group @ ("case" | "provenance"), field)) => {
                 let inner = record
@@ -95,11 +106,12 @@ fn nested(row: &Row) -> Value {
             }
         }
     }
-    Value::Object(record)
+    serde_path_to_error::deserialize(Value::Object(record))
+        .map_err(|e| format!("`{}`: {}", e.path(), e.inner()))
 }
 
 /// The stored runs counted by status.
-fn runs_section(page: &mut String, records: &[Value]) {
+fn runs_section(page: &mut String, records: &[Stored]) {
     let _ = writeln!(page, "<h2>Runs</h2>\n<p>{} stored runs:", records.len());
     let _ = writeln!(page, "{}.</p>", counts_by_status(records).join(", "));
 }
@@ -111,7 +123,7 @@ fn figures_section(
     study: &Study,
     store: &Store,
     summary: &[Row],
-    records: &[Value],
+    records: &[Stored],
 ) {
     if study.figures.is_empty() {
         return;
@@ -185,28 +197,31 @@ fn made_by(
     spec: &crate::model::figure_spec::FigureSpec,
     k: usize,
     summary: &[Row],
-    records: &[Value],
+    records: &[Stored],
 ) -> String {
     let Ok(rows) = crate::output::figure::selected(spec, k, summary) else {
         return String::new();
     };
-    let cases: BTreeSet<&str> = rows.iter().filter_map(|r| r.text("case_id")).collect();
-    let behind: Vec<&Value> = records
+    let cases: BTreeSet<&str> = rows
         .iter()
-        .filter(|r| r["case_id"].as_str().is_some_and(|c| cases.contains(c)))
+        .filter_map(|r| r.text(columns::CASE_ID))
+        .collect();
+    let behind: Vec<&Stored> = records
+        .iter()
+        .filter(|r| r.case_id.as_deref().is_some_and(|c| cases.contains(c)))
         .collect();
     let behind = crate::analysis::compare::measured(&behind);
-    let of = |field: &str| -> Vec<String> {
+    let of = |field: fn(&Provenance) -> &str| -> Vec<String> {
         let set: BTreeSet<String> = behind
             .iter()
-            .map(|r| match crate::store::provenance(r, field) {
+            .map(|r| match r.provenance().map_or("", field) {
                 "" => "unknown".to_string(),
                 text => text.to_string(),
             })
             .collect();
         set.into_iter().collect()
     };
-    let builds: Vec<String> = of("fingerprint")
+    let builds: Vec<String> = of(|p| &p.fingerprint)
         .iter()
         .map(|f| crate::run::plan::short(f).to_string())
         .collect();
@@ -216,9 +231,9 @@ fn made_by(
     escape(&format!(
         " (runs of build {} on {}: {}, {})",
         builds.join(" and "),
-        of("host").join(", "),
-        of("cpu").join(", "),
-        of("instruction_set").join(", ")
+        of(|p| &p.host).join(", "),
+        of(|p| &p.cpu).join(", "),
+        of(|p| &p.instruction_set).join(", ")
     ))
 }
 
@@ -244,10 +259,10 @@ fn summary_section(page: &mut String, summary: &[Row], swept: &[String]) {
 }
 
 /// Every failed run: its key, its case and its message.
-fn failures_section(page: &mut String, records: &[Value]) {
-    let failed: Vec<&Value> = records
+fn failures_section(page: &mut String, records: &[Stored]) {
+    let failed: Vec<&Stored> = records
         .iter()
-        .filter(|r| Status::of_record(r) == Some(Status::Failed))
+        .filter(|r| r.status() == Status::Failed)
         .collect();
     if failed.is_empty() {
         return;
@@ -257,33 +272,33 @@ fn failures_section(page: &mut String, records: &[Value]) {
         let _ = writeln!(
             page,
             "<h3>{}</h3>\n<p>Case: <code>{}</code></p>\n<pre>{}</pre>",
-            escape(record["key"].as_str().unwrap_or("?")),
-            escape(&record["case"].to_string()),
-            escape(record["message"].as_str().unwrap_or(""))
+            escape(&record.key),
+            escape(&record.case().to_string()),
+            escape(record.message())
         );
     }
 }
 
 /// What the runs were made with and where, as the records tell it, and when.
-fn provenance_section(page: &mut String, records: &[Value]) {
-    let values = |field: &str| -> String {
-        let set: BTreeSet<String> = records
+fn provenance_section(page: &mut String, records: &[Stored]) {
+    let values = |field: fn(&Provenance) -> Option<&str>| -> String {
+        let set: BTreeSet<&str> = records
             .iter()
-            .filter_map(|r| r["provenance"][field].as_str().map(str::to_string))
+            .filter_map(|r| r.provenance().and_then(field))
             .collect();
         set.into_iter().collect::<Vec<_>>().join(", ")
     };
-    let stamps = values("timestamp");
+    let stamps = values(|p| Some(&p.timestamp));
     let first = stamps.split(", ").next().unwrap_or("");
     let last = stamps.split(", ").last().unwrap_or("");
     page.push_str("<h2>Provenance</h2>\n<table>\n");
     for (name, value) in [
-        ("solver version", values("solver_version")),
-        ("solver fingerprint", values("fingerprint")),
-        ("git revision", values("git_revision")),
-        ("host", values("host")),
-        ("CPU", values("cpu")),
-        ("instruction set", values("instruction_set")),
+        ("solver version", values(|p| Some(&p.solver_version))),
+        ("solver fingerprint", values(|p| Some(&p.fingerprint))),
+        ("git revision", values(|p| p.git_revision.as_deref())),
+        ("host", values(|p| Some(&p.host))),
+        ("CPU", values(|p| Some(&p.cpu))),
+        ("instruction set", values(|p| Some(&p.instruction_set))),
         (
             "busy machine",
             crate::output::status::noisy_runs(records).unwrap_or_else(|| "no run is noisy".into()),

@@ -7,18 +7,13 @@ use crate::run::cluster::ledger::{self, LedgerEntry};
 use crate::run::cluster::scheduler::{self, Scheduler};
 use crate::run::plan::Planned;
 use crate::store::{Index, Store};
-use schema::record::Status;
-use serde_json::Value;
+use schema::record::{Status, Stored};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 
 /// The records counted by status, as `3 ok`, `1 failed`, … (statuses in name order).
-pub fn counts_by_status(records: &[Value]) -> Vec<String> {
-    counts(
-        records
-            .iter()
-            .map(|r| r["status"].as_str().unwrap_or("unknown")),
-    )
+pub fn counts_by_status(records: &[Stored]) -> Vec<String> {
+    counts(records.iter().map(|r| r.status().as_str()))
 }
 
 fn counts<'a>(statuses: impl Iterator<Item = &'a str>) -> Vec<String> {
@@ -31,11 +26,8 @@ fn counts<'a>(statuses: impl Iterator<Item = &'a str>) -> Vec<String> {
 
 /// How many runs were timed on a busy machine (their provenance says `noisy`), as a sentence;
 /// `None` when none was.
-pub fn noisy_runs(records: &[Value]) -> Option<String> {
-    let noisy = records
-        .iter()
-        .filter(|r| r.pointer("/provenance/noisy") == Some(&Value::Bool(true)))
-        .count();
+pub fn noisy_runs(records: &[Stored]) -> Option<String> {
+    let noisy = records.iter().filter(|r| r.noisy()).count();
     noisy_sentence(noisy, records.len())
 }
 
@@ -151,12 +143,14 @@ fn described(state: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::store::example::record;
     use serde_json::json;
 
     #[test]
     fn noisy_runs_are_counted_and_a_quiet_study_says_nothing() {
-        let run = |noisy: bool| json!({"status": "ok", "provenance": {"noisy": noisy}});
-        assert_eq!(noisy_runs(&[run(false), json!({"status": "failed"})]), None);
+        let run = |noisy: bool| record(json!({"provenance": {"noisy": noisy}}));
+        let failed = record(json!({"status": "failed"}));
+        assert_eq!(noisy_runs(&[run(false), failed]), None);
         let said = noisy_runs(&[run(true), run(false), run(true)]).unwrap();
         assert!(said.starts_with("2 of 3 runs are noisy"), "{said}");
     }

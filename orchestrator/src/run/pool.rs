@@ -14,8 +14,8 @@ use crate::run::signals::Stop;
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
 use crate::store::{FileError, Store};
 use schema::exit;
-use schema::record::Status;
-use serde_json::{json, Value};
+use schema::record::{Failure, Outcome, Record, Status, Stored};
+use serde_json::Value;
 use std::fs::File;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::PathBuf;
@@ -316,15 +316,14 @@ fn run_cases(
                 job.record(planned, solver, exit)?
             };
             job.remove_files();
-            let failed = Status::of_record(&record).is_none_or(|s| s == Status::Failed);
+            let failed = record.status() == Status::Failed;
             if failed && outside_the_case && job.attempt <= options.retries {
-                let message = record["message"].as_str().unwrap_or("");
-                progress.retrying(&planned.point.label(), job.attempt + 1, message);
+                progress.retrying(&planned.point.label(), job.attempt + 1, record.message());
                 queue.push((job.index, job.attempt + 1));
                 continue;
             }
             let mut record = record;
-            record["attempt"] = json!(job.attempt);
+            record.attempt = Some(job.attempt);
             finish(store, planned, record, &mut tally, progress)?;
         }
     }
@@ -423,7 +422,7 @@ impl Running {
         planned: &Planned,
         solver: &Nlsolve,
         ended: std::process::ExitStatus,
-    ) -> Result<Value, FileError> {
+    ) -> Result<Stored, FileError> {
         if ended.code() == Some(i32::from(exit::IO)) {
             let said = std::io::Error::other(self.stderr_tail());
             return Err(FileError::new("write", &self.stdout, said));
@@ -437,24 +436,32 @@ impl Running {
             }
             Err(_) => String::new(),
         };
-        let record = printed.lines().rev().find_map(|line| {
+        // The record is nlsolve's last line that is a JSON object; it must keep to the schema.
+        let last_object = printed.lines().rev().find_map(|line| {
             serde_json::from_str::<Value>(line)
                 .ok()
                 .filter(Value::is_object)
         });
+        let record = last_object.map(|object| {
+            serde_path_to_error::deserialize::<_, Record<Value>>(object)
+                .map_err(|e| format!("field `{}`: {}", e.path(), e.inner()))
+        });
         Ok(match (ended.success(), record) {
-            (true, Some(mut record)) => {
-                let object = record.as_object_mut().expect("checked: an object");
-                for (field, value) in identity(planned, solver) {
-                    object.insert(field, value);
-                }
+            (true, Some(Ok(mut record))) => {
                 // Its timings measure contention, not scaling; figures and tables say so. Over
                 // ranks, the solver judges it from each rank's affinity; here, from the cores.
-                object
-                    .entry("oversubscribed")
-                    .or_insert(json!(self.cores > machine_cores()));
+                let oversubscribed = self.cores > machine_cores();
                 record
+                    .distribution
+                    .oversubscribed
+                    .get_or_insert(oversubscribed);
+                stored(planned, solver, Outcome::Ran(Box::new(record)))
             }
+            (true, Some(Err(why))) => failed_record(
+                planned,
+                solver,
+                format!("nlsolve printed a record that does not keep to the schema ({why}); is the solver of another version?"),
+            ),
             _ => failed_record(
                 planned,
                 solver,
@@ -489,17 +496,20 @@ fn tail_of(path: &std::path::Path) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-/// The fields the orchestrator adds to every record: its key, case id, repeat and version, and
-/// the `nlstudy` process that ran it (`run_id`: the runs of one invocation share the machine's
-/// state, which is what `compare`'s noise model tells apart from each point's own noise).
-fn identity(planned: &Planned, solver: &Nlsolve) -> Vec<(String, Value)> {
-    vec![
-        ("key".into(), json!(planned.key)),
-        ("case_id".into(), json!(planned.case_id)),
-        ("repeat".into(), json!(planned.point.repeat)),
-        ("solver_version".into(), json!(solver.version)),
-        ("run_id".into(), json!(run_id())),
-    ]
+/// The record of `outcome` with the fields the orchestrator adds: its key, case id, repeat and
+/// version, and the `nlstudy` process that ran it (`run_id`: the runs of one invocation share
+/// the machine's state, which is what `compare`'s noise model tells apart from each point's own
+/// noise).
+fn stored(planned: &Planned, solver: &Nlsolve, outcome: Outcome) -> Stored {
+    Stored {
+        key: planned.key.to_string(),
+        case_id: Some(planned.case_id.to_string()),
+        repeat: planned.point.repeat,
+        solver_version: solver.version.clone(),
+        run_id: Some(run_id().to_string()),
+        attempt: None,
+        outcome,
+    }
 }
 
 /// This `nlstudy` process: its host, its start in nanoseconds since the epoch and its process
@@ -515,32 +525,23 @@ fn run_id() -> &'static str {
     })
 }
 
-fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Value {
+fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Stored {
     let case = match &planned.case {
         Ok(case) => case.canonical(),
         Err(_) => Value::Object(planned.point.fields()),
     };
-    let mut record = json!({ "case": case, "status": Status::Failed.as_str(), "message": message });
-    let object = record.as_object_mut().expect("an object");
-    for (field, value) in identity(planned, solver) {
-        object.insert(field, value);
-    }
-    record
+    stored(planned, solver, Outcome::Failed(Failure { case, message }))
 }
 
 fn finish(
     store: &Store,
     planned: &Planned,
-    record: Value,
+    record: Stored,
     tally: &mut Tally,
     progress: &mut Progress,
 ) -> Result<(), FileError> {
-    let status = Status::of_record(&record).unwrap_or(Status::Failed);
-    let mut message = record
-        .get("message")
-        .and_then(Value::as_str)
-        .unwrap_or("")
-        .to_string();
+    let status = record.status();
+    let mut message = record.message().to_string();
     if !store.save(&planned.key, &record)? {
         message.push_str("; the stored result of an earlier run is kept");
     }
@@ -550,7 +551,7 @@ fn finish(
         Status::Diverged => tally.diverged += 1,
         Status::Failed => tally.failed += 1,
     }
-    tally.noisy += usize::from(record.pointer("/provenance/noisy") == Some(&Value::Bool(true)));
+    tally.noisy += usize::from(record.noisy());
     progress.finished(&planned.point.label(), status, &message);
     Ok(())
 }

@@ -6,14 +6,15 @@
 //! the kernel drops when its holder exits, however it exits), a `failed` record never replaces a
 //! result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
-use schema::record::Status;
-use serde::Deserialize;
+use schema::record::{Status, Stored};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
+#[cfg(test)]
+pub mod example;
 pub mod fs;
 pub mod owner;
 pub mod table;
@@ -142,11 +143,12 @@ impl Store {
     /// A stored result, or a record made by another solver (another fingerprint), is not
     /// overwritten: it moves to the study's history first (`history/<key>.<fingerprint>.json`,
     /// see `history_path`), so nothing computed is lost and old and new can be compared.
-    pub fn save(&self, key: &str, record: &Value) -> Result<bool, FileError> {
-        let failed = Status::of_record(record).is_none_or(|s| s == Status::Failed);
+    pub fn save(&self, key: &str, record: &Stored) -> Result<bool, FileError> {
+        let failed = record.status() == Status::Failed;
         let stored = self.stored(key);
-        let stored_status = stored.as_ref().and_then(Status::of_record);
-        let result_stored = stored_status.is_some_and(|s| s != Status::Failed);
+        let result_stored = stored
+            .as_ref()
+            .is_some_and(|s| s.status() != Status::Failed);
         if failed && result_stored {
             return Ok(false);
         }
@@ -160,7 +162,10 @@ impl Store {
             }
         }
         create_dir(&self.runs)?;
-        write_atomically(&self.path(key), format!("{record}\n").as_bytes())?;
+        write_atomically(
+            &self.path(key),
+            format!("{}\n", record.to_value()).as_bytes(),
+        )?;
         Ok(true)
     }
 
@@ -176,11 +181,11 @@ impl Store {
 
     /// The status of the stored record of `key`, read now; `None` when absent or not whole.
     pub fn status(&self, key: &str) -> Option<Status> {
-        Status::of_record(&self.stored(key)?)
+        Some(self.stored(key)?.status())
     }
 
     /// The stored record of `key`, read now, if whole.
-    pub fn stored(&self, key: &str) -> Option<Value> {
+    pub fn stored(&self, key: &str) -> Option<Stored> {
         let path = self.path(key);
         read_record(&path, &read_regular(&path, RECORD_CAP).ok()?).ok()
     }
@@ -257,7 +262,7 @@ impl Store {
     }
 
     /// Every stored record.
-    pub fn records(&self) -> Vec<Value> {
+    pub fn records(&self) -> Vec<Stored> {
         self.scan().records
     }
 
@@ -379,8 +384,8 @@ fn history_path(history: &Path, key: &str, fingerprint: &str) -> PathBuf {
 /// The fields of a record the index keeps; serde skips the rest without building values.
 #[derive(serde::Deserialize)]
 struct IndexedFields {
-    // The identity's fields, not `#[serde(flatten)] Identity`: flattening would buffer every
-    // other field of the record.
+    // Named as `Stored` and `Record` name them (a test reads a whole record through both), not
+    // a flattened `Stored`: flattening would buffer every other field of the record.
     key: Option<String>,
     status: Option<String>,
     case: Option<Value>,
@@ -402,7 +407,7 @@ struct IndexedProvenance {
 /// What the index keeps of one whole record (its identity checked as `read_record` checks it).
 struct Indexed {
     key: String,
-    stored: Stored,
+    stored: Recorded,
     case_id: Option<String>,
     solver_version: Option<String>,
     noisy: bool,
@@ -413,14 +418,22 @@ struct Indexed {
 fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
     let fields: IndexedFields =
         serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
-    let identity = Identity {
-        key: fields.key,
-        status: fields.status,
-        case: fields.case,
-        solver_version: fields.solver_version,
-        repeat: fields.repeat,
+    let (Some(key), Some(case), Some(version)) = (fields.key, &fields.case, fields.solver_version)
+    else {
+        return Err(IDENTITY_MISSING.into());
     };
-    let status = identity.check(&record_key(path)?)?;
+    check_key(
+        &record_key(path)?,
+        &key,
+        case,
+        &version,
+        fields.repeat.unwrap_or(0),
+    )?;
+    let status = fields
+        .status
+        .as_deref()
+        .and_then(Status::parse)
+        .ok_or(STATUS_UNKNOWN)?;
     let text = |v: &Option<Value>| v.as_ref().and_then(Value::as_str).map(str::to_string);
     let provenance = fields.provenance.as_ref();
     let seconds = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
@@ -428,14 +441,14 @@ fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
         seconds(&fields.solve_s).map(|solve| seconds(&fields.setup_s).unwrap_or(0.0) + solve);
     let fingerprint = provenance.and_then(|p| p.fingerprint.as_ref());
     Ok(Indexed {
-        key: identity.key.unwrap_or_default(),
-        stored: Stored {
+        key,
+        stored: Recorded {
             status,
-            fingerprint: checked_fingerprint(fingerprint).to_string(),
+            fingerprint: checked_fingerprint(fingerprint.and_then(Value::as_str)).to_string(),
             wall_s: wall_s.filter(|w| w.is_finite() && *w >= 0.0),
         },
         case_id: text(&fields.case_id),
-        solver_version: identity.solver_version,
+        solver_version: Some(version),
         noisy: provenance.and_then(|p| p.noisy.as_ref()) == Some(&Value::Bool(true)),
         failure: (status == Status::Failed).then(|| {
             let message = text(&fields.message).unwrap_or_default();
@@ -444,32 +457,20 @@ fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
     })
 }
 
-/// Records by their key (a record without one is left out).
-pub fn by_key(records: Vec<Value>) -> HashMap<String, Value> {
-    records
-        .into_iter()
-        .filter_map(|r| Some((r.get("key")?.as_str()?.to_string(), r)))
-        .collect()
-}
-
-/// A text field of `record`'s provenance (`host`, `timestamp`, …; "" when it does not say).
-pub fn provenance<'a>(record: &'a Value, field: &str) -> &'a str {
-    record
-        .get("provenance")
-        .and_then(|p| p.get(field))
-        .and_then(Value::as_str)
-        .unwrap_or("")
+/// Records by their key.
+pub fn by_key(records: Vec<Stored>) -> HashMap<String, Stored> {
+    records.into_iter().map(|r| (r.key.clone(), r)).collect()
 }
 
 /// The fingerprint of the solver that made `record`: 64 hex digits, as `nlsolve fingerprint`
 /// prints them, or "" when the record does not say or says something else (a record's text is
 /// never trusted: this one reaches file names, see `history_path`).
-pub fn fingerprint_of(record: &Value) -> &str {
-    checked_fingerprint(record.get("provenance").and_then(|p| p.get("fingerprint")))
+pub fn fingerprint_of(record: &Stored) -> &str {
+    checked_fingerprint(record.provenance().map(|p| p.fingerprint.as_str()))
 }
 
-fn checked_fingerprint(value: Option<&Value>) -> &str {
-    let text = value.and_then(Value::as_str).unwrap_or("");
+fn checked_fingerprint(text: Option<&str>) -> &str {
+    let text = text.unwrap_or("");
     let valid = text.len() == 64 && text.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'));
     if valid {
         text
@@ -478,63 +479,65 @@ fn checked_fingerprint(value: Option<&Value>) -> &str {
     }
 }
 
-/// The fields a record's key is made of (see `case_id_and_key`), and its status.
-#[derive(serde::Deserialize)]
-struct Identity {
-    key: Option<String>,
-    status: Option<String>,
-    case: Option<Value>,
-    solver_version: Option<String>,
-    repeat: Option<usize>,
-}
+const IDENTITY_MISSING: &str =
+    "it does not carry the `key`, `case` and `solver_version` its key is made of";
+const STATUS_UNKNOWN: &str = "it has no known `status`";
 
-impl Identity {
-    /// The record's status, when its key is `file_key` (its file's name), is the hash of its
-    /// case, solver version and repeat, and its status is one the schema knows.
-    fn check(&self, file_key: &str) -> Result<Status, String> {
-        let key = self.key.as_deref();
-        if key != Some(file_key) {
-            return Err("its `key` is not its file name".into());
-        }
-        let (Some(case), Some(version)) = (&self.case, &self.solver_version) else {
-            return Err(
-                "it does not carry the `case` and `solver_version` its key is made of".into(),
-            );
-        };
-        let (_, made) = case_id_and_key(&case.to_string(), version, self.repeat.unwrap_or(0));
-        if made.as_str() != file_key {
-            return Err(format!(
-                "its key is not that of its `case`, `solver_version` and `repeat` ({made}): it was edited or moved"
-            ));
-        }
-        self.status
-            .as_deref()
-            .and_then(Status::parse)
-            .ok_or_else(|| "it has no known `status`".into())
+/// Whether a record's `key` is `file_key` (its file's name) and the hash of its case, solver
+/// version and repeat.
+fn check_key(
+    file_key: &str,
+    key: &str,
+    case: &Value,
+    version: &str,
+    repeat: usize,
+) -> Result<(), String> {
+    if key != file_key {
+        return Err("its `key` is not its file name".into());
     }
+    let (_, made) = case_id_and_key(&case.to_string(), version, repeat);
+    if made.as_str() != file_key {
+        return Err(format!(
+            "its key is not that of its `case`, `solver_version` and `repeat` ({made}): it was edited or moved"
+        ));
+    }
+    Ok(())
 }
 
-/// `text`, read from `path`, as a record: a JSON object whose `key` is the file's name and the
-/// hash of its case, and whose `status` is one the schema knows. Anything else is named in the
-/// error.
-fn read_record(path: &Path, text: &str) -> Result<Value, String> {
+/// `text`, read from `path`, as a record: a whole `Stored` record whose `key` is the file's name
+/// and the hash of its case. Anything else is named in the error.
+fn read_record(path: &Path, text: &str) -> Result<Stored, String> {
     check_identity(&record_key(path)?, text)
 }
 
 /// `text`, read from `path` in the history, as a superseded record: as `read_record`, its key
 /// the first part of the file's name (`<key>.<fingerprint>[.<k>].json`).
-fn read_superseded(path: &Path, text: &str) -> Result<Value, String> {
+fn read_superseded(path: &Path, text: &str) -> Result<Stored, String> {
     let key = record_key(path)?;
     let key = key.split('.').next().unwrap_or_default();
     check_identity(key, text)
 }
 
-fn check_identity(file_key: &str, text: &str) -> Result<Value, String> {
+fn check_identity(file_key: &str, text: &str) -> Result<Stored, String> {
     let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
-    Identity::deserialize(&record)
-        .map_err(|e| format!("not a record ({e})"))?
-        .check(file_key)?;
-    Ok(record)
+    let fields = record
+        .as_object()
+        .ok_or("not a record (not a JSON object)")?;
+    let text_of = |name: &str| fields.get(name).and_then(Value::as_str);
+    let (Some(key), Some(case), Some(version)) = (
+        text_of("key"),
+        fields.get("case"),
+        text_of("solver_version"),
+    ) else {
+        return Err(IDENTITY_MISSING.into());
+    };
+    let repeat = fields.get("repeat").and_then(Value::as_u64).unwrap_or(0) as usize;
+    check_key(file_key, key, case, version, repeat)?;
+    if text_of("status").and_then(Status::parse).is_none() {
+        return Err(STATUS_UNKNOWN.into());
+    }
+    serde_path_to_error::deserialize(record)
+        .map_err(|e| format!("not a whole record (`{}`: {})", e.path(), e.inner()))
 }
 
 /// The key a record's path names: its file's name without `.json`.
@@ -549,7 +552,7 @@ fn record_key(path: &Path) -> Result<String, String> {
 }
 
 /// What the index keeps of a whole record.
-pub struct Stored {
+pub struct Recorded {
     pub status: Status,
     /// The fingerprint of the solver that made it ("" when it does not say).
     pub fingerprint: String,
@@ -577,14 +580,14 @@ impl std::fmt::Display for Unreadable {
 
 #[derive(Default)]
 pub struct Scan {
-    pub records: Vec<Value>,
+    pub records: Vec<Stored>,
     pub unreadable: Vec<Unreadable>,
 }
 
 #[derive(Default)]
 pub struct Index {
     /// What each whole record says, by key.
-    pub stored: HashMap<String, Stored>,
+    pub stored: HashMap<String, Recorded>,
     pub version_by_case: HashMap<String, String>,
     pub unreadable: Vec<Unreadable>,
     /// Failed records, by key in name order, with the first line of their message.

@@ -12,6 +12,7 @@
 
 use crate::store::fs::Fault;
 use polars::prelude::*;
+use schema::record::columns;
 use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
@@ -63,7 +64,7 @@ impl Row {
 
     /// The run's status (`None` for a summary row whose repeats are `mixed`).
     pub fn status(&self) -> Option<Status> {
-        self.text("status").and_then(Status::parse)
+        self.text(columns::STATUS).and_then(Status::parse)
     }
 
     /// Sets a cell, in place if the column is there, else as a new last column.

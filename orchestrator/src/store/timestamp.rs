@@ -3,7 +3,7 @@
 //! (a `NaN` second, month 13 or a year of seventeen digits would order records or place them on
 //! an axis wrongly): what does not read is unknown.
 
-use serde_json::Value;
+use schema::record::Stored;
 
 /// Seconds since 1970 of `stamp`, or `None` when it is not a time.
 pub fn seconds(stamp: &str) -> Option<f64> {
@@ -59,8 +59,8 @@ pub fn seconds(stamp: &str) -> Option<f64> {
 }
 
 /// The time `record` was made, when its provenance says one that reads.
-pub fn record_time(record: &Value) -> Option<f64> {
-    seconds(crate::store::provenance(record, "timestamp"))
+pub fn record_time(record: &Stored) -> Option<f64> {
+    seconds(&record.provenance()?.timestamp)
 }
 
 #[cfg(test)]

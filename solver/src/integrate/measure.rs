@@ -5,7 +5,7 @@ use super::timed::{Stepping, Trajectory};
 use crate::case::Case;
 use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{self, median};
-use crate::output::field::FieldSnapshot;
+use crate::output::field;
 use crate::output::outcome::{record, Measured, Outcome};
 use crate::output::record::{Distribution, Resolved};
 use crate::parallel::exchange::Ranks;
@@ -67,7 +67,7 @@ pub(crate) fn measure(
         field: case
             .field_snapshot
             .filter(|_| single)
-            .map(|side| ranks.on(|| FieldSnapshot::sample(lattice, u, exact, side))),
+            .map(|side| ranks.on(|| field::snapshot(lattice, u, exact, side))),
         distribution,
         implicit: trajectory.implicit,
     }

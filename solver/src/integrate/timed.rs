@@ -3,7 +3,7 @@
 //! cost), and untimed observers (error bookkeeping, c_tot(t), frames) kept out of the timings.
 
 use crate::case::Case;
-use crate::output::diagnostics::{self, MassSeries, Schedule};
+use crate::output::diagnostics::{self, MassSampling, MassSeries, Schedule};
 use crate::output::field::Frame;
 use crate::output::record::ImplicitSolves;
 use std::borrow::Cow;
@@ -144,7 +144,7 @@ pub(crate) fn timed_steps_observed<S>(
     mut after: impl FnMut(&S, usize),
 ) -> (Timing, Observed) {
     let mass = |state: &S| diagnostics::total_mass(&field(state), stepping.volume);
-    let mut c_tot = MassSeries::start(
+    let mut c_tot = MassSampling::start(
         stepping.diagnostics_every,
         stepping.dt,
         stepping.steps,
@@ -166,7 +166,7 @@ pub(crate) fn timed_steps_observed<S>(
         step,
         |state, k| {
             after(state, k);
-            MassSeries::observe_if(&mut c_tot, k, || mass(state));
+            MassSampling::observe_if(&mut c_tot, k, || mass(state));
             if let Some(schedule) = frame_schedule.as_mut() {
                 if schedule.due(k) {
                     frames.push(Frame {
@@ -177,6 +177,7 @@ pub(crate) fn timed_steps_observed<S>(
             }
         },
     );
+    let c_tot = c_tot.map(|sampling| sampling.series);
     (timing, Observed { c_tot, frames })
 }
 

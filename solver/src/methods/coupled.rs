@@ -36,7 +36,7 @@ use crate::discretization::grid::Lattice;
 use crate::discretization::influence::{scaling_constant, Influence};
 use crate::linalg::cholesky::{sparse_matrix, Cholesky};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Coupling, Record, Resolved};
+use crate::output::record::{self, Coupling, Resolved};
 use crate::problem::polynomial::PolynomialField;
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
@@ -635,7 +635,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         bonds: problem.bonds,
         ..Resolved::default()
     };
-    let record = Record::coupled(case, resolved, (setup_s, solve_s), coupling);
+    let record = record::coupled(case, resolved, (setup_s, solve_s), coupling);
     // The field on Ω_n's lattice kh, k = 0 … n (the collars' nodes left out).
     let first = nonlocal.mesh.nodes.partition_point(|&z| z < 0.0);
     Ok(Outcome {

@@ -16,7 +16,7 @@ use crate::discretization::influence::Influence;
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::diagnostics::magnitude;
 use crate::output::outcome::Outcome;
-use crate::output::record::{Distribution, PatchTest, Record, Resolved, Spectrum};
+use crate::output::record::{self, Distribution, PatchTest, Record, Resolved, Spectrum};
 use crate::problem::polynomial::PolynomialField;
 use faer::Mat;
 use std::time::Instant;
@@ -278,7 +278,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             eps_x: eps_d.to_vec(),
             spectrum: spectrum(&operator, case.diffusivity),
         }),
-        ..Record::new(case, resolved, Distribution::serial(case))
+        ..record::fresh(case, resolved, Distribution::serial(case))
     };
     let lattice = crate::discretization::grid::Grid::new(case.dim, case.n).lattice();
     Ok(Outcome {

@@ -26,7 +26,7 @@ use crate::discretization::finite_element::Mesh;
 use crate::discretization::grid::Lattice;
 use crate::discretization::variable_horizon::{horizon_at, VariableHorizonOperator};
 use crate::output::outcome::Outcome;
-use crate::output::record::{Coupling, Record, Resolved};
+use crate::output::record::{self, Coupling, Resolved};
 use crate::problem::polynomial::PolynomialField;
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
@@ -153,7 +153,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         bonds: operator.bonds,
         ..Resolved::default()
     };
-    let record = Record::coupled(case, resolved, (setup_s, solve_s), coupling);
+    let record = record::coupled(case, resolved, (setup_s, solve_s), coupling);
     Ok(Outcome {
         record,
         field: solution.iter().copied().collect(),

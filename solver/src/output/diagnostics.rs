@@ -3,7 +3,6 @@
 
 use crate::threads::BLOCK;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 /// Σᵢ term(i) for i < len, with the same rounding whatever the number of threads.
 pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
@@ -109,53 +108,38 @@ impl Schedule {
     }
 }
 
-/// c_tot(t) = h^d Σᵢ cᵢ(t) sampled during a run (\[HPCSE]'s diagnostics.dat): at t = 0 and at the
-/// steps its schedule makes due.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct MassSeries {
-    #[serde(skip)]
+pub use schema::record::{Histogram, MassSeries};
+
+/// c_tot(t) sampled as a run goes: the series (what the record carries) and the schedule that
+/// says which steps are due.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MassSampling {
     schedule: Schedule,
-    pub time: Vec<f64>,
-    pub c_tot: Vec<f64>,
+    pub series: MassSeries,
 }
 
-impl MassSeries {
-    /// The series of a run of `steps` steps of `dt`, when an output `interval` is given,
+impl MassSampling {
+    /// The sampling of a run of `steps` steps of `dt`, when an output `interval` is given,
     /// starting from c_tot(0) = `c_tot0`.
     pub fn start(interval: Option<f64>, dt: f64, steps: usize, c_tot0: f64) -> Option<Self> {
-        interval.map(|interval| MassSeries {
+        interval.map(|interval| MassSampling {
             schedule: Schedule::new(interval, dt, steps),
-            time: vec![0.0],
-            c_tot: vec![c_tot0],
+            series: MassSeries {
+                time: vec![0.0],
+                c_tot: vec![c_tot0],
+            },
         })
     }
 
-    /// Adds c_tot after step k if the series exists and step k is due; `c_tot` is evaluated
+    /// Adds c_tot after step k if the sampling exists and step k is due; `c_tot` is evaluated
     /// only then.
-    pub fn observe_if(series: &mut Option<Self>, k: usize, c_tot: impl FnOnce() -> f64) {
-        let Some(series) = series else { return };
-        if series.schedule.due(k) {
-            series.time.push(series.schedule.time(k));
-            series.c_tot.push(c_tot());
+    pub fn observe_if(sampling: &mut Option<Self>, k: usize, c_tot: impl FnOnce() -> f64) {
+        let Some(sampling) = sampling else { return };
+        if sampling.schedule.due(k) {
+            sampling.series.time.push(sampling.schedule.time(k));
+            sampling.series.c_tot.push(c_tot());
         }
     }
-
-    /// The series as CSV with a header: `t,c_tot`, one row per sample.
-    pub fn to_csv(&self) -> String {
-        let mut csv = String::from("t,c_tot\n");
-        for (t, c) in self.time.iter().zip(&self.c_tot) {
-            csv.push_str(&format!("{t},{c}\n"));
-        }
-        csv
-    }
-}
-
-/// Counts of values in `counts.len()` equal bins over [lo, hi] (the last bin closed).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Histogram {
-    pub lo: f64,
-    pub hi: f64,
-    pub counts: Vec<u64>,
 }
 
 /// The histogram of u over [min u, max u] in `bins` bins (\[HPCSE]'s compute_histogram), counted

@@ -2,7 +2,7 @@
 //! copy of the final field (and its error) a record carries for heat maps.
 
 use crate::discretization::grid::Lattice;
-use serde::{Deserialize, Serialize};
+pub use schema::record::FieldSnapshot;
 
 /// The field at one output time.
 #[derive(Clone, Debug, PartialEq)]
@@ -11,58 +11,40 @@ pub struct Frame {
     pub values: Vec<f64>,
 }
 
-/// A coarse copy of a final field: block means over s×s nodes (s nodes in 1D), s = ⌈n/side⌉,
-/// so a heat map shows every node's contribution, not a subsample that could miss a spike.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FieldSnapshot {
-    /// Blocks along x and along y (1 in 1D).
-    pub nx: usize,
-    pub ny: usize,
-    /// The extent [lower, upper] of the nodes' cells along each axis.
-    pub lower: f64,
-    pub upper: f64,
-    /// Block means of u, row by row (iy·nx + ix).
-    pub values: Vec<f64>,
-    /// Block means of u − exact, when the problem has an exact solution.
-    pub error: Option<Vec<f64>>,
-}
-
-impl FieldSnapshot {
-    /// The snapshot of `u` on `lattice` with at most `side` blocks per side, and of its error
-    /// against `exact` when given.
-    pub fn sample(
-        lattice: &Lattice,
-        u: &[f64],
-        exact: Option<&(dyn Fn(usize) -> f64 + Sync)>,
-        side: usize,
-    ) -> FieldSnapshot {
-        let n = lattice.n;
-        let stride = n.div_ceil(side.max(1));
-        let blocks = n.div_ceil(stride);
-        let ny = if lattice.dim == 2 { blocks } else { 1 };
-        let means = |value: &dyn Fn(usize) -> f64| {
-            let mut sums = vec![0.0; blocks * ny];
-            let mut counts = vec![0usize; blocks * ny];
-            for i in 0..lattice.nodes() {
-                let (ix, iy) = (i % n, i / n);
-                let block = (iy / stride) * blocks + ix / stride;
-                sums[block] += value(i);
-                counts[block] += 1;
-            }
-            sums.iter()
-                .zip(&counts)
-                .map(|(s, &c)| s / c as f64)
-                .collect()
-        };
-        let half = 0.5 * lattice.spacing;
-        FieldSnapshot {
-            nx: blocks,
-            ny,
-            lower: lattice.origin - half,
-            upper: lattice.origin + (n - 1) as f64 * lattice.spacing + half,
-            values: means(&|i| u[i]),
-            error: exact.map(|exact| means(&|i| u[i] - exact(i))),
+/// The snapshot of `u` on `lattice` with at most `side` blocks per side, and of its error
+/// against `exact` when given.
+pub fn snapshot(
+    lattice: &Lattice,
+    u: &[f64],
+    exact: Option<&(dyn Fn(usize) -> f64 + Sync)>,
+    side: usize,
+) -> FieldSnapshot {
+    let n = lattice.n;
+    let stride = n.div_ceil(side.max(1));
+    let blocks = n.div_ceil(stride);
+    let ny = if lattice.dim == 2 { blocks } else { 1 };
+    let means = |value: &dyn Fn(usize) -> f64| {
+        let mut sums = vec![0.0; blocks * ny];
+        let mut counts = vec![0usize; blocks * ny];
+        for i in 0..lattice.nodes() {
+            let (ix, iy) = (i % n, i / n);
+            let block = (iy / stride) * blocks + ix / stride;
+            sums[block] += value(i);
+            counts[block] += 1;
         }
+        sums.iter()
+            .zip(&counts)
+            .map(|(s, &c)| s / c as f64)
+            .collect()
+    };
+    let half = 0.5 * lattice.spacing;
+    FieldSnapshot {
+        nx: blocks,
+        ny,
+        lower: lattice.origin - half,
+        upper: lattice.origin + (n - 1) as f64 * lattice.spacing + half,
+        values: means(&|i| u[i]),
+        error: exact.map(|exact| means(&|i| u[i] - exact(i))),
     }
 }
 
@@ -81,7 +63,7 @@ mod tests {
         };
         let u: Vec<f64> = (0..25).map(|i| i as f64).collect();
         let zero = |_: usize| 0.0;
-        let snapshot = FieldSnapshot::sample(&lattice, &u, Some(&zero), 3);
+        let snapshot = snapshot(&lattice, &u, Some(&zero), 3);
         assert_eq!((snapshot.nx, snapshot.ny), (3, 3));
         assert!((snapshot.lower - 0.0).abs() < 1e-15 && (snapshot.upper - 1.0).abs() < 1e-15);
         // Block (0, 0) holds nodes 0, 1, 5, 6; block (2, 2) holds node 24 alone.
@@ -100,7 +82,7 @@ mod tests {
             spacing: 0.25,
         };
         let u = [1.0, -2.0, 3.0, 0.5];
-        let snapshot = FieldSnapshot::sample(&lattice, &u, None, 64);
+        let snapshot = snapshot(&lattice, &u, None, 64);
         assert_eq!((snapshot.nx, snapshot.ny), (4, 1));
         assert_eq!(snapshot.values, u);
         assert_eq!(snapshot.error, None);

@@ -6,7 +6,7 @@ use crate::discretization::grid::Lattice;
 use crate::output::diagnostics::{Histogram, MassSeries};
 use crate::output::field::{FieldSnapshot, Frame};
 use crate::output::record::{
-    first_non_finite, Distribution, ImplicitSolves, Record, Resolved, Status,
+    self, first_non_finite, Distribution, ImplicitSolves, Record, Resolved, Status,
 };
 use schema::record::GROWING;
 
@@ -97,7 +97,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         histogram: measured.histogram,
         field: measured.field,
         implicit: measured.implicit,
-        ..Record::new(case, resolved, measured.distribution)
+        ..record::fresh(case, resolved, measured.distribution)
     }
 }
 

@@ -1,7 +1,8 @@
 //! The metrics a comparison judges, which way each improves, how each varies between runs of
 //! one case, and how they are read from records.
 
-use schema::record::Status;
+use schema::record::columns;
+use schema::record::{Record, Status, Stored};
 use serde_json::Value;
 
 /// Which way a metric improves.
@@ -20,16 +21,69 @@ pub(super) enum Kind {
     Deterministic,
 }
 
-/// The metrics of a record compared, with their direction.
-pub(super) const METRICS: &[(&str, Better, Kind)] = &[
-    ("solve_s", Better::Lower, Kind::Measured),
-    ("step_s", Better::Lower, Kind::Measured),
-    ("setup_s", Better::Lower, Kind::Measured),
-    ("bond_updates_per_s", Better::Higher, Kind::Measured),
-    ("peak_memory_bytes", Better::Lower, Kind::Measured),
-    ("error_l2_norm", Better::Lower, Kind::Deterministic),
-    ("error_max", Better::Lower, Kind::Deterministic),
+/// A metric of a record compared: its column's name, how it is read, which way it improves and
+/// how it varies.
+pub(super) struct Metric {
+    pub name: &'static str,
+    pub read: fn(&Record<Value>) -> Option<f64>,
+    pub better: Better,
+    pub kind: Kind,
+}
+
+/// The metrics of a record compared; `bond_updates_per_s` from bonds × steps done / solve time,
+/// as the summary derives it.
+pub(super) const METRICS: &[Metric] = &[
+    Metric {
+        name: columns::SOLVE_S,
+        read: |r| Some(r.solve_s),
+        better: Better::Lower,
+        kind: Kind::Measured,
+    },
+    Metric {
+        name: columns::STEP_S,
+        read: |r| Some(r.step_s),
+        better: Better::Lower,
+        kind: Kind::Measured,
+    },
+    Metric {
+        name: columns::SETUP_S,
+        read: |r| Some(r.setup_s),
+        better: Better::Lower,
+        kind: Kind::Measured,
+    },
+    Metric {
+        name: "bond_updates_per_s",
+        read: |r| Some(r.resolved.bonds as f64 * r.steps_done as f64 / r.solve_s),
+        better: Better::Higher,
+        kind: Kind::Measured,
+    },
+    Metric {
+        name: columns::PEAK_MEMORY_BYTES,
+        read: |r| r.peak_memory_bytes.map(|b| b as f64),
+        better: Better::Lower,
+        kind: Kind::Measured,
+    },
+    Metric {
+        name: columns::ERROR_L2_NORM,
+        read: |r| r.error_l2_norm,
+        better: Better::Lower,
+        kind: Kind::Deterministic,
+    },
+    Metric {
+        name: columns::ERROR_MAX,
+        read: |r| r.error_max,
+        better: Better::Lower,
+        kind: Kind::Deterministic,
+    },
 ];
+
+/// The metric called `name`.
+pub(super) fn metric(name: &str) -> &'static Metric {
+    METRICS
+        .iter()
+        .find(|m| m.name == name)
+        .expect("a metric of METRICS")
+}
 
 /// The observed orders the summary derives, better when closer to the theoretical order (the
 /// whole number nearest the baseline's: the orders of these methods are whole) by more than
@@ -62,39 +116,29 @@ pub(super) const ABSOLUTE: f64 = 1e-14;
 pub(super) const RESOLUTION_S: f64 = 1e-3;
 
 /// The scale a measured metric's drift is read at: a rate's is its run's solve time.
-pub(super) fn scale_of(metric: &str, record: &Value) -> Option<f64> {
-    match metric {
-        "bond_updates_per_s" => record.get("solve_s")?.as_f64(),
-        _ => record.get(metric)?.as_f64(),
+pub(super) fn scale_of(metric: &Metric, record: &Stored) -> Option<f64> {
+    let record = record.record()?;
+    match metric.name {
+        "bond_updates_per_s" => Some(record.solve_s),
+        _ => (metric.read)(record),
     }
 }
 
-pub(super) fn is_noisy(record: &Value) -> bool {
-    record.pointer("/provenance/noisy") == Some(&Value::Bool(true))
-}
-
 /// The records that measured something (`ok`, `diverged`).
-pub fn measured<'a>(records: &[&'a Value]) -> Vec<&'a Value> {
+pub fn measured<'a>(records: &[&'a Stored]) -> Vec<&'a Stored> {
     records
         .iter()
         .copied()
-        .filter(|r| matches!(Status::of_record(r), Some(Status::Ok | Status::Diverged)))
+        .filter(|r| matches!(r.status(), Status::Ok | Status::Diverged))
         .collect()
 }
 
 /// The metric's finite values over the records (positive ones for a measured metric, whose
-/// ratios are taken); `bond_updates_per_s` from bonds × steps done / solve time, as the
-/// summary derives it.
-pub(super) fn values(records: &[&Value], metric: &str, kind: Kind) -> Vec<f64> {
+/// ratios are taken).
+pub(super) fn values(records: &[&Stored], metric: &Metric) -> Vec<f64> {
     records
         .iter()
-        .filter_map(|r| match metric {
-            "bond_updates_per_s" => {
-                let count = |f: &str| r.get(f)?.as_f64();
-                Some(count("bonds")? * count("steps_done")? / count("solve_s")?)
-            }
-            _ => r.get(metric)?.as_f64(),
-        })
-        .filter(|x| x.is_finite() && (kind == Kind::Deterministic || *x > 0.0))
+        .filter_map(|r| (metric.read)(r.record()?))
+        .filter(|x| x.is_finite() && (metric.kind == Kind::Deterministic || *x > 0.0))
         .collect()
 }

@@ -4,7 +4,7 @@
 use super::metrics::*;
 use crate::statistics::median;
 use crate::store::fingerprint_of;
-use serde_json::Value;
+use schema::record::Stored;
 use std::collections::{BTreeMap, HashMap};
 
 /// How many robust standard deviations of the drift a change must exceed. The drift is
@@ -66,12 +66,10 @@ impl NoiseModel {
     /// judged left out): consecutive runs of one key by one build are A/A pairs. The pairs of two
     /// `nlstudy` processes (`run_id`s) share those processes' machine state: their median is a
     /// sample of the whole-run drift, and the pairs' distances from it of the point drift.
-    pub fn calibrate(records: &[&Value]) -> NoiseModel {
-        let mut by_key: HashMap<&str, Vec<&Value>> = HashMap::new();
+    pub fn calibrate(records: &[&Stored]) -> NoiseModel {
+        let mut by_key: HashMap<&str, Vec<&Stored>> = HashMap::new();
         for record in measured(records) {
-            if let Some(key) = record.get("key").and_then(Value::as_str) {
-                by_key.entry(key).or_default().push(record);
-            }
+            by_key.entry(&record.key).or_default().push(record);
         }
         // log(new/old) and the decade of old, by metric and pair of runs.
         type Pairs = Vec<(f64, i32)>;
@@ -79,28 +77,24 @@ impl NoiseModel {
         for runs in by_key.values_mut() {
             runs.retain(|r| crate::store::timestamp::record_time(r).is_some());
             runs.sort_by(|a, b| {
-                let time = |r: &Value| crate::store::timestamp::record_time(r).unwrap_or(0.0);
+                let time = |r: &Stored| crate::store::timestamp::record_time(r).unwrap_or(0.0);
                 time(a).total_cmp(&time(b))
             });
             for pair in runs.windows(2) {
                 let build = fingerprint_of(pair[0]);
-                let run = |r: &Value| r.get("run_id").and_then(Value::as_str).map(str::to_string);
-                let (Some(old_run), Some(new_run)) = (run(pair[0]), run(pair[1])) else {
+                let (Some(old_run), Some(new_run)) = (&pair[0].run_id, &pair[1].run_id) else {
                     continue;
                 };
                 if build.is_empty() || build != fingerprint_of(pair[1]) || old_run == new_run {
                     continue;
                 }
-                for &(metric, _, kind) in METRICS.iter().filter(|m| m.2 == Kind::Measured) {
-                    let (old, new) = (
-                        values(&pair[..1], metric, kind),
-                        values(&pair[1..], metric, kind),
-                    );
+                for metric in METRICS.iter().filter(|m| m.kind == Kind::Measured) {
+                    let (old, new) = (values(&pair[..1], metric), values(&pair[1..], metric));
                     if let ([old], [new]) = (old.as_slice(), new.as_slice()) {
                         let scale = decade(scale_of(metric, pair[0]).unwrap_or(*old));
                         let runs = format!("{old_run} {new_run}");
                         by_runs
-                            .entry((metric, runs))
+                            .entry((metric.name, runs))
                             .or_default()
                             .push(((new / old).ln(), scale));
                     }

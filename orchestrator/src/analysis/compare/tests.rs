@@ -1,14 +1,18 @@
 use super::*;
+use crate::store::example::record;
+use schema::record::Stored;
 
-fn run(solve_s: f64, error: f64) -> Value {
-    json!({"status": "ok", "solve_s": solve_s, "error_l2_norm": error, "bonds": 100, "steps_done": 10})
+fn run(solve_s: f64, error: f64) -> Stored {
+    record(
+        json!({"status": "ok", "solve_s": solve_s, "error_l2_norm": error, "bonds": 100, "steps_done": 10}),
+    )
 }
 
-fn refs(values: &[Value]) -> Vec<&Value> {
+fn refs(values: &[Stored]) -> Vec<&Stored> {
     values.iter().collect()
 }
 
-fn paired<'a>(point: &str, a: &'a [Value], b: &'a [Value]) -> Paired<'a> {
+fn paired<'a>(point: &str, a: &'a [Stored], b: &'a [Stored]) -> Paired<'a> {
     Paired {
         point: point.into(),
         a: refs(a),
@@ -16,7 +20,7 @@ fn paired<'a>(point: &str, a: &'a [Value], b: &'a [Value]) -> Paired<'a> {
     }
 }
 
-fn one(point: &str, a: &[Value], b: &[Value]) -> Comparison {
+fn one(point: &str, a: &[Stored], b: &[Stored]) -> Comparison {
     let paired = [Paired {
         point: point.into(),
         a: refs(a),
@@ -34,9 +38,9 @@ fn verdict(comparison: &Comparison, metric: &str) -> Verdict {
 fn a_true_slowdown_is_called_and_noise_and_drift_are_not() {
     // A: times around 1 s with 3 % noise; B twice as slow; C the same as A.
     let noise = [1.0, 1.03, 0.98, 1.01, 0.97];
-    let a: Vec<Value> = noise.iter().map(|t| run(*t, 1e-3)).collect();
-    let b: Vec<Value> = noise.iter().rev().map(|t| run(2.0 * t, 1e-3)).collect();
-    let c: Vec<Value> = noise.iter().rev().map(|t| run(*t * 1.01, 1e-3)).collect();
+    let a: Vec<Stored> = noise.iter().map(|t| run(*t, 1e-3)).collect();
+    let b: Vec<Stored> = noise.iter().rev().map(|t| run(2.0 * t, 1e-3)).collect();
+    let c: Vec<Stored> = noise.iter().rev().map(|t| run(*t * 1.01, 1e-3)).collect();
     let slower = one("n=8", &a, &b);
     let solve = &slower.changes[0];
     assert_eq!((solve.metric, solve.verdict), ("solve_s", Verdict::Worse));
@@ -59,7 +63,7 @@ fn a_true_slowdown_is_called_and_noise_and_drift_are_not() {
     );
     // A whole run 30 % slower, its repeats tight: the interval clears 1.1, but two runs of
     // one build drift that much here (one point, at 1 s: the floor is ×1.75), so no verdict.
-    let drifted: Vec<Value> = noise.iter().map(|t| run(1.3 * t, 1e-3)).collect();
+    let drifted: Vec<Stored> = noise.iter().map(|t| run(1.3 * t, 1e-3)).collect();
     let drift = one("n=8", &a, &drifted);
     let solve = &drift.changes[0];
     assert!(solve.interval.unwrap().0 > 1.1, "{:?}", solve.interval);
@@ -69,11 +73,11 @@ fn a_true_slowdown_is_called_and_noise_and_drift_are_not() {
 
 #[test]
 fn short_timings_and_noisy_runs_get_no_verdict() {
-    let fast: Vec<Value> = [1e-4, 1.1e-4, 0.9e-4]
+    let fast: Vec<Stored> = [1e-4, 1.1e-4, 0.9e-4]
         .iter()
         .map(|t| run(*t, 1e-3))
         .collect();
-    let slow: Vec<Value> = [5e-4, 5.1e-4, 4.9e-4]
+    let slow: Vec<Stored> = [5e-4, 5.1e-4, 4.9e-4]
         .iter()
         .map(|t| run(*t, 1e-3))
         .collect();
@@ -81,12 +85,12 @@ fn short_timings_and_noisy_runs_get_no_verdict() {
         verdict(&one("p", &fast, &slow), "solve_s"),
         Verdict::TooShort
     );
-    let quiet: Vec<Value> = [1.0, 1.01, 0.99].iter().map(|t| run(*t, 1e-3)).collect();
-    let noisy: Vec<Value> = [5.0, 5.1, 4.9]
+    let quiet: Vec<Stored> = [1.0, 1.01, 0.99].iter().map(|t| run(*t, 1e-3)).collect();
+    let noisy: Vec<Stored> = [5.0, 5.1, 4.9]
         .iter()
         .map(|t| {
             let mut r = run(*t, 1e-3);
-            r["provenance"] = json!({"noisy": true});
+            r.record_mut().unwrap().provenance.noisy = true;
             r
         })
         .collect();
@@ -96,7 +100,7 @@ fn short_timings_and_noisy_runs_get_no_verdict() {
 }
 
 /// A history of two runs of one build, 12 points with 3 % jitter between them.
-fn quiet_history() -> Vec<Value> {
+fn quiet_history() -> Vec<Stored> {
     let build = "ab".repeat(32);
     let mut random = SplitMix(7);
     let mut history = Vec::new();
@@ -106,9 +110,9 @@ fn quiet_history() -> Vec<Value> {
             .enumerate()
         {
             let jitter = 1.0 + 0.02 * (random.below(100) as f64 / 50.0 - 1.0);
-            history.push(json!({"key": format!("k{key}"), "status": "ok",
+            history.push(record(json!({"key": format!("k{key}"), "status": "ok",
                 "solve_s": 2.0 * jitter * (1.0 + 0.01 * k as f64), "run_id": format!("run{k}"),
-                "provenance": {"fingerprint": build, "timestamp": stamp}}));
+                "provenance": {"fingerprint": build, "timestamp": stamp}})));
         }
     }
     history
@@ -142,8 +146,8 @@ fn the_floor_is_calibrated_from_pairs_of_runs_of_one_build() {
         "{}",
         quiet.describe()
     );
-    let a: Vec<Value> = [2.0, 2.02, 1.98].iter().map(|t| run(*t, 1e-3)).collect();
-    let b: Vec<Value> = [3.0, 3.03, 2.97].iter().map(|t| run(*t, 1e-3)).collect();
+    let a: Vec<Stored> = [2.0, 2.02, 1.98].iter().map(|t| run(*t, 1e-3)).collect();
+    let b: Vec<Stored> = [3.0, 3.03, 2.97].iter().map(|t| run(*t, 1e-3)).collect();
     let paired = [paired("p", &a, &b)];
     assert_eq!(
         verdict(&compare(&paired, 0.1, &quiet), "solve_s"),
@@ -156,28 +160,33 @@ fn the_floor_is_calibrated_from_pairs_of_runs_of_one_build() {
     // Reruns of one key at a time (`run --force --only KEY`) have no common factor: each
     // point is its own median, 0 from it, and would make the floor 1. They calibrate nothing.
     let build = "ab".repeat(32);
-    let one_key: Vec<Value> = (0..12)
+    let one_key: Vec<Stored> = (0..12)
         .map(|k| {
-            json!({"key": "k0", "status": "ok", "solve_s": 2.0 + 0.01 * k as f64,
+            record(
+                json!({"key": "k0", "status": "ok", "solve_s": 2.0 + 0.01 * k as f64,
                    "run_id": format!("run{k}"),
                    "provenance": {"fingerprint": build,
-                                  "timestamp": format!("2026-01-01T00:{k:02}:00Z")}})
+                                  "timestamp": format!("2026-01-01T00:{k:02}:00Z")}}),
+            )
         })
         .collect();
     let alone = NoiseModel::calibrate(&refs(&one_key));
     assert!(alone.describe().contains("default"), "{}", alone.describe());
     // Pairs of two builds, or of one process, are no A/A pairs.
-    for (field, other) in [
-        ("/provenance/fingerprint", json!("cd".repeat(32))),
-        ("/run_id", json!("run0")),
+    let other_build =
+        |r: &mut Stored| r.record_mut().unwrap().provenance.fingerprint = "cd".repeat(32);
+    let one_process = |r: &mut Stored| r.run_id = Some("run0".into());
+    for (field, change) in [
+        ("fingerprint", &other_build as &dyn Fn(&mut Stored)),
+        ("run_id", &one_process),
     ] {
-        let changed: Vec<Value> = history
+        let changed: Vec<Stored> = history
             .iter()
             .enumerate()
             .map(|(k, r)| {
                 let mut r = r.clone();
                 if k % 2 == 1 {
-                    *r.pointer_mut(field).unwrap() = other.clone();
+                    change(&mut r);
                 }
                 r
             })
@@ -194,20 +203,20 @@ fn the_floor_is_calibrated_from_pairs_of_runs_of_one_build() {
 /// Twelve points whose whole run is 20 % slower and one of them 1.5× beyond: the run's row
 /// says 1.2, within the drift of whole runs; the one point is worse beside the others.
 /// Each point's runs of both sides, as `compare` takes them.
-fn all_paired(sides: &[(String, Vec<Value>, Vec<Value>)]) -> Vec<Paired<'_>> {
+fn all_paired(sides: &[(String, Vec<Stored>, Vec<Stored>)]) -> Vec<Paired<'_>> {
     sides.iter().map(|(p, a, b)| paired(p, a, b)).collect()
 }
 
 #[test]
 fn a_point_is_judged_beside_its_run_and_the_run_on_its_own() {
     let quiet = NoiseModel::calibrate(&refs(&quiet_history()));
-    let times = |t: f64| -> Vec<Value> {
+    let times = |t: f64| -> Vec<Stored> {
         [t, t * 1.01, t * 0.99]
             .iter()
             .map(|t| run(*t, 1e-3))
             .collect()
     };
-    let sides: Vec<(String, Vec<Value>, Vec<Value>)> = (0..12)
+    let sides: Vec<(String, Vec<Stored>, Vec<Stored>)> = (0..12)
         .map(|k| {
             let base = 2.0 + 0.1 * k as f64;
             let slower = if k == 5 { 1.5 } else { 1.0 };
@@ -246,7 +255,7 @@ fn a_point_is_judged_beside_its_run_and_the_run_on_its_own() {
             < 1e-9
     );
     // A whole run twice as slow is beyond the drift of whole runs.
-    let doubled: Vec<(String, Vec<Value>, Vec<Value>)> = (0..6)
+    let doubled: Vec<(String, Vec<Stored>, Vec<Stored>)> = (0..6)
         .map(|k| (format!("n={k}"), times(2.0), times(4.0)))
         .collect();
     let comparison = compare(&all_paired(&doubled), 0.1, &quiet);
@@ -263,7 +272,7 @@ fn a_point_is_judged_beside_its_run_and_the_run_on_its_own() {
 
 #[test]
 fn speedups_get_intervals_from_the_repeats_of_both_points() {
-    let times = |ts: &[f64]| -> Vec<Value> { ts.iter().map(|t| run(*t, 1e-3)).collect() };
+    let times = |ts: &[f64]| -> Vec<Stored> { ts.iter().map(|t| run(*t, 1e-3)).collect() };
     let (base_a, base_b) = (times(&[2.0, 2.02, 1.98]), times(&[2.0, 2.03, 1.97]));
     let (two_a, two_b) = (times(&[1.0, 1.01, 0.99]), times(&[1.6, 1.62, 1.58]));
     let points = [

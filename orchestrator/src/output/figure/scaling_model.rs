@@ -8,6 +8,7 @@ use crate::analysis::scaling_model::{
 };
 use crate::output::draw::{Axis, Guide, Panel, Series};
 use crate::store::table::Row;
+use schema::record::columns;
 use serde_json::Value;
 
 /// The strong-scaling grid and the weak-scaling grid per rank.
@@ -148,14 +149,14 @@ fn this_machine(rows: &[&Row], fitted: &[Rates]) -> Network {
     let two = |path: SolverPath| {
         rows.iter().find(|r| {
             SolverPath::of_row(r) == Some(path)
-                && r.number("ranks") == Some(2.0)
+                && r.number(columns::RANKS) == Some(2.0)
                 && r.number("comm_s_median").is_some()
         })
     };
     let sent_per_step = |r: &Row| -> Option<f64> {
-        let bytes =
-            r.number("traffic.halo_bytes")? + r.number("traffic.all_to_all_bytes").unwrap_or(0.0);
-        Some(bytes / 2.0 / r.number("steps_done")?)
+        let bytes = r.number(columns::TRAFFIC_HALO_BYTES)?
+            + r.number(columns::ALL_TO_ALL_BYTES).unwrap_or(0.0);
+        Some(bytes / 2.0 / r.number(columns::STEPS_DONE)?)
     };
     let bandwidth = two(SolverPath::CrankNicolson)
         .and_then(|r| Some(sent_per_step(r)? / r.number("comm_s_median")?))
@@ -189,14 +190,14 @@ fn validation(rows: &[&Row], fitted: &[Rates]) -> (Vec<Series>, Vec<(SolverPath,
         else {
             continue;
         };
-        let (Some(n), Some(p)) = (row.number("case.n"), row.number("ranks")) else {
+        let (Some(n), Some(p)) = (row.number("case.n"), row.number(columns::RANKS)) else {
             continue;
         };
         if p < 2.0 {
             continue;
         }
         let prediction = predict(rates, n as usize, p as usize, &here);
-        let oversubscribed = row.get("oversubscribed") == Some(&Value::Bool(true));
+        let oversubscribed = row.get(columns::OVERSUBSCRIBED) == Some(&Value::Bool(true));
         if let Some(step) = row
             .number("step_s_median")
             .filter(|_| !oversubscribed && p == 2.0)
@@ -204,11 +205,11 @@ fn validation(rows: &[&Row], fitted: &[Rates]) -> (Vec<Series>, Vec<(SolverPath,
             times.push((p, prediction.total_s() / step));
             at_two.push((rates.path, prediction.total_s() / step));
         }
-        if let Some(halo) = row.number("halo_nodes") {
+        if let Some(halo) = row.number(columns::HALO_NODES) {
             ghosts.push((p, prediction.ghosts / halo));
         }
-        let calls = row.number("traffic.all_to_alls").filter(|c| *c > 0.0);
-        if let Some((bytes, calls)) = row.number("traffic.all_to_all_bytes").zip(calls) {
+        let calls = row.number(columns::ALL_TO_ALLS).filter(|c| *c > 0.0);
+        if let Some((bytes, calls)) = row.number(columns::ALL_TO_ALL_BYTES).zip(calls) {
             moved.push((p, prediction.all_to_all_bytes / (bytes / calls)));
         }
     }

@@ -3,6 +3,7 @@
 use crate::console::number;
 use crate::output::draw::{span, Series};
 use crate::store::table::Row;
+use schema::record::columns;
 use schema::record::Status;
 use serde_json::Value;
 
@@ -11,18 +12,18 @@ use serde_json::Value;
 pub(super) fn describe(column: &str, groups: &[Group]) -> String {
     let known = [
         ("workers", "workers (threads × ranks)"),
-        ("h", "grid spacing h"),
-        ("eps", "horizon ε"),
+        (columns::H, "grid spacing h"),
+        (columns::EPS, "horizon ε"),
         ("case.cfl", "dt / dt_stable"),
-        ("max_abs", "max|u| at the final time"),
-        ("error_l2_norm", "discrete L² error"),
-        ("error_max", "max-norm error"),
-        ("c_tot.time", "time t"),
+        (columns::MAX_ABS, "max|u| at the final time"),
+        (columns::ERROR_L2_NORM, "discrete L² error"),
+        (columns::ERROR_MAX, "max-norm error"),
+        (columns::C_TOT_TIME, "time t"),
         ("case.m", "horizon m = ε/h"),
         ("bond_updates_per_s", "bond updates per second"),
-        ("c_tot.c_tot", "total concentration c_tot(t)"),
-        ("subdomains", "subdomains p²"),
-        ("iterations", "iterations"),
+        (columns::C_TOT, "total concentration c_tot(t)"),
+        (columns::SUBDOMAINS, "subdomains p²"),
+        (columns::ITERATIONS, "iterations"),
         ("patch.x", "x along the bar"),
         ("patch.l_u", "L_h u"),
         (
@@ -166,7 +167,9 @@ impl Group<'_> {
 
     /// The x of the ok rows run with more workers than cores.
     pub(super) fn oversubscribed_xs(&self, x: &str) -> Vec<f64> {
-        self.ok_xs(x, |r| r.get("oversubscribed") == Some(&Value::Bool(true)))
+        self.ok_xs(x, |r| {
+            r.get(columns::OVERSUBSCRIBED) == Some(&Value::Bool(true))
+        })
     }
 
     fn ok_xs(&self, x: &str, marked: impl Fn(&Row) -> bool) -> Vec<f64> {

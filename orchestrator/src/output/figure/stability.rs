@@ -3,6 +3,7 @@
 use super::series::*;
 use crate::output::draw::{Axis, Glyph, Guide, Panel, Series};
 use crate::store::table::Row;
+use schema::record::columns;
 use schema::record::{Status, GROWING};
 
 pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
@@ -12,7 +13,7 @@ pub(super) fn stability(groups: &[Group], x: &str, y: &str) -> Panel {
             let mut line = series(g.label(), g.points(x, y));
             // A diverged run stops where |u| passed the bound; its cross sits at what it reached.
             // A run `ok` by the bound that grew a decade past its scale is unstable too.
-            let grew = |r: &Row| r.number("growth").is_some_and(|g| g >= GROWING);
+            let grew = |r: &Row| r.number(columns::GROWTH).is_some_and(|g| g >= GROWING);
             line.marks = g
                 .rows
                 .iter()

@@ -3,6 +3,7 @@
 use super::series::*;
 use crate::output::draw::{Axis, Guide, Panel, Series};
 use crate::store::table::Row;
+use schema::record::columns;
 
 /// One panel per grid size n: a series per backend, and the crossover where the FFT overtakes
 /// the stencil.
@@ -27,7 +28,11 @@ pub(super) fn throughput(rows: &[&Row], series_columns: &[String], x: &str, y: &
             let backend_points = |name: &str| {
                 groups
                     .iter()
-                    .find(|g| g.rows.iter().all(|r| r.text("backend") == Some(name)))
+                    .find(|g| {
+                        g.rows
+                            .iter()
+                            .all(|r| r.text(columns::BACKEND) == Some(name))
+                    })
                     .map(|g| g.points(x, y))
             };
             let guides = match (backend_points("stencil"), backend_points("fft")) {

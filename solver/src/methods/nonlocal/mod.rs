@@ -22,7 +22,7 @@ use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
 use crate::operator::{self, Identity, LinearOperator, SinePreconditioner};
 use crate::output::outcome::Outcome;
-use crate::output::record::Resolved;
+use crate::output::record::{self, Resolved};
 use crate::parallel::exchange::Ranks;
 use crate::parallel::gathered::Gathered;
 use crate::parallel::slab_sine::SlabSine;
@@ -198,7 +198,7 @@ impl Plan {
             patch_error: Some(stencil.patch_error()),
             backend: Some(self.backend),
             integrator: Some(self.integrator),
-            ..Resolved::of_stencil(stencil)
+            ..record::resolved_of(stencil)
         }
     }
 }

@@ -12,7 +12,7 @@ use crate::output::diagnostics::{
     fixed_order_sum, max_abs, max_error, squared_l2_error, total_mass,
 };
 use crate::output::outcome::Outcome;
-use crate::output::record::{Distribution, Record, Resolved, Status, SteadySolve};
+use crate::output::record::{self, Distribution, Record, Resolved, Status, SteadySolve};
 use crate::parallel::exchange::Exchange;
 use rayon::prelude::*;
 use rayon::ThreadPool;
@@ -115,7 +115,7 @@ impl SteadyProblem {
         Resolved {
             patch_error: Some(self.patch_error()),
             backend,
-            ..Resolved::of_stencil(&self.stencil)
+            ..record::resolved_of(&self.stencil)
         }
     }
 
@@ -298,7 +298,7 @@ pub(crate) fn outcome(
         mass: Some(mass),
         max_abs: Some(max_abs),
         steady: solve,
-        ..Record::new(case, problem.resolved(backend), distribution)
+        ..record::fresh(case, problem.resolved(backend), distribution)
     };
     Outcome {
         record,

@@ -1,0 +1,315 @@
+//! The record's columns: the names its fields take in the tables (`field`, or `group.field`
+//! for a member of a nested group, flattened), the one place a record field is named as text.
+
+use super::*;
+use crate::choices::{Backend, Collar, Integrator, Partition, Quadrature};
+use serde_json::{json, Map, Value};
+use std::sync::OnceLock;
+
+/// The record's timings in seconds (setup, time loop, median step, communication per step):
+/// the fields whose repeats the orchestrator's summary reduces to min, median and max.
+pub const TIMINGS: [&str; 4] = ["setup_s", "solve_s", "step_s", "comm_s"];
+
+/// Declares each column the orchestrator reads by name off a table's rows, and `NAMED`, all of
+/// them (a test checks each is one of `columns()`).
+macro_rules! named {
+    ($($(#[$doc:meta])* $name:ident = $text:literal,)*) => {
+        $($(#[$doc])* pub const $name: &str = $text;)*
+        /// Every column named here.
+        pub const NAMED: &[&str] = &[$($name),*];
+    };
+}
+
+named! {
+    KEY = "key",
+    CASE_ID = "case_id",
+    REPEAT = "repeat",
+    RUN_ID = "run_id",
+    STATUS = "status",
+    MESSAGE = "message",
+    H = "h",
+    EPS = "eps",
+    M = "m",
+    BONDS = "bonds",
+    STEPS_DONE = "steps_done",
+    SETUP_S = "setup_s",
+    SOLVE_S = "solve_s",
+    STEP_S = "step_s",
+    ERROR_L2_NORM = "error_l2_norm",
+    ERROR_MAX = "error_max",
+    MAX_ABS = "max_abs",
+    GROWTH = "growth",
+    PEAK_MEMORY_BYTES = "peak_memory_bytes",
+    RANKS = "ranks",
+    HALO_NODES = "halo_nodes",
+    OVERSUBSCRIBED = "oversubscribed",
+    HOSTS = "hosts",
+    ITERATIONS = "iterations",
+    SUBDOMAINS = "subdomains",
+    SOLVE_ITERATIONS_MEAN = "solve_iterations_mean",
+    BACKEND = "backend",
+    THREADS = "threads",
+    FINGERPRINT = "provenance.fingerprint",
+    HOST = "provenance.host",
+    INSTRUCTION_SET = "provenance.instruction_set",
+    NOISY = "provenance.noisy",
+    HALO_EXCHANGES = "traffic.halo_exchanges",
+    TRAFFIC_HALO_BYTES = "traffic.halo_bytes",
+    ALL_TO_ALLS = "traffic.all_to_alls",
+    ALL_TO_ALL_BYTES = "traffic.all_to_all_bytes",
+    C_TOT_TIME = "c_tot.time",
+    C_TOT = "c_tot.c_tot",
+    FIELD_VALUES = "field.values",
+    FIELD_ERROR = "field.error",
+}
+
+/// The record's results that do not depend on how the run was spread or timed: what the
+/// end-to-end tests compare between serial, threaded and distributed runs of one case.
+pub const RESULTS: [&str; 14] = [
+    "h",
+    "eps",
+    "c",
+    "dt",
+    "dt_stable",
+    "steps",
+    "nodes",
+    "bonds",
+    "error_l2",
+    "error_l2_norm",
+    "error_max",
+    "error_total",
+    "mass",
+    "max_abs",
+];
+
+/// What `collect` adds to each run's row beside the record: the threads each rank ran (the
+/// case's), which figures and `where` call `threads`.
+pub const TABULATED: &[&str] = &["threads"];
+
+/// Every column a record gives the tables, flattened (`group.field`): read off `every_field`,
+/// so that a field added to the record is a column without being listed, then `TABULATED`.
+/// The case's columns (`case.<field>`) vary with the case and are not listed. Figures and
+/// tables are checked against these before anything runs; a test of nlsolve checks that every
+/// record it writes keeps to them.
+pub fn columns() -> &'static [String] {
+    static COLUMNS: OnceLock<Vec<String>> = OnceLock::new();
+    COLUMNS.get_or_init(|| {
+        let mut columns = Vec::new();
+        flatten("", &every_field().to_value(), &mut columns);
+        columns.retain(|c| !c.starts_with("case."));
+        columns.extend(TABULATED.iter().map(|c| c.to_string()));
+        columns
+    })
+}
+
+/// Whether `name` is a column of records: one of `columns`, or a field of the case
+/// (`case.<field>`, nested ones included).
+pub fn is_column(name: &str) -> bool {
+    name.strip_prefix("case.").is_some_and(|f| !f.is_empty()) || columns().iter().any(|c| c == name)
+}
+
+fn flatten(prefix: &str, value: &Value, columns: &mut Vec<String>) {
+    match value {
+        Value::Object(fields) => {
+            for (name, inner) in fields {
+                let name = match prefix {
+                    "" => name.clone(),
+                    _ => format!("{prefix}.{name}"),
+                };
+                flatten(&name, inner, columns);
+            }
+        }
+        _ => columns.push(prefix.to_string()),
+    }
+}
+
+/// A stored record with every field given (each optional one, each group, each list not
+/// empty): what `columns` is read off. A field added to the record fails to compile here until
+/// it has a value.
+pub fn every_field() -> Stored {
+    let record = Record {
+        case: json!({"method": "nonlocal", "dim": 1, "n": 16}),
+        status: Status::Ok,
+        message: String::new(),
+        resolved: Resolved {
+            h: 1.0 / 16.0,
+            eps: Some(0.25),
+            m: Some(4),
+            c: Some(1.0),
+            dt: 1e-3,
+            dt_stable: 2e-3,
+            steps: 10,
+            nodes: 16,
+            bonds: 128,
+            pair_visits: Some(128),
+            quadrature: Some(Quadrature::default()),
+            collar: Some(Collar::default()),
+            patch_error: Some(0.0),
+            backend: Some(Backend::Stencil),
+            integrator: Some(Integrator::default()),
+        },
+        steps_done: 10,
+        setup_s: 1e-3,
+        solve_s: 1e-2,
+        step_s: 1e-3,
+        error_l2: Some(1e-8),
+        error_l2_norm: Some(1e-4),
+        error_max: Some(2e-4),
+        error_total: Some(1e-7),
+        mass: Some(1.0),
+        mass_drift: Some(0.0),
+        max_abs: Some(1.0),
+        growth: Some(0.0),
+        diverged_step: Some(10),
+        diverged_time: Some(1e-2),
+        c_tot: Some(MassSeries {
+            time: vec![0.0],
+            c_tot: vec![1.0],
+        }),
+        histogram: Some(Histogram {
+            lo: 0.0,
+            hi: 1.0,
+            counts: vec![16],
+        }),
+        field: Some(FieldSnapshot {
+            nx: 1,
+            ny: 1,
+            lower: 0.0,
+            upper: 1.0,
+            values: vec![0.5],
+            error: Some(vec![0.0]),
+        }),
+        distribution: Distribution {
+            ranks: 2,
+            partition: Partition::Block,
+            px: Some(2),
+            py: Some(1),
+            halo_nodes: 8,
+            halo_bytes: 64,
+            imbalance: 1.0,
+            comm_s: 1e-5,
+            hosts: vec!["host".into(), "host".into()],
+            cpus: vec!["0".into(), "1".into()],
+            oversubscribed: Some(false),
+            traffic: Some(Traffic::default()),
+        },
+        steady: SteadySolve {
+            iterations: Some(10),
+            relative_residual: Some(1e-10),
+            dual_residual: Some(1e-10),
+            subdomains: Some(4),
+            floating_subdomains: Some(1),
+            multipliers: Some(8),
+            factor_nonzeros_max: Some(64),
+            feti_phases: Some(FetiPhases::default()),
+        },
+        implicit: ImplicitSolves {
+            solve_iterations_mean: Some(5.0),
+            solve_iterations_max: Some(6),
+            solves_unconverged: Some(0),
+            solve_rtol: Some(1e-10),
+        },
+        patch: Some(PatchTest {
+            ghost_force: 0.0,
+            ghost_force_all: 0.0,
+            expected: 0.0,
+            eps_min: 0.25,
+            x: vec![0.5],
+            l_u: vec![0.0],
+            eps_x: vec![0.25],
+            spectrum: Some(Spectrum {
+                max_real: -1.0,
+                max_imaginary: 0.0,
+                max_abs: 1.0,
+                dt_forward_euler: Some(2.0),
+                computed: Some(1),
+            }),
+        }),
+        coupling: Some(Coupling {
+            error_nonlocal: 1e-4,
+            error_local: 1e-4,
+            mismatch: Some(1e-5),
+            gradient: Some(1e-8),
+            hessian_condition: Some(10.0),
+            controls_resolved: Some(2),
+            control_nodes: vec![1.0],
+            controls_nonlocal: vec![0.0],
+            control_local: Some(0.0),
+            control_error: Some(1e-5),
+            nonlocal_nodes: 16,
+            local_nodes: 16,
+            local_domain: [0.5, 1.0],
+        }),
+        peak_memory_bytes: Some(1 << 20),
+        memory_estimate_bytes: Some(1 << 20),
+        provenance: Provenance {
+            solver_version: "0.1.0".into(),
+            fingerprint: "0".repeat(64),
+            git_revision: Some("0000000".into()),
+            host: "host".into(),
+            cpu: "cpu".into(),
+            threads: 1,
+            ranks: 2,
+            timestamp: "2026-01-01T00:00:00Z".into(),
+            instruction_set: "avx2".into(),
+            dirty_tree: false,
+            cores_online: 2,
+            load_start: Some(Load {
+                average_1min: 0.0,
+                other_runnable: 0,
+            }),
+            load_end: Some(Load {
+                average_1min: 0.0,
+                other_runnable: 0,
+            }),
+            noisy: false,
+        },
+        unknown: Map::new(),
+    };
+    Stored {
+        key: "0".repeat(32),
+        case_id: Some("0".repeat(32)),
+        repeat: 0,
+        solver_version: "0.1.0".into(),
+        run_id: Some("host-0-1".into()),
+        attempt: Some(1),
+        outcome: Outcome::Ran(Box::new(record)),
+    }
+}
+
+/// The value of the column `name` of `record`, as its run table holds it (`None` when absent).
+pub fn column(record: &Stored, name: &str) -> Option<Value> {
+    let mut value = record.to_value();
+    for part in name.split('.') {
+        value = value.as_object_mut()?.remove(part)?;
+    }
+    Some(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_column_is_a_field_a_member_of_a_group_or_of_the_case() {
+        assert!(is_column("error_l2_norm") && is_column("c_tot.time"));
+        assert!(is_column("feti_phases.coarse_s") && is_column("case.n"));
+        assert!(is_column("provenance.load_start.average_1min") && is_column("threads"));
+        assert!(!is_column("c_tot.") && !is_column("error_l2norm") && !is_column("c_tot"));
+        assert!(!is_column("case.") && !is_column("unknown"));
+        for name in TIMINGS.iter().chain(&RESULTS).chain(NAMED) {
+            assert!(is_column(name), "{name}");
+        }
+    }
+
+    /// The example reads back as itself: every field it gives survives the store's round trip.
+    #[test]
+    fn every_field_reads_back_whole() {
+        let stored = every_field();
+        let again: Stored = serde_json::from_value(stored.to_value()).unwrap();
+        assert_eq!(again, stored);
+        assert_eq!(column(&stored, "provenance.cores_online"), Some(json!(2)));
+        assert_eq!(column(&stored, "traffic.halo_bytes"), Some(json!(0)));
+        assert_eq!(column(&stored, "nothing"), None);
+    }
+}

@@ -1,0 +1,62 @@
+//! Where and by what a record was made: the build, the machine, and its load while the run was
+//! timed.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    pub solver_version: String,
+    /// The build's fingerprint (`nlsolve fingerprint`): the hash of the solver's and schema's
+    /// sources, Cargo.lock, the compiler, target, flags, profile and features (solver/build/
+    /// fingerprint.rs says what is in it); absent from records made before it was kept.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub fingerprint: String,
+    pub git_revision: Option<String>,
+    pub host: String,
+    pub cpu: String,
+    pub threads: usize,
+    pub ranks: usize,
+    pub timestamp: String,
+    /// The instruction set the stencil kernel ran (`portable`, `avx2`, `avx512f`), detected at
+    /// start-up; absent from records made before the kernel dispatched.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub instruction_set: String,
+    /// Whether the working tree had uncommitted changes when the solver was built (from
+    /// `git_revision`'s `-dirty`); the fingerprint hashes the sources themselves either way.
+    #[serde(default)]
+    pub dirty_tree: bool,
+    /// Cores this process may run on (affinity and cgroup limits included).
+    #[serde(default)]
+    pub cores_online: usize,
+    /// The machine's load when the run started and ended: /proc/loadavg's one-minute average,
+    /// and how many other tasks were runnable at that instant (the run's own left out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_start: Option<Load>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_end: Option<Load>,
+    /// Timed while other tasks wanted more cores than the run left free (cores online minus
+    /// threads × ranks), at its start or its end: its timings measure contention too.
+    #[serde(default)]
+    pub noisy: bool,
+}
+
+/// The machine's load at one instant (see `Provenance::load_start`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Load {
+    pub average_1min: f64,
+    pub other_runnable: usize,
+}
+
+impl Provenance {
+    /// The load at the run's start and end, and whether it made the run noisy.
+    pub fn with_load(mut self, start: Option<Load>, end: Option<Load>) -> Self {
+        let free = self.cores_online.saturating_sub(self.threads * self.ranks);
+        self.noisy = [start, end]
+            .iter()
+            .flatten()
+            .any(|load| load.other_runnable > free);
+        self.load_start = start;
+        self.load_end = end;
+        self
+    }
+}

@@ -1,0 +1,142 @@
+//! A record as `nlstudy` stores it: what the solver wrote, or the failure nlstudy recorded in
+//! its place, with the fields nlstudy adds to tell runs apart. The store reads every record
+//! through this struct, so a field renamed here fails to compile wherever the orchestrator
+//! reads it, and the tables take their columns from what it serializes.
+
+use super::provenance::Provenance;
+use super::run::Record;
+use super::Status;
+use serde::de::Error as _;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use serde_json::{Map, Value};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Stored {
+    /// The hash of the case, the solver version and the repeat: the record's file name.
+    pub key: String,
+    /// The hash of the case alone: the repeats of a point share it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case_id: Option<String>,
+    #[serde(default)]
+    pub repeat: usize,
+    pub solver_version: String,
+    /// The `nlstudy` process that ran it: the runs of one invocation share the machine's state.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub run_id: Option<String>,
+    /// Which attempt at the point made it (a failure outside the case is retried).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attempt: Option<usize>,
+    #[serde(flatten)]
+    pub outcome: Outcome,
+}
+
+/// What became of a run.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// The solver ran the case (`ok` or `diverged`): its whole record, the case as the JSON the
+    /// key was hashed from.
+    Ran(Box<Record<Value>>),
+    /// It did not: the solver refused the case, or crashed, or timed out (`failed`).
+    Failed(Failure),
+}
+
+/// A run that produced no record: the case (as planned, when the solver refused it) and why.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Failure {
+    pub case: Value,
+    pub message: String,
+}
+
+impl Stored {
+    pub fn status(&self) -> Status {
+        match &self.outcome {
+            Outcome::Ran(record) => record.status,
+            Outcome::Failed(_) => Status::Failed,
+        }
+    }
+
+    pub fn message(&self) -> &str {
+        match &self.outcome {
+            Outcome::Ran(record) => &record.message,
+            Outcome::Failed(failure) => &failure.message,
+        }
+    }
+
+    pub fn case(&self) -> &Value {
+        match &self.outcome {
+            Outcome::Ran(record) => &record.case,
+            Outcome::Failed(failure) => &failure.case,
+        }
+    }
+
+    /// The solver's record; `None` for a failed run.
+    pub fn record(&self) -> Option<&Record<Value>> {
+        match &self.outcome {
+            Outcome::Ran(record) => Some(record),
+            Outcome::Failed(_) => None,
+        }
+    }
+
+    pub fn record_mut(&mut self) -> Option<&mut Record<Value>> {
+        match &mut self.outcome {
+            Outcome::Ran(record) => Some(record),
+            Outcome::Failed(_) => None,
+        }
+    }
+
+    pub fn provenance(&self) -> Option<&Provenance> {
+        self.record().map(|record| &record.provenance)
+    }
+
+    /// Whether its provenance says it was timed on a busy machine.
+    pub fn noisy(&self) -> bool {
+        self.provenance().is_some_and(|p| p.noisy)
+    }
+
+    /// The record as JSON: what the store writes, and what the tables flatten into columns.
+    pub fn to_value(&self) -> Value {
+        serde_json::to_value(self).expect("a record is plain data")
+    }
+}
+
+impl Serialize for Outcome {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Failed<'a> {
+            case: &'a Value,
+            status: Status,
+            message: &'a str,
+        }
+        match self {
+            Outcome::Ran(record) => record.serialize(serializer),
+            Outcome::Failed(failure) => Failed {
+                case: &failure.case,
+                status: Status::Failed,
+                message: &failure.message,
+            }
+            .serialize(serializer),
+        }
+    }
+}
+
+/// By its `status`: a failed run's case and message, or the solver's whole record, whose every
+/// field must be there with its type (the error names the first that is not).
+impl<'de> Deserialize<'de> for Outcome {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let mut fields = Map::<String, Value>::deserialize(deserializer)?;
+        let status = fields.get("status").and_then(Value::as_str);
+        match status.and_then(Status::parse) {
+            None => Err(D::Error::custom("it has no known `status`")),
+            Some(Status::Failed) => Ok(Outcome::Failed(Failure {
+                case: fields.remove("case").unwrap_or(Value::Null),
+                message: match fields.remove("message") {
+                    Some(Value::String(message)) => message,
+                    _ => String::new(),
+                },
+            })),
+            Some(_) => serde_path_to_error::deserialize(Value::Object(fields))
+                .map(|record| Outcome::Ran(Box::new(record)))
+                .map_err(|e| D::Error::custom(format!("field `{}`: {}", e.path(), e.inner()))),
+        }
+    }
+}
