@@ -244,6 +244,51 @@ fn io_failures_exit_3() {
     assert!(text(&out).contains("submission failed"), "{}", text(&out));
 }
 
+/// Exit 1, for each command that can end so (README's table): `run` when a case fails or a
+/// figure cannot be made of the runs, `plot` when a figure cannot be made (a field figure of a
+/// study that asked for no snapshot). `compare`'s 1 (a metric worse beyond the noise floor)
+/// needs calibrated runs: tests/nlstudy.rs's comparison test checks it. `history` draws only
+/// what it has checked, so no data makes it exit 1: a metric no record has is bad input (2).
+#[test]
+fn a_failed_case_or_a_figure_that_cannot_be_made_exits_1() {
+    let study = json!({
+        "name": "one",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": [16, 24]}}],
+        "figures": [{"name": "u", "kind": "field", "where": ["n == 16"]}]
+    });
+    let scratch = Scratch::new("exit-1", &study);
+    let refused = {
+        let mut refused = study.clone();
+        refused["name"] = json!("one-refused");
+        // m = 40 nodes per horizon at n = 16: ε = 2.5, past the largest horizon.
+        refused["sweep"] = json!([{"product": {"n": [16], "m": [40]}}]);
+        refused["figures"] = json!([]);
+        Scratch::new("exit-1-refused", &refused)
+    };
+    let cases: [(&str, &Scratch, &[&str], &str); 4] = [
+        ("run", &refused, &["--no-collect", "--allow-refused"], "failed"),
+        ("run", &scratch, &[], "not drawn"),
+        ("plot", &scratch, &[], "not drawn"),
+        (
+            "history",
+            &scratch,
+            &["--metric", "no_such_field"],
+            "no_such_field",
+        ),
+    ];
+    for (verb, scratch, extra, said) in cases {
+        let out = scratch.nlstudy(verb, extra);
+        let expected = if verb == "history" { 2 } else { 1 };
+        assert_eq!(out.status.code(), Some(expected), "{verb}: {}", text(&out));
+        assert!(text(&out).contains(said), "{verb}: {}", text(&out));
+        assert_no_panic(&out);
+    }
+    let stored = records(&refused.runs("one-refused"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0]["status"], "failed", "{:?}", stored[0]);
+}
+
 /// A TOML study's `nan` and `inf` were "not given" (two points with the key of no dt): refused
 /// naming their place, as is a TOML date where a number belongs.
 #[test]

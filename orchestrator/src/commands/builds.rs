@@ -66,10 +66,9 @@ pub(super) fn of_build(
     store: &Store,
 ) -> Result<Side, Failure> {
     if prefix.is_empty() || !prefix.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "{flag} fingerprint:{prefix:?}: a fingerprint is hex digits (`nlsolve fingerprint`, `nlstudy history`)"
-        )
-        .into());
+        )));
     }
     let mut records = superseded(store);
     records.extend(store.records());
@@ -78,16 +77,14 @@ pub(super) fn of_build(
     builds.sort_unstable();
     builds.dedup();
     match builds.len() {
-        0 => Err(format!(
+        0 => Err(Failure::BadInput(format!(
             "{flag} fingerprint:{prefix}: no stored or superseded record of study {} was made by a solver whose fingerprint starts with {prefix}; `nlstudy history` shows the builds",
             study.name
-        )
-        .into()),
+        ))),
         1 => Ok(latest_superseded(records).unwrap_or_default()),
-        n => Err(format!(
+        n => Err(Failure::BadInput(format!(
             "{flag} fingerprint:{prefix}: {n} builds start so ({}); give more of the fingerprint",
             builds.iter().map(|b| &b[..12]).collect::<Vec<_>>().join(", ")
-        )
-        .into()),
+        ))),
     }
 }

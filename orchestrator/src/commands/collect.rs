@@ -13,10 +13,10 @@ pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
     let (study, _, store, planned) = planned(args, &Options::default(), true)?;
     let collected = crate::analysis::collect::collect(&planned, &store, &study, allow_mixed)?
         .ok_or_else(|| {
-            format!(
+            Failure::BadInput(format!(
                 "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",
                 store.study
-            )
+            ))
         })?;
     print_tables_written(&collected);
     let swept = fields_telling_apart(planned.iter().map(|p| &p.point));

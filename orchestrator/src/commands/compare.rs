@@ -21,11 +21,10 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
             true => "a fraction of change",
             false => "a finite number",
         };
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "--threshold: {} is not {what}; give e.g. 0.1 for 10 %",
             args.threshold
-        )
-        .into());
+        )));
     }
     // Read only until every check has passed: a refused compare takes no results directory.
     let (study, _, store, planned) = planned(&args.common, &Options::default(), false)?;
@@ -33,10 +32,9 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         Some(build) => match build.strip_prefix("fingerprint:") {
             Some(prefix) => of_build(prefix, "--of", &study, &store)?,
             None => {
-                return Err(format!(
+                return Err(Failure::BadInput(format!(
                     "--of {build:?}: give fingerprint:PREFIX, a build's fingerprint or its start"
-                )
-                .into())
+                )))
             }
         },
         None => by_key(store.records()),
@@ -45,18 +43,16 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
     let points = repeats_by_point(&planned);
     let paired = compare::pair(&points, &a, &b);
     if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "--against {:?}: no point of study {} is stored on both sides",
             args.against, study.name
-        )
-        .into());
+        )));
     }
     if paired.iter().all(|p| p.a.len() < 2 && p.b.len() < 2) {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "study {} runs each point once, so no interval can be formed for its timings; set `repeat` to 5 or more and run both sides again",
             study.name
-        )
-        .into());
+        )));
     }
     for (name, side) in [("A", &a), ("B", &b)] {
         let rows = crate::analysis::collect::run_rows(&planned, side);
@@ -64,10 +60,9 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
             crate::analysis::collect::mixed_provenance(&rows),
             args.allow_mixed,
         ) {
-            return Err(format!(
+            return Err(Failure::BadInput(format!(
                 "side {name}: {mixed}; its timings would be a blend of builds or machines; rerun the stale points, or give --allow-mixed"
-            )
-            .into());
+            )));
         }
     }
     let side = |records: Vec<&Stored>| compare::machines(&records);
@@ -76,12 +71,11 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         side(paired.iter().flat_map(|p| p.b.iter().copied()).collect()),
     );
     if machines_a != machines_b && !args.allow_unlike {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "the two sides ran on unlike machines (A: {}; B: {}), whose timings do not compare; give --allow-unlike to compare them anyway",
             machines_a.join(", "),
             machines_b.join(", ")
-        )
-        .into());
+        )));
     }
     let noise = noise_model(&store, &b);
     let mut comparison = compare::compare(&paired, args.threshold, &noise);
@@ -182,31 +176,29 @@ fn baseline(
     common: &CommonArgs,
 ) -> Result<Side, Failure> {
     if against == "history" {
-        return Ok(latest_superseded(superseded(store)).ok_or_else(|| {
-            format!(
+        return latest_superseded(superseded(store)).ok_or_else(|| {
+            Failure::BadInput(format!(
                 "study {} has no history yet: records move there when their points run again (a new build, or `run --force`)",
                 study.name
-            )
-        })?);
+            ))
+        });
     }
     if let Some(prefix) = against.strip_prefix("fingerprint:") {
         return of_build(prefix, "--against", study, store);
     }
     let directory = std::path::Path::new(against);
     if !directory.is_dir() {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "--against {against:?}: no such directory; give `history`, `fingerprint:PREFIX` or a results directory"
-        )
-        .into());
+        )));
     }
     let other = Store::open(directory, &study.name);
     if !other.runs.is_dir() {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "--against {against:?}: it holds no runs of study {} ({} does not exist)",
             study.name,
             other.runs.display()
-        )
-        .into());
+        )));
     }
     // The same study is the same file or the same text, wherever it lies (another checkout).
     if let Some(theirs) = other.owner() {
@@ -214,13 +206,12 @@ fn baseline(
         let same_text = crate::store::hex(&sha2::Sha256::digest(&ours)) == theirs.sha256;
         let same_file = std::fs::canonicalize(&common.study).is_ok_and(|p| p == theirs.study_file);
         if !(same_text || same_file) {
-            return Err(format!(
+            return Err(Failure::BadInput(format!(
                 "--against {against:?}: its results of study {} were made by {}, whose text differs from {}; compare result sets of one study",
                 study.name,
                 theirs.study_file.display(),
                 common.study.display()
-            )
-            .into());
+            )));
         }
     }
     Ok(by_key(other.records()))

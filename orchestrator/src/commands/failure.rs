@@ -1,48 +1,53 @@
-//! Why a command stopped, and the exit status of its kind (`schema::exit`).
+//! Why a command stopped, by kind: the kind decides the exit status (`schema::exit`). A command
+//! says which kind each failure is where it happens; nothing is classified by its type alone
+//! (a `String` was once taken for bad input wherever it came from).
 
+use crate::model::study::StudyError;
 use crate::store::{Fault, FileError};
 use schema::exit;
 
-/// Why a command stopped: the sentence for the user and the exit status that tells its kind.
-#[derive(Debug)]
-pub struct Failure {
-    pub message: String,
-    pub code: u8,
+#[derive(Debug, thiserror::Error)]
+pub enum Failure {
+    /// A bad study file, flag or value: nothing ran.
+    #[error("{0}")]
+    BadInput(String),
+    /// A case failed, a table or figure could not be made of the runs, or `compare` found
+    /// something worse.
+    #[error("{0}")]
+    CaseFailed(String),
+    /// A file could not be read or written, or a program could not be started.
+    #[error("{0}")]
+    Io(String),
 }
 
-impl From<String> for Failure {
-    fn from(message: String) -> Failure {
-        Failure {
-            message,
-            code: exit::BAD_INPUT,
+impl Failure {
+    /// The exit status of its kind.
+    pub fn code(&self) -> u8 {
+        match self {
+            Failure::BadInput(_) => exit::BAD_INPUT,
+            Failure::CaseFailed(_) => exit::CASE_FAILED,
+            Failure::Io(_) => exit::IO,
         }
-    }
-}
-
-impl From<&str> for Failure {
-    fn from(message: &str) -> Failure {
-        Failure::from(message.to_string())
     }
 }
 
 impl From<Fault> for Failure {
     fn from(fault: Fault) -> Failure {
-        let code = match &fault {
-            Fault::Input(_) => exit::BAD_INPUT,
-            Fault::Io(_) => exit::IO,
-        };
-        Failure {
-            message: fault.to_string(),
-            code,
+        match fault {
+            Fault::Input(message) => Failure::BadInput(message),
+            Fault::Io(message) => Failure::Io(message),
         }
     }
 }
 
 impl From<FileError> for Failure {
     fn from(e: FileError) -> Failure {
-        Failure {
-            message: e.to_string(),
-            code: exit::IO,
-        }
+        Failure::Io(e.to_string())
+    }
+}
+
+impl From<StudyError> for Failure {
+    fn from(e: StudyError) -> Failure {
+        Failure::BadInput(e.to_string())
     }
 }

@@ -5,7 +5,6 @@ use super::failure::Failure;
 use super::open::planned;
 use crate::cli::args::HistoryArgs;
 use crate::run::plan::Options;
-use schema::exit;
 use std::process::ExitCode;
 
 pub(super) fn history(args: &HistoryArgs) -> Result<ExitCode, Failure> {
@@ -17,12 +16,10 @@ pub(super) fn history(args: &HistoryArgs) -> Result<ExitCode, Failure> {
         &args.metric,
         &repeats_by_point(&planned),
         &records,
-    )?;
+    )
+    .map_err(Failure::BadInput)?;
     let path = store.table("history.svg");
-    let svg = crate::output::draw::render(&chart).map_err(|message| Failure {
-        message,
-        code: exit::CASE_FAILED,
-    })?;
+    let svg = crate::output::draw::render(&chart).map_err(Failure::CaseFailed)?;
     crate::store::write_atomically(&path, svg.as_bytes())?;
     outln!("history: {}", path.display());
     Ok(ExitCode::SUCCESS)

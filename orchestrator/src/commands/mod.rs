@@ -30,8 +30,8 @@ pub fn main(cli: Cli) -> ExitCode {
     let code = match execute(cli) {
         Ok(code) => code,
         Err(failure) => {
-            errln!("nlstudy: {}", failure.message);
-            ExitCode::from(failure.code)
+            errln!("nlstudy: {failure}");
+            ExitCode::from(failure.code())
         }
     };
     match crate::console::stdout_failure() {

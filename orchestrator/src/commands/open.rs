@@ -11,9 +11,9 @@ use crate::store::owner::Refusal;
 use crate::store::{Index, Store};
 
 /// The study file, its figures checked against the columns its tables will have.
-pub(super) fn read_study(path: &std::path::Path) -> Result<Study, String> {
-    let study = Study::read(path).map_err(|e| e.to_string())?;
-    crate::analysis::figure_columns::check(&study).map_err(|e| e.to_string())?;
+pub(super) fn read_study(path: &std::path::Path) -> Result<Study, Failure> {
+    let study = Study::read(path)?;
+    crate::analysis::figure_columns::check(&study)?;
     Ok(study)
 }
 
@@ -36,14 +36,13 @@ pub(super) fn claim(
     match store.claim(&args.study, &text, args.adopt, writes) {
         Ok(()) => Ok(()),
         Err(Refusal::Io(e)) => Err(e.into()),
-        Err(Refusal::OwnedBy(owner)) => Err(format!(
+        Err(Refusal::OwnedBy(owner)) => Err(Failure::BadInput(format!(
             "{} holds the results of another study file of the same name `{}`: {}; give this study its own `name`, or --adopt to make {} the owner (the stored runs stay, and its points that are the same cases reuse them)",
             store.table("").display(),
             study.name,
             owner.display(),
             args.study.display()
-        )
-        .into()),
+        ))),
     }
 }
 
@@ -104,10 +103,9 @@ pub(super) fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Fail
         errln!("nlstudy: warning: the solver refuses {points} points; they are stored as failed:\n{text}");
         return Ok(());
     }
-    Err(format!(
+    Err(Failure::BadInput(format!(
         "the solver refuses {points} of the study's points, so nothing runs:\n{text}\nfix the study file, or give --allow-refused to run the other points and store these as failed"
-    )
-    .into())
+    )))
 }
 
 pub(super) fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 pub(super) fn report(args: &CommonArgs) -> Result<ExitCode, Failure> {
     let study = read_study(&args.study)?;
     let store = open_store(args, &study, true)?;
-    let points = study.expand().map_err(|e| e.to_string())?;
+    let points = study.expand()?;
     let swept = fields_telling_apart(&points);
     let page = crate::output::report::write(&study, &store, &swept)?;
     outln!("report: {}", page.display());

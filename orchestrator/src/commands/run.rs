@@ -34,7 +34,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         retries: args.retries,
     };
     store.clear_abandoned_outputs()?;
-    let stop = crate::run::signals::Stop::on_signals()?;
+    let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
     let to_run = planned.iter().filter(|p| p.runs()).count();
     let duplicates = planned
         .iter()
@@ -44,9 +44,10 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
     let tally = crate::run::pool::run(&planned, &solver, &store, &options, &stop, &mut progress);
     progress.close();
-    let tally = tally.map_err(|e| Failure {
-        message: format!("{e}; the cases that were running are not stored and run again next time"),
-        code: exit::IO,
+    let tally = tally.map_err(|e| {
+        Failure::Io(format!(
+            "{e}; the cases that were running are not stored and run again next time"
+        ))
     })?;
     if !args.quiet {
         let passed = match tally.passed {
@@ -121,16 +122,14 @@ const LONGEST_TIMEOUT_S: f64 = 1e9;
 /// A case's timeout from `field`: a positive, finite number of seconds.
 fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
     if !seconds.is_finite() {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "{field}: {seconds} is not a finite number; give a number of seconds, or none for no limit"
-        )
-        .into());
+        )));
     }
     if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "{field}: {seconds} is not a timeout; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none for no limit"
-        )
-        .into());
+        )));
     }
     Ok(Duration::from_secs_f64(seconds))
 }

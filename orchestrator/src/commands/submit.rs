@@ -14,26 +14,24 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         .clone()
         .or_else(|| std::env::var(SITE_VARIABLE).ok())
     {
-        Some(name) => Site::find(&name)?,
+        Some(name) => Site::find(&name).map_err(Failure::BadInput)?,
         None => Site::default(),
     };
     let scheduler = match (args.scheduler, site.scheduler) {
         (Some(given), Some(site_s)) if given != site_s => {
-            return Err(format!(
+            return Err(Failure::BadInput(format!(
                 "--scheduler {given} but the site profile {} is for {site_s}; drop one",
                 site.file.display()
-            )
-            .into())
+            )))
         }
         (Some(s), _) | (None, Some(s)) => s,
         (None, None) => {
-            return Err(format!(
+            return Err(Failure::BadInput(format!(
                 "which scheduler? give --scheduler slurm|lsf, or a site profile (--site NAME or {SITE_VARIABLE})"
-            )
-            .into())
+            )))
         }
     };
-    site.check_for(scheduler)?;
+    site.check_for(scheduler).map_err(Failure::BadInput)?;
     let (study, solver, store, index, planned) =
         planned_and_index(&args.common, &Options::default(), true)?;
     no_refusals(&planned, args.allow_refused)?;

@@ -10,12 +10,11 @@ pub(super) fn table(args: &TableArgs) -> Result<ExitCode, Failure> {
     let store = open_store(&args.common, &study, false)?;
     let path = store.table(&format!("{}-summary.parquet", study.name));
     if !path.exists() {
-        return Err(format!(
+        return Err(Failure::BadInput(format!(
             "{} does not exist; `nlstudy collect {}` writes it",
             path.display(),
             args.common.study.display()
-        )
-        .into());
+        )));
     }
     // A table and its sum are read as one collect wrote them (on a read-only copy, unlocked).
     let _outputs = store.lock_outputs().ok();
@@ -27,7 +26,8 @@ pub(super) fn table(args: &TableArgs) -> Result<ExitCode, Failure> {
     };
     out!(
         "{}",
-        crate::analysis::pivot::markdown(&spec, &crate::store::table::read_parquet(&path)?)?
+        crate::analysis::pivot::markdown(&spec, &crate::store::table::read_parquet(&path)?)
+            .map_err(Failure::BadInput)?
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -2,13 +2,13 @@
 //! lock files, and the removal of leftovers, which never follows a symbolic link out of the
 //! results. Every failure names its path.
 
-use std::fmt;
 use std::fs::File;
 use std::io;
 use std::path::{Path, PathBuf};
 
 /// A file-system failure and the path it happened on.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[error("cannot {action} {}: {source}", path.display())]
 pub struct FileError {
     /// What was tried: "write", "create", "read", "lock".
     pub action: &'static str,
@@ -34,25 +34,15 @@ impl FileError {
     }
 }
 
-impl fmt::Display for FileError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "cannot {} {}: {}",
-            self.action,
-            self.path.display(),
-            self.source
-        )
-    }
-}
-
 /// Why a step that reads or writes the results did not happen, by kind, for the exit status
 /// (`schema::exit`): a request that cannot be met as made, or a file or program that failed.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum Fault {
     /// A bad value or a request the data cannot answer (nothing stored to collect).
+    #[error("{0}")]
     Input(String),
     /// The results could not be read or written, or a program could not be started.
+    #[error("{0}")]
     Io(String),
 }
 
@@ -72,21 +62,9 @@ impl Fault {
     }
 }
 
-impl fmt::Display for Fault {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.message())
-    }
-}
-
 impl From<FileError> for Fault {
     fn from(e: FileError) -> Fault {
         Fault::Io(e.to_string())
-    }
-}
-
-impl From<String> for Fault {
-    fn from(message: String) -> Fault {
-        Fault::Input(message)
     }
 }
 

@@ -78,7 +78,7 @@ pub fn write_jobs(
             shape: pack.shape,
             time: *time,
         };
-        let script = script(&job, settings, command)?;
+        let script = script(&job, settings, command).map_err(Fault::Input)?;
         let path = command
             .jobs
             .join(format!("{}.{}", pack.name, extension(settings.scheduler)));
