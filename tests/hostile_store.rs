@@ -267,7 +267,12 @@ fn a_failed_case_or_a_figure_that_cannot_be_made_exits_1() {
         Scratch::new("exit-1-refused", &refused)
     };
     let cases: [(&str, &Scratch, &[&str], &str); 4] = [
-        ("run", &refused, &["--no-collect", "--allow-refused"], "failed"),
+        (
+            "run",
+            &refused,
+            &["--no-collect", "--allow-refused"],
+            "failed",
+        ),
         ("run", &scratch, &[], "not drawn"),
         ("plot", &scratch, &[], "not drawn"),
         (

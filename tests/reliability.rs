@@ -133,31 +133,19 @@ fn kill_9(child: &mut Child) {
     child.wait().unwrap();
 }
 
-/// A small xorshift generator; the seed is printed so that a failure can be replayed.
-struct Random(u64);
-
-impl Random {
-    fn new() -> Random {
-        let seed = std::env::var("RELIABILITY_SEED")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or_else(|| {
-                SystemTime::now()
-                    .duration_since(SystemTime::UNIX_EPOCH)
-                    .unwrap()
-                    .as_nanos() as u64
-                    | 1
-            });
-        eprintln!("reliability: RELIABILITY_SEED={seed}");
-        Random(seed)
-    }
-
-    fn below(&mut self, bound: u64) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0 % bound
-    }
+/// A seeded generator; the seed is printed so that a failure can be replayed.
+fn random() -> fastrand::Rng {
+    let seed = std::env::var("RELIABILITY_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| {
+            SystemTime::now()
+                .duration_since(SystemTime::UNIX_EPOCH)
+                .unwrap()
+                .as_nanos() as u64
+        });
+    eprintln!("reliability: RELIABILITY_SEED={seed}");
+    fastrand::Rng::with_seed(seed)
 }
 
 #[test]
@@ -192,11 +180,11 @@ fn runs_and_collects_killed_at_random_moments_resume_with_every_record_once_and_
     let sizes = [32, 48, 64, 80, 96, 112];
     let scratch = Scratch::new("killed", &short_study("killed", &sizes));
     let points = 2 * sizes.len();
-    let mut random = Random::new();
+    let mut random = random();
     let mut delays = Vec::new();
     for trial in 0..10 {
         let mut run = scratch.spawn("run", &[]);
-        let delay = random.below(800);
+        let delay = random.u64(..800);
         delays.push(delay);
         std::thread::sleep(Duration::from_millis(delay));
         kill_9(&mut run);
@@ -224,7 +212,7 @@ fn runs_and_collects_killed_at_random_moments_resume_with_every_record_once_and_
     assert!(collected.status.success(), "{}", text(&collected));
     for _ in 0..5 {
         let mut collect = scratch.spawn("collect", &[]);
-        let delay = random.below(400);
+        let delay = random.u64(..400);
         delays.push(delay);
         std::thread::sleep(Duration::from_millis(delay));
         kill_9(&mut collect);

@@ -105,14 +105,19 @@ pub fn read_field(path: &std::path::Path) -> Vec<f64> {
 /// A scratch directory with a study file; removed when dropped.
 pub struct Scratch {
     pub dir: PathBuf,
+    _removed_on_drop: tempfile::TempDir,
 }
 
 impl Scratch {
     pub fn new(name: &str, study: &Value) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("nlstudy-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("scratch directory");
-        let scratch = Scratch { dir };
+        let temporary = tempfile::Builder::new()
+            .prefix(&format!("nlstudy-{name}-"))
+            .tempdir()
+            .expect("scratch directory");
+        let scratch = Scratch {
+            dir: temporary.path().to_path_buf(),
+            _removed_on_drop: temporary,
+        };
         scratch.write_study(study);
         scratch
     }
@@ -154,12 +159,6 @@ impl Scratch {
             .stderr(Stdio::piped())
             .spawn()
             .expect("nlstudy starts")
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
 

@@ -21,8 +21,9 @@
 //! is the speedup's and is not repeated.
 
 use crate::console::number;
-use crate::statistics::{median, SplitMix};
+use crate::statistics::median;
 use crate::store::table::Row;
+use fastrand::Rng;
 use schema::record::Stored;
 use serde_json::json;
 use std::collections::HashMap;
@@ -186,7 +187,7 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
             comparison.changes.push(change);
         }
         if let Some(common) = common {
-            let mut random = SplitMix(seed_of(WHOLE_RUN, metric.name));
+            let mut random = Rng::with_seed(seed_of(WHOLE_RUN, metric.name));
             let interval = bootstrap(&mut random, |r| resampled(r, &logs).exp());
             let setting = Setting {
                 threshold,
@@ -260,7 +261,7 @@ fn change(
             (None, Some(setting.floor), Verdict::NoInterval)
         }
         Kind::Measured => {
-            let mut random = SplitMix(setting.seed);
+            let mut random = Rng::with_seed(setting.seed);
             let interval = bootstrap(&mut random, |r| resampled(r, b) / resampled(r, a));
             let verdict = setting.verdict(ratio, interval, better);
             (Some(interval), Some(setting.floor), verdict)
@@ -355,7 +356,7 @@ pub fn compare_speedups(
         let (interval, verdict) = if [&ta, &tb, &ba, &bb].iter().any(|t| t.len() < 2) {
             (None, Verdict::NoInterval)
         } else {
-            let mut random = SplitMix(setting.seed);
+            let mut random = Rng::with_seed(setting.seed);
             let interval = bootstrap(&mut random, |r| {
                 (resampled(r, &bb) / resampled(r, &tb)) / (resampled(r, &ba) / resampled(r, &ta))
             });

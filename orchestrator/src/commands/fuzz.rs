@@ -11,8 +11,8 @@
 
 use crate::model::site::Site;
 use crate::model::study::Study;
-use crate::statistics::SplitMix;
 use crate::store::Store;
+use fastrand::Rng;
 use sha2::Digest;
 use std::path::{Path, PathBuf};
 
@@ -71,24 +71,24 @@ const TOKENS: &[&str] = &[
 
 /// One to four mutations of `bytes`: a bit flipped, a byte replaced, a range deleted or
 /// duplicated, a token inserted, the tail cut.
-fn mutate(random: &mut SplitMix, bytes: &[u8]) -> Vec<u8> {
+fn mutate(random: &mut Rng, bytes: &[u8]) -> Vec<u8> {
     let mut out = bytes.to_vec();
-    for _ in 0..1 + random.below(4) {
-        let at = random.below(out.len() + 1);
-        match random.below(6) {
-            0 if at < out.len() => out[at] ^= 1 << random.below(8),
-            1 if at < out.len() => out[at] = random.below(256) as u8,
+    for _ in 0..1 + random.usize(..4) {
+        let at = random.usize(..out.len() + 1);
+        match random.usize(..6) {
+            0 if at < out.len() => out[at] ^= 1 << random.u32(..8),
+            1 if at < out.len() => out[at] = random.u8(..),
             2 => {
-                let end = (at + 1 + random.below(16)).min(out.len());
+                let end = (at + 1 + random.usize(..16)).min(out.len());
                 out.drain(at.min(end)..end);
             }
             3 => {
-                let end = (at + 1 + random.below(32)).min(out.len());
+                let end = (at + 1 + random.usize(..32)).min(out.len());
                 let copy = out[at.min(end)..end].to_vec();
                 out.splice(at..at, copy);
             }
             4 => {
-                let token = TOKENS[random.below(TOKENS.len())].as_bytes();
+                let token = TOKENS[random.usize(..TOKENS.len())].as_bytes();
                 out.splice(at..at, token.iter().copied());
             }
             _ => out.truncate(at),
@@ -104,10 +104,10 @@ fn fuzz(kind: &str, corpus: &[Vec<u8>], mut read: impl FnMut(&[u8])) {
         ^ kind
             .bytes()
             .fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b)));
-    let mut random = SplitMix(seed);
+    let mut random = Rng::with_seed(seed);
     let count = cases();
     for case in 0..count {
-        let base = &corpus[random.below(corpus.len())];
+        let base = &corpus[random.usize(..corpus.len())];
         let input = mutate(&mut random, base);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read(&input)));
         if outcome.is_err() {

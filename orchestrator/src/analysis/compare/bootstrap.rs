@@ -1,7 +1,8 @@
 //! Percentile bootstrap intervals over the repeats, seeded by point and metric so that a
 //! comparison gives the same intervals every time.
 
-use crate::statistics::{median, SplitMix};
+use crate::statistics::median;
+use fastrand::Rng;
 
 /// Bootstrap resamples per interval, and the interval's coverage.
 pub(super) const RESAMPLES: usize = 2000;
@@ -9,17 +10,17 @@ pub(super) const RESAMPLES: usize = 2000;
 pub(super) const COVERAGE: f64 = 0.95;
 
 /// The median of a resample (with replacement) of `values`.
-pub(super) fn resampled(random: &mut SplitMix, values: &[f64]) -> f64 {
+pub(super) fn resampled(random: &mut Rng, values: &[f64]) -> f64 {
     let drawn: Vec<f64> = (0..values.len())
-        .map(|_| values[random.below(values.len())])
+        .map(|_| values[random.usize(..values.len())])
         .collect();
     median(&drawn)
 }
 
 /// The percentile interval of `statistic` over `RESAMPLES` resamples.
 pub(super) fn bootstrap(
-    random: &mut SplitMix,
-    mut statistic: impl FnMut(&mut SplitMix) -> f64,
+    random: &mut Rng,
+    mut statistic: impl FnMut(&mut Rng) -> f64,
 ) -> (f64, f64) {
     let mut ratios: Vec<f64> = (0..RESAMPLES).map(|_| statistic(random)).collect();
     ratios.sort_by(f64::total_cmp);

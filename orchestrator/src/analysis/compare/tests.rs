@@ -102,14 +102,14 @@ fn short_timings_and_noisy_runs_get_no_verdict() {
 /// A history of two runs of one build, 12 points with 3 % jitter between them.
 fn quiet_history() -> Vec<Stored> {
     let build = "ab".repeat(32);
-    let mut random = SplitMix(7);
+    let mut random = fastrand::Rng::with_seed(7);
     let mut history = Vec::new();
     for key in 0..12 {
         for (k, stamp) in ["2026-01-01T00:00:00Z", "2026-01-01T01:00:00Z"]
             .iter()
             .enumerate()
         {
-            let jitter = 1.0 + 0.02 * (random.below(100) as f64 / 50.0 - 1.0);
+            let jitter = 1.0 + 0.02 * (random.usize(..100) as f64 / 50.0 - 1.0);
             history.push(record(json!({"key": format!("k{key}"), "status": "ok",
                 "solve_s": 2.0 * jitter * (1.0 + 0.01 * k as f64), "run_id": format!("run{k}"),
                 "provenance": {"fingerprint": build, "timestamp": stamp}})));
