@@ -124,14 +124,14 @@ fn the_schema_is_serde_only_and_acyclic() {
 
 #[test]
 fn the_checker_sees_a_cycle_through_a_parent_and_its_child() {
-    let dir = std::env::temp_dir().join(format!("architecture-{}", std::process::id()));
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     std::fs::create_dir_all(dir.join("a")).unwrap();
     std::fs::write(dir.join("lib.rs"), "mod a;\nmod b;\n").unwrap();
     std::fs::write(dir.join("a/mod.rs"), "mod c;\nfn f() { c::g(); }\n").unwrap();
     std::fs::write(dir.join("a/c.rs"), "use super::*;\nuse crate::b::{x, y};\n").unwrap();
     std::fs::write(dir.join("b.rs"), "// crate::a is named in a comment only\n").unwrap();
-    let graph = imports(&dir);
-    std::fs::remove_dir_all(&dir).unwrap();
+    let graph = imports(dir);
     assert_eq!(graph["a"], BTreeSet::from(["a::c".to_string()]));
     assert_eq!(
         graph["a::c"],

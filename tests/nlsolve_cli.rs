@@ -382,8 +382,8 @@ fn the_partition_report_refuses_a_block_shape_that_does_not_multiply_to_the_rank
 /// `--write-diagnostics` writes the record's c_tot(t) series as CSV under a `t,c_tot` header.
 #[test]
 fn the_diagnostics_file_is_the_records_series_as_csv() {
-    let dir = std::env::temp_dir().join(format!("nlsolve-diagnostics-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temporary directory");
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     let path = dir.join("diagnostics.csv");
     let out = nlsolve(
         &[
@@ -432,7 +432,6 @@ fn the_diagnostics_file_is_the_records_series_as_csv() {
         rows.iter().map(|r| r.1).collect::<Vec<_>>(),
         column("c_tot")
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The h the solver reports is the h `nlstudy` gives study expressions (`schema`'s

@@ -7,11 +7,11 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("nlsolve-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temporary directory");
-    dir
+/// A scratch directory and its guard, which removes it however the test ends.
+fn scratch() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let path = dir.path().to_path_buf();
+    (dir, path)
 }
 
 /// The frames of a `.pvd` collection as VTK reads them.
@@ -74,7 +74,7 @@ fn run(dir: &Path, flags: &str) -> (Value, Vec<f64>) {
 
 #[test]
 fn vtk_frames_hold_the_field_at_each_output_time() {
-    let dir = scratch("vtk-frames");
+    let (_scratch, dir) = scratch();
     let (record, field) = run(
         &dir,
         "--dim 2 --n 32 --m 3 --t-end 0.01 --cfl 0.5 --vtk-every 0.004 --diagnostics-every 0.004",
@@ -105,12 +105,11 @@ fn vtk_frames_hold_the_field_at_each_output_time() {
         assert!((u - (tau * x).sin() * (tau * y).sin()).abs() < 1e-15);
     }
     assert_eq!(numbers(&frames[3]["u"]), field);
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
 fn without_vtk_every_the_final_field_alone_is_written_on_its_own_grid() {
-    let dir = scratch("vtk-final");
+    let (_scratch, dir) = scratch();
     let (record, field) = run(
         &dir,
         "--method fd_explicit --problem eigenmode --dim 1 --n 99 --t-end 0.05 --cfl 0.9",
@@ -125,12 +124,11 @@ fn without_vtk_every_the_final_field_alone_is_written_on_its_own_grid() {
     let origin = numbers(&frames[0]["origin"]);
     assert!((origin[0] - (-1.0 + h)).abs() < 1e-15 && origin[1] == 0.0);
     assert_eq!(numbers(&frames[0]["u"]), field);
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
 fn the_field_snapshot_is_block_means_of_the_final_field_and_its_error() {
-    let dir = scratch("snapshot");
+    let (_scratch, dir) = scratch();
     let (record, field) = run(
         &dir,
         "--dim 2 --n 40 --m 3 --t-end 0.01 --cfl 0.5 --field-snapshot 16",
@@ -166,5 +164,4 @@ fn the_field_snapshot_is_block_means_of_the_final_field_and_its_error() {
         largest > 0.0 && largest <= error_max,
         "{largest} vs {error_max}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }

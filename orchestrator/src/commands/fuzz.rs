@@ -144,11 +144,11 @@ fn files(dir: &str, extensions: &[&str]) -> Vec<PathBuf> {
     paths
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("nlstudy-fuzz-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory and its guard, which removes it however the test ends.
+fn scratch() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().to_path_buf();
+    (dir, path)
 }
 
 fn records() -> Vec<Vec<u8>> {
@@ -161,7 +161,7 @@ fn records() -> Vec<Vec<u8>> {
 
 #[test]
 fn fuzz_records_and_history_entries() {
-    let root = scratch("records");
+    let (_scratch, root) = scratch();
     let store = Store::open(&root, "s");
     std::fs::create_dir_all(&store.runs).unwrap();
     std::fs::create_dir_all(store.table("history")).unwrap();
@@ -199,7 +199,6 @@ fn fuzz_records_and_history_entries() {
         let _ = store.history();
         let _ = store.status(name);
     });
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// Every shipped study, as JSON (comments included) and as TOML.
@@ -279,7 +278,7 @@ fn fuzz_site_profiles() {
 fn fuzz_the_ledger_and_the_owner_file() {
     use crate::run::cluster::ledger::{self, LedgerEntry};
     use crate::run::cluster::scheduler::Scheduler;
-    let root = scratch("bookkeeping");
+    let (_scratch, root) = scratch();
     let store = Store::open(&root, "s");
     let entry = LedgerEntry {
         scheduler: Scheduler::Slurm,
@@ -306,7 +305,6 @@ fn fuzz_the_ledger_and_the_owner_file() {
         let _ = store.owner();
         let _ = store.claim(&study, "{}", false, false);
     });
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// The tables `collect` wrote for `studies/first.jsonc`, each with its sum, read as `table`,
@@ -314,7 +312,7 @@ fn fuzz_the_ledger_and_the_owner_file() {
 #[test]
 fn fuzz_parquet_tables() {
     let study = Study::read(Path::new(&format!("{WORKSPACE}/studies/first.jsonc"))).unwrap();
-    let root = scratch("parquet");
+    let (_scratch, root) = scratch();
     let table = root.join("t.parquet");
     for name in ["first-summary", "first"] {
         let original = read(format!("{FIXTURES}/{name}.parquet"));
@@ -355,5 +353,4 @@ fn fuzz_parquet_tables() {
             cases()
         );
     }
-    let _ = std::fs::remove_dir_all(&root);
 }

@@ -232,8 +232,8 @@ mod tests {
 
     #[test]
     fn removal_never_reaches_through_a_symbolic_link() {
-        let root = std::env::temp_dir().join(format!("fs-links-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
+        let temporary = tempfile::tempdir().unwrap();
+        let root = temporary.path().to_path_buf();
         let outside = root.join("outside");
         let results = root.join("results");
         std::fs::create_dir_all(&outside).unwrap();
@@ -251,16 +251,14 @@ mod tests {
             std::fs::symlink_metadata(results.join(".link.partial")).is_err(),
             "the link itself is a leftover and goes"
         );
-        let _ = std::fs::remove_dir_all(&root);
     }
 
     /// A link planted where a write's partial file goes is removed, not followed; a FIFO or a
     /// link where a lock file goes is an error, never waited on.
     #[test]
     fn planted_links_and_fifos_never_take_a_write_or_a_lock() {
-        let root = std::env::temp_dir().join(format!("fs-planted-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        std::fs::create_dir_all(&root).unwrap();
+        let temporary = tempfile::tempdir().unwrap();
+        let root = temporary.path().to_path_buf();
         let precious = root.join("precious");
         std::fs::write(&precious, "years").unwrap();
         let report = root.join("report.html");
@@ -280,14 +278,12 @@ mod tests {
             "a link is not followed"
         );
         assert_eq!(std::fs::read_to_string(&precious).unwrap(), "years");
-        let _ = std::fs::remove_dir_all(&root);
     }
 
     #[test]
     fn a_failed_write_names_its_path_and_leaves_nothing() {
-        let root = std::env::temp_dir().join(format!("fs-write-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        std::fs::create_dir_all(&root).unwrap();
+        let temporary = tempfile::tempdir().unwrap();
+        let root = temporary.path().to_path_buf();
         std::fs::write(root.join("file"), "").unwrap();
         // A path under a regular file: "Not a directory".
         let path = root.join("file").join("record.json");
@@ -298,6 +294,5 @@ mod tests {
         let long = root.join("x".repeat(300));
         let error = write_atomically(&long, b"{}").unwrap_err();
         assert!(error.to_string().contains("xxxxxxxx"), "{error}");
-        let _ = std::fs::remove_dir_all(&root);
     }
 }

@@ -88,9 +88,8 @@ mod tests {
 
     #[test]
     fn a_second_file_of_the_same_name_is_refused_unless_it_adopts() {
-        let dir = std::env::temp_dir().join(format!("nlstudy-owner-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let temporary = tempfile::tempdir().unwrap();
+        let dir = temporary.path().to_path_buf();
         let (first, second) = (dir.join("a.json"), dir.join("b.json"));
         std::fs::write(&first, "{}").unwrap();
         std::fs::write(&second, "{\"other\": 1}").unwrap();
@@ -119,16 +118,14 @@ mod tests {
         let copy = dir.join("copy.json");
         std::fs::write(&copy, "{}").unwrap();
         store.claim(&copy, "{}", false, false).unwrap();
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Two commands of two study files claim one new results directory at once: one owns it,
     /// the other is refused, every time.
     #[test]
     fn of_two_claims_at_once_one_wins() {
-        let dir = std::env::temp_dir().join(format!("nlstudy-owner-race-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let temporary = tempfile::tempdir().unwrap();
+        let dir = temporary.path().to_path_buf();
         let files = [dir.join("a.json"), dir.join("b.json")];
         for file in &files {
             std::fs::write(file, "{}").unwrap();
@@ -148,6 +145,5 @@ mod tests {
             });
             assert_eq!(won.iter().filter(|w| **w).count(), 1, "round {k}: {won:?}");
         }
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -20,10 +20,11 @@ fn keys_are_the_hashes_they_always_were_and_a_point_prints_as_its_case() {
     assert_eq!(serde_json::to_string(map).unwrap(), fields.to_string());
 }
 
-fn scratch(name: &str) -> Store {
-    let dir = std::env::temp_dir().join(format!("store-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    Store::open(&dir, "s")
+/// A store in a scratch directory, removed with the guard however the test ends.
+fn scratch() -> (tempfile::TempDir, Store) {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(dir.path(), "s");
+    (dir, store)
 }
 
 /// A record of the case `{"n": n}` with `status`, keyed as the pool keys it, and its key.
@@ -45,13 +46,9 @@ fn typed(record: &Value) -> Stored {
     serde_json::from_value(record.clone()).expect("a whole record")
 }
 
-fn remove(store: &Store) {
-    let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
-}
-
 #[test]
 fn a_failed_record_never_replaces_a_result_but_a_result_replaces_a_failure() {
-    let store = scratch("replace");
+    let (_dir, store) = scratch();
     let record = |status: &str| keyed(1, status);
     let (k, _) = record("ok");
     assert!(store.save(&k, &typed(&record("failed").1)).unwrap());
@@ -63,14 +60,13 @@ fn a_failed_record_never_replaces_a_result_but_a_result_replaces_a_failure() {
         "a result replaces a result"
     );
     assert_eq!(store.status(&k), Some(Status::Diverged));
-    remove(&store);
 }
 
 /// A result is never deleted: replaced by a run of the same build (`--force`), it moves to
 /// the history too, each replaced one under a name of its own.
 #[test]
 fn a_replaced_result_moves_to_history_even_from_the_same_build() {
-    let store = scratch("force");
+    let (_dir, store) = scratch();
     let build = "ab".repeat(32);
     let (k, record) = keyed(2, "ok");
     let record = with_fingerprint(record, &build);
@@ -101,7 +97,6 @@ fn a_replaced_result_moves_to_history_even_from_the_same_build() {
     store.save(&k3, &typed(&failed)).unwrap();
     store.save(&k3, &typed(&keyed(3, "ok").1)).unwrap();
     assert_eq!(store.history().records.len(), 2);
-    remove(&store);
 }
 
 /// A stored record's fingerprint reaches a file name only as 64 hex digits: a traversal, a
@@ -109,7 +104,7 @@ fn a_replaced_result_moves_to_history_even_from_the_same_build() {
 /// and the file the traversal aimed at stays as it was.
 #[test]
 fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
-    let store = scratch("traversal");
+    let (_dir, store) = scratch();
     let root = store.runs.parent().unwrap().parent().unwrap().to_path_buf();
     let (k, record) = keyed(4, "ok");
     // The directory the traversal needs, and its target (inside the scratch directory).
@@ -142,7 +137,6 @@ fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
         .iter()
         .filter(|p| p.is_file())
         .all(|p| p.to_string_lossy().contains(&format!("{k}.unknown"))));
-    remove(&store);
 }
 
 /// Runs `read` on another thread: `None` when it has not returned within `limit` (a hang).
@@ -161,7 +155,7 @@ fn within<T: Send + 'static>(
 /// end or waited on: a link to /dev/zero, a FIFO, a directory, an oversized file.
 #[test]
 fn files_that_are_not_regular_files_are_reported_never_read() {
-    let store = scratch("not-regular");
+    let (_dir, store) = scratch();
     let history = store.table("history");
     std::fs::create_dir_all(&store.runs).unwrap();
     std::fs::create_dir_all(&history).unwrap();
@@ -200,14 +194,13 @@ fn files_that_are_not_regular_files_are_reported_never_read() {
     let scan = within(limit, move || (runs.scan(), runs.history())).expect("a scan hangs");
     assert_eq!((scan.0.records.len(), scan.0.unreadable.len()), (1, 5));
     assert_eq!((scan.1.records.len(), scan.1.unreadable.len()), (0, 2));
-    remove(&store);
 }
 
 /// A record is used only when its key is the hash of its case, solver version and repeat:
 /// an edited case, a record copied under another key, a changed repeat are reported.
 #[test]
 fn a_record_whose_key_is_not_its_identity_is_reported_not_used() {
-    let store = scratch("identity");
+    let (_dir, store) = scratch();
     std::fs::create_dir_all(&store.runs).unwrap();
     let (k, record) = keyed(6, "ok");
     let (other, _) = keyed(7, "ok");
@@ -235,12 +228,11 @@ fn a_record_whose_key_is_not_its_identity_is_reported_not_used() {
     std::fs::remove_file(store.path(&other)).unwrap();
     std::fs::write(store.path(&k), record.to_string()).unwrap();
     assert_eq!(store.status(&k), Some(Status::Ok));
-    remove(&store);
 }
 
 #[test]
 fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
-    let store = scratch("lock");
+    let (_dir, store) = scratch();
     std::fs::create_dir_all(store.work_dir()).unwrap();
     let leftover = store.work_dir().join("k.out");
     let partial = store.runs.join(".k.json.999.partial");
@@ -252,12 +244,11 @@ fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
     assert!(store.lock("other").unwrap().is_some());
     drop(held);
     assert!(store.lock("k").unwrap().is_some(), "released with its file");
-    let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
 }
 
 #[test]
 fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
-    let store = scratch("lock-files");
+    let (_dir, store) = scratch();
     let lock_path = |key: &str| store.work_dir().join(format!("{key}.lock"));
     let (done, ok) = keyed(8, "ok");
     let (broken, failed) = keyed(9, "failed");
@@ -279,12 +270,11 @@ fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
     let again = store.lock(&done).unwrap().expect("free");
     assert_eq!(store.status(&done), Some(Status::Ok));
     drop(again);
-    let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
 }
 
 #[test]
 fn abandoned_output_partials_are_cleared_only_while_no_writer_holds_the_outputs() {
-    let store = scratch("outputs");
+    let (_dir, store) = scratch();
     std::fs::create_dir_all(&store.runs).unwrap();
     let partial = store.table(".t.parquet.999.partial");
     std::fs::write(&partial, "PAR1").unwrap();
@@ -295,14 +285,13 @@ fn abandoned_output_partials_are_cleared_only_while_no_writer_holds_the_outputs(
     drop(writer);
     store.clear_abandoned_outputs().unwrap();
     assert!(!partial.exists(), "an abandoned partial file is cleared");
-    let _ = std::fs::remove_dir_all(store.runs.parent().unwrap().parent().unwrap());
 }
 
 /// The index's quick read names its fields as `Stored` and `Record` do: whole records read the
 /// same through both (a field renamed in the schema and not in the index fails here).
 #[test]
 fn the_index_reads_what_the_typed_record_says() {
-    let store = scratch("index-typed");
+    let (_dir, store) = scratch();
     let keyed = |mut stored: Stored| {
         let (case_id, key) = case_id_and_key(&stored.case().to_string(), &stored.solver_version, 0);
         (stored.key, stored.case_id) = (key.to_string(), Some(case_id.to_string()));
@@ -333,5 +322,4 @@ fn the_index_reads_what_the_typed_record_says() {
     assert_eq!(index.stored[&failed.key].status, Status::Failed);
     assert_eq!(index.failed, [(failed.key.clone(), "refused".to_string())]);
     assert_eq!(store.records().len(), 2);
-    remove(&store);
 }

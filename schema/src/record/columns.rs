@@ -1,7 +1,14 @@
 //! The record's columns: the names its fields take in the tables (`field`, or `group.field`
 //! for a member of a nested group, flattened), the one place a record field is named as text.
 
-use super::*;
+use super::field::{FieldSnapshot, Histogram, MassSeries};
+use super::method::{Coupling, PatchTest, Spectrum};
+use super::provenance::{Load, Provenance};
+use super::run::{
+    Distribution, FetiPhases, ImplicitSolves, Record, Resolved, SteadySolve, Traffic,
+};
+use super::status::Status;
+use super::stored::{Outcome, Stored};
 use crate::choices::{Backend, Collar, Integrator, Partition, Quadrature};
 use serde_json::{json, Map, Value};
 use std::sync::OnceLock;

@@ -5,7 +5,7 @@
 use super::field::{FieldSnapshot, Histogram, MassSeries};
 use super::method::{Coupling, PatchTest};
 use super::provenance::Provenance;
-use super::Status;
+use super::status::Status;
 use crate::case::Case;
 use crate::choices::{Backend, Collar, Integrator, Partition, Quadrature};
 use serde::{Deserialize, Serialize};

@@ -5,7 +5,7 @@
 
 use super::provenance::Provenance;
 use super::run::Record;
-use super::Status;
+use super::status::Status;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::{Map, Value};

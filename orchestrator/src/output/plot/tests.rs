@@ -309,8 +309,8 @@ fn a_field_figure_maps_one_points_field_and_its_error() {
 
 #[test]
 fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
-    let dir = std::env::temp_dir().join(format!("nlstudy-plot-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let temporary = tempfile::tempdir().unwrap();
+    let dir = temporary.path().to_path_buf();
     let store = Store::open(&dir, "synthetic");
     std::fs::create_dir_all(store.table("")).unwrap();
     let table = store.table("synthetic-summary.parquet");
@@ -348,7 +348,6 @@ fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
         7,
         "a changed table redraws all"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The `<text>` elements of an SVG: (text, font size, x, y, fill).
@@ -570,8 +569,8 @@ fn a_figure_that_cannot_be_made_says_why() {
 
 #[test]
 fn a_failing_figure_leaves_the_others_drawn() {
-    let dir = std::env::temp_dir().join(format!("nlstudy-plot-fail-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let temporary = tempfile::tempdir().unwrap();
+    let dir = temporary.path().to_path_buf();
     let store = Store::open(&dir, "synthetic");
     std::fs::create_dir_all(store.table("")).unwrap();
     let table = store.table("synthetic-summary.parquet");
@@ -601,5 +600,4 @@ fn a_failing_figure_leaves_the_others_drawn() {
         summary.starts_with("1 of 7 figures not drawn: figures[1] (weak)"),
         "{summary}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -67,8 +67,8 @@ fn a_case_field_wins_over_the_record_column_of_the_same_name() {
 
 #[test]
 fn a_table_reads_back_typed_with_its_description_units_and_notes() {
-    let dir = std::env::temp_dir().join(format!("table-typed-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let temporary = tempfile::tempdir().unwrap();
+    let dir = temporary.path().to_path_buf();
     let path = dir.join("t.parquet");
     let rows = [
         row(json!({"point": "n=16", "workers": 2, "solve_s_median": 0.5,
@@ -120,7 +120,6 @@ fn a_table_reads_back_typed_with_its_description_units_and_notes() {
     assert_eq!(back[1].get("c_tot.time"), Some(&json!([])));
     assert_eq!(back[1].get("c_tot.c_tot"), Some(&Value::Null));
     assert_eq!(back[1].get("workers"), Some(&json!(4)));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -21,11 +21,11 @@ const HOSTILE: &[&str] = &[
 
 const SCHEDULERS: [Scheduler; 2] = [Scheduler::Slurm, Scheduler::Lsf];
 
-fn sandbox(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("script-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory and its guard, which removes it however the test ends.
+fn sandbox() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().to_path_buf();
+    (dir, path)
 }
 
 /// Runs the script at `path` with bash in `dir` (and `env`), asserting it succeeds.
@@ -80,7 +80,7 @@ fn hostile_resource_values_are_refused_naming_the_field_and_the_flag() {
 /// `nlstudy`, which receives exactly the job's arguments.
 #[test]
 fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
-    let root = sandbox("hostile");
+    let (_sandbox, root) = sandbox();
     let resources = Resources {
         nodes: NonZeroUsize::new(2),
         tasks: NonZeroUsize::new(2),
@@ -183,7 +183,6 @@ fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
         }
     }
     assert!(ran > 60, "only {ran} scripts ran");
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// `submit --launcher` reaches the job's `nlstudy run` as one argument that splits back
@@ -191,7 +190,7 @@ fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
 /// one host.
 #[test]
 fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
-    let root = sandbox("launcher");
+    let (_sandbox, root) = sandbox();
     let given = "env \"A=$(touch MARK) b\" srun --mpi=pmi2 -n {ranks}";
     let launcher: Launcher = given.parse().unwrap();
     let command = JobCommand {
@@ -249,7 +248,6 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
             "the launcher ran a command:\n{text}"
         );
     }
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// Every field of a site profile lands in both schedulers' scripts in its place: checked
@@ -257,7 +255,7 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
 /// command; and the script still runs only the stub with the job's arguments.
 #[test]
 fn every_site_profile_field_lands_in_both_schedulers_scripts() {
-    let root = sandbox("site");
+    let (_sandbox, root) = sandbox();
     let profile = |scheduler: &str, slurm_only: &str| {
         format!(
             r#"
@@ -393,13 +391,12 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
         );
         std::fs::remove_file(&module).unwrap();
     }
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// An array's element runs its own bundle: Slurm's index from 0, LSF's from 1.
 #[test]
 fn each_array_element_runs_its_own_bundle() {
-    let root = sandbox("array");
+    let (_sandbox, root) = sandbox();
     let command = JobCommand {
         nlstudy: root.join("bin/nlstudy"),
         study: root.join("s.json"),
@@ -461,7 +458,6 @@ fn each_array_element_runs_its_own_bundle() {
             );
         }
     }
-    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// A shebang, then only directives (one option each), then the shell options and one
@@ -515,7 +511,7 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn an_earlier_submits_scripts_are_archived_not_left_beside_the_new_ones() {
-    let root = sandbox("archive");
+    let (_sandbox, root) = sandbox();
     let jobs = root.join("jobs");
     std::fs::create_dir_all(&jobs).unwrap();
     std::fs::write(jobs.join("nlstudy-s-0.sbatch"), "old").unwrap();
@@ -528,5 +524,4 @@ fn an_earlier_submits_scripts_are_archived_not_left_beside_the_new_ones() {
         .flatten()
         .collect();
     assert_eq!(archived.len(), 1);
-    let _ = std::fs::remove_dir_all(&root);
 }
