@@ -10,11 +10,11 @@ use crate::output::status::counts_by_status;
 use crate::store::fs::{read_regular, Fault, RECORD_CAP};
 use crate::store::table::{self, Row};
 use crate::store::{write_atomically, Store};
+use maud::{html, Markup, PreEscaped, DOCTYPE};
 use schema::record::columns;
 use schema::record::{Provenance, Status, Stored};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Writes the report of `study` (whose swept fields are `swept`) and returns its path. It needs
@@ -47,35 +47,40 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
         true => table::read_parquet(&summary_path)?,
         false => Vec::new(),
     };
-    let mut page = String::new();
-    let title = format!("Study {}", escape(&study.name));
-    let _ = write!(
-        page,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{title}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>{title}</h1>\n"
-    );
-    if !study.description.is_empty() {
-        let _ = writeln!(
-            page,
-            "<p class=\"description\">{}</p>",
-            escape(&study.description)
-        );
-    }
-    if from_table {
-        let _ = writeln!(
-            page,
-            "<p class=\"source\">Built from the run table {} alone: the stored records are not in this folder, so what they alone hold (the c_tot series, field snapshots, the history of earlier builds) is not shown.</p>",
-            escape(&run_table.file_name().unwrap_or_default().to_string_lossy())
-        );
-    }
-    runs_section(&mut page, &records);
-    figures_section(&mut page, study, store, &summary, &records);
-    summary_section(&mut page, &summary, swept);
-    comparison_section(&mut page, store);
-    failures_section(&mut page, &records);
-    provenance_section(&mut page, &records);
-    page.push_str("</body>\n</html>\n");
+    let title = format!("Study {}", study.name);
+    // maud escapes every value it interpolates: no string of the study or the store becomes
+    // markup of the page.
+    let page = html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                title { (title) }
+                style { (PreEscaped(STYLE)) }
+            }
+            body {
+                h1 { (title) }
+                @if !study.description.is_empty() {
+                    p.description { (study.description) }
+                }
+                @if from_table {
+                    p.source {
+                        "Built from the run table "
+                        (run_table.file_name().unwrap_or_default().to_string_lossy())
+                        " alone: the stored records are not in this folder, so what they alone hold (the c_tot series, field snapshots, the history of earlier builds) is not shown."
+                    }
+                }
+                (runs_section(&records))
+                (figures_section(study, store, &summary, &records))
+                (summary_section(&summary, swept))
+                (comparison_section(store))
+                (failures_section(&records))
+                (provenance_section(&records))
+            }
+        }
+    };
     let path = store.table("report.html");
-    write_atomically(&path, page.as_bytes())?;
+    write_atomically(&path, page.into_string().as_bytes())?;
     Ok(path)
 }
 
@@ -111,52 +116,41 @@ fn stored_of_row(row: &Row) -> Result<Stored, String> {
 }
 
 /// The stored runs counted by status.
-fn runs_section(page: &mut String, records: &[Stored]) {
-    let _ = writeln!(page, "<h2>Runs</h2>\n<p>{} stored runs:", records.len());
-    let _ = writeln!(page, "{}.</p>", counts_by_status(records).join(", "));
+fn runs_section(records: &[Stored]) -> Markup {
+    html! {
+        h2 { "Runs" }
+        p { (records.len()) " stored runs: " (counts_by_status(records).join(", ")) "." }
+    }
 }
 
 /// Each figure of the study inline, its title as the caption with the builds and machines its
 /// points were run on; one not drawn yet is named.
-fn figures_section(
-    page: &mut String,
-    study: &Study,
-    store: &Store,
-    summary: &[Row],
-    records: &[Stored],
-) {
+fn figures_section(study: &Study, store: &Store, summary: &[Row], records: &[Stored]) -> Markup {
     if study.figures.is_empty() {
-        return;
+        return html! {};
     }
-    page.push_str("<h2>Figures</h2>\n");
-    for (k, spec) in study.figures.iter().enumerate() {
-        let [svg, _] = crate::output::plot::files(&spec.name);
-        let path = store.table("figures").join(svg);
-        let caption = escape(spec.title.as_deref().unwrap_or(&spec.name));
-        let made_by = made_by(spec, k, summary, records);
-        match read_regular(&path, RECORD_CAP) {
-            Ok(svg) => {
-                let _ = writeln!(
-                    page,
-                    "<figure id=\"figure-{}\">\n{}\n<figcaption>{caption}{made_by}</figcaption>\n</figure>",
-                    escape(&spec.name),
-                    image(&svg, &caption)
-                );
-            }
-            Err(_) => {
-                let _ = writeln!(
-                    page,
-                    "<p>Figure <em>{caption}</em> is not drawn: `nlstudy plot` draws it or says why it cannot.</p>"
-                );
+    html! {
+        h2 { "Figures" }
+        @for (k, spec) in study.figures.iter().enumerate() {
+            @let [svg, _] = crate::output::plot::files(&spec.name);
+            @let caption = spec.title.as_deref().unwrap_or(&spec.name);
+            @match read_regular(&store.table("figures").join(svg), RECORD_CAP) {
+                Ok(svg) => figure id=(format!("figure-{}", spec.name)) {
+                    (image(&svg, caption))
+                    figcaption { (caption) (made_by(spec, k, summary, records)) }
+                },
+                Err(_) => p {
+                    "Figure " em { (caption) } " is not drawn: `nlstudy plot` draws it or says why it cannot."
+                },
             }
         }
     }
 }
 
 /// The last `nlstudy compare` of the study, if any: its figure and its verdicts counted.
-fn comparison_section(page: &mut String, store: &Store) {
+fn comparison_section(store: &Store) -> Markup {
     let Ok(svg) = read_regular(&store.table("compare.svg"), RECORD_CAP) else {
-        return;
+        return html! {};
     };
     let verdicts = table::read_parquet(&store.table("compare.parquet"))
         .map(|rows| {
@@ -173,22 +167,22 @@ fn comparison_section(page: &mut String, store: &Store) {
                 .join(", ")
         })
         .unwrap_or_default();
-    let _ = writeln!(
-        page,
-        "<h2>Comparison</h2>\n<p>The last <code>nlstudy compare</code>: {} (metrics of points; compare.parquet holds each).</p>\n<figure id=\"compare\">\n{}\n</figure>",
-        escape(&verdicts),
-        image(&svg, "the last comparison")
-    );
+    html! {
+        h2 { "Comparison" }
+        p {
+            "The last " code { "nlstudy compare" } ": " (verdicts)
+            " (metrics of points; compare.parquet holds each)."
+        }
+        figure id="compare" { (image(&svg, "the last comparison")) }
+    }
 }
 
 /// A figure of the results directory as an image, never as markup of the page: anyone who can
 /// write there could plant an SVG with a script, and a browser runs none from an `<img>`.
-fn image(svg: &str, alt: &str) -> String {
+fn image(svg: &str, alt: &str) -> Markup {
     use base64::Engine;
-    format!(
-        "<img alt=\"{alt}\" src=\"data:image/svg+xml;base64,{}\">",
-        base64::engine::general_purpose::STANDARD.encode(svg)
-    )
+    let data = base64::engine::general_purpose::STANDARD.encode(svg);
+    html! { img alt=(alt) src=(format!("data:image/svg+xml;base64,{data}")); }
 }
 
 /// ` (runs of build e27b0c1a on vm: Intel Xeon, avx512f)`: the builds and machines of the runs
@@ -228,59 +222,53 @@ fn made_by(
     if builds.is_empty() {
         return String::new();
     }
-    escape(&format!(
+    format!(
         " (runs of build {} on {}: {}, {})",
         builds.join(" and "),
         of(|p| &p.host).join(", "),
         of(|p| &p.cpu).join(", "),
         of(|p| &p.instruction_set).join(", ")
-    ))
+    )
 }
 
 /// The summary table's swept fields and headline results, one row per point.
-fn summary_section(page: &mut String, summary: &[Row], swept: &[String]) {
+fn summary_section(summary: &[Row], swept: &[String]) -> Markup {
     if summary.is_empty() {
-        return;
+        return html! {};
     }
     let (names, lines) = headline(summary, swept);
-    page.push_str("<h2>Summary</h2>\n<table>\n<tr>");
-    for name in &names {
-        let _ = write!(page, "<th>{}</th>", escape(name));
-    }
-    page.push_str("</tr>\n");
-    for line in &lines {
-        page.push_str("<tr>");
-        for cell in line {
-            let _ = write!(page, "<td>{}</td>", escape(cell));
+    html! {
+        h2 { "Summary" }
+        table {
+            tr { @for name in &names { th { (name) } } }
+            @for line in &lines {
+                tr { @for cell in line { td { (cell) } } }
+            }
         }
-        page.push_str("</tr>\n");
     }
-    page.push_str("</table>\n");
 }
 
 /// Every failed run: its key, its case and its message.
-fn failures_section(page: &mut String, records: &[Stored]) {
+fn failures_section(records: &[Stored]) -> Markup {
     let failed: Vec<&Stored> = records
         .iter()
         .filter(|r| r.status() == Status::Failed)
         .collect();
     if failed.is_empty() {
-        return;
+        return html! {};
     }
-    let _ = writeln!(page, "<h2>Failures</h2>");
-    for record in failed {
-        let _ = writeln!(
-            page,
-            "<h3>{}</h3>\n<p>Case: <code>{}</code></p>\n<pre>{}</pre>",
-            escape(&record.key),
-            escape(&record.case().to_string()),
-            escape(record.message())
-        );
+    html! {
+        h2 { "Failures" }
+        @for record in failed {
+            h3 { (record.key) }
+            p { "Case: " code { (record.case().to_string()) } }
+            pre { (record.message()) }
+        }
     }
 }
 
 /// What the runs were made with and where, as the records tell it, and when.
-fn provenance_section(page: &mut String, records: &[Stored]) {
+fn provenance_section(records: &[Stored]) -> Markup {
     let values = |field: fn(&Provenance) -> Option<&str>| -> String {
         let set: BTreeSet<&str> = records
             .iter()
@@ -291,8 +279,7 @@ fn provenance_section(page: &mut String, records: &[Stored]) {
     let stamps = values(|p| Some(&p.timestamp));
     let first = stamps.split(", ").next().unwrap_or("");
     let last = stamps.split(", ").last().unwrap_or("");
-    page.push_str("<h2>Provenance</h2>\n<table>\n");
-    for (name, value) in [
+    let rows = [
         ("solver version", values(|p| Some(&p.solver_version))),
         ("solver fingerprint", values(|p| Some(&p.fingerprint))),
         ("git revision", values(|p| p.git_revision.as_deref())),
@@ -309,18 +296,15 @@ fn provenance_section(page: &mut String, records: &[Stored]) {
             "report by",
             format!("nlstudy {}", env!("CARGO_PKG_VERSION")),
         ),
-    ] {
-        let _ = writeln!(page, "<tr><th>{name}</th><td>{}</td></tr>", escape(&value));
+    ];
+    html! {
+        h2 { "Provenance" }
+        table {
+            @for (name, value) in &rows {
+                tr { th { (name) } td { (value) } }
+            }
+        }
     }
-    page.push_str("</table>\n");
-}
-
-/// Text made safe inside HTML elements and attribute values.
-fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
 }
 
 #[cfg(test)]
@@ -339,10 +323,9 @@ mod tests {
                 row
             })
             .collect();
-        let mut page = String::new();
-        summary_section(&mut page, &summary, &["n".to_string()]);
+        let page = summary_section(&summary, &["n".to_string()]).into_string();
         assert!(
-            page.contains("<tr><th>n</th><th>error_l2_norm</th></tr>\n<tr><td>16</td><td>3e-6</td></tr>\n<tr><td>32</td><td>9.451e-9</td></tr>"),
+            page.contains("<tr><th>n</th><th>error_l2_norm</th></tr><tr><td>16</td><td>3e-6</td></tr><tr><td>32</td><td>9.451e-9</td></tr>"),
             "{page}"
         );
     }
