@@ -284,11 +284,16 @@ fn change(
 /// summaries.
 pub fn compare_orders(a: &[Row], b: &[Row]) -> Vec<Change> {
     let mut changes = Vec::new();
+    let b_by_point: HashMap<&str, &Row> = b
+        .iter()
+        .rev() // the first row of a point wins, as a search from the front would find it
+        .filter_map(|r| Some((r.text("point")?, r)))
+        .collect();
     for row_a in a {
         let Some(point) = row_a.text("point") else {
             continue;
         };
-        let Some(row_b) = b.iter().find(|r| r.text("point") == Some(point)) else {
+        let Some(row_b) = b_by_point.get(point) else {
             continue;
         };
         for &metric in ORDERS {
