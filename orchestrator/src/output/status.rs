@@ -117,19 +117,23 @@ fn jobs_report(out: &mut String, store: &Store, index: &Index) {
     }
 }
 
-/// The state of each job and element: from Slurm's accounting when the cluster keeps it (one
-/// `sacct` call; it also knows how ended jobs ended), else from the queue (ended jobs absent).
+/// The state of each job and element: the queue's for the jobs in it, and for the others Slurm's
+/// accounting when the cluster keeps it (one `sacct` call; it knows how ended jobs ended). The
+/// queue wins where both know a job: accounting lags behind the controller, and a job allocated
+/// a moment ago (its first points already stored) was still `pending` there.
 fn job_states(
     scheduler: Scheduler,
     entries: &[LedgerEntry],
 ) -> Result<HashMap<String, String>, String> {
+    let live = scheduler::live_jobs(scheduler);
     if scheduler == Scheduler::Slurm {
         let ids: Vec<&str> = entries.iter().map(|e| e.id.as_str()).collect();
-        if let Ok(states) = scheduler::accounted_states(&ids) {
+        if let Ok(mut states) = scheduler::accounted_states(&ids) {
+            states.extend(live.unwrap_or_default());
             return Ok(states);
         }
     }
-    scheduler::live_jobs(scheduler)
+    live
 }
 
 /// `timeout (ended at its time limit: …)`; `running`, not `running (running)`.
