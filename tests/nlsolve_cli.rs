@@ -461,28 +461,11 @@ fn every_method_reports_the_grid_spacing_and_the_columns_of_the_schema() {
         let rec = record(&out);
         let parsed = Case::parse(rec["case"].clone()).unwrap();
         assert_eq!(rec["h"].as_f64(), Some(parsed.h()), "{case}");
-        for column in flattened_names("", &rec) {
+        for column in schema::record::columns::flattened_names(&rec) {
             assert!(
                 schema::record::is_column(&column),
                 "{case}: the record's column `{column}` is not a column of schema::record"
             );
         }
-    }
-}
-
-/// A record's names as the tables flatten them (`field.values`).
-fn flattened_names(prefix: &str, value: &Value) -> Vec<String> {
-    match value.as_object() {
-        Some(fields) => fields
-            .iter()
-            .flat_map(|(name, inner)| {
-                let name = match prefix {
-                    "" => name.clone(),
-                    _ => format!("{prefix}.{name}"),
-                };
-                flattened_names(&name, inner)
-            })
-            .collect(),
-        None => vec![prefix.to_string()],
     }
 }

@@ -101,8 +101,7 @@ pub const TABULATED: &[&str] = &["threads"];
 pub fn columns() -> &'static [String] {
     static COLUMNS: OnceLock<Vec<String>> = OnceLock::new();
     COLUMNS.get_or_init(|| {
-        let mut columns = Vec::new();
-        flatten("", &every_field().to_value(), &mut columns);
+        let mut columns = flattened_names(&every_field().to_value());
         columns.retain(|c| !c.starts_with("case."));
         columns.extend(TABULATED.iter().map(|c| c.to_string()));
         columns
@@ -113,6 +112,13 @@ pub fn columns() -> &'static [String] {
 /// (`case.<field>`, nested ones included).
 pub fn is_column(name: &str) -> bool {
     name.strip_prefix("case.").is_some_and(|f| !f.is_empty()) || columns().iter().any(|c| c == name)
+}
+
+/// The names the tables give `record`'s fields, flattened (`group.field`), in its order.
+pub fn flattened_names(record: &Value) -> Vec<String> {
+    let mut names = Vec::new();
+    flatten("", record, &mut names);
+    names
 }
 
 fn flatten(prefix: &str, value: &Value, columns: &mut Vec<String>) {
