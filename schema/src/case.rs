@@ -7,6 +7,8 @@
 //! `nlstudy` read the same case.
 
 use crate::choices::*;
+#[cfg(feature = "cli")]
+use crate::cli::{finite_number, pair};
 use crate::error::{field_names, FieldError, Subject};
 use serde::{Deserialize, Serialize};
 
@@ -24,129 +26,186 @@ pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+// The fields' docs are `nlsolve run --help`'s too, so they cite papers as [KEY], unlinked.
+#[allow(rustdoc::broken_intra_doc_links)]
 pub struct Case {
+    /// Method: `nonlocal` (eq. 2.1, stepped by `integrator`); `fd_explicit`, `adi` or `pse`
+    /// (local diffusion, [HPCSE]); `steady_cg` or `feti` (the steady problem of [XGDF]);
+    /// `patch_test` (a variable horizon's patch tests, [LSSM]); `coupled_1d` ([LSSM]'s
+    /// optimization-based local–nonlocal coupling).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub method: Method,
     /// Dimension d of D = [0,1]^d: 1 or 2.
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub dim: usize,
     /// Nodes per side; h = 1/n.
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub n: usize,
-    /// Horizon in cells, ε = m·h (for `pse`, the kernel width in particle spacings). Give `m`
-    /// or `eps`.
+    /// Horizon in cells, ε = m·h; give `m` or `eps`. For `pse`, the kernel width in spacings.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub m: Option<usize>,
-    /// Horizon as a length; then m = ⌈ε/h⌉ (for `pse`, ε itself).
+    /// Horizon as a length in (0, 0.5]; m = ⌈ε/h⌉. For `pse`, the kernel width ε ≤ L/2.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub eps: Option<f64>,
+    /// Influence function J of the nonlocal operator.
     #[serde(default = "default_kernel")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub kernel: Kernel,
-    /// The nonlocal operator's quadrature: `midpoint` (\[JD]), `partial_volume` or `ac`.
-    /// Left out of the case's JSON when `midpoint`, so keys of earlier runs stay valid.
+    /// Quadrature of the nonlocal operator: `midpoint` ([JD]), `partial_volume` or `ac` (exact
+    /// on quadratics, [RKAC]).
+    // Left out of the case's JSON when `midpoint`, so keys of earlier runs stay valid.
     #[serde(default, skip_serializing_if = "Quadrature::is_midpoint")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub quadrature: Quadrature,
+    /// Operator backend: `auto` (stencil or fft by the cost model), `stencil` (precomputed
+    /// weights), `fft` (convolution by FFT) or `neighbour_list` (Algorithm 1, the oracle).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub backend: Backend,
-    /// k of the local limit kΔ (eq. 1.4).
+    /// Diffusivity k of the local limit kΔ (eq. 1.4; default 1).
     #[serde(default = "one")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number, required = false))]
     pub diffusivity: f64,
+    /// Problem: `manufactured` or `bump` (nonlocal); `eigenmode` or `square` (`fd_explicit`,
+    /// `adi`, `pse`).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub problem: Problem,
-    /// The collar's values: `zero` (eq. 2.2) or `exact` (the manufactured solution continued,
-    /// a nonhomogeneous volume constraint). Left out of the case's JSON when `zero`.
+    /// Collar values: `zero` (eq. 2.2) or `exact` (the manufactured solution continued, a
+    /// nonhomogeneous volume constraint).
+    // Left out of the case's JSON when `zero`.
     #[serde(default, skip_serializing_if = "Collar::is_zero")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub collar: Collar,
-    /// Source mode; `continuum` for `manufactured` and `none` for `bump` when absent.
+    /// Source of the problem (default: `continuum` for `manufactured`, `none` for `bump`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub source: Option<SourceMode>,
-    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in \[HPCSE]).
+    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2, as in [HPCSE]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub length: Option<f64>,
-    /// Final time T (time-dependent methods).
+    /// Final time T of the time-dependent methods.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub t_end: Option<f64>,
-    /// Time step, lowered so that an integer number of steps reaches T. Give `dt` or `cfl`.
+    /// Time step, lowered so that whole steps reach T; give `dt` or `cfl`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub dt: Option<f64>,
-    /// Time step as a fraction of dt_stable (for the implicit integrators, of forward Euler's).
+    /// Time step as a fraction of the stable step dt_stable (for the implicit integrators, of
+    /// forward Euler's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub cfl: Option<f64>,
-    /// The nonlocal method's time integrator. Left out of the case's JSON when `forward_euler`,
-    /// so keys of earlier runs stay valid.
+    /// Time integrator of `nonlocal`: explicit (`forward_euler`, eq. 2.1, is the default) or
+    /// implicit (`backward_euler`, `crank_nicolson`: a preconditioned Krylov solve per step).
+    // Left out of the case's JSON when `forward_euler`, so keys of earlier runs stay valid.
     #[serde(default, skip_serializing_if = "Integrator::is_forward_euler")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub integrator: Integrator,
     /// Accept a dt above dt_stable (stability studies); the run may end `diverged`.
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub allow_unstable: bool,
     /// Compute e = Σₖ eᵏ over every step (one extra pass per step, outside the timings).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub error_total: bool,
-    /// Time between samples of c_tot(t) = h^d Σ c (\[HPCSE]'s diagnostics.dat), rounded to whole
+    /// Time between samples of c_tot(t) = h^d Σ c ([HPCSE]'s diagnostics.dat), rounded to whole
     /// steps; the series goes into the record. Absent: no series.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub diagnostics_every: Option<f64>,
-    /// Bins of a histogram of the final field's values over [min, max] (\[HPCSE]'s
+    /// Bins of a histogram of the final field's values over [min, max] ([HPCSE]'s
     /// compute_histogram). Absent: no histogram.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub histogram_bins: Option<usize>,
     /// Blocks per side of a coarse copy of the final field (and of its error, when the problem
     /// has an exact solution) put into the record for heat maps: block means, at most 256.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub field_snapshot: Option<usize>,
     /// Time between frames of the field kept for `nlsolve run --write-vtk DIR` (t = 0, each
     /// output time, the end). Absent: --write-vtk writes the final field only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub vtk_every: Option<f64>,
-    /// Threads of the rayon pool that runs the case (on each rank).
+    /// Threads (rayon) on each rank; results are bitwise the same for any count.
     #[serde(default = "one_thread")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub threads: usize,
-    /// MPI ranks: the run must be started by `mpirun -n ranks`.
+    /// MPI ranks; must match `mpirun -n`. Results are bitwise the same for any count.
     #[serde(default = "one_thread")]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub ranks: usize,
-    /// How the grid is divided among ranks.
+    /// How the grid is divided among ranks: `block` (px × py rectangles) or `graph` (METIS).
     #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, required = false))]
     pub partition: Partition,
     /// Blocks along x of a `block` partition; chosen to minimise the halo when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub px: Option<usize>,
     /// Blocks along y of a `block` partition (2D).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub py: Option<usize>,
-    /// Relative tolerance of the iteration: steady methods (default 1e-5, \[XGDF]'s) and the
-    /// implicit integrators' solves (default: tied to the time error, see `integrate::theta`).
+    /// Relative tolerance of the iteration: steady methods (default 1e-5, [XGDF]'s) and the
+    /// implicit integrators' solves (default: tied to the time error).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub rtol: Option<f64>,
-    /// Most iterations before a solve stops as not converged (steady default 100000; implicit
-    /// integrators 1000 per step).
+    /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
+    /// the implicit integrators (default 1000 per step).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub max_iterations: Option<usize>,
     /// `feti`: subdomains per side, p (p × p in all; p² may exceed the ranks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub subdomains: Option<usize>,
-    /// `feti`: the preconditioner (default `dirichlet`).
+    /// `feti`'s preconditioner: `dirichlet` (default; Cholesky interior solves), `dirichlet_cg`
+    /// (5 CG iterations for them), `dirichlet_scaled` (multiplicity scaling) or `none`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub preconditioner: Option<FetiPreconditioner>,
     /// The implicit integrators' Krylov method: `cg` or `bicgstab` (default: CG for a symmetric
     /// L_h, BiCGStab for the non-symmetric forms of a varying horizon).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub krylov: Option<Krylov>,
-    /// `patch_test` and `nonlocal`: how ε varies along x (default `constant`, from `eps` or `m`).
+    /// `patch_test` and `nonlocal`: how ε varies along x, as JSON: `{"kind": "constant"}` (the
+    /// default, from `eps` or `m`), `{"kind": "linear", "left": a, "right": b}` or
+    /// `{"kind": "transition", "left": a, "right": b, "start": s, "end": e}`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "JSON"))]
     pub horizon_profile: Option<HorizonProfile>,
-    /// `patch_test` and a varying-horizon `nonlocal`: `standard` (default), `x_centred` or
-    /// `partial_stress`.
+    /// `patch_test` and a varying-horizon `nonlocal`: `standard` (default: pairwise bonds, ghost
+    /// forces where ε varies), `x_centred` (each node on its own horizon: exact on the patch
+    /// tests and stable, not symmetric) or `partial_stress`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub formulation: Option<Formulation>,
     /// `patch_test`: the prescribed field, `linear` (default) or `quadratic`; `coupled_1d`: the
     /// exact solution, also `quartic` (u = x² − x⁴).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub patch: Option<PatchField>,
-    /// `coupled_1d`: `optimization` (default: \[LSSM]'s optimization-based coupling) or
+    /// `coupled_1d`: `optimization` (default: [LSSM]'s optimization-based coupling) or
     /// `seamless` (one model whose horizon shrinks to one cell over the overlap).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub coupling: Option<CouplingKind>,
     /// `coupled_1d`: the local problem's interval [Γ_c, Γ_i] (default [0.75, 1.75]); it overlaps
     /// Ω_n = (0, 1) on Ω_b = (Γ_c, 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "A,B", allow_hyphen_values = true, value_parser = pair))]
     pub local_domain: Option<[f64; 2]>,
 }
 

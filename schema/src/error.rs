@@ -123,19 +123,29 @@ pub fn nearest<'a>(given: &str, candidates: impl IntoIterator<Item = &'a str>) -
 /// The fields of struct `T` in declaration order, as its derived `Deserialize` hands them to the
 /// deserializer: from the type itself, so the list cannot drift from the struct.
 pub fn field_names<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
-    let mut names = FieldNames(&[]);
+    names_of::<T>()
+}
+
+/// The variants of enum `T` as serde names them (`forward_euler`): from the type itself.
+pub fn variant_names<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    names_of::<T>()
+}
+
+fn names_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    let mut names = Names(&[]);
     let _ = T::deserialize(&mut names);
     names.0
 }
 
-/// A deserializer that only listens: it keeps the field list `deserialize_struct` is given.
-struct FieldNames(&'static [&'static str]);
+/// A deserializer that only listens: it keeps the names `deserialize_struct` (the fields) or
+/// `deserialize_enum` (the variants) is given.
+struct Names(&'static [&'static str]);
 
-impl<'de> Deserializer<'de> for &mut FieldNames {
+impl<'de> Deserializer<'de> for &mut Names {
     type Error = de::value::Error;
 
     fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Self::Error> {
-        Err(de::Error::custom("not a struct"))
+        Err(de::Error::custom("not a struct or an enum"))
     }
 
     fn deserialize_struct<V: Visitor<'de>>(
@@ -148,9 +158,19 @@ impl<'de> Deserializer<'de> for &mut FieldNames {
         Err(de::Error::custom("only the field names were asked"))
     }
 
+    fn deserialize_enum<V: Visitor<'de>>(
+        self,
+        _: &'static str,
+        variants: &'static [&'static str],
+        _: V,
+    ) -> Result<V::Value, Self::Error> {
+        self.0 = variants;
+        Err(de::Error::custom("only the variant names were asked"))
+    }
+
     serde::forward_to_deserialize_any! {
         bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf
-        option unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier
+        option unit unit_struct newtype_struct seq tuple tuple_struct map identifier
         ignored_any
     }
 }
@@ -222,5 +242,15 @@ mod tests {
             second: u8,
         }
         assert_eq!(field_names::<Two>(), ["first", "second_renamed"]);
+        assert_eq!(
+            variant_names::<crate::choices::Integrator>(),
+            [
+                "forward_euler",
+                "heun",
+                "rk4",
+                "backward_euler",
+                "crank_nicolson"
+            ]
+        );
     }
 }

@@ -7,6 +7,8 @@
 pub mod atomic;
 pub mod case;
 pub mod choices;
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod error;
 pub mod exit;
 pub mod json;

@@ -1,10 +1,11 @@
-//! The case a command line gives: a case file's fields with the flags on top, one flag per
-//! field of `schema::Case` (a test holds the two lists equal), every number flag finite.
+//! The case a command line gives: a case file's fields with the flags on top. The flags are
+//! `schema::Case`'s fields (it derives clap's `Args`), declared and documented there.
 
 use crate::BadInput;
-use clap::Args;
-use serde::Serialize;
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, FromArgMatches};
 use serde_json::{Map, Value};
+use solver::case::Case;
 use solver::ValidCase;
 use std::io::Read;
 use std::path::PathBuf;
@@ -20,158 +21,40 @@ pub(crate) struct CaseArgs {
     flags: CaseFlags,
 }
 
-/// The case's fields as flags, one for each field of `schema::Case` (a test checks that the two
-/// lists agree): serialized, the flags given are the case fields they set (`CaseArgs::fields`).
-#[derive(Args, Serialize)]
-pub(crate) struct CaseFlags {
-    /// Method: nonlocal (eq. 2.1, stepped by --integrator); fd_explicit, adi or pse (local diffusion,
-    /// [HPCSE]); steady_cg or feti (the steady problem of [XGDF]); patch_test (a variable
-    /// horizon's patch tests, [LSSM]); coupled_1d ([LSSM]'s optimization-based local–nonlocal
-    /// coupling).
-    #[arg(long)]
-    method: Option<String>,
-    /// Dimension of D = [0,1]^d: 1 or 2.
-    #[arg(long)]
-    dim: Option<usize>,
-    /// Nodes per side; h = 1/n, nodes at cell centres.
-    #[arg(long)]
-    n: Option<usize>,
-    /// Horizon in cells, ε = m·h (give --m or --eps); for pse, the kernel width in spacings.
-    #[arg(long)]
-    m: Option<usize>,
-    /// Horizon as a length in (0, 0.5]; m = ceil(ε/h). For pse, the kernel width ε ≤ L/2.
-    #[arg(long, value_parser = finite_number)]
-    eps: Option<f64>,
-    /// Influence function J: constant, linear, gaussian, inverse_distance.
-    #[arg(long)]
-    kernel: Option<String>,
-    /// Quadrature of the nonlocal operator: midpoint ([JD]), partial_volume, ac (exact on quadratics).
-    #[arg(long)]
-    quadrature: Option<String>,
-    /// Operator backend: auto (default: stencil or fft by the cost model), stencil (precomputed
-    /// weights), fft (convolution by FFT) or neighbour_list (Algorithm 1, the oracle).
-    #[arg(long)]
-    backend: Option<String>,
-    /// Diffusivity k of the local limit kΔ (default 1).
-    #[arg(long, value_parser = finite_number)]
-    diffusivity: Option<f64>,
-    /// Problem: manufactured or bump (nonlocal); eigenmode or square (fd_explicit, adi, pse).
-    #[arg(long)]
-    problem: Option<String>,
-    /// Collar values: zero (eq. 2.2) or exact (the manufactured solution continued).
-    #[arg(long)]
-    collar: Option<String>,
-    /// Source mode of the manufactured problem: discrete, continuum (default) or local.
-    #[arg(long)]
-    source: Option<String>,
-    /// Side L of the local methods' domain (−L/2, L/2)^d (default 2).
-    #[arg(long, value_parser = finite_number)]
-    length: Option<f64>,
-    /// Final time.
-    #[arg(long, value_parser = finite_number)]
-    t_end: Option<f64>,
-    /// Time step (lowered to land on t_end); give --dt or --cfl.
-    #[arg(long, value_parser = finite_number)]
-    dt: Option<f64>,
-    /// Time step as a fraction of the stable step dt_stable (implicit integrators: of forward
-    /// Euler's).
-    #[arg(long, value_parser = finite_number)]
-    cfl: Option<f64>,
-    /// nonlocal: time integrator forward_euler (default, eq. 2.1), heun, rk4, backward_euler or
-    /// crank_nicolson (the last two solve by sine-preconditioned CG each step).
-    #[arg(long)]
-    integrator: Option<String>,
-    /// Accept a time step above dt_stable (stability studies); the run may end `diverged`.
-    #[arg(long)]
-    allow_unstable: bool,
-    /// Also compute the total error e = Σ_k e^k (one extra pass per step, untimed).
-    #[arg(long)]
-    error_total: bool,
-    /// Time between samples of c_tot(t) (into the record; see --write-diagnostics).
-    #[arg(long, value_parser = finite_number)]
-    diagnostics_every: Option<f64>,
-    /// Bins of a histogram of the final field's values (into the record).
-    #[arg(long)]
-    histogram_bins: Option<usize>,
-    /// Blocks per side of a coarse copy of the final field and its error (into the record).
-    #[arg(long)]
-    field_snapshot: Option<usize>,
-    /// Time between the field's frames written by --write-vtk.
-    #[arg(long, value_parser = finite_number)]
-    vtk_every: Option<f64>,
-    /// Threads (rayon) on each rank; results are bitwise the same for any count.
-    #[arg(long)]
-    threads: Option<usize>,
-    /// MPI ranks; must match `mpirun -n`. Results are bitwise the same for any count.
-    #[arg(long)]
-    ranks: Option<usize>,
-    /// How the grid is divided among ranks: block (px × py rectangles) or graph (METIS).
-    #[arg(long)]
-    partition: Option<String>,
-    /// Blocks along x of a block partition (chosen to minimise the halo when left out).
-    #[arg(long)]
-    px: Option<usize>,
-    /// Blocks along y of a block partition.
-    #[arg(long)]
-    py: Option<usize>,
-    /// Relative tolerance of the iteration: steady methods (default 1e-5) and the implicit
-    /// integrators' solves (default tied to the time error).
-    #[arg(long, value_parser = finite_number)]
-    rtol: Option<f64>,
-    /// Iteration limit: steady methods (default 100000; a solve stopped by it is `diverged`) and
-    /// the implicit integrators (default 1000 per step).
-    #[arg(long)]
-    max_iterations: Option<usize>,
-    /// feti: subdomains per side, p (p × p in all).
-    #[arg(long)]
-    subdomains: Option<usize>,
-    /// feti: preconditioner none, dirichlet (default; Cholesky interior solves), dirichlet_cg
-    /// (5 CG iterations for the interior solves) or dirichlet_scaled (multiplicity scaling).
-    #[arg(long)]
-    preconditioner: Option<String>,
-    /// implicit integrators: the Krylov method of each step's solve, cg or bicgstab (default:
-    /// cg for a symmetric L_h, bicgstab for the x_centred and partial_stress forms).
-    #[arg(long)]
-    krylov: Option<String>,
-    /// patch_test and nonlocal: how ε varies along x, as JSON: {"kind": "constant"} (from --eps or --m),
-    /// {"kind": "linear", "left": a, "right": b} or {"kind": "transition", "left": a, "right":
-    /// b, "start": s, "end": e}.
-    #[arg(long, value_name = "JSON")]
-    #[serde(serialize_with = "json_text")]
-    horizon_profile: Option<String>,
-    /// patch_test and a varying-horizon nonlocal: standard (pairwise bonds, the symmetrised
-    /// dual-horizon kernel; ghost forces where ε varies), x_centred (each node on its own
-    /// horizon: exact on the patch tests and stable, not symmetric) or partial_stress.
-    #[arg(long)]
-    formulation: Option<String>,
-    /// patch_test: the prescribed field, linear (u = x) or quadratic (u = x²); coupled_1d: the
-    /// exact solution, also quartic (u = x² − x⁴).
-    #[arg(long)]
-    patch: Option<String>,
-    /// coupled_1d: optimization (default: [LSSM]'s optimization-based coupling) or seamless
-    /// (one x-centred model whose horizon shrinks to h over the overlap).
-    #[arg(long)]
-    coupling: Option<String>,
-    /// coupled_1d: the local problem's interval a,b (default 0.75,1.75): Γ_c = a inside (0, 1),
-    /// Γ_i = b ≥ 1 + ε.
-    #[arg(
-        long,
-        value_name = "A,B",
-        value_delimiter = ',',
-        allow_hyphen_values = true,
-        value_parser = finite_number
-    )]
-    local_domain: Option<Vec<f64>>,
+/// The case fields the command line sets, as JSON: only the flags given. A field given at its
+/// default and left out of the case's JSON by serde (`--quadrature midpoint`) is `null`: it
+/// takes the default, whatever a case file says.
+pub(crate) struct CaseFlags(Map<String, Value>);
+
+impl Args for CaseFlags {
+    fn augment_args(command: clap::Command) -> clap::Command {
+        Case::augment_args(command)
+    }
+
+    fn augment_args_for_update(command: clap::Command) -> clap::Command {
+        Case::augment_args_for_update(command)
+    }
 }
 
-/// A number flag's value: a finite f64. JSON has no NaN or infinity: serde_json would write one
-/// as `null`, which the case reads as a field not given (`--diffusivity nan` would run with
-/// the default), so it is refused here, by clap, naming the flag.
-pub(crate) fn finite_number(text: &str) -> Result<f64, String> {
-    let x: f64 = text.trim().parse().map_err(|e| format!("{e}"))?;
-    match x.is_finite() {
-        true => Ok(x),
-        false => Err("not a finite number".into()),
+impl FromArgMatches for CaseFlags {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        // Clap sets the fields given on a case whose other fields are anything valid.
+        let mut case = Case::parse(serde_json::json!({"dim": 1, "n": 1}))
+            .expect("a case of two fields parses");
+        case.update_from_arg_matches(matches)?;
+        let Ok(Value::Object(mut set)) = serde_json::to_value(&case) else {
+            unreachable!("a case serializes to an object")
+        };
+        let given = Case::field_names()
+            .iter()
+            .filter(|field| matches.value_source(field) == Some(ValueSource::CommandLine))
+            .map(|field| (field.to_string(), set.remove(*field).unwrap_or(Value::Null)));
+        Ok(CaseFlags(given.collect()))
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        *self = CaseFlags::from_arg_matches(matches)?;
+        Ok(())
     }
 }
 
@@ -187,30 +70,14 @@ impl CaseArgs {
             Some(path) => read_case_file(path)?,
             None => Map::new(),
         };
-        match serde_json::to_value(&self.flags) {
-            // A flag not given is null (a switch not given, false): it leaves its field alone.
-            Ok(Value::Object(flags)) => fields.extend(
-                flags
-                    .into_iter()
-                    .filter(|(_, v)| !v.is_null() && *v != Value::Bool(false)),
-            ),
-            Ok(_) => unreachable!("a struct serializes to an object"),
-            Err(e) => return Err(BadInput(e.to_string())),
+        for (field, value) in &self.flags.0 {
+            match value {
+                Value::Null => fields.remove(field),
+                value => fields.insert(field.clone(), value.clone()),
+            };
         }
         Ok(fields)
     }
-}
-
-/// `--horizon-profile`'s JSON text as the JSON value it is.
-pub(crate) fn json_text<S: serde::Serializer>(
-    text: &Option<String>,
-    to: S,
-) -> Result<S::Ok, S::Error> {
-    let text = text.as_deref().unwrap_or("null");
-    let value = schema::json::parse(text).map_err(|e| {
-        serde::ser::Error::custom(format!("--horizon-profile is not valid JSON: {e}"))
-    })?;
-    value.serialize(to)
 }
 
 pub(crate) fn read_case_file(path: &PathBuf) -> Result<Map<String, Value>, BadInput> {
@@ -242,25 +109,13 @@ mod tests {
     use super::*;
     use crate::{usage_error, Cli, Command};
     use clap::Parser;
-    use solver::case::Case;
-
-    /// One flag per case field, named as the field: the flags and `schema::Case` cannot drift.
-    #[test]
-    fn the_flags_are_the_case_fields() {
-        let command = CaseFlags::augment_args(clap::Command::new("nlsolve"));
-        let flags: Vec<&str> = command
-            .get_arguments()
-            .map(|a| a.get_id().as_str())
-            .collect();
-        assert_eq!(flags, Case::field_names());
-    }
 
     /// No flag takes a number that is not finite (or any value a case refuses): `nan`, `inf`
     /// and `-inf` are refused by every flag that takes a value, the number flags saying "not a
     /// finite number".
     #[test]
     fn no_flag_takes_a_number_that_is_not_finite() {
-        let command = CaseFlags::augment_args(clap::Command::new("nlsolve"));
+        let command = Case::augment_args(clap::Command::new("nlsolve"));
         let mut numbers = 0;
         for arg in command.get_arguments() {
             if !arg.get_action().takes_values() {
@@ -271,7 +126,7 @@ mod tests {
             let given = |value: &str| format!("{flag}={value}");
             let parses =
                 |value: &str| Cli::try_parse_from(["nlsolve", "run", &given(value)]).is_ok();
-            let takes_a_fraction = parses("0.5") && !parses("x");
+            let takes_a_fraction = (parses("0.5") || parses("0.5,0.5")) && !parses("x");
             for value in ["nan", "NaN", "inf", "-inf", "infinity", "1e400"] {
                 let refusal = match Cli::try_parse_from(["nlsolve", "run", &given(value)]) {
                     Err(e) => e.to_string(),
@@ -315,38 +170,64 @@ mod tests {
     /// The flags given, and only those, become the case's fields, with their JSON types.
     #[test]
     fn the_flags_given_are_the_fields_they_set() {
+        let demo = concat!(env!("CARGO_MANIFEST_DIR"), "/../cases/demo.json");
         let cli = Cli::try_parse_from([
             "nlsolve",
             "run",
-            "--dim",
-            "1",
+            "--case",
+            demo,
             "--n",
             "8",
+            "--kernel",
+            "constant",
             "--eps",
             "0.25",
             "--error-total",
             "--horizon-profile",
-            r#"{"kind": "constant", "eps": 0.1}"#,
+            r#"{"kind": "linear", "left": 0.1, "right": 0.2}"#,
             "--local-domain",
             "-0.5,1",
+            "--integrator",
+            "rk4",
+            "--quadrature",
+            "midpoint",
         ])
         .unwrap();
         let Command::Run(args) = cli.command else {
             panic!("a run")
         };
+        // The quadrature given at its default is null: whatever a file says, it is the default.
+        assert_eq!(
+            Value::Object(args.case.flags.0.clone()),
+            serde_json::json!({"n": 8, "eps": 0.25, "kernel": "constant", "error_total": true,
+                "integrator": "rk4", "quadrature": null, "local_domain": [-0.5, 1.0],
+                "horizon_profile": {"kind": "linear", "left": 0.1, "right": 0.2}})
+        );
         let fields = args.case.fields().ok().unwrap();
         assert_eq!(
             Value::Object(fields),
-            serde_json::json!({"dim": 1, "n": 8, "eps": 0.25, "error_total": true,
-                "horizon_profile": {"kind": "constant", "eps": 0.1}, "local_domain": [-0.5, 1.0]})
+            serde_json::json!({"dim": 2, "n": 8, "m": 4, "eps": 0.25, "kernel": "constant",
+                "problem": "manufactured", "source": "continuum", "t_end": 0.1, "cfl": 0.5,
+                "threads": 2, "error_total": true, "integrator": "rk4",
+                "local_domain": [-0.5, 1.0],
+                "horizon_profile": {"kind": "linear", "left": 0.1, "right": 0.2}})
         );
-        let bad = Cli::try_parse_from(["nlsolve", "run", "--horizon-profile", "{"]).unwrap();
-        let Command::Run(args) = bad.command else {
-            panic!("a run")
+        let at_default = CaseArgs {
+            case: Some(demo.into()),
+            flags: CaseFlags(
+                serde_json::json!({"kernel": null})
+                    .as_object()
+                    .unwrap()
+                    .clone(),
+            ),
         };
-        let refusal = args.case.fields().err().unwrap().0;
+        assert!(!at_default.fields().ok().unwrap().contains_key("kernel"));
+        let refusal = Cli::try_parse_from(["nlsolve", "run", "--horizon-profile", "{"])
+            .err()
+            .unwrap()
+            .to_string();
         assert!(
-            refusal.contains("--horizon-profile is not valid JSON"),
+            refusal.contains("--horizon-profile") && refusal.contains("not valid JSON"),
             "{refusal}"
         );
     }
