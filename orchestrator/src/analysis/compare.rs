@@ -143,18 +143,13 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
                 median(&scales)
             };
             let all_noisy = |side: &[&Stored]| side.iter().all(|r| r.noisy());
-            // A rate is its run's solve time inverted: as short as that.
-            let wall_time = matches!(
-                metric.name,
-                columns::SOLVE_S | columns::SETUP_S | "bond_updates_per_s"
-            );
             let scale_b: Vec<f64> = b.iter().filter_map(|r| scale_of(metric, r)).collect();
             let shortest = scale.min(if scale_b.is_empty() {
                 scale
             } else {
                 median(&scale_b)
             });
-            let short = wall_time && shortest < RESOLUTION_S;
+            let short = metric.span.is_some() && shortest < RESOLUTION_S;
             let set_aside = match (short, all_noisy(a) || all_noisy(b)) {
                 _ if kind == Kind::Deterministic => None,
                 (true, _) => Some(Verdict::TooShort),

@@ -32,6 +32,9 @@ const ORDERS: &[(&str, &str)] = &[
     ("coupling.error_local", "order_local"),
 ];
 
+/// Bonds × steps done / median `solve_s`: the throughput of a nonlocal operator.
+pub const BOND_UPDATES_PER_S: &str = "bond_updates_per_s";
+
 /// The columns the summary adds to a run's: labels, counts, the timings' statistics, and what
 /// scaling and refinement series derive.
 const DERIVED: &[&str] = &[
@@ -44,7 +47,7 @@ const DERIVED: &[&str] = &[
     "workers",
     "parallelism",
     "noisy_repeats",
-    "bond_updates_per_s",
+    BOND_UPDATES_PER_S,
     "baseline_workers",
     "speedup",
     "efficiency",
@@ -202,7 +205,7 @@ fn reduce(repeats: &[&Row]) -> Row {
         (Some(bonds), Some(steps), Some(t)) if t > 0.0 && is_ok(&row) => json!(bonds * steps / t),
         _ => Value::Null,
     };
-    row.set("bond_updates_per_s", updates);
+    row.set(BOND_UPDATES_PER_S, updates);
     row
 }
 

@@ -1,6 +1,7 @@
 //! The metrics a comparison judges, which way each improves, how each varies between runs of
 //! one case, and how they are read from records.
 
+use crate::analysis::summary::BOND_UPDATES_PER_S;
 use schema::record::columns;
 use schema::record::{Record, Status, Stored};
 use serde_json::Value;
@@ -28,6 +29,9 @@ pub(super) struct Metric {
     pub read: fn(&Record<Value>) -> Option<f64>,
     pub better: Better,
     pub kind: Kind,
+    /// The wall time a value is measured over, for a wall time or a rate over one: its drift is
+    /// read at that scale, and below `RESOLUTION_S` it is too short to judge.
+    pub span: Option<fn(&Record<Value>) -> f64>,
 }
 
 /// The metrics of a record compared; `bond_updates_per_s` from bonds × steps done / solve time,
@@ -38,42 +42,49 @@ pub(super) const METRICS: &[Metric] = &[
         read: |r| Some(r.solve_s),
         better: Better::Lower,
         kind: Kind::Measured,
+        span: Some(|r| r.solve_s),
     },
     Metric {
         name: columns::STEP_S,
         read: |r| Some(r.step_s),
         better: Better::Lower,
         kind: Kind::Measured,
+        span: None,
     },
     Metric {
         name: columns::SETUP_S,
         read: |r| Some(r.setup_s),
         better: Better::Lower,
         kind: Kind::Measured,
+        span: Some(|r| r.setup_s),
     },
     Metric {
-        name: "bond_updates_per_s",
+        name: BOND_UPDATES_PER_S,
         read: |r| Some(r.resolved.bonds as f64 * r.steps_done as f64 / r.solve_s),
         better: Better::Higher,
         kind: Kind::Measured,
+        span: Some(|r| r.solve_s),
     },
     Metric {
         name: columns::PEAK_MEMORY_BYTES,
         read: |r| r.peak_memory_bytes.map(|b| b as f64),
         better: Better::Lower,
         kind: Kind::Measured,
+        span: None,
     },
     Metric {
         name: columns::ERROR_L2_NORM,
         read: |r| r.error_l2_norm,
         better: Better::Lower,
         kind: Kind::Deterministic,
+        span: None,
     },
     Metric {
         name: columns::ERROR_MAX,
         read: |r| r.error_max,
         better: Better::Lower,
         kind: Kind::Deterministic,
+        span: None,
     },
 ];
 
@@ -115,12 +126,12 @@ pub(super) const ABSOLUTE: f64 = 1e-14;
 /// clock ramping up) more than the solver's work: too short to judge.
 pub(super) const RESOLUTION_S: f64 = 1e-3;
 
-/// The scale a measured metric's drift is read at: a rate's is its run's solve time.
+/// The scale a measured metric's drift is read at: its span if it has one, else its value.
 pub(super) fn scale_of(metric: &Metric, record: &Stored) -> Option<f64> {
     let record = record.record()?;
-    match metric.name {
-        "bond_updates_per_s" => Some(record.solve_s),
-        _ => (metric.read)(record),
+    match metric.span {
+        Some(span) => Some(span(record)),
+        None => (metric.read)(record),
     }
 }
 

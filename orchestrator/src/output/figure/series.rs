@@ -1,6 +1,7 @@
 //! Rows of the summary grouped into labelled series, and the words an axis shows for a column.
 
 use crate::console::number;
+use crate::analysis::summary::BOND_UPDATES_PER_S;
 use crate::output::draw::{span, Series};
 use crate::store::table::Row;
 use schema::record::columns;
@@ -20,7 +21,7 @@ pub(super) fn describe(column: &str, groups: &[Group]) -> String {
         (columns::ERROR_MAX, "max-norm error"),
         (columns::C_TOT_TIME, "time t"),
         ("case.m", "horizon m = ε/h"),
-        ("bond_updates_per_s", "bond updates per second"),
+        (BOND_UPDATES_PER_S, "bond updates per second"),
         (columns::C_TOT, "total concentration c_tot(t)"),
         (columns::SUBDOMAINS, "subdomains p²"),
         (columns::ITERATIONS, "iterations"),
