@@ -13,7 +13,6 @@ use crate::store::{write_atomically, Store};
 use maud::{html, Markup, PreEscaped, DOCTYPE};
 use schema::record::columns;
 use schema::record::{Provenance, Status, Stored};
-use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 
@@ -91,27 +90,9 @@ figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
 pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}";
 
-/// A run table's row as the record it was flattened from: `provenance.host` back under
-/// `provenance`, `case.n` under `case`.
+/// A run table's row as the record it was flattened from.
 fn stored_of_row(row: &Row) -> Result<Stored, String> {
-    let mut record = serde_json::Map::new();
-    // A null cell is a field the run's record did not have.
-    for (name, value) in row.cells().filter(|(_, value)| !value.is_null()) {
-        match name.split_once('.') {
-            Some((group @ ("case" | "provenance"), field)) => {
-                let inner = record
-                    .entry(group)
-                    .or_insert_with(|| Value::Object(serde_json::Map::new()));
-                if let Some(inner) = inner.as_object_mut() {
-                    inner.insert(field.to_string(), value.clone());
-                }
-            }
-            _ => {
-                record.insert(name.to_string(), value.clone());
-            }
-        }
-    }
-    serde_path_to_error::deserialize(Value::Object(record))
+    serde_path_to_error::deserialize(columns::unflatten(row.cells()))
         .map_err(|e| format!("`{}`: {}", e.path(), e.inner()))
 }
 

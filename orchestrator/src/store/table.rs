@@ -91,14 +91,9 @@ impl Row {
 
     /// Sets a cell, or one cell per field of an object, named `name.field` (recursively).
     pub fn set_flattened(&mut self, name: &str, value: &Value) {
-        match value {
-            Value::Object(fields) => {
-                for (field, inner) in fields {
-                    self.set_flattened(&format!("{name}.{field}"), inner);
-                }
-            }
-            _ => self.set(name, value.clone()),
-        }
+        columns::flatten(name, value, &mut |name, value| {
+            self.set(&name, value.clone())
+        });
     }
 }
 

@@ -117,11 +117,13 @@ pub fn is_column(name: &str) -> bool {
 /// The names the tables give `record`'s fields, flattened (`group.field`), in its order.
 pub fn flattened_names(record: &Value) -> Vec<String> {
     let mut names = Vec::new();
-    flatten("", record, &mut names);
+    flatten("", record, &mut |name, _| names.push(name));
     names
 }
 
-fn flatten(prefix: &str, value: &Value, columns: &mut Vec<String>) {
+/// Each leaf of `value` with its column's name, `prefix.group.field` (`prefix` alone for a leaf,
+/// none for an empty object): how a table holds a record.
+pub fn flatten<'a>(prefix: &str, value: &'a Value, each: &mut impl FnMut(String, &'a Value)) {
     match value {
         Value::Object(fields) => {
             for (name, inner) in fields {
@@ -129,11 +131,36 @@ fn flatten(prefix: &str, value: &Value, columns: &mut Vec<String>) {
                     "" => name.clone(),
                     _ => format!("{prefix}.{name}"),
                 };
-                flatten(&name, inner, columns);
+                flatten(&name, inner, each);
             }
         }
-        _ => columns.push(prefix.to_string()),
+        _ => each(prefix.to_string(), value),
     }
+}
+
+/// The object a table's cells were flattened from (`flatten`'s inverse): `case.n` back under
+/// `case`. A null cell is a field the record did not have.
+pub fn unflatten<'a>(cells: impl IntoIterator<Item = (&'a str, &'a Value)>) -> Value {
+    let mut object = serde_json::Map::new();
+    for (name, value) in cells.into_iter().filter(|(_, value)| !value.is_null()) {
+        let mut path = name.split('.').peekable();
+        let mut fields = &mut object;
+        while let Some(field) = path.next() {
+            if path.peek().is_none() {
+                fields.insert(field.to_string(), value.clone());
+            } else {
+                let group = fields
+                    .entry(field)
+                    .or_insert_with(|| Value::Object(serde_json::Map::new()));
+                match group {
+                    Value::Object(inner) => fields = inner,
+                    // A leaf and a group of one name: no flattened record has both.
+                    _ => break,
+                }
+            }
+        }
+    }
+    Value::Object(object)
 }
 
 /// A stored record with every field given (each optional one, each group, each list not
@@ -324,5 +351,19 @@ mod tests {
         assert_eq!(column(&stored, "provenance.cores_online"), Some(json!(2)));
         assert_eq!(column(&stored, "traffic.halo_bytes"), Some(json!(0)));
         assert_eq!(column(&stored, "nothing"), None);
+    }
+
+    /// A table's row of every field, its cells read back, is the stored record again.
+    #[test]
+    fn unflatten_undoes_flatten() {
+        let value = every_field().to_value();
+        let mut cells = Vec::new();
+        flatten("", &value, &mut |name, value| cells.push((name, value.clone())));
+        assert!(cells.iter().any(|(name, _)| name == "feti_phases.coarse_s"));
+        cells.push(("never_recorded".into(), Value::Null));
+        let back = unflatten(cells.iter().map(|(name, value)| (name.as_str(), value)));
+        assert_eq!(back, value);
+        let stored: Stored = serde_json::from_value(back).unwrap();
+        assert_eq!(stored, every_field());
     }
 }

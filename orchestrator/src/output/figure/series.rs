@@ -1,7 +1,7 @@
 //! Rows of the summary grouped into labelled series, and the words an axis shows for a column.
 
-use crate::console::number;
 use crate::analysis::summary::BOND_UPDATES_PER_S;
+use crate::console::number;
 use crate::output::draw::{span, Series};
 use crate::store::table::Row;
 use schema::record::columns;
