@@ -8,7 +8,7 @@ use crate::output::draw::{Axis, Chart, Guide, Panel, Series};
 use crate::statistics::median;
 use crate::store::{fingerprint_of, timestamp};
 use schema::record::{column, Stored};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// A run: the build that made it and the `nlstudy` process (`run_id`; records made before it was
 /// kept are one run per build).
@@ -43,10 +43,14 @@ pub fn chart(
     let last = at.values().copied().fold(f64::NEG_INFINITY, f64::max);
     let (unit, seconds) = unit_for(last - origin);
     let x = |t: f64| (t - origin) / seconds;
+    let mut by_key: HashMap<&str, Vec<&Stored>> = HashMap::new();
+    for record in records {
+        by_key.entry(record.key.as_str()).or_default().push(record);
+    }
     let mut series = Vec::new();
     for (label, keys) in points {
         let mut by_run: BTreeMap<Run, Vec<f64>> = BTreeMap::new();
-        let ran = records.iter().filter(|r| keys.contains(&r.key));
+        let ran = keys.iter().flat_map(|key| by_key.get(key.as_str())).flatten();
         for record in ran {
             let value = column(record, field).and_then(|v| v.as_f64());
             if let Some(v) = value.filter(|v| v.is_finite() && *v > 0.0) {
