@@ -50,7 +50,10 @@ pub fn chart(
     let mut series = Vec::new();
     for (label, keys) in points {
         let mut by_run: BTreeMap<Run, Vec<f64>> = BTreeMap::new();
-        let ran = keys.iter().flat_map(|key| by_key.get(key.as_str())).flatten();
+        let ran = keys
+            .iter()
+            .flat_map(|key| by_key.get(key.as_str()))
+            .flatten();
         for record in ran {
             let value = column(record, field).and_then(|v| v.as_f64());
             if let Some(v) = value.filter(|v| v.is_finite() && *v > 0.0) {

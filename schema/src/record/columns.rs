@@ -358,7 +358,9 @@ mod tests {
     fn unflatten_undoes_flatten() {
         let value = every_field().to_value();
         let mut cells = Vec::new();
-        flatten("", &value, &mut |name, value| cells.push((name, value.clone())));
+        flatten("", &value, &mut |name, value| {
+            cells.push((name, value.clone()))
+        });
         assert!(cells.iter().any(|(name, _)| name == "feti_phases.coarse_s"));
         cells.push(("never_recorded".into(), Value::Null));
         let back = unflatten(cells.iter().map(|(name, value)| (name.as_str(), value)));
