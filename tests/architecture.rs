@@ -99,24 +99,30 @@ fn the_layer_check_sees_an_arrow_up() {
 
 /// The schema both binaries read is plain serde data (and strsim, for "did you mean" in its
 /// errors): it links no numerics, tables or plots, so the orchestrator never compiles the solver
-/// to read a case or a record.
+/// to read a case or a record. clap comes only with the feature `cli` (nlsolve's flags).
 #[test]
 fn the_schema_is_serde_only_and_acyclic() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema");
     let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
-    let dependencies: Vec<&str> = manifest
+    let lines: Vec<&str> = manifest
         .split("[dependencies]")
         .nth(1)
         .unwrap_or_default()
         .lines()
         .take_while(|line| !line.starts_with('['))
-        .filter_map(|line| line.split(['.', ' ', '=']).next())
-        .filter(|name| !name.is_empty() && !name.starts_with('#'))
+        .filter(|line| !line.is_empty() && !line.starts_with('#'))
         .collect();
+    fn name<'a>(line: &&'a str) -> &'a str {
+        line.split(['.', ' ', '=']).next().unwrap_or_default()
+    }
+    let (optional, always): (Vec<&str>, Vec<&str>) = lines
+        .iter()
+        .partition(|line| line.contains("optional = true"));
     assert_eq!(
-        dependencies,
+        always.iter().map(name).collect::<Vec<_>>(),
         ["serde", "serde_json", "serde_path_to_error", "strsim"]
     );
+    assert_eq!(optional.iter().map(name).collect::<Vec<_>>(), ["clap"]);
     let graph = imports(root.join("src").as_path());
     assert!(graph.contains_key("case") && graph.contains_key("record"));
     assert_acyclic("schema", &graph);
