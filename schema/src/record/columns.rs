@@ -46,6 +46,7 @@ named! {
     ERROR_MAX = "error_max",
     MAX_ABS = "max_abs",
     GROWTH = "growth",
+    AMPLIFICATION = "amplification",
     PEAK_MEMORY_BYTES = "peak_memory_bytes",
     RANKS = "ranks",
     HALO_NODES = "halo_nodes",
@@ -200,6 +201,7 @@ pub fn every_field() -> Stored {
         mass_drift: Some(0.0),
         max_abs: Some(1.0),
         growth: Some(0.0),
+        amplification: Some(1.0),
         diverged_step: Some(10),
         diverged_time: Some(1e-2),
         c_tot: Some(MassSeries {

@@ -46,6 +46,10 @@ pub struct Record<C = Case> {
     /// message (time-dependent runs only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub growth: Option<f64>,
+    /// The step's growth per step of a rough field under the homogeneous problem (the case's
+    /// `amplification_steps`): above 1 the step amplifies some mode, so it is unstable.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplification: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
     /// c_tot(t) samples (when the case sets `diagnostics_every`).
@@ -112,6 +116,7 @@ impl Record {
             mass_drift: None,
             max_abs: None,
             growth: None,
+            amplification: None,
             diverged_step: None,
             diverged_time: None,
             c_tot: None,

@@ -38,6 +38,9 @@ pub const MAX_SERIES_SAMPLES: f64 = 1e5;
 /// NaN). The problems are scaled for k of order 1.
 pub const DIFFUSIVITY_RANGE: std::ops::RangeInclusive<f64> = 1e-100..=1e100;
 
+/// Most steps a measurement of the step's amplification may take (`amplification_steps`).
+pub const MAX_AMPLIFICATION_STEPS: usize = 1_000_000;
+
 /// Smallest relative tolerance `rtol` accepted: about 45 ε_mach. A residual computed in double
 /// precision carries rounding of a few ε_mach per term summed (each product A p sums up to
 /// hundreds of bonds, each norm all nodes), so below this a solve meets its tolerance by
@@ -112,7 +115,7 @@ impl Rules for Case {
                 "must be at least 1 (got 0); give the number of nodes per side, h = 1/n",
             ));
         }
-        Ok(())
+        validate_amplification(self)
     }
 
     /// The rules every time-dependent case obeys, checked after the method's own: k > 0, the
@@ -233,6 +236,30 @@ impl Rules for Case {
         }
         Ok(())
     }
+}
+
+/// The measurement of the step's amplification: of the nonlocal method with a constant horizon
+/// (the one whose explicit steps the symbol's dt_stable bounds), over 2 to `MAX_STEPS` steps.
+fn validate_amplification(case: &Case) -> Result<(), CaseError> {
+    let Some(steps) = case.amplification_steps else {
+        return Ok(());
+    };
+    if case.method != Method::Nonlocal || case.horizon_profile.is_some() {
+        return Err(CaseError::new(
+            "amplification_steps",
+            "is measured for `nonlocal` with a constant horizon; leave it out",
+        ));
+    }
+    if !(2..=MAX_AMPLIFICATION_STEPS).contains(&steps) {
+        return Err(CaseError::new(
+            "amplification_steps",
+            format!(
+                "must be 2 to {} (got {steps}); a few hundred steps resolve a growth of 1.001 per step",
+                MAX_AMPLIFICATION_STEPS
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn validate_diagnostics(case: &Case) -> Result<(), CaseError> {

@@ -70,6 +70,7 @@ pub(crate) fn measure(
             .map(|side| ranks.on(|| field::snapshot(lattice, u, exact, side))),
         distribution,
         implicit: trajectory.implicit,
+        amplification: trajectory.amplification,
     }
 }
 

@@ -52,6 +52,8 @@ pub struct Trajectory {
     /// Median seconds a step spent communicating (halo and reductions; 0 on one process).
     pub step_comm_s: f64,
     pub implicit: ImplicitSolves,
+    /// The step's measured amplification (`integrate::amplification`), when the case asks.
+    pub amplification: Option<f64>,
 }
 
 impl Trajectory {
@@ -65,6 +67,7 @@ impl Trajectory {
             frames: observed.frames,
             step_comm_s: 0.0,
             implicit: ImplicitSolves::default(),
+            amplification: None,
         }
     }
 }

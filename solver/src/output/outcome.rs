@@ -39,6 +39,7 @@ pub(crate) struct Measured {
     pub field: Option<FieldSnapshot>,
     pub distribution: Distribution,
     pub implicit: ImplicitSolves,
+    pub amplification: Option<f64>,
 }
 
 /// The record of a finished run.
@@ -81,6 +82,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         status,
         message,
         growth,
+        amplification: measured.amplification,
         steps_done: measured.steps_done,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
@@ -160,6 +162,7 @@ mod tests {
             field: None,
             distribution: Distribution::serial(&case),
             implicit: ImplicitSolves::default(),
+            amplification: None,
         };
         let resolved = Resolved {
             dt: 0.1,

@@ -14,9 +14,10 @@ use crate::discretization::stability::{
     dt_stable, forward_euler_dt_stable, forward_euler_dt_stable_floor,
 };
 use crate::discretization::stencil::Stencil;
+use crate::integrate::amplification::amplification;
 use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
-use crate::integrate::stepper::integrate;
+use crate::integrate::stepper::{integrate, Stepper};
 use crate::integrate::theta::theta;
 use crate::integrate::time_step::{divergence_bound, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
@@ -255,6 +256,8 @@ pub(crate) fn solve<Op: LinearOperator>(
     setup_started: Instant,
 ) -> (Solved, Trajectory) {
     let (u0, source) = initial_state(case, &plan.stencil, operator, ranks, nodes.as_deref());
+    // Kept only for the measurement of the step's amplification, which seeds by global node.
+    let rough_nodes = case.amplification_steps.and(nodes.clone());
     let setup_s = setup_started.elapsed().as_secs_f64();
     let source_max = source
         .as_ref()
@@ -263,9 +266,53 @@ pub(crate) fn solve<Op: LinearOperator>(
     let volume = plan.stencil.grid.volume();
     let stepping = Stepping::of_case(case, plan.dt, plan.steps, divergence_bound, volume);
     let len = u0.len();
+    let on = (case, plan, operator, ranks, len);
+    let mut trajectory = with_stepper(on, nodes, &stepping, source.as_ref(), |stepper| {
+        integrate(stepper, ranks, u0, source.as_ref(), &stepping)
+    });
+    // Untimed, after the run: the homogeneous step (no source) on a rough field, at the step
+    // the case asks for (before it is lowered to land on t_end, which a stability search
+    // would otherwise feel as a shifted boundary).
+    trajectory.amplification = case.amplification_steps.and_then(|steps| {
+        let asked = case.dt.or(case.cfl.map(|cfl| cfl * plan.dt_stable));
+        let asked = Stepping::of_case(
+            case,
+            asked.unwrap_or(plan.dt),
+            plan.steps,
+            divergence_bound,
+            volume,
+        );
+        with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
+            amplification(stepper, ranks, rough_nodes.as_deref(), len, asked.dt, steps)
+        })
+    });
+    (
+        Solved {
+            setup_s,
+            stepping,
+            source,
+        },
+        trajectory,
+    )
+}
+
+/// What a stepper runs on: the case, its plan, L_h, the ranks and the length of a rank's share.
+type On<'a, Op> = (&'a Case, &'a Plan, &'a Op, Ranks<'a>, usize);
+
+/// Calls `with` on the case's stepper for `stepping.dt` over `source`, with the implicit
+/// integrators' preconditioner of I − θ dt L_h built for that dt on this rank's `nodes` (all
+/// of D when None). The node list is let go once used unless the 1D preconditioner gathers
+/// with it.
+fn with_stepper<Op: LinearOperator, R>(
+    (case, plan, operator, ranks, len): On<Op>,
+    nodes: Option<Vec<usize>>,
+    stepping: &Stepping,
+    source: Option<&Source>,
+    with: impl FnOnce(&mut dyn Stepper) -> R,
+) -> R {
     let implicit = case.integrator.is_implicit();
     // θ dt: the implicit integrators' shift (θ exists for them only).
-    let shift = || theta(case.integrator) * plan.dt;
+    let shift = || theta(case.integrator) * stepping.dt;
     let grid = plan.stencil.grid;
     // Over ranks in 2D the transform runs on slabs of rows; in 1D each rank applies it to the
     // gathered row (n values: a 1D grid is small enough to hold whole).
@@ -282,26 +329,13 @@ pub(crate) fn solve<Op: LinearOperator>(
     if ranks.exchange.ranks() > 1 {
         crate::parallel::release_freed_memory();
     }
-    let trajectory = {
-        let source = source.as_ref();
-        let mut stepper = match (&slabs, &gathered, &whole) {
-            (Some(slabs), ..) => stepper(case, operator, source, ranks, len, &stepping, slabs),
-            (_, Some(gathered), _) => {
-                stepper(case, operator, source, ranks, len, &stepping, gathered)
-            }
-            (_, _, Some(whole)) => stepper(case, operator, source, ranks, len, &stepping, whole),
-            _ => stepper(case, operator, source, ranks, len, &stepping, &Identity),
-        };
-        integrate(stepper.as_mut(), ranks, u0, source, &stepping)
+    let mut stepper = match (&slabs, &gathered, &whole) {
+        (Some(slabs), ..) => stepper(case, operator, source, ranks, len, stepping, slabs),
+        (_, Some(gathered), _) => stepper(case, operator, source, ranks, len, stepping, gathered),
+        (_, _, Some(whole)) => stepper(case, operator, source, ranks, len, stepping, whole),
+        _ => stepper(case, operator, source, ranks, len, stepping, &Identity),
     };
-    (
-        Solved {
-            setup_s,
-            stepping,
-            source,
-        },
-        trajectory,
-    )
+    with(stepper.as_mut())
 }
 
 /// A horizon whose ball holds no node, or only bonds with J = 0 (J = 1 − r at ε = h), gives
