@@ -1333,3 +1333,103 @@ fn time_limits_come_from_stored_timings_unless_given() {
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
     assert!(text(&out).contains("ambiguous"), "{}", text(&out));
 }
+
+/// A boundary search finds each explicit integrator's stability limit where the operator's
+/// symbol puts it (cfl = 1), finds none for Crank–Nicolson, spends every probe once (the table's
+/// probes are the stored records), and a second run runs nothing and gives the same table.
+#[test]
+fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_store() {
+    let study = json!({
+        "name": "boundary",
+        "base": {"dim": 1, "n": 128, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
+                 "amplification_steps": 400},
+        "sweep": [{"product": {"m": [1, 4], "integrator": ["forward_euler", "rk4", "crank_nicolson"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 2e-3, "per_round": 2}
+    });
+    let scratch = Scratch::new("boundary", &study);
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    assert!(
+        plan.contains("boundary search along `cfl`: 6 searches"),
+        "{plan}"
+    );
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let path = scratch
+        .dir
+        .join("results/boundary/boundary-boundaries.parquet");
+    let table = read_parquet(&path);
+    assert_eq!(table.height(), 6);
+    let integrators = table.column("integrator").unwrap().str().unwrap().clone();
+    let integrators: Vec<&str> = (0..integrators.len())
+        .map(|i| integrators.get(i).unwrap())
+        .collect();
+    let (boundary, predicted) = (floats(&table, "boundary"), floats(&table, "predicted"));
+    for (k, integrator) in integrators.iter().enumerate() {
+        if *integrator == "crank_nicolson" {
+            assert!(boundary[k].is_nan() && predicted[k].is_nan(), "{k}");
+        } else {
+            assert_eq!(predicted[k], 1.0);
+            // The grid's top eigenvalue lies a little under the symbol's maximum: the measured
+            // limit is at or just above the prediction.
+            assert!(
+                boundary[k] > 1.0 - 2e-3 && boundary[k] < 1.005,
+                "{integrator}: {}",
+                boundary[k]
+            );
+        }
+    }
+    let probes: f64 = floats(&table, "probes").iter().sum();
+    assert_eq!(probes as usize, records(&scratch.runs("boundary")).len());
+    let again = scratch.nlstudy("run", &[]);
+    assert!(text(&again).contains("0 ran"), "{}", text(&again));
+    let again = floats(&read_parquet(&path), "boundary");
+    assert!(again
+        .iter()
+        .zip(&boundary)
+        .all(|(a, b)| a == b || (a.is_nan() && b.is_nan())));
+}
+
+#[test]
+fn a_boundary_search_that_cannot_be_made_is_refused_naming_the_field() {
+    let study = |boundary: Value, sweep: Value| {
+        json!({"name": "refused",
+               "base": {"dim": 1, "n": 16, "m": 2, "t_end": 1e-6, "allow_unstable": true},
+               "sweep": sweep, "boundary": boundary})
+    };
+    let good = json!({"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                      "rtol": 1e-3});
+    let with = |field: &str, value: Value| {
+        let mut boundary = good.clone();
+        boundary[field] = value;
+        boundary
+    };
+    for (boundary, sweep, field) in [
+        (
+            with("bracket", json!([1.0, 1.0])),
+            json!([]),
+            "boundary.bracket",
+        ),
+        (with("rtol", json!(0)), json!([]), "boundary.rtol"),
+        (
+            with("max_probes", json!(0)),
+            json!([]),
+            "boundary.max_probes",
+        ),
+        (
+            with("flips", json!("amplification >")),
+            json!([]),
+            "boundary.flips",
+        ),
+        (
+            good.clone(),
+            json!([{"product": {"cfl": [0.5]}}]),
+            "boundary.field",
+        ),
+    ] {
+        let scratch = Scratch::new("refused", &study(boundary, sweep));
+        let plan = scratch.nlstudy("plan", &[]);
+        assert_eq!(plan.status.code(), Some(2), "{}", text(&plan));
+        assert!(text(&plan).contains(field), "{field}: {}", text(&plan));
+    }
+}

@@ -57,6 +57,15 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         "{runs} to run, {} stored{shared}",
         planned.len() - runs - duplicates
     );
+    if let Some(spec) = &study.boundary {
+        let searches = planned.len() / 2;
+        outln!(
+            "boundary search along `{}`: {searches} searches; the points above are their first round (the bracket's ends), {} probes each at most ({} runs in all)",
+            spec.field,
+            spec.worst_case_probes(),
+            searches * spec.worst_case_probes()
+        );
+    }
     say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;
     Ok(ExitCode::SUCCESS)

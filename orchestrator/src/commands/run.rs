@@ -7,9 +7,11 @@ use super::open::{
 };
 use crate::cli::args::RunArgs;
 use crate::model::study::fields_telling_apart;
-use crate::run::plan::Decision;
+use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
+use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
+use crate::run::search::{self, Searched};
 use schema::exit;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -35,20 +37,36 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     };
     store.clear_abandoned_outputs()?;
     let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
-    let to_run = planned.iter().filter(|p| p.runs()).count();
-    let duplicates = planned
-        .iter()
-        .filter(|p| p.decision == Decision::Duplicate)
-        .count();
-    let skipped = planned.len() - to_run - duplicates;
-    let mut progress = Progress::new(Mode::detect(args.quiet), to_run, skipped);
-    let tally = crate::run::pool::run(&planned, &solver, &store, &options, &stop, &mut progress);
-    progress.close();
-    let tally = tally.map_err(|e| {
-        Failure::Io(format!(
-            "{e}; the cases that were running are not stored and run again next time"
-        ))
-    })?;
+    let mut tally = Tally::default();
+    // Runs the planned points not stored, counting what happened into `tally`.
+    let mut run_on_pool = |planned: &[Planned]| -> Result<bool, crate::store::Fault> {
+        let (to_run, copies) = counts(planned);
+        let stored = planned.len() - to_run - copies;
+        let mut progress = Progress::new(Mode::detect(args.quiet), to_run, stored);
+        let ran = crate::run::pool::run(planned, &solver, &store, &options, &stop, &mut progress);
+        progress.close();
+        let ran = ran.map_err(|e| {
+            crate::store::Fault::Io(format!(
+                "{e}; the cases that were running are not stored and run again next time"
+            ))
+        })?;
+        tally.add(&ran);
+        Ok(!ran.interrupted)
+    };
+    let (searched, planned) = match &study.boundary {
+        None => {
+            run_on_pool(&planned)?;
+            (None, planned)
+        }
+        Some(spec) => {
+            let options = args.plan.options();
+            let (searched, probes) =
+                search::searches(&study, spec, &solver, &store, &options, run_on_pool)?;
+            (searched.map(|s| (spec, s)), probes)
+        }
+    };
+    let (ran, duplicates) = counts(&planned);
+    let skipped = planned.len() - ran - duplicates;
     if !args.quiet {
         let passed = match tally.passed {
             0 => String::new(),
@@ -80,6 +98,13 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         return Ok(ExitCode::from(
             stop.exit_code().unwrap_or(exit::INTERRUPTED),
         ));
+    }
+    if let Some((spec, searched)) = &searched {
+        let path = crate::analysis::boundaries::write(&study, &store, &spec.field, searched)?;
+        if !args.quiet {
+            say_searches(&spec.field, searched);
+            errln!("table: {}", path.display());
+        }
     }
     if !args.no_collect {
         let tables = crate::analysis::collect::collect(&planned, &store, &study, args.allow_mixed)
@@ -114,6 +139,38 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         0 => ExitCode::SUCCESS,
         _ => ExitCode::from(exit::CASE_FAILED),
     })
+}
+
+/// The points of `planned` that run, and those that are the same case as an earlier point.
+fn counts(planned: &[Planned]) -> (usize, usize) {
+    let runs = planned.iter().filter(|p| p.runs()).count();
+    let copies = planned
+        .iter()
+        .filter(|p| p.decision == Decision::Duplicate)
+        .count();
+    (runs, copies)
+}
+
+/// Each search's answer, one line each: `m=4 integrator=rk4: cfl = 1.0004 (predicted 1, +0.04 %), 12 probes`.
+fn say_searches(field: &str, searched: &[Searched]) {
+    for s in searched {
+        let label = s.origin.label();
+        let search = &s.search;
+        let answer = match (search.boundary(), s.predicted) {
+            (Some(b), Some(p)) => format!(
+                "{field} = {} (predicted {}, {:+.2} %)",
+                crate::console::number(b),
+                crate::console::number(p),
+                100.0 * (b / p - 1.0)
+            ),
+            (Some(b), None) => format!("{field} = {}", crate::console::number(b)),
+            (None, _) => search
+                .ended
+                .as_ref()
+                .map_or_else(String::new, ToString::to_string),
+        };
+        errln!("  {label}: {answer}, {} probes", search.probes);
+    }
 }
 
 /// The longest timeout taken: about 31 years, past any allocation.

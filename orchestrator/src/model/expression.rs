@@ -96,7 +96,24 @@ pub fn names(text: &str) -> Result<Vec<String>, String> {
         .collect())
 }
 
+/// Whether `text` is an expression (a record's condition, before any record gives its names
+/// values): its syntax is checked, the names it reads are not.
+pub fn check_syntax(text: &str) -> Result<(), String> {
+    let nothing = Scope {
+        names: BTreeMap::new(),
+    };
+    evaluate_as_far_as_known(text, &nothing).map(drop)
+}
+
 fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
+    match evaluate_as_far_as_known(text, scope)? {
+        Val::Missing(why) => Err(why),
+        value => Ok(value),
+    }
+}
+
+/// The value of `text`, `Missing` when a name it needs is not in `scope`.
+fn evaluate_as_far_as_known(text: &str, scope: &Scope) -> Result<Val, String> {
     let tokens = tokenize(text)?;
     let mut parser = Parser {
         tokens: &tokens,
@@ -106,10 +123,7 @@ fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
     };
     let value = parser.or()?;
     match parser.tokens.get(parser.at) {
-        None => match value {
-            Val::Missing(why) => Err(why),
-            value => Ok(value),
-        },
+        None => Ok(value),
         Some(token) => Err(format!("`{text}`: unexpected {token:?}")),
     }
 }

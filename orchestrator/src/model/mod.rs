@@ -2,6 +2,7 @@
 //! `derive` and `where`, the figure specs it lists, and the resources its cluster jobs ask for.
 //! Pure data and rules: nothing here runs a process, touches the record store or draws.
 
+pub mod boundary;
 pub mod expression;
 pub mod figure_spec;
 pub mod launcher;

@@ -1,6 +1,7 @@
 //! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
+use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self};
 use crate::model::figure_spec::FigureSpec;
 use crate::model::resources::Resources;
@@ -53,6 +54,10 @@ pub struct Study {
     /// The figures `nlstudy plot` draws from the study's summary table.
     #[serde(default)]
     pub figures: Vec<FigureSpec>,
+    /// A boundary search from each point of the sweep: where `flips` starts to hold along one
+    /// numeric field (`model::boundary`).
+    #[serde(default)]
+    pub boundary: Option<BoundarySpec>,
 }
 
 fn one() -> usize {
@@ -339,6 +344,12 @@ impl Study {
         }
         if study.repeat == 0 {
             return Err(StudyError::new("repeat", "must be at least 1 (got 0)"));
+        }
+        if let Some(spec) = &study.boundary {
+            spec.check()
+                .map_err(|(field, why)| StudyError::new(field, why))?;
+            expression::check_syntax(&spec.flips)
+                .map_err(|why| StudyError::new("boundary.flips", why))?;
         }
         Ok(study)
     }

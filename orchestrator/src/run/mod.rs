@@ -6,4 +6,5 @@ pub mod nlsolve;
 pub mod plan;
 pub mod pool;
 pub mod progress;
+pub mod search;
 pub mod signals;

@@ -85,19 +85,40 @@ pub fn short(fingerprint: &str) -> &str {
     }
 }
 
-/// Plans every point of `study` against what the store holds (`index`); a bad study is
-/// `Fault::Input`, a solver that cannot be asked `Fault::Io`.
+/// Plans every point of `study` against what the store holds (`index`): its sweep's points, or
+/// for a boundary search the first round of probes; a bad study is `Fault::Input`, a solver
+/// that cannot be asked `Fault::Io`.
 pub fn plan(
     study: &Study,
     solver: &Nlsolve,
     index: &Index,
     options: &Options,
 ) -> Result<Vec<Planned>, Fault> {
+    let points = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
+    let points = match &study.boundary {
+        Some(spec) => {
+            spec.origins_may_search(&points)
+                .map_err(|e| Fault::Input(e.to_string()))?;
+            points
+                .iter()
+                .flat_map(|origin| spec.first_round(origin))
+                .collect()
+        }
+        None => points,
+    };
+    plan_points(points, solver, index, options)
+}
+
+/// Plans `points` against what the store holds (`index`).
+pub fn plan_points(
+    points: Vec<Point>,
+    solver: &Nlsolve,
+    index: &Index,
+    options: &Options,
+) -> Result<Vec<Planned>, Fault> {
     // Each point becomes its plan at once, so the points' own list is gone before the
     // solver's answers arrive (at 10⁶ points both lists together are a third of a gigabyte).
-    let mut planned: Vec<Planned> = study
-        .expand()
-        .map_err(|e| Fault::Input(e.to_string()))?
+    let mut planned: Vec<Planned> = points
         .into_iter()
         .map(|point| Planned {
             point,

@@ -92,6 +92,18 @@ pub struct Tally {
     pub interrupted: bool,
 }
 
+impl Tally {
+    /// Counts `other`'s work too (a search's rounds).
+    pub fn add(&mut self, other: &Tally) {
+        self.ok += other.ok;
+        self.diverged += other.diverged;
+        self.failed += other.failed;
+        self.passed += other.passed;
+        self.noisy += other.noisy;
+        self.interrupted |= other.interrupted;
+    }
+}
+
 struct Running {
     index: usize,
     /// 1 for the first run of the point, 2 for its first retry, …

@@ -64,6 +64,30 @@ impl Point {
         }
     }
 
+    /// Whether the sweep (or `derive`) sets `field`.
+    pub fn sweeps(&self, field: &str) -> bool {
+        self.swept.iter().any(|f| f == field)
+    }
+
+    /// The point with `field` swept to `value` too (a boundary search's probe): the same base,
+    /// branch and repeat, and the field last in its label.
+    pub fn with(&self, field: &str, value: Value) -> Point {
+        let mut point = self.clone();
+        match point.swept.iter().position(|f| f == field) {
+            Some(k) => point.values[k] = value,
+            None => {
+                point.swept = point
+                    .swept
+                    .iter()
+                    .cloned()
+                    .chain([field.to_string()])
+                    .collect();
+                point.values.push(value);
+            }
+        }
+        point
+    }
+
     /// The series the point lies on, named by the fields that stay along them.
     pub fn series(&self) -> PointSeries {
         PointSeries {

@@ -1,0 +1,77 @@
+//! The boundary table, `<study>-boundaries.parquet`: one row per search, with the swept fields
+//! that tell the searches apart, the boundary and its bracket, the theory's prediction, the
+//! probes and rounds spent, and why the search ended.
+
+use crate::model::boundary::Ended;
+use crate::model::study::{fields_telling_apart, Study};
+use crate::run::search::Searched;
+use crate::store::table::{self, Row};
+use crate::store::{Fault, Store};
+use serde_json::Value;
+use std::path::PathBuf;
+
+/// A number that was measured, or null: a bound that is not finite is never stored.
+fn number(x: Option<f64>) -> Value {
+    x.filter(|x| x.is_finite()).map_or(Value::Null, Value::from)
+}
+
+/// The table's rows, in the order of the sweep.
+pub fn rows(field: &str, searched: &[Searched]) -> Vec<Row> {
+    let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
+    searched
+        .iter()
+        .map(|s| {
+            let mut row = Row::default();
+            for name in &swept {
+                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
+            }
+            let search = &s.search;
+            let found = search.ended == Some(Ended::Found);
+            row.set("field", Value::from(field));
+            row.set("boundary", number(search.boundary()));
+            row.set("boundary_lo", number(found.then_some(search.below)));
+            row.set("boundary_hi", number(found.then_some(search.above)));
+            row.set("predicted", number(s.predicted));
+            row.set(
+                "gap",
+                number(search.boundary().zip(s.predicted).map(|(b, p)| b / p - 1.0)),
+            );
+            row.set("probes", Value::from(search.probes));
+            row.set("rounds", Value::from(search.rounds));
+            let ended = search.ended.as_ref().map(ToString::to_string);
+            row.set("ended", ended.map_or(Value::Null, Value::from));
+            row
+        })
+        .collect()
+}
+
+/// What the columns hold, in the file's metadata.
+const NOTES: &[(&str, &str)] = &[
+    ("field", "the case field searched along"),
+    ("boundary", "the middle of the final bracket, where the condition starts to hold; null if the search found none"),
+    ("boundary_lo", "the largest value probed where the condition does not hold"),
+    ("boundary_hi", "the smallest value probed where it holds"),
+    ("predicted", "the boundary the solver's theory gives (the symbol's dt_stable), null where it has none"),
+    ("gap", "boundary / predicted - 1"),
+    ("probes", "runs the search spent, the bracket's ends included"),
+    ("rounds", "rounds of probes, each run at once on the pool"),
+    ("ended", "why the search stopped"),
+];
+
+/// Writes the table beside the study's others and returns its path.
+pub fn write(
+    study: &Study,
+    store: &Store,
+    field: &str,
+    searched: &[Searched],
+) -> Result<PathBuf, Fault> {
+    let path = store.table(&format!("{}-boundaries.parquet", store.study));
+    let rows = rows(field, searched);
+    let about = table::About {
+        description: &study.description,
+        notes: NOTES,
+    };
+    let _outputs = store.lock_outputs()?;
+    table::write_parquet_about(&[(&path, &rows)], &about)?;
+    Ok(path)
+}

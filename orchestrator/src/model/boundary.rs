@@ -1,0 +1,382 @@
+//! A boundary search: where a condition over a probe's record (`amplification > 1`) starts to
+//! hold along one numeric case field (`cfl`), found by bracketing and then k-section to a
+//! relative tolerance. Pure rules: which values to probe next, given the answers so far.
+//!
+//! The search is a function of its answers: `replay` walks it from the first round, asking
+//! `answer` for each probe, and stops at the first round with a probe not answered yet. So a
+//! search killed at any moment and run again, with the records of its probes stored, asks for
+//! exactly the probes it had not run, and reaches the same boundary.
+
+use crate::model::study::{Point, StudyError};
+use serde::Deserialize;
+use serde_json::Value;
+
+/// A boundary search as a study writes it.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoundarySpec {
+    /// The numeric case field searched along (`cfl`, `dt`, `eps`, …).
+    pub field: String,
+    /// [below, above]: the condition must not hold at the first and must hold at the second.
+    pub bracket: [f64; 2],
+    /// The condition over a probe's record that holds past the boundary, in the study's
+    /// expression language (`amplification > 1`, `status == 'diverged'`).
+    pub flips: String,
+    /// The bracket's relative width at which the search stops: (above − below) ≤ rtol·above.
+    pub rtol: f64,
+    /// Probes inside the bracket each round (k-section; 1 is bisection): more use more workers
+    /// at once and take fewer rounds.
+    #[serde(default = "one")]
+    pub per_round: usize,
+    /// Most probes one search may spend, the two ends included (default: what k-section to
+    /// `rtol` needs).
+    #[serde(default)]
+    pub max_probes: Option<usize>,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// Why a search stopped.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Ended {
+    /// The bracket is within the tolerance.
+    Found,
+    /// The condition already holds at the lower end: the boundary, if any, lies below it.
+    FlipsBelow,
+    /// The condition does not hold at the upper end: no boundary up to it.
+    NoneUpTo,
+    /// `max_probes` was spent before the tolerance was reached.
+    Budget,
+    /// A probe's record could not answer (the run failed, or lacks a field the condition reads).
+    Unanswered { value: f64, why: String },
+}
+
+/// Where a search stands: the bracket, the probes spent and, once over, why it ended.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Search {
+    /// The largest value probed where the condition does not hold (the lower end at first).
+    pub below: f64,
+    /// The smallest value probed where it holds (the upper end at first).
+    pub above: f64,
+    pub probes: usize,
+    pub rounds: usize,
+    pub ended: Option<Ended>,
+}
+
+impl BoundarySpec {
+    /// The spec's own rules, each refusal naming the field at fault (under `boundary.`).
+    pub fn check(&self) -> Result<(), (String, String)> {
+        let fail = |field: &str, why: String| Err((format!("boundary.{field}"), why));
+        let [below, above] = self.bracket;
+        if !(below.is_finite() && above.is_finite()) {
+            return fail("bracket", "must be two finite numbers".into());
+        }
+        if below >= above {
+            return fail(
+                "bracket",
+                format!("[{below}, {above}] is empty; give [below, above] with below < above"),
+            );
+        }
+        if !(self.rtol > 0.0 && self.rtol < 1.0) {
+            return fail(
+                "rtol",
+                format!(
+                    "must lie in (0, 1) (got {}); 1e-3 finds a boundary to 0.1 %",
+                    self.rtol
+                ),
+            );
+        }
+        if !(1..=64).contains(&self.per_round) {
+            return fail(
+                "per_round",
+                format!("must be 1 to 64 (got {})", self.per_round),
+            );
+        }
+        match self.max_probes {
+            Some(probes) if probes < 2 => fail(
+                "max_probes",
+                format!("must be at least 2, the bracket's ends (got {probes})"),
+            ),
+            _ => Ok(()),
+        }
+    }
+
+    /// The probes a search spends at most: its two ends and, each round, `per_round` more,
+    /// for as many rounds as the bracket takes to narrow to `rtol` (or `max_probes`).
+    pub fn worst_case_probes(&self) -> usize {
+        let [below, above] = self.bracket;
+        // Each round divides the bracket by per_round + 1; the boundary lies above `below`,
+        // so a width of rtol·below is narrow enough wherever it is.
+        let narrowing = (above - below) / (self.rtol * below.abs().max(f64::MIN_POSITIVE));
+        let rounds = narrowing.ln() / ((self.per_round + 1) as f64).ln();
+        let needed = 2 + self.per_round * rounds.max(0.0).ceil() as usize;
+        self.max_probes.map_or(needed, |most| most.min(needed))
+    }
+
+    /// Refuses a search along a field the sweep sets too: the search sets it.
+    pub fn origins_may_search(&self, origins: &[Point]) -> Result<(), StudyError> {
+        match origins.iter().any(|origin| origin.sweeps(&self.field)) {
+            true => Err(StudyError::new(
+                "boundary.field",
+                format!(
+                    "`{}` is swept (or derived) too; the search sets it, so take it out of the sweep",
+                    self.field
+                ),
+            )),
+            false => Ok(()),
+        }
+    }
+
+    /// The probe of `origin` at `value` of the field: a point like any other.
+    pub fn probe(&self, origin: &Point, value: f64) -> Point {
+        origin.with(&self.field, Value::from(value))
+    }
+
+    /// The first round's probes of `origin`: the bracket's ends.
+    pub fn first_round(&self, origin: &Point) -> Vec<Point> {
+        self.bracket
+            .iter()
+            .map(|&v| self.probe(origin, v))
+            .collect()
+    }
+
+    /// The values the next round probes: the two ends first, then `per_round` values evenly
+    /// inside the bracket (fewer when the budget is nearly spent); none once the search ended.
+    pub fn round(&self, search: &Search) -> Vec<f64> {
+        if search.ended.is_some() {
+            return Vec::new();
+        }
+        if search.rounds == 0 {
+            return self.bracket.to_vec();
+        }
+        let left = self
+            .max_probes
+            .map_or(usize::MAX, |most| most - search.probes);
+        let k = self.per_round.min(left);
+        let width = search.above - search.below;
+        (1..=k)
+            .map(|j| search.below + width * j as f64 / (k + 1) as f64)
+            .collect()
+    }
+
+    /// The search after a round's answers, `(value, holds)` in the order of `round`.
+    pub fn observe(&self, search: &Search, answers: &[(f64, bool)]) -> Search {
+        let mut next = Search {
+            probes: search.probes + answers.len(),
+            rounds: search.rounds + 1,
+            ..search.clone()
+        };
+        if search.rounds == 0 {
+            let holds = |end: f64| answers.iter().any(|&(v, holds)| v == end && holds);
+            let [below, above] = self.bracket;
+            next.ended = match (holds(below), holds(above)) {
+                (true, _) => Some(Ended::FlipsBelow),
+                (false, false) => Some(Ended::NoneUpTo),
+                (false, true) => None,
+            };
+        } else {
+            // The first value (in order) where the condition holds bounds it from above; the
+            // largest below that where it does not, from below. A condition that holds, stops
+            // and holds again is read at its first flip, as a stability limit is.
+            let first_holding = answers.iter().find(|(_, holds)| *holds).map(|(v, _)| *v);
+            next.above = first_holding.unwrap_or(search.above);
+            next.below = answers
+                .iter()
+                .filter(|&&(v, holds)| !holds && v < next.above)
+                .map(|(v, _)| *v)
+                .fold(search.below, f64::max);
+        }
+        if next.ended.is_none() {
+            if next.above - next.below <= self.rtol * next.above.abs() {
+                next.ended = Some(Ended::Found);
+            } else if self.max_probes.is_some_and(|most| next.probes >= most) {
+                next.ended = Some(Ended::Budget);
+            }
+        }
+        next
+    }
+
+    /// The search as far as `answer` knows it: each probe's answer (None for one not run yet,
+    /// Err for a record that cannot answer), walked from the first round. Returns the search
+    /// and the probes of the first round not answered yet (none when it has ended).
+    pub fn replay(
+        &self,
+        mut answer: impl FnMut(f64) -> Option<Result<bool, String>>,
+    ) -> (Search, Vec<f64>) {
+        let [below, above] = self.bracket;
+        let mut search = Search {
+            below,
+            above,
+            probes: 0,
+            rounds: 0,
+            ended: None,
+        };
+        loop {
+            let round = self.round(&search);
+            if round.is_empty() {
+                return (search, Vec::new());
+            }
+            let mut answers = Vec::with_capacity(round.len());
+            let mut pending = Vec::new();
+            for &value in &round {
+                match answer(value) {
+                    None => pending.push(value),
+                    Some(Ok(holds)) => answers.push((value, holds)),
+                    Some(Err(why)) => {
+                        search.ended = Some(Ended::Unanswered { value, why });
+                        return (search, Vec::new());
+                    }
+                }
+            }
+            if !pending.is_empty() {
+                return (search, pending);
+            }
+            search = self.observe(&search, &answers);
+        }
+    }
+}
+
+impl Search {
+    /// The boundary's estimate: the middle of the final bracket, once found.
+    pub fn boundary(&self) -> Option<f64> {
+        (self.ended == Some(Ended::Found)).then_some(0.5 * (self.below + self.above))
+    }
+}
+
+impl std::fmt::Display for Ended {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Ended::Found => write!(f, "found"),
+            Ended::FlipsBelow => write!(f, "holds at the lower end already"),
+            Ended::NoneUpTo => write!(f, "does not hold at the upper end: no boundary up to it"),
+            Ended::Budget => write!(f, "max_probes spent before the tolerance"),
+            Ended::Unanswered { value, why } => {
+                write!(f, "the probe at {value} cannot answer: {why}")
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(per_round: usize) -> BoundarySpec {
+        BoundarySpec {
+            field: "cfl".into(),
+            bracket: [0.5, 2.0],
+            flips: "amplification > 1".into(),
+            rtol: 1e-3,
+            per_round,
+            max_probes: None,
+        }
+    }
+
+    /// Runs a search to its end against a condition, counting rounds and probes.
+    fn search(spec: &BoundarySpec, holds: impl Fn(f64) -> bool) -> Search {
+        let mut asked = Vec::new();
+        loop {
+            let (search, pending) =
+                spec.replay(|v| asked.contains(&v.to_bits()).then(|| Ok(holds(v))));
+            if pending.is_empty() {
+                return search;
+            }
+            for v in pending {
+                assert!(!asked.contains(&v.to_bits()), "{v} probed twice");
+                asked.push(v.to_bits());
+            }
+        }
+    }
+
+    /// A condition with a known boundary is found to the tolerance, in the rounds k-section
+    /// promises, never below the boundary's bracket.
+    #[test]
+    fn a_known_boundary_is_found_to_the_tolerance_in_the_promised_rounds() {
+        for boundary in [0.5000001, 0.73, 1.0, 1.2345, 1.999] {
+            for per_round in [1, 2, 3, 7] {
+                let spec = spec(per_round);
+                let found = search(&spec, |v| v >= boundary);
+                assert_eq!(found.ended, Some(Ended::Found), "{boundary} {per_round}");
+                assert!(found.below < boundary && boundary <= found.above);
+                let estimate = found.boundary().unwrap();
+                assert!(
+                    (estimate - boundary).abs() <= spec.rtol * boundary,
+                    "{estimate}"
+                );
+                // Rounds after the first: log_{k+1} of the narrowing, rounded up.
+                let promised = ((1.5 / (spec.rtol * boundary)).ln() / ((per_round + 1) as f64).ln())
+                    .ceil() as usize;
+                assert!(
+                    found.rounds <= 1 + promised,
+                    "{} > 1 + {promised}",
+                    found.rounds
+                );
+                assert!(found.probes <= spec.worst_case_probes());
+            }
+        }
+    }
+
+    #[test]
+    fn a_condition_that_never_flips_or_flips_at_once_ends_at_the_first_round() {
+        let spec = spec(1);
+        let none = search(&spec, |_| false);
+        assert_eq!((none.ended, none.probes), (Some(Ended::NoneUpTo), 2));
+        let below = search(&spec, |_| true);
+        assert_eq!(below.boundary(), None);
+        assert_eq!((below.ended, below.probes), (Some(Ended::FlipsBelow), 2));
+    }
+
+    #[test]
+    fn the_budget_is_honoured() {
+        let five = BoundarySpec {
+            max_probes: Some(5),
+            ..spec(2)
+        };
+        let found = search(&five, |v| v >= 1.2345);
+        assert_eq!(found.ended, Some(Ended::Budget));
+        assert_eq!(found.probes, 5);
+        assert_eq!(five.worst_case_probes(), 5);
+        let three = BoundarySpec {
+            max_probes: Some(3),
+            ..spec(1)
+        };
+        assert_eq!(search(&three, |v| v >= 1.2345).probes, 3);
+    }
+
+    /// Killed after any number of probes and run again, the search asks only for what it has
+    /// not run (the helper panics on a repeat) and ends where an uninterrupted one does.
+    #[test]
+    fn a_replay_with_some_answers_asks_only_for_the_rest() {
+        let spec = spec(3);
+        let whole = search(&spec, |v| v >= 1.2345);
+        let (part, pending) = spec.replay(|v| (v == 0.5 || v == 2.0).then_some(Ok(v >= 1.2345)));
+        assert_eq!(part.rounds, 1);
+        assert_eq!(pending, [0.875, 1.25, 1.625]);
+        let failed = spec.replay(|v| {
+            Some(if v == 2.0 {
+                Err("failed".into())
+            } else {
+                Ok(false)
+            })
+        });
+        assert!(matches!(failed.0.ended, Some(Ended::Unanswered { value, .. }) if value == 2.0));
+        assert_eq!(whole.boundary(), search(&spec, |v| v >= 1.2345).boundary());
+    }
+
+    #[test]
+    fn bad_specs_are_refused_naming_the_field() {
+        let refused = |change: fn(&mut BoundarySpec)| {
+            let mut s = spec(1);
+            change(&mut s);
+            s.check().unwrap_err().0
+        };
+        assert_eq!(refused(|s| s.bracket = [1.0, 1.0]), "boundary.bracket");
+        assert_eq!(refused(|s| s.bracket = [f64::NAN, 1.0]), "boundary.bracket");
+        assert_eq!(refused(|s| s.rtol = 0.0), "boundary.rtol");
+        assert_eq!(refused(|s| s.per_round = 0), "boundary.per_round");
+        assert_eq!(refused(|s| s.max_probes = Some(0)), "boundary.max_probes");
+        assert!(spec(1).check().is_ok());
+    }
+}
