@@ -1349,10 +1349,7 @@ fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_stor
     });
     let scratch = Scratch::new("boundary", &study);
     let plan = text(&scratch.nlstudy("plan", &[]));
-    assert!(
-        plan.contains("boundary search along `cfl`: 6 searches"),
-        "{plan}"
-    );
+    assert!(plan.contains("boundary along `cfl`: 6 searches"), "{plan}");
     let run = scratch.nlstudy("run", &[]);
     assert!(run.status.success(), "{}", text(&run));
     let path = scratch
@@ -1432,4 +1429,43 @@ fn a_boundary_search_that_cannot_be_made_is_refused_naming_the_field() {
         assert_eq!(plan.status.code(), Some(2), "{}", text(&plan));
         assert!(text(&plan).contains(field), "{field}: {}", text(&plan));
     }
+    let mut both = study(good, json!([]));
+    both["refine"] = json!({"field": "n", "start": 8});
+    let scratch = Scratch::new("refused", &both);
+    let plan = scratch.nlstudy("plan", &[]);
+    assert_eq!(plan.status.code(), Some(2), "{}", text(&plan));
+    assert!(text(&plan).contains("`refine`"), "{}", text(&plan));
+}
+
+/// A refinement doubles n until the last three observed orders agree with the expected one
+/// (FD and ADI on the heat eigenmode: order 2 in h at a fixed dt/dt_stable), never beyond: the
+/// levels run are the records stored, and a second run runs nothing.
+#[test]
+fn a_refinement_stops_once_its_order_is_established() {
+    let study = json!({
+        "name": "refined",
+        "base": {"dim": 1, "problem": "eigenmode", "t_end": 0.05, "cfl": 0.4},
+        "sweep": [{"product": {"method": ["fd_explicit", "adi"]}}],
+        "refine": {"field": "n", "start": 16, "order": 2}
+    });
+    let scratch = Scratch::new("refined", &study);
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    assert!(plan.contains("refine along `n`: 2 refinements"), "{plan}");
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let path = scratch
+        .dir
+        .join("results/refined/refined-convergence.parquet");
+    let table = read_parquet(&path);
+    assert_eq!(table.height(), 2);
+    for order in floats(&table, "order_finest") {
+        assert!((order - 2.0).abs() <= 0.05, "{order}");
+    }
+    let stopped = table.column("stopped").unwrap().str().unwrap().clone();
+    assert!((0..2).all(|i| stopped.get(i) == Some("order established")));
+    let levels: f64 = floats(&table, "levels").iter().sum();
+    assert!(levels <= 16.0);
+    assert_eq!(levels as usize, records(&scratch.runs("refined")).len());
+    let again = scratch.nlstudy("run", &[]);
+    assert!(text(&again).contains("0 ran"), "{}", text(&again));
 }

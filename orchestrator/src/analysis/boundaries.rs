@@ -2,11 +2,12 @@
 //! that tell the searches apart, the boundary and its bracket, the theory's prediction, the
 //! probes and rounds spent, and why the search ended.
 
-use crate::model::boundary::Ended;
+use crate::model::boundary::{Ended, Search};
 use crate::model::study::{fields_telling_apart, Study};
 use crate::run::search::Searched;
 use crate::store::table::{self, Row};
 use crate::store::{Fault, Store};
+use schema::record::Stored;
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -16,7 +17,7 @@ fn number(x: Option<f64>) -> Value {
 }
 
 /// The table's rows, in the order of the sweep.
-pub fn rows(field: &str, searched: &[Searched]) -> Vec<Row> {
+pub fn rows(field: &str, searched: &[Searched<Search>]) -> Vec<Row> {
     let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
     searched
         .iter()
@@ -25,16 +26,17 @@ pub fn rows(field: &str, searched: &[Searched]) -> Vec<Row> {
             for name in &swept {
                 row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
             }
-            let search = &s.search;
+            let search = &s.outcome;
+            let predicted = s.record.as_ref().and_then(|r| prediction(field, r));
             let found = search.ended == Some(Ended::Found);
             row.set("field", Value::from(field));
             row.set("boundary", number(search.boundary()));
             row.set("boundary_lo", number(found.then_some(search.below)));
             row.set("boundary_hi", number(found.then_some(search.above)));
-            row.set("predicted", number(s.predicted));
+            row.set("predicted", number(predicted));
             row.set(
                 "gap",
-                number(search.boundary().zip(s.predicted).map(|(b, p)| b / p - 1.0)),
+                number(search.boundary().zip(predicted).map(|(b, p)| b / p - 1.0)),
             );
             row.set("probes", Value::from(search.probes));
             row.set("rounds", Value::from(search.rounds));
@@ -63,7 +65,7 @@ pub fn write(
     study: &Study,
     store: &Store,
     field: &str,
-    searched: &[Searched],
+    searched: &[Searched<Search>],
 ) -> Result<PathBuf, Fault> {
     let path = store.table(&format!("{}-boundaries.parquet", store.study));
     let rows = rows(field, searched);
@@ -74,4 +76,24 @@ pub fn write(
     let _outputs = store.lock_outputs()?;
     table::write_parquet_about(&[(&path, &rows)], &about)?;
     Ok(path)
+}
+
+/// The boundary the solver's theory gives along `field`, from a probe's record: an explicit
+/// integrator's dt_stable (from the operator's symbol for the nonlocal method, the classical
+/// bound for finite differences) is the boundary of `dt`, and 1 that of `cfl`, which is dt
+/// over it. Implicit integrators and other fields have none.
+pub fn prediction(field: &str, stored: &Stored) -> Option<f64> {
+    let record = stored.record()?;
+    let method = record.case.get("method").and_then(|m| m.as_str());
+    let explicit = match method {
+        None | Some("nonlocal") => record.resolved.integrator.is_none_or(|i| !i.is_implicit()),
+        Some("fd_explicit") => true,
+        _ => false,
+    };
+    match field {
+        _ if !explicit => None,
+        "cfl" => Some(1.0),
+        "dt" => Some(record.resolved.dt_stable),
+        _ => None,
+    }
 }

@@ -4,6 +4,7 @@
 pub mod boundaries;
 pub mod collect;
 pub mod compare;
+pub mod convergence;
 pub mod figure_columns;
 pub mod pivot;
 pub mod scaling_model;

@@ -3,9 +3,22 @@
 use super::failure::Failure;
 use super::open::{no_refusals, planned, say_what_does_not_fit};
 use crate::cli::args::PlanArgs;
+use crate::model::adaptive::Adaptive;
 use crate::run::plan::Decision;
 use std::fmt::Write as _;
 use std::process::ExitCode;
+
+/// What an adaptive study's plan shows: its first round, and the most runs it can take.
+fn say_first_round<A: Adaptive>(question: &A, probes: usize, what: &str, first: &str) {
+    let points = probes / question.first_round().len();
+    let most = question.worst_case_probes();
+    outln!(
+        "{} along `{}`: {points} {what}; the points above are their first round ({first}), {most} runs each at most ({} in all)",
+        A::SECTION,
+        question.field(),
+        points * most
+    );
+}
 
 pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
     let (study, solver, _, planned) = planned(&args.common, &args.options(), false)?;
@@ -58,13 +71,10 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         planned.len() - runs - duplicates
     );
     if let Some(spec) = &study.boundary {
-        let searches = planned.len() / 2;
-        outln!(
-            "boundary search along `{}`: {searches} searches; the points above are their first round (the bracket's ends), {} probes each at most ({} runs in all)",
-            spec.field,
-            spec.worst_case_probes(),
-            searches * spec.worst_case_probes()
-        );
+        say_first_round(spec, planned.len(), "searches", "the bracket's ends");
+    }
+    if let Some(spec) = &study.refine {
+        say_first_round(spec, planned.len(), "refinements", "the coarsest levels");
     }
     say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;

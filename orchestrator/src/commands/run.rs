@@ -5,7 +5,11 @@ use super::failure::Failure;
 use super::open::{
     no_refusals, planned, print_figures_drawn, print_tables_written, say_what_does_not_fit,
 };
+use crate::analysis::boundaries::prediction;
 use crate::cli::args::RunArgs;
+use crate::console::number;
+use crate::model::boundary::Search;
+use crate::model::refine::Refinement;
 use crate::model::study::fields_telling_apart;
 use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
@@ -53,16 +57,33 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         tally.add(&ran);
         Ok(!ran.interrupted)
     };
-    let (searched, planned) = match &study.boundary {
-        None => {
+    let options_of_probes = args.plan.options();
+    let (answered, planned) = match (&study.boundary, &study.refine) {
+        (Some(question), _) => {
+            let (searched, probes) = search::searches(
+                &study,
+                question,
+                &solver,
+                &store,
+                &options_of_probes,
+                run_on_pool,
+            )?;
+            (searched.map(Answered::Boundaries), probes)
+        }
+        (_, Some(question)) => {
+            let (refined, probes) = search::searches(
+                &study,
+                question,
+                &solver,
+                &store,
+                &options_of_probes,
+                run_on_pool,
+            )?;
+            (refined.map(Answered::Refinements), probes)
+        }
+        (None, None) => {
             run_on_pool(&planned)?;
             (None, planned)
-        }
-        Some(spec) => {
-            let options = args.plan.options();
-            let (searched, probes) =
-                search::searches(&study, spec, &solver, &store, &options, run_on_pool)?;
-            (searched.map(|s| (spec, s)), probes)
         }
     };
     let (ran, duplicates) = counts(&planned);
@@ -99,10 +120,23 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             stop.exit_code().unwrap_or(exit::INTERRUPTED),
         ));
     }
-    if let Some((spec, searched)) = &searched {
-        let path = crate::analysis::boundaries::write(&study, &store, &spec.field, searched)?;
+    if let Some(answered) = &answered {
+        let (path, lines) = match answered {
+            Answered::Boundaries(searched) => {
+                let field = study.boundary.as_ref().map_or("", |q| q.field.as_str());
+                let path = crate::analysis::boundaries::write(&study, &store, field, searched)?;
+                (path, boundary_lines(field, searched))
+            }
+            Answered::Refinements(refined) => {
+                let field = study.refine.as_ref().map_or("", |q| q.field.as_str());
+                let path = crate::analysis::convergence::write(&study, &store, field, refined)?;
+                (path, refinement_lines(field, refined))
+            }
+        };
         if !args.quiet {
-            say_searches(&spec.field, searched);
+            for line in lines {
+                errln!("  {line}");
+            }
             errln!("table: {}", path.display());
         }
     }
@@ -151,26 +185,62 @@ fn counts(planned: &[Planned]) -> (usize, usize) {
     (runs, copies)
 }
 
-/// Each search's answer, one line each: `m=4 integrator=rk4: cfl = 1.0004 (predicted 1, +0.04 %), 12 probes`.
-fn say_searches(field: &str, searched: &[Searched]) {
-    for s in searched {
-        let label = s.origin.label();
-        let search = &s.search;
-        let answer = match (search.boundary(), s.predicted) {
-            (Some(b), Some(p)) => format!(
-                "{field} = {} (predicted {}, {:+.2} %)",
-                crate::console::number(b),
-                crate::console::number(p),
-                100.0 * (b / p - 1.0)
-            ),
-            (Some(b), None) => format!("{field} = {}", crate::console::number(b)),
-            (None, _) => search
-                .ended
+/// What an adaptive study found from each point of its sweep.
+enum Answered {
+    Boundaries(Vec<Searched<Search>>),
+    Refinements(Vec<Searched<Refinement>>),
+}
+
+/// Each search's answer: `m=4 integrator=rk4: cfl = 1.0004 (predicted 1, +0.04 %), 12 probes`.
+fn boundary_lines(field: &str, searched: &[Searched<Search>]) -> Vec<String> {
+    searched
+        .iter()
+        .map(|s| {
+            let search = &s.outcome;
+            let predicted = s.record.as_ref().and_then(|r| prediction(field, r));
+            let answer = match (search.boundary(), predicted) {
+                (Some(b), Some(p)) => format!(
+                    "{field} = {} (predicted {}, {:+.2} %)",
+                    number(b),
+                    number(p),
+                    100.0 * (b / p - 1.0)
+                ),
+                (Some(b), None) => format!("{field} = {}", number(b)),
+                (None, _) => search
+                    .ended
+                    .as_ref()
+                    .map_or_else(String::new, ToString::to_string),
+            };
+            format!("{}: {answer}, {} probes", s.origin.label(), search.probes)
+        })
+        .collect()
+}
+
+/// Each refinement's answer: `method=adi: order 2.001 (fitted 2.000) from n = 64, order
+/// established at n = 512, 5 levels`.
+fn refinement_lines(field: &str, refined: &[Searched<Refinement>]) -> Vec<String> {
+    refined
+        .iter()
+        .map(|s| {
+            let r = &s.outcome;
+            let order = |p: Option<f64>| p.map_or("–".to_string(), number);
+            let from = r
+                .asymptotic_from()
+                .map_or(String::new(), |v| format!(" from {field} = {}", number(v)));
+            let stopped = r
+                .stopped
                 .as_ref()
-                .map_or_else(String::new, ToString::to_string),
-        };
-        errln!("  {label}: {answer}, {} probes", search.probes);
-    }
+                .map_or_else(String::new, ToString::to_string);
+            let finest = r.levels.last().map_or(String::new(), |l| number(l.0));
+            format!(
+                "{}: order {} (fitted {}){from}; {stopped} at {field} = {finest}, {} levels",
+                s.origin.label(),
+                order(r.finest_order()),
+                order(r.fitted_order()),
+                r.levels.len()
+            )
+        })
+        .collect()
 }
 
 /// The longest timeout taken: about 31 years, past any allocation.

@@ -7,7 +7,9 @@
 //! search killed at any moment and run again, with the records of its probes stored, asks for
 //! exactly the probes it had not run, and reaches the same boundary.
 
-use crate::model::study::{Point, StudyError};
+use crate::model::adaptive::{Adaptive, Lookup};
+use crate::model::expression::{self, Scope};
+use schema::record::{columns, Stored};
 use serde::Deserialize;
 use serde_json::Value;
 
@@ -115,33 +117,6 @@ impl BoundarySpec {
         self.max_probes.map_or(needed, |most| most.min(needed))
     }
 
-    /// Refuses a search along a field the sweep sets too: the search sets it.
-    pub fn origins_may_search(&self, origins: &[Point]) -> Result<(), StudyError> {
-        match origins.iter().any(|origin| origin.sweeps(&self.field)) {
-            true => Err(StudyError::new(
-                "boundary.field",
-                format!(
-                    "`{}` is swept (or derived) too; the search sets it, so take it out of the sweep",
-                    self.field
-                ),
-            )),
-            false => Ok(()),
-        }
-    }
-
-    /// The probe of `origin` at `value` of the field: a point like any other.
-    pub fn probe(&self, origin: &Point, value: f64) -> Point {
-        origin.with(&self.field, Value::from(value))
-    }
-
-    /// The first round's probes of `origin`: the bracket's ends.
-    pub fn first_round(&self, origin: &Point) -> Vec<Point> {
-        self.bracket
-            .iter()
-            .map(|&v| self.probe(origin, v))
-            .collect()
-    }
-
     /// The values the next round probes: the two ends first, then `per_round` values evenly
     /// inside the bracket (fewer when the budget is nearly spent); none once the search ended.
     pub fn round(&self, search: &Search) -> Vec<f64> {
@@ -236,6 +211,48 @@ impl BoundarySpec {
             search = self.observe(&search, &answers);
         }
     }
+}
+
+impl Adaptive for BoundarySpec {
+    type Outcome = Search;
+    const SECTION: &'static str = "boundary";
+
+    fn field(&self) -> &str {
+        &self.field
+    }
+
+    fn value(&self, v: f64) -> Value {
+        Value::from(v)
+    }
+
+    fn first_round(&self) -> Vec<f64> {
+        self.bracket.to_vec()
+    }
+
+    fn worst_case_probes(&self) -> usize {
+        BoundarySpec::worst_case_probes(self)
+    }
+
+    fn replay(&self, record: &mut Lookup) -> (Search, Vec<f64>) {
+        BoundarySpec::replay(self, |v| {
+            record(v).map(|stored| stored.and_then(|s| flips(&self.flips, &s)))
+        })
+    }
+}
+
+/// Whether `condition` holds over a probe's record, its fields named as the run table's
+/// columns (`amplification`, `status`, `resolved.dt_stable`, `case.m`). A failed run cannot
+/// answer.
+pub fn flips(condition: &str, stored: &Stored) -> Result<bool, String> {
+    if stored.record().is_none() {
+        return Err(format!("the run failed: {}", stored.message()));
+    }
+    let value = stored.to_value();
+    let mut fields = serde_json::Map::new();
+    columns::flatten("", &value, &mut |name, value| {
+        fields.insert(name, value.clone());
+    });
+    expression::condition(condition, &Scope::from_fields(&fields))
 }
 
 impl Search {

@@ -4,6 +4,7 @@
 use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self};
 use crate::model::figure_spec::FigureSpec;
+use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
 use schema::error::{FieldError, Subject};
 use serde::Deserialize;
@@ -58,6 +59,10 @@ pub struct Study {
     /// numeric field (`model::boundary`).
     #[serde(default)]
     pub boundary: Option<BoundarySpec>,
+    /// A refinement from each point of the sweep that stops once its order is established
+    /// (`model::refine`).
+    #[serde(default)]
+    pub refine: Option<RefineSpec>,
 }
 
 fn one() -> usize {
@@ -350,6 +355,16 @@ impl Study {
                 .map_err(|(field, why)| StudyError::new(field, why))?;
             expression::check_syntax(&spec.flips)
                 .map_err(|why| StudyError::new("boundary.flips", why))?;
+        }
+        if let Some(spec) = &study.refine {
+            spec.check()
+                .map_err(|(field, why)| StudyError::new(field, why))?;
+            if study.boundary.is_some() {
+                return Err(StudyError::new(
+                    "refine",
+                    "a study asks one adaptive question: give `boundary` or `refine`, and the other in a study of its own",
+                ));
+            }
         }
         Ok(study)
     }

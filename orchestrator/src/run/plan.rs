@@ -1,5 +1,6 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
+use crate::model::adaptive::Adaptive;
 use crate::model::study::{Point, Study, StudyError};
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::store::Fault;
@@ -95,18 +96,28 @@ pub fn plan(
     options: &Options,
 ) -> Result<Vec<Planned>, Fault> {
     let points = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
-    let points = match &study.boundary {
-        Some(spec) => {
-            spec.origins_may_search(&points)
-                .map_err(|e| Fault::Input(e.to_string()))?;
-            points
-                .iter()
-                .flat_map(|origin| spec.first_round(origin))
-                .collect()
-        }
-        None => points,
+    let points = match (&study.boundary, &study.refine) {
+        (Some(boundary), _) => first_rounds(boundary, &points)?,
+        (_, Some(refine)) => first_rounds(refine, &points)?,
+        (None, None) => points,
     };
     plan_points(points, solver, index, options)
+}
+
+/// The probes of an adaptive question's first round from each of `origins`.
+fn first_rounds(question: &impl Adaptive, origins: &[Point]) -> Result<Vec<Point>, Fault> {
+    question
+        .origins_may_search(origins)
+        .map_err(|e| Fault::Input(e.to_string()))?;
+    Ok(origins
+        .iter()
+        .flat_map(|origin| {
+            question
+                .first_round()
+                .into_iter()
+                .map(|v| question.probe(origin, v))
+        })
+        .collect())
 }
 
 /// Plans `points` against what the store holds (`index`).
