@@ -1469,3 +1469,100 @@ fn a_refinement_stops_once_its_order_is_established() {
     let again = scratch.nlstudy("run", &[]);
     assert!(text(&again).contains("0 ran"), "{}", text(&again));
 }
+
+/// The error-target search ranks the candidates by the measured cost of the coarsest n that
+/// meets the target; a dense grid over n finds no configuration that meets it more cheaply (the
+/// cost here is `steps_done`, deterministic, so the check is exact to the search's tolerance).
+#[test]
+fn the_cheapest_configuration_for_an_error_target_is_not_beaten_by_a_dense_grid() {
+    let base = json!({"dim": 1, "problem": "eigenmode", "t_end": 0.05, "cfl": 0.4});
+    let methods = json!({"method": ["fd_explicit", "adi"]});
+    let target = json!({
+        "name": "aimed", "base": base, "sweep": [{"product": methods}],
+        "target": {"field": "n", "start": 16, "below": 1e-6, "cost": "steps_done", "rtol": 0.01}
+    });
+    let scratch = Scratch::new("aimed", &target);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let table = read_parquet(&scratch.dir.join("results/aimed/aimed-target.parquet"));
+    let (rank, cost, error) = (
+        floats(&table, "rank"),
+        floats(&table, "cost"),
+        floats(&table, "error"),
+    );
+    assert!(error.iter().all(|&e| e <= 1e-6), "{error:?}");
+    let best = (0..2).find(|&k| rank[k] == 1.0).expect("a first");
+    let dense_study = json!({
+        "name": "dense", "base": base,
+        "sweep": [{"product": methods}, {"product": {"n": (100..=340).collect::<Vec<_>>()}}]
+    });
+    let dense = Scratch::new("dense", &dense_study);
+    assert!(dense.nlstudy("run", &["--no-collect"]).status.success());
+    let cheapest = records(&dense.runs("dense"))
+        .iter()
+        .filter(|r| r["error_l2_norm"].as_f64().is_some_and(|e| e <= 1e-6))
+        .map(|r| r["steps_done"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        cheapest.is_finite(),
+        "no point of the dense grid meets the target"
+    );
+    // Within the search's 1 % in n, and steps ∝ n².
+    assert!(
+        cheapest >= cost[best] / 1.0201,
+        "the dense grid meets the target with {cheapest} steps, the search answered {}",
+        cost[best]
+    );
+    let again = scratch.nlstudy("run", &[]);
+    assert!(text(&again).contains("0 ran"), "{}", text(&again));
+}
+
+/// A boundary search killed with SIGKILL mid-round (no chance to clean up) and run again ends
+/// where an uninterrupted one does, and no probe runs twice: the records stored before the
+/// kill and the runs after it add up to the probes the table counts.
+#[test]
+fn a_search_killed_mid_round_resumes_without_running_a_probe_twice() {
+    let study = |name: &str| {
+        json!({
+            "name": name,
+            "base": {"dim": 1, "n": 128, "problem": "bump", "t_end": 1e-6,
+                     "allow_unstable": true, "amplification_steps": 400},
+            "sweep": [{"product": {"m": [1, 4], "integrator": ["forward_euler", "rk4"]}}],
+            "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                         "rtol": 2e-3}
+        })
+    };
+    let whole = Scratch::new("whole", &study("resumed"));
+    assert!(whole.nlstudy("run", &["--quiet"]).status.success());
+    let table = |scratch: &Scratch| {
+        read_parquet(
+            &scratch
+                .dir
+                .join("results/resumed/resumed-boundaries.parquet"),
+        )
+    };
+    let answer = floats(&table(&whole), "boundary");
+
+    let killed = Scratch::new("killed", &study("resumed"));
+    let mut child = killed.spawn("run", &["--quiet", "-j", "1"]);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while records(&killed.runs("resumed")).len() < 7 && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let stored = records(&killed.runs("resumed")).len();
+    assert!(stored >= 7, "{stored}");
+    let resumed = killed.nlstudy("run", &[]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let said = text(&resumed);
+    let ran: usize = said
+        .split("study resumed: ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
+    let probes: f64 = floats(&table(&killed), "probes").iter().sum();
+    assert_eq!(stored + ran, probes as usize, "{said}");
+    assert_eq!(floats(&table(&killed), "boundary"), answer);
+}

@@ -9,3 +9,4 @@ pub mod figure_columns;
 pub mod pivot;
 pub mod scaling_model;
 pub mod summary;
+pub mod target;

@@ -76,6 +76,9 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
     if let Some(spec) = &study.refine {
         say_first_round(spec, planned.len(), "refinements", "the coarsest levels");
     }
+    if let Some(spec) = &study.target {
+        say_first_round(spec, planned.len(), "candidates", "the first resolution");
+    }
     say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;
     Ok(ExitCode::SUCCESS)

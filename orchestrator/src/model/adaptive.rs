@@ -5,7 +5,6 @@
 //! with the records known and stops at the first round with a probe not run yet, so an
 //! interrupted study resumes from the store without running a probe twice.
 
-use crate::model::study::{Point, StudyError};
 use schema::record::Stored;
 use serde_json::Value;
 
@@ -35,24 +34,4 @@ pub trait Adaptive {
     /// The question as far as `record` knows it, and the values of the first round with a
     /// probe not run yet (none once it is answered).
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<f64>);
-
-    /// The probe of `origin` at `v`.
-    fn probe(&self, origin: &Point, v: f64) -> Point {
-        origin.with(self.field(), self.value(v))
-    }
-
-    /// Refuses a question along a field the sweep sets too: the question sets it.
-    fn origins_may_search(&self, origins: &[Point]) -> Result<(), StudyError> {
-        match origins.iter().any(|origin| origin.sweeps(self.field())) {
-            true => Err(StudyError::new(
-                format!("{}.field", Self::SECTION),
-                format!(
-                    "`{}` is swept (or derived) too; the {} sets it, so take it out of the sweep",
-                    self.field(),
-                    Self::SECTION
-                ),
-            )),
-            false => Ok(()),
-        }
-    }
 }

@@ -11,4 +11,5 @@ pub mod refine;
 pub mod resources;
 pub mod site;
 pub mod study;
+pub mod target;
 pub mod toml_file;

@@ -6,6 +6,7 @@ use crate::model::expression::{self};
 use crate::model::figure_spec::FigureSpec;
 use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
+use crate::model::target::TargetSpec;
 use schema::error::{FieldError, Subject};
 use serde::Deserialize;
 use serde_json::{Map, Value};
@@ -63,6 +64,10 @@ pub struct Study {
     /// (`model::refine`).
     #[serde(default)]
     pub refine: Option<RefineSpec>,
+    /// From each point of the sweep (a candidate configuration), the coarsest resolution that
+    /// meets an error target (`model::target`); the candidates ranked by cost.
+    #[serde(default)]
+    pub target: Option<TargetSpec>,
 }
 
 fn one() -> usize {
@@ -359,12 +364,21 @@ impl Study {
         if let Some(spec) = &study.refine {
             spec.check()
                 .map_err(|(field, why)| StudyError::new(field, why))?;
-            if study.boundary.is_some() {
-                return Err(StudyError::new(
-                    "refine",
-                    "a study asks one adaptive question: give `boundary` or `refine`, and the other in a study of its own",
-                ));
-            }
+        }
+        if let Some(spec) = &study.target {
+            spec.check()
+                .map_err(|(field, why)| StudyError::new(field, why))?;
+        }
+        let questions = [
+            ("boundary", study.boundary.is_some()),
+            ("refine", study.refine.is_some()),
+            ("target", study.target.is_some()),
+        ];
+        if let [_, (second, _), ..] = questions.iter().filter(|q| q.1).collect::<Vec<_>>()[..] {
+            return Err(StudyError::new(
+                *second,
+                "a study asks one adaptive question: give one of `boundary`, `refine` and `target`, and the others in studies of their own",
+            ));
         }
         Ok(study)
     }

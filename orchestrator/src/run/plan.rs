@@ -96,28 +96,47 @@ pub fn plan(
     options: &Options,
 ) -> Result<Vec<Planned>, Fault> {
     let points = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
-    let points = match (&study.boundary, &study.refine) {
-        (Some(boundary), _) => first_rounds(boundary, &points)?,
-        (_, Some(refine)) => first_rounds(refine, &points)?,
-        (None, None) => points,
+    let points = match (&study.boundary, &study.refine, &study.target) {
+        (Some(boundary), ..) => first_rounds(boundary, &points)?,
+        (_, Some(refine), _) => first_rounds(refine, &points)?,
+        (.., Some(target)) => first_rounds(target, &points)?,
+        (None, None, None) => points,
     };
     plan_points(points, solver, index, options)
 }
 
 /// The probes of an adaptive question's first round from each of `origins`.
-fn first_rounds(question: &impl Adaptive, origins: &[Point]) -> Result<Vec<Point>, Fault> {
-    question
-        .origins_may_search(origins)
-        .map_err(|e| Fault::Input(e.to_string()))?;
+fn first_rounds<A: Adaptive>(question: &A, origins: &[Point]) -> Result<Vec<Point>, Fault> {
+    origins_may_search(question, origins).map_err(|e| Fault::Input(e.to_string()))?;
     Ok(origins
         .iter()
         .flat_map(|origin| {
             question
                 .first_round()
                 .into_iter()
-                .map(|v| question.probe(origin, v))
+                .map(|v| probe(question, origin, v))
         })
         .collect())
+}
+
+/// The probe of `origin` at `v` of the question's field: a point like any other.
+pub fn probe<A: Adaptive>(question: &A, origin: &Point, v: f64) -> Point {
+    origin.with(question.field(), question.value(v))
+}
+
+/// Refuses a question along a field the sweep sets too: the question sets it.
+pub fn origins_may_search<A: Adaptive>(question: &A, origins: &[Point]) -> Result<(), StudyError> {
+    match origins.iter().any(|origin| origin.sweeps(question.field())) {
+        true => Err(StudyError::new(
+            format!("{}.field", A::SECTION),
+            format!(
+                "`{}` is swept (or derived) too; the {} sets it, so take it out of the sweep",
+                question.field(),
+                A::SECTION
+            ),
+        )),
+        false => Ok(()),
+    }
 }
 
 /// Plans `points` against what the store holds (`index`).

@@ -36,9 +36,7 @@ pub fn searches<A: Adaptive>(
     mut run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
 ) -> Result<Answers<A::Outcome>, Fault> {
     let origins = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
-    question
-        .origins_may_search(&origins)
-        .map_err(|e| Fault::Input(e.to_string()))?;
+    plan::origins_may_search(question, &origins).map_err(|e| Fault::Input(e.to_string()))?;
     // Each point's probes by their value (its bits).
     let mut probed: Vec<HashMap<u64, Result<Stored, String>>> = vec![HashMap::new(); origins.len()];
     let mut probes: Vec<Planned> = Vec::new();
@@ -65,7 +63,7 @@ pub fn searches<A: Adaptive>(
         }
         let points = pending
             .iter()
-            .map(|&(s, v)| question.probe(&origins[s], v))
+            .map(|&(s, v)| plan::probe(question, &origins[s], v))
             .collect();
         let planned = plan::plan_points(points, solver, &store.index(), options)?;
         if planned.iter().any(Planned::runs) && !run_round(&planned)? {
