@@ -237,6 +237,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     );
 
     array_with_a_throttle(&scratch, &slurm);
+    refined_a_round_per_submit(&scratch, &slurm);
     requeued_mid_run(&scratch, &slurm);
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
     if two_nodes {
@@ -359,6 +360,38 @@ fn array_with_a_throttle(scratch: &Scratch, slurm: &LocalSlurm) {
         scratch,
         slurm,
         &format!("job {id} nlstudy-array-0 (array of 20): 20 completed, 20 of 20 points stored"),
+    );
+}
+
+/// An adaptive study on a cluster, a round per `submit`: each submit sends the next round of
+/// probes (each job runs its share with `run --only`), and once every level is stored submit has
+/// nothing left and `run` gives the answer without running anything.
+fn refined_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "rounds",
+        "base": {"method": "fd_explicit", "dim": 1, "problem": "eigenmode", "t_end": 0.01,
+                 "cfl": 0.4},
+        "refine": {"field": "n", "start": 16, "max_levels": 3, "agree": 1e-9}
+    });
+    scratch.write_study(&study);
+    for level in 1..=3 {
+        let out = submit(scratch, slurm, &["--time", "00:05:00"]);
+        assert!(
+            out.status.success() && text(&out).contains("submitted as job "),
+            "round {level}: {}",
+            text(&out)
+        );
+        slurm.wait_for_jobs(Duration::from_secs(120));
+        let stored = records(&scratch.runs("rounds"));
+        assert_eq!(stored.len(), level, "{}", logs(scratch, "rounds"));
+    }
+    let done = submit(scratch, slurm, &["--dry-run"]);
+    assert!(text(&done).contains("nothing to submit"), "{}", text(&done));
+    let run = scratch.nlstudy("run", &[]);
+    assert!(
+        text(&run).contains("0 ran") && text(&run).contains("max_levels run at n = 64, 3 levels"),
+        "{}",
+        text(&run)
     );
 }
 

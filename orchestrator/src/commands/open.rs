@@ -69,7 +69,10 @@ pub(super) fn planned_and_index(
     for unreadable in &index.unreadable {
         errln!("nlstudy: warning: {unreadable}");
     }
-    let planned = crate::run::plan::plan(&study, &solver, &index, options)?;
+    let planned = match crate::run::search::probes_so_far(&study, &solver, &store, options)? {
+        Some(probes) => probes,
+        None => crate::run::plan::plan(&study, &solver, &index, options)?,
+    };
     Ok((study, solver, store, index, planned))
 }
 

@@ -8,15 +8,15 @@ use crate::run::plan::Decision;
 use std::fmt::Write as _;
 use std::process::ExitCode;
 
-/// What an adaptive study's plan shows: its first round, and the most runs it can take.
-fn say_first_round<A: Adaptive>(question: &A, probes: usize, what: &str, first: &str) {
-    let points = probes / question.first_round().len();
+/// What an adaptive study's plan shows: the probes so far and the next round, and the most runs
+/// its questions can take.
+fn say_rounds<A: Adaptive>(question: &A, questions: usize, what: &str) {
     let most = question.worst_case_probes();
     outln!(
-        "{} along `{}`: {points} {what}; the points above are their first round ({first}), {most} runs each at most ({} in all)",
+        "{} along `{}`: {questions} {what}; the points above are the probes stored and the next round, {most} runs each at most ({} in all)",
         A::SECTION,
         question.field(),
-        points * most
+        questions * most
     );
 }
 
@@ -70,14 +70,15 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         "{runs} to run, {} stored{shared}",
         planned.len() - runs - duplicates
     );
+    let questions = || study.expand().map_or(0, |points| points.len());
     if let Some(spec) = &study.boundary {
-        say_first_round(spec, planned.len(), "searches", "the bracket's ends");
+        say_rounds(spec, questions(), "searches");
     }
     if let Some(spec) = &study.refine {
-        say_first_round(spec, planned.len(), "refinements", "the coarsest levels");
+        say_rounds(spec, questions(), "refinements");
     }
     if let Some(spec) = &study.target {
-        say_first_round(spec, planned.len(), "candidates", "the first resolution");
+        say_rounds(spec, questions(), "candidates");
     }
     say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;

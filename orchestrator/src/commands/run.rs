@@ -59,7 +59,13 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         Ok(!ran.interrupted)
     };
     let options_of_probes = args.plan.options();
+    // A cluster job runs its share of the round it was given; the searches go on in `run`.
+    let share = options_of_probes.only.is_some();
     let (answered, planned) = match (&study.boundary, &study.refine) {
+        _ if share => {
+            run_on_pool(&planned)?;
+            (None, planned)
+        }
         (Some(question), _) => {
             let (searched, probes) = search::searches(
                 &study,

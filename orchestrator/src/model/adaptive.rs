@@ -25,9 +25,6 @@ pub trait Adaptive {
     /// A probe's value as its case holds it.
     fn value(&self, v: f64) -> Value;
 
-    /// The first round's values.
-    fn first_round(&self) -> Vec<f64>;
-
     /// The most probes one point's question can take.
     fn worst_case_probes(&self) -> usize;
 

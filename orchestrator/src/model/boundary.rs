@@ -225,10 +225,6 @@ impl Adaptive for BoundarySpec {
         Value::from(v)
     }
 
-    fn first_round(&self) -> Vec<f64> {
-        self.bracket.to_vec()
-    }
-
     fn worst_case_probes(&self) -> usize {
         BoundarySpec::worst_case_probes(self)
     }

@@ -281,10 +281,6 @@ impl Adaptive for RefineSpec {
         }
     }
 
-    fn first_round(&self) -> Vec<f64> {
-        vec![self.level(0)]
-    }
-
     fn worst_case_probes(&self) -> usize {
         self.max_levels
     }

@@ -256,10 +256,6 @@ impl Adaptive for TargetSpec {
         }
     }
 
-    fn first_round(&self) -> Vec<f64> {
-        vec![self.start]
-    }
-
     fn worst_case_probes(&self) -> usize {
         self.max_probes
     }

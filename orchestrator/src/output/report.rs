@@ -70,6 +70,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
                     }
                 }
                 (runs_section(&records))
+                (adaptive_section(study, store)?)
                 (figures_section(study, store, &summary, &records))
                 (summary_section(&summary, swept))
                 (comparison_section(store))
@@ -88,7 +89,8 @@ const STYLE: &str =
 figure{margin:1.5em 0}figure img{max-width:100%;height:auto;border:1px solid #ddd}\
 figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font-size:.85em}\
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
-pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}";
+pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}\
+.finding{color:#b00000;font-weight:bold}tr.finding td{background:#fde8e8}";
 
 /// A run table's row as the record it was flattened from.
 fn stored_of_row(row: &Row) -> Result<Stored, String> {
@@ -229,6 +231,56 @@ fn summary_section(summary: &[Row], swept: &[String]) -> Markup {
     }
 }
 
+/// The table of an adaptive study (its boundaries, refinements or the error target's ranking),
+/// whole, from the file `run` wrote; none for a study of a fixed sweep, or before it ran.
+fn adaptive_section(study: &Study, store: &Store) -> Result<Markup, Fault> {
+    let (title, table_name) = match (&study.boundary, &study.refine, &study.target) {
+        (Some(_), ..) => ("Boundaries", "boundaries"),
+        (_, Some(_), _) => ("Refinements", "convergence"),
+        (.., Some(_)) => ("The cheapest configuration for the error target", "target"),
+        (None, None, None) => return Ok(html! {}),
+    };
+    let path = store.table(&format!("{}-{table_name}.parquet", study.name));
+    if !path.exists() {
+        return Ok(html! {});
+    }
+    let rows = table::read_parquet(&path)?;
+    let rtol = study.boundary.as_ref().map(|b| b.rtol);
+    Ok(html! {
+        h2 { (title) }
+        (adaptive_table(&rows, rtol))
+    })
+}
+
+/// An adaptive study's rows as a table. With a boundary search's `rtol`, a boundary that lies
+/// below the theory's prediction by more than it is marked: the theory calls that step stable
+/// and the measurement finds it unstable.
+fn adaptive_table(rows: &[Row], rtol: Option<f64>) -> Markup {
+    let columns: Vec<&str> = rows
+        .first()
+        .map(|row| row.cells().map(|(name, _)| name).collect())
+        .unwrap_or_default();
+    let below_theory =
+        |row: &Row| rtol.is_some_and(|rtol| row.number("gap").is_some_and(|gap| gap < -rtol));
+    let findings = rows.iter().filter(|row| below_theory(row)).count();
+    let texts = crate::analysis::pivot::texts(rows, &columns);
+    html! {
+        @if findings > 0 {
+            p.finding {
+                (findings) " of the boundaries lie below the theory's prediction by more than the search's tolerance: there the theory calls the step stable and the measurement finds it unstable."
+            }
+        }
+        table {
+            tr { @for name in &columns { th { (name) } } }
+            @for (row, line) in rows.iter().zip(&texts) {
+                tr class=[below_theory(row).then_some("finding")] {
+                    @for cell in line { td { (cell) } }
+                }
+            }
+        }
+    }
+}
+
 /// Every failed run: its key, its case and its message.
 fn failures_section(records: &[Stored]) -> Markup {
     let failed: Vec<&Stored> = records
@@ -309,5 +361,26 @@ mod tests {
             page.contains("<tr><th>n</th><th>error_l2_norm</th></tr><tr><td>16</td><td>3e-6</td></tr><tr><td>32</td><td>9.451e-9</td></tr>"),
             "{page}"
         );
+    }
+
+    /// A boundary below the theory's prediction by more than the tolerance is a finding: its
+    /// row is marked and said; one above it, or within the tolerance, is not.
+    #[test]
+    fn a_boundary_below_the_theory_is_marked() {
+        let rows: Vec<Row> = [(1.002, 0.002), (0.99, -0.01), (0.9995, -0.0005)]
+            .iter()
+            .map(|&(boundary, gap)| {
+                let mut row = Row::default();
+                row.set("boundary", json!(boundary));
+                row.set("predicted", json!(1.0));
+                row.set("gap", json!(gap));
+                row
+            })
+            .collect();
+        let page = adaptive_table(&rows, Some(1e-3)).into_string();
+        assert_eq!(page.matches(r#"<tr class="finding">"#).count(), 1, "{page}");
+        assert!(page.contains("1 of the boundaries lie below"), "{page}");
+        let refinements = adaptive_table(&rows, None).into_string();
+        assert!(!refinements.contains("finding"), "{refinements}");
     }
 }

@@ -86,9 +86,9 @@ pub fn short(fingerprint: &str) -> &str {
     }
 }
 
-/// Plans every point of `study` against what the store holds (`index`): its sweep's points, or
-/// for a boundary search the first round of probes; a bad study is `Fault::Input`, a solver
-/// that cannot be asked `Fault::Io`.
+/// Plans every point of `study`'s sweep against what the store holds (`index`); a bad study is
+/// `Fault::Input`, a solver that cannot be asked `Fault::Io`. (An adaptive study's probes are
+/// planned round by round: `run::search`.)
 pub fn plan(
     study: &Study,
     solver: &Nlsolve,
@@ -96,27 +96,20 @@ pub fn plan(
     options: &Options,
 ) -> Result<Vec<Planned>, Fault> {
     let points = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
-    let points = match (&study.boundary, &study.refine, &study.target) {
-        (Some(boundary), ..) => first_rounds(boundary, &points)?,
-        (_, Some(refine), _) => first_rounds(refine, &points)?,
-        (.., Some(target)) => first_rounds(target, &points)?,
-        (None, None, None) => points,
-    };
     plan_points(points, solver, index, options)
 }
 
-/// The probes of an adaptive question's first round from each of `origins`.
-fn first_rounds<A: Adaptive>(question: &A, origins: &[Point]) -> Result<Vec<Point>, Fault> {
-    origins_may_search(question, origins).map_err(|e| Fault::Input(e.to_string()))?;
-    Ok(origins
-        .iter()
-        .flat_map(|origin| {
-            question
-                .first_round()
-                .into_iter()
-                .map(|v| probe(question, origin, v))
-        })
-        .collect())
+/// Keeps only the points among `only` (a cluster job's share): the others are skipped, and a
+/// key that is no point of `planned` is refused.
+pub fn restrict(planned: &mut [Planned], only: &HashSet<String>) -> Result<(), Fault> {
+    unknown_keys(only, planned).map_err(|e| Fault::Input(e.to_string()))?;
+    for p in planned
+        .iter_mut()
+        .filter(|p| !only.contains(p.key.as_str()))
+    {
+        p.decision = Decision::Skip("not among --only".into());
+    }
+    Ok(())
 }
 
 /// The probe of `origin` at `v` of the question's field: a point like any other.

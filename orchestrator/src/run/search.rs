@@ -37,6 +37,11 @@ pub fn searches<A: Adaptive>(
 ) -> Result<Answers<A::Outcome>, Fault> {
     let origins = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
     plan::origins_may_search(question, &origins).map_err(|e| Fault::Input(e.to_string()))?;
+    // Every probe is planned: a job's `--only` applies to the round it ran (`probes_so_far`).
+    let options = plan::Options {
+        only: None,
+        ..*options
+    };
     // Each point's probes by their value (its bits).
     let mut probed: Vec<HashMap<u64, Result<Stored, String>>> = vec![HashMap::new(); origins.len()];
     let mut probes: Vec<Planned> = Vec::new();
@@ -65,7 +70,7 @@ pub fn searches<A: Adaptive>(
             .iter()
             .map(|&(s, v)| plan::probe(question, &origins[s], v))
             .collect();
-        let planned = plan::plan_points(points, solver, &store.index(), options)?;
+        let planned = plan::plan_points(points, solver, &store.index(), &options)?;
         if planned.iter().any(Planned::runs) && !run_round(&planned)? {
             probes.extend(planned);
             return Ok((None, probes));
@@ -81,4 +86,27 @@ pub fn searches<A: Adaptive>(
         }
         probes.extend(planned);
     }
+}
+
+/// The probes of an adaptive study so far: those stored (skipped) and the next round's (to
+/// run), as `plan` shows them, `submit` sends them to the scheduler and a job's `run --only`
+/// runs its share of them. None for a study of a fixed sweep.
+pub fn probes_so_far(
+    study: &Study,
+    solver: &Nlsolve,
+    store: &Store,
+    options: &plan::Options,
+) -> Result<Option<Vec<Planned>>, Fault> {
+    let stop = |_: &[Planned]| Ok(false);
+    let probes = match (&study.boundary, &study.refine, &study.target) {
+        (Some(question), ..) => searches(study, question, solver, store, options, stop)?.1,
+        (_, Some(question), _) => searches(study, question, solver, store, options, stop)?.1,
+        (.., Some(question)) => searches(study, question, solver, store, options, stop)?.1,
+        (None, None, None) => return Ok(None),
+    };
+    let mut probes = probes;
+    if let Some(only) = &options.only {
+        plan::restrict(&mut probes, only)?;
+    }
+    Ok(Some(probes))
 }
