@@ -2,46 +2,40 @@
 //! that tell the searches apart, the boundary and its bracket, the theory's prediction, the
 //! probes and rounds spent, and why the search ended.
 
+use crate::analysis::answer_table::{self, measured, origin_rows, text};
 use crate::model::boundary::{Ended, Search};
-use crate::model::study::{fields_telling_apart, Study};
+use crate::model::study::Study;
 use crate::run::search::Searched;
-use crate::store::table::{self, Row};
+use crate::store::table::Row;
 use crate::store::{Fault, Store};
 use schema::record::Stored;
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// A number that was measured, or null: a bound that is not finite is never stored.
-fn number(x: Option<f64>) -> Value {
-    x.filter(|x| x.is_finite()).map_or(Value::Null, Value::from)
-}
-
 /// The table's rows, in the order of the sweep.
 pub fn rows(field: &str, searched: &[Searched<Search>]) -> Vec<Row> {
-    let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
-    searched
-        .iter()
-        .map(|s| {
-            let mut row = Row::default();
-            for name in &swept {
-                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
-            }
+    origin_rows(searched)
+        .into_iter()
+        .zip(searched)
+        .map(|(mut row, s)| {
             let search = &s.outcome;
             let predicted = s.record.as_ref().and_then(|r| prediction(field, r));
             let found = search.ended == Some(Ended::Found);
             row.set("field", Value::from(field));
-            row.set("boundary", number(search.boundary()));
-            row.set("boundary_lo", number(found.then_some(search.below)));
-            row.set("boundary_hi", number(found.then_some(search.above)));
-            row.set("predicted", number(predicted));
+            row.set("boundary", measured(search.boundary()));
+            row.set("boundary_lo", measured(found.then_some(search.below)));
+            row.set("boundary_hi", measured(found.then_some(search.above)));
+            row.set("predicted", measured(predicted));
             row.set(
                 "gap",
-                number(search.boundary().zip(predicted).map(|(b, p)| b / p - 1.0)),
+                measured(search.boundary().zip(predicted).map(|(b, p)| b / p - 1.0)),
             );
             row.set("probes", Value::from(search.probes));
             row.set("rounds", Value::from(search.rounds));
-            let ended = search.ended.as_ref().map(ToString::to_string);
-            row.set("ended", ended.map_or(Value::Null, Value::from));
+            row.set(
+                "ended",
+                text(search.ended.as_ref().map(ToString::to_string)),
+            );
             row
         })
         .collect()
@@ -67,15 +61,7 @@ pub fn write(
     field: &str,
     searched: &[Searched<Search>],
 ) -> Result<PathBuf, Fault> {
-    let path = store.table(&format!("{}-boundaries.parquet", store.study));
-    let rows = rows(field, searched);
-    let about = table::About {
-        description: &study.description,
-        notes: NOTES,
-    };
-    let _outputs = store.lock_outputs()?;
-    table::write_parquet_about(&[(&path, &rows)], &about)?;
-    Ok(path)
+    answer_table::write(study, store, "boundaries", &rows(field, searched), NOTES)
 }
 
 /// The boundary the solver's theory gives along `field`, from a probe's record: an explicit

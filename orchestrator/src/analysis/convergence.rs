@@ -3,40 +3,34 @@
 //! of the finest pair and fitted over the asymptotic levels, where the asymptotic regime began
 //! and why the refinement stopped.
 
+use crate::analysis::answer_table::{self, measured, origin_rows, text};
 use crate::model::refine::Refinement;
-use crate::model::study::{fields_telling_apart, Study};
+use crate::model::study::Study;
 use crate::run::search::Searched;
-use crate::store::table::{self, Row};
+use crate::store::table::Row;
 use crate::store::{Fault, Store};
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// A number that was measured, or null: a value that is not finite is never stored.
-fn number(x: Option<f64>) -> Value {
-    x.filter(|x| x.is_finite()).map_or(Value::Null, Value::from)
-}
-
 /// The table's rows, in the order of the sweep.
 pub fn rows(field: &str, searched: &[Searched<Refinement>]) -> Vec<Row> {
-    let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
-    searched
-        .iter()
-        .map(|s| {
-            let mut row = Row::default();
-            for name in &swept {
-                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
-            }
+    origin_rows(searched)
+        .into_iter()
+        .zip(searched)
+        .map(|(mut row, s)| {
             let refinement = &s.outcome;
             let finest = refinement.levels.last();
             row.set("field", Value::from(field));
             row.set("levels", Value::from(refinement.levels.len()));
-            row.set("finest", number(finest.map(|l| l.0)));
-            row.set("error", number(finest.map(|l| l.1)));
-            row.set("order_finest", number(refinement.finest_order()));
-            row.set("order_fitted", number(refinement.fitted_order()));
-            row.set("asymptotic_from", number(refinement.asymptotic_from()));
-            let stopped = refinement.stopped.as_ref().map(ToString::to_string);
-            row.set("stopped", stopped.map_or(Value::Null, Value::from));
+            row.set("finest", measured(finest.map(|l| l.0)));
+            row.set("error", measured(finest.map(|l| l.1)));
+            row.set("order_finest", measured(refinement.finest_order()));
+            row.set("order_fitted", measured(refinement.fitted_order()));
+            row.set("asymptotic_from", measured(refinement.asymptotic_from()));
+            row.set(
+                "stopped",
+                text(refinement.stopped.as_ref().map(ToString::to_string)),
+            );
             row
         })
         .collect()
@@ -70,13 +64,5 @@ pub fn write(
     field: &str,
     searched: &[Searched<Refinement>],
 ) -> Result<PathBuf, Fault> {
-    let path = store.table(&format!("{}-convergence.parquet", store.study));
-    let rows = rows(field, searched);
-    let about = table::About {
-        description: &study.description,
-        notes: NOTES,
-    };
-    let _outputs = store.lock_outputs()?;
-    table::write_parquet_about(&[(&path, &rows)], &about)?;
-    Ok(path)
+    answer_table::write(study, store, "convergence", &rows(field, searched), NOTES)
 }

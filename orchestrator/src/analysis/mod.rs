@@ -1,6 +1,7 @@
 //! From records to numbers: the run table and the per-point summary (speedups, convergence
 //! orders, timing statistics), and Markdown pivots over it.
 
+pub mod answer_table;
 pub mod boundaries;
 pub mod collect;
 pub mod compare;

@@ -3,10 +3,11 @@
 //! found to meet the target, its error and measured cost, the candidates' rank by that cost
 //! (1: the cheapest), the runs spent and how each search ended.
 
-use crate::model::study::{fields_telling_apart, Study};
+use crate::analysis::answer_table::{self, measured, origin_rows, text};
+use crate::model::study::Study;
 use crate::model::target::{Aimed, Level, TargetSpec};
 use crate::run::search::Searched;
-use crate::store::table::{self, Row};
+use crate::store::table::Row;
 use crate::store::{Fault, Store};
 use serde_json::Value;
 use std::path::PathBuf;
@@ -34,25 +35,19 @@ pub fn ranked(
 
 /// The table's rows, in the order of the sweep.
 pub fn rows(spec: &TargetSpec, searched: &[Searched<Aimed>]) -> Vec<Row> {
-    let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
-    let number = |x: Option<f64>| x.filter(|x| x.is_finite()).map_or(Value::Null, Value::from);
-    searched
-        .iter()
-        .zip(ranked(spec, searched))
-        .map(|(s, (answer, rank))| {
-            let mut row = Row::default();
-            for name in &swept {
-                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
-            }
+    origin_rows(searched)
+        .into_iter()
+        .zip(searched.iter().zip(ranked(spec, searched)))
+        .map(|(mut row, (s, (answer, rank)))| {
             row.set("field", Value::from(spec.field.as_str()));
             row.set("target", Value::from(spec.below));
-            row.set("resolution", number(answer.map(|l| l.value)));
-            row.set("error", number(answer.map(|l| l.error)));
-            row.set("cost", number(answer.map(|l| l.cost)));
+            row.set("resolution", measured(answer.map(|l| l.value)));
+            row.set("error", measured(answer.map(|l| l.error)));
+            row.set("cost", measured(answer.map(|l| l.cost)));
             row.set("rank", rank.map_or(Value::Null, Value::from));
             row.set("probes", Value::from(s.outcome.levels.len()));
             let reached = s.outcome.reached.as_ref().map(ToString::to_string);
-            row.set("reached", reached.map_or(Value::Null, Value::from));
+            row.set("reached", text(reached));
             row
         })
         .collect()
@@ -83,13 +78,5 @@ pub fn write(
     spec: &TargetSpec,
     searched: &[Searched<Aimed>],
 ) -> Result<PathBuf, Fault> {
-    let path = store.table(&format!("{}-target.parquet", store.study));
-    let rows = rows(spec, searched);
-    let about = table::About {
-        description: &study.description,
-        notes: NOTES,
-    };
-    let _outputs = store.lock_outputs()?;
-    table::write_parquet_about(&[(&path, &rows)], &about)?;
-    Ok(path)
+    answer_table::write(study, store, "target", &rows(spec, searched), NOTES)
 }

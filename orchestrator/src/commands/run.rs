@@ -16,7 +16,7 @@ use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
-use crate::run::search::{self, Searched};
+use crate::run::search::{self, Answered, Searched};
 use schema::exit;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -58,53 +58,25 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         tally.add(&ran);
         Ok(!ran.interrupted)
     };
+    // A cluster job runs its share of the round it was given (`--only`); the questions of an
+    // adaptive study go on in `run`.
     let options_of_probes = args.plan.options();
-    // A cluster job runs its share of the round it was given; the searches go on in `run`.
-    let share = options_of_probes.only.is_some();
-    let (answered, planned) = match (&study.boundary, &study.refine) {
-        _ if share => {
+    let adaptive = match options_of_probes.only {
+        Some(_) => None,
+        None => search::answer(
+            &study,
+            &solver,
+            &store,
+            &options_of_probes,
+            &mut run_on_pool,
+        )?,
+    };
+    let (answered, planned) = match adaptive {
+        Some(answers) => answers,
+        None => {
             run_on_pool(&planned)?;
             (None, planned)
         }
-        (Some(question), _) => {
-            let (searched, probes) = search::searches(
-                &study,
-                question,
-                &solver,
-                &store,
-                &options_of_probes,
-                run_on_pool,
-            )?;
-            (searched.map(Answered::Boundaries), probes)
-        }
-        (_, Some(question)) => {
-            let (refined, probes) = search::searches(
-                &study,
-                question,
-                &solver,
-                &store,
-                &options_of_probes,
-                run_on_pool,
-            )?;
-            (refined.map(Answered::Refinements), probes)
-        }
-        (None, None) => match &study.target {
-            Some(question) => {
-                let (aimed, probes) = search::searches(
-                    &study,
-                    question,
-                    &solver,
-                    &store,
-                    &options_of_probes,
-                    run_on_pool,
-                )?;
-                (aimed.map(Answered::Targets), probes)
-            }
-            None => {
-                run_on_pool(&planned)?;
-                (None, planned)
-            }
-        },
     };
     let (ran, duplicates) = counts(&planned);
     let skipped = planned.len() - ran - duplicates;
@@ -208,13 +180,6 @@ fn counts(planned: &[Planned]) -> (usize, usize) {
         .filter(|p| p.decision == Decision::Duplicate)
         .count();
     (runs, copies)
-}
-
-/// What an adaptive study found from each point of its sweep.
-enum Answered {
-    Boundaries(Vec<Searched<Search>>),
-    Refinements(Vec<Searched<Refinement>>),
-    Targets(Vec<Searched<Aimed>>),
 }
 
 /// The candidates by cost: `1. method=adi: n = 384, error 9.1e-07, solve_s 0.41 (5 runs)`, and

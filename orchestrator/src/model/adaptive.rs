@@ -5,7 +5,7 @@
 //! with the records known and stops at the first round with a probe not run yet, so an
 //! interrupted study resumes from the store without running a probe twice.
 
-use schema::record::Stored;
+use schema::record::{column, Stored};
 use serde_json::Value;
 
 /// The record of a probe that ran (Err: the solver refused it or it stored nothing), None
@@ -22,8 +22,13 @@ pub trait Adaptive {
     /// The case field probed.
     fn field(&self) -> &str;
 
-    /// A probe's value as its case holds it.
-    fn value(&self, v: f64) -> Value;
+    /// A probe's value as its case holds it: a whole number of nodes for `n`, else the number.
+    fn value(&self, v: f64) -> Value {
+        match self.field() {
+            "n" => Value::from(v.round() as u64),
+            _ => Value::from(v),
+        }
+    }
 
     /// The most probes one point's question can take.
     fn worst_case_probes(&self) -> usize;
@@ -31,4 +36,17 @@ pub trait Adaptive {
     /// The question as far as `record` knows it, and the values of the first round with a
     /// probe not run yet (none once it is answered).
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<f64>);
+}
+
+/// Column `name` of a probe's record (an error, a cost), a positive finite number: what a
+/// question reads as a measurement. A failed run has none.
+pub fn positive(name: &str, stored: &Stored) -> Result<f64, String> {
+    if stored.record().is_none() {
+        return Err(format!("the run failed: {}", stored.message()));
+    }
+    match column(stored, name).and_then(|v| v.as_f64()) {
+        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+        Some(x) => Err(format!("`{name}` is {x}, not a positive number")),
+        None => Err(format!("its record has no `{name}`")),
+    }
 }

@@ -11,7 +11,6 @@ use crate::model::adaptive::{Adaptive, Lookup};
 use crate::model::expression::{self, Scope};
 use schema::record::{columns, Stored};
 use serde::Deserialize;
-use serde_json::Value;
 
 /// A boundary search as a study writes it.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -219,10 +218,6 @@ impl Adaptive for BoundarySpec {
 
     fn field(&self) -> &str {
         &self.field
-    }
-
-    fn value(&self, v: f64) -> Value {
-        Value::from(v)
     }
 
     fn worst_case_probes(&self) -> usize {

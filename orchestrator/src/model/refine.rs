@@ -4,10 +4,8 @@
 //! orders agree (with the expected order, where the study names one), the error reaches a
 //! target, the error stops falling (round-off: a plateau), or the levels run out. Never beyond.
 
-use crate::model::adaptive::{Adaptive, Lookup};
-use schema::record::{column, Stored};
+use crate::model::adaptive::{positive, Adaptive, Lookup};
 use serde::Deserialize;
-use serde_json::Value;
 
 /// A refinement as a study writes it.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -274,33 +272,14 @@ impl Adaptive for RefineSpec {
         &self.field
     }
 
-    fn value(&self, v: f64) -> Value {
-        match self.is_grid() {
-            true => Value::from(v as u64),
-            false => Value::from(v),
-        }
-    }
-
     fn worst_case_probes(&self) -> usize {
         self.max_levels
     }
 
     fn replay(&self, record: &mut Lookup) -> (Refinement, Vec<f64>) {
         self.replay_errors(|v| {
-            record(v).map(|stored| stored.and_then(|s| error_of(&self.error, &s)))
+            record(v).map(|stored| stored.and_then(|s| positive(&self.error, &s)))
         })
-    }
-}
-
-/// A level's error: the column `name` of its record, a positive finite number.
-fn error_of(name: &str, stored: &Stored) -> Result<f64, String> {
-    if stored.record().is_none() {
-        return Err(format!("the run failed: {}", stored.message()));
-    }
-    match column(stored, name).and_then(|v| v.as_f64()) {
-        Some(e) if e.is_finite() && e > 0.0 => Ok(e),
-        Some(e) => Err(format!("`{name}` is {e}; an order needs a positive error")),
-        None => Err(format!("its record has no `{name}`")),
     }
 }
 
@@ -430,13 +409,13 @@ mod tests {
             ..spec()
         };
         assert_eq!(dt.level(2), 0.025);
-        assert_eq!(dt.value(0.025), Value::from(0.025));
+        assert_eq!(dt.value(0.025), serde_json::json!(0.025));
         let n = RefineSpec {
             start: 10.0,
             factor: 1.5,
             ..spec()
         };
-        assert_eq!(n.value(n.level(3)), Value::from(34u64));
+        assert_eq!(n.value(n.level(3)), serde_json::json!(34));
         let found = refine(&dt, |dt| 5.0 * dt);
         assert!((found.finest_order().unwrap() - 1.0).abs() < 1e-12);
     }

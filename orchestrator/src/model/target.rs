@@ -5,10 +5,8 @@
 //! narrowing between the finest level that missed and the coarsest that met the target to a
 //! relative tolerance. The candidates are ranked by the measured cost of their answers.
 
-use crate::model::adaptive::{Adaptive, Lookup};
-use schema::record::{column, Stored};
+use crate::model::adaptive::{positive, Adaptive, Lookup};
 use serde::Deserialize;
-use serde_json::Value;
 
 /// An error-target search as a study writes it.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -249,13 +247,6 @@ impl Adaptive for TargetSpec {
         &self.field
     }
 
-    fn value(&self, v: f64) -> Value {
-        match self.is_grid() {
-            true => Value::from(v as u64),
-            false => Value::from(v),
-        }
-    }
-
     fn worst_case_probes(&self) -> usize {
         self.max_probes
     }
@@ -266,18 +257,6 @@ impl Adaptive for TargetSpec {
                 stored.and_then(|s| Ok((positive(&self.error, &s)?, positive(&self.cost, &s)?)))
             })
         })
-    }
-}
-
-/// Column `name` of a record that ran, a positive finite number.
-fn positive(name: &str, stored: &Stored) -> Result<f64, String> {
-    if stored.record().is_none() {
-        return Err(format!("the run failed: {}", stored.message()));
-    }
-    match column(stored, name).and_then(|v| v.as_f64()) {
-        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-        Some(x) => Err(format!("`{name}` is {x}, not a positive number")),
-        None => Err(format!("its record has no `{name}`")),
     }
 }
 

@@ -5,7 +5,10 @@
 //! without running a probe twice, and ends where it would have.
 
 use crate::model::adaptive::Adaptive;
+use crate::model::boundary::Search;
+use crate::model::refine::Refinement;
 use crate::model::study::{Point, Study};
+use crate::model::target::Aimed;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{self, Planned};
 use crate::store::{Fault, Store};
@@ -20,8 +23,8 @@ pub struct Searched<O> {
     pub record: Option<Stored>,
 }
 
-/// What each point's question found (None when interrupted), and every probe planned.
-pub type Answers<O> = (Option<Vec<Searched<O>>>, Vec<Planned>);
+/// What a study's questions found (None when interrupted), and every probe planned.
+pub type Answers<F> = (Option<F>, Vec<Planned>);
 
 /// Runs `question` from every point of `study`'s sweep to its end: `run_round` runs the
 /// planned probes not stored (on the worker pool) and says whether it finished them all (false:
@@ -34,7 +37,7 @@ pub fn searches<A: Adaptive>(
     store: &Store,
     options: &plan::Options,
     mut run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
-) -> Result<Answers<A::Outcome>, Fault> {
+) -> Result<Answers<Vec<Searched<A::Outcome>>>, Fault> {
     let origins = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
     plan::origins_may_search(question, &origins).map_err(|e| Fault::Input(e.to_string()))?;
     // Every probe is planned: a job's `--only` applies to the round it ran (`probes_so_far`).
@@ -88,6 +91,48 @@ pub fn searches<A: Adaptive>(
     }
 }
 
+/// What an adaptive study found from each point of its sweep.
+pub enum Answered {
+    Boundaries(Vec<Searched<Search>>),
+    Refinements(Vec<Searched<Refinement>>),
+    Targets(Vec<Searched<Aimed>>),
+}
+
+/// Runs the study's adaptive question (`boundary`, `refine` or `target`) to its end, as
+/// `searches` does; None for a study of a fixed sweep.
+pub fn answer(
+    study: &Study,
+    solver: &Nlsolve,
+    store: &Store,
+    options: &plan::Options,
+    run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
+) -> Result<Option<Answers<Answered>>, Fault> {
+    fn wrap<O>(
+        (found, probes): Answers<Vec<Searched<O>>>,
+        kind: fn(Vec<Searched<O>>) -> Answered,
+    ) -> Answers<Answered> {
+        (found.map(kind), probes)
+    }
+    let args = (study, solver, store, options);
+    let answers = match (&study.boundary, &study.refine, &study.target) {
+        (Some(q), ..) => wrap(ask(args, q, run_round)?, Answered::Boundaries),
+        (_, Some(q), _) => wrap(ask(args, q, run_round)?, Answered::Refinements),
+        (.., Some(q)) => wrap(ask(args, q, run_round)?, Answered::Targets),
+        (None, None, None) => return Ok(None),
+    };
+    Ok(Some(answers))
+}
+
+type Asked<'a> = (&'a Study, &'a Nlsolve, &'a Store, &'a plan::Options);
+
+fn ask<A: Adaptive>(
+    (study, solver, store, options): Asked,
+    question: &A,
+    run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
+) -> Result<Answers<Vec<Searched<A::Outcome>>>, Fault> {
+    searches(study, question, solver, store, options, run_round)
+}
+
 /// The probes of an adaptive study so far: those stored (skipped) and the next round's (to
 /// run), as `plan` shows them, `submit` sends them to the scheduler and a job's `run --only`
 /// runs its share of them. None for a study of a fixed sweep.
@@ -97,14 +142,9 @@ pub fn probes_so_far(
     store: &Store,
     options: &plan::Options,
 ) -> Result<Option<Vec<Planned>>, Fault> {
-    let stop = |_: &[Planned]| Ok(false);
-    let probes = match (&study.boundary, &study.refine, &study.target) {
-        (Some(question), ..) => searches(study, question, solver, store, options, stop)?.1,
-        (_, Some(question), _) => searches(study, question, solver, store, options, stop)?.1,
-        (.., Some(question)) => searches(study, question, solver, store, options, stop)?.1,
-        (None, None, None) => return Ok(None),
+    let Some((_, mut probes)) = answer(study, solver, store, options, |_| Ok(false))? else {
+        return Ok(None);
     };
-    let mut probes = probes;
     if let Some(only) = &options.only {
         plan::restrict(&mut probes, only)?;
     }

@@ -1,0 +1,53 @@
+//! What the tables of adaptive studies share: a row per point of the sweep, led by the fields
+//! that tell the points apart; a number only where one was measured; the file written beside the
+//! study's other tables, with the study's description and what each column holds.
+
+use crate::model::study::{fields_telling_apart, Study};
+use crate::run::search::Searched;
+use crate::store::table::{self, Row};
+use crate::store::{Fault, Store};
+use serde_json::Value;
+use std::path::PathBuf;
+
+/// A row per point, in the order of the sweep, holding the fields that tell the points apart.
+pub fn origin_rows<O>(searched: &[Searched<O>]) -> Vec<Row> {
+    let swept = fields_telling_apart(searched.iter().map(|s| &s.origin));
+    searched
+        .iter()
+        .map(|s| {
+            let mut row = Row::default();
+            for name in &swept {
+                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
+            }
+            row
+        })
+        .collect()
+}
+
+/// A number that was measured, or null: a value that is not finite is never stored.
+pub fn measured(x: Option<f64>) -> Value {
+    x.filter(|x| x.is_finite()).map_or(Value::Null, Value::from)
+}
+
+/// Text, or null.
+pub fn text(x: Option<String>) -> Value {
+    x.map_or(Value::Null, Value::from)
+}
+
+/// Writes `rows` as `<study>-<name>.parquet` and returns its path.
+pub fn write(
+    study: &Study,
+    store: &Store,
+    name: &str,
+    rows: &[Row],
+    notes: &[(&str, &str)],
+) -> Result<PathBuf, Fault> {
+    let path = store.table(&format!("{}-{name}.parquet", store.study));
+    let about = table::About {
+        description: &study.description,
+        notes,
+    };
+    let _outputs = store.lock_outputs()?;
+    table::write_parquet_about(&[(&path, rows)], &about)?;
+    Ok(path)
+}
