@@ -1429,6 +1429,17 @@ fn a_boundary_search_that_cannot_be_made_is_refused_naming_the_field() {
         assert_eq!(plan.status.code(), Some(2), "{}", text(&plan));
         assert!(text(&plan).contains(field), "{field}: {}", text(&plan));
     }
+    let mut unbounded = study(good.clone(), json!([]));
+    unbounded["budget"] = json!({"runs": 0});
+    let mut unasked = study(good.clone(), json!([]));
+    unasked.as_object_mut().unwrap().remove("boundary");
+    unasked["budget"] = json!({"runs": 10});
+    for (refused, field) in [(unbounded, "budget.runs"), (unasked, "`budget`")] {
+        let scratch = Scratch::new("refused", &refused);
+        let plan = scratch.nlstudy("plan", &[]);
+        assert_eq!(plan.status.code(), Some(2), "{}", text(&plan));
+        assert!(text(&plan).contains(field), "{field}: {}", text(&plan));
+    }
     let mut both = study(good, json!([]));
     both["refine"] = json!({"field": "n", "start": 8});
     let scratch = Scratch::new("refused", &both);
@@ -1565,4 +1576,47 @@ fn a_search_killed_mid_round_resumes_without_running_a_probe_twice() {
     let probes: f64 = floats(&table(&killed), "probes").iter().sum();
     assert_eq!(stored + ran, probes as usize, "{said}");
     assert_eq!(floats(&table(&killed), "boundary"), answer);
+}
+
+/// The study's budget is honoured: a round is cut to the runs left and none starts once they are
+/// spent; the searches it stopped say so, the run reports what was spent, and a second run
+/// spends nothing more.
+#[test]
+fn an_adaptive_study_stops_at_its_budget_and_says_so() {
+    let study = json!({
+        "name": "budgeted",
+        "base": {"dim": 1, "n": 64, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
+                 "amplification_steps": 100},
+        "sweep": [{"product": {"m": [1, 2, 4], "integrator": ["forward_euler", "crank_nicolson"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 1e-3},
+        "budget": {"runs": 15}
+    });
+    let scratch = Scratch::new("budgeted", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    assert!(
+        text(&run).contains("budget: 15 of 15 runs"),
+        "{}",
+        text(&run)
+    );
+    assert_eq!(records(&scratch.runs("budgeted")).len(), 15);
+    let table = read_parquet(
+        &scratch
+            .dir
+            .join("results/budgeted/budgeted-boundaries.parquet"),
+    );
+    let ended = table.column("ended").unwrap().str().unwrap().clone();
+    let ended: Vec<&str> = (0..ended.len()).map(|i| ended.get(i).unwrap()).collect();
+    assert_eq!(
+        ended
+            .iter()
+            .filter(|e| **e == "the study's budget spent before the tolerance")
+            .count(),
+        3,
+        "{ended:?}"
+    );
+    let again = scratch.nlstudy("run", &[]);
+    assert!(text(&again).contains("0 ran"), "{}", text(&again));
+    assert_eq!(records(&scratch.runs("budgeted")).len(), 15);
 }

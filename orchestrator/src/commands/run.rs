@@ -126,6 +126,10 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             for line in crate::output::answers::lines(&study, answered) {
                 errln!("  {line}");
             }
+            if let Some(budget) = &study.budget {
+                let spent = search::spent(&planned, &store);
+                errln!("  {}", crate::output::answers::budget_line(budget, &spent));
+            }
             errln!("table: {}", path.display());
         }
     }

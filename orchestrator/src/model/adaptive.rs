@@ -5,7 +5,8 @@
 //! with the records known and stops at the first round with a probe not run yet, so an
 //! interrupted study resumes from the store without running a probe twice.
 
-use schema::record::{column, Stored};
+use schema::record::{column, columns, Stored};
+use serde::Deserialize;
 use serde_json::Value;
 
 /// The record of a probe that ran (Err: the solver refused it or it stored nothing), None
@@ -33,6 +34,9 @@ pub trait Adaptive {
     /// The most probes one point's question can take.
     fn worst_case_probes(&self) -> usize;
 
+    /// Ends an outcome not ended yet because the study's budget is spent.
+    fn out_of_budget(&self, outcome: &mut Self::Outcome);
+
     /// The question as far as `record` knows it, and the values of the first round with a
     /// probe not run yet (none once it is answered).
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<f64>);
@@ -48,5 +52,64 @@ pub fn positive(name: &str, stored: &Stored) -> Result<f64, String> {
         Some(x) if x.is_finite() && x > 0.0 => Ok(x),
         Some(x) => Err(format!("`{name}` is {x}, not a positive number")),
         None => Err(format!("its record has no `{name}`")),
+    }
+}
+
+/// What a study may spend on its adaptive question over all its points: runs, and
+/// core-seconds (set-up and solve time × threads × ranks, as the records measured them). No
+/// round starts once either is spent, and a round is cut to the runs left; the core-seconds of
+/// a round are known once it ran, so they may pass the budget by that round.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Budget {
+    #[serde(default)]
+    pub runs: Option<usize>,
+    #[serde(default)]
+    pub core_seconds: Option<f64>,
+}
+
+/// What the probes stored so far spent.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Spent {
+    pub runs: usize,
+    pub core_seconds: f64,
+}
+
+impl Budget {
+    /// The budget's own rules, each refusal naming the field at fault.
+    pub fn check(&self) -> Result<(), (String, String)> {
+        if self.runs == Some(0) {
+            return Err(("budget.runs".into(), "must be at least 1 (got 0)".into()));
+        }
+        match self.core_seconds {
+            Some(s) if !(s.is_finite() && s > 0.0) => Err((
+                "budget.core_seconds".into(),
+                format!("must be a positive number of seconds (got {s})"),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether `spent` leaves nothing to start a round with.
+    pub fn is_spent(&self, spent: &Spent) -> bool {
+        self.runs.is_some_and(|runs| spent.runs >= runs)
+            || self.core_seconds.is_some_and(|s| spent.core_seconds >= s)
+    }
+
+    /// The runs left, if the budget counts runs.
+    pub fn runs_left(&self, spent: &Spent) -> Option<usize> {
+        self.runs.map(|runs| runs.saturating_sub(spent.runs))
+    }
+}
+
+impl Spent {
+    /// `stored` counted in: a run, and its core-seconds.
+    pub fn add(&mut self, stored: &Stored) {
+        let number = |name: &str| column(stored, name).and_then(|v| v.as_f64());
+        let seconds =
+            number(columns::SETUP_S).unwrap_or(0.0) + number(columns::SOLVE_S).unwrap_or(0.0);
+        let cores = number(columns::THREADS).unwrap_or(1.0) * number(columns::RANKS).unwrap_or(1.0);
+        self.runs += 1;
+        self.core_seconds += seconds * cores;
     }
 }

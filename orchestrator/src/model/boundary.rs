@@ -50,6 +50,8 @@ pub enum Ended {
     NoneUpTo,
     /// `max_probes` was spent before the tolerance was reached.
     Budget,
+    /// The study's `budget` was spent first.
+    StudyBudget,
     /// A probe's record could not answer (the run failed, or lacks a field the condition reads).
     Unanswered { value: f64, why: String },
 }
@@ -224,6 +226,10 @@ impl Adaptive for BoundarySpec {
         BoundarySpec::worst_case_probes(self)
     }
 
+    fn out_of_budget(&self, search: &mut Search) {
+        search.ended.get_or_insert(Ended::StudyBudget);
+    }
+
     fn replay(&self, record: &mut Lookup) -> (Search, Vec<f64>) {
         BoundarySpec::replay(self, |v| {
             record(v).map(|stored| stored.and_then(|s| flips(&self.flips, &s)))
@@ -260,6 +266,7 @@ impl std::fmt::Display for Ended {
             Ended::FlipsBelow => write!(f, "holds at the lower end already"),
             Ended::NoneUpTo => write!(f, "does not hold at the upper end: no boundary up to it"),
             Ended::Budget => write!(f, "max_probes spent before the tolerance"),
+            Ended::StudyBudget => write!(f, "the study's budget spent before the tolerance"),
             Ended::Unanswered { value, why } => {
                 write!(f, "the probe at {value} cannot answer: {why}")
             }

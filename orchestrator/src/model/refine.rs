@@ -60,6 +60,8 @@ pub enum Stopped {
     Plateau { error: f64, from: f64 },
     /// `max_levels` were run.
     Budget,
+    /// The study's `budget` was spent first.
+    StudyBudget,
     /// A level's record could not answer (the run failed, or lacks the error column).
     Unanswered { value: f64, why: String },
 }
@@ -276,6 +278,10 @@ impl Adaptive for RefineSpec {
         self.max_levels
     }
 
+    fn out_of_budget(&self, refinement: &mut Refinement) {
+        refinement.stopped.get_or_insert(Stopped::StudyBudget);
+    }
+
     fn replay(&self, record: &mut Lookup) -> (Refinement, Vec<f64>) {
         self.replay_errors(|v| {
             record(v).map(|stored| stored.and_then(|s| positive(&self.error, &s)))
@@ -297,6 +303,7 @@ impl std::fmt::Display for Stopped {
                 )
             }
             Stopped::Budget => write!(f, "max_levels run"),
+            Stopped::StudyBudget => write!(f, "the study's budget spent"),
             Stopped::Unanswered { value, why } => {
                 write!(f, "the level at {value} cannot answer: {why}")
             }

@@ -1,6 +1,7 @@
 //! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
+use crate::model::adaptive::Budget;
 use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self};
 use crate::model::figure_spec::FigureSpec;
@@ -68,6 +69,9 @@ pub struct Study {
     /// meets an error target (`model::target`); the candidates ranked by cost.
     #[serde(default)]
     pub target: Option<TargetSpec>,
+    /// What the adaptive question may spend over all the points: runs and core-seconds.
+    #[serde(default)]
+    pub budget: Option<Budget>,
 }
 
 fn one() -> usize {
@@ -368,6 +372,17 @@ impl Study {
         if let Some(spec) = &study.target {
             spec.check()
                 .map_err(|(field, why)| StudyError::new(field, why))?;
+        }
+        if let Some(budget) = &study.budget {
+            budget
+                .check()
+                .map_err(|(field, why)| StudyError::new(field, why))?;
+            if study.boundary.is_none() && study.refine.is_none() && study.target.is_none() {
+                return Err(StudyError::new(
+                    "budget",
+                    "bounds an adaptive question; give `boundary`, `refine` or `target`, or leave `budget` out",
+                ));
+            }
         }
         let questions = [
             ("boundary", study.boundary.is_some()),

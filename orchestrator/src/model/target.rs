@@ -64,6 +64,8 @@ pub enum Reached {
     AtCoarsest,
     /// `max_probes` were spent: the answer, if any, is the coarsest level run that meets it.
     Budget,
+    /// The study's `budget` was spent first.
+    StudyBudget,
     /// A level's record could not answer (the run failed, or lacks the error or cost column).
     Unanswered { value: f64, why: String },
 }
@@ -251,6 +253,10 @@ impl Adaptive for TargetSpec {
         self.max_probes
     }
 
+    fn out_of_budget(&self, aimed: &mut Aimed) {
+        aimed.reached.get_or_insert(Reached::StudyBudget);
+    }
+
     fn replay(&self, record: &mut Lookup) -> (Aimed, Vec<f64>) {
         self.replay_levels(|v| {
             record(v).map(|stored| {
@@ -266,6 +272,7 @@ impl std::fmt::Display for Reached {
             Reached::Found => write!(f, "found"),
             Reached::AtCoarsest => write!(f, "met at the coarsest resolution"),
             Reached::Budget => write!(f, "max_probes spent"),
+            Reached::StudyBudget => write!(f, "the study's budget spent"),
             Reached::Unanswered { value, why } => {
                 write!(f, "the level at {value} cannot answer: {why}")
             }

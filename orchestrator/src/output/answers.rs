@@ -4,11 +4,29 @@
 
 use crate::analysis::boundaries::prediction;
 use crate::console::number;
+use crate::model::adaptive::{Budget, Spent};
 use crate::model::boundary::Search;
 use crate::model::refine::Refinement;
 use crate::model::study::Study;
 use crate::model::target::{Aimed, TargetSpec};
 use crate::run::search::{Answered, Searched};
+
+/// What the study's budget allowed and what its probes spent: `budget: 312 of 400 runs, 18.2 of
+/// 60 core-seconds`.
+pub fn budget_line(budget: &Budget, spent: &Spent) -> String {
+    let mut parts = Vec::new();
+    if let Some(runs) = budget.runs {
+        parts.push(format!("{} of {runs} runs", spent.runs));
+    }
+    if let Some(seconds) = budget.core_seconds {
+        parts.push(format!(
+            "{} of {} core-seconds",
+            number(spent.core_seconds),
+            number(seconds)
+        ));
+    }
+    format!("budget: {}", parts.join(", "))
+}
 
 /// The lines of `answered`, the answers to `study`'s question.
 pub fn lines(study: &Study, answered: &Answered) -> Vec<String> {

@@ -4,7 +4,7 @@
 //! first with the records known, so a study interrupted at any moment resumes from the store
 //! without running a probe twice, and ends where it would have.
 
-use crate::model::adaptive::Adaptive;
+use crate::model::adaptive::{Adaptive, Spent};
 use crate::model::boundary::Search;
 use crate::model::refine::Refinement;
 use crate::model::study::{Point, Study};
@@ -56,6 +56,20 @@ pub fn searches<A: Adaptive>(
             pending.extend(wanted.into_iter().map(|v| (s, v)));
             outcomes.push(outcome);
         }
+        // The study's budget, counted from the probes stored: a round is cut to the runs
+        // left, and none starts once it is spent.
+        if let Some(budget) = &study.budget {
+            let spent = spent(&probes, store);
+            if budget.is_spent(&spent) {
+                // Questions that ended keep their end.
+                for outcome in &mut outcomes {
+                    question.out_of_budget(outcome);
+                }
+                pending.clear();
+            } else if let Some(left) = budget.runs_left(&spent) {
+                pending.truncate(left);
+            }
+        }
         if pending.is_empty() {
             let searched = origins
                 .into_iter()
@@ -89,6 +103,18 @@ pub fn searches<A: Adaptive>(
         }
         probes.extend(planned);
     }
+}
+
+/// What the stored probes among `probes` spent (each key once).
+pub fn spent(probes: &[Planned], store: &Store) -> Spent {
+    let mut spent = Spent::default();
+    let mut seen = std::collections::HashSet::new();
+    for probe in probes.iter().filter(|p| seen.insert(p.key.as_str())) {
+        if let Some(stored) = store.stored(probe.key.as_str()) {
+            spent.add(&stored);
+        }
+    }
+    spent
 }
 
 /// What an adaptive study found from each point of its sweep.
