@@ -117,6 +117,31 @@ fn the_measured_amplification_crosses_1_at_the_symbols_dt_stable() {
     }
 }
 
+/// The grid methods of [HPCSE] measure their amplification too: explicit FD crosses 1 at its
+/// classical dt_stable = h²/(2dD) (within 0.5 %), and ADI stays below 1 at 16 times it.
+#[test]
+fn the_grid_methods_amplification_meets_the_classical_bound() {
+    for dim in [1, 2] {
+        for (method, cfl, unstable) in [
+            ("fd_explicit", 0.995, false),
+            ("fd_explicit", 1.005, true),
+            ("adi", 16.0, false),
+        ] {
+            let record = run(&case(json!({"method": method, "dim": dim, "n": 64,
+                "problem": "square", "t_end": 1e-7, "cfl": cfl, "allow_unstable": true,
+                "amplification_steps": 400})))
+            .unwrap()
+            .record;
+            let amplification = record.amplification.expect("measured");
+            assert_eq!(
+                amplification > 1.0,
+                unstable,
+                "{dim}D {method} at {cfl}: {amplification}"
+            );
+        }
+    }
+}
+
 #[test]
 fn just_below_dt_stable_stays_bounded_for_10000_steps() {
     for (dim, n, m) in [(1, 256, 4), (2, 48, 2)] {

@@ -239,15 +239,21 @@ impl Rules for Case {
 }
 
 /// The measurement of the step's amplification: of the nonlocal method with a constant horizon
-/// (the one whose explicit steps the symbol's dt_stable bounds), over 2 to `MAX_STEPS` steps.
+/// (whose explicit steps the symbol's dt_stable bounds) and of the grid methods of \[HPCSE],
+/// over 2 to `MAX_AMPLIFICATION_STEPS` steps.
 fn validate_amplification(case: &Case) -> Result<(), CaseError> {
     let Some(steps) = case.amplification_steps else {
         return Ok(());
     };
-    if case.method != Method::Nonlocal || case.horizon_profile.is_some() {
+    let measured = match case.method {
+        Method::Nonlocal => case.horizon_profile.is_none(),
+        Method::FdExplicit | Method::Adi => true,
+        _ => false,
+    };
+    if !measured {
         return Err(CaseError::new(
             "amplification_steps",
-            "is measured for `nonlocal` with a constant horizon; leave it out",
+            "is measured for `nonlocal` with a constant horizon, `fd_explicit` and `adi`; leave it out",
         ));
     }
     if !(2..=MAX_AMPLIFICATION_STEPS).contains(&steps) {

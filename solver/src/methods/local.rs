@@ -13,11 +13,14 @@
 use crate::case::ValidCase;
 use crate::case::{positive, refuse_given, Case, CaseError, Problem, SourceMode};
 use crate::discretization::grid::Lattice;
+use crate::integrate::amplification::amplification;
+use crate::integrate::stepper::Stepper;
 use crate::integrate::timed::{timed_steps_observed, Stepping, Trajectory};
 use crate::operator::InstructionSet;
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
+use crate::parallel::exchange::Ranks;
 use rayon::prelude::*;
 use std::borrow::Cow;
 use std::f64::consts::PI;
@@ -314,11 +317,34 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
         crate::integrate::time_step::divergence_bound(case, diagnostics::max_abs(&u0), None);
     let setup_s = setup_started.elapsed().as_secs_f64();
     let stepping = Stepping::of_case(case, dt, steps, divergence_bound, grid.volume());
-    let trajectory = if implicit {
+    let mut trajectory = if implicit {
         Adi::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     } else {
         ExplicitFd::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     };
+    // Untimed, after the run: at the step asked for, before it was lowered to land on t_end.
+    trajectory.amplification = case.amplification_steps.and_then(|steps| {
+        let asked = case
+            .dt
+            .or(case.cfl.map(|cfl| cfl * dt_stable))
+            .unwrap_or(dt);
+        let mut step: Box<dyn Stepper> = match implicit {
+            true => Box::new(AdiStepper::new(Adi::new(grid, case.diffusivity, asked))),
+            false => Box::new(FdStepper::new(ExplicitFd::new(
+                grid,
+                case.diffusivity,
+                asked,
+            ))),
+        };
+        amplification(
+            step.as_mut(),
+            Ranks::single(),
+            None,
+            grid.nodes(),
+            asked,
+            steps,
+        )
+    });
     let resolved = Resolved {
         h: grid.h,
         dt,
@@ -332,6 +358,47 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
     Ok(outcome(
         case, resolved, setup_s, &stepping, trajectory, position,
     ))
+}
+
+/// Explicit FD as a `Stepper` (the heat problem has no source): what the measurement of the
+/// step's amplification steps.
+struct FdStepper {
+    fd: ExplicitFd,
+    next: Vec<f64>,
+}
+
+impl FdStepper {
+    fn new(fd: ExplicitFd) -> Self {
+        let next = vec![0.0; fd.grid.nodes()];
+        FdStepper { fd, next }
+    }
+}
+
+impl Stepper for FdStepper {
+    fn step(&mut self, u: &mut [f64], _: f64, _: f64) -> f64 {
+        let max_abs = self.fd.step(u, &mut self.next);
+        u.copy_from_slice(&self.next);
+        max_abs
+    }
+}
+
+/// ADI as a `Stepper`, likewise.
+struct AdiStepper {
+    adi: Adi,
+    workspace: AdiWorkspace,
+}
+
+impl AdiStepper {
+    fn new(adi: Adi) -> Self {
+        let workspace = adi.workspace();
+        AdiStepper { adi, workspace }
+    }
+}
+
+impl Stepper for AdiStepper {
+    fn step(&mut self, u: &mut [f64], _: f64, _: f64) -> f64 {
+        self.adi.step(u, &mut self.workspace)
+    }
 }
 
 /// The outcome of a local run whose node or particle i sits at `position(i)`: errors against
