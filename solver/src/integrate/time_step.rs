@@ -16,6 +16,16 @@ pub(crate) fn divergence_bound(case: &Case, u0_max: f64, source_max: Option<(f64
     (DIVERGENCE_FACTOR * (1.0f64).max(u0_max).max(case.t_end() * source_scale)).min(f64::MAX)
 }
 
+/// The time step the case asks for, before it is lowered to land on t_end: its `dt`, or `cfl`
+/// times dt_stable; with the field that gave it.
+pub(crate) fn requested(case: &Case, dt_stable: f64) -> (f64, &'static str) {
+    match (case.dt, case.cfl) {
+        (Some(dt), _) => (dt, "dt"),
+        (None, Some(cfl)) => (cfl * dt_stable, "cfl"),
+        (None, None) => unreachable!("validated: dt or cfl"),
+    }
+}
+
 /// The time step actually used and the number of steps: dt (or cfl·dt_stable) lowered so that an
 /// integer number of steps lands on t_end; refused above dt_stable unless the case allows it or
 /// the scheme is `unconditionally_stable`.
@@ -43,11 +53,7 @@ pub(crate) fn time_step(
             ),
         ));
     }
-    let (requested, field) = match (case.dt, case.cfl) {
-        (Some(dt), _) => (dt, "dt"),
-        (None, Some(cfl)) => (cfl * dt_stable, "cfl"),
-        (None, None) => unreachable!("validated: dt or cfl"),
-    };
+    let (requested, field) = requested(case, dt_stable);
     if requested > dt_stable * (1.0 + 1e-12) && !case.allow_unstable && !unconditionally_stable {
         return Err(CaseError::new(
             field,

@@ -324,10 +324,7 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
     };
     // Untimed, after the run: at the step asked for, before it was lowered to land on t_end.
     trajectory.amplification = case.amplification_steps.and_then(|steps| {
-        let asked = case
-            .dt
-            .or(case.cfl.map(|cfl| cfl * dt_stable))
-            .unwrap_or(dt);
+        let (asked, _) = crate::integrate::time_step::requested(case, dt_stable);
         let mut step: Box<dyn Stepper> = match implicit {
             true => Box::new(AdiStepper::new(Adi::new(grid, case.diffusivity, asked))),
             false => Box::new(FdStepper::new(ExplicitFd::new(

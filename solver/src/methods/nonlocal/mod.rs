@@ -19,7 +19,7 @@ use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
 use crate::integrate::stepper::{integrate, Stepper};
 use crate::integrate::theta::theta;
-use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::integrate::time_step::{divergence_bound, requested, time_step};
 use crate::integrate::timed::{Stepping, Trajectory};
 use crate::operator::{self, Identity, LinearOperator, SinePreconditioner};
 use crate::output::outcome::Outcome;
@@ -274,14 +274,8 @@ pub(crate) fn solve<Op: LinearOperator>(
     // the case asks for (before it is lowered to land on t_end, which a stability search
     // would otherwise feel as a shifted boundary).
     trajectory.amplification = case.amplification_steps.and_then(|steps| {
-        let asked = case.dt.or(case.cfl.map(|cfl| cfl * plan.dt_stable));
-        let asked = Stepping::of_case(
-            case,
-            asked.unwrap_or(plan.dt),
-            plan.steps,
-            divergence_bound,
-            volume,
-        );
+        let (asked, _) = requested(case, plan.dt_stable);
+        let asked = Stepping::of_case(case, asked, plan.steps, divergence_bound, volume);
         with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
             amplification(stepper, ranks, rough_nodes.as_deref(), len, asked.dt, steps)
         })
