@@ -25,9 +25,9 @@ pub trait Adaptive {
 
     /// A probe's value as its case holds it: a whole number of nodes for `n`, else the number.
     fn value(&self, v: f64) -> Value {
-        match self.field() {
-            "n" => Value::from(v.round() as u64),
-            _ => Value::from(v),
+        match counts_nodes(self.field()) {
+            true => Value::from(v.round() as u64),
+            false => Value::from(v),
         }
     }
 
@@ -42,12 +42,40 @@ pub trait Adaptive {
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<f64>);
 }
 
+/// Whether `field` counts nodes (`n`: whole, finer upward) rather than being a step (`dt`:
+/// finer downward).
+pub fn counts_nodes(field: &str) -> bool {
+    field == "n"
+}
+
+/// A question's first resolution `start` along `field`: a positive number, whole for `n`; a
+/// refusal names `<section>.start`.
+pub fn check_start(section: &str, field: &str, start: f64) -> Result<(), (String, String)> {
+    let place = format!("{section}.start");
+    if !(start.is_finite() && start > 0.0) {
+        return Err((place, format!("must be a positive number (got {start})")));
+    }
+    if counts_nodes(field) && start.fract() != 0.0 {
+        return Err((
+            place,
+            format!("`n` counts nodes: give a whole number (got {start})"),
+        ));
+    }
+    Ok(())
+}
+
+/// Whether a probe ran: a failed run answers no question, and says why.
+pub fn ran(stored: &Stored) -> Result<(), String> {
+    match stored.record() {
+        Some(_) => Ok(()),
+        None => Err(format!("the run failed: {}", stored.message())),
+    }
+}
+
 /// Column `name` of a probe's record (an error, a cost), a positive finite number: what a
 /// question reads as a measurement. A failed run has none.
 pub fn positive(name: &str, stored: &Stored) -> Result<f64, String> {
-    if stored.record().is_none() {
-        return Err(format!("the run failed: {}", stored.message()));
-    }
+    ran(stored)?;
     match column(stored, name).and_then(|v| v.as_f64()) {
         Some(x) if x.is_finite() && x > 0.0 => Ok(x),
         Some(x) => Err(format!("`{name}` is {x}, not a positive number")),
@@ -103,8 +131,18 @@ impl Budget {
 }
 
 impl Spent {
+    /// What `records` spent, each key once (two questions may share a probe).
+    pub fn of<'a>(records: impl IntoIterator<Item = &'a Stored>) -> Spent {
+        let mut spent = Spent::default();
+        let mut seen = std::collections::HashSet::new();
+        for stored in records.into_iter().filter(|s| seen.insert(s.key.as_str())) {
+            spent.add(stored);
+        }
+        spent
+    }
+
     /// `stored` counted in: a run, and its core-seconds.
-    pub fn add(&mut self, stored: &Stored) {
+    fn add(&mut self, stored: &Stored) {
         let number = |name: &str| column(stored, name).and_then(|v| v.as_f64());
         let seconds =
             number(columns::SETUP_S).unwrap_or(0.0) + number(columns::SOLVE_S).unwrap_or(0.0);

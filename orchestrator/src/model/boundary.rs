@@ -7,7 +7,7 @@
 //! search killed at any moment and run again, with the records of its probes stored, asks for
 //! exactly the probes it had not run, and reaches the same boundary.
 
-use crate::model::adaptive::{Adaptive, Lookup};
+use crate::model::adaptive::{ran, Adaptive, Lookup};
 use crate::model::expression::{self, Scope};
 use schema::record::{columns, Stored};
 use serde::Deserialize;
@@ -237,18 +237,16 @@ impl Adaptive for BoundarySpec {
     }
 }
 
-/// Whether `condition` holds over a probe's record, its fields named as the run table's
-/// columns (`amplification`, `status`, `resolved.dt_stable`, `case.m`). A failed run cannot
-/// answer.
+/// Whether `condition` holds over a probe's record, read as a figure's `where` reads its run
+/// row (`expression::fields_of_columns`: `amplification`, `status`, `resolved.dt_stable`, the
+/// case's `m`). A failed run cannot answer.
 pub fn flips(condition: &str, stored: &Stored) -> Result<bool, String> {
-    if stored.record().is_none() {
-        return Err(format!("the run failed: {}", stored.message()));
-    }
-    let value = stored.to_value();
-    let mut fields = serde_json::Map::new();
-    columns::flatten("", &value, &mut |name, value| {
-        fields.insert(name, value.clone());
+    ran(stored)?;
+    let mut cells = Vec::new();
+    columns::flatten("", &stored.to_value(), &mut |name, value| {
+        cells.push((name, value.clone()))
     });
+    let fields = expression::fields_of_columns(&cells);
     expression::condition(condition, &Scope::from_fields(&fields))
 }
 

@@ -49,6 +49,26 @@ impl Scope {
     }
 }
 
+/// A run's columns (a table row, or a record flattened as one) as expression names, as a
+/// study's own `where` reads them: the case's fields by their own names, then the other
+/// columns. A case field wins over a record column of the same name (the record's `subdomains`
+/// is p², the case's p; its `backend` is the one `auto` chose), so a figure's `where` means what
+/// the study's does; the record's value is the column when the case leaves the field out.
+pub fn fields_of_columns(cells: &[(String, Value)]) -> Map<String, Value> {
+    let mut fields = Map::new();
+    for (name, value) in cells {
+        if let Some(field) = name.strip_prefix("case.") {
+            if !value.is_null() {
+                fields.insert(field.to_string(), value.clone());
+            }
+        }
+    }
+    for (name, value) in cells {
+        fields.entry(name.clone()).or_insert_with(|| value.clone());
+    }
+    fields
+}
+
 /// h as the solver defines it (`schema`'s `Method::grid_spacing`); none while the method is
 /// not one the solver knows (its check will say so).
 fn grid_spacing(fields: &Map<String, Value>) -> Option<f64> {

@@ -4,7 +4,8 @@
 //! orders agree (with the expected order, where the study names one), the error reaches a
 //! target, the error stops falling (round-off: a plateau), or the levels run out. Never beyond.
 
-use crate::model::adaptive::{positive, Adaptive, Lookup};
+use crate::model::adaptive::{check_start, counts_nodes, positive, Adaptive, Lookup};
+use crate::statistics::fitted_slope;
 use serde::Deserialize;
 
 /// A refinement as a study writes it.
@@ -81,12 +82,7 @@ impl RefineSpec {
     /// The spec's own rules, each refusal naming the field at fault (under `refine.`).
     pub fn check(&self) -> Result<(), (String, String)> {
         let fail = |field: &str, why: String| Err((format!("refine.{field}"), why));
-        if !(self.start.is_finite() && self.start > 0.0) {
-            return fail(
-                "start",
-                format!("must be a positive number (got {})", self.start),
-            );
-        }
+        check_start(Self::SECTION, &self.field, self.start)?;
         if !(self.factor.is_finite() && self.factor > 1.0) {
             return fail(
                 "factor",
@@ -114,18 +110,11 @@ impl RefineSpec {
                 format!("must be 1 to 30 (got {})", self.max_levels),
             );
         }
-        if self.is_grid() && self.start.fract() != 0.0 {
-            return fail(
-                "start",
-                format!("`n` counts nodes: give a whole number (got {})", self.start),
-            );
-        }
         Ok(())
     }
 
-    /// Whether the field counts nodes (refined upward) rather than a step (refined downward).
     fn is_grid(&self) -> bool {
-        self.field == "n"
+        counts_nodes(&self.field)
     }
 
     /// The value of level `k`.
@@ -238,21 +227,8 @@ impl Refinement {
     /// `asymptotic_from` (the last three when established), or all of them.
     pub fn fitted_order(&self) -> Option<f64> {
         let from = self.asymptotic_level().unwrap_or(0);
-        let points: Vec<(f64, f64)> = self.levels[from..]
-            .iter()
-            .map(|&(v, e)| (v.ln(), e.ln()))
-            .collect();
-        if points.len() < 2 {
-            return None;
-        }
-        let n = points.len() as f64;
-        let (mx, my) = points
-            .iter()
-            .fold((0.0, 0.0), |(x, y), p| (x + p.0 / n, y + p.1 / n));
-        let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
-        let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
         // Errors fall as n grows (or dt shrinks): the order is the slope's magnitude.
-        Some((sxy / sxx).abs())
+        fitted_slope(&self.levels[from..]).map(f64::abs)
     }
 
     /// The level at which the asymptotic regime began: the first of the three agreeing pairs.

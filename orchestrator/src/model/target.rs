@@ -5,7 +5,7 @@
 //! narrowing between the finest level that missed and the coarsest that met the target to a
 //! relative tolerance. The candidates are ranked by the measured cost of their answers.
 
-use crate::model::adaptive::{positive, Adaptive, Lookup};
+use crate::model::adaptive::{check_start, counts_nodes, positive, Adaptive, Lookup};
 use serde::Deserialize;
 
 /// An error-target search as a study writes it.
@@ -85,18 +85,7 @@ impl TargetSpec {
     /// The spec's own rules, each refusal naming the field at fault (under `target.`).
     pub fn check(&self) -> Result<(), (String, String)> {
         let fail = |field: &str, why: String| Err((format!("target.{field}"), why));
-        if !(self.start.is_finite() && self.start > 0.0) {
-            return fail(
-                "start",
-                format!("must be a positive number (got {})", self.start),
-            );
-        }
-        if self.is_grid() && self.start.fract() != 0.0 {
-            return fail(
-                "start",
-                format!("`n` counts nodes: give a whole number (got {})", self.start),
-            );
-        }
+        check_start(Self::SECTION, &self.field, self.start)?;
         if !(self.below.is_finite() && self.below > 0.0) {
             return fail(
                 "below",
@@ -116,7 +105,7 @@ impl TargetSpec {
     }
 
     fn is_grid(&self) -> bool {
-        self.field == "n"
+        counts_nodes(&self.field)
     }
 
     /// How fine a value is: n itself, or 1/dt.

@@ -170,13 +170,8 @@ pub fn plan_points(
         };
         let (case_id, key) = store::case_id_and_key(identity, &solver.version, p.point.repeat);
         let stored = index.stored.get(key.as_str());
-        let selected = options
-            .only
-            .as_ref()
-            .is_none_or(|keys| keys.contains(key.as_str()));
         let first = seen.insert(key.bits());
         p.decision = match stored.map(|s| &s.status) {
-            _ if !selected => Decision::Skip("not among --only".into()),
             // Another point (of another branch) is the same case: it runs once.
             _ if !first => Decision::Duplicate,
             _ if options.force => Decision::Run(Reason::Forced),
@@ -204,7 +199,7 @@ pub fn plan_points(
         (p.case, p.key, p.case_id) = (case, key, case_id);
     }
     if let Some(only) = &options.only {
-        unknown_keys(only, &planned).map_err(|e| Fault::Input(e.to_string()))?;
+        restrict(&mut planned, only)?;
     }
     Ok(planned)
 }

@@ -56,10 +56,11 @@ pub fn searches<A: Adaptive>(
             pending.extend(wanted.into_iter().map(|v| (s, v)));
             outcomes.push(outcome);
         }
-        // The study's budget, counted from the probes stored: a round is cut to the runs
-        // left, and none starts once it is spent.
+        // The study's budget, counted from the probes' records in hand: a round is cut to the
+        // runs left, and none starts once it is spent.
         if let Some(budget) = &study.budget {
-            let spent = spent(&probes, store);
+            let records = probed.iter().flat_map(|known| known.values());
+            let spent = Spent::of(records.filter_map(|r| r.as_ref().ok()));
             if budget.is_spent(&spent) {
                 // Questions that ended keep their end.
                 for outcome in &mut outcomes {
@@ -107,14 +108,11 @@ pub fn searches<A: Adaptive>(
 
 /// What the stored probes among `probes` spent (each key once).
 pub fn spent(probes: &[Planned], store: &Store) -> Spent {
-    let mut spent = Spent::default();
-    let mut seen = std::collections::HashSet::new();
-    for probe in probes.iter().filter(|p| seen.insert(p.key.as_str())) {
-        if let Some(stored) = store.stored(probe.key.as_str()) {
-            spent.add(&stored);
-        }
-    }
-    spent
+    let records: Vec<Stored> = probes
+        .iter()
+        .filter_map(|p| store.stored(p.key.as_str()))
+        .collect();
+    Spent::of(&records)
 }
 
 /// What an adaptive study found from each point of its sweep.

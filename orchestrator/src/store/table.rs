@@ -23,26 +23,10 @@ use std::path::Path;
 pub struct Row(Vec<(String, Value)>);
 
 impl Row {
-    /// A row as expression names, as a study's own `where` reads them: the case's fields by their
-    /// own names, then the other columns. A case field wins over a record column of the same name
-    /// (the record's `subdomains` is p², the case's p; its `backend` is the one `auto` chose), so a
-    /// figure's `where` means what the study's does; the record's value is the column when the case
-    /// leaves the field out.
+    /// A row as expression names, as a study's own `where` reads them
+    /// (`expression::fields_of_columns`).
     pub fn expression_fields(&self) -> Map<String, Value> {
-        let mut fields = Map::new();
-        for (name, value) in self.cells() {
-            if let Some(field) = name.strip_prefix("case.") {
-                if !value.is_null() {
-                    fields.insert(field.to_string(), value.clone());
-                }
-            }
-        }
-        for (name, value) in self.cells() {
-            fields
-                .entry(name.to_string())
-                .or_insert_with(|| value.clone());
-        }
-        fields
+        crate::model::expression::fields_of_columns(&self.0)
     }
 
     pub fn get(&self, name: &str) -> Option<&Value> {

@@ -5,25 +5,7 @@
 use super::series::*;
 use crate::console::number;
 use crate::output::draw::{span, Axis, Guide, Panel, Series};
-
-/// The least-squares slope of log y against log x.
-pub fn fitted_slope(points: &[(f64, f64)]) -> Option<f64> {
-    let logs: Vec<(f64, f64)> = points
-        .iter()
-        .filter(|(x, y)| *x > 0.0 && *y > 0.0)
-        .map(|(x, y)| (x.ln(), y.ln()))
-        .collect();
-    if logs.len() < 2 {
-        return None;
-    }
-    let n = logs.len() as f64;
-    let (mx, my) = logs
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    let sxy: f64 = logs.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = logs.iter().map(|(x, _)| (x - mx).powi(2)).sum();
-    (sxx > 0.0).then(|| sxy / sxx)
-}
+use crate::statistics::fitted_slope;
 
 /// Whether the grids get finer as x grows: m = ε/h and n do, h and dt do not.
 fn finer_upwards(x: &str) -> bool {
