@@ -1345,7 +1345,8 @@ fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_stor
                  "amplification_steps": 400},
         "sweep": [{"product": {"m": [1, 4], "integrator": ["forward_euler", "rk4", "crank_nicolson"]}}],
         "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
-                     "rtol": 2e-3, "per_round": 2}
+                     "rtol": 2e-3, "per_round": 2},
+        "figures": [{"name": "limits", "kind": "boundaries", "series": ["integrator"]}]
     });
     let scratch = Scratch::new("boundary", &study);
     let plan = text(&scratch.nlstudy("plan", &[]));
@@ -1378,6 +1379,16 @@ fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_stor
     }
     let probes: f64 = floats(&table, "probes").iter().sum();
     assert_eq!(probes as usize, records(&scratch.runs("boundary")).len());
+    // The figure is drawn from the boundary table: the limits along m, the theory at cfl 1.
+    let figure = scratch.dir.join("results/boundary/figures/limits.svg");
+    let svg = std::fs::read_to_string(&figure).expect("the boundaries figure");
+    for words in [
+        "no boundary found by 2 searches (integrator = crank_nicolson)",
+        "horizon m = ε/h",
+        "the theory",
+    ] {
+        assert!(svg.contains(words), "{words} not in {}", figure.display());
+    }
     let again = scratch.nlstudy("run", &[]);
     assert!(text(&again).contains("0 ran"), "{}", text(&again));
     let again = floats(&read_parquet(&path), "boundary");
@@ -1490,7 +1501,8 @@ fn the_cheapest_configuration_for_an_error_target_is_not_beaten_by_a_dense_grid(
     let methods = json!({"method": ["fd_explicit", "adi"]});
     let target = json!({
         "name": "aimed", "base": base, "sweep": [{"product": methods}],
-        "target": {"field": "n", "start": 16, "below": 1e-6, "cost": "steps_done", "rtol": 0.01}
+        "target": {"field": "n", "start": 16, "below": 1e-6, "cost": "steps_done", "rtol": 0.01},
+        "figures": [{"name": "work", "kind": "work_precision", "series": ["method"]}]
     });
     let scratch = Scratch::new("aimed", &target);
     let run = scratch.nlstudy("run", &[]);
@@ -1503,6 +1515,15 @@ fn the_cheapest_configuration_for_an_error_target_is_not_beaten_by_a_dense_grid(
     );
     assert!(error.iter().all(|&e| e <= 1e-6), "{error:?}");
     let best = (0..2).find(|&k| rank[k] == 1.0).expect("a first");
+    let svg = std::fs::read_to_string(scratch.dir.join("results/aimed/figures/work.svg")).unwrap();
+    assert!(
+        svg.contains("target: error_l2_norm ≤ 1e-6"),
+        "the target is drawn"
+    );
+    assert!(
+        svg.contains("meets the error target"),
+        "the answers are marked"
+    );
     let dense_study = json!({
         "name": "dense", "base": base,
         "sweep": [{"product": methods}, {"product": {"n": (100..=340).collect::<Vec<_>>()}}]

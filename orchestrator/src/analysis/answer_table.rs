@@ -17,7 +17,7 @@ pub fn origin_rows<O>(searched: &[Searched<O>]) -> Vec<Row> {
         .map(|s| {
             let mut row = Row::default();
             for name in &swept {
-                row.set(name, s.origin.get(name).cloned().unwrap_or(Value::Null));
+                row.set(name, s.origin.column(name).unwrap_or(Value::Null));
             }
             row
         })

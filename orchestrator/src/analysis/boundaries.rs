@@ -41,8 +41,14 @@ pub fn rows(field: &str, searched: &[Searched<Search>]) -> Vec<Row> {
         .collect()
 }
 
-/// What the columns hold, in the file's metadata.
-const NOTES: &[(&str, &str)] = &[
+/// Whether a row's boundary lies below the prediction by more than the search's tolerance: the
+/// theory calls that value stable and the measurement finds it unstable.
+pub fn below_theory(row: &Row, rtol: f64) -> bool {
+    row.number("gap").is_some_and(|gap| gap < -rtol)
+}
+
+/// What the columns hold, in the file's metadata; the columns before them are the swept fields.
+pub const NOTES: &[(&str, &str)] = &[
     ("field", "the case field searched along"),
     ("boundary", "the middle of the final bracket, where the condition starts to hold; null if the search found none"),
     ("boundary_lo", "the largest value probed where the condition does not hold"),

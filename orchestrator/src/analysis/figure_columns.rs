@@ -2,9 +2,9 @@
 //! anything runs: a misspelt column is a bad study file, said at `plan`, not a failed figure
 //! after every case has run.
 
-use crate::analysis::summary;
+use crate::analysis::{boundaries, summary};
 use crate::model::expression;
-use crate::model::figure_spec::FigureSpec;
+use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::study::{Study, StudyError};
 use schema::case::Case;
 
@@ -14,7 +14,14 @@ pub fn check(study: &Study) -> Result<(), StudyError> {
         let place = |what: &str| format!("figures[{k}] ({}).{what}", figure.name);
         let named = figure_names(figure).map_err(|e| StudyError::new(place("where"), e))?;
         for (what, name) in named {
-            if !is_known(&name) {
+            if figure.kind == FigureKind::Boundaries {
+                if !is_boundary_column(&name) {
+                    return Err(StudyError::new(
+                        place(what),
+                        format!("no column `{name}` in the boundary table (its columns: the swept case fields, `branch`, and {})", boundaries::NOTES.iter().map(|(c, _)| format!("`{c}`")).collect::<Vec<_>>().join(", ")),
+                    ));
+                }
+            } else if !is_known(&name) {
                 let guess =
                     guess(&name).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
                 return Err(StudyError::new(
@@ -56,6 +63,14 @@ fn is_known(name: &str) -> bool {
     let field = name.strip_prefix("case.").unwrap_or(name);
     let top = field.split('.').next().unwrap_or(field);
     Case::field_names().contains(&top) || (!name.starts_with("case.") && summary::is_column(name))
+}
+
+/// A column of the boundary table: a case field (bare), the branch, or the answer's.
+fn is_boundary_column(name: &str) -> bool {
+    let top = name.split('.').next().unwrap_or(name);
+    Case::field_names().contains(&top)
+        || name == "branch"
+        || boundaries::NOTES.iter().any(|(column, _)| *column == name)
 }
 
 fn guess(name: &str) -> Option<String> {
@@ -122,5 +137,28 @@ mod tests {
         ))
         .unwrap_err();
         assert_eq!(error.field, "figures[0] (c).x");
+    }
+
+    #[test]
+    fn a_boundaries_figure_names_the_columns_of_the_boundary_table() {
+        let boundary = json!({"field": "cfl", "bracket": [0.5, 2], "flips": "amplification > 1", "rtol": 1e-3});
+        let study = |figure: serde_json::Value| {
+            let text = json!({"name": "s", "base": {}, "boundary": boundary, "figures": [figure]});
+            Study::parse(&text.to_string()).unwrap()
+        };
+        let good = json!({"name": "b", "kind": "boundaries", "x": "m", "series": ["integrator"],
+                          "where": ["branch == 'x' && gap > -0.01 && probes < 20"]});
+        assert_eq!(check(&study(good)), Ok(()));
+        let error = check(&study(
+            json!({"name": "b", "kind": "boundaries", "where": ["solve_s_median > 0"]}),
+        ))
+        .unwrap_err();
+        assert_eq!(error.field, "figures[0] (b).where");
+        assert!(
+            error
+                .message
+                .contains("no column `solve_s_median` in the boundary table"),
+            "{error}"
+        );
     }
 }

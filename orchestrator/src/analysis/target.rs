@@ -53,8 +53,8 @@ pub fn rows(spec: &TargetSpec, searched: &[Searched<Aimed>]) -> Vec<Row> {
         .collect()
 }
 
-/// What the columns hold, in the file's metadata.
-const NOTES: &[(&str, &str)] = &[
+/// What the columns hold, in the file's metadata; the columns before them are the swept fields.
+pub const NOTES: &[(&str, &str)] = &[
     ("field", "the resolution field searched"),
     ("target", "the error to reach (at most)"),
     (

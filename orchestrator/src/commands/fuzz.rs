@@ -343,7 +343,7 @@ fn fuzz_parquet_tables() {
             };
             let _ = crate::analysis::pivot::markdown(&spec, &rows);
             for (k, figure) in study.figures.iter().enumerate() {
-                if let Ok(chart) = crate::output::figure::chart(figure, k, &rows) {
+                if let Ok(chart) = crate::output::figure::chart(figure, k, &rows, None) {
                     let _ = crate::output::draw::render(&chart);
                 }
             }

@@ -3,22 +3,9 @@
 use super::failure::Failure;
 use super::open::{no_refusals, planned, say_what_does_not_fit};
 use crate::cli::args::PlanArgs;
-use crate::model::adaptive::Adaptive;
 use crate::run::plan::Decision;
 use std::fmt::Write as _;
 use std::process::ExitCode;
-
-/// What an adaptive study's plan shows: the probes so far and the next round, and the most runs
-/// its questions can take.
-fn say_rounds<A: Adaptive>(question: &A, questions: usize, what: &str) {
-    let most = question.worst_case_probes();
-    outln!(
-        "{} along `{}`: {questions} {what}; the points above are the probes stored and the next round, {most} runs each at most ({} in all)",
-        A::SECTION,
-        question.field(),
-        questions * most
-    );
-}
 
 pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
     let (study, solver, _, planned) = planned(&args.common, &args.options(), false)?;
@@ -70,15 +57,18 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         "{runs} to run, {} stored{shared}",
         planned.len() - runs - duplicates
     );
-    let questions = || study.expand().map_or(0, |points| points.len());
-    if let Some(spec) = &study.boundary {
-        say_rounds(spec, questions(), "searches");
-    }
-    if let Some(spec) = &study.refine {
-        say_rounds(spec, questions(), "refinements");
-    }
-    if let Some(spec) = &study.target {
-        say_rounds(spec, questions(), "candidates");
+    // What an adaptive study's plan shows: the probes so far and the next round, and the most
+    // runs its questions can take.
+    if let Some(question) = study.question() {
+        let questions = study.expand().map_or(0, |points| points.len());
+        let most = question.worst_case_probes();
+        outln!(
+            "{} along `{}`: {questions} {}; the points above are the probes stored and the next round, {most} runs each at most ({} in all)",
+            question.section(),
+            question.field(),
+            question.searches(),
+            questions * most
+        );
     }
     say_what_does_not_fit(&planned);
     no_refusals(&planned, args.allow_refused)?;

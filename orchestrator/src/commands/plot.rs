@@ -15,7 +15,7 @@ pub(super) fn plot(args: &CommonArgs) -> Result<ExitCode, Failure> {
         )));
     }
     let store = open_store(args, &study, true)?;
-    let figures = crate::output::plot::plot(&study.figures, &store)?;
+    let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
     print_figures_drawn(&figures);
     crate::output::plot::all_drawn(&figures).map_err(Failure::CaseFailed)?;
     Ok(ExitCode::SUCCESS)

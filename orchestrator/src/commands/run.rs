@@ -108,13 +108,12 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         ));
     }
     if let Some(answered) = &answered {
+        let field = study.question().map_or("", |q| q.field());
         let path = match answered {
             Answered::Boundaries(searched) => {
-                let field = study.boundary.as_ref().map_or("", |q| q.field.as_str());
                 crate::analysis::boundaries::write(&study, &store, field, searched)?
             }
             Answered::Refinements(refined) => {
-                let field = study.refine.as_ref().map_or("", |q| q.field.as_str());
                 crate::analysis::convergence::write(&study, &store, field, refined)?
             }
             Answered::Targets(aimed) => {
@@ -137,7 +136,8 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         let tables = crate::analysis::collect::collect(&planned, &store, &study, args.allow_mixed)
             .and_then(|collected| match collected {
                 Some(collected) => {
-                    let figures = crate::output::plot::plot(&study.figures, &store)?;
+                    let figures =
+                        crate::output::plot::plot(&study.figures, study.question(), &store)?;
                     let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
                     let page = crate::output::report::write(&study, &store, &swept)?;
                     if !args.quiet {

@@ -58,6 +58,10 @@ pub enum FigureKind {
     /// predicted strong scaling of 16384² to 4096 ranks and weak scaling at 1024² per rank on
     /// InfiniBand HDR and 10 GbE, and the model against the runs (docs/scaling.md).
     ScalingModel,
+    /// Boundary searches (a study's `boundary` question): the measured boundaries along a swept
+    /// field (`m` by default) with the theory's dashed, and measured / predicted zoomed to the
+    /// search's tolerance. Drawn from `<study>-boundaries.parquet`, not the summary.
+    Boundaries,
 }
 
 impl FigureKind {
@@ -77,6 +81,7 @@ impl FigureKind {
                 (columns::SUBDOMAINS, columns::ITERATIONS, "case.method")
             }
             FigureKind::ScalingModel => (columns::RANKS, "step_s_median", "case.method"),
+            FigureKind::Boundaries => ("m", "boundary", ""),
         }
     }
 }

@@ -1,10 +1,10 @@
 //! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
-use crate::model::adaptive::Budget;
+use crate::model::adaptive::{Adaptive, Budget};
 use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self};
-use crate::model::figure_spec::FigureSpec;
+use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
 use crate::model::target::TargetSpec;
@@ -268,7 +268,70 @@ impl Subject for StudyPlace {
 /// Bad study file: where and what, in one sentence.
 pub type StudyError = FieldError<StudyPlace>;
 
+/// The adaptive question a study asks, if any (`Study::question`).
+#[derive(Clone, Copy)]
+pub enum Question<'a> {
+    Boundary(&'a BoundarySpec),
+    Refine(&'a RefineSpec),
+    Target(&'a TargetSpec),
+}
+
+impl<'a> Question<'a> {
+    /// The case field it searches along.
+    pub fn field(self) -> &'a str {
+        match self {
+            Question::Boundary(q) => q.field(),
+            Question::Refine(q) => q.field(),
+            Question::Target(q) => q.field(),
+        }
+    }
+
+    /// The study file's name for it.
+    pub fn section(self) -> &'static str {
+        match self {
+            Question::Boundary(_) => BoundarySpec::SECTION,
+            Question::Refine(_) => RefineSpec::SECTION,
+            Question::Target(_) => TargetSpec::SECTION,
+        }
+    }
+
+    /// The most probes one point's question can take.
+    pub fn worst_case_probes(self) -> usize {
+        match self {
+            Question::Boundary(q) => q.worst_case_probes(),
+            Question::Refine(q) => q.worst_case_probes(),
+            Question::Target(q) => q.worst_case_probes(),
+        }
+    }
+
+    /// What its searches are called: `searches`, `refinements`, `candidates`.
+    pub fn searches(self) -> &'static str {
+        match self {
+            Question::Boundary(_) => "searches",
+            Question::Refine(_) => "refinements",
+            Question::Target(_) => "candidates",
+        }
+    }
+
+    /// The table of its answers: `<study>-<table>.parquet`.
+    pub fn table(self) -> &'static str {
+        match self {
+            Question::Boundary(_) => "boundaries",
+            Question::Refine(_) => "convergence",
+            Question::Target(_) => "target",
+        }
+    }
+}
+
 impl Study {
+    /// The adaptive question the study asks (it asks at most one), or None for a fixed sweep.
+    pub fn question(&self) -> Option<Question<'_>> {
+        let boundary = self.boundary.as_ref().map(Question::Boundary);
+        let refine = || self.refine.as_ref().map(Question::Refine);
+        let target = || self.target.as_ref().map(Question::Target);
+        boundary.or_else(refine).or_else(target)
+    }
+
     /// Reads and parses a study file, naming the field at fault: TOML when its name ends in
     /// `.toml`, else JSON in which comments are allowed (JSONC).
     pub fn read(path: &Path) -> Result<Study, StudyError> {
@@ -346,6 +409,12 @@ impl Study {
                     too_long(figure.name.len()),
                 ));
             }
+            if figure.kind == FigureKind::Boundaries && study.boundary.is_none() {
+                return Err(StudyError::new(
+                    format!("figures[{k}].kind"),
+                    "`boundaries` draws the table of a boundary search; give the study a `boundary` question, or choose another kind",
+                ));
+            }
             if study.figures[..k].iter().any(|f| f.name == figure.name) {
                 return Err(StudyError::new(
                     format!("figures[{k}].name"),
@@ -377,7 +446,7 @@ impl Study {
             budget
                 .check()
                 .map_err(|(field, why)| StudyError::new(field, why))?;
-            if study.boundary.is_none() && study.refine.is_none() && study.target.is_none() {
+            if study.question().is_none() {
                 return Err(StudyError::new(
                     "budget",
                     "bounds an adaptive question; give `boundary`, `refine` or `target`, or leave `budget` out",

@@ -30,15 +30,10 @@ pub fn budget_line(budget: &Budget, spent: &Spent) -> String {
 
 /// The lines of `answered`, the answers to `study`'s question.
 pub fn lines(study: &Study, answered: &Answered) -> Vec<String> {
+    let field = study.question().map_or("", |q| q.field());
     match answered {
-        Answered::Boundaries(searched) => boundary_lines(
-            study.boundary.as_ref().map_or("", |q| q.field.as_str()),
-            searched,
-        ),
-        Answered::Refinements(refined) => refinement_lines(
-            study.refine.as_ref().map_or("", |q| q.field.as_str()),
-            refined,
-        ),
+        Answered::Boundaries(searched) => boundary_lines(field, searched),
+        Answered::Refinements(refined) => refinement_lines(field, refined),
         Answered::Targets(aimed) => match &study.target {
             Some(spec) => target_lines(spec, aimed),
             None => Vec::new(),

@@ -2,7 +2,8 @@
 //! only when its table, its spec or the program drawing it changed since it was drawn: a stamp
 //! beside the SVG holds the hashes of the three.
 
-use crate::model::figure_spec::FigureSpec;
+use crate::model::figure_spec::{FigureKind, FigureSpec};
+use crate::model::study::Question;
 use crate::output::draw;
 use crate::output::figure;
 use crate::store::fs::{create_dir, read_regular, Fault, SMALL_FILE_CAP};
@@ -35,11 +36,27 @@ pub fn files(name: &str) -> [String; 2] {
 /// the table does not stop the others. Fails as a whole when the summary table cannot be read
 /// or a figure cannot be written (the file system's fault, which the next figure would meet
 /// too).
-pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault> {
+pub fn plot(
+    figures: &[FigureSpec],
+    question: Option<Question>,
+    store: &Store,
+) -> Result<Vec<Figure>, Fault> {
     let _outputs = store.lock_outputs()?;
     let table_path = store.table(&format!("{}-summary.parquet", store.study));
     // The hash of the bytes parsed stamps the figures.
     let (rows, table_hash) = table::read_parquet_hashed(&table_path)?;
+    // The table of the question's answers, for the figures that draw them; read once, if `run`
+    // has written it.
+    let answer_table = match question {
+        Some(question) => {
+            let path = store.table(&format!("{}-{}.parquet", store.study, question.table()));
+            match path.exists() {
+                true => Some((question, table::read_parquet_hashed(&path)?)),
+                false => None,
+            }
+        }
+        None => None,
+    };
     let program = std::env::current_exe()
         .and_then(std::fs::read)
         .map(|bytes| store::hex(&Sha256::digest(&bytes)))
@@ -49,8 +66,12 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault>
     for (k, spec) in figures.iter().enumerate() {
         let [svg, stamp_name] = files(&spec.name);
         let (path, stamp_path) = (directory.join(svg), directory.join(stamp_name));
+        let answers = answer_table
+            .as_ref()
+            .filter(|(question, _)| draws_answers(spec.kind, *question));
         let stamp = format!(
-            "table {table_hash}\nspec {}\nnlstudy {program}\n",
+            "table {table_hash}\nanswers {}\nspec {}\nnlstudy {program}\n",
+            answers.map_or("none", |(_, (_, hash))| hash.as_str()),
             serde_json::to_string(spec).expect("a spec serializes"),
         );
         let current = read_regular(&stamp_path, SMALL_FILE_CAP).is_ok_and(|s| s == stamp);
@@ -62,7 +83,11 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault>
             continue;
         }
         // `chart` names the figure in its messages itself.
-        let drawn = figure::chart(spec, k, &rows)
+        let answers = answers.map(|(question, (rows, _))| figure::Answers {
+            question: *question,
+            rows,
+        });
+        let drawn = figure::chart(spec, k, &rows, answers)
             .and_then(|chart| draw::render(&chart).map_err(|e| figure::fault(k, spec, e)));
         // A figure of an earlier table would pass for this one's.
         let remove_stale = || {
@@ -88,6 +113,16 @@ pub fn plot(figures: &[FigureSpec], store: &Store) -> Result<Vec<Figure>, Fault>
         outcomes.push(Figure { path, outcome });
     }
     Ok(outcomes)
+}
+
+/// Whether a figure of `kind` draws the answers of `question`: the boundaries figure those of
+/// a boundary search, a work–precision figure the answers of an error target.
+fn draws_answers(kind: FigureKind, question: Question) -> bool {
+    matches!(
+        (kind, question),
+        (FigureKind::Boundaries, Question::Boundary(_))
+            | (FigureKind::WorkPrecision, Question::Target(_))
+    )
 }
 
 /// Ok when every figure is drawn or up to date, else the messages of those that failed.

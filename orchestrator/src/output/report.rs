@@ -4,8 +4,9 @@
 //! host, CPU, dates). One file to open in a browser or pass on, as Snakemake's `--report` gives
 //! its users. Written from the store, the summary table and the drawn figures alone.
 
+use crate::analysis::boundaries;
 use crate::analysis::collect::headline;
-use crate::model::study::Study;
+use crate::model::study::{Question, Study};
 use crate::output::status::counts_by_status;
 use crate::store::fs::{read_regular, Fault, RECORD_CAP};
 use crate::store::table::{self, Row};
@@ -234,13 +235,15 @@ fn summary_section(summary: &[Row], swept: &[String]) -> Markup {
 /// The table of an adaptive study (its boundaries, refinements or the error target's ranking),
 /// whole, from the file `run` wrote; none for a study of a fixed sweep, or before it ran.
 fn adaptive_section(study: &Study, store: &Store) -> Result<Markup, Fault> {
-    let (title, table_name) = match (&study.boundary, &study.refine, &study.target) {
-        (Some(_), ..) => ("Boundaries", "boundaries"),
-        (_, Some(_), _) => ("Refinements", "convergence"),
-        (.., Some(_)) => ("The cheapest configuration for the error target", "target"),
-        (None, None, None) => return Ok(html! {}),
+    let Some(question) = study.question() else {
+        return Ok(html! {});
     };
-    let path = store.table(&format!("{}-{table_name}.parquet", study.name));
+    let title = match question {
+        Question::Boundary(_) => "Boundaries",
+        Question::Refine(_) => "Refinements",
+        Question::Target(_) => "The cheapest configuration for the error target",
+    };
+    let path = store.table(&format!("{}-{}.parquet", study.name, question.table()));
     if !path.exists() {
         return Ok(html! {});
     }
@@ -260,8 +263,7 @@ fn adaptive_table(rows: &[Row], rtol: Option<f64>) -> Markup {
         .first()
         .map(|row| row.cells().map(|(name, _)| name).collect())
         .unwrap_or_default();
-    let below_theory =
-        |row: &Row| rtol.is_some_and(|rtol| row.number("gap").is_some_and(|gap| gap < -rtol));
+    let below_theory = |row: &Row| rtol.is_some_and(|rtol| boundaries::below_theory(row, rtol));
     let findings = rows.iter().filter(|row| below_theory(row)).count();
     let texts = crate::analysis::pivot::texts(rows, &columns);
     html! {

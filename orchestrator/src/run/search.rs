@@ -7,7 +7,7 @@
 use crate::model::adaptive::{Adaptive, Spent};
 use crate::model::boundary::Search;
 use crate::model::refine::Refinement;
-use crate::model::study::{Point, Study};
+use crate::model::study::{Point, Question, Study};
 use crate::model::target::Aimed;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{self, Planned};
@@ -138,11 +138,11 @@ pub fn answer(
         (found.map(kind), probes)
     }
     let args = (study, solver, store, options);
-    let answers = match (&study.boundary, &study.refine, &study.target) {
-        (Some(q), ..) => wrap(ask(args, q, run_round)?, Answered::Boundaries),
-        (_, Some(q), _) => wrap(ask(args, q, run_round)?, Answered::Refinements),
-        (.., Some(q)) => wrap(ask(args, q, run_round)?, Answered::Targets),
-        (None, None, None) => return Ok(None),
+    let answers = match study.question() {
+        Some(Question::Boundary(q)) => wrap(ask(args, q, run_round)?, Answered::Boundaries),
+        Some(Question::Refine(q)) => wrap(ask(args, q, run_round)?, Answered::Refinements),
+        Some(Question::Target(q)) => wrap(ask(args, q, run_round)?, Answered::Targets),
+        None => return Ok(None),
     };
     Ok(Some(answers))
 }

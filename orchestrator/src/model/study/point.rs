@@ -104,6 +104,14 @@ impl Point {
         }
     }
 
+    /// A column of the tables (`fields_telling_apart` names them): the branch, or a field.
+    pub fn column(&self, name: &str) -> Option<Value> {
+        match (name, &self.branch) {
+            (BRANCH, Some(branch)) => Some(Value::from(&**branch)),
+            _ => self.get(name).cloned(),
+        }
+    }
+
     /// Every field, keys sorted: the case as written.
     pub fn fields(&self) -> Map<String, Value> {
         let mut fields = (*self.base).clone();

@@ -466,3 +466,24 @@ fn malformed_studies_name_the_place() {
         "{error}"
     );
 }
+
+#[test]
+fn a_boundaries_figure_needs_a_boundary_question() {
+    let study = |extra: Value| {
+        let mut s = json!({
+            "name": "s", "base": {"dim": 1},
+            "figures": [{"name": "limits", "kind": "boundaries"}]
+        });
+        s.as_object_mut().unwrap().extend(fields(extra));
+        Study::parse(&s.to_string())
+    };
+    let e = study(json!({})).unwrap_err();
+    assert_eq!(e.field, "figures[0].kind");
+    assert!(
+        e.message.contains("give the study a `boundary` question"),
+        "{}",
+        e.message
+    );
+    let asked = json!({"boundary": {"field": "cfl", "bracket": [0.5, 2], "flips": "amplification > 1", "rtol": 1e-3}});
+    assert!(study(asked).is_ok());
+}

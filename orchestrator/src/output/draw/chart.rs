@@ -125,6 +125,8 @@ pub enum Glyph {
     Cross,
     /// A ring around the marker: a point timed on a busy machine (`noisy`).
     Ring,
+    /// A square around the marker: an answer (the cheapest resolution meeting an error target).
+    Square,
 }
 
 /// What the data is read against.

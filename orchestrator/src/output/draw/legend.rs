@@ -181,6 +181,9 @@ pub(super) fn draw_legend(
             Key::Glyph(Glyph::Ring) => {
                 area.draw(&(EmptyElement::at((x + 16, y)) + ring(BLACK)))?;
             }
+            Key::Glyph(Glyph::Square) => {
+                area.draw(&(EmptyElement::at((x + 16, y)) + square(BLACK)))?;
+            }
         }
         let left = Pos::new(HPos::Left, VPos::Center);
         for (j, line) in lines.iter().enumerate() {

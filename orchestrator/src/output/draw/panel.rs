@@ -96,6 +96,7 @@ pub(super) fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResul
         };
         chart.draw_series(marked(Glyph::Cross).map(|p| EmptyElement::at(p) + cross(style)))?;
         chart.draw_series(marked(Glyph::Ring).map(|p| EmptyElement::at(p) + ring(style)))?;
+        chart.draw_series(marked(Glyph::Square).map(|p| EmptyElement::at(p) + square(style)))?;
         last_points.push(points.last().copied());
     }
     // The notes beside the last points, stacked apart where they would overlap.

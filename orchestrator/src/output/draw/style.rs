@@ -110,6 +110,11 @@ pub(super) fn cross(colour: RGBColor) -> Cross<(i32, i32), i32> {
     Cross::new((0, 0), 6, colour.stroke_width(2))
 }
 
+/// `Glyph::Square` around a point's marker.
+pub(super) fn square(colour: RGBColor) -> Rectangle<(i32, i32)> {
+    Rectangle::new([(-10, -10), (10, 10)], colour.stroke_width(2))
+}
+
 /// `Glyph::Ring` around a point's marker.
 pub(super) fn ring(colour: RGBColor) -> Circle<(i32, i32), i32> {
     Circle::new((0, 0), 9, colour.stroke_width(1))

@@ -2,10 +2,12 @@
 
 use crate::model::expression::{self, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
+use crate::model::study::Question;
 use crate::output::draw::{Chart, Glyph, Panel};
 use crate::store::table::Row;
 use schema::record::Status;
 
+mod boundaries;
 mod convergence;
 mod field;
 mod scaling;
@@ -49,8 +51,32 @@ pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<
     Ok(kept)
 }
 
-/// The chart of figure `k` of a study whose summary table is `rows`.
-pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String> {
+/// The answers of a study's adaptive question, from the table `run` wrote
+/// (`<study>-<question.table()>.parquet`), for the figures that draw them.
+#[derive(Clone, Copy)]
+pub struct Answers<'a> {
+    pub question: Question<'a>,
+    pub rows: &'a [Row],
+}
+
+/// The figure's title: as the spec gives it, else its name.
+fn title(spec: &FigureSpec) -> String {
+    spec.title
+        .clone()
+        .unwrap_or_else(|| spec.name.replace('_', " "))
+}
+
+/// The chart of figure `k` of a study whose summary table is `rows`, with its adaptive
+/// question's `answers` where it has them.
+pub fn chart(
+    spec: &FigureSpec,
+    k: usize,
+    rows: &[Row],
+    answers: Option<Answers>,
+) -> Result<Chart, String> {
+    if spec.kind == FigureKind::Boundaries {
+        return boundaries_chart(spec, k, answers);
+    }
     // Before the columns are looked for: a column no run filled is no fault of the spec.
     let has_result = |r: &&Row| matches!(r.status(), Some(Status::Ok | Status::Diverged));
     if !rows.iter().any(|r| has_result(&r)) {
@@ -130,10 +156,7 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
     if builds.len() > 1 && !series_columns.iter().any(|c| c == "build") {
         series_columns.push("build".to_string());
     }
-    let title = spec
-        .title
-        .clone()
-        .unwrap_or_else(|| spec.name.replace('_', " "));
+    let title = title(spec);
     let mut subtitle_text = String::new();
     let panels = match spec.kind {
         FigureKind::SolverComparison => {
@@ -161,14 +184,23 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
                 FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, &x, &y)],
                 FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
                 FigureKind::WorkPrecision => {
-                    vec![work_precision::work_precision(&groups, &x, &y)]
+                    let mut panel = work_precision::work_precision(&groups, &x, &y);
+                    if let Some(Answers {
+                        question: Question::Target(target),
+                        rows,
+                    }) = answers
+                    {
+                        work_precision::mark_target(&mut panel, &groups, (&x, &y), target, rows);
+                    }
+                    vec![panel]
                 }
                 FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
                 FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
                 FigureKind::SolverComparison
                 | FigureKind::Throughput
                 | FigureKind::Field
-                | FigureKind::ScalingModel => unreachable!("drawn from the rows above"),
+                | FigureKind::ScalingModel
+                | FigureKind::Boundaries => unreachable!("drawn from the rows above"),
             }
         }
     };
@@ -206,6 +238,10 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
         "noisy: timed while other tasks wanted the cores",
     );
     chart.explain(
+        Glyph::Square,
+        "the coarsest resolution of its configuration that meets the error target",
+    );
+    chart.explain(
         Glyph::Cross,
         match spec.kind {
             FigureKind::Stability => {
@@ -213,6 +249,61 @@ pub fn chart(spec: &FigureSpec, k: usize, rows: &[Row]) -> Result<Chart, String>
             }
             _ => "more workers than cores: contention, not scaling",
         },
+    );
+    Ok(chart)
+}
+
+/// The boundaries figure: drawn from the boundary table of the study's `boundary` question.
+fn boundaries_chart(
+    spec: &FigureSpec,
+    k: usize,
+    answers: Option<Answers>,
+) -> Result<Chart, String> {
+    let Some(Answers {
+        question: Question::Boundary(question),
+        rows,
+    }) = answers
+    else {
+        return Err(fault(k, spec, "draws the table of the study's boundary searches, which is not written yet; `nlstudy run` writes it"));
+    };
+    let kept = selected(spec, k, rows)?;
+    if kept.is_empty() {
+        return Err(fault(
+            k,
+            spec,
+            format!(
+                "where selects no row of the boundary table ({} rows)",
+                rows.len()
+            ),
+        ));
+    }
+    let swept = boundaries::swept(&kept);
+    let numeric = |name: &str| kept.iter().any(|r| r.number(name).is_some());
+    let x = match &spec.x {
+        Some(x) if numeric(x) => x.clone(),
+        Some(x) => return Err(fault(k, spec, format!("x names `{x}`, which is no numeric column of the boundary table; name a swept field such as {}", swept.join(", ")))),
+        None => ["m".to_string()]
+            .iter()
+            .chain(&swept)
+            .find(|name| numeric(name))
+            .cloned()
+            .ok_or_else(|| fault(k, spec, "the boundary table has no numeric swept field to draw the boundaries along; sweep one (m, n …) or give `x`"))?,
+    };
+    let series_columns: Vec<String> = match &spec.series {
+        Some(names) => names.clone(),
+        None => swept.into_iter().filter(|name| *name != x).collect(),
+    };
+    let (panels, subtitle_text) = boundaries::boundaries(&kept, &series_columns, &x, question.rtol);
+    if !panels
+        .iter()
+        .any(|p| p.series.iter().any(|s| !s.points.is_empty()))
+    {
+        return Err(fault(k, spec, format!("none of the {} searches `where` selects found a boundary to draw; the table says how each ended", kept.len())));
+    }
+    let mut chart = Chart::new(title(spec), subtitle_text, panels);
+    chart.explain(
+        Glyph::Cross,
+        "below the theory by more than the search's tolerance: the theory calls it stable, the measurement finds it unstable",
     );
     Ok(chart)
 }

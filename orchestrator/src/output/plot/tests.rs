@@ -158,7 +158,7 @@ fn every_kind_draws_its_series_and_axes() {
         ),
     ];
     for (k, spec) in specs().iter().enumerate() {
-        let chart = figure::chart(spec, k, &rows).unwrap();
+        let chart = figure::chart(spec, k, &rows, None).unwrap();
         let (name, series, labels) = expected[k];
         assert_eq!(spec.name, name);
         assert_eq!(chart.panels[0].series.len(), series, "{name}");
@@ -182,7 +182,7 @@ fn every_kind_draws_its_series_and_axes() {
 #[test]
 fn points_of_two_builds_never_share_a_line() {
     let mut rows = summary();
-    let one = figure::chart(&specs()[2], 2, &rows).unwrap().panels[0]
+    let one = figure::chart(&specs()[2], 2, &rows, None).unwrap().panels[0]
         .series
         .len();
     // The finest grid rerun by another build: it leaves each refinement line.
@@ -193,7 +193,7 @@ fn points_of_two_builds_never_share_a_line() {
         };
         row.set("build", json!(build));
     }
-    let chart = figure::chart(&specs()[2], 2, &rows).unwrap();
+    let chart = figure::chart(&specs()[2], 2, &rows, None).unwrap();
     let series = &chart.panels[0].series;
     assert!(series.len() > one, "{} series", series.len());
     assert!(
@@ -208,7 +208,7 @@ fn figures_hold_what_the_table_says() {
     let rows = summary();
     let specs = specs();
     // Convergence: e = c h² gives slope 2 on every series.
-    let chart = figure::chart(&specs[2], 2, &rows).unwrap();
+    let chart = figure::chart(&specs[2], 2, &rows, None).unwrap();
     let slopes: Vec<Option<&str>> = chart.panels[0]
         .series
         .iter()
@@ -216,7 +216,7 @@ fn figures_hold_what_the_table_says() {
         .collect();
     assert_eq!(slopes, [Some("2"); 4]);
     // Strong scaling: speedup 1.8 at two workers, efficiency 0.9.
-    let chart = figure::chart(&specs[0], 0, &rows).unwrap();
+    let chart = figure::chart(&specs[0], 0, &rows, None).unwrap();
     let speedup = &chart.panels[1].series[0].points;
     assert!((speedup[1].1 - 1.8).abs() < 1e-12, "{speedup:?}");
     let efficiency = &chart.panels[2].series[0].points;
@@ -230,7 +230,7 @@ fn figures_hold_what_the_table_says() {
     {
         row.set("oversubscribed", json!(true));
     }
-    let chart = figure::chart(&specs[0], 0, &crowded).unwrap();
+    let chart = figure::chart(&specs[0], 0, &crowded, None).unwrap();
     for panel in &chart.panels {
         let crossed: Vec<(f64, f64)> = panel.series[0].marks.iter().map(|m| m.0).collect();
         assert_eq!(crossed, panel.series[0].points[1..], "{}", panel.title);
@@ -243,7 +243,7 @@ fn figures_hold_what_the_table_says() {
         "the legend says what a cross means"
     );
     // Stability: the diverged pse point is a cross, not a point of the line.
-    let chart = figure::chart(&specs[4], 4, &rows).unwrap();
+    let chart = figure::chart(&specs[4], 4, &rows, None).unwrap();
     let pse = &chart.panels[0].series[1];
     assert_eq!((pse.points.len(), pse.marks.len()), (2, 1));
 }
@@ -252,7 +252,7 @@ fn figures_hold_what_the_table_says() {
 fn a_field_figure_maps_one_points_field_and_its_error() {
     let mut rows = summary();
     let specs = specs();
-    let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+    let chart = figure::chart(&specs[6], 6, &rows, None).unwrap();
     let heat = |k: usize| chart.panels[k].heat.as_ref().expect("a heat map");
     assert_eq!(chart.panels.len(), 2);
     assert_eq!((heat(0).nx, heat(0).ny, heat(0).values[5]), (4, 4, 5.0));
@@ -270,7 +270,7 @@ fn a_field_figure_maps_one_points_field_and_its_error() {
     // A 1D snapshot is drawn as profiles over x, at the cells' centres.
     rows[0].set("field.nx", json!(16));
     rows[0].set("field.ny", json!(1));
-    let chart = figure::chart(&specs[6], 6, &rows).unwrap();
+    let chart = figure::chart(&specs[6], 6, &rows, None).unwrap();
     let profile = &chart.panels[0].series[0].points;
     assert!(chart.panels[0].heat.is_none());
     assert_eq!((profile[0], profile.len()), ((1.0 / 32.0, 0.0), 16));
@@ -286,13 +286,13 @@ fn a_field_figure_maps_one_points_field_and_its_error() {
             kept
         })
         .collect();
-    let chart = figure::chart(&specs[6], 6, &without_error).unwrap();
+    let chart = figure::chart(&specs[6], 6, &without_error, None).unwrap();
     assert_eq!(chart.panels.len(), 1);
 
     // The figure shows one point: a filter selecting two is refused, naming `where`.
     let mut both = specs[6].clone();
     both.filter.pop();
-    let error = figure::chart(&both, 6, &rows).err().unwrap();
+    let error = figure::chart(&both, 6, &rows, None).err().unwrap();
     assert!(
         error.starts_with("figures[6] (field): where selects 2 points"),
         "{error}"
@@ -303,7 +303,7 @@ fn a_field_figure_maps_one_points_field_and_its_error() {
         "threads == 1".into(),
         "method == 'pse'".into(),
     ];
-    let error = figure::chart(&none, 6, &rows).err().unwrap();
+    let error = figure::chart(&none, 6, &rows, None).err().unwrap();
     assert!(error.contains("set `field_snapshot`"), "{error}");
 }
 
@@ -322,21 +322,25 @@ fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
         outcomes.filter(|o| **o == Outcome::Drawn).count()
     };
 
-    assert_eq!(redrawn(plot(&specs, &store).unwrap()), 7);
-    let first = std::fs::read(&plot(&specs, &store).unwrap()[2].path).unwrap();
-    assert_eq!(redrawn(plot(&specs, &store).unwrap()), 0, "nothing changed");
+    assert_eq!(redrawn(plot(&specs, None, &store).unwrap()), 7);
+    let first = std::fs::read(&plot(&specs, None, &store).unwrap()[2].path).unwrap();
+    assert_eq!(
+        redrawn(plot(&specs, None, &store).unwrap()),
+        0,
+        "nothing changed"
+    );
 
     // The same table written again gives the same bytes, and so the same figures.
     table::write_parquet(&[(&table, &rows)]).unwrap();
-    assert_eq!(redrawn(plot(&specs, &store).unwrap()), 0);
+    assert_eq!(redrawn(plot(&specs, None, &store).unwrap()), 0);
     let svg = dir.join("synthetic/figures/convergence.svg");
     std::fs::remove_file(&svg).unwrap();
-    assert_eq!(redrawn(plot(&specs, &store).unwrap()), 1);
+    assert_eq!(redrawn(plot(&specs, None, &store).unwrap()), 1);
     assert_eq!(std::fs::read(&svg).unwrap(), first, "byte-identical");
 
     specs[2].title = Some("orders".into());
     assert_eq!(
-        redrawn(plot(&specs, &store).unwrap()),
+        redrawn(plot(&specs, None, &store).unwrap()),
         1,
         "only the changed spec"
     );
@@ -344,7 +348,7 @@ fn a_figure_is_redrawn_only_when_its_table_or_spec_changes() {
     changed[0].set("error_l2_norm", json!(0.5));
     table::write_parquet(&[(&table, &changed)]).unwrap();
     assert_eq!(
-        redrawn(plot(&specs, &store).unwrap()),
+        redrawn(plot(&specs, None, &store).unwrap()),
         7,
         "a changed table redraws all"
     );
@@ -379,7 +383,7 @@ fn text_elements(svg: &str) -> Vec<(String, f64, f64, f64, String)> {
 fn figures_read_on_a_page_at_100_percent() {
     let rows = summary();
     for (k, spec) in specs().iter().enumerate() {
-        let svg = draw::render(&figure::chart(spec, k, &rows).unwrap()).unwrap();
+        let svg = draw::render(&figure::chart(spec, k, &rows, None).unwrap()).unwrap();
         let document = roxmltree::Document::parse(&svg).unwrap();
         let width: f64 = document
             .root_element()
@@ -393,7 +397,7 @@ fn figures_read_on_a_page_at_100_percent() {
         }
     }
     // Strong scaling's three panels wrap two to a row, each at least 480 px wide.
-    let svg = draw::render(&figure::chart(&specs()[0], 0, &rows).unwrap()).unwrap();
+    let svg = draw::render(&figure::chart(&specs()[0], 0, &rows, None).unwrap()).unwrap();
     let texts = text_elements(&svg);
     let caption = |name: &str| {
         let found = texts.iter().find(|t| t.0.starts_with(name));
@@ -415,7 +419,7 @@ fn figures_read_on_a_page_at_100_percent() {
 #[test]
 fn titles_are_written_for_people() {
     let rows = summary();
-    let chart = figure::chart(&specs()[0], 0, &rows).unwrap();
+    let chart = figure::chart(&specs()[0], 0, &rows, None).unwrap();
     assert_eq!(
         (&chart.title[..], &chart.subtitle[..]),
         ("strong", "n = 64")
@@ -428,7 +432,7 @@ fn titles_are_written_for_people() {
     assert_eq!(labels, ["method = nonlocal", "method = pse"]);
     // No `key=value` dump in any text of any figure.
     for (k, spec) in specs().iter().enumerate() {
-        let svg = draw::render(&figure::chart(spec, k, &rows).unwrap()).unwrap();
+        let svg = draw::render(&figure::chart(spec, k, &rows, None).unwrap()).unwrap();
         for text in texts(&svg) {
             let dumped = text.contains('=') && !text.contains(" = ");
             assert!(!dumped, "{}: `{text}`", spec.name);
@@ -440,7 +444,7 @@ fn titles_are_written_for_people() {
 fn repeats_are_counted_only_where_a_statistic_is_over_them() {
     let rows = summary();
     let specs = specs();
-    let convergence = figure::chart(&specs[2], 2, &rows).unwrap();
+    let convergence = figure::chart(&specs[2], 2, &rows, None).unwrap();
     let labels: Vec<&str> = convergence.panels[0]
         .series
         .iter()
@@ -452,7 +456,7 @@ fn repeats_are_counted_only_where_a_statistic_is_over_them() {
     );
     let svg = draw::render(&convergence).unwrap();
     assert!(!svg.contains("repeat"), "errors are deterministic");
-    let work = figure::chart(&specs[3], 3, &rows).unwrap();
+    let work = figure::chart(&specs[3], 3, &rows, None).unwrap();
     assert_eq!(
         work.panels[0].y.label,
         "solve time, median of 3 repeats (s)"
@@ -467,7 +471,7 @@ fn repeats_are_counted_only_where_a_statistic_is_over_them() {
 fn notes_beside_coinciding_lines_do_not_overlap() {
     // Threads do not change the error: both series of each method lie on one line, and
     // their notes would be written on top of each other.
-    let svg = draw::render(&figure::chart(&specs()[2], 2, &summary()).unwrap()).unwrap();
+    let svg = draw::render(&figure::chart(&specs()[2], 2, &summary(), None).unwrap()).unwrap();
     let mut notes: Vec<f64> = text_elements(&svg)
         .into_iter()
         .filter(|t| t.0 == "2" && t.4 != "#000000")
@@ -484,7 +488,7 @@ fn notes_beside_coinciding_lines_do_not_overlap() {
 fn a_where_that_selects_nothing_names_its_figure() {
     let mut none = specs()[2].clone();
     none.filter = vec!["n == 7".into()];
-    let error = figure::chart(&none, 2, &summary()).err().unwrap();
+    let error = figure::chart(&none, 2, &summary(), None).err().unwrap();
     assert!(
         error.starts_with(
             "figures[2] (convergence): where selects no row of the summary table (12 rows)"
@@ -513,7 +517,7 @@ fn scaling_lines_split_by_kind_of_parallelism_and_noisy_points_are_ringed() {
     };
     let rows = [row(1, 1, 1.0, 0), row(2, 1, 0.55, 1), row(1, 2, 0.52, 0)];
     let spec = spec("scaling", FigureKind::StrongScaling, &[]);
-    let chart = figure::chart(&spec, 0, &rows).unwrap();
+    let chart = figure::chart(&spec, 0, &rows, None).unwrap();
     assert!(draw::lint(&chart).is_empty(), "{:?}", draw::lint(&chart));
     assert!(
         !chart.subtitle.contains('='),
@@ -549,7 +553,7 @@ fn a_figure_that_cannot_be_made_says_why() {
             r
         })
         .collect();
-    let error = figure::chart(&specs()[2], 2, &failed).err().unwrap();
+    let error = figure::chart(&specs()[2], 2, &failed, None).err().unwrap();
     assert!(error.contains("every run failed"), "{error}");
     // A stability sweep where nothing diverged is drawn, and its legend explains no cross.
     let stable: Vec<Row> = summary()
@@ -559,11 +563,11 @@ fn a_figure_that_cannot_be_made_says_why() {
             r
         })
         .collect();
-    let chart = figure::chart(&specs()[4], 4, &stable).unwrap();
+    let chart = figure::chart(&specs()[4], 4, &stable, None).unwrap();
     assert!(draw::lint(&chart).is_empty() && chart.glyphs.is_empty());
     let mut one = specs()[0].clone();
     one.filter = vec!["n == 64".into(), "threads == 1".into()];
-    let error = figure::chart(&one, 0, &summary()).err().unwrap();
+    let error = figure::chart(&one, 0, &summary(), None).err().unwrap();
     assert!(error.contains("one worker count (1)"), "{error}");
 }
 
@@ -576,12 +580,12 @@ fn a_failing_figure_leaves_the_others_drawn() {
     let table = store.table("synthetic-summary.parquet");
     table::write_parquet(&[(&table, &summary())]).unwrap();
     let mut specs = specs();
-    assert!(all_drawn(&plot(&specs, &store).unwrap()).is_ok());
+    assert!(all_drawn(&plot(&specs, None, &store).unwrap()).is_ok());
     // A misspelt column in the second figure: the first and the third are still drawn,
     // and the second's figure of the earlier spec is gone.
     specs[1].x = Some("wrkers".into());
     specs[2].title = Some("orders".into());
-    let figures = plot(&specs, &store).unwrap();
+    let figures = plot(&specs, None, &store).unwrap();
     let outcomes: Vec<&Outcome> = figures.iter().map(|f| &f.outcome).collect();
     let Outcome::Failed(message) = outcomes[1] else {
         panic!("{outcomes:?}")
