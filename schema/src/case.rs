@@ -140,7 +140,8 @@ pub struct Case {
     /// amplification, the growth per step of a rough field under the homogeneous problem over
     /// this many steps (a few hundred; untimed), at the step asked for (`dt`, or `cfl` times
     /// dt_stable, before it is lowered to land on `t_end`), into the record's `amplification`:
-    /// above 1 it is unstable.
+    /// above 1 it is unstable. Its `positivity` is measured with it: one step of a unit spike,
+    /// below 0 where the step makes negative values of non-negative data.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "cli", arg(long))]
     pub amplification_steps: Option<usize>,

@@ -142,6 +142,58 @@ fn the_grid_methods_amplification_meets_the_classical_bound() {
     }
 }
 
+/// The step's measured positivity against the theory's dt_positive: forward Euler keeps a unit
+/// spike non-negative up to 1/|L_ii| exactly and no further (every kernel, m = 1, 2, 4, 8, 1D
+/// and 2D); Crank–Nicolson's bound 2/|L_ii| is sufficient (non-negative at it, and at 0.995 of
+/// it), and the step loses positivity at a large enough step; backward Euler never does.
+#[test]
+fn the_measured_positivity_meets_the_theorys_dt_positive() {
+    let positivity = |dim: usize, n: usize, m: usize, kernel: Kernel, integrator, dt: f64| {
+        let record = run(&case(json!({"dim": dim, "n": n, "m": m, "kernel": kernel,
+            "problem": "bump", "t_end": dt, "dt": dt, "integrator": integrator,
+            "allow_unstable": true, "amplification_steps": 2})))
+        .unwrap()
+        .record;
+        let limit = record.resolved.dt_positive;
+        (record.positivity.expect("measured"), limit)
+    };
+    for dim in [1, 2] {
+        for m in [1, 2, 4, 8] {
+            let n = (32 * m).max(64);
+            for kernel in [Kernel::Constant, Kernel::Linear] {
+                let stencil = stencil(dim, n, m, kernel);
+                if stencil.total_weight == 0.0 {
+                    continue; // J = 1 − r with m = 1: every bond has r = 1 (refused)
+                }
+                let euler = 1.0 / stencil.total_weight;
+                let (below, limit) =
+                    positivity(dim, n, m, kernel, Integrator::ForwardEuler, 0.999 * euler);
+                assert_eq!(limit, Some(euler));
+                let (above, _) =
+                    positivity(dim, n, m, kernel, Integrator::ForwardEuler, 1.001 * euler);
+                assert!(
+                    below == 0.0 && above < 0.0,
+                    "{dim}D m = {m} {kernel:?}: {below} {above}"
+                );
+                let crank = Integrator::CrankNicolson;
+                let (at, limit) = positivity(dim, n, m, kernel, crank, 2.0 * euler);
+                assert_eq!(limit, Some(2.0 * euler));
+                let (far, _) = positivity(dim, n, m, kernel, crank, 50.0 * euler);
+                assert!(
+                    at == 0.0 && far < 0.0,
+                    "{dim}D m = {m} {kernel:?}: CN {at} {far}"
+                );
+                let backward = Integrator::BackwardEuler;
+                let (never, limit) = positivity(dim, n, m, kernel, backward, 50.0 * euler);
+                assert!(
+                    never >= 0.0 && limit.is_none(),
+                    "{dim}D m = {m}: BE {never}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn just_below_dt_stable_stays_bounded_for_10000_steps() {
     for (dim, n, m) in [(1, 256, 4), (2, 48, 2)] {

@@ -3,7 +3,8 @@
 //! probes and rounds spent, and why the search ended.
 
 use crate::analysis::answer_table::{self, measured, origin_rows, text};
-use crate::model::boundary::{Ended, Search};
+use crate::model::boundary::{BoundarySpec, Ended, Search};
+use crate::model::expression;
 use crate::model::study::Study;
 use crate::run::search::Searched;
 use crate::store::table::Row;
@@ -13,15 +14,15 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 /// The table's rows, in the order of the sweep.
-pub fn rows(field: &str, searched: &[Searched<Search>]) -> Vec<Row> {
+pub fn rows(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Row> {
     origin_rows(searched)
         .into_iter()
         .zip(searched)
         .map(|(mut row, s)| {
             let search = &s.outcome;
-            let predicted = s.record.as_ref().and_then(|r| prediction(field, r));
+            let predicted = s.record.as_ref().and_then(|r| prediction(spec, r));
             let found = search.ended == Some(Ended::Found);
-            row.set("field", Value::from(field));
+            row.set("field", Value::from(spec.field.as_str()));
             row.set("boundary", measured(search.boundary()));
             row.set("boundary_lo", measured(found.then_some(search.below)));
             row.set("boundary_hi", measured(found.then_some(search.above)));
@@ -53,7 +54,7 @@ pub const NOTES: &[(&str, &str)] = &[
     ("boundary", "the middle of the final bracket, where the condition starts to hold; null if the search found none"),
     ("boundary_lo", "the largest value probed where the condition does not hold"),
     ("boundary_hi", "the smallest value probed where it holds"),
-    ("predicted", "the boundary the solver's theory gives (the symbol's dt_stable), null where it has none"),
+    ("predicted", "the boundary the solver's theory gives for what the condition reads: the symbol's dt_stable for stability, dt_positive for `positivity`; null where it has none"),
     ("gap", "boundary / predicted - 1"),
     ("probes", "runs the search spent, the bracket's ends included"),
     ("rounds", "rounds of probes, each run at once on the pool"),
@@ -64,28 +65,62 @@ pub const NOTES: &[(&str, &str)] = &[
 pub fn write(
     study: &Study,
     store: &Store,
-    field: &str,
+    spec: &BoundarySpec,
     searched: &[Searched<Search>],
 ) -> Result<PathBuf, Fault> {
-    answer_table::write(study, store, "boundaries", &rows(field, searched), NOTES)
+    answer_table::write(study, store, "boundaries", &rows(spec, searched), NOTES)
 }
 
-/// The boundary the solver's theory gives along `field`, from a probe's record: an explicit
-/// integrator's dt_stable (from the operator's symbol for the nonlocal method, the classical
-/// bound for finite differences) is the boundary of `dt`, and 1 that of `cfl`, which is dt
-/// over it. Implicit integrators and other fields have none.
-pub fn prediction(field: &str, stored: &Stored) -> Option<f64> {
+/// The boundary the solver's theory gives for what `spec`'s condition reads, from a probe's
+/// record. Of stability (a condition on `amplification`, `status` …): an explicit integrator's
+/// dt_stable (from the operator's symbol for the nonlocal method, the classical bound for finite
+/// differences); implicit integrators have none. Of positivity (a condition on `positivity`
+/// alone): the record's `dt_positive`, where the theory has one. It is the boundary of `dt`,
+/// and of `cfl` over dt_stable; other fields have none.
+pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
     let record = stored.record()?;
-    let method = record.case.get("method").and_then(|m| m.as_str());
-    let explicit = match method {
-        None | Some("nonlocal") => record.resolved.integrator.is_none_or(|i| !i.is_implicit()),
-        Some("fd_explicit") => true,
-        _ => false,
+    let resolved = &record.resolved;
+    let names = expression::names(&spec.flips).unwrap_or_default();
+    let reads = |name: &str| names.iter().any(|n| n == name);
+    let limit = match (reads("positivity"), reads("amplification")) {
+        (true, false) => resolved.dt_positive?,
+        (true, true) => return None,
+        (false, _) => {
+            let method = record.case.get("method").and_then(|m| m.as_str());
+            let explicit = match method {
+                None | Some("nonlocal") => resolved.integrator.is_none_or(|i| !i.is_implicit()),
+                Some("fd_explicit") => true,
+                _ => false,
+            };
+            explicit.then_some(resolved.dt_stable)?
+        }
     };
-    match field {
-        _ if !explicit => None,
-        "cfl" => Some(1.0),
-        "dt" => Some(record.resolved.dt_stable),
+    match spec.field.as_str() {
+        "cfl" => Some(limit / resolved.dt_stable),
+        "dt" => Some(limit),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn the_prediction_is_the_theory_of_what_the_condition_reads() {
+        // A forward-Euler record: dt_stable 2e-3, dt_positive 1e-3.
+        let record = schema::record::columns::every_field();
+        let predicted = |field: &str, flips: &str| {
+            let spec = json!({"field": field, "bracket": [0.5, 2], "flips": flips, "rtol": 1e-3});
+            prediction(&serde_json::from_value(spec).unwrap(), &record)
+        };
+        assert_eq!(predicted("cfl", "amplification > 1"), Some(1.0));
+        assert_eq!(predicted("cfl", "status == 'diverged'"), Some(1.0));
+        assert_eq!(predicted("dt", "amplification > 1"), Some(2e-3));
+        assert_eq!(predicted("cfl", "positivity < 0"), Some(0.5));
+        assert_eq!(predicted("dt", "positivity < 0"), Some(1e-3));
+        assert_eq!(predicted("cfl", "positivity < 0 || amplification > 1"), None);
+        assert_eq!(predicted("m", "amplification > 1"), None);
     }
 }

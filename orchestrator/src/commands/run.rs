@@ -108,21 +108,19 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         ));
     }
     if let Some(answered) = &answered {
-        let field = study.question().map_or("", |q| q.field());
         let path = match answered {
-            Answered::Boundaries(searched) => {
-                crate::analysis::boundaries::write(&study, &store, field, searched)?
+            Answered::Boundaries(spec, searched) => {
+                crate::analysis::boundaries::write(&study, &store, spec, searched)?
             }
-            Answered::Refinements(refined) => {
-                crate::analysis::convergence::write(&study, &store, field, refined)?
+            Answered::Refinements(spec, refined) => {
+                crate::analysis::convergence::write(&study, &store, &spec.field, refined)?
             }
-            Answered::Targets(aimed) => {
-                let spec = study.target.as_ref().expect("a target study");
+            Answered::Targets(spec, aimed) => {
                 crate::analysis::target::write(&study, &store, spec, aimed)?
             }
         };
         if !args.quiet {
-            for line in crate::output::answers::lines(&study, answered) {
+            for line in crate::output::answers::lines(answered) {
                 errln!("  {line}");
             }
             if let Some(budget) = &study.budget {

@@ -5,9 +5,8 @@
 use crate::analysis::boundaries::prediction;
 use crate::console::number;
 use crate::model::adaptive::{Budget, Spent};
-use crate::model::boundary::Search;
+use crate::model::boundary::{BoundarySpec, Search};
 use crate::model::refine::Refinement;
-use crate::model::study::Study;
 use crate::model::target::{Aimed, TargetSpec};
 use crate::run::search::{Answered, Searched};
 
@@ -28,16 +27,12 @@ pub fn budget_line(budget: &Budget, spent: &Spent) -> String {
     format!("budget: {}", parts.join(", "))
 }
 
-/// The lines of `answered`, the answers to `study`'s question.
-pub fn lines(study: &Study, answered: &Answered) -> Vec<String> {
-    let field = study.question().map_or("", |q| q.field());
+/// The lines of `answered`, the answers to a study's question.
+pub fn lines(answered: &Answered) -> Vec<String> {
     match answered {
-        Answered::Boundaries(searched) => boundary_lines(field, searched),
-        Answered::Refinements(refined) => refinement_lines(field, refined),
-        Answered::Targets(aimed) => match &study.target {
-            Some(spec) => target_lines(spec, aimed),
-            None => Vec::new(),
-        },
+        Answered::Boundaries(spec, searched) => boundary_lines(spec, searched),
+        Answered::Refinements(spec, refined) => refinement_lines(&spec.field, refined),
+        Answered::Targets(spec, aimed) => target_lines(spec, aimed),
     }
 }
 
@@ -83,12 +78,13 @@ fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
 }
 
 /// Each search's answer: `m=4 integrator=rk4: cfl = 1.0004 (predicted 1, +0.04 %), 12 probes`.
-fn boundary_lines(field: &str, searched: &[Searched<Search>]) -> Vec<String> {
+fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<String> {
+    let field = spec.field.as_str();
     searched
         .iter()
         .map(|s| {
             let search = &s.outcome;
-            let predicted = s.record.as_ref().and_then(|r| prediction(field, r));
+            let predicted = s.record.as_ref().and_then(|r| prediction(spec, r));
             let answer = match (search.boundary(), predicted) {
                 (Some(b), Some(p)) => format!(
                     "{field} = {} (predicted {}, {:+.2} %)",

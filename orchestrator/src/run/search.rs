@@ -5,10 +5,10 @@
 //! without running a probe twice, and ends where it would have.
 
 use crate::model::adaptive::{Adaptive, Spent};
-use crate::model::boundary::Search;
-use crate::model::refine::Refinement;
+use crate::model::boundary::{BoundarySpec, Search};
+use crate::model::refine::{RefineSpec, Refinement};
 use crate::model::study::{Point, Question, Study};
-use crate::model::target::Aimed;
+use crate::model::target::{Aimed, TargetSpec};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{self, Planned};
 use crate::store::{Fault, Store};
@@ -115,33 +115,36 @@ pub fn spent(probes: &[Planned], store: &Store) -> Spent {
     Spent::of(&records)
 }
 
-/// What an adaptive study found from each point of its sweep.
-pub enum Answered {
-    Boundaries(Vec<Searched<Search>>),
-    Refinements(Vec<Searched<Refinement>>),
-    Targets(Vec<Searched<Aimed>>),
+/// What an adaptive study found from each point of its sweep, beside the question it asked.
+pub enum Answered<'a> {
+    Boundaries(&'a BoundarySpec, Vec<Searched<Search>>),
+    Refinements(&'a RefineSpec, Vec<Searched<Refinement>>),
+    Targets(&'a TargetSpec, Vec<Searched<Aimed>>),
 }
 
 /// Runs the study's adaptive question (`boundary`, `refine` or `target`) to its end, as
 /// `searches` does; None for a study of a fixed sweep.
-pub fn answer(
-    study: &Study,
+pub fn answer<'a>(
+    study: &'a Study,
     solver: &Nlsolve,
     store: &Store,
     options: &plan::Options,
     run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
-) -> Result<Option<Answers<Answered>>, Fault> {
-    fn wrap<O>(
-        (found, probes): Answers<Vec<Searched<O>>>,
-        kind: fn(Vec<Searched<O>>) -> Answered,
-    ) -> Answers<Answered> {
-        (found.map(kind), probes)
-    }
+) -> Result<Option<Answers<Answered<'a>>>, Fault> {
     let args = (study, solver, store, options);
     let answers = match study.question() {
-        Some(Question::Boundary(q)) => wrap(ask(args, q, run_round)?, Answered::Boundaries),
-        Some(Question::Refine(q)) => wrap(ask(args, q, run_round)?, Answered::Refinements),
-        Some(Question::Target(q)) => wrap(ask(args, q, run_round)?, Answered::Targets),
+        Some(Question::Boundary(q)) => {
+            let (found, probes) = ask(args, q, run_round)?;
+            (found.map(|f| Answered::Boundaries(q, f)), probes)
+        }
+        Some(Question::Refine(q)) => {
+            let (found, probes) = ask(args, q, run_round)?;
+            (found.map(|f| Answered::Refinements(q, f)), probes)
+        }
+        Some(Question::Target(q)) => {
+            let (found, probes) = ask(args, q, run_round)?;
+            (found.map(|f| Answered::Targets(q, f)), probes)
+        }
         None => return Ok(None),
     };
     Ok(Some(answers))

@@ -47,6 +47,7 @@ named! {
     MAX_ABS = "max_abs",
     GROWTH = "growth",
     AMPLIFICATION = "amplification",
+    POSITIVITY = "positivity",
     PEAK_MEMORY_BYTES = "peak_memory_bytes",
     RANKS = "ranks",
     HALO_NODES = "halo_nodes",
@@ -179,6 +180,7 @@ pub fn every_field() -> Stored {
             c: Some(1.0),
             dt: 1e-3,
             dt_stable: 2e-3,
+            dt_positive: Some(1e-3),
             steps: 10,
             nodes: 16,
             bonds: 128,
@@ -202,6 +204,7 @@ pub fn every_field() -> Stored {
         max_abs: Some(1.0),
         growth: Some(0.0),
         amplification: Some(1.0),
+        positivity: Some(0.0),
         diverged_step: Some(10),
         diverged_time: Some(1e-2),
         c_tot: Some(MassSeries {

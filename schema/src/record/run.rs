@@ -50,6 +50,12 @@ pub struct Record<C = Case> {
     /// `amplification_steps`): above 1 the step amplifies some mode, so it is unstable.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub amplification: Option<f64>,
+    /// The step's positivity, measured with `amplification`: one homogeneous step of a unit
+    /// spike at the middle node, its smallest value over its largest. Below 0 the step makes a
+    /// negative value of non-negative data; values within 1e-10 of the largest count as 0 (the
+    /// implicit solves run to 1e-13).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub positivity: Option<f64>,
     pub diverged_step: Option<usize>,
     pub diverged_time: Option<f64>,
     /// c_tot(t) samples (when the case sets `diagnostics_every`).
@@ -117,6 +123,7 @@ impl Record {
             max_abs: None,
             growth: None,
             amplification: None,
+            positivity: None,
             diverged_step: None,
             diverged_time: None,
             c_tot: None,
@@ -201,6 +208,13 @@ pub struct Resolved {
     pub c: Option<f64>,
     pub dt: f64,
     pub dt_stable: f64,
+    /// The largest step whose explicit part I + (1 − θ) dt L_h has no negative entry, where the
+    /// theory has one: forward Euler 1/|L_ii| (then exactly the positivity limit), Crank–Nicolson
+    /// 2/|L_ii| (a sufficient bound), explicit FD h²/(2dD) (exact), ADI h²/D (sufficient);
+    /// absent for backward Euler (positive for every step), for Heun, RK4 and PSE (not derived),
+    /// and for weights of either sign.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt_positive: Option<f64>,
     /// Steps planned to reach t_end.
     pub steps: usize,
     pub nodes: usize,

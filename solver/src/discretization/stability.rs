@@ -195,3 +195,20 @@ pub fn dt_stable(integrator: Integrator, forward_euler_dt_stable: f64) -> Option
         Integrator::BackwardEuler | Integrator::CrankNicolson => None,
     }
 }
+
+/// The largest step whose explicit part I + (1 − θ) dt L_h has no negative entry. L_h's
+/// diagonal is −W and its other entries are the weights, so with every weight ≥ 0 that is
+/// dt ≤ 1 / ((1 − θ) W). Forward Euler's step is that part, so there it is the positivity limit
+/// exactly; Crank–Nicolson's multiplies it by (I − dt/2 L_h)⁻¹, an M-matrix's non-negative
+/// inverse, so there it is sufficient. None for backward Euler (positive for every step), for
+/// Heun and RK4 (not derived), and for weights of either sign.
+pub fn dt_positive(integrator: Integrator, stencil: &Stencil) -> Option<f64> {
+    let explicit_part = match integrator {
+        Integrator::ForwardEuler => 1.0,
+        Integrator::CrankNicolson => 0.5,
+        Integrator::BackwardEuler | Integrator::Heun | Integrator::Rk4 => return None,
+    };
+    let mut weights = stencil.rows.iter().flat_map(|row| row.bonds());
+    let dt = 1.0 / (explicit_part * stencil.total_weight);
+    (weights.all(|(_, w)| w >= 0.0) && dt.is_finite() && dt > 0.0).then_some(dt)
+}

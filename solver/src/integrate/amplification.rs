@@ -50,6 +50,53 @@ pub fn amplification(
     growth.is_finite().then_some(growth)
 }
 
+/// The solves' relative tolerance in the measurement of positivity: far tighter than any
+/// run's, so that a negative value is the step's and not the solve's.
+pub const POSITIVITY_RTOL: f64 = 1e-13;
+
+/// Values within this of the spike's largest count as 0: what a solve to `POSITIVITY_RTOL` of
+/// a system of condition ≲ 10³ leaves.
+const ROUND_OFF: f64 = 1e-10;
+
+/// The middle node of a grid of n nodes per side in `dim` dimensions, stored row by row.
+pub fn middle_node(dim: usize, n: usize) -> usize {
+    match dim {
+        2 => (n / 2) * n + n / 2,
+        _ => n / 2,
+    }
+}
+
+/// The step's positivity: one step of `stepper` (no source) from a unit spike at global node
+/// `spike`, its smallest value over its largest across the ranks, with values within
+/// `ROUND_OFF` of the largest counted as 0. Below 0 the step makes negative values of
+/// non-negative data. None if the step produced a value that is not finite.
+pub fn positivity(
+    stepper: &mut dyn Stepper,
+    ranks: Ranks,
+    nodes: Option<&[usize]>,
+    len: usize,
+    dt: f64,
+    spike: usize,
+) -> Option<f64> {
+    let unit = |g: usize| if g == spike { 1.0 } else { 0.0 };
+    let mut u: Vec<f64> = match nodes {
+        Some(nodes) => nodes.iter().map(|&g| unit(g)).collect(),
+        None => (0..len).map(unit).collect(),
+    };
+    stepper.step(&mut u, 0.0, dt);
+    let (lowest, highest) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        });
+    let (lowest, highest) = (-ranks.max(-lowest), ranks.max(highest));
+    let ratio = match lowest.abs() <= ROUND_OFF * highest.abs() {
+        true => 0.0,
+        false => lowest / highest,
+    };
+    ratio.is_finite().then_some(ratio)
+}
+
 /// A value in [−1, 1) for global node `g`: SplitMix64's finalizer of g, so that neighbouring
 /// nodes are uncorrelated and every mode of the grid is present.
 fn rough(g: usize) -> f64 {
@@ -84,6 +131,44 @@ mod tests {
             amplification(&mut Scale(f64::NAN), Ranks::single(), None, 50, 0.1, 4),
             None
         );
+    }
+
+    /// u ← u + a·(shifted u − 2u) in 1D, a discrete Laplacian step with ratio `a`.
+    struct Heat(f64);
+    impl Stepper for Heat {
+        fn step(&mut self, u: &mut [f64], _: f64, _: f64) -> f64 {
+            let old = u.to_vec();
+            for (i, x) in u.iter_mut().enumerate() {
+                let left = if i > 0 { old[i - 1] } else { 0.0 };
+                let right = old.get(i + 1).copied().unwrap_or(0.0);
+                *x = old[i] + self.0 * (left + right - 2.0 * old[i]);
+            }
+            u.iter().fold(0.0, |m, x| m.max(x.abs()))
+        }
+    }
+
+    #[test]
+    fn positivity_is_lost_exactly_where_the_diagonal_of_the_step_turns_negative() {
+        let measured = |a: f64| {
+            positivity(
+                &mut Heat(a),
+                Ranks::single(),
+                None,
+                9,
+                0.1,
+                middle_node(1, 9),
+            )
+            .unwrap()
+        };
+        // The spike becomes (a, 1 − 2a, a): non-negative up to a = 1/2.
+        assert_eq!(measured(0.25), 0.0);
+        assert_eq!(measured(0.5), 0.0);
+        assert!(
+            (measured(0.6) - (-0.2 / 0.6)).abs() < 1e-15,
+            "{}",
+            measured(0.6)
+        );
+        assert_eq!((middle_node(1, 9), middle_node(2, 4)), (4, 10));
     }
 
     #[test]

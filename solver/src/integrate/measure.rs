@@ -71,6 +71,7 @@ pub(crate) fn measure(
         distribution,
         implicit: trajectory.implicit,
         amplification: trajectory.amplification,
+        positivity: trajectory.positivity,
     }
 }
 

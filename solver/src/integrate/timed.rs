@@ -54,6 +54,8 @@ pub struct Trajectory {
     pub implicit: ImplicitSolves,
     /// The step's measured amplification (`integrate::amplification`), when the case asks.
     pub amplification: Option<f64>,
+    /// The step's measured positivity (`integrate::amplification::positivity`), with it.
+    pub positivity: Option<f64>,
 }
 
 impl Trajectory {
@@ -68,6 +70,7 @@ impl Trajectory {
             step_comm_s: 0.0,
             implicit: ImplicitSolves::default(),
             amplification: None,
+            positivity: None,
         }
     }
 }

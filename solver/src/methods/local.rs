@@ -13,7 +13,7 @@
 use crate::case::ValidCase;
 use crate::case::{positive, refuse_given, Case, CaseError, Problem, SourceMode};
 use crate::discretization::grid::Lattice;
-use crate::integrate::amplification::amplification;
+use crate::integrate::amplification::{amplification, middle_node, positivity};
 use crate::integrate::stepper::Stepper;
 use crate::integrate::timed::{timed_steps_observed, Stepping, Trajectory};
 use crate::operator::InstructionSet;
@@ -323,7 +323,7 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
         ExplicitFd::new(grid, case.diffusivity, dt).integrate(u0, &stepping)
     };
     // Untimed, after the run: at the step asked for, before it was lowered to land on t_end.
-    trajectory.amplification = case.amplification_steps.and_then(|steps| {
+    if let Some(steps) = case.amplification_steps {
         let (asked, _) = crate::integrate::time_step::requested(case, dt_stable);
         let mut step: Box<dyn Stepper> = match implicit {
             true => Box::new(AdiStepper::new(Adi::new(grid, case.diffusivity, asked))),
@@ -333,19 +333,22 @@ pub fn run(case: &ValidCase, implicit: bool) -> Result<Outcome, CaseError> {
                 asked,
             ))),
         };
-        amplification(
-            step.as_mut(),
-            Ranks::single(),
-            None,
-            grid.nodes(),
-            asked,
-            steps,
-        )
-    });
+        let (single, nodes) = (Ranks::single(), grid.nodes());
+        trajectory.amplification = amplification(step.as_mut(), single, None, nodes, asked, steps);
+        let spike = middle_node(grid.dim, grid.n);
+        trajectory.positivity = positivity(step.as_mut(), single, None, nodes, asked, spike);
+    }
     let resolved = Resolved {
         h: grid.h,
         dt,
         dt_stable,
+        // Explicit FD's step is non-negative up to its stability limit, 1 − 2dD dt/h² ≥ 0; each
+        // of ADI's half steps multiplies by the inverse of an M-matrix and by I + dt/2 D δ², which
+        // is non-negative up to dt = h²/D, 2d times that (sufficient).
+        dt_positive: Some(match implicit {
+            true => 2.0 * grid.dim as f64 * dt_stable,
+            false => dt_stable,
+        }),
         steps,
         nodes: grid.nodes(),
         bonds: 2 * grid.dim * grid.nodes(),

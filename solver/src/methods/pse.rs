@@ -606,6 +606,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         c: None,
         dt,
         dt_stable,
+        dt_positive: None,
         steps,
         nodes: particles.count(),
         bonds,

@@ -40,6 +40,7 @@ pub(crate) struct Measured {
     pub distribution: Distribution,
     pub implicit: ImplicitSolves,
     pub amplification: Option<f64>,
+    pub positivity: Option<f64>,
 }
 
 /// The record of a finished run.
@@ -83,6 +84,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         message,
         growth,
         amplification: measured.amplification,
+        positivity: measured.positivity,
         steps_done: measured.steps_done,
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
@@ -163,6 +165,7 @@ mod tests {
             distribution: Distribution::serial(&case),
             implicit: ImplicitSolves::default(),
             amplification: None,
+            positivity: None,
         };
         let resolved = Resolved {
             dt: 0.1,

@@ -14,7 +14,7 @@ use crate::discretization::stability::{
     dt_stable, forward_euler_dt_stable, forward_euler_dt_stable_floor,
 };
 use crate::discretization::stencil::Stencil;
-use crate::integrate::amplification::amplification;
+use crate::integrate::amplification::{amplification, middle_node, positivity, POSITIVITY_RTOL};
 use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
 use crate::integrate::stepper::{integrate, Stepper};
@@ -194,6 +194,7 @@ impl Plan {
         Resolved {
             dt: self.dt,
             dt_stable: self.dt_stable,
+            dt_positive: crate::discretization::stability::dt_positive(self.integrator, stencil),
             steps: self.steps,
             collar: Some(self.collar),
             patch_error: Some(stencil.patch_error()),
@@ -273,13 +274,22 @@ pub(crate) fn solve<Op: LinearOperator>(
     // Untimed, after the run: the homogeneous step (no source) on a rough field, at the step
     // the case asks for (before it is lowered to land on t_end, which a stability search
     // would otherwise feel as a shifted boundary).
-    trajectory.amplification = case.amplification_steps.and_then(|steps| {
+    if let Some(steps) = case.amplification_steps {
         let (asked, _) = requested(case, plan.dt_stable);
         let asked = Stepping::of_case(case, asked, plan.steps, divergence_bound, volume);
-        with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
+        trajectory.amplification = with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
             amplification(stepper, ranks, rough_nodes.as_deref(), len, asked.dt, steps)
-        })
-    });
+        });
+        let tight = Case {
+            rtol: Some(POSITIVITY_RTOL),
+            ..case.clone()
+        };
+        let spike = middle_node(plan.stencil.grid.dim, plan.stencil.grid.n);
+        let on = (&tight, plan, operator, ranks, len);
+        trajectory.positivity = with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
+            positivity(stepper, ranks, rough_nodes.as_deref(), len, asked.dt, spike)
+        });
+    }
     (
         Solved {
             setup_s,
