@@ -194,6 +194,50 @@ fn the_measured_positivity_meets_the_theorys_dt_positive() {
     }
 }
 
+/// A varying horizon has no symbol: its explicit steps are predicted by L_h's computed spectrum
+/// (`dt_stable_spectrum`; its `dt_stable` is Gershgorin's floor), forward Euler's positivity by
+/// its largest |L_ii|, and the measurements cross at both (the standard form, 1D and 2D).
+#[test]
+fn a_varying_horizons_measurements_cross_at_its_spectrum_and_its_diagonal() {
+    for (dim, n, left, right) in [(1, 200, 0.02, 0.1), (2, 32, 0.07, 0.15)] {
+        for integrator in [Integrator::ForwardEuler, Integrator::Rk4] {
+            let record = |dt: f64| {
+                run(&case(
+                    json!({"dim": dim, "n": n, "problem": "bump", "t_end": dt, "dt": dt,
+                    "horizon_profile": {"kind": "linear", "left": left, "right": right},
+                    "integrator": integrator, "allow_unstable": true,
+                    "amplification_steps": 400}),
+                ))
+                .unwrap()
+                .record
+            };
+            let first = record(1e-9);
+            let stable = first
+                .resolved
+                .dt_stable_spectrum
+                .expect("a computed spectrum");
+            assert!(
+                stable > first.resolved.dt_stable,
+                "the spectrum's step is above the floor"
+            );
+            for ratio in [0.995, 1.005] {
+                let amplification = record(ratio * stable).amplification.unwrap();
+                assert_eq!(
+                    amplification > 1.0,
+                    ratio > 1.0,
+                    "{dim}D {integrator:?} {ratio}: {amplification}"
+                );
+            }
+            if integrator == Integrator::ForwardEuler {
+                let positive = first.resolved.dt_positive.expect("non-negative weights");
+                let below = record(0.999 * positive).positivity.unwrap();
+                let above = record(1.001 * positive).positivity.unwrap();
+                assert!(below == 0.0 && above < 0.0, "{dim}D: {below} {above}");
+            }
+        }
+    }
+}
+
 #[test]
 fn just_below_dt_stable_stays_bounded_for_10000_steps() {
     for (dim, n, m) in [(1, 256, 4), (2, 48, 2)] {

@@ -73,8 +73,9 @@ pub fn write(
 
 /// The boundary the solver's theory gives for what `spec`'s condition reads, from a probe's
 /// record. Of stability (a condition on `amplification`, `status` …): an explicit integrator's
-/// dt_stable (from the operator's symbol for the nonlocal method, the classical bound for finite
-/// differences); implicit integrators have none. Of positivity (a condition on `positivity`
+/// dt_stable (from the operator's symbol for the nonlocal method, from its computed spectrum
+/// where the horizon varies, the classical bound for finite differences); implicit integrators
+/// have none. Of positivity (a condition on `positivity`
 /// alone): the record's `dt_positive`, where the theory has one. It is the boundary of `dt`,
 /// and of `cfl` over dt_stable; other fields have none.
 pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
@@ -92,7 +93,9 @@ pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
                 Some("fd_explicit") => true,
                 _ => false,
             };
-            explicit.then_some(resolved.dt_stable)?
+            // Where no symbol exists (a varying horizon), the computed spectrum's.
+            let theory = resolved.dt_stable_spectrum.unwrap_or(resolved.dt_stable);
+            explicit.then_some(theory)?
         }
     };
     match spec.field.as_str() {
@@ -110,17 +113,28 @@ mod tests {
     #[test]
     fn the_prediction_is_the_theory_of_what_the_condition_reads() {
         // A forward-Euler record: dt_stable 2e-3, dt_positive 1e-3.
-        let record = schema::record::columns::every_field();
-        let predicted = |field: &str, flips: &str| {
+        let mut record = schema::record::columns::every_field();
+        fn resolved(r: &mut Stored) -> &mut schema::record::Resolved {
+            &mut r.record_mut().unwrap().resolved
+        }
+        resolved(&mut record).dt_stable_spectrum = None;
+        let predicted = |record: &Stored, field: &str, flips: &str| {
             let spec = json!({"field": field, "bracket": [0.5, 2], "flips": flips, "rtol": 1e-3});
-            prediction(&serde_json::from_value(spec).unwrap(), &record)
+            prediction(&serde_json::from_value(spec).unwrap(), record)
         };
-        assert_eq!(predicted("cfl", "amplification > 1"), Some(1.0));
-        assert_eq!(predicted("cfl", "status == 'diverged'"), Some(1.0));
-        assert_eq!(predicted("dt", "amplification > 1"), Some(2e-3));
-        assert_eq!(predicted("cfl", "positivity < 0"), Some(0.5));
-        assert_eq!(predicted("dt", "positivity < 0"), Some(1e-3));
-        assert_eq!(predicted("cfl", "positivity < 0 || amplification > 1"), None);
-        assert_eq!(predicted("m", "amplification > 1"), None);
+        assert_eq!(predicted(&record, "cfl", "amplification > 1"), Some(1.0));
+        assert_eq!(predicted(&record, "cfl", "status == 'diverged'"), Some(1.0));
+        assert_eq!(predicted(&record, "dt", "amplification > 1"), Some(2e-3));
+        assert_eq!(predicted(&record, "cfl", "positivity < 0"), Some(0.5));
+        assert_eq!(predicted(&record, "dt", "positivity < 0"), Some(1e-3));
+        assert_eq!(
+            predicted(&record, "cfl", "positivity < 0 || amplification > 1"),
+            None
+        );
+        assert_eq!(predicted(&record, "m", "amplification > 1"), None);
+        // A varying horizon: no symbol, and dt_stable a floor; its spectrum's step is the theory.
+        resolved(&mut record).dt_stable_spectrum = Some(3e-3);
+        assert_eq!(predicted(&record, "cfl", "amplification > 1"), Some(1.5));
+        assert_eq!(predicted(&record, "dt", "amplification > 1"), Some(3e-3));
     }
 }

@@ -181,6 +181,7 @@ pub fn every_field() -> Stored {
             dt: 1e-3,
             dt_stable: 2e-3,
             dt_positive: Some(1e-3),
+            dt_stable_spectrum: Some(2e-3),
             steps: 10,
             nodes: 16,
             bonds: 128,

@@ -208,6 +208,12 @@ pub struct Resolved {
     pub c: Option<f64>,
     pub dt: f64,
     pub dt_stable: f64,
+    /// A varying horizon's explicit stable step from L_h's computed eigenvalues (forward Euler's
+    /// min over λ of −2 Re λ/|λ|², times the integrator's real stability interval over 2), where
+    /// no symbol gives it: with `amplification_steps`, up to the nodes a spectrum is computed
+    /// for; absent for the implicit integrators and where some Re λ > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt_stable_spectrum: Option<f64>,
     /// The largest step whose explicit part I + (1 − θ) dt L_h has no negative entry, where the
     /// theory has one: forward Euler 1/|L_ii| (then exactly the positivity limit), Crank–Nicolson
     /// 2/|L_ii| (a sufficient bound), explicit FD h²/(2dD) (exact), ADI h²/D (sufficient);

@@ -238,22 +238,20 @@ impl Rules for Case {
     }
 }
 
-/// The measurement of the step's amplification: of the nonlocal method with a constant horizon
-/// (whose explicit steps the symbol's dt_stable bounds) and of the grid methods of \[HPCSE],
-/// over 2 to `MAX_AMPLIFICATION_STEPS` steps.
+/// The measurement of the step's amplification: of the nonlocal method and of the grid methods
+/// of \[HPCSE], over 2 to `MAX_AMPLIFICATION_STEPS` steps.
 fn validate_amplification(case: &Case) -> Result<(), CaseError> {
     let Some(steps) = case.amplification_steps else {
         return Ok(());
     };
-    let measured = match case.method {
-        Method::Nonlocal => case.horizon_profile.is_none(),
-        Method::FdExplicit | Method::Adi => true,
-        _ => false,
-    };
+    let measured = matches!(
+        case.method,
+        Method::Nonlocal | Method::FdExplicit | Method::Adi
+    );
     if !measured {
         return Err(CaseError::new(
             "amplification_steps",
-            "is measured for `nonlocal` with a constant horizon, `fd_explicit` and `adi`; leave it out",
+            "is measured for `nonlocal`, `fd_explicit` and `adi`; leave it out",
         ));
     }
     if !(2..=MAX_AMPLIFICATION_STEPS).contains(&steps) {

@@ -198,17 +198,30 @@ pub fn dt_stable(integrator: Integrator, forward_euler_dt_stable: f64) -> Option
 
 /// The largest step whose explicit part I + (1 − θ) dt L_h has no negative entry. L_h's
 /// diagonal is −W and its other entries are the weights, so with every weight ≥ 0 that is
-/// dt ≤ 1 / ((1 − θ) W). Forward Euler's step is that part, so there it is the positivity limit
-/// exactly; Crank–Nicolson's multiplies it by (I − dt/2 L_h)⁻¹, an M-matrix's non-negative
-/// inverse, so there it is sufficient. None for backward Euler (positive for every step), for
-/// Heun and RK4 (not derived), and for weights of either sign.
+/// dt ≤ 1 / ((1 − θ) W) (`positive_step`).
 pub fn dt_positive(integrator: Integrator, stencil: &Stencil) -> Option<f64> {
+    let mut weights = stencil.rows.iter().flat_map(|row| row.bonds());
+    let nonnegative = weights.all(|(_, w)| w >= 0.0);
+    positive_step(integrator, stencil.total_weight, nonnegative)
+}
+
+/// The largest step whose explicit part I + (1 − θ) dt L has no negative entry, for an L whose
+/// largest |L_ii| is `largest_diagonal` and whose other entries are ≥ 0 when
+/// `off_diagonal_nonnegative`: dt ≤ 1 / ((1 − θ) max |L_ii|). Forward Euler's step is that part,
+/// so there it is the positivity limit exactly; Crank–Nicolson's multiplies it by
+/// (I − dt/2 L)⁻¹, an M-matrix's non-negative inverse, so there it is sufficient. None for
+/// backward Euler (positive for every step), for Heun and RK4 (not derived), and for
+/// off-diagonal entries of either sign.
+pub fn positive_step(
+    integrator: Integrator,
+    largest_diagonal: f64,
+    off_diagonal_nonnegative: bool,
+) -> Option<f64> {
     let explicit_part = match integrator {
         Integrator::ForwardEuler => 1.0,
         Integrator::CrankNicolson => 0.5,
         Integrator::BackwardEuler | Integrator::Heun | Integrator::Rk4 => return None,
     };
-    let mut weights = stencil.rows.iter().flat_map(|row| row.bonds());
-    let dt = 1.0 / (explicit_part * stencil.total_weight);
-    (weights.all(|(_, w)| w >= 0.0) && dt.is_finite() && dt > 0.0).then_some(dt)
+    let dt = 1.0 / (explicit_part * largest_diagonal);
+    (off_diagonal_nonnegative && dt.is_finite() && dt > 0.0).then_some(dt)
 }

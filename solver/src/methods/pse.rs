@@ -607,6 +607,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         dt,
         dt_stable,
         dt_positive: None,
+        dt_stable_spectrum: None,
         steps,
         nodes: particles.count(),
         bonds,

@@ -16,16 +16,17 @@ use crate::case::{
     Quadrature, SourceMode, ValidCase,
 };
 use crate::discretization::grid::{Grid, Horizon};
-use crate::discretization::stability::dt_stable;
+use crate::discretization::stability::{self, dt_stable, positive_step};
 use crate::discretization::stencil::Stencil;
 use crate::discretization::variable_horizon::VariableHorizonOperator;
+use crate::integrate::amplification::{amplification, positivity, POSITIVITY_RTOL};
 use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
-use crate::integrate::stepper::integrate;
+use crate::integrate::stepper::{integrate, Stepper};
 use crate::integrate::theta::theta;
-use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::integrate::time_step::{divergence_bound, requested, time_step};
 use crate::integrate::timed::Stepping;
-use crate::methods::patch_test::validate_horizon;
+use crate::methods::patch_test::{spectrum, validate_horizon};
 use crate::operator::{Identity, LinearOperator, RowOperator, SinePreconditioner};
 use crate::output::outcome::Outcome;
 use crate::output::record::Resolved;
@@ -95,6 +96,19 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         case.formulation(),
     );
     let operator = RowOperator::new(variable.rows_with_zero_collar());
+    // L_h's diagonal, and whether its other entries are all ≥ 0, for the positivity theory.
+    let (mut diagonal, mut off_diagonal_nonnegative) = (Vec::new(), true);
+    if case.amplification_steps.is_some() {
+        for (i, row) in variable.rows_with_zero_collar().enumerate() {
+            diagonal.push(
+                row.iter()
+                    .filter(|(j, _)| *j == i)
+                    .map(|(_, a)| a)
+                    .sum::<f64>(),
+            );
+            off_diagonal_nonnegative &= row.iter().all(|&(j, a)| j == i || a >= 0.0);
+        }
+    }
     let eps_max = variable.eps.iter().copied().fold(0.0, f64::max);
     let eps_min = variable.eps.iter().copied().fold(f64::INFINITY, f64::min);
     // Gershgorin's bound: the exact step of the symmetric standard form is about twice this.
@@ -137,32 +151,69 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let bound = divergence_bound(case, ranks.max_abs(&u0), source_max);
     let stepping = Stepping::of_case(case, dt, steps, bound, grid.volume());
     // The implicit solves' preconditioner: the sine transform of the constant-horizon operator
-    // at the smallest ε, the one whose stiff modes a small horizon adds.
-    let preconditioner = case.integrator.is_implicit().then(|| {
-        let horizon = Horizon::from_eps(&grid, eps_min);
-        let stencil = Stencil::new(
-            grid,
-            horizon,
-            case.kernel,
-            Quadrature::Midpoint,
-            case.diffusivity,
-        );
-        SinePreconditioner::new(&stencil, theta(case.integrator) * dt)
-    });
-    let setup_s = setup_started.elapsed().as_secs_f64();
-    let trajectory = {
-        let source = source.as_ref();
-        let mut stepper = match &preconditioner {
-            Some(sine) => stepper(case, &operator, source, ranks, nodes, &stepping, sine),
-            None => stepper(case, &operator, source, ranks, nodes, &stepping, &Identity),
+    // at the smallest ε, the one whose stiff modes a small horizon adds; built for each step.
+    let with_stepper =
+        |case: &Case, stepping: &Stepping, source, with: &mut dyn FnMut(&mut dyn Stepper)| {
+            let preconditioner = case.integrator.is_implicit().then(|| {
+                let horizon = Horizon::from_eps(&grid, eps_min);
+                let stencil = Stencil::new(
+                    grid,
+                    horizon,
+                    case.kernel,
+                    Quadrature::Midpoint,
+                    case.diffusivity,
+                );
+                SinePreconditioner::new(&stencil, theta(case.integrator) * stepping.dt)
+            });
+            let mut stepper = match &preconditioner {
+                Some(sine) => stepper(case, &operator, source, ranks, nodes, stepping, sine),
+                None => stepper(case, &operator, source, ranks, nodes, stepping, &Identity),
+            };
+            with(stepper.as_mut());
         };
-        integrate(stepper.as_mut(), ranks, u0, source, &stepping)
-    };
+    let setup_s = setup_started.elapsed().as_secs_f64();
+    let (mut u0, mut trajectory) = (Some(u0), None);
+    with_stepper(case, &stepping, source.as_ref(), &mut |stepper| {
+        let u0 = u0.take().expect("integrated once");
+        trajectory = Some(integrate(stepper, ranks, u0, source.as_ref(), &stepping));
+    });
+    let mut trajectory = trajectory.expect("integrated");
+    // Untimed, after the run, at the step asked for (as for a constant horizon), and the stable
+    // step the computed spectrum gives, where no symbol does.
+    let (mut dt_stable_spectrum, mut dt_positive) = (None, None);
+    if let Some(steps) = case.amplification_steps {
+        let (asked, _) = requested(case, dt_stable);
+        let asked = Stepping::of_case(case, asked, steps, bound, grid.volume());
+        with_stepper(case, &asked, None, &mut |stepper| {
+            trajectory.amplification = amplification(stepper, ranks, None, nodes, asked.dt, steps);
+        });
+        let tight = Case {
+            rtol: Some(POSITIVITY_RTOL),
+            ..Case::clone(case)
+        };
+        // The spike sits where |L_ii| is largest (the smallest horizon): the column whose
+        // positivity a step loses first.
+        let (spike, largest) = diagonal.iter().enumerate().fold((0, 0.0), |best, (i, a)| {
+            if a.abs() > best.1 {
+                (i, a.abs())
+            } else {
+                best
+            }
+        });
+        dt_positive = positive_step(case.integrator, largest, off_diagonal_nonnegative);
+        with_stepper(&tight, &asked, None, &mut |stepper| {
+            trajectory.positivity = positivity(stepper, ranks, None, nodes, asked.dt, spike);
+        });
+        let euler = spectrum(&variable, case.diffusivity).and_then(|s| s.dt_forward_euler);
+        dt_stable_spectrum = euler.and_then(|euler| stability::dt_stable(case.integrator, euler));
+    }
     let resolved = Resolved {
         h: grid.h,
         eps: Some(eps_max),
         dt,
         dt_stable,
+        dt_stable_spectrum,
+        dt_positive,
         steps,
         nodes,
         bonds: variable.bonds,
