@@ -136,7 +136,7 @@ pub struct Case {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub vtk_every: Option<f64>,
-    /// `nonlocal`, `fd_explicit` and `adi`: also measure the step's
+    /// `nonlocal`, `fd_explicit`, `adi` and `pse`: also measure the step's
     /// amplification, the growth per step of a rough field under the homogeneous problem over
     /// this many steps (a few hundred; untimed), at the step asked for (`dt`, or `cfl` times
     /// dt_stable, before it is lowered to land on `t_end`), into the record's `amplification`:

@@ -74,8 +74,8 @@ pub fn write(
 /// The boundary the solver's theory gives for what `spec`'s condition reads, from a probe's
 /// record. Of stability (a condition on `amplification`, `status` …): an explicit integrator's
 /// dt_stable (from the operator's symbol for the nonlocal method, from its computed spectrum
-/// where the horizon varies, the classical bound for finite differences); implicit integrators
-/// have none. Of positivity (a condition on `positivity`
+/// where the horizon varies, the classical bound for finite differences, the lattice's symbol
+/// for PSE); implicit integrators have none. Of positivity (a condition on `positivity`
 /// alone): the record's `dt_positive`, where the theory has one. It is the boundary of `dt`,
 /// and of `cfl` over dt_stable; other fields have none.
 pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
@@ -90,7 +90,7 @@ pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
             let method = record.case.get("method").and_then(|m| m.as_str());
             let explicit = match method {
                 None | Some("nonlocal") => resolved.integrator.is_none_or(|i| !i.is_implicit()),
-                Some("fd_explicit") => true,
+                Some("fd_explicit" | "pse") => true,
                 _ => false,
             };
             // Where no symbol exists (a varying horizon), the computed spectrum's.

@@ -238,20 +238,20 @@ impl Rules for Case {
     }
 }
 
-/// The measurement of the step's amplification: of the nonlocal method and of the grid methods
-/// of \[HPCSE], over 2 to `MAX_AMPLIFICATION_STEPS` steps.
+/// The measurement of the step's amplification: of the nonlocal method and of the grid and
+/// particle methods of \[HPCSE], over 2 to `MAX_AMPLIFICATION_STEPS` steps.
 fn validate_amplification(case: &Case) -> Result<(), CaseError> {
     let Some(steps) = case.amplification_steps else {
         return Ok(());
     };
     let measured = matches!(
         case.method,
-        Method::Nonlocal | Method::FdExplicit | Method::Adi
+        Method::Nonlocal | Method::FdExplicit | Method::Adi | Method::Pse
     );
     if !measured {
         return Err(CaseError::new(
             "amplification_steps",
-            "is measured for `nonlocal`, `fd_explicit` and `adi`; leave it out",
+            "is measured for the time-dependent methods (`nonlocal`, `fd_explicit`, `adi`, `pse`); leave it out",
         ));
     }
     if !(2..=MAX_AMPLIFICATION_STEPS).contains(&steps) {

@@ -34,9 +34,10 @@
 
 use crate::case::ValidCase;
 use crate::case::{readable, Case, CaseError};
+use crate::integrate::amplification::{amplification, middle_node, positivity};
 use crate::integrate::euler::ForwardEuler;
 use crate::integrate::stepper::integrate;
-use crate::integrate::time_step::{divergence_bound, time_step};
+use crate::integrate::time_step::{divergence_bound, requested, time_step};
 use crate::integrate::timed::Stepping;
 use crate::methods::local::{self, initial_value};
 use crate::operator::LinearOperator;
@@ -598,7 +599,16 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let operator = PseOperator::new(&particles, case.diffusivity);
     let ranks = Ranks::single();
     let mut euler = ForwardEuler::new(&operator, None, ranks, u0.len());
-    let trajectory = integrate(&mut euler, ranks, u0, None, &stepping);
+    let mut trajectory = integrate(&mut euler, ranks, u0, None, &stepping);
+    // Untimed, after the run: at the step asked for, before it was lowered to land on t_end.
+    if let Some(steps) = case.amplification_steps {
+        let (asked, _) = requested(case, dt_stable);
+        let count = particles.count();
+        let mut euler = ForwardEuler::new(&operator, None, ranks, count);
+        trajectory.amplification = amplification(&mut euler, ranks, None, count, asked, steps);
+        let spike = middle_node(case.dim, case.n);
+        trajectory.positivity = positivity(&mut euler, ranks, None, count, asked, spike);
+    }
     let resolved = Resolved {
         h: particles.h,
         eps: Some(eps),
