@@ -1398,6 +1398,35 @@ fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_stor
         .all(|(a, b)| a == b || (a.is_nan() && b.is_nan())));
 }
 
+/// Along a field of whole numbers (`m`) every probe's case holds a whole number and the search
+/// ends at neighbours: the smallest m whose quadrature's patch error is below 1 %.
+#[test]
+fn a_boundary_search_along_a_whole_field_ends_at_neighbours() {
+    let study = json!({
+        "name": "whole",
+        "base": {"dim": 1, "n": 256, "problem": "bump", "t_end": 1e-6, "cfl": 0.5,
+                 "quadrature": "partial_volume"},
+        "boundary": {"field": "m", "bracket": [1, 64], "flips": "patch_error < 0.01", "rtol": 1e-3}
+    });
+    let scratch = Scratch::new("whole", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let table = read_parquet(&scratch.dir.join("results/whole/whole-boundaries.parquet"));
+    let (lo, hi) = (
+        floats(&table, "boundary_lo")[0],
+        floats(&table, "boundary_hi")[0],
+    );
+    assert_eq!(hi - lo, 1.0, "neighbours: {lo} {hi}");
+    assert!(
+        text(&run).contains(&format!("m = {hi} holds, {lo} does not")),
+        "{}",
+        text(&run)
+    );
+    for record in records(&scratch.runs("whole")) {
+        assert!(record["case"]["m"].is_u64(), "{}", record["case"]);
+    }
+}
+
 #[test]
 fn a_boundary_search_that_cannot_be_made_is_refused_naming_the_field() {
     let study = |boundary: Value, sweep: Value| {
@@ -1419,6 +1448,11 @@ fn a_boundary_search_that_cannot_be_made_is_refused_naming_the_field() {
             "boundary.bracket",
         ),
         (with("rtol", json!(0)), json!([]), "boundary.rtol"),
+        (
+            with("field", json!("integrator")),
+            json!([]),
+            "boundary.field",
+        ),
         (
             with("max_probes", json!(0)),
             json!([]),

@@ -24,6 +24,17 @@ pub const DEFAULT_LENGTH: f64 = 2.0;
 /// `coupled_1d`'s default local interval [Γ_c, Γ_i]: it overlaps Ω_n = (0, 1) on (0.75, 1).
 pub const DEFAULT_LOCAL_DOMAIN: [f64; 2] = [0.75, 1.75];
 
+/// How a case field takes a number (`Case::numeric`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Numeric {
+    /// Any number: `cfl`, `dt`, `eps`.
+    Real,
+    /// A whole number only: `n`, `m`, `threads`.
+    Whole,
+    /// No number: a choice, a flag, an object, or no field of the case.
+    No,
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
@@ -268,6 +279,24 @@ impl Case {
         Ok(case)
     }
 
+    /// How `field` takes a number, read off the type itself (a case of that one field, parsed):
+    /// what a study may search along.
+    pub fn numeric(field: &str) -> Numeric {
+        let takes = |value: serde_json::Value| {
+            // The fields every case needs, then the one asked about.
+            let mut case = serde_json::Map::new();
+            case.insert("dim".into(), serde_json::json!(1));
+            case.insert("n".into(), serde_json::json!(16));
+            case.insert(field.to_string(), value);
+            serde_json::from_value::<Case>(serde_json::Value::Object(case)).is_ok()
+        };
+        match (takes(serde_json::json!(0.5)), takes(serde_json::json!(1))) {
+            (true, _) => Numeric::Real,
+            (false, true) => Numeric::Whole,
+            (false, false) => Numeric::No,
+        }
+    }
+
     /// The names of every field, in the order of the struct.
     pub fn field_names() -> &'static [&'static str] {
         field_names::<Case>()
@@ -501,5 +530,23 @@ mod tests {
         assert_eq!(case("feti", 2.0).h(), 1.0 / 7.0);
         assert_eq!(case("adi", 4.0).h(), 0.5);
         assert_eq!(case("pse", 3.5).h(), 0.5);
+    }
+
+    #[test]
+    fn a_fields_numeric_kind_is_read_off_its_type() {
+        for (field, kind) in [
+            ("cfl", Numeric::Real),
+            ("dt", Numeric::Real),
+            ("eps", Numeric::Real),
+            ("n", Numeric::Whole),
+            ("m", Numeric::Whole),
+            ("threads", Numeric::Whole),
+            ("integrator", Numeric::No),
+            ("allow_unstable", Numeric::No),
+            ("horizon_profile", Numeric::No),
+            ("no_such_field", Numeric::No),
+        ] {
+            assert_eq!(Case::numeric(field), kind, "{field}");
+        }
     }
 }

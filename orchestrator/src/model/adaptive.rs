@@ -5,6 +5,7 @@
 //! with the records known and stops at the first round with a probe not run yet, so an
 //! interrupted study resumes from the store without running a probe twice.
 
+use schema::case::{Case, Numeric};
 use schema::record::{column, columns, Stored};
 use serde::Deserialize;
 use serde_json::Value;
@@ -23,11 +24,12 @@ pub trait Adaptive {
     /// The case field probed.
     fn field(&self) -> &str;
 
-    /// A probe's value as its case holds it: a whole number of nodes for `n`, else the number.
+    /// A probe's value as its case holds it: a whole number for a field that takes only whole
+    /// ones (`n`, `m`), else the number.
     fn value(&self, v: f64) -> Value {
-        match counts_nodes(self.field()) {
-            true => Value::from(v.round() as u64),
-            false => Value::from(v),
+        match Case::numeric(self.field()) {
+            Numeric::Whole => Value::from(v.round() as u64),
+            Numeric::Real | Numeric::No => Value::from(v),
         }
     }
 

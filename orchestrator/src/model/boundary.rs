@@ -9,6 +9,7 @@
 
 use crate::model::adaptive::{ran, Adaptive, Lookup};
 use crate::model::expression::{self, Scope};
+use schema::case::{Case, Numeric};
 use schema::record::{columns, Stored};
 use serde::Deserialize;
 
@@ -72,9 +73,27 @@ impl BoundarySpec {
     /// The spec's own rules, each refusal naming the field at fault (under `boundary.`).
     pub fn check(&self) -> Result<(), (String, String)> {
         let fail = |field: &str, why: String| Err((format!("boundary.{field}"), why));
+        if Case::numeric(&self.field) == Numeric::No {
+            return fail(
+                "field",
+                format!(
+                    "`{}` is no numeric case field; search along a number such as cfl, dt, eps or m",
+                    self.field
+                ),
+            );
+        }
         let [below, above] = self.bracket;
         if !(below.is_finite() && above.is_finite()) {
             return fail("bracket", "must be two finite numbers".into());
+        }
+        if self.whole() && (below.fract() != 0.0 || above.fract() != 0.0) {
+            return fail(
+                "bracket",
+                format!(
+                    "`{}` takes whole numbers: give whole ends (got [{below}, {above}])",
+                    self.field
+                ),
+            );
         }
         if below >= above {
             return fail(
@@ -106,13 +125,23 @@ impl BoundarySpec {
         }
     }
 
+    /// Whether the field takes whole numbers only (`m`, `n`): then the search probes whole
+    /// values and ends once its bracket's ends are neighbours.
+    pub fn whole(&self) -> bool {
+        Case::numeric(&self.field) == Numeric::Whole
+    }
+
     /// The probes a search spends at most: its two ends and, each round, `per_round` more,
     /// for as many rounds as the bracket takes to narrow to `rtol` (or `max_probes`).
     pub fn worst_case_probes(&self) -> usize {
         let [below, above] = self.bracket;
         // Each round divides the bracket by per_round + 1; the boundary lies above `below`,
-        // so a width of rtol·below is narrow enough wherever it is.
-        let narrowing = (above - below) / (self.rtol * below.abs().max(f64::MIN_POSITIVE));
+        // so a width of rtol·below is narrow enough wherever it is (and 1 for whole values).
+        let mut narrowest = self.rtol * below.abs().max(f64::MIN_POSITIVE);
+        if self.whole() {
+            narrowest = narrowest.max(1.0);
+        }
+        let narrowing = (above - below) / narrowest;
         let rounds = narrowing.ln() / ((self.per_round + 1) as f64).ln();
         let needed = 2 + self.per_round * rounds.max(0.0).ceil() as usize;
         self.max_probes.map_or(needed, |most| most.min(needed))
@@ -132,9 +161,17 @@ impl BoundarySpec {
             .map_or(usize::MAX, |most| most - search.probes);
         let k = self.per_round.min(left);
         let width = search.above - search.below;
-        (1..=k)
-            .map(|j| search.below + width * j as f64 / (k + 1) as f64)
-            .collect()
+        let inside = (1..=k).map(|j| search.below + width * j as f64 / (k + 1) as f64);
+        if !self.whole() {
+            return inside.collect();
+        }
+        // Whole values strictly inside the bracket, each once.
+        let mut values: Vec<f64> = inside
+            .map(f64::round)
+            .filter(|v| *v > search.below && *v < search.above)
+            .collect();
+        values.dedup();
+        values
     }
 
     /// The search after a round's answers, `(value, holds)` in the order of `round`.
@@ -165,7 +202,8 @@ impl BoundarySpec {
                 .fold(search.below, f64::max);
         }
         if next.ended.is_none() {
-            if next.above - next.below <= self.rtol * next.above.abs() {
+            let width = next.above - next.below;
+            if width <= self.rtol * next.above.abs() || (self.whole() && width <= 1.0) {
                 next.ended = Some(Ended::Found);
             } else if self.max_probes.is_some_and(|most| next.probes >= most) {
                 next.ended = Some(Ended::Budget);
@@ -390,6 +428,38 @@ mod tests {
         assert_eq!(refused(|s| s.rtol = 0.0), "boundary.rtol");
         assert_eq!(refused(|s| s.per_round = 0), "boundary.per_round");
         assert_eq!(refused(|s| s.max_probes = Some(0)), "boundary.max_probes");
+        assert_eq!(refused(|s| s.field = "integrator".into()), "boundary.field");
+        assert_eq!(
+            refused(|s| s.field = "horizon_profile".into()),
+            "boundary.field"
+        );
+        // `m` takes whole numbers: the bracket's ends must be whole.
+        assert_eq!(refused(|s| s.field = "m".into()), "boundary.bracket");
         assert!(spec(1).check().is_ok());
+    }
+
+    /// Along a field of whole numbers (`m`) every probe is whole, none twice, and the search
+    /// ends once its bracket's ends are neighbours, in the rounds bisection of the integers
+    /// takes.
+    #[test]
+    fn a_whole_field_is_searched_on_whole_values_to_neighbours() {
+        for per_round in [1, 3] {
+            for boundary in [2.0, 7.0, 20.0] {
+                let spec = BoundarySpec {
+                    field: "m".into(),
+                    bracket: [1.0, 20.0],
+                    rtol: 1e-3,
+                    ..spec(per_round)
+                };
+                assert!(spec.check().is_ok());
+                let found = search(&spec, |v| {
+                    assert_eq!(v.fract(), 0.0, "a whole probe");
+                    v >= boundary
+                });
+                assert_eq!(found.ended, Some(Ended::Found), "{boundary}");
+                assert_eq!((found.below, found.above), (boundary - 1.0, boundary));
+                assert!(found.probes <= spec.worst_case_probes(), "{found:?}");
+            }
+        }
     }
 }

@@ -92,6 +92,12 @@ fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Str
                     number(p),
                     100.0 * (b / p - 1.0)
                 ),
+                // Along whole values the answer is a pair of neighbours.
+                (Some(_), None) if spec.whole() => format!(
+                    "{field} = {} holds, {} does not",
+                    number(search.above),
+                    number(search.below)
+                ),
                 (Some(b), None) => format!("{field} = {}", number(b)),
                 (None, _) => search
                     .ended
