@@ -9,6 +9,7 @@ use crate::run::plan::{short, Planned};
 use crate::store::table::{self, Row};
 use crate::store::Fault;
 use crate::store::Store;
+use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::{Status, Stored};
 use serde_json::{json, Value};
@@ -113,13 +114,15 @@ pub fn collect(
 ) -> Result<Option<Collected>, Fault> {
     fits_in_memory(store.count(), available_memory())?;
     let records = crate::store::by_key(store.records());
-    let rows = run_rows(planned, &records);
-    let missing = planned.len() - rows.len();
     let used: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
     let left_out = records
         .keys()
         .filter(|k| !used.contains(k.as_str()))
         .count();
+    let rows = run_rows(planned, &records);
+    // The rows hold all the tables need: the records go before the tables are built.
+    drop(records);
+    let missing = planned.len() - rows.len();
     if rows.is_empty() {
         return Ok(None);
     }
@@ -158,7 +161,7 @@ pub fn summary_of(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec
 /// be one case: each gets its row from the one record.
 pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
     planned
-        .iter()
+        .par_iter()
         .filter_map(|p| Some(run_row(p, records.get(p.key.as_str())?)))
         .collect()
 }

@@ -6,6 +6,7 @@
 //! the kernel drops when its holder exits, however it exits), a `failed` record never replaces a
 //! result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
+use rayon::prelude::*;
 use schema::record::{Status, Stored};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
@@ -251,9 +252,18 @@ impl Store {
 
     /// Every stored record, and the files of the store that are not whole records.
     pub fn scan(&self) -> Scan {
+        // Read and parsed on every core, then taken in the listing's order.
+        let read: Vec<(PathBuf, Result<Stored, String>)> = self
+            .record_paths()
+            .into_par_iter()
+            .map(|path| {
+                let record = read_regular(&path, RECORD_CAP).and_then(|t| read_record(&path, &t));
+                (path, record)
+            })
+            .collect();
         let mut scan = Scan::default();
-        for path in self.record_paths() {
-            match read_regular(&path, RECORD_CAP).and_then(|text| read_record(&path, &text)) {
+        for (path, record) in read {
+            match record {
                 Ok(record) => scan.records.push(record),
                 Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
             }
