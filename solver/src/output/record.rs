@@ -69,11 +69,19 @@ pub fn load_now(own: usize) -> Option<Load> {
 }
 
 /// The load when the run started, taken by `note_start` before any work.
-static START: std::sync::OnceLock<Option<Load>> = std::sync::OnceLock::new();
+static START: std::sync::Mutex<Option<Load>> = std::sync::Mutex::new(None);
 
-/// Takes the load at the start of the run (nlsolve calls it first thing; only this thread runs).
+/// Takes the load at the start of a run (nlsolve calls it first thing, and `serve` before each
+/// case; only this thread runs then).
 pub fn note_start() {
-    START.get_or_init(|| load_now(1));
+    *START.lock().unwrap_or_else(|e| e.into_inner()) = load_now(1);
+}
+
+/// Starts the count of the most resident memory afresh (Linux's `clear_refs`, value 5), so
+/// that a worker serving case after case records each case's own peak rather than the
+/// largest so far; where the kernel refuses, the peak stays the process's.
+pub fn reset_peak_memory() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
 /// This build's fingerprint (see build/fingerprint.rs).
@@ -99,7 +107,10 @@ pub fn provenance_of_this_run(threads: usize, ranks: usize) -> Provenance {
         load_end: None,
         noisy: false,
     }
-    .with_load(START.get().copied().flatten(), load_now(threads * ranks))
+    .with_load(
+        *START.lock().unwrap_or_else(|e| e.into_inner()),
+        load_now(threads * ranks),
+    )
 }
 
 fn read_trimmed(path: &str) -> Option<String> {

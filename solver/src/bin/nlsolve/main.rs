@@ -50,6 +50,12 @@ enum Command {
     /// sorted, what a run's key is taken from; `resolved` the same case with every default the
     /// method uses filled in) or `{"error": "…"}` naming the field at fault.
     Check,
+    /// Serve cases, one process for many: reads one JSON case per line on standard input and
+    /// prints one line for each, as soon as it has run: the record `run` prints for it (its
+    /// timings, load and peak memory its own), or `{"error": "…"}` naming the field at fault.
+    /// What a study's worker pool keeps up, so that a point costs no process start. One
+    /// process: a case on more than one rank is refused (start it with a launcher).
+    Serve,
     /// Print the build's fingerprint: the hash of everything that decides a record's numbers
     /// (the solver's and schema's sources, Cargo.lock, the compiler, target, flags, profile and
     /// features), which every record carries in its provenance.
@@ -202,6 +208,7 @@ fn main() -> ExitCode {
             Command::Run(args) => run(&args, world.as_ref()),
             Command::Partition(args) => partition_report(&args),
             Command::Check => check_cases(),
+            Command::Serve => serve_cases(),
             Command::Fingerprint => {
                 print_line(solver::output::record::FINGERPRINT, "the fingerprint")
             }
@@ -333,4 +340,58 @@ fn check_cases() -> Result<(), ErrorExit> {
         }
     }
     out.flush().map_err(failed)
+}
+
+/// `nlsolve serve`'s answer to one line of input: the record's JSON, or `{"error": …}`.
+fn served(line: &str) -> String {
+    let error = |message: String| serde_json::json!({ "error": message }).to_string();
+    let fields = match schema::json::parse(line) {
+        Ok(fields @ Value::Object(_)) => fields,
+        Ok(_) => return error("a case is one JSON object of case fields".into()),
+        Err(e) => return error(format!("not valid JSON: {e}")),
+    };
+    let case = match ValidCase::from_json(fields) {
+        Ok(case) if case.ranks > 1 => {
+            return error(format!(
+                "case field `ranks`: {} ranks need a launcher; run the case as `mpirun -n {0} nlsolve run`",
+                case.ranks
+            ))
+        }
+        Ok(case) => case,
+        Err(e) => return error(e.to_string()),
+    };
+    // Each case's provenance and peak memory are its own, as if it ran in a process of its own.
+    solver::output::record::note_start();
+    solver::output::record::reset_peak_memory();
+    match solver::run(&case) {
+        Ok(outcome) => serde_json::to_string(&outcome.record)
+            .unwrap_or_else(|e| error(format!("cannot write the record: {e}"))),
+        Err(e) => error(e.to_string()),
+    }
+}
+
+/// `nlsolve serve`: runs each case of standard input and prints its answer line at once.
+fn serve_cases() -> Result<(), ErrorExit> {
+    let failed = |e: std::io::Error| {
+        ErrorExit::Output(format!("cannot write the records to standard output: {e}"))
+    };
+    let mut out = standard_output().map_err(failed)?;
+    let mut input = std::io::stdin().lock();
+    let mut line = String::new();
+    loop {
+        line.clear();
+        let read = input
+            .read_line(&mut line)
+            .map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
+        if read == 0 {
+            return Ok(());
+        }
+        if line.trim().is_empty() {
+            continue;
+        }
+        let mut answer = served(&line);
+        answer.push('\n');
+        out.write_all(answer.as_bytes()).map_err(failed)?;
+        out.flush().map_err(failed)?;
+    }
 }

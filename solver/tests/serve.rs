@@ -1,0 +1,86 @@
+//! `nlsolve serve`: one process answering case after case. Each answer is the record `nlsolve
+//! run` writes for the case in a process of its own, bit for bit but for what measures the
+//! run itself (its timings, the machine's load, its peak memory); bad input is an error line
+//! naming the field, and the worker goes on to the next case.
+
+mod common;
+
+use common::nlsolve;
+use serde_json::{json, Value};
+use std::process::Stdio;
+
+/// The record without what measures the run itself rather than the case's numbers.
+fn numbers_of(mut record: Value) -> Value {
+    let fields = record.as_object_mut().expect("a record is an object");
+    for measured in [
+        "setup_s",
+        "solve_s",
+        "step_s",
+        "comm_s",
+        "peak_memory_bytes",
+        "provenance",
+    ] {
+        fields.remove(measured);
+    }
+    record
+}
+
+#[test]
+fn a_served_case_has_the_record_of_its_own_process_and_bad_input_is_an_answer() {
+    let cases = [
+        json!({"dim": 1, "n": 64, "m": 3, "problem": "bump", "t_end": 1e-4, "cfl": 0.5}),
+        json!({"dim": 2, "n": 32, "m": 2, "problem": "manufactured", "t_end": 1e-3, "cfl": 0.9,
+               "integrator": "rk4", "threads": 2, "amplification_steps": 50}),
+        json!({"dim": 1, "n": 64, "m": 4, "problem": "manufactured", "t_end": 1e-3, "cfl": 4,
+               "integrator": "crank_nicolson"}),
+        json!({"method": "fd_explicit", "dim": 2, "n": 32, "problem": "square", "t_end": 1e-3, "cfl": 0.4}),
+        json!({"method": "adi", "dim": 2, "n": 32, "problem": "eigenmode", "t_end": 1e-2, "cfl": 4}),
+        json!({"method": "pse", "dim": 1, "n": 64, "m": 2, "problem": "square", "t_end": 1e-3, "cfl": 0.5}),
+        json!({"method": "steady_cg", "dim": 2, "n": 16, "m": 2}),
+    ];
+    let mut input: String = cases.iter().map(|c| format!("{c}\n")).collect();
+    input += "{\"dim\": 1, \"n\": 16}\n\nnot json\n";
+    input += &format!("{}\n", cases[0]);
+    let served = nlsolve(&["serve"], Some(&input), Stdio::piped());
+    assert!(
+        served.status.success(),
+        "{}",
+        String::from_utf8_lossy(&served.stderr)
+    );
+    let answers: Vec<Value> = String::from_utf8(served.stdout)
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str(line).expect("one JSON answer per line"))
+        .collect();
+    assert_eq!(
+        answers.len(),
+        cases.len() + 3,
+        "one answer per case; blank lines none"
+    );
+    for (case, answer) in cases.iter().zip(&answers) {
+        let alone = nlsolve(
+            &["run", "--case", "-"],
+            Some(&case.to_string()),
+            Stdio::piped(),
+        );
+        assert!(
+            alone.status.success(),
+            "{case}: {}",
+            String::from_utf8_lossy(&alone.stderr)
+        );
+        let alone: Value = serde_json::from_slice(&alone.stdout).unwrap();
+        assert!(answer.get("error").is_none(), "{case}: {answer}");
+        assert_eq!(numbers_of(answer.clone()), numbers_of(alone), "{case}");
+    }
+    let errors: Vec<&str> = answers[cases.len()..cases.len() + 2]
+        .iter()
+        .map(|a| a["error"].as_str().expect("an error"))
+        .collect();
+    assert!(errors[0].contains("case field `m`"), "{}", errors[0]);
+    assert!(errors[1].starts_with("not valid JSON"), "{}", errors[1]);
+    // The worker goes on after bad input: the first case again, the same numbers.
+    assert_eq!(
+        numbers_of(answers[cases.len() + 2].clone()),
+        numbers_of(answers[0].clone())
+    );
+}
