@@ -24,10 +24,7 @@ pub fn amplification(
     dt: f64,
     steps: usize,
 ) -> Option<f64> {
-    let mut u: Vec<f64> = match nodes {
-        Some(nodes) => nodes.iter().map(|&g| rough(g)).collect(),
-        None => (0..len).map(rough).collect(),
-    };
+    let mut u = on_nodes(nodes, len, rough);
     let half = steps / 2;
     // ln of the factor the field was divided by, and ln max |u| after step `half`.
     let (mut rescaled, mut at_half) = (0.0, 0.0);
@@ -78,11 +75,7 @@ pub fn positivity(
     dt: f64,
     spike: usize,
 ) -> Option<f64> {
-    let unit = |g: usize| if g == spike { 1.0 } else { 0.0 };
-    let mut u: Vec<f64> = match nodes {
-        Some(nodes) => nodes.iter().map(|&g| unit(g)).collect(),
-        None => (0..len).map(unit).collect(),
-    };
+    let mut u = on_nodes(nodes, len, |g| if g == spike { 1.0 } else { 0.0 });
     stepper.step(&mut u, 0.0, dt);
     let (lowest, highest) = u
         .iter()
@@ -95,6 +88,14 @@ pub fn positivity(
         false => lowest / highest,
     };
     ratio.is_finite().then_some(ratio)
+}
+
+/// `value` of each global node of this rank's `nodes` (all `len` nodes when None), in order.
+fn on_nodes(nodes: Option<&[usize]>, len: usize, value: impl Fn(usize) -> f64) -> Vec<f64> {
+    match nodes {
+        Some(nodes) => nodes.iter().map(|&g| value(g)).collect(),
+        None => (0..len).map(value).collect(),
+    }
 }
 
 /// A value in [−1, 1) for global node `g`: SplitMix64's finalizer of g, so that neighbouring

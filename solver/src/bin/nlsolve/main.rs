@@ -302,18 +302,36 @@ fn verdict(
 }
 
 fn check_cases() -> Result<(), ErrorExit> {
+    let mut memo = std::collections::HashMap::new();
+    let machine = solver::methods::resources::Machine::now();
+    answer_each_line("the verdicts", false, |line| {
+        let verdict = match schema::json::parse(line) {
+            Ok(fields) => match ValidCase::from_json(fields) {
+                Ok(case) => verdict(&case, &mut memo, machine),
+                Err(e) => serde_json::json!({ "error": e.to_string() }),
+            },
+            Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+        };
+        verdict.to_string()
+    })
+}
+
+/// Answers each line of standard input that is not blank with one line on standard output
+/// (`what` names them in an error): `check`'s verdicts and `serve`'s records. Flushed after
+/// each answer with `flush_each`, else whenever no more input is waiting, so that a reader
+/// sending one case at a time sees each answer as its case is read and many cases go out in
+/// large writes; on `standard_output()`, so that a closed descriptor is an error too.
+fn answer_each_line(
+    what: &str,
+    flush_each: bool,
+    mut answer: impl FnMut(&str) -> String,
+) -> Result<(), ErrorExit> {
     let failed = |e: std::io::Error| {
-        ErrorExit::Output(format!("cannot write the verdicts to standard output: {e}"))
+        ErrorExit::Output(format!("cannot write {what} to standard output: {e}"))
     };
-    // Flushed whenever no more input is waiting, so that a reader sending one case at a time
-    // sees each verdict as its case is read, and many cases go out in large writes; on
-    // `standard_output()`, so that a closed descriptor is an error too.
     let mut out = std::io::BufWriter::with_capacity(1 << 16, standard_output().map_err(failed)?);
     let mut input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin().lock());
     let mut line = String::new();
-    let mut printed = Vec::new();
-    let mut memo = std::collections::HashMap::new();
-    let machine = solver::methods::resources::Machine::now();
     loop {
         line.clear();
         let read = input
@@ -323,19 +341,11 @@ fn check_cases() -> Result<(), ErrorExit> {
             break;
         }
         if !line.trim().is_empty() {
-            let verdict = match schema::json::parse(&line) {
-                Ok(fields) => match ValidCase::from_json(fields) {
-                    Ok(case) => verdict(&case, &mut memo, machine),
-                    Err(e) => serde_json::json!({ "error": e.to_string() }),
-                },
-                Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
-            };
-            printed.clear();
-            serde_json::to_writer(&mut printed, &verdict).expect("a Value prints");
-            printed.push(b'\n');
-            out.write_all(&printed).map_err(failed)?;
+            let mut printed = answer(&line);
+            printed.push('\n');
+            out.write_all(printed.as_bytes()).map_err(failed)?;
         }
-        if input.buffer().is_empty() {
+        if flush_each || input.buffer().is_empty() {
             out.flush().map_err(failed)?;
         }
     }
@@ -372,26 +382,5 @@ fn served(line: &str) -> String {
 
 /// `nlsolve serve`: runs each case of standard input and prints its answer line at once.
 fn serve_cases() -> Result<(), ErrorExit> {
-    let failed = |e: std::io::Error| {
-        ErrorExit::Output(format!("cannot write the records to standard output: {e}"))
-    };
-    let mut out = standard_output().map_err(failed)?;
-    let mut input = std::io::stdin().lock();
-    let mut line = String::new();
-    loop {
-        line.clear();
-        let read = input
-            .read_line(&mut line)
-            .map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
-        if read == 0 {
-            return Ok(());
-        }
-        if line.trim().is_empty() {
-            continue;
-        }
-        let mut answer = served(&line);
-        answer.push('\n');
-        out.write_all(answer.as_bytes()).map_err(failed)?;
-        out.flush().map_err(failed)?;
-    }
+    answer_each_line("the records", true, served)
 }
