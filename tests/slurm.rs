@@ -238,6 +238,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
 
     array_with_a_throttle(&scratch, &slurm);
     refined_a_round_per_submit(&scratch, &slurm);
+    searched_a_round_per_submit(&scratch, &slurm);
     requeued_mid_run(&scratch, &slurm);
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
     if two_nodes {
@@ -390,6 +391,39 @@ fn refined_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
     let run = scratch.nlstudy("run", &[]);
     assert!(
         text(&run).contains("0 ran") && text(&run).contains("max_levels run at n = 64, 3 levels"),
+        "{}",
+        text(&run)
+    );
+}
+
+/// A boundary search on a cluster, a round per `submit` as a refinement's: k-section with 15
+/// probes a round narrows forward Euler's limit to 5 % in three rounds (the bracket's ends, then
+/// two of 15), each submit sending only its round, and `run` then answers without running.
+fn searched_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "searched",
+        "base": {"dim": 1, "n": 64, "m": 2, "problem": "bump", "t_end": 1e-6,
+                 "allow_unstable": true, "amplification_steps": 100},
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 0.05, "per_round": 15}
+    });
+    scratch.write_study(&study);
+    for (round, stored) in [(1, 2), (2, 17), (3, 32)] {
+        let out = submit(scratch, slurm, &["--time", "00:05:00"]);
+        assert!(
+            out.status.success() && text(&out).contains("submitted as job "),
+            "round {round}: {}",
+            text(&out)
+        );
+        slurm.wait_for_jobs(Duration::from_secs(120));
+        let records = records(&scratch.runs("searched"));
+        assert_eq!(records.len(), stored, "{}", logs(scratch, "searched"));
+    }
+    let done = submit(scratch, slurm, &["--dry-run"]);
+    assert!(text(&done).contains("nothing to submit"), "{}", text(&done));
+    let run = scratch.nlstudy("run", &[]);
+    assert!(
+        text(&run).contains("0 ran") && text(&run).contains("(predicted 1, "),
         "{}",
         text(&run)
     );
