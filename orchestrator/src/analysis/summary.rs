@@ -15,6 +15,7 @@
 
 use crate::statistics::quantile;
 use crate::store::table::Row;
+use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
@@ -89,7 +90,7 @@ pub fn column_names() -> Vec<String> {
 /// that are one case share its records but keep a row each.
 pub fn summarize(runs: &[Row]) -> Vec<Row> {
     let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text(columns::CASE_ID)))
-        .iter()
+        .par_iter()
         .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
         .collect();
     derive_scaling(&mut summary);
@@ -132,14 +133,16 @@ fn reduce(repeats: &[&Row]) -> Row {
         .map(|r| r.text(columns::STATUS).unwrap_or(""))
         .collect();
     let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
-    let mut row = Row::default();
-    for (name, value) in first.cells() {
-        let per_run = matches!(name, columns::KEY | columns::REPEAT | columns::RUN_ID)
-            || name.starts_with("provenance.");
-        if !per_run && !is_timing(name) {
-            row.set(name, value.clone());
-        }
-    }
+    // The first's cells as they are (their names differ, so none is looked for).
+    let mut row: Row = first
+        .cells()
+        .filter(|(name, _)| {
+            let per_run = matches!(*name, columns::KEY | columns::REPEAT | columns::RUN_ID)
+                || name.starts_with("provenance.");
+            !per_run && !is_timing(name)
+        })
+        .map(|(name, value)| (name.to_string(), value.clone()))
+        .collect();
     let uniform = statuses.iter().all(|s| *s == statuses[0]);
     row.set("status", json!(if uniform { statuses[0] } else { MIXED }));
     row.set("repeats", json!(repeats.len()));

@@ -23,6 +23,13 @@ use std::path::Path;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Row(Vec<(String, Value)>);
 
+impl FromIterator<(String, Value)> for Row {
+    /// A row of `cells`, whose names must differ (as another row's do): no name is looked for.
+    fn from_iter<I: IntoIterator<Item = (String, Value)>>(cells: I) -> Row {
+        Row(cells.into_iter().collect())
+    }
+}
+
 impl Row {
     /// A row as expression names, as a study's own `where` reads them
     /// (`expression::fields_of_columns`).
