@@ -34,6 +34,27 @@ pub fn text(x: Option<String>) -> Value {
     x.map_or(Value::Null, Value::from)
 }
 
+/// Where the answer table `name` of the store's study lies: `<study>-<name>.parquet` beside the
+/// study's other tables.
+pub fn path(store: &Store, name: &str) -> PathBuf {
+    store.table(&format!("{}-{name}.parquet", store.study))
+}
+
+/// The swept fields of an answer table's `rows`: their columns other than the answer's (named
+/// by the table's `notes`), in first-seen order.
+pub fn swept<'a>(rows: impl IntoIterator<Item = &'a Row>, notes: &[(&str, &str)]) -> Vec<String> {
+    let answer = |name: &str| notes.iter().any(|(column, _)| *column == name);
+    let mut swept: Vec<String> = Vec::new();
+    for row in rows {
+        for (name, _) in row.cells() {
+            if !answer(name) && !swept.iter().any(|s| s == name) {
+                swept.push(name.to_string());
+            }
+        }
+    }
+    swept
+}
+
 /// Writes `rows` as `<study>-<name>.parquet` and returns its path.
 pub fn write(
     study: &Study,
@@ -42,7 +63,7 @@ pub fn write(
     rows: &[Row],
     notes: &[(&str, &str)],
 ) -> Result<PathBuf, Fault> {
-    let path = store.table(&format!("{}-{name}.parquet", store.study));
+    let path = path(store, name);
     let about = table::About {
         description: &study.description,
         notes,

@@ -243,7 +243,7 @@ fn adaptive_section(study: &Study, store: &Store) -> Result<Markup, Fault> {
         Question::Refine(_) => "Refinements",
         Question::Target(_) => "The cheapest configuration for the error target",
     };
-    let path = store.table(&format!("{}-{}.parquet", study.name, question.table()));
+    let path = crate::analysis::answer_table::path(store, question.table());
     if !path.exists() {
         return Ok(html! {});
     }

@@ -2,22 +2,14 @@
 //! drawn from the study's boundary table (`analysis::boundaries`), not its summary.
 
 use super::series::{describe, group, shared_by_all, subtitle, Group};
+use crate::analysis::answer_table;
 use crate::analysis::boundaries::{below_theory, NOTES};
 use crate::output::draw::{span, Axis, Glyph, Guide, Panel, Series};
 use crate::store::table::Row;
 
-/// The swept fields of the table: its columns other than the answer's, in its order.
+/// The swept fields of the boundary table.
 pub(super) fn swept(rows: &[&Row]) -> Vec<String> {
-    let answer = |name: &str| NOTES.iter().any(|(column, _)| *column == name);
-    let mut swept: Vec<String> = Vec::new();
-    for row in rows {
-        for (name, _) in row.cells() {
-            if !answer(name) && !swept.iter().any(|s| s == name) {
-                swept.push(name.to_string());
-            }
-        }
-    }
-    swept
+    answer_table::swept(rows.iter().copied(), NOTES)
 }
 
 /// The measured boundaries along `x`, each series' prediction dashed in its colour, and where

@@ -1,6 +1,7 @@
 //! Work–precision: run time against error, with the Pareto front of all methods.
 
 use super::series::*;
+use crate::analysis::answer_table;
 use crate::analysis::target::NOTES;
 use crate::model::target::TargetSpec;
 use crate::output::draw::{Axis, Glyph, Guide, Panel, Series};
@@ -50,12 +51,7 @@ pub(super) fn mark_target(
     spec: &TargetSpec,
     answers: &[Row],
 ) {
-    let swept: Vec<&str> = answers
-        .first()
-        .into_iter()
-        .flat_map(|row| row.cells().map(|(name, _)| name))
-        .filter(|name| !NOTES.iter().any(|(column, _)| column == name))
-        .collect();
+    let swept = answer_table::swept(answers, NOTES);
     let same = |a: Option<&Value>, b: Option<&Value>| match (a, b) {
         (Some(a), Some(b)) => a == b || a.as_f64().zip(b.as_f64()).is_some_and(|(a, b)| a == b),
         _ => false,
