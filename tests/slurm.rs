@@ -364,9 +364,7 @@ fn array_with_a_throttle(scratch: &Scratch, slurm: &LocalSlurm) {
     );
 }
 
-/// An adaptive study on a cluster, a round per `submit`: each submit sends the next round of
-/// probes (each job runs its share with `run --only`), and once every level is stored submit has
-/// nothing left and `run` gives the answer without running anything.
+/// A refinement on a cluster, a round per `submit` (`a_round_per_submit`): three levels.
 fn refined_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
     let study = json!({
         "name": "rounds",
@@ -374,31 +372,18 @@ fn refined_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
                  "cfl": 0.4},
         "refine": {"field": "n", "start": 16, "max_levels": 3, "agree": 1e-9}
     });
-    scratch.write_study(&study);
-    for level in 1..=3 {
-        let out = submit(scratch, slurm, &["--time", "00:05:00"]);
-        assert!(
-            out.status.success() && text(&out).contains("submitted as job "),
-            "round {level}: {}",
-            text(&out)
-        );
-        slurm.wait_for_jobs(Duration::from_secs(120));
-        let stored = records(&scratch.runs("rounds"));
-        assert_eq!(stored.len(), level, "{}", logs(scratch, "rounds"));
-    }
-    let done = submit(scratch, slurm, &["--dry-run"]);
-    assert!(text(&done).contains("nothing to submit"), "{}", text(&done));
-    let run = scratch.nlstudy("run", &[]);
-    assert!(
-        text(&run).contains("0 ran") && text(&run).contains("max_levels run at n = 64, 3 levels"),
-        "{}",
-        text(&run)
+    a_round_per_submit(
+        scratch,
+        slurm,
+        &study,
+        &[1, 2, 3],
+        "max_levels run at n = 64, 3 levels",
     );
 }
 
-/// A boundary search on a cluster, a round per `submit` as a refinement's: k-section with 15
-/// probes a round narrows forward Euler's limit to 5 % in three rounds (the bracket's ends, then
-/// two of 15), each submit sending only its round, and `run` then answers without running.
+/// A boundary search on a cluster, a round per `submit` (`a_round_per_submit`): k-section with
+/// 15 probes a round narrows forward Euler's limit to 5 % in three rounds (the bracket's ends,
+/// then two of 15).
 fn searched_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
     let study = json!({
         "name": "searched",
@@ -407,23 +392,39 @@ fn searched_a_round_per_submit(scratch: &Scratch, slurm: &LocalSlurm) {
         "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
                      "rtol": 0.05, "per_round": 15}
     });
-    scratch.write_study(&study);
-    for (round, stored) in [(1, 2), (2, 17), (3, 32)] {
+    a_round_per_submit(scratch, slurm, &study, &[2, 17, 32], "(predicted 1, ");
+}
+
+/// An adaptive study on a cluster, a round per `submit`: each submit sends the next round of
+/// probes only (each job runs its share with `run --only`), after which the store holds
+/// `stored[k]` records; then submit has nothing left, and `run` gives the answer (`answer` is
+/// in what it prints) without running anything.
+fn a_round_per_submit(
+    scratch: &Scratch,
+    slurm: &LocalSlurm,
+    study: &Value,
+    stored: &[usize],
+    answer: &str,
+) {
+    let name = study["name"].as_str().expect("a named study");
+    scratch.write_study(study);
+    for (round, &stored) in stored.iter().enumerate() {
         let out = submit(scratch, slurm, &["--time", "00:05:00"]);
         assert!(
             out.status.success() && text(&out).contains("submitted as job "),
-            "round {round}: {}",
+            "round {}: {}",
+            round + 1,
             text(&out)
         );
         slurm.wait_for_jobs(Duration::from_secs(120));
-        let records = records(&scratch.runs("searched"));
-        assert_eq!(records.len(), stored, "{}", logs(scratch, "searched"));
+        let records = records(&scratch.runs(name));
+        assert_eq!(records.len(), stored, "{}", logs(scratch, name));
     }
     let done = submit(scratch, slurm, &["--dry-run"]);
     assert!(text(&done).contains("nothing to submit"), "{}", text(&done));
     let run = scratch.nlstudy("run", &[]);
     assert!(
-        text(&run).contains("0 ran") && text(&run).contains("(predicted 1, "),
+        text(&run).contains("0 ran") && text(&run).contains(answer),
         "{}",
         text(&run)
     );
