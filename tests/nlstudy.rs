@@ -868,7 +868,11 @@ fn another_solver_makes_stored_points_stale_and_their_old_records_go_to_history(
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
     let with_other = |verb: &str, extra: &[&str]| {
+        // The wrapper prints what the solver printed once it has ended: one process per case.
         let mut args = vec!["--solver", wrapper.to_str().unwrap()];
+        if verb == "run" {
+            args.push("--isolate");
+        }
         args.extend_from_slice(extra);
         scratch.nlstudy(verb, &args)
     };
@@ -1168,6 +1172,7 @@ awk -v factor="$RUN_FACTOR" -v seed="$RUN_SEED" -v key="$key" -v slow="$SLOW_N" 
                 &[
                     "--no-collect",
                     "--force",
+                    "--isolate",
                     "--solver",
                     wrapper.to_str().unwrap(),
                 ],
@@ -1228,7 +1233,7 @@ fn timing_wrapper(scratch: &Scratch) -> PathBuf {
     std::fs::write(
         &wrapper,
         format!(
-            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\nout = subprocess.run(['{}'] + sys.argv[1:], stdout=subprocess.PIPE)\ntext = out.stdout.decode()\nif sys.argv[1:2] == ['run'] and text.strip():\n    record = json.loads(text)\n    scale = 0.2 * float(os.environ.get('FACTOR', '1')) * (1 + 0.01 * ((os.getpid() % 7) - 3) / 3)\n    record['solve_s'] = scale\n    record['step_s'] = scale / max(1, record['steps_done'])\n    record['setup_s'] = scale / 4\n    record['provenance']['noisy'] = False\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    text = json.dumps(record) + '\\n'\nsys.stdout.write(text)\nsys.exit(out.returncode)\n",
+            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\ntimed_runs = []\ndef timed(text):\n    record = json.loads(text)\n    if 'error' in record:\n        return text\n    timed_runs.append(1)\n    scale = 0.2 * float(os.environ.get('FACTOR', '1')) * (1 + 0.01 * (((os.getpid() + len(timed_runs)) % 7) - 3) / 3)\n    record['solve_s'] = scale\n    record['step_s'] = scale / max(1, record['steps_done'])\n    record['setup_s'] = scale / 4\n    record['provenance']['noisy'] = False\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    return json.dumps(record) + '\\n'\nreal = subprocess.Popen(['{}'] + sys.argv[1:], stdout=subprocess.PIPE, text=True)\nfor line in real.stdout:\n    sys.stdout.write(timed(line) if sys.argv[1:2] in (['run'], ['serve']) and line.strip() else line)\n    sys.stdout.flush()\nsys.exit(real.wait())\n",
             binary("nlsolve").display()
         ),
     )

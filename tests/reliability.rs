@@ -85,7 +85,7 @@ fn assert_whole(scratch: &Scratch, study: &str, points: usize, context: &str) {
     }
 }
 
-/// The solver processes started for this scratch directory that are still alive.
+/// The solver processes (and workers) started for this scratch directory that are still alive.
 fn solvers_of(scratch: &Scratch) -> Vec<u32> {
     let marker = scratch.dir.to_string_lossy().into_owned();
     let mut pids = Vec::new();
@@ -106,7 +106,11 @@ fn solvers_of(scratch: &Scratch) -> Vec<u32> {
                 .next()
                 .is_some_and(|r| r.trim_start().starts_with('Z'))
         });
-        if is_solver && !zombie && args.iter().any(|a| a.contains(&marker)) {
+        // A process of its own names its case file; a worker runs in the store's work directory.
+        let ours = args.iter().any(|a| a.contains(&marker))
+            || std::fs::read_link(entry.path().join("cwd"))
+                .is_ok_and(|cwd| cwd.starts_with(&scratch.dir));
+        if is_solver && !zombie && ours {
             pids.push(pid);
         }
     }
@@ -430,15 +434,177 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
     assert_eq!(stored[0]["attempt"], 1);
 }
 
-/// An executable shell script in the scratch directory, to stand in for an MPI launcher that
-/// misbehaves the way a real one can; returns the launcher line that starts it.
-fn launcher_script(scratch: &Scratch, name: &str, body: &str) -> String {
+/// A case that kills the solver running it: on a worker, the worker is replaced and the case
+/// runs again alone, in a process of its own, where it fails by itself; the other points run on
+/// workers and are stored `ok`.
+#[test]
+fn a_case_that_kills_its_worker_fails_alone_and_the_others_run_on() {
+    let study = json!({
+        "name": "poison",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": [16, 20, 24, 28, 32, 36]}}]
+    });
+    let scratch = Scratch::new("poison", &study);
+    // nlsolve, except that n = 24 kills the process running it, worker or not.
+    let solver = executable(
+        &scratch,
+        "nlsolve-poisoned",
+        &format!(
+            "real='{}'\n\
+             if [ \"$1\" = serve ]; then\n\
+               while IFS= read -r line; do\n\
+                 case \"$line\" in *'\"n\":24,'*) kill -9 $$ ;; esac\n\
+                 printf '%s\\n' \"$line\" | \"$real\" serve || exit\n\
+               done\n\
+               exit 0\n\
+             fi\n\
+             [ \"$1\" = run ] && grep -q '\"n\":24,' \"$3\" && kill -9 $$\n\
+             exec \"$real\" \"$@\"\n",
+            nonlocal_study::binary("nlsolve").display()
+        ),
+    );
+    let out = scratch.nlstudy("run", &["--no-collect", "--solver", &solver]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let said = text(&out);
+    assert_eq!(
+        said.matches("again in a process of its own: its worker ended with signal: 9")
+            .count(),
+        1,
+        "{said}"
+    );
+    let stored = records(&scratch.runs("poison"));
+    assert_eq!(stored.len(), 6);
+    for record in &stored {
+        let poisoned = record["case"]["n"] == 24;
+        assert_eq!(
+            record["status"],
+            if poisoned { "failed" } else { "ok" },
+            "{record}"
+        );
+        assert_eq!(record["attempt"], 1, "{record}");
+        if poisoned {
+            let message = record["message"].as_str().unwrap();
+            assert!(
+                message.starts_with("nlsolve exited with signal: 9"),
+                "{message}"
+            );
+        }
+    }
+    assert!(solvers_of(&scratch).is_empty(), "a worker outlived the run");
+}
+
+/// A worker killed (SIGKILL) in the middle of a case: the case runs again in a process of its
+/// own and is stored `ok`, as if nothing had happened.
+#[test]
+fn a_worker_killed_mid_case_is_replaced_and_its_case_runs_again() {
+    let study = json!({
+        "name": "killed",
+        "base": {"dim": 2, "n": 256, "m": 3, "t_end": 0.02, "cfl": 0.5}
+    });
+    let scratch = Scratch::new("worker-killed", &study);
+    let run = scratch.spawn("run", &["--no-collect"]);
+    // The one point is sent to a worker as soon as it starts.
+    assert!(
+        eventually(Duration::from_secs(60), || !solvers_of(&scratch).is_empty()),
+        "no worker started"
+    );
+    for pid in solvers_of(&scratch) {
+        Command::new("kill")
+            .args(["-9", &pid.to_string()])
+            .status()
+            .unwrap();
+    }
+    let out = run.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("again in a process of its own: its worker ended with signal: 9"),
+        "{}",
+        text(&out)
+    );
+    let stored = records(&scratch.runs("killed"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0]["status"], "ok", "{}", stored[0]);
+    assert!(solvers_of(&scratch).is_empty());
+}
+
+/// The records a study's points get on workers are those they get in processes of their own
+/// (`--isolate`), bit for bit, but for what measures the run itself: its timings, peak memory,
+/// when it ran and the machine's load.
+#[test]
+fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
+    let study = json!({
+        "name": "same",
+        "base": {"dim": 1, "n": 64, "t_end": 0.001, "cfl": 0.5, "amplification_steps": 20},
+        "sweep": [{"branches": {
+            "nonlocal": [{"product": {"m": [1, 3], "threads": [1, 2],
+                                      "integrator": ["forward_euler", "rk4", "crank_nicolson"]}}],
+            "grid": [{"product": {"method": ["fd_explicit", "adi"], "problem": ["square"], "dim": [2], "n": [32], "cfl": [0.4]}}],
+            "particles": [{"product": {"method": ["pse"], "problem": ["square"], "m": [2]}}],
+            "steady": [{"product": {"method": ["steady_cg"], "dim": [2], "n": [16], "m": [2],
+                                    "t_end": [null], "cfl": [null], "amplification_steps": [null]}}],
+            "unstable": [{"product": {"m": [2], "cfl": [1.5], "t_end": [0.05], "allow_unstable": [true]}}]
+        }}]
+    });
+    let scratch = Scratch::new("served", &study);
+    let run_into = |results: &str, extra: &[&str]| {
+        let out = Command::new(nonlocal_study::binary("nlstudy"))
+            .args(["run", "--no-collect", "--results"])
+            .arg(scratch.dir.join(results))
+            .arg(scratch.study())
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", text(&out));
+        let mut by_key: Vec<Value> = records(&scratch.dir.join(results).join("same/runs"))
+            .into_iter()
+            .map(numbers_of)
+            .collect();
+        by_key.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));
+        by_key
+    };
+    let served = run_into("served", &[]);
+    let alone = run_into("alone", &["--isolate"]);
+    assert_eq!(served.len(), 17);
+    assert!(served.iter().any(|r| r["status"] == "diverged"));
+    for (served, alone) in served.iter().zip(&alone) {
+        assert_eq!(served, alone);
+    }
+}
+
+/// A stored record without what measures the run rather than the case.
+fn numbers_of(mut record: Value) -> Value {
+    let fields = record.as_object_mut().unwrap();
+    for measured in [
+        "setup_s",
+        "solve_s",
+        "step_s",
+        "comm_s",
+        "peak_memory_bytes",
+        "run_id",
+    ] {
+        fields.remove(measured);
+    }
+    let provenance = fields["provenance"].as_object_mut().unwrap();
+    for measured in ["timestamp", "load_start", "load_end", "noisy"] {
+        provenance.remove(measured);
+    }
+    record
+}
+
+/// An executable shell script `name` in the scratch directory; returns its path.
+fn executable(scratch: &Scratch, name: &str, body: &str) -> String {
     use std::os::unix::fs::PermissionsExt;
     let path = scratch.dir.join(name);
     std::fs::write(&path, format!("#!/bin/sh\n{body}")).unwrap();
     std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// An executable shell script in the scratch directory, to stand in for an MPI launcher that
+/// misbehaves the way a real one can; returns the launcher line that starts it.
+fn launcher_script(scratch: &Scratch, name: &str, body: &str) -> String {
     // Launchers say where the rank count goes; these take it as mpirun does.
-    format!("'{}' -n {{ranks}}", path.display())
+    format!("'{}' -n {{ranks}}", executable(scratch, name, body))
 }
 
 /// No panic text in what a process printed.
@@ -611,21 +777,26 @@ fn a_record_nlsolve_could_not_write_is_not_stored_as_a_failure() {
     std::fs::write(
         &solver,
         format!(
-            "#!/bin/sh\nif [ \"$1\" = run ]; then echo 'nlsolve: cannot write the record to standard output: No space left on device (os error 28)' >&2; exit 3; fi\nexec '{}' \"$@\"\n",
+            "#!/bin/sh\nif [ \"$1\" = run ] || [ \"$1\" = serve ]; then echo 'nlsolve: cannot write the record to standard output: No space left on device (os error 28)' >&2; exit 3; fi\nexec '{}' \"$@\"\n",
             nonlocal_study::binary("nlsolve").display()
         ),
     )
     .unwrap();
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&solver, std::fs::Permissions::from_mode(0o755)).unwrap();
-    let out = scratch.nlstudy("run", &["--solver", solver.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(3), "{}", text(&out));
-    assert!(
-        text(&out).contains(".out") && text(&out).contains("No space left"),
-        "{}",
-        text(&out)
-    );
-    assert!(records(&scratch.runs("unwritten")).is_empty());
+    // On a worker, then in a process of its own (whose output file is named).
+    for (flags, names) in [(&[][..], "nlsolve-disk-full"), (&["--isolate"][..], ".out")] {
+        let mut args = vec!["--solver", solver.to_str().unwrap()];
+        args.extend_from_slice(flags);
+        let out = scratch.nlstudy("run", &args);
+        assert_eq!(out.status.code(), Some(3), "{flags:?}: {}", text(&out));
+        assert!(
+            text(&out).contains(names) && text(&out).contains("No space left"),
+            "{flags:?}: {}",
+            text(&out)
+        );
+        assert!(records(&scratch.runs("unwritten")).is_empty());
+    }
     let again = scratch.nlstudy("run", &[]);
     assert!(again.status.success(), "{}", text(&again));
     assert_whole(&scratch, "unwritten", 2, "with a working solver");

@@ -28,13 +28,22 @@ pub fn create_fresh(path: &Path) -> io::Result<File> {
 /// Writes `contents` to `path` whole or not at all: to its partial path, then a rename. On an
 /// error no partial is left, and the error says which of the two paths failed.
 pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), (PathBuf, io::Error)> {
-    let partial = partial_path(path);
-    create_fresh(&partial)
+    write_through(&partial_path(path), path, contents)
+}
+
+/// Writes `contents` to `path` whole or not at all through the partial file `partial` (a name
+/// of the writer's own, in the same directory).
+pub fn write_through(
+    partial: &Path,
+    path: &Path,
+    contents: &[u8],
+) -> Result<(), (PathBuf, io::Error)> {
+    create_fresh(partial)
         .and_then(|mut file| file.write_all(contents))
-        .map_err(|e| (partial.clone(), e))
-        .and_then(|()| std::fs::rename(&partial, path).map_err(|e| (path.to_path_buf(), e)))
+        .map_err(|e| (partial.to_path_buf(), e))
+        .and_then(|()| std::fs::rename(partial, path).map_err(|e| (path.to_path_buf(), e)))
         .inspect_err(|_| {
-            let _ = std::fs::remove_file(&partial);
+            let _ = std::fs::remove_file(partial);
         })
 }
 

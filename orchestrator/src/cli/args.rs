@@ -225,6 +225,10 @@ pub struct RunArgs {
     /// Divergence and refused input are results and never run again.
     #[arg(long, default_value_t = 0)]
     pub retries: usize,
+    /// Run every case in a process of its own (`nlsolve run`), as MPI cases and those writing
+    /// VTK files always do; by default the others run on `nlsolve serve` workers that stay up.
+    #[arg(long)]
+    pub isolate: bool,
     /// No progress output.
     #[arg(long, short)]
     pub quiet: bool,

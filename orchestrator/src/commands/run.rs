@@ -34,16 +34,26 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         timeout,
         launcher: args.launcher.clone(),
         retries: args.retries,
+        isolate: args.isolate,
     };
     store.clear_abandoned_outputs()?;
     let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
     let mut tally = Tally::default();
+    let mut workers = crate::run::worker::Workers::new(store.work_dir());
     // Runs the planned points not stored, counting what happened into `tally`.
     let mut run_on_pool = |planned: &[Planned]| -> Result<bool, crate::store::Fault> {
         let (to_run, copies) = counts(planned);
         let stored = planned.len() - to_run - copies;
         let mut progress = Progress::new(Mode::detect(args.quiet), to_run, stored);
-        let ran = crate::run::pool::run(planned, &solver, &store, &options, &stop, &mut progress);
+        let ran = crate::run::pool::run(
+            planned,
+            &solver,
+            &store,
+            &options,
+            &mut workers,
+            &stop,
+            &mut progress,
+        );
         progress.close();
         let ran = ran.map_err(|e| {
             crate::store::Fault::Io(format!(

@@ -8,3 +8,4 @@ pub mod pool;
 pub mod progress;
 pub mod search;
 pub mod signals;
+pub mod worker;

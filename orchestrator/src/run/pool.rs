@@ -1,23 +1,27 @@
-//! The worker pool: `nlsolve` processes within a core budget, MPI cases through a launcher, a
-//! timeout per case, failures stored with the tail of stderr, and a clean stop on Ctrl-C.
+//! The worker pool: cases within a core budget, those of one process on `nlsolve serve`
+//! workers that stay up (`worker`), MPI cases and those writing files through a process of
+//! their own, a timeout per case, failures stored with the tail of stderr, and a clean stop on
+//! Ctrl-C. A worker that dies or hangs on a case is replaced and the case runs again alone, in
+//! a process of its own, so that a case that kills its worker fails by itself.
 //!
 //! Each case runs under its key's lock in the store, so processes sharing a store never run a
 //! point at the same time; a point another process holds, or has stored meanwhile, is passed.
-//! A solver process dies with this one (its parent-death signal), so a killed `nlstudy` leaves
+//! A solver process or worker dies with this one (its parent-death signal), so a killed `nlstudy` leaves
 //! no case running unowned.
 
 use crate::model::launcher::Launcher;
-use crate::run::nlsolve::Nlsolve;
+use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
+use crate::run::worker::{die_with_parent, Served, Worker, Workers};
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
-use crate::store::{FileError, Store};
+use crate::store::{FileError, Store, SCRATCH};
 use schema::exit;
 use schema::record::{Failure, Outcome, Record, Status, Stored};
 use serde_json::Value;
 use std::fs::File;
-use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -77,6 +81,8 @@ pub struct PoolOptions {
     /// by a signal, or its MPI launcher hung. A case that diverges or is refused is a result and
     /// never runs again.
     pub retries: usize,
+    /// A process per case (`--isolate`), never a worker.
+    pub isolate: bool,
 }
 
 /// Counts of a pool's work.
@@ -108,16 +114,55 @@ struct Running {
     index: usize,
     /// 1 for the first run of the point, 2 for its first retry, …
     attempt: usize,
-    child: Child,
     started: Instant,
     cores: usize,
+    /// The key's lock in the store, held until the record is stored.
+    _lock: File,
+    how: How,
+}
+
+/// Where a running case runs.
+enum How {
+    /// A process of its own (`nlsolve run`, or its MPI launcher).
+    Process(Process),
+    /// A worker, and its line once heard (`Some(None)`: its output closed).
+    Served {
+        worker: Worker,
+        heard: Option<Option<String>>,
+    },
+}
+
+struct Process {
+    child: Child,
     stdout: PathBuf,
     stderr: PathBuf,
     case_file: PathBuf,
-    /// The key's lock in the store, held until the record is stored.
-    _lock: File,
     /// MPI jobs: when a rank was first seen exited and not reaped by the launcher.
     launcher_watch: Option<LauncherWatch>,
+}
+
+/// A point waiting to run.
+#[derive(Clone, Copy)]
+struct Queued {
+    index: usize,
+    attempt: usize,
+    /// In a process of its own even where a worker could run it: its worker died on it.
+    alone: bool,
+}
+
+/// How a running case ended.
+enum Ended {
+    /// A process exited (`None`: it was killed past the timeout).
+    Exited(Option<std::process::ExitStatus>),
+    /// An MPI launcher left a dead rank unreaped and was killed.
+    LauncherHung,
+    /// A worker answered.
+    Answered(String),
+    /// A worker died (or was killed past the timeout) before it answered.
+    WorkerLost {
+        exit: std::process::ExitStatus,
+        timed_out: bool,
+    },
 }
 
 /// What is known of an MPI launcher's ranks.
@@ -165,178 +210,386 @@ fn has_zombie_child(parent: u32) -> bool {
 /// Runs the planned points that run; stores each record as it finishes. A failure of the file
 /// system (the store, the scratch files, a record nlsolve could not write) is not a property of
 /// a case: it stops the run, the running cases are ended and nothing is stored for them, so
-/// the next run takes them up again.
+/// the next run takes them up again. `workers` stay up for the next call (a search's rounds).
 pub fn run(
     planned: &[Planned],
     solver: &Nlsolve,
     store: &Store,
     options: &PoolOptions,
+    workers: &mut Workers,
     stop: &Stop,
     progress: &mut Progress,
 ) -> Result<Tally, FileError> {
     let mut running: Vec<Running> = Vec::new();
-    let outcome = run_cases(
+    let mut pool = Pool {
         planned,
         solver,
         store,
         options,
+        workers,
         stop,
         progress,
-        &mut running,
-    );
-    for mut job in running {
-        let _ = job.child.kill();
-        let _ = job.child.wait();
-        job.remove_files();
+        tally: Tally::default(),
+        // Popped from the back in plan order.
+        queue: (0..planned.len())
+            .rev()
+            .filter(|&i| planned[i].runs())
+            .map(|index| Queued {
+                index,
+                attempt: 1,
+                alone: false,
+            })
+            .collect(),
+    };
+    let outcome = pool.run_cases(&mut running);
+    for job in running {
+        job.abandon();
     }
-    outcome
+    outcome.map(|()| pool.tally)
 }
 
-fn run_cases(
-    planned: &[Planned],
-    solver: &Nlsolve,
-    store: &Store,
-    options: &PoolOptions,
-    stop: &Stop,
-    progress: &mut Progress,
-    running: &mut Vec<Running>,
-) -> Result<Tally, FileError> {
-    let mut tally = Tally::default();
-    // (point, attempt), popped from the back in plan order.
-    let mut queue: Vec<(usize, usize)> = (0..planned.len())
-        .filter(|&i| planned[i].runs())
-        .map(|i| (i, 1))
-        .collect();
-    queue.reverse();
-    create_dir(&store.work_dir())?;
-    loop {
-        if stop.requested() {
-            tally.interrupted = true;
-            return Ok(tally);
+/// A pool's state while it runs one batch of points.
+struct Pool<'a> {
+    planned: &'a [Planned],
+    solver: &'a Nlsolve,
+    store: &'a Store,
+    options: &'a PoolOptions,
+    workers: &'a mut Workers,
+    stop: &'a Stop,
+    progress: &'a mut Progress,
+    tally: Tally,
+    queue: Vec<Queued>,
+}
+
+/// How long the pool waits for a worker's answer before it looks at its processes again.
+const POLL_EVERY: Duration = Duration::from_millis(10);
+
+impl Pool<'_> {
+    fn run_cases(&mut self, running: &mut Vec<Running>) -> Result<(), FileError> {
+        create_dir(&self.store.work_dir())?;
+        loop {
+            if self.stop.requested() {
+                self.tally.interrupted = true;
+                return Ok(());
+            }
+            self.start_what_fits(running)?;
+            if running.is_empty() && self.queue.is_empty() {
+                return Ok(());
+            }
+            // An answer wakes the pool at once; processes are looked at every POLL_EVERY.
+            let mut wait = POLL_EVERY;
+            while let Some((worker, line)) = self.workers.listen(wait) {
+                let busy = running.iter_mut().find_map(|job| match &mut job.how {
+                    How::Served { worker: w, heard } if w.id() == worker => Some(heard),
+                    _ => None,
+                });
+                if let Some(heard) = busy {
+                    *heard = Some(line);
+                }
+                wait = Duration::ZERO;
+            }
+            let mut k = 0;
+            while k < running.len() {
+                let Some(ended) = running[k].poll(self.options.timeout, self.solver)? else {
+                    k += 1;
+                    continue;
+                };
+                let job = running.swap_remove(k);
+                self.ended(job, ended)?;
+            }
         }
-        // Start what fits; a case larger than the budget runs alone.
-        while let Some(&(next, attempt)) = queue.last() {
-            let planned = &planned[next];
+    }
+
+    /// Starts what fits in the core budget; a case larger than the budget runs alone.
+    fn start_what_fits(&mut self, running: &mut Vec<Running>) -> Result<(), FileError> {
+        while let Some(&next) = self.queue.last() {
+            let planned = &self.planned[next.index];
             let cores = cores_of(planned);
             let used: usize = running.iter().map(|r| r.cores).sum();
-            let fits = if options.exclusive {
+            let fits = if self.options.exclusive {
                 running.is_empty()
             } else {
-                running.is_empty() || used + cores <= options.cores
+                running.is_empty() || used + cores <= self.options.cores
             };
             if !fits {
-                break;
+                return Ok(());
             }
-            queue.pop();
-            let Some(lock) = store.lock(&planned.key)? else {
-                progress.passed(&planned.point.label(), "another nlstudy is running it");
-                tally.passed += 1;
+            self.queue.pop();
+            let Some(lock) = self.store.lock(&planned.key)? else {
+                self.progress
+                    .passed(&planned.point.label(), "another nlstudy is running it");
+                self.tally.passed += 1;
                 continue;
             };
             // A forced or stale point runs whatever is stored; others may have been stored by
-            // another nlstudy since the plan.
-            let forced = matches!(
-                planned.decision,
-                Decision::Run(Reason::Forced | Reason::Stale { .. })
-            );
-            let stored = store.status(&planned.key).filter(|s| *s != Status::Failed);
+            // another nlstudy since the plan. A point run again alone is this run's own.
+            let forced = next.alone
+                || matches!(
+                    planned.decision,
+                    Decision::Run(Reason::Forced | Reason::Stale { .. })
+                );
+            let stored = self
+                .store
+                .status(&planned.key)
+                .filter(|s| *s != Status::Failed);
             if let Some(status) = stored.filter(|_| !forced) {
                 let why = format!("another nlstudy has stored it meanwhile ({status})");
-                progress.passed(&planned.point.label(), &why);
-                tally.passed += 1;
+                self.progress.passed(&planned.point.label(), &why);
+                self.tally.passed += 1;
                 continue;
             }
-            match &planned.case {
+            let case = match &planned.case {
                 Err(message) => {
-                    let record = failed_record(planned, solver, message.clone());
-                    finish(store, planned, record, &mut tally, progress)?;
+                    let record = failed_record(planned, self.solver, message.clone());
+                    self.finish(planned, record)?;
+                    continue;
                 }
-                Ok(case) => {
-                    let mut job = start(
-                        next,
-                        &case.canonical(),
+                Ok(case) => case,
+            };
+            let how = if self.serves(case, next.alone) {
+                let mut worker = self.workers.take(self.solver)?;
+                // A worker that is gone already says so when its output closes.
+                worker.send(case.canonical_text());
+                How::Served {
+                    worker,
+                    heard: None,
+                }
+            } else {
+                How::Process(start(
+                    &case.canonical(),
+                    planned,
+                    self.solver,
+                    self.store,
+                    self.options,
+                )?)
+            };
+            running.push(Running {
+                index: next.index,
+                attempt: next.attempt,
+                started: Instant::now(),
+                cores,
+                _lock: lock,
+                how,
+            });
+        }
+        Ok(())
+    }
+
+    /// Does a worker run this case? Cases of one process that write no files of their own.
+    fn serves(&self, case: &Checked, alone: bool) -> bool {
+        let asks = |field: &str| case.resolved_count(field).is_some_and(|value| value > 1);
+        let writes_vtk = case
+            .canonical()
+            .get("vtk_every")
+            .is_some_and(|every| !every.is_null());
+        !(alone || self.options.isolate || self.workers.unsupported || asks("ranks") || writes_vtk)
+    }
+
+    /// Stores the record of a case that ended, or queues it again.
+    fn ended(&mut self, job: Running, ended: Ended) -> Result<(), FileError> {
+        let planned = &self.planned[job.index];
+        let label = planned.point.label();
+        let again = |alone| Queued {
+            index: job.index,
+            attempt: job.attempt,
+            alone,
+        };
+        let (record, outside_the_case) = match ended {
+            Ended::Exited(exit) => {
+                let How::Process(process) = &job.how else {
+                    unreachable!("only processes exit")
+                };
+                let record = match exit {
+                    None => failed_record(
                         planned,
-                        solver,
-                        store,
-                        options,
-                        lock,
-                    )?;
-                    job.attempt = attempt;
-                    running.push(job);
+                        self.solver,
+                        format!(
+                            "timed out after {:.0} s; {}",
+                            job.started.elapsed().as_secs_f64(),
+                            process.stderr_tail()
+                        ),
+                    ),
+                    Some(exit) if !exit.success() && stopped_with_it(self.stop, exit) => {
+                        // Ctrl-C reaches the whole process group, scancel the whole job: a
+                        // case the stopping signal ended is not a failure.
+                        job.abandon();
+                        return Ok(());
+                    }
+                    Some(exit) => process.record(planned, self.solver, job.cores, exit)?,
+                };
+                let killed = exit.is_none_or(|e| e.signal().is_some() && !e.success());
+                (record, killed)
+            }
+            Ended::LauncherHung => {
+                let How::Process(process) = &job.how else {
+                    unreachable!("only launchers hang")
+                };
+                let message = format!(
+                    "a rank exited and the MPI launcher had not ended {} s later, so it was killed; {}",
+                    UNREAPED_RANK_GRACE.as_secs(),
+                    process.stderr_tail()
+                );
+                (failed_record(planned, self.solver, message), true)
+            }
+            Ended::Answered(line) => {
+                let How::Served { worker, .. } = job.how else {
+                    unreachable!("only workers answer")
+                };
+                self.workers.give_back(worker);
+                let record = answer_record(planned, self.solver, job.cores, &line);
+                self.finish_attempt(planned, record, job.attempt)?;
+                return Ok(());
+            }
+            Ended::WorkerLost { exit, timed_out } => {
+                let How::Served { worker, .. } = &job.how else {
+                    unreachable!("only workers are lost")
+                };
+                if !timed_out && stopped_with_it(self.stop, exit) {
+                    job.abandon();
+                    return Ok(());
                 }
+                if worker.answered == 0 && exit.code() == Some(i32::from(exit::BAD_INPUT)) {
+                    // It does not know `serve`: from now on, a process per case.
+                    self.workers.unsupported = true;
+                    self.queue.push(again(true));
+                    return Ok(());
+                }
+                if exit.code() == Some(i32::from(exit::IO)) {
+                    let said = std::io::Error::other(worker.stderr_tail());
+                    return Err(FileError::new(
+                        "get the records of",
+                        &self.solver.binary,
+                        said,
+                    ));
+                }
+                // The case may have been the worker's undoing or its victim: run alone, it
+                // fails alone if it is the case's fault.
+                let why = if timed_out {
+                    format!(
+                        "its worker was still at it after {:.0} s and was replaced",
+                        job.started.elapsed().as_secs_f64()
+                    )
+                } else {
+                    format!(
+                        "its worker ended with {exit} and was replaced: {}",
+                        worker.stderr_tail()
+                    )
+                };
+                self.progress.alone(&label, &why);
+                self.queue.push(again(true));
+                return Ok(());
+            }
+        };
+        if let How::Process(process) = &job.how {
+            process.remove_files();
+        }
+        let failed = record.status() == Status::Failed;
+        if failed && outside_the_case && job.attempt <= self.options.retries {
+            self.progress
+                .retrying(&label, job.attempt + 1, record.message());
+            self.queue.push(Queued {
+                index: job.index,
+                attempt: job.attempt + 1,
+                alone: false,
+            });
+            return Ok(());
+        }
+        self.finish_attempt(planned, record, job.attempt)
+    }
+
+    fn finish_attempt(
+        &mut self,
+        planned: &Planned,
+        mut record: Stored,
+        attempt: usize,
+    ) -> Result<(), FileError> {
+        record.attempt = Some(attempt);
+        self.finish(planned, record)
+    }
+
+    fn finish(&mut self, planned: &Planned, record: Stored) -> Result<(), FileError> {
+        let status = record.status();
+        let mut message = record.message().to_string();
+        if !self.store.save(&planned.key, &record)? {
+            message.push_str("; the stored result of an earlier run is kept");
+        }
+        self.store.release_lock_file(&planned.key);
+        match status {
+            Status::Ok => self.tally.ok += 1,
+            Status::Diverged => self.tally.diverged += 1,
+            Status::Failed => self.tally.failed += 1,
+        }
+        self.tally.noisy += usize::from(record.noisy());
+        self.progress
+            .finished(&planned.point.label(), status, &message);
+        Ok(())
+    }
+}
+
+impl Running {
+    /// How the case ended, if it has: a process exited or was killed past the timeout, a
+    /// launcher hung, a worker answered or died.
+    fn poll(
+        &mut self,
+        timeout: Option<Duration>,
+        solver: &Nlsolve,
+    ) -> Result<Option<Ended>, FileError> {
+        let timed_out = timeout.is_some_and(|limit| self.started.elapsed() > limit);
+        match &mut self.how {
+            How::Served { worker, heard } => Ok(match heard.take() {
+                Some(line) => Some(match worker.ended(line) {
+                    Served::Answer(line) => Ended::Answered(line),
+                    Served::Died(exit) => Ended::WorkerLost {
+                        exit,
+                        timed_out: false,
+                    },
+                }),
+                None if timed_out => Some(Ended::WorkerLost {
+                    exit: worker.kill(),
+                    timed_out: true,
+                }),
+                None => None,
+            }),
+            How::Process(process) => {
+                let child = &mut process.child;
+                if timed_out {
+                    let _ = child.kill();
+                    child
+                        .wait()
+                        .map_err(FileError::on("wait for", &solver.binary))?;
+                    return Ok(Some(Ended::Exited(None)));
+                }
+                let pid = child.id();
+                if process
+                    .launcher_watch
+                    .as_mut()
+                    .is_some_and(|watch| watch.hung(pid))
+                {
+                    let _ = child.kill();
+                    child
+                        .wait()
+                        .map_err(FileError::on("wait for", &solver.binary))?;
+                    return Ok(Some(Ended::LauncherHung));
+                }
+                let exit = child
+                    .try_wait()
+                    .map_err(FileError::on("wait for", &solver.binary))?;
+                Ok(exit.map(|exit| Ended::Exited(Some(exit))))
             }
         }
-        if running.is_empty() && queue.is_empty() {
-            return Ok(tally);
-        }
-        std::thread::sleep(Duration::from_millis(10));
-        let mut k = 0;
-        while k < running.len() {
-            let job = &mut running[k];
-            let timed_out = options
-                .timeout
-                .is_some_and(|limit| job.started.elapsed() > limit);
-            let launcher_hung = !timed_out
-                && job.launcher_watch.as_mut().is_some_and(|watch| {
-                    let pid = job.child.id();
-                    watch.hung(pid)
-                });
-            let exit = if timed_out || launcher_hung {
-                let _ = job.child.kill();
-                Some(job.child.wait())
-            } else {
-                job.child.try_wait().transpose()
-            };
-            let exit = exit
-                .transpose()
-                .map_err(FileError::on("wait for", &solver.binary))?;
-            let Some(exit) = exit else {
-                k += 1;
-                continue;
-            };
-            let job = running.swap_remove(k);
-            if !exit.success() && stopped_with_it(stop, exit) {
-                // Ctrl-C reaches the whole process group, scancel the whole job: a case the
-                // stopping signal ended is not a failure.
-                job.remove_files();
-                continue;
+    }
+
+    /// Ends the case without a record: the run stops, or the stop ended it.
+    fn abandon(self) {
+        match self.how {
+            How::Process(mut process) => {
+                let _ = process.child.kill();
+                let _ = process.child.wait();
+                process.remove_files();
             }
-            let planned = &planned[job.index];
-            let killed = exit.signal().is_some() && !exit.success();
-            let outside_the_case = timed_out || launcher_hung || killed;
-            let record = if timed_out {
-                failed_record(
-                    planned,
-                    solver,
-                    format!(
-                        "timed out after {:.0} s; {}",
-                        job.started.elapsed().as_secs_f64(),
-                        job.stderr_tail()
-                    ),
-                )
-            } else if launcher_hung {
-                failed_record(
-                    planned,
-                    solver,
-                    format!(
-                        "a rank exited and the MPI launcher had not ended {} s later, so it was killed; {}",
-                        UNREAPED_RANK_GRACE.as_secs(),
-                        job.stderr_tail()
-                    ),
-                )
-            } else {
-                job.record(planned, solver, exit)?
-            };
-            job.remove_files();
-            let failed = record.status() == Status::Failed;
-            if failed && outside_the_case && job.attempt <= options.retries {
-                progress.retrying(&planned.point.label(), job.attempt + 1, record.message());
-                queue.push((job.index, job.attempt + 1));
-                continue;
+            How::Served { mut worker, .. } => {
+                worker.kill();
             }
-            let mut record = record;
-            record.attempt = Some(job.attempt);
-            finish(store, planned, record, &mut tally, progress)?;
         }
     }
 }
@@ -359,19 +612,15 @@ fn cores_of(planned: &Planned) -> usize {
     field("threads").max(1) * field("ranks").max(1)
 }
 
+/// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
 fn start(
-    index: usize,
     case: &Value,
     planned: &Planned,
     solver: &Nlsolve,
     store: &Store,
     options: &PoolOptions,
-    lock: File,
-) -> Result<Running, FileError> {
-    let work = store.work_dir();
-    let case_file = work.join(format!("{}.case.json", planned.key));
-    let stdout = work.join(format!("{}.out", planned.key));
-    let stderr = work.join(format!("{}.err", planned.key));
+) -> Result<Process, FileError> {
+    let [case_file, stdout, stderr] = SCRATCH.map(|name| store.scratch(&planned.key, name));
     create_fresh(&case_file)
         .and_then(|mut file| std::io::Write::write_all(&mut file, case.to_string().as_bytes()))
         .map_err(FileError::on("write", &case_file))?;
@@ -397,28 +646,14 @@ fn start(
         .stdin(Stdio::null())
         .stdout(create_fresh(&stdout).map_err(FileError::on("create", &stdout))?)
         .stderr(create_fresh(&stderr).map_err(FileError::on("create", &stderr))?);
-    // SAFETY: prctl is async-signal-safe and touches no memory of the parent.
-    unsafe {
-        command.pre_exec(|| {
-            // The case dies with this process (SIGKILL included), not run on unowned.
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL) == -1 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
+    die_with_parent(&mut command);
     let program = PathBuf::from(command.get_program());
     let child = command.spawn().map_err(FileError::on("start", &program))?;
-    Ok(Running {
-        index,
-        attempt: 1,
+    Ok(Process {
         child,
-        started: Instant::now(),
-        cores: cores_of(planned),
         stdout,
         stderr,
         case_file,
-        _lock: lock,
         launcher_watch: (ranks > 1).then(|| LauncherWatch {
             checked: Instant::now(),
             unreaped_since: None,
@@ -426,13 +661,14 @@ fn start(
     })
 }
 
-impl Running {
+impl Process {
     /// The record a finished process printed, or a failed record with its stderr; an error
     /// when nlsolve could not write the record it computed.
     fn record(
         &self,
         planned: &Planned,
         solver: &Nlsolve,
+        cores: usize,
         ended: std::process::ExitStatus,
     ) -> Result<Stored, FileError> {
         if ended.code() == Some(i32::from(exit::IO)) {
@@ -448,33 +684,19 @@ impl Running {
             }
             Err(_) => String::new(),
         };
-        // The record is nlsolve's last line that is a JSON object; it must keep to the schema.
+        if !ended.success() {
+            let message = format!("nlsolve exited with {ended}: {}", self.stderr_tail());
+            return Ok(failed_record(planned, solver, message));
+        }
+        // The record is nlsolve's last line that is a JSON object.
         let last_object = printed.lines().rev().find_map(|line| {
             serde_json::from_str::<Value>(line)
                 .ok()
                 .filter(Value::is_object)
         });
-        let record = last_object.map(|object| {
-            serde_path_to_error::deserialize::<_, Record<Value>>(object)
-                .map_err(|e| format!("field `{}`: {}", e.path(), e.inner()))
-        });
-        Ok(match (ended.success(), record) {
-            (true, Some(Ok(mut record))) => {
-                // Its timings measure contention, not scaling; figures and tables say so. Over
-                // ranks, the solver judges it from each rank's affinity; here, from the cores.
-                let oversubscribed = self.cores > machine_cores();
-                record
-                    .distribution
-                    .oversubscribed
-                    .get_or_insert(oversubscribed);
-                stored(planned, solver, Outcome::Ran(Box::new(record)))
-            }
-            (true, Some(Err(why))) => failed_record(
-                planned,
-                solver,
-                format!("nlsolve printed a record that does not keep to the schema ({why}); is the solver of another version?"),
-            ),
-            _ => failed_record(
+        Ok(match last_object {
+            Some(object) => printed_record(planned, solver, cores, object),
+            None => failed_record(
                 planned,
                 solver,
                 format!("nlsolve exited with {ended}: {}", self.stderr_tail()),
@@ -492,6 +714,57 @@ impl Running {
         for path in [&self.stdout, &self.stderr, &self.case_file] {
             let _ = std::fs::remove_file(path);
         }
+    }
+}
+
+/// The stored record of a worker's answer: the record, or its error as the failed record of
+/// the same case run as a process says it (`nlsolve run` exits 2 with the error on stderr).
+fn answer_record(planned: &Planned, solver: &Nlsolve, cores: usize, line: &str) -> Stored {
+    use std::os::unix::process::ExitStatusExt;
+    let answer = serde_json::from_str::<Value>(line)
+        .ok()
+        .filter(Value::is_object);
+    let Some(mut answer) = answer else {
+        let message =
+            format!("nlsolve serve answered with a line that is no JSON object: {line:.200}");
+        return failed_record(planned, solver, message);
+    };
+    match answer.get_mut("error").map(Value::take) {
+        Some(Value::String(error)) => {
+            let as_a_process = std::process::ExitStatus::from_raw(i32::from(exit::BAD_INPUT) << 8);
+            failed_record(
+                planned,
+                solver,
+                format!("nlsolve exited with {as_a_process}: nlsolve: {error}"),
+            )
+        }
+        _ => printed_record(planned, solver, cores, answer),
+    }
+}
+
+/// The stored record of the JSON object nlsolve printed for `planned`; it must keep to the
+/// schema.
+fn printed_record(planned: &Planned, solver: &Nlsolve, cores: usize, object: Value) -> Stored {
+    match serde_path_to_error::deserialize::<_, Record<Value>>(object) {
+        Ok(mut record) => {
+            // Its timings measure contention, not scaling; figures and tables say so. Over
+            // ranks, the solver judges it from each rank's affinity; here, from the cores.
+            let oversubscribed = cores > machine_cores();
+            record
+                .distribution
+                .oversubscribed
+                .get_or_insert(oversubscribed);
+            stored(planned, solver, Outcome::Ran(Box::new(record)))
+        }
+        Err(e) => failed_record(
+            planned,
+            solver,
+            format!(
+                "nlsolve printed a record that does not keep to the schema (field `{}`: {}); is the solver of another version?",
+                e.path(),
+                e.inner()
+            ),
+        ),
     }
 }
 
@@ -543,29 +816,6 @@ fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Stored
         Err(_) => Value::Object(planned.point.fields()),
     };
     stored(planned, solver, Outcome::Failed(Failure { case, message }))
-}
-
-fn finish(
-    store: &Store,
-    planned: &Planned,
-    record: Stored,
-    tally: &mut Tally,
-    progress: &mut Progress,
-) -> Result<(), FileError> {
-    let status = record.status();
-    let mut message = record.message().to_string();
-    if !store.save(&planned.key, &record)? {
-        message.push_str("; the stored result of an earlier run is kept");
-    }
-    store.release_lock_file(&planned.key);
-    match status {
-        Status::Ok => tally.ok += 1,
-        Status::Diverged => tally.diverged += 1,
-        Status::Failed => tally.failed += 1,
-    }
-    tally.noisy += usize::from(record.noisy());
-    progress.finished(&planned.point.label(), status, &message);
-    Ok(())
 }
 
 /// Is this process root (uid 0)? Read from /proc, to need no libc binding.

@@ -92,6 +92,19 @@ impl Progress {
         }
     }
 
+    /// A case whose worker died or hung on it runs again in a process of its own.
+    pub fn alone(&mut self, label: &str, why: &str) {
+        let line = format!(
+            "running {label} again in a process of its own: {}",
+            first_line(why)
+        );
+        match self.mode {
+            Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
+            Mode::Lines => errln!("{line}"),
+            Mode::Quiet => {}
+        }
+    }
+
     /// A planned case that this process did not run: another one runs it or just ran it.
     pub fn passed(&mut self, label: &str, why: &str) {
         self.done += 1;

@@ -21,7 +21,7 @@ pub mod owner;
 pub mod table;
 pub mod timestamp;
 
-use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
+use fs::{create_dir, lock_file, read_regular, remove_where, write_through, RECORD_CAP};
 pub use fs::{write_atomically, Fault, FileError};
 
 pub struct Store {
@@ -128,6 +128,18 @@ impl Store {
         self.runs.join(format!("{key}.json"))
     }
 
+    /// The scratch file `name` (one of `SCRATCH`) of a run of `key`.
+    pub fn scratch(&self, key: &str, name: &str) -> PathBuf {
+        self.work_dir().join(format!("{key}.{name}"))
+    }
+
+    /// Where the record of `key` is written before it is renamed into place: one name, as only
+    /// the holder of the key's lock writes it, so the next holder clears a leftover by its name
+    /// rather than by listing the directory (10⁵ records: a listing per point is quadratic).
+    fn partial(&self, key: &str) -> PathBuf {
+        self.runs.join(format!(".{key}.json.partial"))
+    }
+
     /// Where a run whose case sets `vtk_every` writes its VTK frames: `results/<study>/fields/<key>/`.
     pub fn fields(&self, key: &str) -> PathBuf {
         self.table("fields").join(key)
@@ -163,7 +175,8 @@ impl Store {
             }
         }
         create_dir(&self.runs)?;
-        write_atomically(
+        write_through(
+            &self.partial(key),
             &self.path(key),
             format!("{}\n", record.to_value()).as_bytes(),
         )?;
@@ -203,10 +216,10 @@ impl Store {
             Err(TryLockError::WouldBlock) => return Ok(None),
             Err(TryLockError::Error(e)) => return Err(FileError::new("lock", &work.join(name), e)),
         }
-        let scratch = format!("{key}.");
-        remove_where(&work, |n| n.starts_with(&scratch) && !n.ends_with(".lock"));
-        let partial = format!(".{key}.json.");
-        remove_where(&self.runs, |n| n.starts_with(&partial));
+        for name in SCRATCH {
+            let _ = std::fs::remove_file(self.scratch(key, name));
+        }
+        let _ = std::fs::remove_file(self.partial(key));
         Ok(Some(file))
     }
 
@@ -488,6 +501,10 @@ fn checked_fingerprint(text: Option<&str>) -> &str {
         ""
     }
 }
+
+/// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its
+/// case, standard output and standard error.
+pub const SCRATCH: [&str; 3] = ["case.json", "out", "err"];
 
 const IDENTITY_MISSING: &str =
     "it does not carry the `key`, `case` and `solver_version` its key is made of";

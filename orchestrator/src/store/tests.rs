@@ -235,7 +235,7 @@ fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
     let (_dir, store) = scratch();
     std::fs::create_dir_all(store.work_dir()).unwrap();
     let leftover = store.work_dir().join("k.out");
-    let partial = store.runs.join(".k.json.999.partial");
+    let partial = store.runs.join(".k.json.partial");
     std::fs::write(&leftover, "half").unwrap();
     std::fs::write(&partial, "{").unwrap();
     let held = store.lock("k").unwrap().expect("free");
