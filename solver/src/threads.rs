@@ -2,18 +2,27 @@
 //! boundaries make every reduction independent of the thread count, bit for bit.
 
 use crate::case::CaseError;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 /// Nodes per unit of parallel work over a flat array (updates, 1D stencil segments, a rank's
 /// window): fixed, so every value, and every reduction over blocks, is computed the same way
 /// whatever the thread count. 4096 f64 are 32 KiB, an L1 cache's worth.
 pub const BLOCK: usize = 4096;
 
-/// The rayon pool a case runs on.
-pub fn pool(threads: usize) -> Result<rayon::ThreadPool, CaseError> {
-    rayon::ThreadPoolBuilder::new()
+/// The rayon pool a case of `threads` threads runs on: made once per thread count and kept, so
+/// that a process answering case after case (`nlsolve serve`) starts no threads per case.
+pub fn pool(threads: usize) -> Result<Arc<rayon::ThreadPool>, CaseError> {
+    static POOLS: Mutex<BTreeMap<usize, Arc<rayon::ThreadPool>>> = Mutex::new(BTreeMap::new());
+    let mut pools = POOLS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(pool) = pools.get(&threads) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))
+        .map_err(|e| CaseError::new("threads", format!("cannot start {threads} threads: {e}")))?;
+    Ok(Arc::clone(pools.entry(threads).or_insert(Arc::new(pool))))
 }
 
 /// Runs `work` on `pool`, or where the caller is when None.

@@ -513,7 +513,6 @@ impl Pool<'_> {
         if !self.store.save(&planned.key, &record)? {
             message.push_str("; the stored result of an earlier run is kept");
         }
-        self.store.release_lock_file(&planned.key);
         match status {
             Status::Ok => self.tally.ok += 1,
             Status::Diverged => self.tally.diverged += 1,
@@ -594,9 +593,11 @@ impl Running {
     }
 }
 
-/// The cores this process may use (its affinity mask and cgroup quota respected).
+/// The cores this process may use (its affinity mask and cgroup quota respected), read once: it
+/// reads the cgroup's files, and every record asks.
 pub fn machine_cores() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 /// threads × ranks of a case (1 for a refused one).

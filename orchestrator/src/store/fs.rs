@@ -212,6 +212,28 @@ pub fn lock_file(dir: &Path, name: &str) -> Result<File, FileError> {
     }
 }
 
+/// Locks byte `offset` of `file` for writing, as an open file description lock (`F_OFD_SETLK`):
+/// held until every descriptor of this opening is closed, and refused (false) while another
+/// opening, in this process or another, holds it.
+pub fn lock_byte(file: &File, offset: i64) -> io::Result<bool> {
+    use std::os::fd::AsRawFd;
+    // SAFETY: a zeroed `flock` is a valid value of the plain C struct; its fields are set below.
+    let mut lock: libc::flock = unsafe { std::mem::zeroed() };
+    lock.l_type = libc::F_WRLCK as libc::c_short;
+    lock.l_whence = libc::SEEK_SET as libc::c_short;
+    lock.l_start = offset;
+    lock.l_len = 1;
+    // SAFETY: the descriptor is open for as long as `file`, and `lock` outlives the call.
+    if unsafe { libc::fcntl(file.as_raw_fd(), libc::F_OFD_SETLK, &lock) } == 0 {
+        return Ok(true);
+    }
+    let error = io::Error::last_os_error();
+    match error.raw_os_error() {
+        Some(libc::EAGAIN | libc::EACCES) => Ok(false),
+        _ => Err(error),
+    }
+}
+
 /// Removes the files of `dir` whose names `stale` picks (a missing `dir` has none). A `dir`
 /// that is a symbolic link is left alone, and so is what a link inside it points to (the link
 /// itself may go): leftovers are cleared inside the results, never elsewhere.

@@ -2,9 +2,10 @@
 //! through a temporary file and a rename, so that a file is either whole or absent.
 //!
 //! Several `nlstudy` processes may share a store (two terminals, a workstation and a cluster
-//! job): a point runs only under its key's lock (`runs/.work/<key>.lock`, an advisory file lock
-//! the kernel drops when its holder exits, however it exits), a `failed` record never replaces a
-//! result, and a file that is not a whole record is reported and treated as absent, never trusted.
+//! job): a point runs only under its key's lock (a byte of `runs/.work/keys.lock` locked by an
+//! open file description of its own, `F_OFD_SETLK`, which the kernel drops when its holder
+//! exits, however it exits; one file for every key, so a point creates no lock file), a
+//! `failed` record never replaces a result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
 use rayon::prelude::*;
 use schema::record::{Status, Stored};
@@ -183,16 +184,6 @@ impl Store {
         Ok(true)
     }
 
-    /// Removes the lock file of `key` once its point holds a result: taken by the holder of the
-    /// lock, so a process that opened the file before sees the result when it gets the lock,
-    /// and one that comes later makes a new file and sees it too. The lock of a failed point
-    /// stays, so two reruns of it never hold different files.
-    pub fn release_lock_file(&self, key: &str) {
-        if self.status(key).is_some_and(|s| s != Status::Failed) {
-            let _ = std::fs::remove_file(self.work_dir().join(format!("{key}.lock")));
-        }
-    }
-
     /// The status of the stored record of `key`, read now; `None` when absent or not whole.
     pub fn status(&self, key: &str) -> Option<Status> {
         Some(self.stored(key)?.status())
@@ -209,12 +200,11 @@ impl Store {
     /// left behind: its scratch files and its partly written record.
     pub fn lock(&self, key: &str) -> Result<Option<File>, FileError> {
         let work = self.work_dir();
-        let name = format!("{key}.lock");
-        let file = lock_file(&work, &name)?;
-        match file.try_lock() {
-            Ok(()) => {}
-            Err(TryLockError::WouldBlock) => return Ok(None),
-            Err(TryLockError::Error(e)) => return Err(FileError::new("lock", &work.join(name), e)),
+        let file = lock_file(&work, KEY_LOCKS)?;
+        if !fs::lock_byte(&file, key_byte(key))
+            .map_err(FileError::on("lock", &work.join(KEY_LOCKS)))?
+        {
+            return Ok(None);
         }
         for name in SCRATCH {
             let _ = std::fs::remove_file(self.scratch(key, name));
@@ -500,6 +490,18 @@ fn checked_fingerprint(text: Option<&str>) -> &str {
     } else {
         ""
     }
+}
+
+/// The file whose bytes are the keys' locks, in the work directory.
+const KEY_LOCKS: &str = "keys.lock";
+
+/// The byte of `KEY_LOCKS` that locks `key`: its 64-bit FNV-1a hash within 62 bits (a lock's
+/// offset is a signed 64-bit number); two keys share a byte once in 10¹⁸ pairs, when one waits.
+fn key_byte(key: &str) -> i64 {
+    let hash = key.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |hash, byte| {
+        (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    (hash >> 2) as i64
 }
 
 /// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its

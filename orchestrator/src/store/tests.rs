@@ -246,30 +246,21 @@ fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
     assert!(store.lock("k").unwrap().is_some(), "released with its file");
 }
 
+/// Every key's lock is a byte of one file: locking a thousand keys creates one file, each is
+/// held by its own opening (in this process as in another) and released when that closes.
 #[test]
-fn a_lock_file_goes_once_its_point_holds_a_result_and_stays_while_it_failed() {
+fn key_locks_are_bytes_of_one_file_each_held_by_its_own_opening() {
     let (_dir, store) = scratch();
-    let lock_path = |key: &str| store.work_dir().join(format!("{key}.lock"));
-    let (done, ok) = keyed(8, "ok");
-    let (broken, failed) = keyed(9, "failed");
-    for (key, record) in [(&done, ok), (&broken, failed)] {
-        let held = store.lock(key).unwrap().expect("free");
-        assert!(store.save(key, &typed(&record)).unwrap());
-        store.release_lock_file(key);
-        drop(held);
-    }
-    assert!(
-        !lock_path(&done).exists(),
-        "a stored result's lock file stays"
-    );
-    assert!(
-        lock_path(&broken).exists(),
-        "a failed point's lock file is its reruns'"
-    );
-    // A later process takes a new lock file and finds the result stored.
-    let again = store.lock(&done).unwrap().expect("free");
-    assert_eq!(store.status(&done), Some(Status::Ok));
-    drop(again);
+    let keys: Vec<String> = (0..1000).map(|k| format!("{k:032x}")).collect();
+    let held: Vec<_> = keys
+        .iter()
+        .map(|key| store.lock(key).unwrap().expect("free"))
+        .collect();
+    let files: Vec<_> = std::fs::read_dir(store.work_dir()).unwrap().collect();
+    assert_eq!(files.len(), 1, "one lock file for every key");
+    assert!(keys.iter().all(|key| store.lock(key).unwrap().is_none()));
+    drop(held);
+    assert!(keys.iter().all(|key| store.lock(key).unwrap().is_some()));
 }
 
 #[test]

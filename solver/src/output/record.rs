@@ -93,8 +93,8 @@ pub fn provenance_of_this_run(threads: usize, ranks: usize) -> Provenance {
         solver_version: env!("CARGO_PKG_VERSION").to_string(),
         fingerprint: FINGERPRINT.to_string(),
         git_revision: option_env!("NLSOLVE_GIT_REVISION").map(str::to_string),
-        host: read_trimmed("/proc/sys/kernel/hostname").unwrap_or_else(|| "unknown".into()),
-        cpu: cpu_model().unwrap_or_else(|| "unknown".into()),
+        host: this_machine().host.clone(),
+        cpu: this_machine().cpu.clone(),
         threads,
         ranks,
         timestamp: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
@@ -102,7 +102,7 @@ pub fn provenance_of_this_run(threads: usize, ranks: usize) -> Provenance {
             .name()
             .to_string(),
         dirty_tree: option_env!("NLSOLVE_GIT_REVISION").is_some_and(|r| r.ends_with("-dirty")),
-        cores_online: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        cores_online: crate::methods::resources::cores(),
         load_start: None,
         load_end: None,
         noisy: false,
@@ -111,6 +111,21 @@ pub fn provenance_of_this_run(threads: usize, ranks: usize) -> Provenance {
         *START.lock().unwrap_or_else(|e| e.into_inner()),
         load_now(threads * ranks),
     )
+}
+
+/// What a process reads of its machine once: its host name and CPU model (/proc/cpuinfo is
+/// long, and a worker writes a record per case).
+struct ThisMachine {
+    host: String,
+    cpu: String,
+}
+
+fn this_machine() -> &'static ThisMachine {
+    static MACHINE: std::sync::OnceLock<ThisMachine> = std::sync::OnceLock::new();
+    MACHINE.get_or_init(|| ThisMachine {
+        host: read_trimmed("/proc/sys/kernel/hostname").unwrap_or_else(|| "unknown".into()),
+        cpu: cpu_model().unwrap_or_else(|| "unknown".into()),
+    })
 }
 
 fn read_trimmed(path: &str) -> Option<String> {
