@@ -527,6 +527,55 @@ fn a_worker_killed_mid_case_is_replaced_and_its_case_runs_again() {
     assert!(solvers_of(&scratch).is_empty());
 }
 
+/// A worker that holds more than `--worker-memory` MiB once it has answered is replaced: with
+/// a bound below a fresh worker's size, every case gets a new worker; with the default, one
+/// worker answers every case of a study run one case at a time.
+#[test]
+fn a_worker_past_its_memory_bound_is_replaced() {
+    let scratch = Scratch::new("worker-memory", &short_study("grown", &[16, 20, 24]));
+    let starts = scratch.dir.join("serve-starts");
+    let solver = executable(
+        &scratch,
+        "nlsolve-counted",
+        &format!(
+            "[ \"$1\" = serve ] && echo started >> '{}'\nexec '{}' \"$@\"\n",
+            starts.display(),
+            nonlocal_study::binary("nlsolve").display()
+        ),
+    );
+    let started = |extra: &[&str]| {
+        let _ = std::fs::remove_file(&starts);
+        let mut args = vec!["--no-collect", "--force", "--solver", &solver];
+        args.extend_from_slice(extra);
+        let out = scratch.nlstudy("run", &args);
+        assert!(out.status.success(), "{}", text(&out));
+        assert_whole(&scratch, "grown", 6, "every point on workers");
+        std::fs::read_to_string(&starts).unwrap().lines().count()
+    };
+    assert_eq!(started(&["--worker-memory", "1"]), 6);
+    assert_eq!(started(&[]), 1);
+}
+
+/// A solver that does not know `serve` (one from before it): its first worker exits 2 without
+/// an answer, and every point runs as a process of its own, stored `ok`, with no message.
+#[test]
+fn a_solver_that_does_not_serve_runs_every_case_as_a_process() {
+    let scratch = Scratch::new("no-serve", &short_study("old", &[16, 20, 24]));
+    let solver = executable(
+        &scratch,
+        "nlsolve-old",
+        &format!(
+            "[ \"$1\" = serve ] && {{ echo \"error: unrecognized subcommand 'serve'\" >&2; exit 2; }}\n\
+             exec '{}' \"$@\"\n",
+            nonlocal_study::binary("nlsolve").display()
+        ),
+    );
+    let out = scratch.nlstudy("run", &["--no-collect", "--solver", &solver]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(!text(&out).contains("process of its own"), "{}", text(&out));
+    assert_whole(&scratch, "old", 6, "an old solver");
+}
+
 /// The records a study's points get on workers are those they get in processes of their own
 /// (`--isolate`), bit for bit, but for what measures the run itself: its timings, peak memory,
 /// when it ran and the machine's load.

@@ -229,6 +229,10 @@ pub struct RunArgs {
     /// VTK files always do; by default the others run on `nlsolve serve` workers that stay up.
     #[arg(long)]
     pub isolate: bool,
+    /// A worker holding more than this many MiB once it has answered a case is replaced, so
+    /// that memory a case left behind neither counts in the next case's peak nor accumulates.
+    #[arg(long, value_name = "MIB", default_value_t = crate::run::worker::MEMORY_BOUND_MIB)]
+    pub worker_memory: u64,
     /// No progress output.
     #[arg(long, short)]
     pub quiet: bool,

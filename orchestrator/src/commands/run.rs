@@ -39,7 +39,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     store.clear_abandoned_outputs()?;
     let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
     let mut tally = Tally::default();
-    let mut workers = crate::run::worker::Workers::new(store.work_dir());
+    let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
     // Runs the planned points not stored, counting what happened into `tally`.
     let mut run_on_pool = |planned: &[Planned]| -> Result<bool, crate::store::Fault> {
         let (to_run, copies) = counts(planned);

@@ -19,10 +19,11 @@ use std::time::Duration;
 
 /// Lines of a worker's standard error kept for a failed record.
 const STDERR_LINES: usize = 20;
-/// The resident memory past which a worker that answered is replaced (a fresh one holds ~5 MB):
-/// memory a case freed but the allocator kept would count in the next cases'
-/// `peak_memory_bytes`, which a process of its own would not, and a leak would grow unbounded.
-const MEMORY_BOUND: u64 = 64 << 20;
+/// The resident memory, in MiB, past which a worker that answered is replaced by default (a
+/// fresh one holds about 8 MiB): memory a case freed but the allocator kept would count in the
+/// next cases' `peak_memory_bytes`, which a process of its own would not, and a leak would grow
+/// without bound.
+pub const MEMORY_BOUND_MIB: u64 = 64;
 
 /// A line a worker printed (`None`: its standard output closed).
 struct Said {
@@ -39,6 +40,8 @@ pub struct Workers {
     /// Where workers run: the store's work directory, which tells whose workers they are
     /// (`/proc/<pid>/cwd`); a worker reads and writes no file.
     dir: PathBuf,
+    /// Resident bytes past which a worker that answered is replaced.
+    memory_bound: u64,
     /// The solver turned out not to serve (one from before `serve`, or a wrapper script that
     /// knows only `run`): every case runs as a process of its own from then on.
     pub unsupported: bool,
@@ -62,7 +65,8 @@ pub enum Served {
 }
 
 impl Workers {
-    pub fn new(dir: PathBuf) -> Workers {
+    /// Workers running in `dir`, replaced once they hold more than `memory_bound_mib` MiB.
+    pub fn new(dir: PathBuf, memory_bound_mib: u64) -> Workers {
         let (said, heard) = channel();
         Workers {
             said,
@@ -70,6 +74,7 @@ impl Workers {
             idle: Vec::new(),
             started: 0,
             dir,
+            memory_bound: memory_bound_mib << 20,
             unsupported: false,
         }
     }
@@ -88,7 +93,7 @@ impl Workers {
 
     /// Takes back a worker that answered: kept for the next case unless it holds too much.
     pub fn give_back(&mut self, mut worker: Worker) {
-        if resident_memory(worker.child.id()).is_some_and(|bytes| bytes > MEMORY_BOUND) {
+        if resident_memory(worker.child.id()).is_some_and(|bytes| bytes > self.memory_bound) {
             worker.end();
         } else {
             self.idle.push(worker);
