@@ -25,6 +25,13 @@ pub fn pool(threads: usize) -> Result<Arc<rayon::ThreadPool>, CaseError> {
     Ok(Arc::clone(pools.entry(threads).or_insert(Arc::new(pool))))
 }
 
+/// The cores this process may use (its affinity mask and cgroup quota), read once: it reads
+/// the cgroup's files, and a worker asks for every case.
+pub fn cores() -> usize {
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
 /// Runs `work` on `pool`, or where the caller is when None.
 pub fn on<T: Send>(pool: Option<&rayon::ThreadPool>, work: impl FnOnce() -> T + Send) -> T {
     match pool {

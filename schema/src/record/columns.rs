@@ -196,6 +196,8 @@ pub fn every_field() -> Stored {
         setup_s: 1e-3,
         solve_s: 1e-2,
         step_s: 1e-3,
+        resumed_from_step: Some(4),
+        solve_s_segments: Some(vec![4e-3, 6e-3]),
         error_l2: Some(1e-8),
         error_l2_norm: Some(1e-4),
         error_max: Some(2e-4),

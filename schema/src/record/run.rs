@@ -25,6 +25,14 @@ pub struct Record<C = Case> {
     pub setup_s: f64,
     pub solve_s: f64,
     pub step_s: f64,
+    /// The step this run resumed from, from a checkpoint (`nlsolve run --checkpoint`); absent
+    /// for a run that started at step 0. Its numbers are those of a run never stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resumed_from_step: Option<usize>,
+    /// The time loop's seconds in each segment of a resumed run, the first up to its first
+    /// checkpoint read back (`solve_s` is their sum).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_s_segments: Option<Vec<f64>>,
     /// eᵏ = h^d Σᵢ |w(tᵏ, xᵢ) − ûᵢᵏ|² at the final time (\[JD], eq. A.3): the *squared*
     /// discrete L² error, as the contract names it.
     pub error_l2: Option<f64>,
@@ -114,6 +122,8 @@ impl Record {
             setup_s: 0.0,
             solve_s: 0.0,
             step_s: 0.0,
+            resumed_from_step: None,
+            solve_s_segments: None,
             error_l2: None,
             error_l2_norm: None,
             error_max: None,

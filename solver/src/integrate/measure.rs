@@ -52,6 +52,8 @@ pub(crate) fn measure(
         solve_s: ranks.max(timing.solve_seconds),
         step_s: ranks.max(median(timing.step_seconds.clone())),
         steps_done: timing.steps_done,
+        resumed_from_step: timing.resumed_from_step,
+        segments_s: timing.segments_s.clone(),
         diverged_at: timing.diverged_at,
         divergence_bound: stepping.divergence_bound,
         peak_max_abs: ranks.max(timing.peak_max_abs),

@@ -5,6 +5,7 @@
 //! (`time_step`).
 
 pub mod amplification;
+pub mod checkpoint;
 pub mod euler;
 pub mod integrator;
 pub mod measure;

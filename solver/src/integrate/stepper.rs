@@ -1,7 +1,10 @@
 //! What every time integrator of u' = L u + b(t) shares: the right-hand side with its operator
 //! workspace, the `Stepper` interface, and the timed run of a stepper with its error bookkeeping.
 
-use super::timed::{is_sampled, timed_steps_observed, Stepping, Trajectory, MAX_TIMED_STEPS};
+use super::checkpoint::{self, Carried};
+use super::timed::{
+    is_sampled, timed_steps_observed, Checkpoints, Stepping, Trajectory, MAX_TIMED_STEPS,
+};
 use crate::operator::LinearOperator;
 use crate::output::diagnostics;
 use crate::output::record::ImplicitSolves;
@@ -10,6 +13,7 @@ use crate::problem::{manufactured_solution, Source};
 use crate::threads::BLOCK;
 use rayon::prelude::*;
 use std::borrow::Cow;
+use std::cell::{Cell, RefCell};
 
 /// One step of a time integrator.
 pub trait Stepper {
@@ -20,6 +24,12 @@ pub trait Stepper {
     fn solves(&self) -> ImplicitSolves {
         ImplicitSolves::default()
     }
+
+    /// Adds what the stepper carries from step to step, beyond the field, to a checkpoint.
+    fn carry(&self, _: &mut Carried) {}
+
+    /// Takes back what `carry` saved, in a run resumed from a checkpoint.
+    fn take_back(&mut self, _: &Carried) {}
 }
 
 /// The right-hand side f(t, u) = L u + b(t) on some ranks, with b(t) = α(t) φ + β(t) ψ (the
@@ -91,21 +101,54 @@ pub fn integrate(
             ranks.sum(local)
         })
     };
-    let mut error_total = squared_error(&u, 0.0);
-    let mut comm_seconds = Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS));
+    // Shared by the loop's closures and the checkpoints' parts.
+    let error_total = Cell::new(squared_error(&u, 0.0));
+    let comm_seconds = RefCell::new(Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS)));
+    let stepper = RefCell::new(stepper);
+    let checkpointer = checkpoint::take();
+    if let Some(resume) = checkpointer.as_ref().and_then(|c| c.resume.as_ref()) {
+        u.copy_from_slice(
+            resume
+                .values("field")
+                .expect("a checkpoint holds its field"),
+        );
+        error_total.set(resume.number("error_total").unwrap_or(0.0));
+        *comm_seconds.borrow_mut() = resume.values("comm_seconds").unwrap_or(&[]).to_vec();
+        stepper.borrow_mut().take_back(resume);
+    }
+    let mut carry = |u: &Vec<f64>, carried: &mut Carried| {
+        carried.put("field", u.clone());
+        carried.put_number("error_total", error_total.get());
+        carried.put("comm_seconds", comm_seconds.borrow().clone());
+        stepper.borrow().carry(carried);
+    };
+    let checkpoints = checkpointer.map(|checkpointer| Checkpoints {
+        checkpointer,
+        carry: &mut carry,
+    });
     let (timing, observed) = timed_steps_observed(
         &mut u,
         stepping,
         |u| Cow::Borrowed(u),
         |u, k| {
             let comm_before = ranks.exchange.seconds();
-            let max_abs = stepper.step(u, k as f64 * dt, dt);
+            let max_abs = stepper.borrow_mut().step(u, k as f64 * dt, dt);
             if is_sampled(stepping.steps, k) {
-                comm_seconds.push(ranks.exchange.seconds() - comm_before);
+                comm_seconds
+                    .borrow_mut()
+                    .push(ranks.exchange.seconds() - comm_before);
             }
             max_abs
         },
-        |u, steps_done| error_total += squared_error(u, steps_done as f64 * dt),
+        |u, steps_done| {
+            error_total.set(error_total.get() + squared_error(u, steps_done as f64 * dt))
+        },
+        checkpoints,
+    );
+    let (error_total, comm_seconds, stepper) = (
+        error_total.get(),
+        comm_seconds.into_inner(),
+        stepper.into_inner(),
     );
     let tracked = total_error_source.is_some() && timing.diverged_at.is_none();
     Trajectory {

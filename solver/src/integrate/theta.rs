@@ -13,6 +13,7 @@
 //!     rtol = 10⁻² (2π dt)^p / N,   clamped to [10⁻¹³, 10⁻⁶],
 //! keeps it a hundred times below the time error. A case's `rtol` overrides it.
 
+use super::checkpoint::Carried;
 use super::stepper::{Rhs, Stepper};
 use crate::case::{Integrator, Krylov};
 use crate::linalg::bicgstab::BiCgStab;
@@ -162,6 +163,21 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
             self.unconverged += 1;
         }
         self.rhs.ranks.max_abs(u)
+    }
+
+    fn carry(&self, carried: &mut Carried) {
+        carried.put_count("theta.solves", self.solves);
+        carried.put_count("theta.iterations", self.iterations);
+        carried.put_count("theta.most_iterations", self.most_iterations);
+        carried.put_count("theta.unconverged", self.unconverged);
+    }
+
+    fn take_back(&mut self, carried: &Carried) {
+        let count = |name| carried.count(name).unwrap_or(0);
+        self.solves = count("theta.solves");
+        self.iterations = count("theta.iterations");
+        self.most_iterations = count("theta.most_iterations");
+        self.unconverged = count("theta.unconverged");
     }
 
     fn solves(&self) -> ImplicitSolves {

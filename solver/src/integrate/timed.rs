@@ -2,11 +2,13 @@
 //! the step it happens at (every step returns max |u|, found in the update pass at no extra
 //! cost), and untimed observers (error bookkeeping, c_tot(t), frames) kept out of the timings.
 
+use super::checkpoint::{Carried, Checkpointer};
 use crate::case::Case;
 use crate::output::diagnostics::{self, MassSampling, MassSeries, Schedule};
 use crate::output::field::Frame;
 use crate::output::record::ImplicitSolves;
 use std::borrow::Cow;
+use std::cell::RefCell;
 use std::time::Instant;
 
 /// Most step times kept for the median: longer runs time every k-th step.
@@ -86,6 +88,10 @@ pub struct Timing {
     pub step_seconds: Vec<f64>,
     /// The largest max |u| of any step (finite ones): how far the run grew, diverged or not.
     pub peak_max_abs: f64,
+    /// The step the run resumed from, from a checkpoint (0: it started at step 0).
+    pub resumed_from_step: usize,
+    /// The solve time of each segment of a resumed run (empty for a run in one piece).
+    pub segments_s: Vec<f64>,
 }
 
 /// Is step k of `steps` one whose time is kept (every k-th in runs longer than `MAX_TIMED_STEPS`)?
@@ -93,16 +99,26 @@ pub(crate) fn is_sampled(steps: usize, k: usize) -> bool {
     k.is_multiple_of(steps.div_ceil(MAX_TIMED_STEPS).max(1))
 }
 
+/// A timed loop's checkpoints: the process's checkpointer (`checkpoint::take`) and the
+/// caller's parts of what the run carries from step to step, its field first of all. The
+/// caller has taken its parts back from `checkpointer.resume` before the loop starts.
+pub(crate) struct Checkpoints<'a, S> {
+    pub checkpointer: Checkpointer,
+    pub carry: &'a mut dyn FnMut(&S, &mut Carried),
+}
+
 /// The time loop every solver shares: up to `steps` timed calls of `step(state, k)`, which
 /// advances from step k and returns max |u| after it; the loop ends at the first step whose max
 /// |u| exceeds `bound` or is not finite (whatever the bound). `after(state, k + 1)` runs untimed
-/// after every step that did not diverge (error bookkeeping).
+/// after every step that did not diverge (error bookkeeping). With `checkpoints`, a resumed run
+/// starts at the checkpoint's step with its timings, and each due step writes a checkpoint.
 pub(crate) fn timed_steps<S>(
     state: &mut S,
     steps: usize,
     bound: f64,
     mut step: impl FnMut(&mut S, usize) -> f64,
     mut after: impl FnMut(&S, usize),
+    mut checkpoints: Option<Checkpoints<S>>,
 ) -> Timing {
     let mut timing = Timing {
         steps_done: 0,
@@ -110,8 +126,17 @@ pub(crate) fn timed_steps<S>(
         solve_seconds: 0.0,
         step_seconds: Vec::with_capacity(steps.min(MAX_TIMED_STEPS)),
         peak_max_abs: 0.0,
+        resumed_from_step: 0,
+        segments_s: Vec::new(),
     };
-    for k in 0..steps {
+    if let Some(resume) = checkpoints
+        .as_ref()
+        .and_then(|c| c.checkpointer.resume.as_ref())
+    {
+        timing.take_back(resume);
+    }
+    let segment_started = timing.solve_seconds;
+    for k in timing.steps_done..steps {
         let started = Instant::now();
         let max_abs = step(state, k);
         let seconds = started.elapsed().as_secs_f64();
@@ -130,8 +155,48 @@ pub(crate) fn timed_steps<S>(
             break;
         }
         after(state, k + 1);
+        if let Some(Checkpoints {
+            checkpointer,
+            carry,
+        }) = checkpoints.as_mut()
+        {
+            if k + 1 < steps && checkpointer.due(k + 1) {
+                let mut carried = Carried::at(k + 1);
+                timing.carry(&mut carried, segment_started);
+                carry(state, &mut carried);
+                checkpointer.save(&carried);
+            }
+        }
+    }
+    if timing.resumed_from_step > 0 {
+        timing
+            .segments_s
+            .push(timing.solve_seconds - segment_started);
     }
     timing
+}
+
+impl Timing {
+    /// Adds the timings so far to a checkpoint: this segment's time joins the earlier ones'.
+    fn carry(&self, carried: &mut Carried, segment_started: f64) {
+        carried.put_number("timing.solve_seconds", self.solve_seconds);
+        carried.put("timing.step_seconds", self.step_seconds.clone());
+        carried.put_number("timing.peak_max_abs", self.peak_max_abs);
+        carried.put_count("timing.resumed_from_step", self.resumed_from_step);
+        let mut segments = self.segments_s.clone();
+        segments.push(self.solve_seconds - segment_started);
+        carried.put("timing.segments_s", segments);
+    }
+
+    /// The timings of the run up to the checkpoint it resumes from.
+    fn take_back(&mut self, resume: &Carried) {
+        self.steps_done = resume.step;
+        self.resumed_from_step = resume.step;
+        self.solve_seconds = resume.number("timing.solve_seconds").unwrap_or(0.0);
+        self.step_seconds = resume.values("timing.step_seconds").unwrap_or(&[]).to_vec();
+        self.peak_max_abs = resume.number("timing.peak_max_abs").unwrap_or(0.0);
+        self.segments_s = resume.values("timing.segments_s").unwrap_or(&[]).to_vec();
+    }
 }
 
 /// What the untimed observers of a run kept: c_tot(t) and the field's frames.
@@ -141,23 +206,25 @@ pub(crate) struct Observed {
 }
 
 /// `timed_steps` over `stepping`'s steps, also sampling c_tot = h^d Σ field(state) and frames of
-/// `field(state)` (in lattice order) when the case asks for them.
+/// `field(state)` (in lattice order) when the case asks for them; their series so far go into
+/// the checkpoints, and a resumed run takes them back.
 pub(crate) fn timed_steps_observed<S>(
     state: &mut S,
     stepping: &Stepping,
     field: impl Fn(&S) -> Cow<'_, [f64]>,
     step: impl FnMut(&mut S, usize) -> f64,
     mut after: impl FnMut(&S, usize),
+    checkpoints: Option<Checkpoints<S>>,
 ) -> (Timing, Observed) {
     let mass = |state: &S| diagnostics::total_mass(&field(state), stepping.volume);
-    let mut c_tot = MassSampling::start(
+    let c_tot = MassSampling::start(
         stepping.diagnostics_every,
         stepping.dt,
         stepping.steps,
         mass(state),
     );
     let mut frames = Vec::new();
-    let mut frame_schedule = stepping.vtk_every.map(|every| {
+    let frame_schedule = stepping.vtk_every.map(|every| {
         let schedule = Schedule::new(every, stepping.dt, stepping.steps);
         frames.push(Frame {
             time: 0.0,
@@ -165,6 +232,31 @@ pub(crate) fn timed_steps_observed<S>(
         });
         schedule
     });
+    // Shared by the observer after each step and the checkpoints' parts.
+    let observers = RefCell::new((c_tot, frames, frame_schedule));
+    if let Some(resume) = checkpoints
+        .as_ref()
+        .and_then(|c| c.checkpointer.resume.as_ref())
+    {
+        take_back_observers(&mut observers.borrow_mut(), resume);
+    }
+    let mut carry_observed;
+    let checkpoints = match checkpoints {
+        Some(Checkpoints {
+            checkpointer,
+            carry,
+        }) => {
+            carry_observed = |state: &S, carried: &mut Carried| {
+                carry_observers(&observers.borrow(), carried);
+                carry(state, carried);
+            };
+            Some(Checkpoints {
+                checkpointer,
+                carry: &mut carry_observed,
+            })
+        }
+        None => None,
+    };
     let timing = timed_steps(
         state,
         stepping.steps,
@@ -172,7 +264,8 @@ pub(crate) fn timed_steps_observed<S>(
         step,
         |state, k| {
             after(state, k);
-            MassSampling::observe_if(&mut c_tot, k, || mass(state));
+            let (c_tot, frames, frame_schedule) = &mut *observers.borrow_mut();
+            MassSampling::observe_if(c_tot, k, || mass(state));
             if let Some(schedule) = frame_schedule.as_mut() {
                 if schedule.due(k) {
                     frames.push(Frame {
@@ -182,9 +275,57 @@ pub(crate) fn timed_steps_observed<S>(
                 }
             }
         },
+        checkpoints,
     );
+    let (c_tot, frames, _) = observers.into_inner();
     let c_tot = c_tot.map(|sampling| sampling.series);
     (timing, Observed { c_tot, frames })
+}
+
+/// The observers' state: the c_tot sampling, the frames, and the frames' schedule.
+type Observers = (Option<MassSampling>, Vec<Frame>, Option<Schedule>);
+
+fn carry_observers((c_tot, frames, _): &Observers, carried: &mut Carried) {
+    if let Some(sampling) = c_tot {
+        carried.put("c_tot.time", sampling.series.time.clone());
+        carried.put("c_tot.c_tot", sampling.series.c_tot.clone());
+    }
+    carried.put("frames.time", frames.iter().map(|f| f.time).collect());
+    carried.put(
+        "frames.values",
+        frames
+            .iter()
+            .flat_map(|f| f.values.iter().copied())
+            .collect(),
+    );
+}
+
+fn take_back_observers((c_tot, frames, schedule): &mut Observers, resume: &Carried) {
+    if let (Some(sampling), Some(time), Some(values)) = (
+        c_tot.as_mut(),
+        resume.values("c_tot.time"),
+        resume.values("c_tot.c_tot"),
+    ) {
+        sampling.series.time = time.to_vec();
+        sampling.series.c_tot = values.to_vec();
+        sampling.resume(time.len() - 1);
+    }
+    if let (Some(schedule), Some(times), Some(values)) = (
+        schedule.as_mut(),
+        resume.values("frames.time"),
+        resume.values("frames.values"),
+    ) {
+        let len = values.len() / times.len().max(1);
+        *frames = times
+            .iter()
+            .zip(values.chunks(len.max(1)))
+            .map(|(&time, values)| Frame {
+                time,
+                values: values.to_vec(),
+            })
+            .collect();
+        schedule.resume(times.len() - 1);
+    }
 }
 
 #[cfg(test)]
@@ -194,7 +335,15 @@ mod tests {
     /// Steps that return the given max |u|, in turn: where does the loop stop?
     fn diverged_at(maxima: &[f64], bound: f64) -> Option<usize> {
         let mut state = 0;
-        timed_steps(&mut state, maxima.len(), bound, |_, k| maxima[k], |_, _| {}).diverged_at
+        timed_steps(
+            &mut state,
+            maxima.len(),
+            bound,
+            |_, k| maxima[k],
+            |_, _| {},
+            None,
+        )
+        .diverged_at
     }
 
     #[test]

@@ -14,8 +14,9 @@ use crate::case::ValidCase;
 use crate::case::{positive, refuse_given, Case, CaseError, Problem, SourceMode};
 use crate::discretization::grid::Lattice;
 use crate::integrate::amplification::{amplification, middle_node, positivity};
+use crate::integrate::checkpoint::{self, Carried, Checkpointer};
 use crate::integrate::stepper::Stepper;
-use crate::integrate::timed::{timed_steps_observed, Stepping, Trajectory};
+use crate::integrate::timed::{timed_steps_observed, Checkpoints, Stepping, Trajectory};
 use crate::operator::InstructionSet;
 use crate::output::diagnostics;
 use crate::output::outcome::Outcome;
@@ -211,6 +212,9 @@ impl ExplicitFd {
 
     fn integrate(&self, u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         let mut state = (u, vec![0.0; self.grid.nodes()]);
+        let checkpointer = resumed(&mut state.0);
+        let mut carry =
+            |(u, _): &(Vec<f64>, Vec<f64>), carried: &mut Carried| carried.put("field", u.clone());
         let (timing, observed) = timed_steps_observed(
             &mut state,
             stepping,
@@ -221,9 +225,23 @@ impl ExplicitFd {
                 max_abs
             },
             |_, _| {},
+            checkpointer.map(|checkpointer| Checkpoints {
+                checkpointer,
+                carry: &mut carry,
+            }),
         );
         Trajectory::observed(state.0, timing, observed)
     }
+}
+
+/// The process's checkpointer, if any (`checkpoint::take`), with the field `u` of the run it
+/// resumes from put in place: the grid methods carry nothing else from step to step.
+fn resumed(u: &mut [f64]) -> Option<Checkpointer> {
+    let checkpointer = checkpoint::take()?;
+    if let Some(field) = checkpointer.resume.as_ref().and_then(|c| c.values("field")) {
+        u.copy_from_slice(field);
+    }
+    Some(checkpointer)
 }
 
 /// The rows below and above row y of a row-major n × n field (in 1D, n × 1), with `zero_row`
@@ -468,12 +486,18 @@ impl Adi {
     /// Steps forward from u, in the shared timed loop.
     fn integrate(&self, mut u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         let mut workspace = self.workspace();
+        let checkpointer = resumed(&mut u);
+        let mut carry = |u: &Vec<f64>, carried: &mut Carried| carried.put("field", u.clone());
         let (timing, observed) = timed_steps_observed(
             &mut u,
             stepping,
             |u| Cow::Borrowed(u),
             |u, _| self.step(u, &mut workspace),
             |_, _| {},
+            checkpointer.map(|checkpointer| Checkpoints {
+                checkpointer,
+                carry: &mut carry,
+            }),
         );
         Trajectory::observed(u, timing, observed)
     }

@@ -41,17 +41,10 @@ pub struct Machine {
 impl Machine {
     pub fn now() -> Machine {
         Machine {
-            cores: cores(),
+            cores: crate::threads::cores(),
             available: available_memory(),
         }
     }
-}
-
-/// The cores this process may use (its affinity mask and cgroup quota), read once: it reads
-/// the cgroup's files, and a worker asks for every case.
-pub fn cores() -> usize {
-    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
 /// Refuses a case this machine cannot run: too many threads for its cores, or more memory than

@@ -93,6 +93,11 @@ impl Schedule {
         }
     }
 
+    /// The schedule of a run resumed after `reached` outputs (t = 0's not counted).
+    pub fn resume(&mut self, reached: usize) {
+        self.reached = reached;
+    }
+
     /// Is step k due? It counts as reached when it is.
     pub fn due(&mut self, k: usize) -> bool {
         let next_output = (self.reached + 1) as f64 * self.interval;
@@ -129,6 +134,11 @@ impl MassSampling {
                 c_tot: vec![c_tot0],
             },
         })
+    }
+
+    /// The sampling of a run resumed after `reached` samples (t = 0's not counted).
+    pub fn resume(&mut self, reached: usize) {
+        self.schedule.resume(reached);
     }
 
     /// Adds c_tot after step k if the sampling exists and step k is due; `c_tot` is evaluated

@@ -25,6 +25,9 @@ pub(crate) struct Measured {
     pub solve_s: f64,
     pub step_s: f64,
     pub steps_done: usize,
+    /// The step the run resumed from (0: from the start) and each segment's solve time.
+    pub resumed_from_step: usize,
+    pub segments_s: Vec<f64>,
     pub diverged_at: Option<usize>,
     pub divergence_bound: f64,
     /// The largest max |u| of any step.
@@ -86,6 +89,8 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         amplification: measured.amplification,
         positivity: measured.positivity,
         steps_done: measured.steps_done,
+        resumed_from_step: (measured.resumed_from_step > 0).then_some(measured.resumed_from_step),
+        solve_s_segments: (measured.resumed_from_step > 0).then_some(measured.segments_s),
         setup_s: measured.setup_s,
         solve_s: measured.solve_s,
         step_s: measured.step_s,
@@ -152,6 +157,8 @@ mod tests {
             solve_s: 0.0,
             step_s: 0.0,
             steps_done: 1,
+            resumed_from_step: 0,
+            segments_s: Vec::new(),
             diverged_at: None,
             divergence_bound: 1e6,
             peak_max_abs: 1.0,

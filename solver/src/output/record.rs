@@ -102,7 +102,7 @@ pub fn provenance_of_this_run(threads: usize, ranks: usize) -> Provenance {
             .name()
             .to_string(),
         dirty_tree: option_env!("NLSOLVE_GIT_REVISION").is_some_and(|r| r.ends_with("-dirty")),
-        cores_online: crate::methods::resources::cores(),
+        cores_online: crate::threads::cores(),
         load_start: None,
         load_end: None,
         noisy: false,

@@ -77,6 +77,22 @@ struct RunArgs {
     /// case's `vtk_every` asks for, else the final field only, and u.pvd listing them by time.
     #[arg(long, value_name = "DIR")]
     write_vtk: Option<PathBuf>,
+    /// Checkpoint the time loop into FILE (written beside it, then renamed over it) at the
+    /// periods below and on SIGTERM, which then ends the run with exit status 143 and no
+    /// record; a run started where FILE holds a checkpoint of the same case, build and rank
+    /// count resumes from it, with the record of a run never stopped (`resumed_from_step`).
+    /// FILE is removed once the record is written. One process only.
+    #[arg(long, value_name = "FILE")]
+    checkpoint: Option<PathBuf>,
+    /// With --checkpoint: also every N steps.
+    #[arg(long, value_name = "N", requires = "checkpoint")]
+    checkpoint_every_steps: Option<usize>,
+    /// With --checkpoint: also once SECONDS of wall time have passed since the last one.
+    #[arg(long, value_name = "SECONDS", requires = "checkpoint")]
+    checkpoint_every_seconds: Option<f64>,
+    /// With --checkpoint: keep FILE after the record is written.
+    #[arg(long, requires = "checkpoint")]
+    keep_checkpoint: bool,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -236,6 +252,9 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
             "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
         ));
     }
+    if let Some(path) = &args.checkpoint {
+        start_checkpoints(args, path, &case, world.is_some())?;
+    }
     let outcome = match world {
         Some(world) => ranks::run(
             world,
@@ -261,7 +280,59 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     let line = serde_json::to_string(&outcome.record)
         .map_err(|e| ErrorExit::Output(format!("cannot write the record: {e}")))?;
     print_line(&line, "the record")?;
+    if let (Some(path), false) = (&args.checkpoint, args.keep_checkpoint) {
+        let _ = std::fs::remove_file(path);
+    }
     note(&summary(&outcome.record));
+    Ok(())
+}
+
+/// Sets up the run's checkpoints (`--checkpoint`): what to resume from, when to write, and
+/// SIGTERM as the request to write one and stop. A checkpoint file of another run is refused
+/// on stderr and the run starts at step 0.
+fn start_checkpoints(
+    args: &RunArgs,
+    path: &std::path::Path,
+    case: &ValidCase,
+    over_ranks: bool,
+) -> Result<(), ErrorExit> {
+    use solver::integrate::checkpoint::{self, Identity, Policy};
+    if over_ranks {
+        return Err(ErrorExit::BadInput(
+            "--checkpoint: a run over ranks is not checkpointed yet; run it without --checkpoint"
+                .into(),
+        ));
+    }
+    let every = match args.checkpoint_every_seconds {
+        Some(s) if !(s.is_finite() && s > 0.0) => {
+            return Err(ErrorExit::BadInput(format!(
+                "--checkpoint-every-seconds: must be a positive number of seconds (got {s})"
+            )))
+        }
+        seconds => seconds.map(std::time::Duration::from_secs_f64),
+    };
+    let policy = Policy {
+        path: path.to_path_buf(),
+        every_steps: args.checkpoint_every_steps.filter(|&n| n > 0),
+        every,
+    };
+    // The thread count changes no bit of a run: a run may resume on another.
+    let mut keyed = serde_json::to_value(&**case).expect("a case serializes");
+    if let Some(fields) = keyed.as_object_mut() {
+        fields.remove("threads");
+    }
+    let identity = Identity {
+        fingerprint: solver::output::record::FINGERPRINT.to_string(),
+        case: keyed.to_string(),
+        ranks: case.ranks,
+    };
+    if let Some(why) = checkpoint::configure(policy, identity) {
+        note(&format!(
+            "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
+            path.display()
+        ));
+    }
+    checkpoint::stop_on_sigterm();
     Ok(())
 }
 

@@ -1,0 +1,399 @@
+//! Checkpoints of a time-dependent run, and its restart with the same bits.
+//!
+//! A checkpoint holds what the run carries from one step to the next (`Carried`): the field,
+//! the step, the timed loop's timings so far, the observers' series (c_tot, frames), the total
+//! error, the implicit solves' counts. Each layer of the loop (`timed::timed_steps`, its
+//! observers, `stepper::integrate`, a θ-stepper) adds its own parts and takes them back. A run
+//! resumed from a checkpoint continues from its step with those parts, so its record is the
+//! record of a run that was never stopped, but for its timings (`timings_resumed`).
+//!
+//! Checkpointing belongs to the process, not to the case (`nlsolve run --checkpoint FILE`):
+//! the case, and the key the orchestrator files it under, are the same with or without it. The
+//! process sets it up once (`configure`) and the run's timed loop takes it (`take`). The file
+//! is written beside its place and renamed over it, so the previous checkpoint stays whole
+//! until the new one is; it names the solver build (fingerprint), the case (its canonical JSON)
+//! and the rank count, and a checksum of its values: one that does not match is refused with
+//! its reason and the run starts at step 0.
+
+use std::collections::BTreeMap;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// The first line of every checkpoint file.
+const MAGIC: &[u8] = b"nlsolve checkpoint 1\n";
+
+/// What a run carries from step to step, by name: values saved bit for bit.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Carried {
+    /// The steps done when it was taken.
+    pub step: usize,
+    parts: BTreeMap<String, Vec<f64>>,
+}
+
+impl Carried {
+    /// Nothing yet, at `step` steps done.
+    pub fn at(step: usize) -> Carried {
+        Carried {
+            step,
+            parts: BTreeMap::new(),
+        }
+    }
+
+    pub fn put(&mut self, name: &str, values: Vec<f64>) {
+        self.parts.insert(name.to_string(), values);
+    }
+
+    pub fn put_number(&mut self, name: &str, value: f64) {
+        self.put(name, vec![value]);
+    }
+
+    /// A count, exact as an f64 below 2⁵³.
+    pub fn put_count(&mut self, name: &str, count: usize) {
+        self.put_number(name, count as f64);
+    }
+
+    pub fn values(&self, name: &str) -> Option<&[f64]> {
+        self.parts.get(name).map(Vec::as_slice)
+    }
+
+    pub fn number(&self, name: &str) -> Option<f64> {
+        self.values(name).and_then(|v| v.first().copied())
+    }
+
+    pub fn count(&self, name: &str) -> Option<usize> {
+        self.number(name).map(|v| v as usize)
+    }
+}
+
+/// Whose run a checkpoint is: a checkpoint of another build, case or rank count is refused.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Identity {
+    pub fingerprint: String,
+    /// The canonical case, as compact JSON.
+    pub case: String,
+    pub ranks: usize,
+}
+
+/// When a run writes its checkpoint, and where.
+#[derive(Clone, Debug)]
+pub struct Policy {
+    pub path: PathBuf,
+    /// Every this many steps.
+    pub every_steps: Option<usize>,
+    /// Once this much wall time has passed since the last one (or the start).
+    pub every: Option<Duration>,
+}
+
+/// A run's checkpointing: its policy, its identity and what it resumes from.
+pub struct Checkpointer {
+    policy: Policy,
+    identity: Identity,
+    /// What the run resumes from, taken by the loop's layers as they start.
+    pub resume: Option<Carried>,
+    last: Instant,
+    /// Checkpoints written by this process.
+    pub written: usize,
+}
+
+/// The run's checkpointer, set by `configure` and taken by the run's timed loop.
+static CONFIGURED: Mutex<Option<Checkpointer>> = Mutex::new(None);
+/// Set by the warning signal (SIGTERM): the loop writes a checkpoint and the process stops.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// The exit status of a run stopped by the warning signal once its checkpoint is written: the
+/// shell's for SIGTERM.
+pub const STOPPED: i32 = 143;
+
+/// Sets up this process's run to checkpoint by `policy`, resuming from the file there when it
+/// holds a whole checkpoint of the same `identity`. Returns why a file that is there was
+/// refused (the run then starts at step 0).
+pub fn configure(policy: Policy, identity: Identity) -> Option<String> {
+    let (resume, refused) = match read(&policy.path, &identity) {
+        Ok(resume) => (resume, None),
+        Err(why) => (None, Some(why)),
+    };
+    *CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()) = Some(Checkpointer {
+        policy,
+        identity,
+        resume,
+        last: Instant::now(),
+        written: 0,
+    });
+    refused
+}
+
+/// The checkpointer `configure` set, for the run's timed loop (once: the untimed runs after it,
+/// such as the amplification's, find none).
+pub fn take() -> Option<Checkpointer> {
+    let taken = CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()).take();
+    IN_LOOP.store(taken.is_some(), Ordering::SeqCst);
+    taken
+}
+
+/// Set while a timed loop holds the checkpointer: the warning signal then asks it to write a
+/// checkpoint and stop; outside it (the set-up) the process just ends.
+static IN_LOOP: AtomicBool = AtomicBool::new(false);
+
+/// Asks the running loop to write its checkpoint and stop.
+pub fn request_stop() {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// Makes SIGTERM (Slurm's and LSF's warning signal, a local stop) the request to checkpoint
+/// and stop: in the time loop the run writes its checkpoint at the end of the step it is in
+/// and exits with `STOPPED`; before the loop (nothing to save yet) or once it is over (the
+/// checkpoint is gone) it exits at once, or goes on to its record.
+pub fn stop_on_sigterm() {
+    extern "C" fn on_warning(_: libc::c_int) {
+        request_stop();
+        if !IN_LOOP.load(Ordering::SeqCst) && !OVER.load(Ordering::SeqCst) {
+            // SAFETY: _exit is async-signal-safe.
+            unsafe { libc::_exit(STOPPED) };
+        }
+    }
+    // SAFETY: the handler only touches atomics and calls _exit, both async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGTERM, on_warning as *const () as libc::sighandler_t);
+    }
+}
+
+/// Set once the timed loop is over: the run goes on to its record.
+static OVER: AtomicBool = AtomicBool::new(false);
+
+impl Drop for Checkpointer {
+    fn drop(&mut self) {
+        IN_LOOP.store(false, Ordering::SeqCst);
+        OVER.store(true, Ordering::SeqCst);
+    }
+}
+
+pub fn stop_requested() -> bool {
+    STOP.load(Ordering::SeqCst)
+}
+
+impl Checkpointer {
+    /// Is a checkpoint due after `steps_done` steps (a period passed, or the stop asked)?
+    pub fn due(&self, steps_done: usize) -> bool {
+        stop_requested()
+            || self
+                .policy
+                .every_steps
+                .is_some_and(|every| every > 0 && steps_done.is_multiple_of(every))
+            || self
+                .policy
+                .every
+                .is_some_and(|every| self.last.elapsed() >= every)
+    }
+
+    /// Writes `carried` whole; on the stop's request the process then exits with `STOPPED`
+    /// (no record: the run is not over). A checkpoint that cannot be written is said on stderr
+    /// and the run goes on (the previous one stays valid).
+    pub fn save(&mut self, carried: &Carried) {
+        match write(&self.policy.path, &self.identity, carried) {
+            Ok(()) => self.written += 1,
+            Err(e) => eprintln!(
+                "nlsolve: cannot write the checkpoint {}: {e}; the run goes on",
+                self.policy.path.display()
+            ),
+        }
+        self.last = Instant::now();
+        if stop_requested() {
+            eprintln!(
+                "nlsolve: stopped at step {} by the warning signal; checkpoint {}",
+                carried.step,
+                self.policy.path.display()
+            );
+            std::process::exit(STOPPED);
+        }
+    }
+
+    /// The step the run resumed from (0 when it started afresh).
+    pub fn resumed_from(&self) -> usize {
+        self.resume.as_ref().map_or(0, |c| c.step)
+    }
+}
+
+/// The header of a checkpoint file: its identity, step, and the parts' names and lengths in
+/// the order their values follow.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Header {
+    identity: Identity,
+    step: usize,
+    parts: Vec<(String, usize)>,
+    /// FNV-1a of the values' bytes, in hex.
+    checksum: String,
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |hash, &byte| {
+        (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+fn write(path: &Path, identity: &Identity, carried: &Carried) -> std::io::Result<()> {
+    let mut body = Vec::with_capacity(8 * carried.parts.values().map(Vec::len).sum::<usize>());
+    for values in carried.parts.values() {
+        for v in values {
+            body.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let header = Header {
+        identity: identity.clone(),
+        step: carried.step,
+        parts: carried
+            .parts
+            .iter()
+            .map(|(name, values)| (name.clone(), values.len()))
+            .collect(),
+        checksum: format!("{:016x}", fnv1a(&body)),
+    };
+    let mut text = MAGIC.to_vec();
+    serde_json::to_writer(&mut text, &header).map_err(std::io::Error::other)?;
+    text.push(b'\n');
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let partial = path.with_file_name(format!(".{name}.partial"));
+    let mut file = schema::atomic::create_fresh(&partial)?;
+    let written = file
+        .write_all(&text)
+        .and_then(|()| file.write_all(&body))
+        .and_then(|()| file.sync_data())
+        .and_then(|()| std::fs::rename(&partial, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    written
+}
+
+/// The checkpoint at `path` of the run `identity`: `None` when there is none, an error saying
+/// why when the file is not a whole checkpoint of that run.
+fn read(path: &Path, identity: &Identity) -> Result<Option<Carried>, String> {
+    let mut bytes = Vec::new();
+    match std::fs::File::open(path) {
+        Ok(mut file) => file
+            .read_to_end(&mut bytes)
+            .map_err(|e| format!("it cannot be read ({e})"))?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("it cannot be read ({e})")),
+    };
+    let rest = bytes
+        .strip_prefix(MAGIC)
+        .ok_or("it is not a checkpoint of nlsolve")?;
+    let end = rest
+        .iter()
+        .position(|&b| b == b'\n')
+        .ok_or("its header is cut short")?;
+    let header: Header = serde_json::from_slice(&rest[..end])
+        .map_err(|e| format!("its header is not whole ({e})"))?;
+    let body = &rest[end + 1..];
+    let expected: usize = header.parts.iter().map(|(_, len)| 8 * len).sum();
+    if body.len() != expected {
+        return Err(format!(
+            "it is cut short or padded ({} bytes of values, its header says {expected})",
+            body.len()
+        ));
+    }
+    if format!("{:016x}", fnv1a(body)) != header.checksum {
+        return Err("its values do not match their checksum (the file is damaged)".into());
+    }
+    let theirs = &header.identity;
+    if theirs.fingerprint != identity.fingerprint {
+        return Err(format!(
+            "another solver build wrote it (fingerprint {} here {})",
+            &theirs.fingerprint[..theirs.fingerprint.len().min(8)],
+            &identity.fingerprint[..identity.fingerprint.len().min(8)]
+        ));
+    }
+    if theirs.case != identity.case {
+        return Err(format!(
+            "it is the checkpoint of another case ({})",
+            theirs.case
+        ));
+    }
+    if theirs.ranks != identity.ranks {
+        return Err(format!(
+            "it was written on {} ranks, this run has {}",
+            theirs.ranks, identity.ranks
+        ));
+    }
+    let mut carried = Carried::at(header.step);
+    let mut values = body
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
+    for (name, len) in header.parts {
+        carried.put(&name, values.by_ref().take(len).collect());
+    }
+    Ok(Some(carried))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn identity() -> Identity {
+        Identity {
+            fingerprint: "ab".repeat(32),
+            case: r#"{"dim":1,"n":16}"#.into(),
+            ranks: 1,
+        }
+    }
+
+    #[test]
+    fn a_checkpoint_reads_back_bit_for_bit_and_a_damaged_or_foreign_one_is_refused() {
+        let dir = std::env::temp_dir().join(format!("nlsolve-checkpoint-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("run.checkpoint");
+        assert_eq!(read(&path, &identity()), Ok(None), "none yet");
+        let mut carried = Carried::at(17);
+        carried.put(
+            "field",
+            vec![0.1, -0.0, f64::MIN_POSITIVE, 1e300, 1.0 / 3.0],
+        );
+        carried.put_count("solves", 12);
+        carried.put("empty", Vec::new());
+        write(&path, &identity(), &carried).unwrap();
+        assert_eq!(read(&path, &identity()), Ok(Some(carried.clone())));
+        let bits = |c: &Carried| -> Vec<u64> {
+            c.values("field")
+                .unwrap()
+                .iter()
+                .map(|v| v.to_bits())
+                .collect()
+        };
+        assert_eq!(
+            bits(&read(&path, &identity()).unwrap().unwrap()),
+            bits(&carried)
+        );
+
+        let refused = |identity: Identity| read(&path, &identity).unwrap_err();
+        let other_build = Identity {
+            fingerprint: "cd".repeat(32),
+            ..identity()
+        };
+        assert!(refused(other_build).contains("another solver build"));
+        let other_case = Identity {
+            case: r#"{"dim":1,"n":32}"#.into(),
+            ..identity()
+        };
+        assert!(refused(other_case).contains("another case"));
+        let other_ranks = Identity {
+            ranks: 2,
+            ..identity()
+        };
+        assert!(refused(other_ranks).contains("written on 1 ranks, this run has 2"));
+
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
+        assert!(refused(identity()).contains("cut short"));
+        let mut flipped = bytes.clone();
+        let last = flipped.len() - 1;
+        flipped[last] ^= 1;
+        std::fs::write(&path, &flipped).unwrap();
+        assert!(refused(identity()).contains("checksum"));
+        std::fs::write(&path, b"garbage").unwrap();
+        assert!(refused(identity()).contains("not a checkpoint"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

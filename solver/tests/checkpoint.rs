@@ -1,0 +1,331 @@
+//! `nlsolve run --checkpoint`: a run stopped by SIGTERM at whatever step it is in writes its
+//! checkpoint and exits 143; started again, it resumes there and its record is the record of a
+//! run never stopped, bit for bit but for its timings, for every integrator and method, on 1
+//! and 2 threads (and resumed on the other count). A checkpoint of another build, another
+//! case, or a damaged one is refused, named, and the run starts at step 0; a run killed
+//! (SIGKILL) at random moments, even mid-write, always leaves a checkpoint that resumes.
+
+mod common;
+
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// `nlsolve run --case - EXTRA…`; the case goes on its standard input.
+fn nlsolve_command(extra: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_nlsolve"));
+    command.args(["run", "--case", "-"]).args(extra);
+    command
+}
+
+/// Runs nlsolve on `case` (given on standard input) with `extra` flags, to its end.
+fn run(case: &Value, extra: &[&str]) -> Output {
+    let mut child = nlsolve_command(extra)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(case.to_string().as_bytes())
+        .unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn record(output: &Output) -> Value {
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).unwrap()
+}
+
+/// The record without what measures the run itself, and without what says it was resumed.
+fn numbers_of(mut record: Value) -> Value {
+    let fields = record.as_object_mut().unwrap();
+    for measured in [
+        "setup_s",
+        "solve_s",
+        "step_s",
+        "comm_s",
+        "peak_memory_bytes",
+        "provenance",
+        "resumed_from_step",
+        "solve_s_segments",
+    ] {
+        fields.remove(measured);
+    }
+    // The case's thread count may differ between the two halves.
+    fields["case"].as_object_mut().unwrap().remove("threads");
+    record
+}
+
+/// A scratch directory for one test's checkpoints.
+fn scratch(name: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("nlsolve-checkpoint-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Waits, polling, for `path` to exist; false after a minute.
+fn appears(path: &Path) -> bool {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while Instant::now() < deadline {
+        if path.exists() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    false
+}
+
+/// Runs `case` on `threads`, stops it with SIGTERM once its first checkpoint is written (at
+/// whatever step it has reached then), resumes it on `then_threads`, and checks the resumed
+/// record against `whole`'s numbers. Returns the step it resumed from.
+fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: u64) -> u64 {
+    let dir = scratch("stopped");
+    let file = dir.join("run.checkpoint");
+    let path = file.to_str().unwrap();
+    let with_threads = |threads: u64| {
+        let mut case = case.clone();
+        case["threads"] = json!(threads);
+        case
+    };
+    let first = with_threads(threads);
+    let mut child = nlsolve_command(&["--checkpoint", path, "--checkpoint-every-steps", "25"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write;
+        let mut input = child.stdin.take().unwrap();
+        input.write_all(first.to_string().as_bytes()).unwrap();
+    }
+    assert!(appears(&file), "{case}: no checkpoint was written");
+    Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let stopped = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&stopped.stderr);
+    assert_eq!(stopped.status.code(), Some(143), "{case}: {said}");
+    assert!(
+        stopped.stdout.is_empty(),
+        "{case}: a stopped run prints no record"
+    );
+    assert!(said.contains("stopped at step"), "{case}: {said}");
+    let resumed = record(&run(&with_threads(then_threads), &["--checkpoint", path]));
+    assert!(
+        !file.exists(),
+        "{case}: the checkpoint stays after the record"
+    );
+    let step = resumed["resumed_from_step"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("{case}: not resumed: {resumed}"));
+    assert!(step > 0 && step < whole["steps"].as_u64().unwrap());
+    let segments = resumed["solve_s_segments"].as_array().unwrap();
+    assert_eq!(segments.len(), 2, "{resumed}");
+    assert_eq!(
+        numbers_of(resumed),
+        numbers_of(whole.clone()),
+        "{case}: the resumed run's record differs from the whole run's"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    step
+}
+
+/// Every integrator of the nonlocal method and the grid and particle methods, with the
+/// observers a checkpoint must carry (c_tot, the total error, the implicit solves' counts).
+fn cases() -> Vec<Value> {
+    let nonlocal = |integrator: &str, cfl: f64| {
+        json!({"dim": 2, "n": 128, "m": 3, "problem": "manufactured", "t_end": 0.1, "cfl": cfl,
+               "integrator": integrator, "diagnostics_every": 0.005, "error_total": true,
+               "field_snapshot": 8})
+    };
+    vec![
+        nonlocal("forward_euler", 0.5),
+        nonlocal("heun", 0.5),
+        nonlocal("rk4", 0.9),
+        nonlocal("backward_euler", 1.0),
+        nonlocal("crank_nicolson", 1.0),
+        json!({"method": "fd_explicit", "dim": 2, "n": 96, "problem": "square", "t_end": 0.05,
+               "cfl": 0.4, "diagnostics_every": 0.005}),
+        json!({"method": "adi", "dim": 2, "n": 128, "problem": "eigenmode", "t_end": 0.2,
+               "cfl": 0.5, "diagnostics_every": 0.01}),
+        json!({"method": "pse", "dim": 2, "n": 48, "m": 2, "problem": "square", "t_end": 0.5,
+               "cfl": 0.5, "diagnostics_every": 0.05}),
+    ]
+}
+
+#[test]
+fn a_run_stopped_by_sigterm_resumes_with_the_record_of_a_run_never_stopped() {
+    for case in cases() {
+        let whole = record(&run(&case, &[]));
+        assert!(
+            whole["steps"].as_u64().unwrap() >= 200,
+            "{case}: too short to be stopped midway ({} steps)",
+            whole["steps"]
+        );
+        let steps: Vec<u64> = [(1, 1), (2, 2), (1, 2)]
+            .iter()
+            .map(|&(threads, then)| stopped_and_resumed(&case, &whole, threads, then))
+            .collect();
+        let what = case.get("integrator").unwrap_or(&case["method"]);
+        eprintln!("{what}: resumed from steps {steps:?} of {}", whole["steps"]);
+    }
+}
+
+#[test]
+fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run_starts_afresh() {
+    let dir = scratch("refused");
+    let file = dir.join("run.checkpoint");
+    let path = file.to_str().unwrap();
+    let case = json!({"dim": 1, "n": 256, "m": 3, "problem": "manufactured", "t_end": 0.02,
+                      "cfl": 0.5, "error_total": true});
+    let whole = record(&run(&case, &[]));
+    // A checkpoint of this case, kept after its run.
+    let kept = |file: &Path| {
+        let out = run(
+            &case,
+            &[
+                "--checkpoint",
+                file.to_str().unwrap(),
+                "--checkpoint-every-steps",
+                "100",
+                "--keep-checkpoint",
+            ],
+        );
+        record(&out);
+        std::fs::read(file).unwrap()
+    };
+    let good = kept(&file);
+    // Resumed from that last checkpoint, the record is the whole run's.
+    let resumed = record(&run(&case, &["--checkpoint", path]));
+    assert!(resumed["resumed_from_step"].as_u64().unwrap() > 0);
+    assert_eq!(numbers_of(resumed), numbers_of(whole.clone()));
+
+    let refused_with = |bytes: &[u8], against: &Value, why: &str| {
+        std::fs::write(&file, bytes).unwrap();
+        let out = run(against, &["--checkpoint", path]);
+        let said = String::from_utf8_lossy(&out.stderr).into_owned();
+        let record = record(&out);
+        assert!(
+            said.contains("refused") && said.contains(why) && said.contains("starts at step 0"),
+            "{why}: {said}"
+        );
+        assert!(record.get("resumed_from_step").is_none(), "{why}: {record}");
+        record
+    };
+    // The header names the build: 64 hex digits after `"fingerprint":"`.
+    let at = good
+        .windows(15)
+        .position(|w| w == b"\"fingerprint\":\"")
+        .unwrap()
+        + 15;
+    let mut other = good.clone();
+    other[at..at + 64].fill(b'0');
+    let afresh = refused_with(&other, &case, "another solver build");
+    assert_eq!(numbers_of(afresh), numbers_of(whole.clone()));
+    let mut other_case = case.clone();
+    other_case["n"] = json!(128);
+    refused_with(&good, &other_case, "another case");
+    refused_with(&good[..good.len() - 5], &case, "cut short");
+    let mut flipped = good.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 0x10;
+    refused_with(&flipped, &case, "checksum");
+    refused_with(b"{\"step\": 3}", &case, "not a checkpoint");
+    // A run over ranks is not checkpointed, and says so.
+    let over_ranks = run(
+        &json!({"dim": 1, "n": 64, "m": 2, "t_end": 0.001, "cfl": 0.5, "ranks": 2}),
+        &["--checkpoint", path],
+    );
+    assert_eq!(over_ranks.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// SIGKILL at random moments of a run that checkpoints every step (so that most kills land in
+/// or near a write): the file is always a whole checkpoint of the run (the next run resumes
+/// from it, never refuses it), and the run resumed last has the whole run's record.
+#[test]
+fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
+    let dir = scratch("killed");
+    let file = dir.join("run.checkpoint");
+    let path = file.to_str().unwrap();
+    let case = json!({"dim": 2, "n": 64, "m": 3, "problem": "manufactured", "t_end": 0.02,
+                      "cfl": 0.5, "integrator": "heun", "error_total": true});
+    let whole = record(&run(&case, &[]));
+    let seed = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as u64;
+    eprintln!("kill delays from seed {seed}");
+    let mut state = seed | 1;
+    let mut last_step = 0;
+    for _ in 0..8 {
+        let mut child = nlsolve_command(&["--checkpoint", path, "--checkpoint-every-steps", "1"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        {
+            use std::io::Write;
+            child
+                .stdin
+                .take()
+                .unwrap()
+                .write_all(case.to_string().as_bytes())
+                .unwrap();
+        }
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        // A fault's moment, not a timing: 0–60 ms into the run.
+        std::thread::sleep(Duration::from_micros(state % 60_000));
+        let _ = child.kill();
+        let out = child.wait_with_output().unwrap();
+        let said = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !said.contains("refused"),
+            "a kill left a checkpoint that is refused: {said}"
+        );
+        if out.status.success() {
+            // It ran to its end before the kill: its checkpoint went with its record.
+            last_step = 0;
+        } else if file.exists() {
+            let text = std::fs::read(&file).unwrap();
+            let header = String::from_utf8_lossy(&text)
+                .lines()
+                .nth(1)
+                .unwrap_or_default()
+                .to_string();
+            let step: u64 = header
+                .split("\"step\":")
+                .nth(1)
+                .and_then(|s| s.split(',').next())
+                .and_then(|s| s.parse().ok())
+                .unwrap_or_else(|| panic!("no step in {header}"));
+            assert!(
+                step >= last_step,
+                "the checkpoint went back from {last_step} to {step}"
+            );
+            last_step = step;
+        }
+    }
+    let resumed = record(&run(&case, &["--checkpoint", path]));
+    let said_steps = resumed["resumed_from_step"].as_u64().unwrap_or(0);
+    assert_eq!(said_steps, last_step, "{resumed}");
+    assert_eq!(numbers_of(resumed), numbers_of(whole));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
