@@ -620,6 +620,86 @@ fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
     }
 }
 
+/// A study that checkpoints (`checkpoint_every_s`): `nlstudy run` stopped by SIGTERM while its
+/// long point runs asks the solver to stop, which writes the point's checkpoint; the run exits
+/// 143 and stores nothing for the point. `run` again resumes the point from its checkpoint
+/// (`resumed_from_step`), removes it, and stores the record an uninterrupted run stores.
+#[test]
+fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
+    let study = json!({
+        "name": "long",
+        "checkpoint_every_s": 0.05,
+        "base": {"dim": 2, "n": 128, "m": 3, "problem": "manufactured", "t_end": 0.1, "cfl": 1.0,
+                 "integrator": "crank_nicolson", "error_total": true, "diagnostics_every": 0.01}
+    });
+    let scratch = Scratch::new("checkpointed", &study);
+    let work = scratch.runs("long").join(".work");
+    let checkpoints = || -> Vec<PathBuf> {
+        files_under(&work)
+            .into_iter()
+            .filter(|f| f.extension().is_some_and(|e| e == "checkpoint"))
+            .collect()
+    };
+    let run = scratch.spawn("run", &["--no-collect"]);
+    assert!(
+        eventually(Duration::from_secs(120), || !checkpoints().is_empty()),
+        "no checkpoint was written"
+    );
+    Command::new("kill")
+        .args(["-TERM", &run.id().to_string()])
+        .status()
+        .unwrap();
+    let stopped = run.wait_with_output().unwrap();
+    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    assert!(records(&scratch.runs("long")).is_empty());
+    assert_eq!(
+        checkpoints().len(),
+        1,
+        "the stopped point's checkpoint stays"
+    );
+    let status = text(&scratch.nlstudy("status", &[]));
+    let said = status
+        .lines()
+        .find(|l| l.starts_with("checkpoint "))
+        .unwrap_or_else(|| panic!("status says nothing of the checkpoint: {status}"));
+    assert!(
+        said.contains(": step ") && said.contains(" of 847; the next run resumes it"),
+        "{said}"
+    );
+
+    let resumed = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let stored = records(&scratch.runs("long"));
+    assert_eq!(stored.len(), 1);
+    assert!(
+        stored[0]["resumed_from_step"].as_u64().unwrap() > 0,
+        "{}",
+        stored[0]
+    );
+    assert!(
+        checkpoints().is_empty(),
+        "the checkpoint outlived its record"
+    );
+
+    let whole = Command::new(nonlocal_study::binary("nlstudy"))
+        .args(["run", "--no-collect", "--results"])
+        .arg(scratch.dir.join("whole"))
+        .arg(scratch.study())
+        .output()
+        .unwrap();
+    assert!(whole.status.success(), "{}", text(&whole));
+    let whole = records(&scratch.dir.join("whole/long/runs"));
+    assert!(whole[0].get("resumed_from_step").is_none());
+    let resumed_numbers = |record: &Value| {
+        let mut record = numbers_of(record.clone());
+        let fields = record.as_object_mut().unwrap();
+        fields.remove("resumed_from_step");
+        fields.remove("solve_s_segments");
+        record
+    };
+    assert_eq!(resumed_numbers(&stored[0]), resumed_numbers(&whole[0]));
+}
+
 /// A stored record without what measures the run rather than the case.
 fn numbers_of(mut record: Value) -> Value {
     let fields = record.as_object_mut().unwrap();

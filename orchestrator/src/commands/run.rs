@@ -22,10 +22,17 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     say_what_does_not_fit(&planned);
     let cores = crate::run::pool::machine_cores();
     let timeout = match args.timeout {
-        Some(seconds) => Some(timeout(seconds, "--timeout")?),
+        Some(seconds) => Some(period(seconds, "--timeout")?),
         None => study
             .timeout_s
-            .map(|s| timeout(s, "timeout_s"))
+            .map(|s| period(s, "timeout_s"))
+            .transpose()?,
+    };
+    let checkpoint_every = match args.checkpoint_every {
+        Some(seconds) => Some(period(seconds, "--checkpoint-every")?),
+        None => study
+            .checkpoint_every_s
+            .map(|s| period(s, "checkpoint_every_s"))
             .transpose()?,
     };
     let options = PoolOptions {
@@ -35,6 +42,8 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         launcher: args.launcher.clone(),
         retries: args.retries,
         isolate: args.isolate,
+        checkpoint_every,
+        keep_checkpoints: args.keep_checkpoints,
     };
     store.clear_abandoned_outputs()?;
     let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
@@ -190,15 +199,16 @@ fn counts(planned: &[Planned]) -> (usize, usize) {
 const LONGEST_TIMEOUT_S: f64 = 1e9;
 
 /// A case's timeout from `field`: a positive, finite number of seconds.
-fn timeout(seconds: f64, field: &str) -> Result<Duration, Failure> {
+/// A period of wall time given in seconds (a timeout, a checkpoint period), checked.
+fn period(seconds: f64, field: &str) -> Result<Duration, Failure> {
     if !seconds.is_finite() {
         return Err(Failure::BadInput(format!(
-            "{field}: {seconds} is not a finite number; give a number of seconds, or none for no limit"
+            "{field}: {seconds} is not a finite number; give a number of seconds, or none"
         )));
     }
     if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
         return Err(Failure::BadInput(format!(
-            "{field}: {seconds} is not a timeout; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none for no limit"
+            "{field}: {seconds} is not a period; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none"
         )));
     }
     Ok(Duration::from_secs_f64(seconds))

@@ -6,7 +6,7 @@
 use crate::run::cluster::ledger::{self, LedgerEntry};
 use crate::run::cluster::scheduler::{self, Scheduler};
 use crate::run::plan::Planned;
-use crate::store::{Index, Store};
+use crate::store::{Index, Store, CHECKPOINT};
 use schema::record::{Status, Stored};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -66,8 +66,52 @@ pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) ->
     }
     let missing = planned.iter().filter(|p| p.runs()).count();
     let _ = writeln!(out, "{missing} of {} points to run", planned.len());
+    checkpoints_report(&mut out, store, planned);
     jobs_report(&mut out, store, index);
     out
+}
+
+/// One line per point to run that has a checkpoint: how far its stopped run got, where the
+/// next run resumes it.
+fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
+    let Ok(entries) = std::fs::read_dir(store.work_dir()) else {
+        return;
+    };
+    let suffix = format!(".{CHECKPOINT}");
+    let keys: std::collections::BTreeSet<String> = entries
+        .flatten()
+        .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
+        .collect();
+    for point in planned
+        .iter()
+        .filter(|p| p.runs() && keys.contains(p.key.as_str()))
+    {
+        let path = store.scratch(&point.key, CHECKPOINT);
+        let how_far = match checkpoint_steps(&path) {
+            Some((step, Some(steps))) => format!("step {step} of {steps}"),
+            Some((step, None)) => format!("step {step}"),
+            None => "a checkpoint that cannot be read (the next run starts it afresh)".into(),
+        };
+        let _ = writeln!(
+            out,
+            "checkpoint {}: {how_far}; the next run resumes it",
+            point.point.label()
+        );
+    }
+}
+
+/// The step a checkpoint was taken at and the run's steps in all, from its header (the line
+/// after the file's first; nlsolve's `integrate::checkpoint` writes it).
+fn checkpoint_steps(path: &std::path::Path) -> Option<(u64, Option<u64>)> {
+    use std::io::BufRead;
+    let (file, _) = crate::store::fs::open_regular(path).ok()?;
+    let mut lines = std::io::BufReader::new(file).split(b'\n');
+    let magic = lines.next()?.ok()?;
+    if !magic.starts_with(b"nlsolve checkpoint") {
+        return None;
+    }
+    let header: serde_json::Value = serde_json::from_slice(&lines.next()?.ok()?).ok()?;
+    Some((header["step"].as_u64()?, header["steps"].as_u64()))
 }
 
 /// One line per job of the ledger: its id, name, state (an array's elements counted by state)

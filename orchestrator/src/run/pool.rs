@@ -16,7 +16,7 @@ use crate::run::progress::Progress;
 use crate::run::signals::Stop;
 use crate::run::worker::{die_with_parent, Served, Worker, Workers};
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
-use crate::store::{FileError, Store, SCRATCH};
+use crate::store::{FileError, Store, CHECKPOINT, SCRATCH};
 use schema::exit;
 use schema::record::{Failure, Outcome, Record, Status, Stored};
 use serde_json::Value;
@@ -36,10 +36,10 @@ fn stopped_with_it(stop: &Stop, exit: std::process::ExitStatus) -> bool {
     if stop.requested() {
         return true;
     }
-    if !exit
-        .signal()
-        .is_some_and(|s| crate::run::signals::CAUGHT.contains(&s))
-    {
+    // Ended by the signal, or by its own handler with the shell's status for it (a
+    // checkpointing solver writes its checkpoint first).
+    let by_signal = exit.signal().or(exit.code().map(|code| code - 128));
+    if !by_signal.is_some_and(|s| crate::run::signals::CAUGHT.contains(&s)) {
         return false;
     }
     let since = Instant::now();
@@ -83,6 +83,11 @@ pub struct PoolOptions {
     pub retries: usize,
     /// A process per case (`--isolate`), never a worker.
     pub isolate: bool,
+    /// Time-dependent cases of one process checkpoint this often (and on a stopping signal),
+    /// in `runs/.work/<key>.checkpoint`, and resume from it; they run as processes.
+    pub checkpoint_every: Option<Duration>,
+    /// Keep each checkpoint after its record is stored.
+    pub keep_checkpoints: bool,
 }
 
 /// Counts of a pool's work.
@@ -261,6 +266,9 @@ struct Pool<'a> {
     queue: Vec<Queued>,
 }
 
+/// How long a solver asked to stop may take to write its checkpoint before it is killed.
+const STOP_GRACE: Duration = Duration::from_secs(30);
+
 /// How long the pool waits for a worker's answer before it looks at its processes again.
 const POLL_EVERY: Duration = Duration::from_millis(10);
 
@@ -375,14 +383,21 @@ impl Pool<'_> {
         Ok(())
     }
 
-    /// Does a worker run this case? Cases of one process that write no files of their own.
+    /// Does a worker run this case? Cases of one process that write no files of their own (no
+    /// VTK, no checkpoint).
     fn serves(&self, case: &Checked, alone: bool) -> bool {
         let asks = |field: &str| case.resolved_count(field).is_some_and(|value| value > 1);
         let writes_vtk = case
             .canonical()
             .get("vtk_every")
             .is_some_and(|every| !every.is_null());
-        !(alone || self.options.isolate || self.workers.unsupported || asks("ranks") || writes_vtk)
+        let checkpoints = checkpointed(case, self.options).is_some();
+        !(alone
+            || self.options.isolate
+            || self.workers.unsupported
+            || asks("ranks")
+            || writes_vtk
+            || checkpoints)
     }
 
     /// Stores the record of a case that ended, or queues it again.
@@ -578,10 +593,24 @@ impl Running {
         }
     }
 
-    /// Ends the case without a record: the run stops, or the stop ended it.
+    /// Ends the case without a record: the run stops, or the stop ended it. A process of one
+    /// rank is first asked to stop (SIGTERM: a checkpointing solver writes its checkpoint)
+    /// and given `STOP_GRACE`; then it is killed.
     fn abandon(self) {
         match self.how {
             How::Process(mut process) => {
+                let running = matches!(process.child.try_wait(), Ok(None));
+                if running && process.launcher_watch.is_none() {
+                    let asked = Instant::now();
+                    // SAFETY: kill(2) on our own child, not yet reaped (an exit is cached by
+                    // `try_wait`, which would have said so), so the pid is still its own.
+                    unsafe { libc::kill(process.child.id() as libc::pid_t, libc::SIGTERM) };
+                    while asked.elapsed() < STOP_GRACE
+                        && matches!(process.child.try_wait(), Ok(None))
+                    {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                }
                 let _ = process.child.kill();
                 let _ = process.child.wait();
                 process.remove_files();
@@ -613,6 +642,15 @@ fn cores_of(planned: &Planned) -> usize {
     field("threads").max(1) * field("ranks").max(1)
 }
 
+/// The checkpoint period of `case`: the pool's, for a time-dependent case of one process (a
+/// run over ranks is not checkpointed yet; a steady one has no time loop).
+fn checkpointed(case: &Checked, options: &PoolOptions) -> Option<Duration> {
+    let every = options.checkpoint_every?;
+    let one_process = case.resolved_count("ranks").unwrap_or(1) <= 1;
+    let timed = case.canonical().get("t_end").is_some_and(|t| !t.is_null());
+    (one_process && timed).then_some(every)
+}
+
 /// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
 fn start(
     case: &Value,
@@ -642,6 +680,21 @@ fn start(
     command.arg("run").arg("--case").arg(&case_file);
     if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
         command.arg("--write-vtk").arg(store.fields(&planned.key));
+    }
+    if let Some(every) = planned
+        .case
+        .as_ref()
+        .ok()
+        .and_then(|c| checkpointed(c, options))
+    {
+        command
+            .arg("--checkpoint")
+            .arg(store.scratch(&planned.key, CHECKPOINT))
+            .arg("--checkpoint-every-seconds")
+            .arg(every.as_secs_f64().to_string());
+        if options.keep_checkpoints {
+            command.arg("--keep-checkpoint");
+        }
     }
     command
         .stdin(Stdio::null())

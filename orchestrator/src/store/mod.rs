@@ -210,6 +210,8 @@ impl Store {
             let _ = std::fs::remove_file(self.scratch(key, name));
         }
         let _ = std::fs::remove_file(self.partial(key));
+        // A checkpoint's partial file, left by a solver killed while writing it.
+        let _ = std::fs::remove_file(work.join(format!(".{key}.{CHECKPOINT}.partial")));
         Ok(Some(file))
     }
 
@@ -503,6 +505,10 @@ fn key_byte(key: &str) -> i64 {
     });
     (hash >> 2) as i64
 }
+
+/// The checkpoint of a point run as a process (`<key>.checkpoint` in the work directory): kept
+/// when a run stops, so that the next one resumes it; the solver removes it with its record.
+pub const CHECKPOINT: &str = "checkpoint";
 
 /// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its
 /// case, standard output and standard error.

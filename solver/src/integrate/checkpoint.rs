@@ -18,7 +18,7 @@
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -100,12 +100,9 @@ pub struct Checkpointer {
 
 /// The run's checkpointer, set by `configure` and taken by the run's timed loop.
 static CONFIGURED: Mutex<Option<Checkpointer>> = Mutex::new(None);
-/// Set by the warning signal (SIGTERM): the loop writes a checkpoint and the process stops.
-static STOP: AtomicBool = AtomicBool::new(false);
-
-/// The exit status of a run stopped by the warning signal once its checkpoint is written: the
-/// shell's for SIGTERM.
-pub const STOPPED: i32 = 143;
+/// The stopping signal received (0: none): the loop writes a checkpoint and the process stops
+/// with the shell's status for it, 128 + its number (143 for SIGTERM).
+static STOP: AtomicI32 = AtomicI32::new(0);
 
 /// Sets up this process's run to checkpoint by `policy`, resuming from the file there when it
 /// holds a whole checkpoint of the same `identity`. Returns why a file that is there was
@@ -137,26 +134,34 @@ pub fn take() -> Option<Checkpointer> {
 /// checkpoint and stop; outside it (the set-up) the process just ends.
 static IN_LOOP: AtomicBool = AtomicBool::new(false);
 
-/// Asks the running loop to write its checkpoint and stop.
-pub fn request_stop() {
-    STOP.store(true, Ordering::SeqCst);
+/// Asks the running loop to write its checkpoint and stop, as `signal` does.
+pub fn request_stop(signal: i32) {
+    STOP.store(signal, Ordering::SeqCst);
 }
 
-/// Makes SIGTERM (Slurm's and LSF's warning signal, a local stop) the request to checkpoint
-/// and stop: in the time loop the run writes its checkpoint at the end of the step it is in
-/// and exits with `STOPPED`; before the loop (nothing to save yet) or once it is over (the
-/// checkpoint is gone) it exits at once, or goes on to its record.
-pub fn stop_on_sigterm() {
-    extern "C" fn on_warning(_: libc::c_int) {
-        request_stop();
+/// The status a run stopped by `signal` exits with: the shell's, 128 + its number.
+fn stopped_status() -> i32 {
+    128 + STOP.load(Ordering::SeqCst)
+}
+
+/// Makes SIGTERM (Slurm's and LSF's warning signal, `scancel`, a local stop), SIGINT (Ctrl-C)
+/// and SIGHUP the request to checkpoint and stop: in the time loop the run writes its
+/// checkpoint at the end of the step it is in and exits with 128 + the signal's number; before
+/// the loop (nothing to save yet) it exits at once, and once the loop is over it goes on to its
+/// record.
+pub fn stop_on_signals() {
+    extern "C" fn on_signal(signal: libc::c_int) {
+        request_stop(signal);
         if !IN_LOOP.load(Ordering::SeqCst) && !OVER.load(Ordering::SeqCst) {
             // SAFETY: _exit is async-signal-safe.
-            unsafe { libc::_exit(STOPPED) };
+            unsafe { libc::_exit(128 + signal) };
         }
     }
-    // SAFETY: the handler only touches atomics and calls _exit, both async-signal-safe.
-    unsafe {
-        libc::signal(libc::SIGTERM, on_warning as *const () as libc::sighandler_t);
+    for signal in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP] {
+        // SAFETY: the handler only touches atomics and calls _exit, both async-signal-safe.
+        unsafe {
+            libc::signal(signal, on_signal as *const () as libc::sighandler_t);
+        }
     }
 }
 
@@ -171,7 +176,7 @@ impl Drop for Checkpointer {
 }
 
 pub fn stop_requested() -> bool {
-    STOP.load(Ordering::SeqCst)
+    STOP.load(Ordering::SeqCst) != 0
 }
 
 impl Checkpointer {
@@ -188,8 +193,8 @@ impl Checkpointer {
                 .is_some_and(|every| self.last.elapsed() >= every)
     }
 
-    /// Writes `carried` whole; on the stop's request the process then exits with `STOPPED`
-    /// (no record: the run is not over). A checkpoint that cannot be written is said on stderr
+    /// Writes `carried` whole; on the stop's request the process then exits with 128 + the
+    /// signal's number (no record: the run is not over). A checkpoint that cannot be written is said on stderr
     /// and the run goes on (the previous one stays valid).
     pub fn save(&mut self, carried: &Carried) {
         match write(&self.policy.path, &self.identity, carried) {
@@ -202,11 +207,11 @@ impl Checkpointer {
         self.last = Instant::now();
         if stop_requested() {
             eprintln!(
-                "nlsolve: stopped at step {} by the warning signal; checkpoint {}",
+                "nlsolve: stopped at step {} by a signal; checkpoint {}",
                 carried.step,
                 self.policy.path.display()
             );
-            std::process::exit(STOPPED);
+            std::process::exit(stopped_status());
         }
     }
 
@@ -222,6 +227,9 @@ impl Checkpointer {
 struct Header {
     identity: Identity,
     step: usize,
+    /// The run's steps in all, when the loop said (`nlstudy status` shows step of steps).
+    #[serde(default)]
+    steps: Option<usize>,
     parts: Vec<(String, usize)>,
     /// FNV-1a of the values' bytes, in hex.
     checksum: String,
@@ -243,6 +251,7 @@ fn write(path: &Path, identity: &Identity, carried: &Carried) -> std::io::Result
     let header = Header {
         identity: identity.clone(),
         step: carried.step,
+        steps: carried.count("steps"),
         parts: carried
             .parts
             .iter()

@@ -162,6 +162,7 @@ pub(crate) fn timed_steps<S>(
         {
             if k + 1 < steps && checkpointer.due(k + 1) {
                 let mut carried = Carried::at(k + 1);
+                carried.put_count("steps", steps);
                 timing.carry(&mut carried, segment_started);
                 carry(state, &mut carried);
                 checkpointer.save(&carried);

@@ -78,8 +78,8 @@ struct RunArgs {
     #[arg(long, value_name = "DIR")]
     write_vtk: Option<PathBuf>,
     /// Checkpoint the time loop into FILE (written beside it, then renamed over it) at the
-    /// periods below and on SIGTERM, which then ends the run with exit status 143 and no
-    /// record; a run started where FILE holds a checkpoint of the same case, build and rank
+    /// periods below and on SIGTERM, SIGINT or SIGHUP, which then end the run with 128 + the
+    /// signal's number (143 for SIGTERM) and no record; a run started where FILE holds a checkpoint of the same case, build and rank
     /// count resumes from it, with the record of a run never stopped (`resumed_from_step`).
     /// FILE is removed once the record is written. One process only.
     #[arg(long, value_name = "FILE")]
@@ -332,7 +332,7 @@ fn start_checkpoints(
             path.display()
         ));
     }
-    checkpoint::stop_on_sigterm();
+    checkpoint::stop_on_signals();
     Ok(())
 }
 
