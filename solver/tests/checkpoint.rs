@@ -304,18 +304,20 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
             // It ran to its end before the kill: its checkpoint went with its record.
             last_step = 0;
         } else if file.exists() {
-            let text = std::fs::read(&file).unwrap();
-            let header = String::from_utf8_lossy(&text)
-                .lines()
-                .nth(1)
-                .unwrap_or_default()
-                .to_string();
-            let step: u64 = header
-                .split("\"step\":")
-                .nth(1)
-                .and_then(|s| s.split(',').next())
-                .and_then(|s| s.parse().ok())
-                .unwrap_or_else(|| panic!("no step in {header}"));
+            // The header is the JSON line after the first.
+            let bytes = std::fs::read(&file).unwrap();
+            let header = bytes.split(|&b| b == b'\n').nth(1).unwrap_or_default();
+            let step = serde_json::from_slice::<Value>(header)
+                .ok()
+                .and_then(|h| h["step"].as_u64())
+                .unwrap_or_else(|| {
+                    panic!(
+                        "no step in a checkpoint of {} bytes, status {}: {:?}",
+                        bytes.len(),
+                        out.status,
+                        String::from_utf8_lossy(&bytes[..bytes.len().min(400)])
+                    )
+                });
             assert!(
                 step >= last_step,
                 "the checkpoint went back from {last_step} to {step}"
