@@ -698,6 +698,22 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         record
     };
     assert_eq!(resumed_numbers(&stored[0]), resumed_numbers(&whole[0]));
+
+    // `clean` removes the checkpoints no run will resume: a stored point's (as
+    // `--keep-checkpoints` leaves it) and one of no point of the study.
+    let key = stored[0]["key"].as_str().unwrap();
+    for stale in [key, "0123456789abcdef0123456789abcdef"] {
+        std::fs::write(work.join(format!("{stale}.checkpoint")), "kept").unwrap();
+    }
+    let cleaned = scratch.nlstudy("clean", &[]);
+    assert!(cleaned.status.success(), "{}", text(&cleaned));
+    assert_eq!(
+        text(&cleaned).matches("removed runs/.work/").count(),
+        2,
+        "{}",
+        text(&cleaned)
+    );
+    assert!(checkpoints().is_empty());
 }
 
 /// A stored record without what measures the run rather than the case.

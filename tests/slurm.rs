@@ -431,11 +431,14 @@ fn a_round_per_submit(
 }
 
 /// A job requeued while it runs (as a preemption would) runs again and takes up only what is
-/// missing: every point stored once, none lost.
+/// missing: every point stored once, none lost. The study checkpoints: the point the requeue
+/// stopped (its solver wrote its checkpoint on the SIGTERM) resumes from its checkpoint rather
+/// than from step 0, with the numbers of a run never stopped.
 fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
     let study = json!({
         "name": "requeue",
-        "base": {"dim": 2, "m": 4, "t_end": 0.01, "cfl": 0.5, "source": "discrete"},
+        "checkpoint_every_s": 0.2,
+        "base": {"dim": 2, "m": 4, "t_end": 0.02, "cfl": 0.5, "source": "discrete"},
         "sweep": [{"product": {"n": [448, 464, 480, 496, 512, 528]}}]
     });
     scratch.write_study(&study);
@@ -443,9 +446,27 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
     assert!(out.status.success(), "{}", text(&out));
     let id = job_id(&out);
     let runs = scratch.runs("requeue");
-    wait_until(Duration::from_secs(120), "a first record", || {
-        !records(&runs).is_empty()
-    });
+    let checkpoints = || -> Vec<String> {
+        std::fs::read_dir(runs.join(".work"))
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter_map(|e| {
+                let name = e.file_name().to_string_lossy().into_owned();
+                Some(name.strip_suffix(".checkpoint")?.to_string())
+            })
+            .collect()
+    };
+    // A point in its time loop: its first periodic checkpoint is written.
+    let mut stopped = Vec::new();
+    wait_until(
+        Duration::from_secs(120),
+        "a first record and a checkpoint",
+        || {
+            stopped = checkpoints();
+            !records(&runs).is_empty() && !stopped.is_empty()
+        },
+    );
     let requeue = slurm
         .command("scontrol")
         .args(["requeue", &id])
@@ -490,6 +511,65 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
         log.contains("already stored"),
         "the second run took up what was missing: {log}"
     );
+    // The point stopped in its time loop resumed there, with the numbers of a run never stopped.
+    let resumed: Vec<&Value> = stored
+        .iter()
+        .filter(|r| {
+            r.get("resumed_from_step")
+                .is_some_and(|s| s.as_u64() > Some(0))
+        })
+        .collect();
+    assert!(
+        resumed
+            .iter()
+            .any(|r| stopped.iter().any(|key| r["key"] == key.as_str())),
+        "no stopped point resumed from its checkpoint ({stopped:?}): {log}"
+    );
+    assert!(
+        checkpoints().is_empty(),
+        "checkpoints outlived their records"
+    );
+    for record in resumed {
+        let alone = Command::new(nonlocal_study::binary("nlsolve"))
+            .args(["run", "--case", "-"])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .and_then(|mut child| {
+                use std::io::Write;
+                let case = record["case"].to_string();
+                child.stdin.take().unwrap().write_all(case.as_bytes())?;
+                child.wait_with_output()
+            })
+            .unwrap();
+        let alone: Value = serde_json::from_slice(&alone.stdout).unwrap();
+        let numbers = |record: &Value| {
+            let mut record = record.clone();
+            let fields = record.as_object_mut().unwrap();
+            for measured in [
+                "setup_s",
+                "solve_s",
+                "step_s",
+                "comm_s",
+                "peak_memory_bytes",
+                "provenance",
+                "resumed_from_step",
+                "solve_s_segments",
+                "key",
+                "case_id",
+                "repeat",
+                "solver_version",
+                "run_id",
+                "attempt",
+                "oversubscribed",
+                "case",
+            ] {
+                fields.remove(measured);
+            }
+            record
+        };
+        assert_eq!(numbers(record), numbers(&alone), "{}", record["key"]);
+    }
 }
 
 /// The warning before the time limit (`--signal=B:TERM@…`; sent here by hand, as Slurm would,

@@ -9,7 +9,7 @@ use crate::cli::args::CleanArgs;
 use crate::model::study::Study;
 use crate::run::plan::{Options, Planned};
 use crate::store::fs::remove_where;
-use crate::store::{Fault, Store};
+use crate::store::{Fault, Store, CHECKPOINT};
 use schema::record::Stored;
 use serde_json::Value;
 use std::collections::HashSet;
@@ -20,6 +20,11 @@ pub(super) fn clean(args: &CleanArgs) -> Result<ExitCode, Failure> {
     let cleaned = clean_results(&study, &store, &planned, args.yes)?;
     for figure in &cleaned.figures {
         outln!("removed figures/{figure}: no figure of the study draws it");
+    }
+    for key in &cleaned.checkpoints {
+        outln!(
+            "removed runs/.work/{key}.{CHECKPOINT}: its point is stored or no point of the study"
+        );
     }
     if cleaned.orphans.is_empty() {
         outln!("every stored record is a point of study {}", study.name);
@@ -52,6 +57,8 @@ struct Cleaned {
     orphans: Vec<(String, String)>,
     /// Whether the orphans were deleted.
     deleted: bool,
+    /// Keys whose checkpoints were removed: no run will resume them.
+    checkpoints: Vec<String>,
 }
 
 fn clean_results(
@@ -95,7 +102,36 @@ fn clean_results(
         figures: removed,
         orphans,
         deleted: delete_orphans,
+        checkpoints: stale_checkpoints(store, planned)?,
     })
+}
+
+/// Removes the checkpoints no run will resume (`--keep-checkpoints` kept them, or the study
+/// dropped their point): those of points that are stored or not in the study, and that no
+/// process is running now (a running solver's checkpoint is its own). Returns their keys.
+fn stale_checkpoints(store: &Store, planned: &[Planned]) -> Result<Vec<String>, Fault> {
+    let to_run: HashSet<&str> = planned
+        .iter()
+        .filter(|p| p.runs())
+        .map(|p| p.key.as_str())
+        .collect();
+    let suffix = format!(".{CHECKPOINT}");
+    let mut keys: Vec<String> = std::fs::read_dir(store.work_dir())
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
+        .filter(|key| !to_run.contains(key.as_str()))
+        .collect();
+    keys.sort();
+    let mut removed = Vec::new();
+    for key in keys {
+        if let Some(_lock) = store.lock(&key)? {
+            let _ = std::fs::remove_file(store.scratch(&key, CHECKPOINT));
+            removed.push(key);
+        }
+    }
+    Ok(removed)
 }
 
 /// `method=nonlocal n=64 …`: a record's case, for the list.
