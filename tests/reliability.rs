@@ -621,15 +621,15 @@ fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
 }
 
 /// A study that checkpoints (`checkpoint_every_s`): `nlstudy run` stopped by SIGTERM while its
-/// long point runs asks the solver to stop, which writes the point's checkpoint; the run exits
-/// 143 and stores nothing for the point. `run` again resumes the point from its checkpoint
+/// long point runs (`status` says how far it is) asks the solver to stop, which writes the
+/// point's checkpoint; the run exits 143 and stores nothing for the point. `run` again resumes the point from its checkpoint
 /// (`resumed_from_step`), removes it, and stores the record an uninterrupted run stores.
 #[test]
 fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
     let study = json!({
         "name": "long",
         "checkpoint_every_s": 0.05,
-        "base": {"dim": 2, "n": 128, "m": 3, "problem": "manufactured", "t_end": 0.1, "cfl": 1.0,
+        "base": {"dim": 2, "n": 128, "m": 3, "problem": "manufactured", "t_end": 0.2, "cfl": 1.0,
                  "integrator": "crank_nicolson", "error_total": true, "diagnostics_every": 0.01}
     });
     let scratch = Scratch::new("checkpointed", &study);
@@ -644,6 +644,16 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
     assert!(
         eventually(Duration::from_secs(120), || !checkpoints().is_empty()),
         "no checkpoint was written"
+    );
+    // While it runs, `status` says how far it is.
+    let status = text(&scratch.nlstudy("status", &[]));
+    let said = status
+        .lines()
+        .find(|l| l.starts_with("running "))
+        .unwrap_or_else(|| panic!("status says nothing of the running point: {status}"));
+    assert!(
+        said.contains(": step ") && said.contains(" of 1694, t = ") && said.contains(" s left"),
+        "{said}"
     );
     Command::new("kill")
         .args(["-TERM", &run.id().to_string()])
@@ -663,7 +673,7 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         .find(|l| l.starts_with("checkpoint "))
         .unwrap_or_else(|| panic!("status says nothing of the checkpoint: {status}"));
     assert!(
-        said.contains(": step ") && said.contains(" of 847; the next run resumes it"),
+        said.contains(": step ") && said.contains(" of 1694; the next run resumes it"),
         "{said}"
     );
 

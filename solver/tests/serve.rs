@@ -84,3 +84,34 @@ fn a_served_case_has_the_record_of_its_own_process_and_bad_input_is_an_answer() 
         numbers_of(answers[0].clone())
     );
 }
+
+/// A line may wrap its case as `{"case": …, "progress": FILE}`: the time loop keeps FILE up to
+/// date while it runs and removes it at its end, and the record is the bare case's. Another key
+/// beside `case` is an error naming it.
+#[test]
+fn a_served_case_may_name_its_progress_file() {
+    let dir = std::env::temp_dir().join(format!("nlsolve-serve-progress-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let progress = dir.join("case.progress");
+    let case = json!({"dim": 1, "n": 64, "m": 3, "problem": "bump", "t_end": 1e-3, "cfl": 0.5});
+    let wrapped = json!({"case": case, "progress": progress.to_str().unwrap()});
+    let input = format!("{wrapped}\n{case}\n{}\n", json!({"case": case, "every": 1}));
+    let served = nlsolve(&["serve"], Some(&input), Stdio::piped());
+    assert!(served.status.success());
+    let answers: Vec<Value> = String::from_utf8(served.stdout)
+        .unwrap()
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    assert_eq!(
+        numbers_of(answers[0].clone()),
+        numbers_of(answers[1].clone())
+    );
+    assert!(!progress.exists(), "the progress file outlived its loop");
+    let error = answers[2]["error"].as_str().unwrap();
+    assert!(
+        error.starts_with("`every`: a line is a case, or"),
+        "{error}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -6,7 +6,7 @@
 use crate::run::cluster::ledger::{self, LedgerEntry};
 use crate::run::cluster::scheduler::{self, Scheduler};
 use crate::run::plan::Planned;
-use crate::store::{Index, Store, CHECKPOINT};
+use crate::store::{Index, Store, CHECKPOINT, PROGRESS};
 use schema::record::{Status, Stored};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -66,27 +66,75 @@ pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) ->
     }
     let missing = planned.iter().filter(|p| p.runs()).count();
     let _ = writeln!(out, "{missing} of {} points to run", planned.len());
+    running_report(&mut out, store, planned);
     checkpoints_report(&mut out, store, planned);
     jobs_report(&mut out, store, index);
     out
 }
 
-/// One line per point to run that has a checkpoint: how far its stopped run got, where the
-/// next run resumes it.
-fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
+/// One line per point running now (its key locked by a run) whose time loop says how far it is
+/// (`runs/.work/<key>.progress`): its step of steps, simulated time and the time left.
+fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
+    for (point, progress) in with_scratch(store, planned, PROGRESS) {
+        if !store.running(&point.key) {
+            continue; // left by a run that was killed; the next run clears it
+        }
+        let Some(progress) = crate::store::fs::read_regular(&progress, 4096)
+            .ok()
+            .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+        else {
+            continue;
+        };
+        let (Some(step), Some(steps)) = (progress["step"].as_u64(), progress["steps"].as_u64())
+        else {
+            continue;
+        };
+        let t_end = point.case.as_ref().ok().and_then(|c| {
+            c.canonical()
+                .get("t_end")
+                .and_then(serde_json::Value::as_f64)
+        });
+        let time = t_end
+            .map(|t| format!(", t = {:.4} of {t}", t * step as f64 / steps.max(1) as f64))
+            .unwrap_or_default();
+        let left = progress["left_s"]
+            .as_f64()
+            .map(|s| format!(", about {s:.0} s left"))
+            .unwrap_or_default();
+        let _ = writeln!(
+            out,
+            "running {}: step {step} of {steps}{time}{left}",
+            point.point.label()
+        );
+    }
+}
+
+/// The points to run that have the scratch file `name`, with its path: the work directory is
+/// listed once (it holds a few files per running or stopped point).
+fn with_scratch<'a>(
+    store: &Store,
+    planned: &'a [Planned],
+    name: &str,
+) -> Vec<(&'a Planned, std::path::PathBuf)> {
     let Ok(entries) = std::fs::read_dir(store.work_dir()) else {
-        return;
+        return Vec::new();
     };
-    let suffix = format!(".{CHECKPOINT}");
+    let suffix = format!(".{name}");
     let keys: std::collections::BTreeSet<String> = entries
         .flatten()
         .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
         .collect();
-    for point in planned
+    planned
         .iter()
         .filter(|p| p.runs() && keys.contains(p.key.as_str()))
-    {
-        let path = store.scratch(&point.key, CHECKPOINT);
+        .map(|p| (p, store.scratch(&p.key, name)))
+        .collect()
+}
+
+/// One line per point to run that has a checkpoint: how far its stopped run got, where the
+/// next run resumes it.
+fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
+    for (point, path) in with_scratch(store, planned, CHECKPOINT) {
         let how_far = match checkpoint_steps(&path) {
             Some((step, Some(steps))) => format!("step {step} of {steps}"),
             Some((step, None)) => format!("step {step}"),

@@ -16,7 +16,7 @@ use crate::run::progress::Progress;
 use crate::run::signals::Stop;
 use crate::run::worker::{die_with_parent, Served, Worker, Workers};
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
-use crate::store::{FileError, Store, CHECKPOINT, SCRATCH};
+use crate::store::{FileError, Store, CHECKPOINT, PROGRESS, SCRATCH};
 use schema::exit;
 use schema::record::{Failure, Outcome, Record, Status, Stored};
 use serde_json::Value;
@@ -142,6 +142,7 @@ struct Process {
     stdout: PathBuf,
     stderr: PathBuf,
     case_file: PathBuf,
+    progress: PathBuf,
     /// MPI jobs: when a rank was first seen exited and not reaped by the launcher.
     launcher_watch: Option<LauncherWatch>,
 }
@@ -269,12 +270,26 @@ struct Pool<'a> {
 /// How long a solver asked to stop may take to write its checkpoint before it is killed.
 const STOP_GRACE: Duration = Duration::from_secs(30);
 
+/// How often the bar shows how far the running cases are (from their progress files).
+const SHOW_PROGRESS_EVERY: Duration = Duration::from_secs(1);
+
+/// `step k/N, ~S s left` from a running case's progress file (`nlsolve --progress`), once its
+/// time loop has written one (a second into it: short cases never show).
+fn how_far(progress: &std::path::Path) -> Option<String> {
+    let text = crate::store::fs::read_regular(progress, 4096).ok()?;
+    let progress: Value = serde_json::from_str(&text).ok()?;
+    let (step, steps) = (progress["step"].as_u64()?, progress["steps"].as_u64()?);
+    let left = progress["left_s"].as_f64()?;
+    Some(format!("step {step}/{steps}, ~{left:.0} s left"))
+}
+
 /// How long the pool waits for a worker's answer before it looks at its processes again.
 const POLL_EVERY: Duration = Duration::from_millis(10);
 
 impl Pool<'_> {
     fn run_cases(&mut self, running: &mut Vec<Running>) -> Result<(), FileError> {
         create_dir(&self.store.work_dir())?;
+        let mut shown = Instant::now();
         loop {
             if self.stop.requested() {
                 self.tally.interrupted = true;
@@ -295,6 +310,22 @@ impl Pool<'_> {
                     *heard = Some(line);
                 }
                 wait = Duration::ZERO;
+            }
+            if shown.elapsed() >= SHOW_PROGRESS_EVERY {
+                shown = Instant::now();
+                let how_far: Vec<String> = running
+                    .iter()
+                    .filter_map(|job| {
+                        let planned = &self.planned[job.index];
+                        let progress = self.store.scratch(&planned.key, PROGRESS);
+                        Some(format!(
+                            "{}: {}",
+                            planned.point.label(),
+                            how_far(&progress)?
+                        ))
+                    })
+                    .collect();
+                self.progress.running(&how_far);
             }
             let mut k = 0;
             while k < running.len() {
@@ -356,8 +387,9 @@ impl Pool<'_> {
             };
             let how = if self.serves(case, next.alone) {
                 let mut worker = self.workers.take(self.solver)?;
+                let progress = self.store.scratch(&planned.key, PROGRESS);
                 // A worker that is gone already says so when its output closes.
-                worker.send(case.canonical_text());
+                worker.send(&served_line(case, &progress));
                 How::Served {
                     worker,
                     heard: None,
@@ -651,6 +683,20 @@ fn checkpointed(case: &Checked, options: &PoolOptions) -> Option<Duration> {
     (one_process && timed).then_some(every)
 }
 
+/// The line a worker reads for `case`: the case, with the file its time loop says how far it
+/// is in (absolute: a worker runs in the work directory; when the path is text, as JSON needs).
+fn served_line(case: &Checked, progress: &std::path::Path) -> String {
+    let progress = std::path::absolute(progress).unwrap_or_default();
+    match progress.to_str().filter(|p| !p.is_empty()) {
+        Some(path) => format!(
+            "{{\"case\":{},\"progress\":{}}}",
+            case.canonical_text(),
+            Value::from(path)
+        ),
+        None => case.canonical_text().to_string(),
+    }
+}
+
 /// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
 fn start(
     case: &Value,
@@ -659,7 +705,8 @@ fn start(
     store: &Store,
     options: &PoolOptions,
 ) -> Result<Process, FileError> {
-    let [case_file, stdout, stderr] = SCRATCH.map(|name| store.scratch(&planned.key, name));
+    let [case_file, stdout, stderr, progress] =
+        SCRATCH.map(|name| store.scratch(&planned.key, name));
     create_fresh(&case_file)
         .and_then(|mut file| std::io::Write::write_all(&mut file, case.to_string().as_bytes()))
         .map_err(FileError::on("write", &case_file))?;
@@ -677,7 +724,12 @@ fn start(
     } else {
         Command::new(&solver.binary)
     };
-    command.arg("run").arg("--case").arg(&case_file);
+    command
+        .arg("run")
+        .arg("--case")
+        .arg(&case_file)
+        .arg("--progress")
+        .arg(&progress);
     if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
         command.arg("--write-vtk").arg(store.fields(&planned.key));
     }
@@ -708,6 +760,7 @@ fn start(
         stdout,
         stderr,
         case_file,
+        progress,
         launcher_watch: (ranks > 1).then(|| LauncherWatch {
             checked: Instant::now(),
             unreaped_since: None,
@@ -765,7 +818,7 @@ impl Process {
     }
 
     fn remove_files(&self) {
-        for path in [&self.stdout, &self.stderr, &self.case_file] {
+        for path in [&self.stdout, &self.stderr, &self.case_file, &self.progress] {
             let _ = std::fs::remove_file(path);
         }
     }

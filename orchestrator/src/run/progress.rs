@@ -18,6 +18,8 @@ pub struct Progress {
     done: usize,
     failed: usize,
     skipped: usize,
+    /// How far the long cases running now are, shown after the counts.
+    running: String,
 }
 
 impl Mode {
@@ -48,6 +50,7 @@ impl Progress {
             done: 0,
             failed: 0,
             skipped,
+            running: String::new(),
         };
         progress.update_message();
         progress
@@ -121,10 +124,22 @@ impl Progress {
         }
     }
 
+    /// How far the long cases running now are (`label: step k/N, ~S s left` each), on the bar.
+    pub fn running(&mut self, cases: &[String]) {
+        if self.bar.is_some() {
+            self.running = cases.join("; ");
+            self.update_message();
+        }
+    }
+
     fn update_message(&mut self) {
         if let Some(bar) = &self.bar {
+            let running = match self.running.as_str() {
+                "" => String::new(),
+                cases => format!("; running {cases}"),
+            };
             bar.set_message(format!(
-                "done {}, skipped {}, failed {}",
+                "done {}, skipped {}, failed {}{running}",
                 self.done, self.skipped, self.failed
             ));
         }

@@ -234,6 +234,23 @@ pub fn lock_byte(file: &File, offset: i64) -> io::Result<bool> {
     }
 }
 
+/// Whether another opening holds a lock on byte `offset` of `file` (`F_OFD_GETLK`: nothing is
+/// locked by asking).
+pub fn byte_locked(file: &File, offset: i64) -> io::Result<bool> {
+    use std::os::fd::AsRawFd;
+    // SAFETY: as in `lock_byte`.
+    let mut lock: libc::flock = unsafe { std::mem::zeroed() };
+    lock.l_type = libc::F_WRLCK as libc::c_short;
+    lock.l_whence = libc::SEEK_SET as libc::c_short;
+    lock.l_start = offset;
+    lock.l_len = 1;
+    // SAFETY: the descriptor is open for as long as `file`; the kernel fills `lock` in.
+    if unsafe { libc::fcntl(file.as_raw_fd(), libc::F_OFD_GETLK, &mut lock) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(lock.l_type != libc::F_UNLCK as libc::c_short)
+}
+
 /// Removes the files of `dir` whose names `stale` picks (a missing `dir` has none). A `dir`
 /// that is a symbolic link is left alone, and so is what a link inside it points to (the link
 /// itself may go): leftovers are cleared inside the results, never elsewhere.

@@ -195,6 +195,16 @@ impl Store {
         read_record(&path, &read_regular(&path, RECORD_CAP).ok()?).ok()
     }
 
+    /// Is `key` locked, by this process or another: is its point running? The lock is not
+    /// taken (as `lock` would, which a run starting the point then would take for another's).
+    pub fn running(&self, key: &str) -> bool {
+        let path = self.work_dir().join(KEY_LOCKS);
+        let Ok((file, _)) = fs::open_regular(&path) else {
+            return false;
+        };
+        fs::byte_locked(&file, key_byte(key)).unwrap_or(false)
+    }
+
     /// Takes the lock of `key` for this process: `None` when another process holds it (that
     /// process is running the point). Taking it clears what an earlier holder killed midway
     /// left behind: its scratch files and its partly written record.
@@ -511,8 +521,12 @@ fn key_byte(key: &str) -> i64 {
 pub const CHECKPOINT: &str = "checkpoint";
 
 /// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its
-/// case, standard output and standard error.
-pub const SCRATCH: [&str; 3] = ["case.json", "out", "err"];
+/// case, standard output and standard error, and how far its time loop is (`PROGRESS`, written
+/// by a worker's case too).
+pub const SCRATCH: [&str; 4] = ["case.json", "out", "err", PROGRESS];
+
+/// The scratch file where a running case's time loop says how far it is (`nlsolve --progress`).
+pub const PROGRESS: &str = "progress";
 
 const IDENTITY_MISSING: &str =
     "it does not carry the `key`, `case` and `solver_version` its key is made of";

@@ -9,6 +9,7 @@ pub mod checkpoint;
 pub mod euler;
 pub mod integrator;
 pub mod measure;
+pub mod progress;
 pub mod runge_kutta;
 pub mod stepper;
 pub mod theta;

@@ -136,6 +136,7 @@ pub(crate) fn timed_steps<S>(
         timing.take_back(resume);
     }
     let segment_started = timing.solve_seconds;
+    let mut reporter = super::progress::take();
     for k in timing.steps_done..steps {
         let started = Instant::now();
         let max_abs = step(state, k);
@@ -155,6 +156,9 @@ pub(crate) fn timed_steps<S>(
             break;
         }
         after(state, k + 1);
+        if let Some(reporter) = reporter.as_mut() {
+            reporter.note(k + 1, steps);
+        }
         if let Some(Checkpoints {
             checkpointer,
             carry,

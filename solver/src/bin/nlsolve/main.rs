@@ -90,6 +90,10 @@ struct RunArgs {
     /// With --checkpoint: also once SECONDS of wall time have passed since the last one.
     #[arg(long, value_name = "SECONDS", requires = "checkpoint")]
     checkpoint_every_seconds: Option<f64>,
+    /// Keep FILE up to date with how far the time loop is (`{"step", "steps", "elapsed_s",
+    /// "left_s"}`, at most once a second); removed when the loop ends.
+    #[arg(long, value_name = "FILE")]
+    progress: Option<PathBuf>,
     /// With --checkpoint: keep FILE after the record is written.
     #[arg(long, requires = "checkpoint")]
     keep_checkpoint: bool,
@@ -254,6 +258,9 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     }
     if let Some(path) = &args.checkpoint {
         start_checkpoints(args, path, &case, world.is_some())?;
+    }
+    if ranks::is_rank0(world) {
+        solver::integrate::progress::configure(args.progress.clone());
     }
     let outcome = match world {
         Some(world) => ranks::run(
@@ -423,14 +430,31 @@ fn answer_each_line(
     out.flush().map_err(failed)
 }
 
-/// `nlsolve serve`'s answer to one line of input: the record's JSON, or `{"error": …}`.
+/// `nlsolve serve`'s answer to one line of input: the record's JSON, or `{"error": …}`. A line
+/// is a case, or `{"case": CASE, "progress": FILE}` to keep FILE up to date with how far the
+/// case's time loop is (as `run --progress`).
 fn served(line: &str) -> String {
     let error = |message: String| serde_json::json!({ "error": message }).to_string();
-    let fields = match schema::json::parse(line) {
+    let mut fields = match schema::json::parse(line) {
         Ok(fields @ Value::Object(_)) => fields,
         Ok(_) => return error("a case is one JSON object of case fields".into()),
         Err(e) => return error(format!("not valid JSON: {e}")),
     };
+    let mut progress = None;
+    if let Some(envelope) = fields.as_object_mut().filter(|f| f.contains_key("case")) {
+        progress = match envelope.remove("progress") {
+            None => None,
+            Some(Value::String(path)) => Some(PathBuf::from(path)),
+            Some(_) => return error("`progress`: a file's path, as a string".into()),
+        };
+        if let Some(unknown) = envelope.keys().find(|k| *k != "case") {
+            return error(format!(
+                "`{unknown}`: a line is a case, or {{\"case\": …, \"progress\": FILE}}"
+            ));
+        }
+        fields = envelope.remove("case").expect("it is there");
+    }
+    solver::integrate::progress::configure(progress);
     let case = match ValidCase::from_json(fields) {
         Ok(case) if case.ranks > 1 => {
             return error(format!(
