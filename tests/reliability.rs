@@ -2,7 +2,7 @@
 //! `collect` killed (SIGKILL) at random moments and resumed, records that are not whole, and an
 //! MPI rank killed mid-run. docs/reliability.md lists what each shows.
 
-use nonlocal_study::{planned_keys, records, stored_keys, text, Scratch};
+use nonlocal_study::{numbers_of, planned_keys, records, stored_keys, text, Scratch};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
@@ -606,7 +606,7 @@ fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
         assert!(out.status.success(), "{}", text(&out));
         let mut by_key: Vec<Value> = records(&scratch.dir.join(results).join("same/runs"))
             .into_iter()
-            .map(numbers_of)
+            .map(|record| numbers_of(&record))
             .collect();
         by_key.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));
         by_key
@@ -700,14 +700,7 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
     assert!(whole.status.success(), "{}", text(&whole));
     let whole = records(&scratch.dir.join("whole/long/runs"));
     assert!(whole[0].get("resumed_from_step").is_none());
-    let resumed_numbers = |record: &Value| {
-        let mut record = numbers_of(record.clone());
-        let fields = record.as_object_mut().unwrap();
-        fields.remove("resumed_from_step");
-        fields.remove("solve_s_segments");
-        record
-    };
-    assert_eq!(resumed_numbers(&stored[0]), resumed_numbers(&whole[0]));
+    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
 
     // `clean` removes the checkpoints no run will resume: a stored point's (as
     // `--keep-checkpoints` leaves it) and one of no point of the study.
@@ -724,26 +717,6 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         text(&cleaned)
     );
     assert!(checkpoints().is_empty());
-}
-
-/// A stored record without what measures the run rather than the case.
-fn numbers_of(mut record: Value) -> Value {
-    let fields = record.as_object_mut().unwrap();
-    for measured in [
-        "setup_s",
-        "solve_s",
-        "step_s",
-        "comm_s",
-        "peak_memory_bytes",
-        "run_id",
-    ] {
-        fields.remove(measured);
-    }
-    let provenance = fields["provenance"].as_object_mut().unwrap();
-    for measured in ["timestamp", "load_start", "load_end", "noisy"] {
-        provenance.remove(measured);
-    }
-    record
 }
 
 /// An executable shell script `name` in the scratch directory; returns its path.

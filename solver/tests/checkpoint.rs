@@ -9,32 +9,30 @@ mod common;
 
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-/// `nlsolve run --case - EXTRA…`; the case goes on its standard input.
-fn nlsolve_command(extra: &[&str]) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_nlsolve"));
-    command.args(["run", "--case", "-"]).args(extra);
-    command
-}
-
-/// Runs nlsolve on `case` (given on standard input) with `extra` flags, to its end.
-fn run(case: &Value, extra: &[&str]) -> Output {
-    let mut child = nlsolve_command(extra)
+/// `nlsolve run --case - EXTRA…` started, with `case` written to its standard input.
+fn start(case: &Value, extra: &[&str], stdout: Stdio) -> Child {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nlsolve"))
+        .args(["run", "--case", "-"])
+        .args(extra)
         .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
+        .stdout(stdout)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     use std::io::Write;
+    let mut input = child.stdin.take().unwrap();
+    input.write_all(case.to_string().as_bytes()).unwrap();
     child
-        .stdin
-        .take()
+}
+
+/// Runs nlsolve on `case` with `extra` flags, to its end.
+fn run(case: &Value, extra: &[&str]) -> Output {
+    start(case, extra, Stdio::piped())
+        .wait_with_output()
         .unwrap()
-        .write_all(case.to_string().as_bytes())
-        .unwrap();
-    child.wait_with_output().unwrap()
 }
 
 fn record(output: &Output) -> Value {
@@ -46,23 +44,11 @@ fn record(output: &Output) -> Value {
     serde_json::from_slice(&output.stdout).unwrap()
 }
 
-/// The record without what measures the run itself, and without what says it was resumed.
-fn numbers_of(mut record: Value) -> Value {
-    let fields = record.as_object_mut().unwrap();
-    for measured in [
-        "setup_s",
-        "solve_s",
-        "step_s",
-        "comm_s",
-        "peak_memory_bytes",
-        "provenance",
-        "resumed_from_step",
-        "solve_s_segments",
-    ] {
-        fields.remove(measured);
-    }
-    // The case's thread count may differ between the two halves.
-    fields["case"].as_object_mut().unwrap().remove("threads");
+/// The numbers of a record (`common::numbers_of`), its case's thread count left out: the two
+/// halves of a run may differ in it.
+fn numbers_of(record: Value) -> Value {
+    let mut record = common::numbers_of(record);
+    record["case"].as_object_mut().unwrap().remove("threads");
     record
 }
 
@@ -100,17 +86,11 @@ fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: 
         case
     };
     let first = with_threads(threads);
-    let mut child = nlsolve_command(&["--checkpoint", path, "--checkpoint-every-steps", "25"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    {
-        use std::io::Write;
-        let mut input = child.stdin.take().unwrap();
-        input.write_all(first.to_string().as_bytes()).unwrap();
-    }
+    let child = start(
+        &first,
+        &["--checkpoint", path, "--checkpoint-every-steps", "25"],
+        Stdio::piped(),
+    );
     assert!(appears(&file), "{case}: no checkpoint was written");
     Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
@@ -273,21 +253,11 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
     let mut state = seed | 1;
     let mut last_step = 0;
     for _ in 0..8 {
-        let mut child = nlsolve_command(&["--checkpoint", path, "--checkpoint-every-steps", "1"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        {
-            use std::io::Write;
-            child
-                .stdin
-                .take()
-                .unwrap()
-                .write_all(case.to_string().as_bytes())
-                .unwrap();
-        }
+        let mut child = start(
+            &case,
+            &["--checkpoint", path, "--checkpoint-every-steps", "1"],
+            Stdio::null(),
+        );
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;

@@ -5,25 +5,9 @@
 
 mod common;
 
-use common::nlsolve;
+use common::{nlsolve, numbers_of};
 use serde_json::{json, Value};
 use std::process::Stdio;
-
-/// The record without what measures the run itself rather than the case's numbers.
-fn numbers_of(mut record: Value) -> Value {
-    let fields = record.as_object_mut().expect("a record is an object");
-    for measured in [
-        "setup_s",
-        "solve_s",
-        "step_s",
-        "comm_s",
-        "peak_memory_bytes",
-        "provenance",
-    ] {
-        fields.remove(measured);
-    }
-    record
-}
 
 #[test]
 fn a_served_case_has_the_record_of_its_own_process_and_bad_input_is_an_answer() {

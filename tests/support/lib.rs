@@ -268,3 +268,25 @@ pub fn measured(dom: &str) -> Value {
     serde_json::from_str(&text)
         .unwrap_or_else(|e| panic!("the page measured nothing ({e}): {text}"))
 }
+
+/// A stored record without what measures the run rather than the case: its timings, peak
+/// memory and `run_id`, when and under what load it ran, and whether it was resumed from a
+/// checkpoint. Two runs of one point share the rest bit for bit, however they ran.
+pub fn numbers_of(record: &Value) -> Value {
+    let mut record = record.clone();
+    let fields = record.as_object_mut().expect("a record is an object");
+    for measured in schema::record::columns::TIMINGS.iter().chain(&[
+        "peak_memory_bytes",
+        "run_id",
+        "resumed_from_step",
+        "solve_s_segments",
+    ]) {
+        fields.remove(*measured);
+    }
+    if let Some(provenance) = fields.get_mut("provenance").and_then(Value::as_object_mut) {
+        for measured in ["timestamp", "load_start", "load_end", "noisy"] {
+            provenance.remove(measured);
+        }
+    }
+    record
+}

@@ -84,23 +84,22 @@ impl Progress {
 
     /// A case that failed for a reason outside it (timeout, a killed process) starts again.
     pub fn retrying(&mut self, label: &str, attempt: usize, message: &str) {
-        let line = format!(
+        self.say(format!(
             "retrying {label} (attempt {attempt}): {}",
             first_line(message)
-        );
-        match self.mode {
-            Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
-            Mode::Lines => errln!("{line}"),
-            Mode::Quiet => {}
-        }
+        ));
     }
 
     /// A case whose worker died or hung on it runs again in a process of its own.
     pub fn alone(&mut self, label: &str, why: &str) {
-        let line = format!(
+        self.say(format!(
             "running {label} again in a process of its own: {}",
             first_line(why)
-        );
+        ));
+    }
+
+    /// A line above the bar, or on its own; nothing when quiet.
+    fn say(&self, line: String) {
         match self.mode {
             Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
             Mode::Lines => errln!("{line}"),

@@ -212,17 +212,23 @@ pub fn lock_file(dir: &Path, name: &str) -> Result<File, FileError> {
     }
 }
 
-/// Locks byte `offset` of `file` for writing, as an open file description lock (`F_OFD_SETLK`):
-/// held until every descriptor of this opening is closed, and refused (false) while another
-/// opening, in this process or another, holds it.
-pub fn lock_byte(file: &File, offset: i64) -> io::Result<bool> {
-    use std::os::fd::AsRawFd;
+/// A write lock of the one byte at `offset`, for `fcntl`.
+fn write_lock_of_byte(offset: i64) -> libc::flock {
     // SAFETY: a zeroed `flock` is a valid value of the plain C struct; its fields are set below.
     let mut lock: libc::flock = unsafe { std::mem::zeroed() };
     lock.l_type = libc::F_WRLCK as libc::c_short;
     lock.l_whence = libc::SEEK_SET as libc::c_short;
     lock.l_start = offset;
     lock.l_len = 1;
+    lock
+}
+
+/// Locks byte `offset` of `file` for writing, as an open file description lock (`F_OFD_SETLK`):
+/// held until every descriptor of this opening is closed, and refused (false) while another
+/// opening, in this process or another, holds it.
+pub fn lock_byte(file: &File, offset: i64) -> io::Result<bool> {
+    use std::os::fd::AsRawFd;
+    let lock = write_lock_of_byte(offset);
     // SAFETY: the descriptor is open for as long as `file`, and `lock` outlives the call.
     if unsafe { libc::fcntl(file.as_raw_fd(), libc::F_OFD_SETLK, &lock) } == 0 {
         return Ok(true);
@@ -238,12 +244,7 @@ pub fn lock_byte(file: &File, offset: i64) -> io::Result<bool> {
 /// locked by asking).
 pub fn byte_locked(file: &File, offset: i64) -> io::Result<bool> {
     use std::os::fd::AsRawFd;
-    // SAFETY: as in `lock_byte`.
-    let mut lock: libc::flock = unsafe { std::mem::zeroed() };
-    lock.l_type = libc::F_WRLCK as libc::c_short;
-    lock.l_whence = libc::SEEK_SET as libc::c_short;
-    lock.l_start = offset;
-    lock.l_len = 1;
+    let mut lock = write_lock_of_byte(offset);
     // SAFETY: the descriptor is open for as long as `file`; the kernel fills `lock` in.
     if unsafe { libc::fcntl(file.as_raw_fd(), libc::F_OFD_GETLK, &mut lock) } != 0 {
         return Err(io::Error::last_os_error());

@@ -70,3 +70,18 @@ pub fn nlsolve(args: &[&str], input: Option<&str>, stdout: Stdio) -> Output {
     }
     child.wait_with_output().expect("nlsolve ends")
 }
+
+/// A record without what measures the run itself (its timings, peak memory and provenance) or
+/// says it was resumed: the numbers of the case, which two runs of it share bit for bit.
+pub fn numbers_of(mut record: serde_json::Value) -> serde_json::Value {
+    let fields = record.as_object_mut().expect("a record is an object");
+    for measured in schema::record::columns::TIMINGS.iter().chain(&[
+        "peak_memory_bytes",
+        "provenance",
+        "resumed_from_step",
+        "solve_s_segments",
+    ]) {
+        fields.remove(*measured);
+    }
+    record
+}
