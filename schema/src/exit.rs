@@ -54,7 +54,7 @@ pub const TABLE: [Status; 5] = [
     Status {
         code: "130, 143, 129",
         nlstudy: "stopped by Ctrl-C, SIGTERM (a scheduler's warning, `scancel`, a preemption) or SIGHUP: what finished is stored, and the next `run` resumes",
-        nlsolve: "stopped by the signal",
+        nlsolve: "stopped by the signal; with `--checkpoint`, in the time loop, once its checkpoint is written (no record)",
     },
 ];
 
