@@ -135,7 +135,7 @@ fn with_scratch<'a>(
 /// next run resumes it.
 fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
-        let how_far = match checkpoint_steps(&path) {
+        let how_far = match crate::store::checkpoint_steps(&path) {
             Some((step, Some(steps))) => format!("step {step} of {steps}"),
             Some((step, None)) => format!("step {step}"),
             None => "a checkpoint that cannot be read (the next run starts it afresh)".into(),
@@ -146,20 +146,6 @@ fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
             point.point.label()
         );
     }
-}
-
-/// The step a checkpoint was taken at and the run's steps in all, from its header (the line
-/// after the file's first; nlsolve's `integrate::checkpoint` writes it).
-fn checkpoint_steps(path: &std::path::Path) -> Option<(u64, Option<u64>)> {
-    use std::io::BufRead;
-    let (file, _) = crate::store::fs::open_regular(path).ok()?;
-    let mut lines = std::io::BufReader::new(file).split(b'\n');
-    let magic = lines.next()?.ok()?;
-    if !magic.starts_with(b"nlsolve checkpoint") {
-        return None;
-    }
-    let header: serde_json::Value = serde_json::from_slice(&lines.next()?.ok()?).ok()?;
-    Some((header["step"].as_u64()?, header["steps"].as_u64()))
 }
 
 /// One line per job of the ledger: its id, name, state (an array's elements counted by state)

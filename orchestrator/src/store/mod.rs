@@ -520,6 +520,20 @@ fn key_byte(key: &str) -> i64 {
 /// when a run stops, so that the next one resumes it; the solver removes it with its record.
 pub const CHECKPOINT: &str = "checkpoint";
 
+/// The step a checkpoint (`<key>.checkpoint`) was taken at and the run's steps in all, from its
+/// header: the line after the file's first (nlsolve's `integrate::checkpoint` writes it).
+pub fn checkpoint_steps(path: &Path) -> Option<(u64, Option<u64>)> {
+    use std::io::BufRead;
+    let (file, _) = fs::open_regular(path).ok()?;
+    let mut lines = std::io::BufReader::new(file).split(b'\n');
+    let magic = lines.next()?.ok()?;
+    if !magic.starts_with(b"nlsolve checkpoint") {
+        return None;
+    }
+    let header: Value = serde_json::from_slice(&lines.next()?.ok()?).ok()?;
+    Some((header["step"].as_u64()?, header["steps"].as_u64()))
+}
+
 /// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its
 /// case, standard output and standard error, and how far its time loop is (`PROGRESS`, written
 /// by a worker's case too).

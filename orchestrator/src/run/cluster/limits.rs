@@ -7,11 +7,13 @@
 //! power law the two largest such grids show (time ∝ n^b), or by n^(dim+2) (an explicit step
 //! count at a fixed CFL number) when only one is stored. A job's limit is the sum over its
 //! points × `SAFETY` plus `START_S` per point, rounded up to the minute and at least `FLOOR_S`.
+//! A point stopped at step k of N with a checkpoint resumes there: it counts (N − k)/N of its
+//! estimate.
 
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
-use crate::store::Index;
+use crate::store::{checkpoint_steps, Index, Store, CHECKPOINT};
 use schema::record::Status;
 use std::collections::HashMap;
 
@@ -41,6 +43,8 @@ pub enum Source {
 pub struct History {
     /// Series → n → wall times of stored ok or diverged runs.
     times: HashMap<String, HashMap<u64, Vec<f64>>>,
+    /// Key → the share of its steps a point with a checkpoint has left.
+    left: HashMap<String, f64>,
 }
 
 impl History {
@@ -58,7 +62,23 @@ impl History {
                 series.entry(n).or_default().push(wall);
             }
         }
-        History { times }
+        History {
+            times,
+            left: HashMap::new(),
+        }
+    }
+
+    /// Counts the checkpoints in `store` of the points to run: each resumes where it stopped.
+    pub fn resuming(mut self, store: &Store, planned: &[Planned]) -> History {
+        for p in planned.iter().filter(|p| p.runs()) {
+            let path = store.scratch(&p.key, CHECKPOINT);
+            if let Some((step, Some(steps))) = checkpoint_steps(&path).filter(|(_, n)| *n > Some(0))
+            {
+                let left = 1.0 - step.min(steps) as f64 / steps as f64;
+                self.left.insert(p.key.to_string(), left);
+            }
+        }
+        self
     }
 
     /// The estimate for `point`, if it or a neighbour was timed.
@@ -106,7 +126,7 @@ impl History {
     /// from; `None` when a point has no estimate (then the job's limit is the site's or none).
     pub fn limit(&self, points: &[&Planned]) -> Result<(WallTime, String), String> {
         let mut total = 0.0;
-        let (mut own, mut scaled) = (0, 0);
+        let (mut own, mut scaled, mut resumed) = (0, 0, 0);
         for p in points {
             let Some(estimate) = self.estimate(p) else {
                 return Err(format!(
@@ -114,7 +134,9 @@ impl History {
                     p.point.label()
                 ));
             };
-            total += estimate.seconds * SAFETY + START_S;
+            let left = self.left.get(p.key.as_str()).copied().unwrap_or(1.0);
+            resumed += usize::from(left < 1.0);
+            total += estimate.seconds * left * SAFETY + START_S;
             match estimate.from {
                 Source::Itself { .. } => own += 1,
                 Source::Neighbours { .. } => scaled += 1,
@@ -135,6 +157,13 @@ impl History {
                 "the stored timings of {}, {} scaled from smaller grids",
                 points(o),
                 points(s)
+            ),
+        };
+        let from = match resumed {
+            0 => from,
+            k => format!(
+                "{from} ({} resuming from a checkpoint, only their steps left)",
+                points(k)
             ),
         };
         Ok((
@@ -179,6 +208,7 @@ mod tests {
         let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
         History {
             times: HashMap::from([(format!("family={series}"), times)]),
+            left: HashMap::new(),
         }
     }
 
@@ -223,5 +253,37 @@ mod tests {
         assert_eq!(time.seconds(), FLOOR_S);
         let e = h.limit(&[&p, &point("z", 1, 64)]).unwrap_err();
         assert!(e.contains("no stored timing"), "{e}");
+    }
+
+    /// A point with a checkpoint three quarters of the way counts a quarter of its estimate.
+    #[test]
+    fn a_point_resuming_from_a_checkpoint_counts_only_its_steps_left() {
+        let mut h = history("a", &[(64, &[1000.0]), (128, &[4000.0])]);
+        let (p, q) = (point("a", 1, 64), point("a", 1, 128));
+        h.left.insert(q.key.to_string(), 0.25);
+        // 1000 × 2 + 10 + 4000 × 0.25 × 2 + 10 = 4020 s → 67 min.
+        let (time, from) = h.limit(&[&p, &q]).unwrap();
+        assert_eq!(time.seconds(), 67 * 60);
+        assert!(
+            from.contains("(1 point resuming from a checkpoint"),
+            "{from}"
+        );
+    }
+
+    /// `resuming` reads the step of steps from the checkpoint's header.
+    #[test]
+    fn the_share_left_comes_from_the_checkpoints_header() {
+        let dir = std::env::temp_dir().join(format!("limits-resuming-{}", std::process::id()));
+        let store = Store::open(&dir, "limits");
+        std::fs::create_dir_all(store.work_dir()).unwrap();
+        let p = point("a", 1, 64);
+        std::fs::write(
+            store.scratch(&p.key, CHECKPOINT),
+            b"nlsolve checkpoint 1\n{\"step\": 300, \"steps\": 400, \"parts\": []}\n",
+        )
+        .unwrap();
+        let h = history("a", &[]).resuming(&store, std::slice::from_ref(&p));
+        assert_eq!(h.left.get(p.key.as_str()), Some(&0.25));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -113,7 +113,7 @@ pub fn submit_study(
         target.site.cores_per_node,
         target.array,
     );
-    let history = History::from_index(planned, index);
+    let history = History::from_index(planned, index).resuming(store, planned);
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {
