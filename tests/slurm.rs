@@ -478,7 +478,9 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
         text(&requeue)
     );
     // Slurm holds a requeued job about two minutes before it is eligible again (a requeue
-    // loop's brake); the test makes it eligible now.
+    // loop's brake); the test makes it eligible in two seconds. Not at once: slurmd refuses a
+    // job credential issued within the second its job was killed in ("Job 30 already killed,
+    // do not launch batch job"), and the job would end there, never to run again.
     wait_until(Duration::from_secs(60), "the job pending again", || {
         let q = slurm
             .command("squeue")
@@ -489,7 +491,7 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
     });
     let now = slurm
         .command("scontrol")
-        .args(["update", &format!("jobid={id}"), "StartTime=now"])
+        .args(["update", &format!("jobid={id}"), "StartTime=now+2"])
         .output()
         .unwrap();
     assert!(
