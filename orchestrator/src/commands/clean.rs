@@ -115,15 +115,10 @@ fn stale_checkpoints(store: &Store, planned: &[Planned]) -> Result<Vec<String>, 
         .filter(|p| p.runs())
         .map(|p| p.key.as_str())
         .collect();
-    let suffix = format!(".{CHECKPOINT}");
-    let mut keys: Vec<String> = std::fs::read_dir(store.work_dir())
+    let keys = store
+        .scratch_keys(CHECKPOINT)
         .into_iter()
-        .flatten()
-        .flatten()
-        .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
-        .filter(|key| !to_run.contains(key.as_str()))
-        .collect();
-    keys.sort();
+        .filter(|key| !to_run.contains(key.as_str()));
     let mut removed = Vec::new();
     for key in keys {
         if let Some(_lock) = store.lock(&key)? {

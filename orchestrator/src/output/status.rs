@@ -79,14 +79,7 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
         if !store.running(&point.key) {
             continue; // left by a run that was killed; the next run clears it
         }
-        let Some(progress) = crate::store::fs::read_regular(&progress, 4096)
-            .ok()
-            .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
-        else {
-            continue;
-        };
-        let (Some(step), Some(steps)) = (progress["step"].as_u64(), progress["steps"].as_u64())
-        else {
+        let Some((step, steps, left)) = crate::store::progress_of(&progress) else {
             continue;
         };
         let t_end = point.case.as_ref().ok().and_then(|c| {
@@ -97,13 +90,9 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
         let time = t_end
             .map(|t| format!(", t = {:.4} of {t}", t * step as f64 / steps.max(1) as f64))
             .unwrap_or_default();
-        let left = progress["left_s"]
-            .as_f64()
-            .map(|s| format!(", about {s:.0} s left"))
-            .unwrap_or_default();
         let _ = writeln!(
             out,
-            "running {}: step {step} of {steps}{time}{left}",
+            "running {}: step {step} of {steps}{time}, about {left:.0} s left",
             point.point.label()
         );
     }
@@ -116,14 +105,7 @@ fn with_scratch<'a>(
     planned: &'a [Planned],
     name: &str,
 ) -> Vec<(&'a Planned, std::path::PathBuf)> {
-    let Ok(entries) = std::fs::read_dir(store.work_dir()) else {
-        return Vec::new();
-    };
-    let suffix = format!(".{name}");
-    let keys: std::collections::BTreeSet<String> = entries
-        .flatten()
-        .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
-        .collect();
+    let keys = store.scratch_keys(name);
     planned
         .iter()
         .filter(|p| p.runs() && keys.contains(p.key.as_str()))

@@ -276,10 +276,7 @@ const SHOW_PROGRESS_EVERY: Duration = Duration::from_secs(1);
 /// `step k/N, ~S s left` from a running case's progress file (`nlsolve --progress`), once its
 /// time loop has written one (a second into it: short cases never show).
 fn how_far(progress: &std::path::Path) -> Option<String> {
-    let text = crate::store::fs::read_regular(progress, 4096).ok()?;
-    let progress: Value = serde_json::from_str(&text).ok()?;
-    let (step, steps) = (progress["step"].as_u64()?, progress["steps"].as_u64()?);
-    let left = progress["left_s"].as_f64()?;
+    let (step, steps, left) = crate::store::progress_of(progress)?;
     Some(format!("step {step}/{steps}, ~{left:.0} s left"))
 }
 

@@ -195,6 +195,18 @@ impl Store {
         read_record(&path, &read_regular(&path, RECORD_CAP).ok()?).ok()
     }
 
+    /// The keys with the scratch file `name` (one of `SCRATCH`, or `CHECKPOINT`) in the work
+    /// directory, listed once (it holds a few files per running or stopped point).
+    pub fn scratch_keys(&self, name: &str) -> std::collections::BTreeSet<String> {
+        let suffix = format!(".{name}");
+        std::fs::read_dir(self.work_dir())
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter_map(|e| Some(e.file_name().to_str()?.strip_suffix(&suffix)?.to_string()))
+            .collect()
+    }
+
     /// Is `key` locked, by this process or another: is its point running? The lock is not
     /// taken (as `lock` would, which a run starting the point then would take for another's).
     pub fn running(&self, key: &str) -> bool {
@@ -519,6 +531,18 @@ fn key_byte(key: &str) -> i64 {
 /// The checkpoint of a point run as a process (`<key>.checkpoint` in the work directory): kept
 /// when a run stops, so that the next one resumes it; the solver removes it with its record.
 pub const CHECKPOINT: &str = "checkpoint";
+
+/// How far a running case's time loop is, from its progress file (`<key>.progress`, which
+/// nlsolve's `integrate::progress` writes): its step, its steps in all and the seconds left.
+pub fn progress_of(path: &Path) -> Option<(u64, u64, f64)> {
+    let text = fs::read_regular(path, 4096).ok()?;
+    let progress: Value = serde_json::from_str(&text).ok()?;
+    Some((
+        progress["step"].as_u64()?,
+        progress["steps"].as_u64()?,
+        progress["left_s"].as_f64()?,
+    ))
+}
 
 /// The step a checkpoint (`<key>.checkpoint`) was taken at and the run's steps in all, from its
 /// header: the line after the file's first (nlsolve's `integrate::checkpoint` writes it).
