@@ -5,7 +5,7 @@
 
 use nonlocal_study::{records, text, Scratch};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -30,18 +30,6 @@ fn assert_no_panic(out: &Output) {
     assert!(!said.contains("panicked"), "{said}");
 }
 
-/// The record files of a store, in name order.
-fn record_files(runs: &Path) -> Vec<PathBuf> {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "json"))
-        .collect();
-    paths.sort();
-    paths
-}
-
 /// The reproduction: a stored record whose fingerprint is a path. The next run that
 /// replaces it (here `--force`; a new build does the same) keeps the old record inside the
 /// history, and the file the traversal aimed at is untouched; a fingerprint with a slash or of
@@ -51,18 +39,18 @@ fn a_fingerprint_that_is_a_path_moves_nothing_outside_the_results() {
     let scratch = Scratch::new("traversal", &tiny("traversal"));
     ran(&scratch, "traversal");
     let history = scratch.dir.join("results/traversal/history");
-    let paths = record_files(&scratch.runs("traversal"));
-    let key = paths[0].file_stem().unwrap().to_string_lossy().into_owned();
+    let runs = scratch.runs("traversal");
+    let key = records(&runs)[0]["key"].as_str().unwrap().to_string();
     // history/<key>./../../../../PWN_target.json is <scratch>/PWN_target.json.
     std::fs::create_dir_all(history.join(format!("{key}."))).unwrap();
     let target = scratch.dir.join("PWN_target.json");
     std::fs::write(&target, "precious").unwrap();
     for fingerprint in ["/../../../../PWN_target", "a/b", &"f".repeat(300)] {
-        for path in &paths {
-            let mut record: Value =
-                serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        // Edited as files of the store's older layout, which supersede its segments' records.
+        for mut record in records(&runs) {
             record["provenance"]["fingerprint"] = json!(fingerprint);
-            std::fs::write(path, record.to_string()).unwrap();
+            let key = record["key"].as_str().unwrap().to_string();
+            std::fs::write(runs.join(format!("{key}.json")), record.to_string()).unwrap();
         }
         let out = scratch.nlstudy("run", &["--force"]);
         assert!(out.status.success(), "{fingerprint}: {}", text(&out));

@@ -2,7 +2,9 @@
 //! `collect` killed (SIGKILL) at random moments and resumed, records that are not whole, and an
 //! MPI rank killed mid-run. docs/reliability.md lists what each shows.
 
-use nonlocal_study::{numbers_of, planned_keys, records, stored_keys, text, Scratch};
+use nonlocal_study::{
+    frames, numbers_of, planned_keys, records, segment_files, stored_keys, text, Scratch,
+};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
@@ -252,22 +254,41 @@ fn records_that_are_not_whole_are_reported_and_their_points_run_again() {
     let first = scratch.nlstudy("run", &["--no-collect"]);
     assert!(first.status.success(), "{}", text(&first));
     let runs = scratch.runs("corrupt");
-    let mut paths: Vec<PathBuf> = files_under(&runs)
-        .into_iter()
-        .filter(|p| {
-            p.extension().is_some_and(|x| x == "json") && !p.to_string_lossy().contains(".work")
-        })
-        .collect();
-    paths.sort();
-    assert_eq!(paths.len(), 4);
-    let whole = std::fs::read_to_string(&paths[0]).unwrap();
-    std::fs::write(&paths[0], &whole[..whole.len() / 2]).unwrap(); // truncated
-    std::fs::write(&paths[1], "\u{0}\u{7}garbage").unwrap();
+    let segments = segment_files(&runs);
+    assert_eq!(segments.len(), 1, "one run, one segment: {segments:?}");
+    let segment = &segments[0];
+    let mut bytes = std::fs::read(segment).unwrap();
+    assert_eq!(frames(&bytes).len(), 4);
+    // A byte of the second record flipped (a bad disk block), and a record of the older
+    // layout cut short, and a file that is no record at all.
+    let second = bytes
+        .windows(9)
+        .enumerate()
+        .filter(|(_, w)| *w == b"nlrecord ")
+        .nth(1)
+        .unwrap()
+        .0;
+    bytes[second + 200] ^= 0x01;
+    std::fs::write(segment, &bytes).unwrap();
+    let mut last = records(&runs).pop().unwrap();
+    let key = last["key"].as_str().unwrap().to_string();
+    last["message"] = json!("edited");
+    let old_layout = runs.join(format!("{key}.json"));
+    let whole = last.to_string();
+    std::fs::write(&old_layout, &whole[..whole.len() / 2]).unwrap();
     let stray = runs.join("notes.json");
     std::fs::write(&stray, "{\"mine\": true}").unwrap();
+    // `plan` and `status` read the catalog; whatever reads the records checks every frame, and
+    // a frame found changed makes the next reader read all again.
+    let collect = scratch.nlstudy("collect", &[]);
+    assert!(
+        text(&collect).contains(&segment.display().to_string()),
+        "{}",
+        text(&collect)
+    );
     for verb in ["status", "plan"] {
         let out = text(&scratch.nlstudy(verb, &[]));
-        for path in [&paths[0], &paths[1], &stray] {
+        for path in [segment, &old_layout, &stray] {
             assert!(
                 out.contains(&path.display().to_string()),
                 "{verb} does not name {}:\n{out}",
@@ -276,16 +297,22 @@ fn records_that_are_not_whole_are_reported_and_their_points_run_again() {
         }
     }
     let plan = text(&scratch.nlstudy("plan", &[]));
-    assert!(plan.contains("2 to run, 2 stored"), "{plan}");
+    assert!(plan.contains("1 to run, 3 stored"), "{plan}");
     let rerun = scratch.nlstudy("run", &[]);
     assert!(rerun.status.success(), "{}", text(&rerun));
-    assert!(text(&rerun).contains("2 ran (2 ok"), "{}", text(&rerun));
+    assert!(text(&rerun).contains("1 ran (1 ok"), "{}", text(&rerun));
     assert!(
-        stray.exists(),
-        "a file that is not a record is the user's: reported, never removed"
+        stray.exists() && old_layout.exists() && segment.exists(),
+        "what is not a whole record is the user's to look at: reported, never removed"
     );
     std::fs::remove_file(&stray).unwrap();
-    assert_whole(&scratch, "corrupt", 4, "after the rerun");
+    std::fs::remove_file(&old_layout).unwrap();
+    std::fs::remove_file(segment).unwrap();
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    assert!(
+        plan.contains("3 to run, 1 stored"),
+        "the segment's records went with it: {plan}"
+    );
 }
 
 #[test]

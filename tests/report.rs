@@ -172,15 +172,9 @@ frame.addEventListener('load', () => {
         .unwrap();
     assert!(offline.status.success(), "{}", text(&offline));
     let page = std::fs::read_to_string(copied.join("report.html")).unwrap();
-    let noisy = std::fs::read_dir(results.join("runs"))
-        .unwrap()
-        .flatten()
-        .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
-        .filter(|e| {
-            std::fs::read_to_string(e.path())
-                .unwrap()
-                .contains("\"noisy\":true")
-        })
+    let noisy = nonlocal_study::records(&results.join("runs"))
+        .iter()
+        .filter(|r| r["provenance"]["noisy"] == json!(true))
         .count();
     for expected in [
         "Built from the run table report.parquet alone",

@@ -190,17 +190,99 @@ pub fn stored_keys(records: &[Value]) -> std::collections::BTreeSet<String> {
         .collect()
 }
 
-/// The stored records, by file name.
+/// The stored records, the latest of each key, in key order: read from the store's segments
+/// (`runs/segments/*.seg`, frames `nlrecord <seq> <length> <crc32>` and the record) by this
+/// reader of their format, and from files of the store's older layout (`runs/<key>.json`).
 pub fn records(runs: &Path) -> Vec<Value> {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(runs)
+    let mut latest: std::collections::BTreeMap<String, (u128, Value)> = Default::default();
+    let mut keep = |seq: u128, record: Value| {
+        let key = record["key"]
+            .as_str()
+            .expect("a record has its key")
+            .to_string();
+        if latest.get(&key).is_none_or(|(s, _)| *s < seq) {
+            latest.insert(key, (seq, record));
+        }
+    };
+    for segment in segment_files(runs) {
+        for (seq, body) in frames(&std::fs::read(&segment).unwrap()) {
+            keep(
+                seq.into(),
+                serde_json::from_slice(&body).expect("whole JSON"),
+            );
+        }
+    }
+    for path in files_in(runs) {
+        if path.extension().is_some_and(|x| x == "json") {
+            let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+            let seq = modified
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .as_nanos();
+            let text = std::fs::read_to_string(&path).unwrap();
+            keep(seq, serde_json::from_str(&text).expect("whole JSON"));
+        }
+    }
+    latest.into_values().map(|(_, record)| record).collect()
+}
+
+/// The store's segments, in name order.
+pub fn segment_files(runs: &Path) -> Vec<PathBuf> {
+    let mut paths = files_in(&runs.join("segments"));
+    paths.retain(|p| p.extension().is_some_and(|x| x == "seg"));
+    paths
+}
+
+/// The files in `dir`, in name order (none when it is missing).
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
         .unwrap_or_default();
-    paths.retain(|p| p.extension().is_some_and(|x| x == "json"));
+    paths.retain(|p| p.is_file());
     paths.sort();
     paths
-        .iter()
-        .map(|p| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).expect("whole JSON"))
-        .collect()
+}
+
+/// The whole frames of a segment's bytes, their sequence numbers and bodies; a frame whose
+/// length or CRC-32 does not hold ends the reading (a test's segments are not corrupt).
+pub fn frames(bytes: &[u8]) -> Vec<(u64, Vec<u8>)> {
+    let mut found = Vec::new();
+    let mut rest = bytes;
+    while let Some(newline) = rest.iter().position(|&b| b == b'\n') {
+        let header = std::str::from_utf8(&rest[..newline]).unwrap_or("");
+        let fields: Vec<&str> = header.split(' ').collect();
+        let ["nlrecord", seq, length, crc] = fields.as_slice() else {
+            break;
+        };
+        let (Ok(seq), Ok(length), Ok(crc)) = (
+            seq.parse::<u64>(),
+            length.parse::<usize>(),
+            u32::from_str_radix(crc, 16),
+        ) else {
+            break;
+        };
+        let Some(body) = rest.get(newline + 1..newline + 1 + length) else {
+            break;
+        };
+        if crc32(body) != crc || body.last() != Some(&b'\n') {
+            break;
+        }
+        found.push((seq, body[..length - 1].to_vec()));
+        rest = &rest[newline + 1 + length..];
+    }
+    found
+}
+
+/// CRC-32 (IEEE, reflected), bit by bit: the check the store's frames carry.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &byte in bytes {
+        crc ^= u32::from(byte);
+        for _ in 0..8 {
+            crc = (crc >> 1) ^ (0xEDB8_8320 & (crc & 1).wrapping_neg());
+        }
+    }
+    !crc
 }
 
 /// Debian's Chromium, which `scripts/setup.sh --tests` (run by `make test`) installs.

@@ -112,8 +112,16 @@ pub fn collect(
     study: &Study,
     allow_mixed: bool,
 ) -> Result<Option<Collected>, Fault> {
+    // Superseded records go, and the segments of finished writers become one.
+    if let Err(e) = store.compact(&HashSet::new()) {
+        errln!("nlstudy: warning: the store was not compacted: {e}");
+    }
     fits_in_memory(store.count(), available_memory())?;
-    let records = crate::store::by_key(store.records());
+    let scan = store.scan();
+    for unreadable in &scan.unreadable[scan.unreadable.len() - scan.found_now..] {
+        errln!("nlstudy: warning: {unreadable}");
+    }
+    let records = crate::store::by_key(scan.records);
     let used: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
     let left_out = records
         .keys()

@@ -95,8 +95,8 @@ fn clean_results(
         .collect();
     orphans.sort();
     if delete_orphans {
-        let doomed: HashSet<String> = orphans.iter().map(|(k, _)| format!("{k}.json")).collect();
-        remove_where(&store.runs, |name| doomed.contains(name));
+        let doomed: HashSet<String> = orphans.iter().map(|(k, _)| k.clone()).collect();
+        store.compact(&doomed)?;
     }
     Ok(Cleaned {
         figures: removed,

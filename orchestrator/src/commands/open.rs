@@ -22,6 +22,10 @@ pub(super) fn read_study(path: &std::path::Path) -> Result<Study, Failure> {
 pub(super) fn open_store(args: &CommonArgs, study: &Study, writes: bool) -> Result<Store, Failure> {
     let store = Store::open(&args.results, &study.name);
     claim(args, study, &store, writes)?;
+    if writes {
+        // A store of the old layout, a file per record, moves into segments.
+        store.migrate()?;
+    }
     Ok(store)
 }
 

@@ -64,6 +64,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             &mut progress,
         );
         progress.close();
+        store.persist_catalog();
         let ran = ran.map_err(|e| {
             crate::store::Fault::Io(format!(
                 "{e}; the cases that were running are not stored and run again next time"

@@ -173,12 +173,6 @@ pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), FileError> {
         .map_err(|(failed, e)| FileError::new("write", &failed, e))
 }
 
-/// Writes `contents` to `path` whole or not at all through the partial file `partial`.
-pub fn write_through(partial: &Path, path: &Path, contents: &[u8]) -> Result<(), FileError> {
-    schema::atomic::write_through(partial, path, contents)
-        .map_err(|(failed, e)| FileError::new("write", &failed, e))
-}
-
 /// Makes `dir` and its parents.
 pub fn create_dir(dir: &Path) -> Result<(), FileError> {
     std::fs::create_dir_all(dir).map_err(FileError::on("create", dir))

@@ -1,5 +1,9 @@
-//! The record store of a study, `results/<study>/runs/<key>.json`: one file per run, written
-//! through a temporary file and a rename, so that a file is either whole or absent.
+//! The record store of a study, `results/<study>/runs/`: records packed into append-only
+//! segments (`segment`), each record whole or absent after a crash, and a catalog of where each
+//! key's latest record lies (`catalog`), which `plan` and `status` read instead of the records.
+//! A store of the older layout, one file per record (`runs/<key>.json`), is read as it is and
+//! moved into segments by the first process that writes (`migrate`); `collect` compacts the
+//! segments (`compact`), dropping superseded records.
 //!
 //! Several `nlstudy` processes may share a store (two terminals, a workstation and a cluster
 //! job): a point runs only under its key's lock (a byte of `runs/.work/keys.lock` locked by an
@@ -15,19 +19,28 @@ use std::collections::HashMap;
 use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
+pub mod catalog;
 #[cfg(test)]
 pub mod example;
 pub mod fs;
 pub mod owner;
+pub mod segment;
 pub mod table;
 pub mod timestamp;
 
-use fs::{create_dir, lock_file, read_regular, remove_where, write_through, RECORD_CAP};
+use catalog::{Catalog, Location};
+use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
 pub use fs::{write_atomically, Fault, FileError};
+use segment::Appender;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 pub struct Store {
     pub study: String,
     pub runs: PathBuf,
+    /// The catalog as this process last read it (loaded on first use).
+    catalog: Mutex<Option<Catalog>>,
+    /// The segment this process appends to (taken on its first record).
+    appender: Mutex<Option<Appender>>,
 }
 
 pub fn hex(bytes: &[u8]) -> String {
@@ -117,7 +130,233 @@ impl Store {
         Store {
             study: study.to_string(),
             runs: results.join(study).join("runs"),
+            catalog: Mutex::new(None),
+            appender: Mutex::new(None),
         }
+    }
+
+    fn segments(&self) -> PathBuf {
+        self.runs.join(segment::DIR)
+    }
+
+    /// The catalog, brought up to date with the segments; stored again when it had news and
+    /// `persist` (a reader's catalog saves the next reader the reading).
+    fn catalog(&self, persist: bool) -> MutexGuard<'_, Option<Catalog>> {
+        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        let catalog = guard.get_or_insert_with(|| Catalog::load(&self.runs));
+        if catalog.refresh(&self.runs) && persist {
+            catalog.persist(&self.runs);
+        }
+        guard
+    }
+
+    /// Stores the catalog as this process knows it (after a run appended records).
+    pub fn persist_catalog(&self) {
+        let guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(catalog) = guard.as_ref() {
+            catalog.persist(&self.runs);
+        }
+    }
+
+    /// Appends `bodies` (records' JSON) to this process's segment, one `fsync` for all; the
+    /// catalog learns them.
+    fn append(&self, bodies: &[(String, Indexed)]) -> Result<(), FileError> {
+        let dir = self.segments();
+        let mut appender = self.appender.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut catalog = self.catalog(false);
+        let catalog = catalog.as_mut().expect("loaded by catalog()");
+        if appender.as_ref().is_none_or(Appender::full) {
+            let candidates: Vec<(String, u64)> = catalog
+                .segments
+                .iter()
+                .filter(|(_, s)| s.clean() && s.end < segment::TARGET_BYTES)
+                .map(|(name, s)| (name.clone(), s.end))
+                .collect();
+            *appender = Some(Appender::open(&dir, &candidates)?);
+        }
+        let appender = appender.as_mut().expect("opened above");
+        let texts: Vec<&[u8]> = bodies.iter().map(|(b, _)| b.as_bytes()).collect();
+        let frames = appender.append(&dir, &texts)?;
+        for (frame, (_, indexed)) in frames.iter().zip(bodies) {
+            catalog.appended(&appender.name, frame, indexed.clone());
+        }
+        catalog.written(&appender.name, appender.modified());
+        Ok(())
+    }
+
+    /// Moves the old store's record files (`runs/<key>.json`) into a segment, a thousand at a
+    /// time: each file is removed only once its record is on disk in the segment, and a key
+    /// some process is running is left for its run. Returns how many moved.
+    pub fn migrate(&self) -> Result<usize, FileError> {
+        let files: Vec<PathBuf> = self
+            .catalog(false)
+            .as_ref()
+            .expect("loaded")
+            .record_files()
+            .into_iter()
+            .map(Path::to_path_buf)
+            .collect();
+        let mut moved = 0;
+        for chunk in files.chunks(1000) {
+            let mut batch = Vec::new();
+            let mut locks = Vec::new();
+            for path in chunk {
+                let Ok(text) = read_regular(path, RECORD_CAP) else {
+                    continue;
+                };
+                let Ok(indexed) = read_indexed(Some(path), &text) else {
+                    continue;
+                };
+                let Some(lock) = self.lock(&indexed.key)? else {
+                    continue;
+                };
+                locks.push(lock);
+                let Ok(value) = serde_json::from_str::<Value>(&text) else {
+                    continue;
+                };
+                batch.push((path, (value.to_string(), indexed)));
+            }
+            let bodies: Vec<(String, Indexed)> = batch.iter().map(|(_, b)| b.clone()).collect();
+            self.append(&bodies)?;
+            for (path, _) in &batch {
+                std::fs::remove_file(path).map_err(FileError::on("remove", path))?;
+            }
+            moved += batch.len();
+        }
+        if moved > 0 {
+            self.persist_catalog();
+        }
+        Ok(moved)
+    }
+
+    /// Rewrites the segments no writer holds into one, without the records later ones
+    /// superseded and without the records of `forget` (`clean --yes`); a segment with bytes
+    /// that are not whole records is kept as it is (reported, never dropped). Moves the old
+    /// store's files in first. Forgetting a key whose record lies in a segment another process
+    /// is writing is refused. One compaction at a time: another one running means this one is
+    /// not needed.
+    pub fn compact(&self, forget: &std::collections::HashSet<String>) -> Result<(), Fault> {
+        self.migrate()?;
+        let dir = self.segments();
+        let compacting = lock_file(&dir, ".compact.lock")?;
+        if compacting.try_lock().is_err() {
+            return Ok(());
+        }
+        // A compaction killed midway left its partial segment.
+        remove_where(&dir, |n| n.starts_with('.') && n.ends_with(".partial"));
+        let own = self
+            .appender
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_ref()
+            .map(|a| a.name.clone());
+        let mut guard = self.catalog(false);
+        let catalog = guard.as_mut().expect("loaded");
+        let mut held = std::collections::BTreeMap::new();
+        for (name, state) in &catalog.segments {
+            if Some(name) != own.as_ref() && state.clean() {
+                if let Some(file) = segment::hold(&dir.join(name)) {
+                    held.insert(name.clone(), file);
+                }
+            }
+        }
+        for key in forget {
+            if let Some(name) = catalog.entries.get(key).and_then(located) {
+                if !held.contains_key(name) {
+                    return Err(Fault::Io(format!(
+                        "the record of {key} lies in segment runs/{}/{name}, which another nlstudy is writing; clean when it ends",
+                        segment::DIR
+                    )));
+                }
+            }
+        }
+        // The records to keep, by segment in offset order.
+        let mut kept: std::collections::BTreeMap<String, Vec<(String, std::ops::Range<u64>)>> =
+            Default::default();
+        let mut dropped = held
+            .keys()
+            .map(|n| catalog.segments[n].superseded)
+            .sum::<u64>();
+        for (key, entry) in &catalog.entries {
+            let Location::Segment { name, span } = &entry.at else {
+                continue;
+            };
+            if !held.contains_key(name) {
+                continue;
+            }
+            if forget.contains(key) {
+                dropped += entry.bytes();
+            } else {
+                kept.entry(name.clone())
+                    .or_default()
+                    .push((key.clone(), span.clone()));
+            }
+        }
+        if held.len() < 2 && dropped == 0 {
+            return Ok(());
+        }
+        let mut writer = segment::Rewriter::create(&dir)?;
+        let mut moved = Vec::new();
+        let mut merged = Vec::new();
+        let mut changed = false;
+        for name in held.keys() {
+            let mut frames = kept.remove(name.as_str()).unwrap_or_default();
+            frames.sort_by_key(|(_, span)| span.start);
+            let path = dir.join(name);
+            let bytes = segment::read_from(&path, 0).map_err(FileError::on("read", &path))?;
+            // A frame that changed since it was read keeps its segment as it is; the next
+            // reader reads all again and reports it.
+            if frames
+                .iter()
+                .any(|(_, span)| segment::body_at(&bytes, span).is_none())
+            {
+                changed = true;
+                continue;
+            }
+            for (key, span) in frames {
+                let at = writer.copy(&bytes[span.start as usize..span.end as usize])?;
+                moved.push((key, at));
+            }
+            merged.push(name.clone());
+        }
+        if merged.is_empty() {
+            writer.abandon();
+            catalog.invalidate();
+            return Ok(());
+        }
+        let new = writer.finish()?;
+        for name in &merged {
+            std::fs::remove_file(dir.join(name))
+                .map_err(FileError::on("remove", &dir.join(name)))?;
+            catalog.segments.remove(name);
+        }
+        drop(held);
+        if changed {
+            catalog.invalidate();
+        }
+        for key in forget {
+            if catalog.entries.get(key).and_then(located).is_some() {
+                catalog.entries.remove(key);
+            }
+        }
+        for (key, span) in moved {
+            if let Some(entry) = catalog.entries.get_mut(&key) {
+                entry.at = Location::Segment {
+                    name: new.name.clone(),
+                    span,
+                };
+            }
+        }
+        catalog.segments.insert(
+            new.name,
+            catalog::SegmentState {
+                end: new.end,
+                modified: new.modified,
+                ..Default::default()
+            },
+        );
+        catalog.persist(&self.runs);
+        Ok(())
     }
 
     /// A table of the study, beside its runs: `results/<study>/<name>`.
@@ -125,6 +364,8 @@ impl Store {
         self.runs.with_file_name(name)
     }
 
+    /// The file of `key`'s record in the old layout of the store.
+    #[cfg(test)]
     pub fn path(&self, key: &str) -> PathBuf {
         self.runs.join(format!("{key}.json"))
     }
@@ -132,13 +373,6 @@ impl Store {
     /// The scratch file `name` (one of `SCRATCH`) of a run of `key`.
     pub fn scratch(&self, key: &str, name: &str) -> PathBuf {
         self.work_dir().join(format!("{key}.{name}"))
-    }
-
-    /// Where the record of `key` is written before it is renamed into place: one name, as only
-    /// the holder of the key's lock writes it, so the next holder clears a leftover by its name
-    /// rather than by listing the directory (10⁵ records: a listing per point is quadratic).
-    fn partial(&self, key: &str) -> PathBuf {
-        self.runs.join(format!(".{key}.json.partial"))
     }
 
     /// Where a run whose case sets `vtk_every` writes its VTK frames: `results/<study>/fields/<key>/`.
@@ -159,40 +393,54 @@ impl Store {
     /// see `history_path`), so nothing computed is lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Stored) -> Result<bool, FileError> {
         let failed = record.status() == Status::Failed;
-        let stored = self.stored(key);
+        let stored = self.stored_text(key);
         let result_stored = stored
             .as_ref()
-            .is_some_and(|s| s.status() != Status::Failed);
+            .is_some_and(|(s, _, _)| s.status() != Status::Failed);
         if failed && result_stored {
             return Ok(false);
         }
-        if let Some(stored) = stored {
-            let old = fingerprint_of(&stored);
+        if let Some((stored, text, _)) = &stored {
+            let old = fingerprint_of(stored);
             if result_stored || old != fingerprint_of(record) {
                 let history = self.table("history");
                 create_dir(&history)?;
-                std::fs::rename(self.path(key), history_path(&history, key, old))
-                    .map_err(FileError::on("move to history", &self.path(key)))?;
+                write_atomically(&history_path(&history, key, old), text.as_bytes())?;
             }
         }
-        create_dir(&self.runs)?;
-        write_through(
-            &self.partial(key),
-            &self.path(key),
-            format!("{}\n", record.to_value()).as_bytes(),
-        )?;
+        let body = record.to_value().to_string();
+        let indexed = read_indexed(None, &body).map_err(|problem| {
+            FileError::new("store", &self.runs, std::io::Error::other(problem))
+        })?;
+        self.append(&[(body, indexed)])?;
+        // A record of the old layout is superseded: its file goes (history has it if it was
+        // a result).
+        if let Some((_, _, Location::File(path))) = stored {
+            let _ = std::fs::remove_file(path);
+        }
         Ok(true)
     }
 
-    /// The status of the stored record of `key`, read now; `None` when absent or not whole.
+    /// The status of the stored record of `key`, as last read; `None` when absent.
     pub fn status(&self, key: &str) -> Option<Status> {
-        Some(self.stored(key)?.status())
+        Some(self.catalog(false).as_ref()?.get(key)?.status)
     }
 
     /// The stored record of `key`, read now, if whole.
     pub fn stored(&self, key: &str) -> Option<Stored> {
-        let path = self.path(key);
-        read_record(&path, &read_regular(&path, RECORD_CAP).ok()?).ok()
+        Some(self.stored_text(key)?.0)
+    }
+
+    /// The stored record of `key`, its text and where it lies.
+    fn stored_text(&self, key: &str) -> Option<(Stored, String, Location)> {
+        let at = self.catalog(false).as_ref()?.get(key)?.at.clone();
+        let text = match &at {
+            Location::Segment { name, span } => {
+                String::from_utf8(segment::read_frame(&self.segments().join(name), span)?).ok()?
+            }
+            Location::File(path) => read_regular(path, RECORD_CAP).ok()?,
+        };
+        Some((check_identity(key, &text).ok()?, text, at))
     }
 
     /// The keys with the scratch file `name` (one of `SCRATCH`, or `CHECKPOINT`) in the work
@@ -231,7 +479,6 @@ impl Store {
         for name in SCRATCH {
             let _ = std::fs::remove_file(self.scratch(key, name));
         }
-        let _ = std::fs::remove_file(self.partial(key));
         // A checkpoint's partial file, left by a solver killed while writing it.
         let _ = std::fs::remove_file(work.join(format!(".{key}.{CHECKPOINT}.partial")));
         Ok(Some(file))
@@ -277,24 +524,93 @@ impl Store {
         remove_where(&self.table("figures"), partial);
     }
 
-    /// Every stored record, and the files of the store that are not whole records.
+    /// Every stored record (the latest of each key, in key order), and what the store holds that
+    /// is not a whole record. The segments are read one at a time, their records parsed on
+    /// every core.
     pub fn scan(&self) -> Scan {
-        // Read and parsed on every core, then taken in the listing's order.
-        let read: Vec<(PathBuf, Result<Stored, String>)> = self
-            .record_paths()
-            .into_par_iter()
-            .map(|path| {
-                let record = read_regular(&path, RECORD_CAP).and_then(|t| read_record(&path, &t));
-                (path, record)
-            })
-            .collect();
-        let mut scan = Scan::default();
-        for (path, record) in read {
-            match record {
-                Ok(record) => scan.records.push(record),
-                Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
+        let (mut by_segment, files, unreadable) = {
+            let guard = self.catalog(true);
+            let catalog = guard.as_ref().expect("loaded");
+            let mut by_segment: std::collections::BTreeMap<
+                String,
+                Vec<(String, std::ops::Range<u64>)>,
+            > = Default::default();
+            let mut files = Vec::new();
+            for (key, entry) in catalog.latest() {
+                match &entry.at {
+                    Location::Segment { name, span } => by_segment
+                        .entry(name.clone())
+                        .or_default()
+                        .push((key.to_string(), span.clone())),
+                    Location::File(path) => files.push((key.to_string(), path.clone())),
+                }
+            }
+            (by_segment, files, catalog.unreadable(&self.runs))
+        };
+        let known_unreadable = unreadable.len();
+        let mut scan = Scan {
+            records: Vec::new(),
+            unreadable,
+            found_now: 0,
+        };
+        let dir = self.segments();
+        for (name, frames) in std::mem::take(&mut by_segment) {
+            let path = dir.join(&name);
+            let bytes = segment::read_from(&path, 0).unwrap_or_default();
+            let read: Vec<Result<Stored, Unreadable>> = frames
+                .into_par_iter()
+                .map(|(key, span)| {
+                    segment::body_at(&bytes, &span)
+                        .ok_or_else(|| "it changed since it was read".to_string())
+                        .and_then(|body| std::str::from_utf8(body).map_err(|e| e.to_string()))
+                        .and_then(|text| check_identity(&key, text))
+                        .map_err(|problem| Unreadable {
+                            path: path.clone(),
+                            at: Some(span),
+                            problem,
+                        })
+                })
+                .collect();
+            for record in read {
+                match record {
+                    Ok(record) => scan.records.push(record),
+                    Err(unreadable) => scan.unreadable.push(unreadable),
+                }
             }
         }
+        let read: Vec<Result<Stored, Unreadable>> = files
+            .into_par_iter()
+            .map(|(_, path)| {
+                read_regular(&path, RECORD_CAP)
+                    .and_then(|t| read_record(&path, &t))
+                    .map_err(|problem| Unreadable {
+                        path,
+                        at: None,
+                        problem,
+                    })
+            })
+            .collect();
+        for record in read {
+            match record {
+                Ok(record) => scan.records.push(record),
+                Err(unreadable) => scan.unreadable.push(unreadable),
+            }
+        }
+        scan.found_now = scan.unreadable.len() - known_unreadable;
+        if scan.found_now > 0 {
+            // A frame changed under the catalog (a bad block, a hand edit of the same size):
+            // the next reader reads every segment again, and its point runs again.
+            if let Some(catalog) = self
+                .catalog
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .as_mut()
+            {
+                catalog.invalidate();
+                catalog.persist(&self.runs);
+            }
+        }
+        scan.records.sort_unstable_by(|a, b| a.key.cmp(&b.key));
         scan
     }
 
@@ -326,59 +642,55 @@ impl Store {
         for path in paths {
             match read_regular(&path, RECORD_CAP).and_then(|text| read_superseded(&path, &text)) {
                 Ok(record) => scan.records.push(record),
-                Err(problem) => scan.unreadable.push(Unreadable { path, problem }),
+                Err(problem) => scan.unreadable.push(Unreadable {
+                    path,
+                    at: None,
+                    problem,
+                }),
             }
         }
         scan
     }
 
-    /// What the stored records say, read once: the status of each key and the solver version
-    /// each case id was run with. An unreadable file counts as absent (its point runs again).
-    /// Only the fields the index keeps are parsed into values; the files are read on every
-    /// core.
+    /// What the stored records say, from the catalog: the status of each key and the solver
+    /// version each case id was run with. What is not a whole record is reported, and its point
+    /// counts as not run.
     pub fn index(&self) -> Index {
-        use rayon::prelude::*;
-        let read: Vec<Result<Indexed, Unreadable>> = self
-            .record_paths()
-            .into_par_iter()
-            .map(|path| {
-                read_regular(&path, RECORD_CAP)
-                    .and_then(|text| read_indexed(&path, &text))
-                    .map_err(|problem| Unreadable { path, problem })
-            })
-            .collect();
-        let mut index = Index::default();
-        for entry in read {
-            let record = match entry {
-                Ok(record) => record,
-                Err(unreadable) => {
-                    index.unreadable.push(unreadable);
-                    continue;
-                }
-            };
-            if let (Some(id), Some(version)) = (record.case_id, record.solver_version) {
-                index.version_by_case.insert(id, version);
+        let guard = self.catalog(true);
+        let catalog = guard.as_ref().expect("loaded");
+        let mut index = Index {
+            unreadable: catalog.unreadable(&self.runs),
+            ..Index::default()
+        };
+        for (key, entry) in catalog.latest() {
+            if let Some(id) = &entry.case_id {
+                index
+                    .version_by_case
+                    .insert(id.clone(), entry.solver_version.clone());
             }
-            index.noisy += usize::from(record.noisy);
-            if let Some(message) = record.failure {
-                index.failed.push((record.key.clone(), message));
+            index.noisy += usize::from(entry.noisy);
+            if let Some(message) = &entry.failure {
+                index.failed.push((key.to_string(), message.clone()));
             }
-            index.stored.insert(record.key, record.stored);
+            index.stored.insert(
+                key.to_string(),
+                Recorded {
+                    status: entry.status,
+                    fingerprint: entry.fingerprint.clone(),
+                    wall_s: entry.wall_s,
+                },
+            );
         }
+        index.failed.sort();
         index
     }
 
-    /// How many files the store holds (hidden ones left out): what a scan would read.
+    /// How many records the store holds (the latest of each key), and what it holds that is not
+    /// a whole record: what a scan would read.
     pub fn count(&self) -> usize {
-        std::fs::read_dir(&self.runs).map_or(0, |entries| {
-            let visible = |e: &std::fs::DirEntry| !e.file_name().to_string_lossy().starts_with('.');
-            entries.flatten().filter(visible).count()
-        })
-    }
-
-    /// The paths of the store's files (hidden ones left out), in name order.
-    fn record_paths(&self) -> Vec<PathBuf> {
-        listing(&self.runs)
+        let guard = self.catalog(false);
+        let catalog = guard.as_ref().expect("loaded");
+        catalog.latest().len() + catalog.unreadable(&self.runs).len()
     }
 }
 
@@ -441,8 +753,9 @@ struct IndexedProvenance {
     noisy: Option<Value>,
 }
 
-/// What the index keeps of one whole record (its identity checked as `read_record` checks it).
-struct Indexed {
+/// What the catalog keeps of one whole record (its identity checked as `read_record` checks it).
+#[derive(Clone)]
+pub(crate) struct Indexed {
     key: String,
     stored: Recorded,
     case_id: Option<String>,
@@ -452,20 +765,20 @@ struct Indexed {
     failure: Option<String>,
 }
 
-fn read_indexed(path: &Path, text: &str) -> Result<Indexed, String> {
+/// `text` as a record, what the catalog keeps of it; its key checked against its case and, for a
+/// file of the old store, against the file's name (`path`).
+pub(crate) fn read_indexed(path: Option<&Path>, text: &str) -> Result<Indexed, String> {
     let fields: IndexedFields =
         serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
     let (Some(key), Some(case), Some(version)) = (fields.key, &fields.case, fields.solver_version)
     else {
         return Err(IDENTITY_MISSING.into());
     };
-    check_key(
-        &record_key(path)?,
-        &key,
-        case,
-        &version,
-        fields.repeat.unwrap_or(0),
-    )?;
+    let file_key = match path {
+        Some(path) => record_key(path)?,
+        None => key.clone(),
+    };
+    check_key(&file_key, &key, case, &version, fields.repeat.unwrap_or(0))?;
     let status = fields
         .status
         .as_deref()
@@ -639,6 +952,7 @@ fn record_key(path: &Path) -> Result<String, String> {
 }
 
 /// What the index keeps of a whole record.
+#[derive(Clone)]
 pub struct Recorded {
     pub status: Status,
     /// The fingerprint of the solver that made it ("" when it does not say).
@@ -651,17 +965,37 @@ pub struct Recorded {
 #[derive(Clone, Debug)]
 pub struct Unreadable {
     pub path: PathBuf,
+    /// The bytes of a segment that are not a whole record (`None`: the whole file).
+    pub at: Option<std::ops::Range<u64>>,
     pub problem: String,
 }
 
 impl std::fmt::Display for Unreadable {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{} is not a whole record ({}); its point counts as not run",
-            self.path.display(),
-            self.problem
-        )
+        match &self.at {
+            None => write!(
+                f,
+                "{} is not a whole record ({}); its point counts as not run",
+                self.path.display(),
+                self.problem
+            ),
+            Some(at) => write!(
+                f,
+                "{} bytes {}–{} are not a whole record ({}); a record they held counts as not run",
+                self.path.display(),
+                at.start,
+                at.end,
+                self.problem
+            ),
+        }
+    }
+}
+
+/// The segment `entry` lies in (`None`: a file of the old store).
+fn located(entry: &catalog::Entry) -> Option<&str> {
+    match &entry.at {
+        Location::Segment { name, .. } => Some(name.as_str()),
+        Location::File(_) => None,
     }
 }
 
@@ -669,6 +1003,9 @@ impl std::fmt::Display for Unreadable {
 pub struct Scan {
     pub records: Vec<Stored>,
     pub unreadable: Vec<Unreadable>,
+    /// How many of `unreadable` (the last ones) this scan found: frames the catalog counted as
+    /// records, which changed since.
+    pub found_now: usize,
 }
 
 #[derive(Default)]

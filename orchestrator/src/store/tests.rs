@@ -235,11 +235,9 @@ fn a_key_is_locked_once_and_its_leftovers_are_cleared_by_the_next_holder() {
     let (_dir, store) = scratch();
     std::fs::create_dir_all(store.work_dir()).unwrap();
     let leftover = store.work_dir().join("k.out");
-    let partial = store.runs.join(".k.json.partial");
     std::fs::write(&leftover, "half").unwrap();
-    std::fs::write(&partial, "{").unwrap();
     let held = store.lock("k").unwrap().expect("free");
-    assert!(!leftover.exists() && !partial.exists());
+    assert!(!leftover.exists());
     assert!(store.lock("k").unwrap().is_none(), "a held key is refused");
     assert!(store.lock("other").unwrap().is_some());
     drop(held);
@@ -313,4 +311,171 @@ fn the_index_reads_what_the_typed_record_says() {
     assert_eq!(index.stored[&failed.key].status, Status::Failed);
     assert_eq!(index.failed, [(failed.key.clone(), "refused".to_string())]);
     assert_eq!(store.records().len(), 2);
+}
+
+/// The segments of a store, by name.
+fn segment_names(store: &Store) -> Vec<String> {
+    catalog::segments(&store.segments()).into_keys().collect()
+}
+
+#[test]
+fn a_thousand_records_make_one_segment_and_a_catalog_a_new_process_reads() {
+    let (dir, store) = scratch();
+    let saved: Vec<(String, Value)> = (0..1000).map(|n| keyed(n, "ok")).collect();
+    for (key, record) in &saved {
+        assert!(store.save(key, &typed(record)).unwrap());
+    }
+    store.persist_catalog();
+    assert_eq!(segment_names(&store).len(), 1);
+    let files = std::fs::read_dir(store.segments()).unwrap().count();
+    assert_eq!(files, 2, "one segment and the catalog");
+    // Another process: the catalog says it all, the records read back as saved.
+    let again = Store::open(dir.path(), "s");
+    let index = again.index();
+    assert_eq!(index.stored.len(), 1000);
+    assert!(index.unreadable.is_empty());
+    let records = again.records();
+    assert_eq!(records.len(), 1000);
+    for (key, record) in &saved {
+        assert_eq!(
+            again.stored(key).unwrap().to_value(),
+            typed(record).to_value()
+        );
+    }
+}
+
+#[test]
+fn the_old_layout_is_read_as_it_is_and_moved_into_a_segment_whole() {
+    let (dir, store) = scratch();
+    std::fs::create_dir_all(&store.runs).unwrap();
+    let old: Vec<(String, Value)> = (0..30).map(|n| keyed(n, "ok")).collect();
+    for (key, record) in &old {
+        std::fs::write(store.path(key), format!("{record:#}\n")).unwrap();
+    }
+    let stray = store.runs.join("notes.txt");
+    std::fs::write(&stray, "mine").unwrap();
+    assert_eq!(store.index().stored.len(), 30, "read before any move");
+    assert_eq!(store.migrate().unwrap(), 30);
+    for (key, record) in &old {
+        assert!(!store.path(key).exists());
+        let again = Store::open(dir.path(), "s");
+        assert_eq!(
+            again.stored(key).unwrap().to_value(),
+            typed(record).to_value()
+        );
+    }
+    assert!(stray.exists(), "what is not a record stays, reported");
+    let index = Store::open(dir.path(), "s").index();
+    assert_eq!(index.stored.len(), 30);
+    assert_eq!(index.unreadable.len(), 1, "{:?}", index.unreadable);
+}
+
+#[test]
+fn a_torn_end_is_no_record_and_the_next_writer_cuts_it_off() {
+    let (dir, store) = scratch();
+    let (a, first) = keyed(1, "ok");
+    let (b, second) = keyed(2, "ok");
+    store.save(&a, &typed(&first)).unwrap();
+    store.save(&b, &typed(&second)).unwrap();
+    drop(store);
+    let reader = Store::open(dir.path(), "s");
+    let segment = reader.segments().join(&segment_names(&reader)[0]);
+    let whole = std::fs::read(&segment).unwrap();
+    let cut = whole.len() - 40;
+    std::fs::write(&segment, &whole[..cut]).unwrap();
+    let index = reader.index();
+    assert_eq!(index.stored.len(), 1, "the torn record counts as not run");
+    assert!(
+        index.unreadable.is_empty(),
+        "a torn end is a crash's, not corruption"
+    );
+    let writer = Store::open(dir.path(), "s");
+    writer.save(&b, &typed(&second)).unwrap();
+    assert_eq!(
+        segment_names(&writer).len(),
+        1,
+        "the writer took the segment back"
+    );
+    let again = Store::open(dir.path(), "s");
+    assert_eq!(again.index().stored.len(), 2);
+    assert_eq!(
+        again.stored(&b).unwrap().to_value(),
+        typed(&second).to_value()
+    );
+}
+
+#[test]
+fn corrupt_bytes_are_reported_the_records_around_them_stand_and_compaction_keeps_them() {
+    let (dir, store) = scratch();
+    let saved: Vec<(String, Value)> = (0..3).map(|n| keyed(n, "ok")).collect();
+    for (key, record) in &saved {
+        store.save(key, &typed(record)).unwrap();
+    }
+    drop(store);
+    let store = Store::open(dir.path(), "s");
+    let name = segment_names(&store)[0].clone();
+    let segment = store.segments().join(&name);
+    let mut bytes = std::fs::read(&segment).unwrap();
+    let frames = segment::read(&bytes, 0).frames;
+    let middle = frames[1].body.start as usize + 20;
+    bytes[middle] ^= 0x20;
+    std::fs::write(&segment, &bytes).unwrap();
+    let index = store.index();
+    assert_eq!(index.stored.len(), 2);
+    assert_eq!(index.unreadable.len(), 1);
+    let said = index.unreadable[0].to_string();
+    assert!(said.contains(&name) && said.contains("corrupt"), "{said}");
+    assert!(!index.stored.contains_key(&saved[1].0));
+    store.compact(&Default::default()).unwrap();
+    assert!(
+        segment.exists(),
+        "a segment with bytes it cannot read is kept"
+    );
+    assert_eq!(Store::open(dir.path(), "s").records().len(), 2);
+}
+
+#[test]
+fn compaction_drops_superseded_records_and_leaves_a_writers_segment_alone() {
+    let (dir, first) = scratch();
+    let (k, record) = keyed(1, "failed");
+    for n in 0..5 {
+        let mut record = record.clone();
+        record["message"] = json!(format!("try {n}"));
+        first.save(&k, &typed(&record)).unwrap();
+    }
+    let (ok, done) = keyed(2, "ok");
+    first.save(&ok, &typed(&done)).unwrap();
+    // A second writer, still running, holds a segment of its own.
+    let held = Store::open(dir.path(), "s");
+    held.save(&keyed(3, "ok").0, &typed(&keyed(3, "ok").1))
+        .unwrap();
+    drop(first);
+    let writer = Store::open(dir.path(), "s");
+    let before = segment_names(&writer);
+    assert_eq!(before.len(), 2);
+    let size = |s: &Store| -> u64 {
+        segment_names(s)
+            .iter()
+            .map(|n| std::fs::metadata(s.segments().join(n)).unwrap().len())
+            .sum()
+    };
+    let bytes_before = size(&writer);
+    writer.compact(&Default::default()).unwrap();
+    assert!(
+        size(&writer) < bytes_before,
+        "the four superseded tries are gone"
+    );
+    let after = Store::open(dir.path(), "s");
+    let records = after.records();
+    assert_eq!(records.len(), 3);
+    assert_eq!(
+        after.stored(&k).unwrap().to_value()["message"],
+        json!("try 4")
+    );
+    // Forgetting a record the running writer's segment holds is refused, not half done.
+    let forget = [keyed(3, "ok").0].into_iter().collect();
+    assert!(after.compact(&forget).is_err());
+    drop(held);
+    after.compact(&forget).unwrap();
+    assert_eq!(Store::open(dir.path(), "s").records().len(), 2);
 }

@@ -1,0 +1,394 @@
+//! The catalog: where the latest record of each key lies and what `plan` and `status` need of
+//! it, so that they read one file instead of every record (`runs/segments/catalog`).
+//!
+//! It is a cache of the segments, never the truth: each segment's entry says how far it was
+//! read, so a reader reads only what was appended since; a segment gone or shorter than read
+//! (compacted away, cut by hand) makes it read every segment again, and a catalog that cannot
+//! be read is rebuilt. Records of the old store, one file per key (`runs/<key>.json`), are read
+//! beside it until a writer moves them into a segment (`Store::migrate`).
+
+use super::segment::{self, Frame};
+use super::{read_indexed, Indexed, Unreadable};
+use rayon::prelude::*;
+use schema::record::Status;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, HashMap};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+/// The catalog's file, among the segments (its name has no `.seg`).
+pub const FILE: &str = "catalog";
+/// Bumped when what the catalog holds changes: an older one is rebuilt.
+const FORMAT: u32 = 1;
+
+/// Where a record lies.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Location {
+    /// A frame of a segment (its name).
+    Segment { name: String, span: Range<u64> },
+    /// A file of the old store, `runs/<key>.json`.
+    File(PathBuf),
+}
+
+/// What the catalog keeps of one whole record.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Entry {
+    pub at: Location,
+    pub seq: u64,
+    pub status: Status,
+    /// The fingerprint of the solver that made it ("" when it does not say).
+    pub fingerprint: String,
+    pub wall_s: Option<f64>,
+    pub case_id: Option<String>,
+    pub solver_version: String,
+    pub noisy: bool,
+    /// The first line of a failed record's message.
+    pub failure: Option<String>,
+}
+
+impl Entry {
+    fn of(indexed: Indexed, at: Location, seq: u64) -> (String, Entry) {
+        let entry = Entry {
+            at,
+            seq,
+            status: indexed.stored.status,
+            fingerprint: indexed.stored.fingerprint,
+            wall_s: indexed.stored.wall_s,
+            case_id: indexed.case_id,
+            solver_version: indexed.solver_version.unwrap_or_default(),
+            noisy: indexed.noisy,
+            failure: indexed.failure,
+        };
+        (indexed.key, entry)
+    }
+
+    pub fn bytes(&self) -> u64 {
+        match &self.at {
+            Location::Segment { span, .. } => span.end - span.start,
+            Location::File(_) => 0,
+        }
+    }
+}
+
+/// What was read of one segment.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct SegmentState {
+    /// Where its whole frames (and reported corruption) end: reading resumes here.
+    pub end: u64,
+    /// Its modification time (ns) when it was last read: a segment of the same size and
+    /// another time was written over in place (by hand, by a restore), and is read again.
+    pub modified: i128,
+    /// Bytes of frames a later frame of their key superseded: what compaction frees.
+    pub superseded: u64,
+    /// Byte ranges that are not whole frames.
+    pub corrupt: Vec<Range<u64>>,
+    /// Whole frames that are not whole records: where, and why.
+    pub unreadable: Vec<(Range<u64>, String)>,
+}
+
+impl SegmentState {
+    /// Whether all its bytes were read as records.
+    pub fn clean(&self) -> bool {
+        self.corrupt.is_empty() && self.unreadable.is_empty()
+    }
+}
+
+#[derive(Default, Serialize, Deserialize)]
+pub struct Catalog {
+    format: u32,
+    pub segments: BTreeMap<String, SegmentState>,
+    /// The latest record of each key among the segments.
+    pub entries: HashMap<String, Entry>,
+    /// The old store's files, by key, as last read (with the modification time and size they
+    /// had then, so an unchanged file is not read again).
+    #[serde(skip)]
+    files: HashMap<PathBuf, (FileStamp, FileRead)>,
+}
+
+/// What a file of the old store was read as: its key and entry, or why it is not a record.
+type FileRead = Result<(String, Entry), String>;
+
+/// A file's size and modification time (ns), to tell whether it changed since it was read.
+type FileStamp = (u64, i128);
+
+impl Catalog {
+    /// The catalog stored in `runs`, or an empty one (to be read from the segments) when there
+    /// is none or it is not whole.
+    pub fn load(runs: &Path) -> Catalog {
+        let path = runs.join(segment::DIR).join(FILE);
+        super::fs::read_regular(&path, 1 << 30)
+            .ok()
+            .and_then(|text| serde_json::from_str::<Catalog>(&text).ok())
+            .filter(|c| c.format == FORMAT)
+            .unwrap_or_default()
+    }
+
+    /// Stores the catalog whole or not at all. A failure (a read-only store, a full disk) only
+    /// costs the next reader a longer read.
+    pub fn persist(&self, runs: &Path) {
+        let dir = runs.join(segment::DIR);
+        if !dir.is_dir() {
+            return;
+        }
+        if let Ok(text) = serde_json::to_vec(&Catalog {
+            format: self.format,
+            segments: self.segments.clone(),
+            entries: self.entries.clone(),
+            files: HashMap::new(),
+        }) {
+            let _ = super::fs::write_atomically(&dir.join(FILE), &text);
+        }
+    }
+
+    /// Reads what was appended to the segments of `runs` since, and the old store's files;
+    /// returns whether any segment had news.
+    pub fn refresh(&mut self, runs: &Path) -> bool {
+        let dir = runs.join(segment::DIR);
+        let listed = segments(&dir);
+        let stale = self.segments.iter().any(|(name, state)| {
+            listed.get(name).is_none_or(|&(size, modified)| {
+                size < state.end || (size == state.end && modified != state.modified)
+            })
+        });
+        if stale || self.format != FORMAT {
+            self.segments.clear();
+            self.entries.clear();
+            self.format = FORMAT;
+        }
+        let mut news = stale;
+        for (name, (size, modified)) in listed {
+            let from = self.segments.get(&name).map_or(0, |s| s.end);
+            if size > from {
+                news |= self.read_segment(&dir, &name, from);
+            }
+            self.segments.entry(name).or_default().modified = modified;
+        }
+        self.read_files(runs);
+        news
+    }
+
+    /// Reads segment `name` from byte `from` on; whether it held anything new.
+    fn read_segment(&mut self, dir: &Path, name: &str, from: u64) -> bool {
+        let path = dir.join(name);
+        let Ok(bytes) = segment::read_from(&path, from) else {
+            return false;
+        };
+        let read = segment::read(&bytes, from);
+        let parsed: Vec<(Frame, Result<Indexed, String>)> = read
+            .frames
+            .into_par_iter()
+            .map(|frame| {
+                let body =
+                    &bytes[(frame.body.start - from) as usize..(frame.body.end - from) as usize];
+                let indexed = std::str::from_utf8(body)
+                    .map_err(|_| "not UTF-8 text".to_string())
+                    .and_then(|text| read_indexed(None, text));
+                (frame, indexed)
+            })
+            .collect();
+        let news = !parsed.is_empty() || !read.corrupt.is_empty();
+        let state = self.segments.entry(name.to_string()).or_default();
+        state.end = read.end;
+        state.corrupt.extend(read.corrupt);
+        let mut superseded = Vec::new();
+        for (frame, indexed) in parsed {
+            let indexed = match indexed {
+                Ok(indexed) => indexed,
+                Err(problem) => {
+                    let state = self.segments.get_mut(name).expect("entered above");
+                    state.unreadable.push((frame.span, problem));
+                    continue;
+                }
+            };
+            let at = Location::Segment {
+                name: name.to_string(),
+                span: frame.span.clone(),
+            };
+            let (key, entry) = Entry::of(indexed, at, frame.seq);
+            match self.entries.get(&key) {
+                Some(old) if old.seq > entry.seq => superseded.push(entry),
+                _ => {
+                    if let Some(old) = self.entries.insert(key, entry) {
+                        superseded.push(old);
+                    }
+                }
+            }
+        }
+        for old in superseded {
+            self.count_superseded(&old);
+        }
+        news
+    }
+
+    fn count_superseded(&mut self, old: &Entry) {
+        if let Location::Segment { name, .. } = &old.at {
+            if let Some(state) = self.segments.get_mut(name) {
+                state.superseded += old.bytes();
+            }
+        }
+    }
+
+    /// Forgets what was read, so that the next refresh reads every segment again (a frame the
+    /// catalog counted on turned out not whole).
+    pub fn invalidate(&mut self) {
+        self.format = 0;
+    }
+
+    /// Notes a frame this process appended (so it need not read it back).
+    pub fn appended(&mut self, name: &str, frame: &Frame, indexed: Indexed) {
+        let state = self.segments.entry(name.to_string()).or_default();
+        if state.end == frame.span.start {
+            state.end = frame.span.end;
+        }
+        let at = Location::Segment {
+            name: name.to_string(),
+            span: frame.span.clone(),
+        };
+        let (key, entry) = Entry::of(indexed, at, frame.seq);
+        if let Some(old) = self.entries.insert(key, entry) {
+            self.count_superseded(&old);
+        }
+    }
+
+    /// Notes the modification time of a segment this process wrote last.
+    pub fn written(&mut self, name: &str, modified: i128) {
+        self.segments.entry(name.to_string()).or_default().modified = modified;
+    }
+
+    /// Reads the old store's record files (`runs/*.json` and whatever else is not hidden).
+    fn read_files(&mut self, runs: &Path) {
+        let mut files = std::mem::take(&mut self.files);
+        let paths = super::listing(runs);
+        let read: Vec<_> = paths
+            .into_par_iter()
+            .filter(|path| path.file_name().is_none_or(|n| n != segment::DIR))
+            .map(|path| {
+                let stamp = stamp(&path);
+                match files.get(&path) {
+                    Some((known, _)) if Some(*known) == stamp => (path, None),
+                    _ => {
+                        let entry = super::fs::read_regular(&path, super::RECORD_CAP)
+                            .and_then(|text| read_indexed(Some(&path), &text))
+                            .map(|indexed| {
+                                let seq = stamp.map_or(0, |(_, ns)| ns.max(0) as u64);
+                                Entry::of(indexed, Location::File(path.clone()), seq)
+                            });
+                        (path, Some((stamp.unwrap_or_default(), entry)))
+                    }
+                }
+            })
+            .collect();
+        let mut now = HashMap::with_capacity(read.len());
+        for (path, fresh) in read {
+            let value = match fresh {
+                Some(value) => value,
+                None => files.remove(&path).expect("known above"),
+            };
+            now.insert(path, value);
+        }
+        self.files = now;
+    }
+
+    /// The latest record of each key, the old store's files included.
+    pub fn latest(&self) -> HashMap<&str, &Entry> {
+        let mut latest: HashMap<&str, &Entry> =
+            self.entries.iter().map(|(k, e)| (k.as_str(), e)).collect();
+        for (key, entry) in self.files.values().filter_map(|(_, r)| r.as_ref().ok()) {
+            match latest.get(key.as_str()) {
+                Some(old) if old.seq > entry.seq => {}
+                _ => {
+                    latest.insert(key, entry);
+                }
+            }
+        }
+        latest
+    }
+
+    /// The latest record of `key`.
+    pub fn get(&self, key: &str) -> Option<&Entry> {
+        let in_segment = self.entries.get(key);
+        let in_file = self.files.values().find_map(|(_, r)| match r {
+            Ok((k, e)) if k == key => Some(e),
+            _ => None,
+        });
+        match (in_segment, in_file) {
+            (Some(s), Some(f)) => Some(if f.seq > s.seq { f } else { s }),
+            (s, f) => s.or(f),
+        }
+    }
+
+    /// The old store's files that are whole records (to be moved into a segment).
+    pub fn record_files(&self) -> Vec<&Path> {
+        let mut paths: Vec<&Path> = self
+            .files
+            .iter()
+            .filter(|(_, (_, r))| r.is_ok())
+            .map(|(p, _)| p.as_path())
+            .collect();
+        paths.sort();
+        paths
+    }
+
+    /// What is not a whole record: files of the old store, frames and bytes of segments.
+    pub fn unreadable(&self, runs: &Path) -> Vec<Unreadable> {
+        let dir = runs.join(segment::DIR);
+        let mut found: Vec<Unreadable> = self
+            .files
+            .iter()
+            .filter_map(|(path, (_, r))| match r {
+                Err(problem) => Some(Unreadable {
+                    path: path.clone(),
+                    at: None,
+                    problem: problem.clone(),
+                }),
+                Ok(_) => None,
+            })
+            .collect();
+        for (name, state) in &self.segments {
+            for range in &state.corrupt {
+                found.push(Unreadable {
+                    path: dir.join(name),
+                    at: Some(range.clone()),
+                    problem: "not whole frames: corrupt".into(),
+                });
+            }
+            for (range, problem) in &state.unreadable {
+                found.push(Unreadable {
+                    path: dir.join(name),
+                    at: Some(range.clone()),
+                    problem: problem.clone(),
+                });
+            }
+        }
+        found.sort_by(|a, b| {
+            (&a.path, a.at.as_ref().map(|r| r.start))
+                .cmp(&(&b.path, b.at.as_ref().map(|r| r.start)))
+        });
+        found
+    }
+}
+
+/// The segments of `dir` (regular files named `*.seg`), their sizes and modification times.
+pub fn segments(dir: &Path) -> BTreeMap<String, FileStamp> {
+    std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_str()?.to_string();
+            let meta = e.metadata().ok()?;
+            (name.ends_with(segment::SUFFIX) && !name.starts_with('.') && meta.is_file())
+                .then_some((name, (meta.len(), modified(&meta))))
+        })
+        .collect()
+}
+
+fn stamp(path: &Path) -> Option<FileStamp> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    Some((meta.len(), modified(&meta)))
+}
+
+fn modified(meta: &std::fs::Metadata) -> i128 {
+    use std::os::unix::fs::MetadataExt;
+    i128::from(meta.mtime()) * 1_000_000_000 + i128::from(meta.mtime_nsec())
+}
