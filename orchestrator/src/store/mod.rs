@@ -252,9 +252,18 @@ impl Store {
             .map(|a| a.name.clone());
         let mut guard = self.catalog(false);
         let catalog = guard.as_mut().expect("loaded");
+        // Segments worth rewriting: small ones (merged), ones with superseded records, and
+        // ones holding a record to forget.
+        let forgotten_in: std::collections::HashSet<&str> = forget
+            .iter()
+            .filter_map(|key| catalog.entries.get(key).and_then(located))
+            .collect();
         let mut held = std::collections::BTreeMap::new();
         for (name, state) in &catalog.segments {
-            if Some(name) != own.as_ref() && state.clean() {
+            let worth = state.superseded > 0
+                || state.end < segment::TARGET_BYTES / 2
+                || forgotten_in.contains(name.as_str());
+            if Some(name) != own.as_ref() && state.clean() && worth {
                 if let Some(file) = segment::hold(&dir.join(name)) {
                     held.insert(name.clone(), file);
                 }
@@ -295,6 +304,8 @@ impl Store {
         if held.len() < 2 && dropped == 0 {
             return Ok(());
         }
+        // New segments of at most `TARGET_BYTES` each.
+        let mut written = Vec::new();
         let mut writer = segment::Rewriter::create(&dir)?;
         let mut moved = Vec::new();
         let mut merged = Vec::new();
@@ -314,8 +325,13 @@ impl Store {
                 continue;
             }
             for (key, span) in frames {
-                let at = writer.copy(&bytes[span.start as usize..span.end as usize])?;
-                moved.push((key, at));
+                let frame = &bytes[span.start as usize..span.end as usize];
+                if writer.size() > 0 && writer.size() + frame.len() as u64 > segment::TARGET_BYTES {
+                    let full = std::mem::replace(&mut writer, segment::Rewriter::create(&dir)?);
+                    written.push(full.finish()?);
+                }
+                let at = writer.copy(frame)?;
+                moved.push((key, written.len(), at));
             }
             merged.push(name.clone());
         }
@@ -324,7 +340,7 @@ impl Store {
             catalog.invalidate();
             return Ok(());
         }
-        let new = writer.finish()?;
+        written.push(writer.finish()?);
         for name in &merged {
             std::fs::remove_file(dir.join(name))
                 .map_err(FileError::on("remove", &dir.join(name)))?;
@@ -339,22 +355,24 @@ impl Store {
                 catalog.entries.remove(key);
             }
         }
-        for (key, span) in moved {
+        for (key, k, span) in moved {
             if let Some(entry) = catalog.entries.get_mut(&key) {
                 entry.at = Location::Segment {
-                    name: new.name.clone(),
+                    name: written[k].name.clone(),
                     span,
                 };
             }
         }
-        catalog.segments.insert(
-            new.name,
-            catalog::SegmentState {
-                end: new.end,
-                modified: new.modified,
-                ..Default::default()
-            },
-        );
+        for new in written {
+            catalog.segments.insert(
+                new.name,
+                catalog::SegmentState {
+                    end: new.end,
+                    modified: new.modified,
+                    ..Default::default()
+                },
+            );
+        }
         catalog.persist(&self.runs);
         Ok(())
     }

@@ -403,6 +403,11 @@ impl Rewriter {
         Ok(start..self.end)
     }
 
+    /// How many bytes it holds so far.
+    pub fn size(&self) -> u64 {
+        self.end
+    }
+
     /// Removes what was written.
     pub fn abandon(self) {
         let _ = std::fs::remove_file(&self.partial);
