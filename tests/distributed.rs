@@ -4,7 +4,9 @@
 //! than a subdomain and uneven splits work; a rank count that cannot partition the grid is
 //! refused by every rank with exit code 2, without hanging.
 
-use nonlocal_study::{binary, mpirun, mpirun_with, nlsolve, read_field, record, RESULT_FIELDS};
+use nonlocal_study::{
+    binary, mpirun, mpirun_with, nlsolve, numbers_of, read_field, record, RESULT_FIELDS,
+};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -725,4 +727,120 @@ fn peak_memory_per_rank_falls_with_the_rank_count() {
             "{integrator}: per-rank peak at 2 and 4 ranks is {half:.2} and {quarter:.2} of one rank's ({net:?} bytes above the trivial case's {fixed:?})"
         );
     }
+}
+
+/// The step a checkpoint file was taken at, from its header (the line after its first).
+fn checkpoint_step(path: &Path) -> u64 {
+    let bytes = std::fs::read(path).unwrap();
+    let header = bytes.split(|&b| b == b'\n').nth(1).unwrap();
+    serde_json::from_slice::<Value>(header).unwrap()["step"]
+        .as_u64()
+        .unwrap()
+}
+
+/// Over two ranks, `nlsolve run --checkpoint`: SIGTERM to every rank (as `scancel --signal`
+/// and a scheduler's warning deliver it) stops them at one step, each rank's file written
+/// (rank 0's at FILE, rank 1's at FILE.rank1) before any exits 143; resumed over two ranks, the
+/// record is the record of a run never stopped, bit for bit but for timings, and the files go.
+/// A set of files not of one step (one missing) is not resumed: the run starts afresh.
+#[test]
+fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
+    let dir = std::env::temp_dir().join(format!("nlsolve-ranks-checkpoint-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let case = dir.join("case.json");
+    std::fs::write(
+        &case,
+        r#"{"dim": 2, "n": 128, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2, "source": "discrete"}"#,
+    )
+    .unwrap();
+    let nlsolve = binary("nlsolve");
+    let (nlsolve, case) = (nlsolve.to_str().unwrap(), case.to_str().unwrap());
+    let file = dir.join("run.checkpoint");
+    let rank1 = dir.join("run.checkpoint.rank1");
+    let path = file.to_str().unwrap();
+    let whole = record(&mpirun(2, &[nlsolve, "run", "--case", case]));
+    assert!(whole["steps"].as_u64().unwrap() > 200, "{whole}");
+
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/mpirun");
+    let args = [
+        "run",
+        "--case",
+        case,
+        "--checkpoint",
+        path,
+        "--checkpoint-every-steps",
+        "200",
+    ];
+    let child = std::process::Command::new(script)
+        .args(["-n", "2", nlsolve])
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while !(file.exists() && rank1.exists()) && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    assert!(
+        file.exists() && rank1.exists(),
+        "no checkpoint of both ranks"
+    );
+    // The ranks, not mpirun: each gets the signal, as a batch system's tasks do.
+    let pattern = format!("^{nlsolve} run --case {case} --checkpoint");
+    let signalled = std::process::Command::new("pkill")
+        .args(["-TERM", "-f", &pattern])
+        .status()
+        .unwrap();
+    assert!(signalled.success(), "no rank to signal");
+    let stopped = child.wait_with_output().unwrap();
+    let said = String::from_utf8_lossy(&stopped.stderr);
+    assert!(!stopped.status.success(), "{said}");
+    assert!(stopped.stdout.is_empty(), "a stopped run prints no record");
+    assert!(said.contains("stopped at step"), "{said}");
+    let step = checkpoint_step(&file);
+    assert_eq!(
+        step,
+        checkpoint_step(&rank1),
+        "the ranks stopped at one step"
+    );
+
+    // One rank's file missing: the run starts afresh, and says so.
+    let saved = std::fs::read(&rank1).unwrap();
+    std::fs::remove_file(&rank1).unwrap();
+    let kept = dir.join("kept");
+    std::fs::copy(&file, &kept).unwrap();
+    let afresh = mpirun(2, &[nlsolve, "run", "--case", case, "--checkpoint", path]);
+    let said = String::from_utf8_lossy(&afresh.stderr);
+    assert!(said.contains("not of one step"), "{said}");
+    let afresh = record(&afresh);
+    assert_eq!(
+        afresh["resumed_from_step"].as_u64().unwrap_or(0),
+        0,
+        "{afresh}"
+    );
+    assert_eq!(numbers_of(&afresh), numbers_of(&whole));
+
+    std::fs::rename(&kept, &file).unwrap();
+    std::fs::write(&rank1, saved).unwrap();
+    let resumed = record(&mpirun(
+        2,
+        &[nlsolve, "run", "--case", case, "--checkpoint", path],
+    ));
+    assert_eq!(
+        resumed["resumed_from_step"].as_u64(),
+        Some(step),
+        "{resumed}"
+    );
+    assert_eq!(
+        numbers_of(&resumed),
+        numbers_of(&whole),
+        "the resumed run's record differs"
+    );
+    assert!(
+        !file.exists() && !rank1.exists(),
+        "the files stay after the record"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -225,12 +225,6 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
     flipped[last] ^= 0x10;
     refused_with(&flipped, &case, "checksum");
     refused_with(b"{\"step\": 3}", &case, "not a checkpoint");
-    // A run over ranks is not checkpointed, and says so.
-    let over_ranks = run(
-        &json!({"dim": 1, "n": 64, "m": 2, "t_end": 0.001, "cfl": 0.5, "ranks": 2}),
-        &["--checkpoint", path],
-    );
-    assert_eq!(over_ranks.status.code(), Some(2));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -172,7 +172,7 @@ pub struct TableArgs {
 pub struct CommonArgs {
     /// The study file (JSON).
     pub study: PathBuf,
-    /// Where results go: <results>/<study name>/runs/<key>.json.
+    /// Where results go: <results>/<study name>/ (records in runs/segments/, tables, figures).
     #[arg(long, default_value = "results")]
     pub results: PathBuf,
     /// The nlsolve binary (default: $NLSOLVE, else the one beside nlstudy).

@@ -253,10 +253,14 @@ impl Catalog {
     /// Reads the old store's record files (`runs/*.json` and whatever else is not hidden).
     fn read_files(&mut self, runs: &Path) {
         let mut files = std::mem::take(&mut self.files);
-        let paths = super::listing(runs);
+        let mut paths = super::listing(runs);
+        paths.retain(|path| path.file_name().is_none_or(|n| n != segment::DIR));
+        if paths.is_empty() {
+            // The common case once a writer has moved the files: no threads woken per record.
+            return;
+        }
         let read: Vec<_> = paths
             .into_par_iter()
-            .filter(|path| path.file_name().is_none_or(|n| n != segment::DIR))
             .map(|path| {
                 let stamp = stamp(&path);
                 match files.get(&path) {

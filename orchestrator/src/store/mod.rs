@@ -150,21 +150,30 @@ impl Store {
         guard
     }
 
-    /// Stores the catalog as this process knows it (after a run appended records).
+    /// Syncs this process's segment and stores the catalog as this process knows it (after a
+    /// run appended records).
     pub fn persist_catalog(&self) {
+        if let Some(appender) = self
+            .appender
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .as_mut()
+        {
+            appender.sync();
+        }
         let guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(catalog) = guard.as_ref() {
             catalog.persist(&self.runs);
         }
     }
 
-    /// Appends `bodies` (records' JSON) to this process's segment, one `fsync` for all; the
+    /// Appends `bodies` (records' JSON) to this process's segment, synced now if `sync`; the
     /// catalog learns them.
-    fn append(&self, bodies: &[(String, Indexed)]) -> Result<(), FileError> {
+    fn append(&self, bodies: &[(String, Indexed)], sync: bool) -> Result<(), FileError> {
         let dir = self.segments();
         let mut appender = self.appender.lock().unwrap_or_else(PoisonError::into_inner);
-        let mut catalog = self.catalog(false);
-        let catalog = catalog.as_mut().expect("loaded by catalog()");
+        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        let catalog = guard.get_or_insert_with(|| Catalog::load(&self.runs));
         if appender.as_ref().is_none_or(Appender::full) {
             let candidates: Vec<(String, u64)> = catalog
                 .segments
@@ -176,7 +185,7 @@ impl Store {
         }
         let appender = appender.as_mut().expect("opened above");
         let texts: Vec<&[u8]> = bodies.iter().map(|(b, _)| b.as_bytes()).collect();
-        let frames = appender.append(&dir, &texts)?;
+        let frames = appender.append(&dir, &texts, sync)?;
         for (frame, (_, indexed)) in frames.iter().zip(bodies) {
             catalog.appended(&appender.name, frame, indexed.clone());
         }
@@ -217,7 +226,8 @@ impl Store {
                 batch.push((path, (value.to_string(), indexed)));
             }
             let bodies: Vec<(String, Indexed)> = batch.iter().map(|(_, b)| b.clone()).collect();
-            self.append(&bodies)?;
+            // On disk before the files go.
+            self.append(&bodies, true)?;
             for (path, _) in &batch {
                 std::fs::remove_file(path).map_err(FileError::on("remove", path))?;
             }
@@ -430,7 +440,7 @@ impl Store {
         let indexed = read_indexed(None, &body).map_err(|problem| {
             FileError::new("store", &self.runs, std::io::Error::other(problem))
         })?;
-        self.append(&[(body, indexed)])?;
+        self.append(&[(body, indexed)], false)?;
         // A record of the old layout is superseded: its file goes (history has it if it was
         // a result).
         if let Some((_, _, Location::File(path))) = stored {

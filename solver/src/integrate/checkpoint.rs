@@ -14,6 +14,12 @@
 //! until the new one is; it names the solver build (fingerprint), the case (its canonical JSON)
 //! and the rank count, and a checksum of its values: one that does not match is refused with
 //! its reason and the run starts at step 0.
+//!
+//! Over MPI ranks each rank writes its own file (`rank_path`: the given path for rank 0,
+//! `<path>.rank<r>` for the others) holding its share of the field, at a step all ranks agree on
+//! (the timed loop takes the decision over ranks: a period due on any rank, or a stop asked of
+//! any, is due on all), and no rank exits before every rank's file is written. A run resumes
+//! only when every rank finds its file at the same step; otherwise all start at step 0.
 
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
@@ -68,13 +74,30 @@ impl Carried {
     }
 }
 
-/// Whose run a checkpoint is: a checkpoint of another build, case or rank count is refused.
+/// Whose run a checkpoint is: a checkpoint of another build, case, rank count or rank is
+/// refused.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Identity {
     pub fingerprint: String,
     /// The canonical case, as compact JSON.
     pub case: String,
     pub ranks: usize,
+    /// The rank whose share of the run it holds (0 for a run of one process).
+    #[serde(default)]
+    pub rank: usize,
+}
+
+/// The checkpoint file of `rank`: `path` itself for rank 0 (so a run of one process and the
+/// first rank of many read the same name), `<path>.rank<r>` for the others.
+pub fn rank_path(path: &Path, rank: usize) -> PathBuf {
+    match rank {
+        0 => path.to_path_buf(),
+        r => {
+            let mut name = path.as_os_str().to_os_string();
+            name.push(format!(".rank{r}"));
+            PathBuf::from(name)
+        }
+    }
 }
 
 /// When a run writes its checkpoint, and where.
@@ -180,22 +203,25 @@ pub fn stop_requested() -> bool {
 }
 
 impl Checkpointer {
-    /// Is a checkpoint due after `steps_done` steps (a period passed, or the stop asked)?
+    /// Is a periodic checkpoint due after `steps_done` steps?
     pub fn due(&self, steps_done: usize) -> bool {
-        stop_requested()
-            || self
-                .policy
-                .every_steps
-                .is_some_and(|every| every > 0 && steps_done.is_multiple_of(every))
+        self.policy
+            .every_steps
+            .is_some_and(|every| every > 0 && steps_done.is_multiple_of(every))
             || self
                 .policy
                 .every
                 .is_some_and(|every| self.last.elapsed() >= every)
     }
 
-    /// Writes `carried` whole; on the stop's request the process then exits with 128 + the
-    /// signal's number (no record: the run is not over). A checkpoint that cannot be written is said on stderr
-    /// and the run goes on (the previous one stays valid).
+    /// Forgets what this rank would resume from: another rank has nothing to resume from at
+    /// the same step.
+    pub fn start_afresh(&mut self) {
+        self.resume = None;
+    }
+
+    /// Writes `carried` whole. A checkpoint that cannot be written is said on stderr and the
+    /// run goes on (the previous one stays valid).
     pub fn save(&mut self, carried: &Carried) {
         match write(&self.policy.path, &self.identity, carried) {
             Ok(()) => self.written += 1,
@@ -205,14 +231,23 @@ impl Checkpointer {
             ),
         }
         self.last = Instant::now();
-        if stop_requested() {
+    }
+
+    /// Ends the process after the checkpoint of `step`, as the stop asked: with 128 + the
+    /// signal's number (143 for SIGTERM), and no record, since the run is not over. Over ranks
+    /// a rank the signal did not reach exits as SIGTERM would have ended it.
+    pub fn stop(&self, step: usize) -> ! {
+        if self.identity.rank == 0 {
             eprintln!(
-                "nlsolve: stopped at step {} by a signal; checkpoint {}",
-                carried.step,
+                "nlsolve: stopped at step {step} by a signal; checkpoint {}",
                 self.policy.path.display()
             );
-            std::process::exit(stopped_status());
         }
+        let status = match STOP.load(Ordering::SeqCst) {
+            0 => 128 + libc::SIGTERM,
+            _ => stopped_status(),
+        };
+        std::process::exit(status);
     }
 
     /// The step the run resumed from (0 when it started afresh).
@@ -340,6 +375,12 @@ fn read(path: &Path, identity: &Identity) -> Result<Option<Carried>, String> {
             theirs.ranks, identity.ranks
         ));
     }
+    if theirs.rank != identity.rank {
+        return Err(format!(
+            "it holds rank {}'s share, not rank {}'s",
+            theirs.rank, identity.rank
+        ));
+    }
     Ok(Some(carried))
 }
 
@@ -352,6 +393,7 @@ mod tests {
             fingerprint: "ab".repeat(32),
             case: r#"{"dim":1,"n":16}"#.into(),
             ranks: 1,
+            rank: 0,
         }
     }
 

@@ -105,6 +105,9 @@ pub(crate) fn is_sampled(steps: usize, k: usize) -> bool {
 pub(crate) struct Checkpoints<'a, S> {
     pub checkpointer: Checkpointer,
     pub carry: &'a mut dyn FnMut(&S, &mut Carried),
+    /// Whether a condition holds on any rank (the condition itself for one process): every
+    /// rank checkpoints, and stops, at the same step.
+    pub on_any_rank: &'a dyn Fn(bool) -> bool,
 }
 
 /// The time loop every solver shares: up to `steps` timed calls of `step(state, k)`, which
@@ -162,14 +165,20 @@ pub(crate) fn timed_steps<S>(
         if let Some(Checkpoints {
             checkpointer,
             carry,
+            on_any_rank,
         }) = checkpoints.as_mut()
         {
-            if k + 1 < steps && checkpointer.due(k + 1) {
+            let stop = k + 1 < steps && on_any_rank(super::checkpoint::stop_requested());
+            if stop || (k + 1 < steps && on_any_rank(checkpointer.due(k + 1))) {
                 let mut carried = Carried::at(k + 1);
                 carried.put_count("steps", steps);
                 timing.carry(&mut carried, segment_started);
                 carry(state, &mut carried);
                 checkpointer.save(&carried);
+            }
+            // Every rank's file is written before any rank exits.
+            if stop && on_any_rank(true) {
+                checkpointer.stop(k + 1);
             }
         }
     }
@@ -250,6 +259,7 @@ pub(crate) fn timed_steps_observed<S>(
         Some(Checkpoints {
             checkpointer,
             carry,
+            on_any_rank,
         }) => {
             carry_observed = |state: &S, carried: &mut Carried| {
                 carry_observers(&observers.borrow(), carried);
@@ -258,6 +268,7 @@ pub(crate) fn timed_steps_observed<S>(
             Some(Checkpoints {
                 checkpointer,
                 carry: &mut carry_observed,
+                on_any_rank,
             })
         }
         None => None,

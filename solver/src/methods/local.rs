@@ -228,6 +228,7 @@ impl ExplicitFd {
             checkpointer.map(|checkpointer| Checkpoints {
                 checkpointer,
                 carry: &mut carry,
+                on_any_rank: &|holds| holds,
             }),
         );
         Trajectory::observed(state.0, timing, observed)
@@ -497,6 +498,7 @@ impl Adi {
             checkpointer.map(|checkpointer| Checkpoints {
                 checkpointer,
                 carry: &mut carry,
+                on_any_rank: &|holds| holds,
             }),
         );
         Trajectory::observed(u, timing, observed)

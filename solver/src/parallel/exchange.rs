@@ -42,6 +42,15 @@ pub trait Exchange {
     fn traffic(&self) -> Traffic {
         Traffic::default()
     }
+    /// Counts `earlier` as sent already: the traffic of the steps a resumed run did before
+    /// its checkpoint.
+    fn count_earlier(&self, _earlier: Traffic) {}
+    /// The maximum of `local` over ranks, for the run's bookkeeping (checkpoints agreeing on a
+    /// step): counted in neither its traffic nor its communication time, so that a run that
+    /// checkpoints has the record of one that does not.
+    fn bookkeeping_max(&self, local: f64) -> f64 {
+        local
+    }
 
     fn swap(&self, peers: &[usize], send: &[Vec<f64>], receive: &mut [Vec<f64>]) {
         self.swap_overlapped(peers, send, receive, &mut || {});

@@ -148,6 +148,22 @@ impl Exchange for Mpi<'_> {
     fn traffic(&self) -> Traffic {
         self.traffic.get()
     }
+    fn count_earlier(&self, earlier: Traffic) {
+        self.count(|t| {
+            t.halo_exchanges += earlier.halo_exchanges;
+            t.halo_bytes += earlier.halo_bytes;
+            t.reductions += earlier.reductions;
+            t.reduction_bytes += earlier.reduction_bytes;
+            t.all_to_alls += earlier.all_to_alls;
+            t.all_to_all_bytes += earlier.all_to_all_bytes;
+        });
+    }
+    fn bookkeeping_max(&self, local: f64) -> f64 {
+        let mut global = 0.0;
+        self.world
+            .all_reduce_into(&local, &mut global, SystemOperation::max());
+        global
+    }
 }
 
 /// The partition of the case, the same on every rank.

@@ -81,7 +81,9 @@ struct RunArgs {
     /// periods below and on SIGTERM, SIGINT or SIGHUP, which then end the run with 128 + the
     /// signal's number (143 for SIGTERM) and no record; a run started where FILE holds a checkpoint of the same case, build and rank
     /// count resumes from it, with the record of a run never stopped (`resumed_from_step`).
-    /// FILE is removed once the record is written. One process only.
+    /// FILE is removed once the record is written. Over MPI ranks each rank writes its own
+    /// share, rank r > 0 into FILE.rank<r>, all at the same step; a run resumes when every rank
+    /// finds its file at one step. Steady methods (CG, FETI) are not checkpointed.
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<PathBuf>,
     /// With --checkpoint: also every N steps.
@@ -182,6 +184,11 @@ mod ranks {
         world.is_none_or(|w| w.rank() == 0)
     }
 
+    /// This process's rank and the ranks in all (0 of 1 without MPI).
+    pub fn rank_of(world: Option<&World>) -> (usize, usize) {
+        world.map_or((0, 1), |w| (w.rank() as usize, w.size() as usize))
+    }
+
     pub use solver::run_on_ranks as run;
 }
 
@@ -200,6 +207,10 @@ mod ranks {
 
     pub fn is_rank0(_: Option<&World>) -> bool {
         true
+    }
+
+    pub fn rank_of(_: Option<&World>) -> (usize, usize) {
+        (0, 1)
     }
 
     pub fn run(
@@ -256,8 +267,9 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
             "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
         ));
     }
+    let (rank, ranks) = ranks::rank_of(world);
     if let Some(path) = &args.checkpoint {
-        start_checkpoints(args, path, &case, world.is_some())?;
+        start_checkpoints(args, path, &case, rank)?;
     }
     if ranks::is_rank0(world) {
         solver::integrate::progress::configure(args.progress.clone());
@@ -288,7 +300,9 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
         .map_err(|e| ErrorExit::Output(format!("cannot write the record: {e}")))?;
     print_line(&line, "the record")?;
     if let (Some(path), false) = (&args.checkpoint, args.keep_checkpoint) {
-        let _ = std::fs::remove_file(path);
+        for rank in 0..ranks {
+            let _ = std::fs::remove_file(solver::integrate::checkpoint::rank_path(path, rank));
+        }
     }
     note(&summary(&outcome.record));
     Ok(())
@@ -296,20 +310,16 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
 
 /// Sets up the run's checkpoints (`--checkpoint`): what to resume from, when to write, and
 /// SIGTERM as the request to write one and stop. A checkpoint file of another run is refused
-/// on stderr and the run starts at step 0.
+/// on stderr and the run starts at step 0. Over ranks, `rank` writes its own file
+/// (`checkpoint::rank_path`).
 fn start_checkpoints(
     args: &RunArgs,
     path: &std::path::Path,
     case: &ValidCase,
-    over_ranks: bool,
+    rank: usize,
 ) -> Result<(), ErrorExit> {
     use solver::integrate::checkpoint::{self, Identity, Policy};
-    if over_ranks {
-        return Err(ErrorExit::BadInput(
-            "--checkpoint: a run over ranks is not checkpointed yet; run it without --checkpoint"
-                .into(),
-        ));
-    }
+    let path = &checkpoint::rank_path(path, rank);
     let every = match args.checkpoint_every_seconds {
         Some(s) if !(s.is_finite() && s > 0.0) => {
             return Err(ErrorExit::BadInput(format!(
@@ -332,6 +342,7 @@ fn start_checkpoints(
         fingerprint: solver::output::record::FINGERPRINT.to_string(),
         case: keyed.to_string(),
         ranks: case.ranks,
+        rank,
     };
     if let Some(why) = checkpoint::configure(policy, identity) {
         note(&format!(
