@@ -647,6 +647,80 @@ fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
     }
 }
 
+/// A checkpointing study's point over two MPI ranks, `nlstudy run` stopped by SIGTERM after the
+/// ranks' first checkpoints: each rank is asked to stop and writes its share at one step; the
+/// next `run` resumes the point over two ranks and stores the record an uninterrupted run
+/// stores, and the ranks' files go with it.
+#[test]
+fn a_stopped_run_resumes_its_point_over_two_ranks_from_their_checkpoints() {
+    let study = json!({
+        "name": "ranked",
+        "checkpoint_every_s": 0.05,
+        "base": {"dim": 2, "n": 128, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2,
+                 "source": "discrete"}
+    });
+    let scratch = Scratch::new("ranked", &study);
+    let work = scratch.runs("ranked").join(".work");
+    let checkpoints = || -> Vec<String> {
+        let mut names: Vec<String> = files_under(&work)
+            .iter()
+            .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+            .filter(|n| !n.starts_with('.') && n.contains(".checkpoint"))
+            .collect();
+        names.sort();
+        names
+    };
+    let run = scratch.spawn("run", &["--no-collect"]);
+    assert!(
+        eventually(Duration::from_secs(120), || checkpoints().len() == 2),
+        "no checkpoint of both ranks: {:?}",
+        checkpoints()
+    );
+    Command::new("kill")
+        .args(["-TERM", &run.id().to_string()])
+        .status()
+        .unwrap();
+    let stopped = run.wait_with_output().unwrap();
+    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    assert!(records(&scratch.runs("ranked")).is_empty());
+    let files = checkpoints();
+    assert_eq!(files.len(), 2, "both ranks' checkpoints stay: {files:?}");
+    assert!(files[1].ends_with(".checkpoint.rank1"), "{files:?}");
+    let step = |name: &str| -> u64 {
+        let bytes = std::fs::read(work.join(name)).unwrap();
+        let header = bytes.split(|&b| b == b'\n').nth(1).unwrap();
+        serde_json::from_slice::<Value>(header).unwrap()["step"]
+            .as_u64()
+            .unwrap()
+    };
+    let stopped_at = step(&files[0]);
+    assert_eq!(stopped_at, step(&files[1]), "the ranks stopped at one step");
+
+    let resumed = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let stored = records(&scratch.runs("ranked"));
+    assert_eq!(stored.len(), 1);
+    assert_eq!(
+        stored[0]["resumed_from_step"].as_u64(),
+        Some(stopped_at),
+        "{}",
+        stored[0]
+    );
+    assert!(
+        checkpoints().is_empty(),
+        "the ranks' checkpoints outlived the record"
+    );
+    let whole = Command::new(nonlocal_study::binary("nlstudy"))
+        .args(["run", "--no-collect", "--results"])
+        .arg(scratch.dir.join("whole"))
+        .arg(scratch.study())
+        .output()
+        .unwrap();
+    assert!(whole.status.success(), "{}", text(&whole));
+    let whole = records(&scratch.dir.join("whole/ranked/runs"));
+    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+}
+
 /// A study that checkpoints (`checkpoint_every_s`): `nlstudy run` stopped by SIGTERM while its
 /// long point runs (`status` says how far it is) asks the solver to stop, which writes the
 /// point's checkpoint; the run exits 143 and stores nothing for the point. `run` again resumes the point from its checkpoint

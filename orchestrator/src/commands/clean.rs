@@ -122,7 +122,7 @@ fn stale_checkpoints(store: &Store, planned: &[Planned]) -> Result<Vec<String>, 
     let mut removed = Vec::new();
     for key in keys {
         if let Some(_lock) = store.lock(&key)? {
-            let _ = std::fs::remove_file(store.scratch(&key, CHECKPOINT));
+            store.remove_checkpoint(&key);
             removed.push(key);
         }
     }

@@ -83,8 +83,9 @@ pub struct PoolOptions {
     pub retries: usize,
     /// A process per case (`--isolate`), never a worker.
     pub isolate: bool,
-    /// Time-dependent cases of one process checkpoint this often (and on a stopping signal),
-    /// in `runs/.work/<key>.checkpoint`, and resume from it; they run as processes.
+    /// Time-dependent cases checkpoint this often (and on a stopping signal), in
+    /// `runs/.work/<key>.checkpoint` (and `.rank<r>` beside it over ranks), and resume from it;
+    /// they run as processes.
     pub checkpoint_every: Option<Duration>,
     /// Keep each checkpoint after its record is stored.
     pub keep_checkpoints: bool,
@@ -195,22 +196,33 @@ impl LauncherWatch {
 
 /// Does process `parent` have a child that has exited and not been reaped (state Z)?
 fn has_zombie_child(parent: u32) -> bool {
-    let Ok(entries) = std::fs::read_dir("/proc") else {
-        return false;
-    };
-    entries.flatten().any(|entry| {
-        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
-            return false;
-        };
-        // After the command name's closing parenthesis: state, then the parent's pid.
-        let Some((_, rest)) = stat.rsplit_once(')') else {
-            return false;
-        };
-        let mut fields = rest.split_whitespace();
-        let state = fields.next();
-        let ppid = fields.next().and_then(|p| p.parse::<u32>().ok());
-        state == Some("Z") && ppid == Some(parent)
-    })
+    processes().any(|(_, ppid, state)| state == 'Z' && ppid == parent)
+}
+
+/// The running children of process `parent` (an MPI launcher's ranks on this machine).
+fn children_of(parent: u32) -> Vec<u32> {
+    processes()
+        .filter(|&(_, ppid, state)| ppid == parent && state != 'Z')
+        .map(|(pid, _, _)| pid)
+        .collect()
+}
+
+/// Every process's pid, parent's pid and state, from /proc.
+fn processes() -> impl Iterator<Item = (u32, u32, char)> {
+    std::fs::read_dir("/proc")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|entry| {
+            let pid = entry.file_name().to_str()?.parse::<u32>().ok()?;
+            let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
+            // After the command name's closing parenthesis: state, then the parent's pid.
+            let (_, rest) = stat.rsplit_once(')')?;
+            let mut fields = rest.split_whitespace();
+            let state = fields.next()?.chars().next()?;
+            let ppid = fields.next()?.parse::<u32>().ok()?;
+            Some((pid, ppid, state))
+        })
 }
 
 /// Runs the planned points that run; stores each record as it finishes. A failure of the file
@@ -622,18 +634,27 @@ impl Running {
         }
     }
 
-    /// Ends the case without a record: the run stops, or the stop ended it. A process of one
-    /// rank is first asked to stop (SIGTERM: a checkpointing solver writes its checkpoint)
-    /// and given `STOP_GRACE`; then it is killed.
+    /// Ends the case without a record: the run stops, or the stop ended it. The solver is
+    /// first asked to stop (SIGTERM: a checkpointing solver writes its checkpoint; over ranks
+    /// each rank, the launcher's children, is asked, so that every rank writes its share
+    /// before the launcher ends the job) and given `STOP_GRACE`; then it is killed.
     fn abandon(self) {
         match self.how {
             How::Process(mut process) => {
                 let running = matches!(process.child.try_wait(), Ok(None));
-                if running && process.launcher_watch.is_none() {
+                if running {
                     let asked = Instant::now();
-                    // SAFETY: kill(2) on our own child, not yet reaped (an exit is cached by
-                    // `try_wait`, which would have said so), so the pid is still its own.
-                    unsafe { libc::kill(process.child.id() as libc::pid_t, libc::SIGTERM) };
+                    let id = process.child.id();
+                    let asked_to_stop = match process.launcher_watch {
+                        Some(_) => children_of(id),
+                        None => vec![id],
+                    };
+                    for pid in asked_to_stop {
+                        // SAFETY: kill(2) on our own child, not yet reaped (an exit is cached
+                        // by `try_wait`, which would have said so), or on a child of it, which
+                        // it has not reaped either (it is running).
+                        unsafe { libc::kill(pid as libc::pid_t, libc::SIGTERM) };
+                    }
                     while asked.elapsed() < STOP_GRACE
                         && matches!(process.child.try_wait(), Ok(None))
                     {
@@ -671,13 +692,12 @@ fn cores_of(planned: &Planned) -> usize {
     field("threads").max(1) * field("ranks").max(1)
 }
 
-/// The checkpoint period of `case`: the pool's, for a time-dependent case of one process (a
-/// run over ranks is not checkpointed yet; a steady one has no time loop).
+/// The checkpoint period of `case`: the pool's, for a time-dependent case (a steady one has no
+/// time loop).
 fn checkpointed(case: &Checked, options: &PoolOptions) -> Option<Duration> {
     let every = options.checkpoint_every?;
-    let one_process = case.resolved_count("ranks").unwrap_or(1) <= 1;
     let timed = case.canonical().get("t_end").is_some_and(|t| !t.is_null());
-    (one_process && timed).then_some(every)
+    timed.then_some(every)
 }
 
 /// The line a worker reads for `case`: the case, with the file its time loop says how far it

@@ -483,6 +483,16 @@ impl Store {
             .collect()
     }
 
+    /// Removes the checkpoint of `key`: its file and, over ranks, the other ranks' files beside
+    /// it (`<key>.checkpoint.rank<r>`). Call it holding the key's lock.
+    pub fn remove_checkpoint(&self, key: &str) {
+        let first = format!("{key}.{CHECKPOINT}");
+        let others = format!("{first}.rank");
+        remove_where(&self.work_dir(), |name| {
+            name == first || name.starts_with(&others)
+        });
+    }
+
     /// Is `key` locked, by this process or another: is its point running? The lock is not
     /// taken (as `lock` would, which a run starting the point then would take for another's).
     pub fn running(&self, key: &str) -> bool {
