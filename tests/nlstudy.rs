@@ -1675,3 +1675,56 @@ fn an_adaptive_study_stops_at_its_budget_and_says_so() {
     assert!(text(&again).contains("0 ran"), "{}", text(&again));
     assert_eq!(records(&scratch.runs("budgeted")).len(), 15);
 }
+
+/// `collect` is make-style: with no record, point or study text changed since the tables were
+/// made, they stand as they are (not rewritten) and it says so; a new point's record, a rerun
+/// or a table gone makes them again.
+#[test]
+fn a_collect_with_nothing_new_leaves_the_tables_and_a_new_record_remakes_them() {
+    let scratch = Scratch::new("remade", &small_study(&[16, 32]));
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    let table = scratch.dir.join("results/small/small.parquet");
+    let summary = scratch.dir.join("results/small/small-summary.parquet");
+    let made = std::fs::metadata(&table).unwrap().modified().unwrap();
+    let bytes = std::fs::read(&table).unwrap();
+    let again = scratch.nlstudy("collect", &[]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(text(&again).contains("up to date"), "{}", text(&again));
+    assert!(
+        text(&again).contains("| n |"),
+        "the overview is printed: {}",
+        text(&again)
+    );
+    assert_eq!(std::fs::metadata(&table).unwrap().modified().unwrap(), made);
+    assert_eq!(std::fs::read(&table).unwrap(), bytes);
+
+    scratch.write_study(&small_study(&[16, 32, 48]));
+    let grown = scratch.nlstudy("run", &[]);
+    assert!(grown.status.success(), "{}", text(&grown));
+    assert!(!text(&grown).contains("up to date"), "{}", text(&grown));
+    assert!(text(&grown).contains("(6 runs)"), "{}", text(&grown));
+
+    let forced = scratch.nlstudy(
+        "run",
+        &[
+            "--force",
+            "--only",
+            &records(&scratch.runs("small"))[0]["key"]
+                .as_str()
+                .unwrap()
+                .to_string(),
+        ],
+    );
+    assert!(forced.status.success(), "{}", text(&forced));
+    assert!(
+        !text(&forced).contains("up to date"),
+        "a rerun remakes them: {}",
+        text(&forced)
+    );
+
+    std::fs::remove_file(&summary).unwrap();
+    let remade = scratch.nlstudy("collect", &[]);
+    assert!(!text(&remade).contains("up to date"), "{}", text(&remade));
+    assert!(summary.exists());
+}

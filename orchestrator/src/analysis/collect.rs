@@ -16,6 +16,7 @@ use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Collected {
     pub runs: PathBuf,
     pub summary: PathBuf,
@@ -25,8 +26,66 @@ pub struct Collected {
     pub missing: usize,
     /// Stored records that are not points of the study now.
     pub left_out: usize,
-    /// The summary table's rows, for printing.
-    pub table: Vec<Row>,
+    /// The summary table's headline columns as markdown, for printing.
+    pub overview: String,
+    /// Whether the tables were already made of these records, and stand as they were.
+    #[serde(skip)]
+    pub up_to_date: bool,
+}
+
+/// What the last collect made the tables of and said, beside them: when nothing it read has
+/// changed since, the tables stand (make-style) and a collect costs a plan.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Made {
+    inputs: String,
+    collected: Collected,
+}
+
+/// The file `Made` is kept in, in the study's results directory.
+const MADE: &str = ".collected.json";
+
+/// A signature of everything the tables are made of: this build of nlstudy, the study's
+/// description, each planned point's key, labels and the sequence number of its stored record
+/// (a rerun, a new record or one gone changes it), the records in all (those left out count),
+/// and `allow_mixed`.
+fn inputs_of(planned: &[Planned], store: &Store, study: &Study, allow_mixed: bool) -> String {
+    use sha2::Digest;
+    let mut hasher = sha2::Sha256::new();
+    if let Ok(meta) = std::env::current_exe().and_then(std::fs::metadata) {
+        hasher.update(format!("{} {:?}\n", meta.len(), meta.modified().ok()));
+    }
+    hasher.update(format!(
+        "{:?} {allow_mixed} {}\n",
+        study.description,
+        store.count()
+    ));
+    let keys: Vec<&str> = planned.iter().map(|p| p.key.as_str()).collect();
+    for (planned, seq) in planned.iter().zip(store.sequence_numbers(&keys)) {
+        let series = planned.point.series();
+        hasher.update(format!(
+            "{} {seq} {:?} {:?} {:?} {:?}\n",
+            planned.key,
+            planned.point.label_without_repeat(),
+            planned.point.branch,
+            series.refinement,
+            series.scaling
+        ));
+    }
+    crate::store::hex(&hasher.finalize())
+}
+
+/// The tables as the last collect made them, if nothing they are made of changed since and
+/// they are all there.
+fn made_already(store: &Store, inputs: &str) -> Option<Collected> {
+    let text =
+        crate::store::fs::read_regular(&store.table(MADE), crate::store::fs::RECORD_CAP).ok()?;
+    let made: Made = serde_json::from_str(&text).ok()?;
+    let there = |path: &PathBuf| path.is_file() && table::sum_path(path).is_file();
+    (made.inputs == inputs && there(&made.collected.runs) && there(&made.collected.summary))
+        .then_some(Collected {
+            up_to_date: true,
+            ..made.collected
+        })
 }
 
 /// The fields that lead a run's row; the case follows, then the results, then provenance.
@@ -112,6 +171,10 @@ pub fn collect(
     study: &Study,
     allow_mixed: bool,
 ) -> Result<Option<Collected>, Fault> {
+    let inputs = inputs_of(planned, store, study, allow_mixed);
+    if let Some(collected) = made_already(store, &inputs) {
+        return Ok(Some(collected));
+    }
     // Superseded records go, and the segments of finished writers become one.
     if let Err(e) = store.compact(&HashSet::new()) {
         errln!("nlstudy: warning: the store was not compacted: {e}");
@@ -148,15 +211,23 @@ pub fn collect(
         notes: LABELS,
     };
     table::write_parquet_about(&[(&runs, &rows), (&summary, &summary_rows)], &about)?;
-    Ok(Some(Collected {
+    let swept = crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point));
+    let collected = Collected {
         runs,
         summary,
         rows: rows.len(),
         points: summary_rows.len(),
         missing,
         left_out,
-        table: summary_rows,
-    }))
+        overview: overview(&summary_rows, &swept),
+        up_to_date: false,
+    };
+    // Said after the tables are whole; compaction above changed no record's sequence number.
+    let made = Made { inputs, collected };
+    if let Ok(text) = serde_json::to_vec(&made) {
+        crate::store::write_atomically(&store.table(MADE), &text)?;
+    }
+    Ok(Some(made.collected))
 }
 
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would

@@ -3,7 +3,6 @@
 use super::failure::Failure;
 use super::open::{planned, print_tables_written};
 use crate::cli::args::CollectArgs;
-use crate::model::study::fields_telling_apart;
 use crate::run::plan::Options;
 use std::process::ExitCode;
 
@@ -19,10 +18,6 @@ pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
             ))
         })?;
     print_tables_written(&collected);
-    let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
-    out!(
-        "{}",
-        crate::analysis::collect::overview(&collected.table, &swept)
-    );
+    out!("{}", collected.overview);
     Ok(ExitCode::SUCCESS)
 }

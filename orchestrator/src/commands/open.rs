@@ -129,11 +129,15 @@ pub(super) fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {
 
 pub(super) fn print_tables_written(collected: &crate::analysis::collect::Collected) {
     errln!(
-        "tables: {} ({} runs), {} ({} points)",
+        "tables: {} ({} runs), {} ({} points){}",
         collected.runs.display(),
         collected.rows,
         collected.summary.display(),
-        collected.points
+        collected.points,
+        match collected.up_to_date {
+            true => ": up to date, no record changed since they were made",
+            false => "",
+        }
     );
     if collected.missing > 0 {
         errln!(

@@ -723,6 +723,16 @@ impl Store {
         index
     }
 
+    /// The sequence number of each key's latest record (0 when none is stored): what changes
+    /// when a record is stored, replaced or lost.
+    pub fn sequence_numbers(&self, keys: &[&str]) -> Vec<u64> {
+        let guard = self.catalog(false);
+        let catalog = guard.as_ref().expect("loaded");
+        keys.iter()
+            .map(|key| catalog.get(key).map_or(0, |e| e.seq))
+            .collect()
+    }
+
     /// How many records the store holds (the latest of each key), and what it holds that is not
     /// a whole record: what a scan would read.
     pub fn count(&self) -> usize {
