@@ -1705,17 +1705,11 @@ fn a_collect_with_nothing_new_leaves_the_tables_and_a_new_record_remakes_them() 
     assert!(!text(&grown).contains("up to date"), "{}", text(&grown));
     assert!(text(&grown).contains("(6 runs)"), "{}", text(&grown));
 
-    let forced = scratch.nlstudy(
-        "run",
-        &[
-            "--force",
-            "--only",
-            &records(&scratch.runs("small"))[0]["key"]
-                .as_str()
-                .unwrap()
-                .to_string(),
-        ],
-    );
+    let key = records(&scratch.runs("small"))[0]["key"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let forced = scratch.nlstudy("run", &["--force", "--only", &key]);
     assert!(forced.status.success(), "{}", text(&forced));
     assert!(
         !text(&forced).contains("up to date"),
