@@ -7,8 +7,8 @@
 //! be read is rebuilt. Records of the old store, one file per key (`runs/<key>.json`), are read
 //! beside it until a writer moves them into a segment (`Store::migrate`).
 
+use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
-use super::{read_indexed, Indexed, Unreadable};
 use rayon::prelude::*;
 use schema::record::Status;
 use serde::{Deserialize, Serialize};
@@ -253,7 +253,7 @@ impl Catalog {
     /// Reads the old store's record files (`runs/*.json` and whatever else is not hidden).
     fn read_files(&mut self, runs: &Path) {
         let mut files = std::mem::take(&mut self.files);
-        let mut paths = super::listing(runs);
+        let mut paths = listing(runs);
         paths.retain(|path| path.file_name().is_none_or(|n| n != segment::DIR));
         if paths.is_empty() {
             // The common case once a writer has moved the files: no threads woken per record.
@@ -266,7 +266,7 @@ impl Catalog {
                 match files.get(&path) {
                     Some((known, _)) if Some(*known) == stamp => (path, None),
                     _ => {
-                        let entry = super::fs::read_regular(&path, super::RECORD_CAP)
+                        let entry = super::fs::read_regular(&path, super::fs::RECORD_CAP)
                             .and_then(|text| read_indexed(Some(&path), &text))
                             .map(|indexed| {
                                 let seq = stamp.map_or(0, |(_, ns)| ns.max(0) as u64);
