@@ -75,12 +75,12 @@ fn inputs_of(planned: &[Planned], store: &Store, study: &Study, allow_mixed: boo
 }
 
 /// The tables as the last collect made them, if nothing they are made of changed since and
-/// they are all there.
+/// they are all there, whole (each matches its sum).
 fn made_already(store: &Store, inputs: &str) -> Option<Collected> {
     let text =
         crate::store::fs::read_regular(&store.table(MADE), crate::store::fs::RECORD_CAP).ok()?;
     let made: Made = serde_json::from_str(&text).ok()?;
-    let there = |path: &PathBuf| path.is_file() && table::sum_path(path).is_file();
+    let there = |path: &PathBuf| table::matches_its_sum(path);
     (made.inputs == inputs && there(&made.collected.runs) && there(&made.collected.summary))
         .then_some(Collected {
             up_to_date: true,

@@ -356,6 +356,15 @@ fn read_whole(path: &Path) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
+/// Whether the table `path` has its sum beside it and its bytes match it: whole as `collect`
+/// wrote it.
+pub fn matches_its_sum(path: &Path) -> bool {
+    sum_path(path).is_file()
+        && read_whole(path).is_ok_and(|bytes| {
+            check_sum(path, &crate::store::hex(&sha2::Sha256::digest(&bytes))).is_ok()
+        })
+}
+
 /// Where the sum of the table `path` is kept: `<table>.sha256`.
 pub fn sum_path(path: &Path) -> std::path::PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
