@@ -647,6 +647,19 @@ fn a_point_run_by_a_worker_has_the_record_of_its_own_process() {
     }
 }
 
+/// The records of the scratch's study run whole into results of their own, `whole/`: what a
+/// stopped and resumed run must store.
+fn run_uninterrupted(scratch: &Scratch, study: &str) -> Vec<Value> {
+    let whole = Command::new(nonlocal_study::binary("nlstudy"))
+        .args(["run", "--no-collect", "--results"])
+        .arg(scratch.dir.join("whole"))
+        .arg(scratch.study())
+        .output()
+        .unwrap();
+    assert!(whole.status.success(), "{}", text(&whole));
+    records(&scratch.dir.join(format!("whole/{study}/runs")))
+}
+
 /// A checkpointing study's point over two MPI ranks, `nlstudy run` stopped by SIGTERM after the
 /// ranks' first checkpoints: each rank is asked to stop and writes its share at one step; the
 /// next `run` resumes the point over two ranks and stores the record an uninterrupted run
@@ -710,14 +723,7 @@ fn a_stopped_run_resumes_its_point_over_two_ranks_from_their_checkpoints() {
         checkpoints().is_empty(),
         "the ranks' checkpoints outlived the record"
     );
-    let whole = Command::new(nonlocal_study::binary("nlstudy"))
-        .args(["run", "--no-collect", "--results"])
-        .arg(scratch.dir.join("whole"))
-        .arg(scratch.study())
-        .output()
-        .unwrap();
-    assert!(whole.status.success(), "{}", text(&whole));
-    let whole = records(&scratch.dir.join("whole/ranked/runs"));
+    let whole = run_uninterrupted(&scratch, "ranked");
     assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
 }
 
@@ -792,14 +798,7 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         "the checkpoint outlived its record"
     );
 
-    let whole = Command::new(nonlocal_study::binary("nlstudy"))
-        .args(["run", "--no-collect", "--results"])
-        .arg(scratch.dir.join("whole"))
-        .arg(scratch.study())
-        .output()
-        .unwrap();
-    assert!(whole.status.success(), "{}", text(&whole));
-    let whole = records(&scratch.dir.join("whole/long/runs"));
+    let whole = run_uninterrupted(&scratch, "long");
     assert!(whole[0].get("resumed_from_step").is_none());
     assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
 
@@ -969,8 +968,12 @@ fn a_full_disk_while_writing_tables_the_report_or_a_figure_exits_3() {
     let figures = results.join("outputs").join("figures");
     let filler = results.join("filler");
     for verb in ["collect", "report", "plot"] {
-        // Stale figures, so that `plot` has one to write.
+        // Stale figures, so that `plot` has one to write, and a table gone, so that `collect`
+        // has one to write (with its tables whole and nothing new it writes none).
         let _ = std::fs::remove_dir_all(&figures);
+        if verb == "collect" {
+            std::fs::remove_file(results.join("outputs/outputs-summary.parquet")).unwrap();
+        }
         fill(&filler);
         let out = scratch.nlstudy(verb, &[]);
         assert_eq!(out.status.code(), Some(3), "{verb}: {}", text(&out));

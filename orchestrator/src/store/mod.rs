@@ -529,12 +529,7 @@ impl Store {
                         })
                 })
                 .collect();
-            for record in read {
-                match record {
-                    Ok(record) => scan.records.push(record),
-                    Err(unreadable) => scan.unreadable.push(unreadable),
-                }
-            }
+            scan.take(read);
         }
         let read: Vec<Result<Stored, Unreadable>> = files
             .into_par_iter()
@@ -548,12 +543,7 @@ impl Store {
                     })
             })
             .collect();
-        for record in read {
-            match record {
-                Ok(record) => scan.records.push(record),
-                Err(unreadable) => scan.unreadable.push(unreadable),
-            }
-        }
+        scan.take(read);
         scan.found_now = scan.unreadable.len() - known_unreadable;
         if scan.found_now > 0 {
             // A frame changed under the catalog (a bad block, a hand edit of the same size):
@@ -752,6 +742,18 @@ pub struct Scan {
     /// How many of `unreadable` (the last ones) this scan found: frames the catalog counted as
     /// records, which changed since.
     pub found_now: usize,
+}
+
+impl Scan {
+    /// Adds what was read: the whole records, and what is not one.
+    fn take(&mut self, read: Vec<Result<Stored, Unreadable>>) {
+        for record in read {
+            match record {
+                Ok(record) => self.records.push(record),
+                Err(unreadable) => self.unreadable.push(unreadable),
+            }
+        }
+    }
 }
 
 #[derive(Default)]
