@@ -221,11 +221,20 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         "the two quick points: {stored:?}\n{}",
         logs(&scratch, "limit")
     );
-    let stray: Vec<String> = std::fs::read_dir(&runs)
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|name| name != ".work" && !name.ends_with(".json"))
+    // The store's folders hold their segments, catalog and locks, and nothing half-written.
+    let listed = |dir: &std::path::Path| -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect()
+    };
+    let stray: Vec<String> = listed(&runs)
+        .into_iter()
+        .filter(|name| name != ".work" && name != "segments")
+        .chain(listed(&runs.join("segments")).into_iter().filter(|name| {
+            !(name.ends_with(".seg") || name == "catalog" || name == ".compact.lock")
+        }))
         .collect();
     assert!(stray.is_empty(), "half-written files: {stray:?}");
     let again = submit(&scratch, &slurm, &["--dry-run"]);

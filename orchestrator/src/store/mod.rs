@@ -184,21 +184,26 @@ impl Store {
         let catalog = guard.as_mut().expect("loaded");
         // Segments worth rewriting: small ones (merged), ones with superseded records, and
         // ones holding a record to forget.
-        let forgotten_in: std::collections::HashSet<&str> = forget
+        let forgotten_in: std::collections::HashSet<String> = forget
             .iter()
             .filter_map(|key| catalog.entries.get(key).and_then(located))
+            .map(str::to_string)
             .collect();
         let mut held = std::collections::BTreeMap::new();
         for (name, state) in &catalog.segments {
             let worth = state.superseded > 0
                 || state.end < segment::TARGET_BYTES / 2
-                || forgotten_in.contains(name.as_str());
+                || forgotten_in.contains(name);
             if Some(name) != own.as_ref() && state.clean() && worth {
                 if let Some(file) = segment::hold(&dir.join(name)) {
                     held.insert(name.clone(), file);
                 }
             }
         }
+        // What a writer appended to a held segment before letting it go: read now that no one
+        // can append to it, or its records would not be copied before it goes.
+        catalog.refresh(&self.runs);
+        held.retain(|name, _| catalog.segments.get(name).is_some_and(|s| s.clean()));
         for key in forget {
             if let Some(name) = catalog.entries.get(key).and_then(located) {
                 if !held.contains_key(name) {
