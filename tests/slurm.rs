@@ -221,21 +221,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         "the two quick points: {stored:?}\n{}",
         logs(&scratch, "limit")
     );
-    // The store's folders hold their segments, catalog and locks, and nothing half-written.
-    let listed = |dir: &std::path::Path| -> Vec<String> {
-        std::fs::read_dir(dir)
-            .unwrap()
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .collect()
-    };
-    let stray: Vec<String> = listed(&runs)
-        .into_iter()
-        .filter(|name| name != ".work" && name != "segments")
-        .chain(listed(&runs.join("segments")).into_iter().filter(|name| {
-            !(name.ends_with(".seg") || name == "catalog" || name == ".compact.lock")
-        }))
-        .collect();
+    let stray = stray_files(&runs);
     assert!(stray.is_empty(), "half-written files: {stray:?}");
     let again = submit(&scratch, &slurm, &["--dry-run"]);
     assert!(again.status.success(), "{}", text(&again));
@@ -320,13 +306,23 @@ fn logs(scratch: &Scratch, study: &str) -> String {
         .join("\n")
 }
 
-/// The files of a store that are not whole records (none may be left half-written).
+/// What a store holds beside its segments, catalog and locks (nothing may be left
+/// half-written): files in `runs/` but its folders, and in `runs/segments/`.
 fn stray_files(runs: &Path) -> Vec<String> {
-    std::fs::read_dir(runs)
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|name| !name.starts_with('.') && !name.ends_with(".json"))
+    let listed = |dir: &Path| -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect()
+    };
+    let segments = listed(&runs.join("segments"))
+        .into_iter()
+        .filter(|name| !(name.ends_with(".seg") || name == "catalog" || name == ".compact.lock"));
+    listed(runs)
+        .into_iter()
+        .filter(|name| name != ".work" && name != "segments")
+        .chain(segments)
         .collect()
 }
 
