@@ -7,6 +7,7 @@
 //! be read is rebuilt. Records of the old store, one file per key (`runs/<key>.json`), are read
 //! beside it until a writer moves them into a segment (`Store::migrate`).
 
+use super::fs::modified_ns;
 use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
 use rayon::prelude::*;
@@ -496,17 +497,12 @@ pub fn segments(dir: &Path) -> BTreeMap<String, FileStamp> {
             let name = e.file_name().to_str()?.to_string();
             let meta = e.metadata().ok()?;
             (name.ends_with(segment::SUFFIX) && !name.starts_with('.') && meta.is_file())
-                .then_some((name, (meta.len(), modified(&meta))))
+                .then_some((name, (meta.len(), modified_ns(&meta))))
         })
         .collect()
 }
 
 fn stamp(path: &Path) -> Option<FileStamp> {
     let meta = std::fs::symlink_metadata(path).ok()?;
-    Some((meta.len(), modified(&meta)))
-}
-
-fn modified(meta: &std::fs::Metadata) -> i128 {
-    use std::os::unix::fs::MetadataExt;
-    i128::from(meta.mtime()) * 1_000_000_000 + i128::from(meta.mtime_nsec())
+    Some((meta.len(), modified_ns(&meta)))
 }

@@ -173,6 +173,13 @@ pub fn write_atomically(path: &Path, contents: &[u8]) -> Result<(), FileError> {
         .map_err(|(failed, e)| FileError::new("write", &failed, e))
 }
 
+/// A file's modification time in nanoseconds since the epoch: what tells a segment written
+/// over in place, or a file of the old store changed, since it was read.
+pub fn modified_ns(meta: &std::fs::Metadata) -> i128 {
+    use std::os::unix::fs::MetadataExt;
+    i128::from(meta.mtime()) * 1_000_000_000 + i128::from(meta.mtime_nsec())
+}
+
 /// Makes `dir` and its parents.
 pub fn create_dir(dir: &Path) -> Result<(), FileError> {
     std::fs::create_dir_all(dir).map_err(FileError::on("create", dir))

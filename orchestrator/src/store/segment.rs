@@ -20,7 +20,7 @@
 //! One writer appends to a segment at a time: it holds the segment's `flock` for as long as it
 //! writes (the kernel drops it when the process ends, however it ends).
 
-use super::fs::{create_dir, FileError};
+use super::fs::{create_dir, modified_ns, FileError};
 use std::fs::File;
 use std::io;
 use std::ops::Range;
@@ -227,14 +227,7 @@ const SYNC_WITHIN: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// A segment's name: when and by which process it was begun, so names never repeat.
 fn fresh_name() -> String {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    format!(
-        "{:016x}-{}{SUFFIX}",
-        now.as_nanos() as u64,
-        std::process::id()
-    )
+    format!("{:016x}-{}{SUFFIX}", now_ns(), std::process::id())
 }
 
 /// Opens `path` for appending if no one else holds it and it is still the file at its path
@@ -368,9 +361,7 @@ impl Appender {
 
     /// The segment's modification time (ns) now, as the catalog notes it.
     pub fn modified(&self) -> i128 {
-        self.file.metadata().map_or(0, |m| {
-            i128::from(m.mtime()) * 1_000_000_000 + i128::from(m.mtime_nsec())
-        })
+        self.file.metadata().map_or(0, |m| modified_ns(&m))
     }
 
     /// Whether this segment has grown past `TARGET_BYTES` (its writer moves on).
@@ -468,7 +459,7 @@ impl Rewriter {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
             end: self.end,
-            modified: i128::from(meta.mtime()) * 1_000_000_000 + i128::from(meta.mtime_nsec()),
+            modified: modified_ns(&meta),
         })
     }
 }
