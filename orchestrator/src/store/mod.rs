@@ -159,14 +159,15 @@ impl Store {
         Ok(moved)
     }
 
-    /// Rewrites the segments no writer holds into one, without the records later ones
-    /// superseded and without the records of `forget` (`clean --yes`); a segment with bytes
-    /// that are not whole records is kept as it is (reported, never dropped). Moves the old
-    /// store's files in first. Forgetting a key whose record lies in a segment another process
-    /// is writing is refused. One compaction at a time: another one running means this one is
+    /// Rewrites the segments no writer holds that are small, or hold superseded records or
+    /// records of `forget` (`clean --yes`), into new ones of at most `segment::TARGET_BYTES`
+    /// without those records; a segment with bytes
+    /// that are not whole records is kept as it is (reported, never dropped). The old store's
+    /// files are not touched: every command that writes has moved them in (`migrate`) when it
+    /// opened the store. Forgetting a key whose record lies in a segment another process is
+    /// writing is refused. One compaction at a time: another one running means this one is
     /// not needed.
     pub fn compact(&self, forget: &std::collections::HashSet<String>) -> Result<(), Fault> {
-        self.migrate()?;
         let dir = self.segments();
         let compacting = lock_file(&dir, ".compact.lock")?;
         if compacting.try_lock().is_err() {
