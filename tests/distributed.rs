@@ -745,22 +745,48 @@ fn checkpoint_step(path: &Path) -> u64 {
 /// A set of files not of one step (one missing) is not resumed: the run starts afresh.
 #[test]
 fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
-    let dir = std::env::temp_dir().join(format!("nlsolve-ranks-checkpoint-{}", std::process::id()));
+    stops_over_two_ranks_and_resumes(
+        "heat",
+        r#"{"dim": 2, "n": 128, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2, "source": "discrete"}"#,
+        200,
+    );
+}
+
+/// The same for the steady solves, whose steps are CG iterations: steady CG over the ranks'
+/// rows and FETI's projected CG over their subdomains.
+#[test]
+fn a_steady_solve_over_two_ranks_stops_at_one_iteration_and_resumes_with_the_same_bits() {
+    stops_over_two_ranks_and_resumes(
+        "steady_cg",
+        r#"{"method": "steady_cg", "dim": 2, "n": 512, "m": 4, "rtol": 1e-12, "ranks": 2}"#,
+        25,
+    );
+    stops_over_two_ranks_and_resumes(
+        "feti",
+        r#"{"method": "feti", "dim": 2, "n": 192, "m": 3, "subdomains": 8, "rtol": 1e-12, "ranks": 2}"#,
+        4,
+    );
+}
+
+/// Runs `case` over two ranks whole, then checkpointing every `every` steps until SIGTERM
+/// stops it, then with one rank's file missing, then resumed, as the tests above say.
+fn stops_over_two_ranks_and_resumes(name: &str, case: &str, every: u64) {
+    let dir = std::env::temp_dir().join(format!(
+        "nlsolve-ranks-checkpoint-{name}-{}",
+        std::process::id()
+    ));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let case = dir.join("case.json");
-    std::fs::write(
-        &case,
-        r#"{"dim": 2, "n": 128, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2, "source": "discrete"}"#,
-    )
-    .unwrap();
+    let case_file = dir.join("case.json");
+    std::fs::write(&case_file, case).unwrap();
     let nlsolve = binary("nlsolve");
-    let (nlsolve, case) = (nlsolve.to_str().unwrap(), case.to_str().unwrap());
+    let (nlsolve, case) = (nlsolve.to_str().unwrap(), case_file.to_str().unwrap());
     let file = dir.join("run.checkpoint");
     let rank1 = dir.join("run.checkpoint.rank1");
     let path = file.to_str().unwrap();
     let whole = record(&mpirun(2, &[nlsolve, "run", "--case", case]));
-    assert!(whole["steps"].as_u64().unwrap() > 200, "{whole}");
+    let length = whole["iterations"].as_u64().or(whole["steps"].as_u64());
+    assert!(length.unwrap() > 2 * every, "{name}: too short: {whole}");
 
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/mpirun");
     let args = [
@@ -770,7 +796,7 @@ fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
         "--checkpoint",
         path,
         "--checkpoint-every-steps",
-        "200",
+        &every.to_string(),
     ];
     let child = std::process::Command::new(script)
         .args(["-n", "2", nlsolve])
@@ -798,7 +824,7 @@ fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
     let said = String::from_utf8_lossy(&stopped.stderr);
     assert!(!stopped.status.success(), "{said}");
     assert!(stopped.stdout.is_empty(), "a stopped run prints no record");
-    assert!(said.contains("stopped at step"), "{said}");
+    assert!(said.contains("stopped at"), "{name}: {said}");
     let step = checkpoint_step(&file);
     assert_eq!(
         step,

@@ -45,11 +45,24 @@ fn record(output: &Output) -> Value {
 }
 
 /// The numbers of a record (`common::numbers_of`), its case's thread count left out: the two
-/// halves of a run may differ in it.
+/// halves of a run may differ in it, and so in the memory estimate of the threads' buffers
+/// (FETI's).
 fn numbers_of(record: Value) -> Value {
     let mut record = common::numbers_of(record);
     record["case"].as_object_mut().unwrap().remove("threads");
     record
+        .as_object_mut()
+        .unwrap()
+        .remove("memory_estimate_bytes");
+    record
+}
+
+/// How far a run goes: its time steps, or a steady solve's iterations (which it checkpoints).
+fn length(record: &Value) -> u64 {
+    record["iterations"]
+        .as_u64()
+        .or(record["steps"].as_u64())
+        .unwrap()
 }
 
 /// A scratch directory for one test's checkpoints.
@@ -73,11 +86,20 @@ fn appears(path: &Path) -> bool {
     false
 }
 
-/// Runs `case` on `threads`, stops it with SIGTERM once its first checkpoint is written (at
-/// whatever step it has reached then), resumes it on `then_threads`, and checks the resumed
-/// record against `whole`'s numbers. Returns the step it resumed from.
-fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: u64) -> u64 {
-    let dir = scratch("stopped");
+/// Runs `case` on `threads`, checkpointing every `every` steps, stops it with SIGTERM once its
+/// first checkpoint is written (at whatever step it has reached then), resumes it on
+/// `then_threads`, and checks the resumed record against `whole`'s numbers. Returns the step
+/// it resumed from.
+fn stopped_and_resumed(
+    case: &Value,
+    whole: &Value,
+    every: u64,
+    (threads, then_threads): (u64, u64),
+) -> u64 {
+    // A directory of its own: tests stop and resume cases at once.
+    static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let run_number = RUNS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    let dir = scratch(&format!("stopped-{run_number}"));
     let file = dir.join("run.checkpoint");
     let path = file.to_str().unwrap();
     let with_threads = |threads: u64| {
@@ -88,7 +110,12 @@ fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: 
     let first = with_threads(threads);
     let child = start(
         &first,
-        &["--checkpoint", path, "--checkpoint-every-steps", "25"],
+        &[
+            "--checkpoint",
+            path,
+            "--checkpoint-every-steps",
+            &every.to_string(),
+        ],
         Stdio::piped(),
     );
     assert!(appears(&file), "{case}: no checkpoint was written");
@@ -103,7 +130,7 @@ fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: 
         stopped.stdout.is_empty(),
         "{case}: a stopped run prints no record"
     );
-    assert!(said.contains("stopped at step"), "{case}: {said}");
+    assert!(said.contains("stopped at"), "{case}: {said}");
     let resumed = record(&run(&with_threads(then_threads), &["--checkpoint", path]));
     assert!(
         !file.exists(),
@@ -112,7 +139,10 @@ fn stopped_and_resumed(case: &Value, whole: &Value, threads: u64, then_threads: 
     let step = resumed["resumed_from_step"]
         .as_u64()
         .unwrap_or_else(|| panic!("{case}: not resumed: {resumed}"));
-    assert!(step > 0 && step < whole["steps"].as_u64().unwrap());
+    assert!(
+        step > 0 && step < length(whole),
+        "{case}: resumed from {step}"
+    );
     let segments = resumed["solve_s_segments"].as_array().unwrap();
     assert_eq!(segments.len(), 2, "{resumed}");
     assert_eq!(
@@ -157,11 +187,44 @@ fn a_run_stopped_by_sigterm_resumes_with_the_record_of_a_run_never_stopped() {
             whole["steps"]
         );
         let steps: Vec<u64> = [(1, 1), (2, 2), (1, 2)]
-            .iter()
-            .map(|&(threads, then)| stopped_and_resumed(&case, &whole, threads, then))
+            .into_iter()
+            .map(|threads| stopped_and_resumed(&case, &whole, 25, threads))
             .collect();
         let what = case.get("integrator").unwrap_or(&case["method"]);
         eprintln!("{what}: resumed from steps {steps:?} of {}", whole["steps"]);
+    }
+}
+
+/// The steady solves checkpoint CG's state between iterations (the iterate, residual, search
+/// direction and scalars): steady CG and FETI's projected CG stopped by SIGTERM resume at their
+/// iteration with the record of a solve never stopped.
+#[test]
+fn a_steady_solve_stopped_by_sigterm_resumes_at_its_iteration_with_the_same_bits() {
+    let cases = [
+        (
+            json!({"method": "steady_cg", "dim": 2, "n": 512, "m": 4, "rtol": 1e-12}),
+            25,
+        ),
+        (
+            json!({"method": "feti", "dim": 2, "n": 192, "m": 3, "subdomains": 8, "rtol": 1e-12}),
+            4,
+        ),
+    ];
+    for (case, every) in cases {
+        let whole = record(&run(&case, &[]));
+        assert!(
+            length(&whole) >= 40,
+            "{case}: too short to be stopped midway"
+        );
+        let iterations: Vec<u64> = [(1, 1), (2, 2), (1, 2)]
+            .into_iter()
+            .map(|threads| stopped_and_resumed(&case, &whole, every, threads))
+            .collect();
+        eprintln!(
+            "{}: resumed from iterations {iterations:?} of {}",
+            case["method"],
+            length(&whole)
+        );
     }
 }
 

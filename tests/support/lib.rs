@@ -362,6 +362,7 @@ pub fn numbers_of(record: &Value) -> Value {
         "run_id",
         "resumed_from_step",
         "solve_s_segments",
+        "feti_phases",
     ]) {
         fields.remove(*measured);
     }

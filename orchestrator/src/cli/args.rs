@@ -229,9 +229,10 @@ pub struct RunArgs {
     /// VTK files always do; by default the others run on `nlsolve serve` workers that stay up.
     #[arg(long)]
     pub isolate: bool,
-    /// Checkpoint each time-dependent case of one process every SECONDS of wall time (and when
-    /// a stopping signal arrives), so that `run` again resumes a stopped case where it was
-    /// (overrides the study's `checkpoint_every_s`). Such cases run as processes of their own.
+    /// Checkpoint each case every SECONDS of wall time (its time loop, or a steady solve's CG
+    /// iterations) and when a stopping signal arrives, so that `run` again resumes a stopped
+    /// case where it was (overrides the study's `checkpoint_every_s`). Such cases run as
+    /// processes of their own.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint_every: Option<f64>,
     /// Keep each case's checkpoint after its record is stored (in runs/.work/<key>.checkpoint).

@@ -51,8 +51,9 @@ pub struct Study {
     /// Seconds after which a case is stopped and stored as failed.
     #[serde(default)]
     pub timeout_s: Option<f64>,
-    /// Each time-dependent case of one process checkpoints its time loop this often (wall
-    /// seconds), and on a stopping signal, so that a run stopped midway resumes where it was.
+    /// Each case checkpoints its time loop (or a steady solve its CG iterations) this often
+    /// (wall seconds), and on a stopping signal, so that a run stopped midway resumes where it
+    /// was.
     #[serde(default)]
     pub checkpoint_every_s: Option<f64>,
     /// What cluster jobs ask of the scheduler (`nlstudy submit`); flags override it.

@@ -432,7 +432,7 @@ impl Pool<'_> {
             .canonical()
             .get("vtk_every")
             .is_some_and(|every| !every.is_null());
-        let checkpoints = checkpointed(case, self.options).is_some();
+        let checkpoints = self.options.checkpoint_every.is_some();
         !(alone
             || self.options.isolate
             || self.workers.unsupported
@@ -692,14 +692,6 @@ fn cores_of(planned: &Planned) -> usize {
     field("threads").max(1) * field("ranks").max(1)
 }
 
-/// The checkpoint period of `case`: the pool's, for a time-dependent case (a steady one has no
-/// time loop).
-fn checkpointed(case: &Checked, options: &PoolOptions) -> Option<Duration> {
-    let every = options.checkpoint_every?;
-    let timed = case.canonical().get("t_end").is_some_and(|t| !t.is_null());
-    timed.then_some(every)
-}
-
 /// The line a worker reads for `case`: the case, with the file its time loop says how far it
 /// is in (absolute: a worker runs in the work directory; when the path is text, as JSON needs).
 fn served_line(case: &Checked, progress: &std::path::Path) -> String {
@@ -750,12 +742,7 @@ fn start(
     if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
         command.arg("--write-vtk").arg(store.fields(&planned.key));
     }
-    if let Some(every) = planned
-        .case
-        .as_ref()
-        .ok()
-        .and_then(|c| checkpointed(c, options))
-    {
+    if let Some(every) = options.checkpoint_every {
         command
             .arg("--checkpoint")
             .arg(store.scratch(&planned.key, CHECKPOINT))

@@ -21,6 +21,8 @@
 //! any, is due on all), and no rank exits before every rank's file is written. A run resumes
 //! only when every rank finds its file at the same step; otherwise all start at step 0.
 
+use crate::output::record::Traffic;
+use crate::parallel::exchange::Exchange;
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -71,6 +73,34 @@ impl Carried {
 
     pub fn count(&self, name: &str) -> Option<usize> {
         self.number(name).map(|v| v as usize)
+    }
+
+    /// The traffic sent between `start` and `now`, as the part "traffic" (counts below 2⁵³ are
+    /// exact as f64): a resumed run counts it as sent before (`Exchange::count_earlier`).
+    pub fn put_traffic_since(&mut self, now: Traffic, start: Traffic) {
+        let sent = [
+            now.halo_exchanges - start.halo_exchanges,
+            now.halo_bytes - start.halo_bytes,
+            now.reductions - start.reductions,
+            now.reduction_bytes - start.reduction_bytes,
+            now.all_to_alls - start.all_to_alls,
+            now.all_to_all_bytes - start.all_to_all_bytes,
+        ];
+        self.put("traffic", sent.map(|count| count as f64).to_vec());
+    }
+
+    /// The traffic `put_traffic_since` saved.
+    pub fn traffic(&self) -> Option<Traffic> {
+        let values = self.values("traffic")?;
+        let count = |k: usize| values.get(k).map_or(0, |&v| v as u64);
+        Some(Traffic {
+            halo_exchanges: count(0),
+            halo_bytes: count(1),
+            reductions: count(2),
+            reduction_bytes: count(3),
+            all_to_alls: count(4),
+            all_to_all_bytes: count(5),
+        })
     }
 }
 
@@ -214,10 +244,18 @@ impl Checkpointer {
                 .is_some_and(|every| self.last.elapsed() >= every)
     }
 
-    /// Forgets what this rank would resume from: another rank has nothing to resume from at
-    /// the same step.
-    pub fn start_afresh(&mut self) {
-        self.resume = None;
+    /// Over ranks, a run resumes only if every rank resumes from the same step: otherwise
+    /// every rank forgets its checkpoint and starts afresh (said once, by rank 0).
+    pub fn agree_over_ranks(&mut self, exchange: &dyn Exchange) {
+        let step = self.resume.as_ref().map_or(-1.0, |c| c.step as f64);
+        if exchange.bookkeeping_max(step) != -exchange.bookkeeping_max(-step) {
+            if exchange.rank() == 0 {
+                eprintln!(
+                    "nlsolve: the ranks' checkpoints are not of one step; the run starts at step 0"
+                );
+            }
+            self.resume = None;
+        }
     }
 
     /// Writes `carried` whole. A checkpoint that cannot be written is said on stderr and the
@@ -233,13 +271,14 @@ impl Checkpointer {
         self.last = Instant::now();
     }
 
-    /// Ends the process after the checkpoint of `step`, as the stop asked: with 128 + the
-    /// signal's number (143 for SIGTERM), and no record, since the run is not over. Over ranks
-    /// a rank the signal did not reach exits as SIGTERM would have ended it.
-    pub fn stop(&self, step: usize) -> ! {
+    /// Ends the process after the checkpoint of `step` (a time step, or a steady solve's
+    /// `iteration`, as `unit` says), as the stop asked: with 128 + the signal's number (143 for
+    /// SIGTERM), and no record, since the run is not over. Over ranks a rank the signal did not
+    /// reach exits as SIGTERM would have ended it.
+    pub fn stop(&self, unit: &str, step: usize) -> ! {
         if self.identity.rank == 0 {
             eprintln!(
-                "nlsolve: stopped at step {step} by a signal; checkpoint {}",
+                "nlsolve: stopped at {unit} {step} by a signal; checkpoint {}",
                 self.policy.path.display()
             );
         }

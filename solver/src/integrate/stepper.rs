@@ -7,7 +7,7 @@ use super::timed::{
 };
 use crate::operator::LinearOperator;
 use crate::output::diagnostics;
-use crate::output::record::{ImplicitSolves, Traffic};
+use crate::output::record::ImplicitSolves;
 use crate::parallel::exchange::Ranks;
 use crate::problem::{manufactured_solution, Source};
 use crate::threads::BLOCK;
@@ -106,19 +106,10 @@ pub fn integrate(
     let comm_seconds = RefCell::new(Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS)));
     let stepper = RefCell::new(stepper);
     let mut checkpointer = checkpoint::take();
-    // Over ranks, a run resumes only if every rank resumes from the same step.
-    let exchange = ranks.exchange;
     if let Some(checkpointer) = checkpointer.as_mut() {
-        let step = checkpointer.resume.as_ref().map_or(-1.0, |c| c.step as f64);
-        if exchange.bookkeeping_max(step) != -exchange.bookkeeping_max(-step) {
-            if ranks.exchange.rank() == 0 {
-                eprintln!(
-                    "nlsolve: the ranks' checkpoints are not of one step; the run starts at step 0"
-                );
-            }
-            checkpointer.start_afresh();
-        }
+        checkpointer.agree_over_ranks(ranks.exchange);
     }
+    let exchange = ranks.exchange;
     if let Some(resume) = checkpointer.as_ref().and_then(|c| c.resume.as_ref()) {
         u.copy_from_slice(
             resume
@@ -133,15 +124,15 @@ pub fn integrate(
     let at_loop_start = exchange.traffic();
     if let Some(earlier) = checkpointer
         .as_ref()
-        .and_then(|c| c.resume.as_ref()?.values("traffic"))
+        .and_then(|c| c.resume.as_ref()?.traffic())
     {
-        exchange.count_earlier(traffic_of(earlier));
+        exchange.count_earlier(earlier);
     }
     let mut carry = |u: &Vec<f64>, carried: &mut Carried| {
         carried.put("field", u.clone());
         carried.put_number("error_total", error_total.get());
         carried.put("comm_seconds", comm_seconds.borrow().clone());
-        carried.put("traffic", since(exchange.traffic(), at_loop_start));
+        carried.put_traffic_since(exchange.traffic(), at_loop_start);
         stepper.borrow().carry(carried);
     };
     let on_any_rank = |holds: bool| exchange.bookkeeping_max(f64::from(u8::from(holds))) > 0.0;
@@ -180,33 +171,5 @@ pub fn integrate(
         step_comm_s: diagnostics::median(comm_seconds),
         implicit: stepper.solves(),
         ..Trajectory::observed(u, timing, observed)
-    }
-}
-
-/// The traffic sent between `start` and `now`, as a checkpoint's values (counts below 2⁵³ are
-/// exact as f64).
-fn since(now: Traffic, start: Traffic) -> Vec<f64> {
-    [
-        now.halo_exchanges - start.halo_exchanges,
-        now.halo_bytes - start.halo_bytes,
-        now.reductions - start.reductions,
-        now.reduction_bytes - start.reduction_bytes,
-        now.all_to_alls - start.all_to_alls,
-        now.all_to_all_bytes - start.all_to_all_bytes,
-    ]
-    .map(|count| count as f64)
-    .to_vec()
-}
-
-/// The traffic a checkpoint's values (`since`) hold.
-fn traffic_of(values: &[f64]) -> Traffic {
-    let count = |k: usize| values.get(k).map_or(0, |&v| v as u64);
-    Traffic {
-        halo_exchanges: count(0),
-        halo_bytes: count(1),
-        reductions: count(2),
-        reduction_bytes: count(3),
-        all_to_alls: count(4),
-        all_to_all_bytes: count(5),
     }
 }

@@ -178,7 +178,7 @@ pub(crate) fn timed_steps<S>(
             }
             // Every rank's file is written before any rank exits.
             if stop && on_any_rank(true) {
-                checkpointer.stop(k + 1);
+                checkpointer.stop("step", k + 1);
             }
         }
     }

@@ -115,63 +115,55 @@ impl Cg {
         x: &mut [f64],
         params: &CgParams,
     ) -> Convergence {
+        self.solve_checkpointed(system, b, x, params, &mut NoCheckpoints)
+    }
+
+    /// `solve`, going on from the state `checkpoints` resumes from (if any) and handing it the
+    /// state after every iteration: a solve stopped after iteration k and resumed there makes
+    /// the iterates, and so the result, of one never stopped, bit for bit.
+    pub fn solve_checkpointed(
+        &mut self,
+        system: &mut impl CgSystem,
+        b: &[f64],
+        x: &mut [f64],
+        params: &CgParams,
+        checkpoints: &mut dyn Checkpoints,
+    ) -> Convergence {
         let len = system.len();
         check_lengths("CG", len, b, x, self.r.len());
         let preconditioned = system.preconditioned();
         let Cg { r, z, p, ap } = self;
         let pool = params.pool;
-        match params.start {
-            Start::Zero => on(pool, || {
-                x.fill(0.0);
-                r.copy_from_slice(b);
-            }),
-            Start::Guess => {
-                system.apply(x, ap);
-                on(pool, || {
-                    r.copy_from_slice(b);
-                    axpy(-1.0, ap, r);
-                });
-            }
-            Start::Residual(r0) => {
-                assert_eq!(r0.len(), len, "the initial residual's length");
-                on(pool, || r.copy_from_slice(r0));
-            }
-        }
-        // The first residual in the solve's norm, ‖r₀‖² (what rᵀz is without a
-        // preconditioner) and the norm's scale.
-        let (mut relative_residual, r0r0, scale) = match params.norm {
-            Norm::Residual => {
-                let b_norm = system.dot(b, b).sqrt();
-                let r_norm = match params.start {
-                    Start::Zero => b_norm,
-                    _ => system.dot(r, r).sqrt(),
-                };
-                let relative = if b_norm > 0.0 { r_norm / b_norm } else { 0.0 };
-                (relative, r_norm * r_norm, b_norm)
-            }
-            Norm::Preconditioned => (f64::NAN, f64::NAN, f64::NAN),
-        };
-        let mut rz = if preconditioned {
-            system.precondition(r, z);
-            on(pool, || p.copy_from_slice(z));
-            system.dot(r, z)
-        } else {
-            on(pool, || p.copy_from_slice(r));
-            r0r0
-        };
-        let rz0 = rz;
-        if params.norm == Norm::Preconditioned {
-            relative_residual = if rz0 > 0.0 { 1.0 } else { 0.0 };
-        }
         let ended = |iterations: usize, relative_residual: f64| Convergence {
             iterations,
             relative_residual,
             converged: relative_residual <= params.rtol,
         };
-        if relative_residual <= params.rtol {
-            return ended(0, relative_residual);
-        }
-        for k in 1..=params.max_iterations {
+        // The iteration to go on from, rᵀz, the stopping norm's reference (‖b‖, or r₀ᵀz₀ for
+        // the preconditioned norm) and the residual in that norm.
+        let (done, mut rz, reference, mut relative_residual) = match checkpoints.resume(len) {
+            Some(state) => {
+                on(pool, || {
+                    x.copy_from_slice(&state.x);
+                    r.copy_from_slice(&state.r);
+                    p.copy_from_slice(&state.p);
+                });
+                (
+                    state.iteration,
+                    state.rz,
+                    state.reference,
+                    state.relative_residual,
+                )
+            }
+            None => {
+                let (rz, reference, relative_residual) = start(system, b, x, (r, z, p, ap), params);
+                if relative_residual <= params.rtol {
+                    return ended(0, relative_residual);
+                }
+                (0, rz, reference, relative_residual)
+            }
+        };
+        for k in done + 1..=params.max_iterations {
             system.apply(p, ap);
             let alpha = rz / system.dot(p, ap);
             on(pool, || {
@@ -181,7 +173,11 @@ impl Cg {
             let rz_next = match params.norm {
                 Norm::Residual => {
                     let rr = system.dot(r, r);
-                    relative_residual = if scale > 0.0 { rr.sqrt() / scale } else { 0.0 };
+                    relative_residual = if reference > 0.0 {
+                        rr.sqrt() / reference
+                    } else {
+                        0.0
+                    };
                     let last = k == params.max_iterations || !relative_residual.is_finite();
                     if relative_residual <= params.rtol || last {
                         return ended(k, relative_residual);
@@ -200,7 +196,7 @@ impl Cg {
                     } else {
                         system.dot(r, r)
                     };
-                    relative_residual = (rz_next.max(0.0) / rz0).sqrt();
+                    relative_residual = (rz_next.max(0.0) / reference).sqrt();
                     let last = k == params.max_iterations || !relative_residual.is_finite();
                     if relative_residual <= params.rtol || last {
                         return ended(k, relative_residual);
@@ -212,9 +208,113 @@ impl Cg {
             let direction: &[f64] = if preconditioned { z } else { r };
             on(pool, || xpby(direction, beta, p));
             rz = rz_next;
+            checkpoints.after_iteration(State {
+                iteration: k,
+                x: &x[..],
+                r: &r[..],
+                p: &p[..],
+                rz,
+                reference,
+                relative_residual,
+            });
         }
-        ended(0, relative_residual)
+        ended(done, relative_residual)
     }
+}
+
+/// The start of a solve from `params.start`: r₀, the first direction p₀, and (r₀ᵀz₀, the
+/// stopping norm's reference, the first residual in that norm).
+fn start(
+    system: &mut impl CgSystem,
+    b: &[f64],
+    x: &mut [f64],
+    (r, z, p, ap): (&mut [f64], &mut [f64], &mut [f64], &mut [f64]),
+    params: &CgParams,
+) -> (f64, f64, f64) {
+    let pool = params.pool;
+    match params.start {
+        Start::Zero => on(pool, || {
+            x.fill(0.0);
+            r.copy_from_slice(b);
+        }),
+        Start::Guess => {
+            system.apply(x, ap);
+            on(pool, || {
+                r.copy_from_slice(b);
+                axpy(-1.0, ap, r);
+            });
+        }
+        Start::Residual(r0) => {
+            assert_eq!(r0.len(), r.len(), "the initial residual's length");
+            on(pool, || r.copy_from_slice(r0));
+        }
+    }
+    // The first residual in the solve's norm, ‖r₀‖² (what rᵀz is without a preconditioner)
+    // and the norm's scale.
+    let (relative_residual, r0r0, scale) = match params.norm {
+        Norm::Residual => {
+            let b_norm = system.dot(b, b).sqrt();
+            let r_norm = match params.start {
+                Start::Zero => b_norm,
+                _ => system.dot(r, r).sqrt(),
+            };
+            let relative = if b_norm > 0.0 { r_norm / b_norm } else { 0.0 };
+            (relative, r_norm * r_norm, b_norm)
+        }
+        Norm::Preconditioned => (f64::NAN, f64::NAN, f64::NAN),
+    };
+    let rz = if system.preconditioned() {
+        system.precondition(r, z);
+        on(pool, || p.copy_from_slice(z));
+        system.dot(r, z)
+    } else {
+        on(pool, || p.copy_from_slice(r));
+        match params.norm {
+            Norm::Residual => r0r0,
+            Norm::Preconditioned => system.dot(r, r),
+        }
+    };
+    match params.norm {
+        Norm::Residual => (rz, scale, relative_residual),
+        Norm::Preconditioned => (rz, rz, if rz > 0.0 { 1.0 } else { 0.0 }),
+    }
+}
+
+/// CG's state between two iterations, all it needs to go on: the iterate, the residual, the
+/// search direction (z is made again from r), rᵀz, the stopping norm's reference and the
+/// residual in that norm. Borrowed from the solve (`V = &[f64]`) or read back (`Vec<f64>`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct State<V> {
+    /// The iterations done.
+    pub iteration: usize,
+    pub x: V,
+    pub r: V,
+    pub p: V,
+    pub rz: f64,
+    pub reference: f64,
+    pub relative_residual: f64,
+}
+
+/// Where a solve's checkpoints go: the state to resume from, and the state after each
+/// iteration (to save, or to stop at).
+pub trait Checkpoints {
+    /// The state after some iteration to go on from, taken once before the first one; None
+    /// to start from `CgParams::start`. Vectors not of `len` values are not this solve's.
+    fn resume(&mut self, len: usize) -> Option<State<Vec<f64>>>;
+
+    /// After every iteration that did not end the solve.
+    fn after_iteration(&mut self, state: State<&[f64]>);
+}
+
+/// A solve without checkpoints.
+pub struct NoCheckpoints;
+
+impl Checkpoints for NoCheckpoints {
+    fn resume(&mut self, _: usize) -> Option<State<Vec<f64>>> {
+        None
+    }
+
+    fn after_iteration(&mut self, _: State<&[f64]>) {}
 }
 
 /// A preconditioner M ≈ A⁻¹ for `Closures`: a closure writing z = M r, or `NoPreconditioner`.

@@ -80,6 +80,7 @@ pub fn numbers_of(mut record: serde_json::Value) -> serde_json::Value {
         "provenance",
         "resumed_from_step",
         "solve_s_segments",
+        "feti_phases",
     ]) {
         fields.remove(*measured);
     }

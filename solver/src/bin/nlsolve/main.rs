@@ -83,7 +83,8 @@ struct RunArgs {
     /// count resumes from it, with the record of a run never stopped (`resumed_from_step`).
     /// FILE is removed once the record is written. Over MPI ranks each rank writes its own
     /// share, rank r > 0 into FILE.rank<r>, all at the same step; a run resumes when every rank
-    /// finds its file at one step. Steady methods (CG, FETI) are not checkpointed.
+    /// finds its file at one step. A steady solve (steady_cg, feti) checkpoints CG's state
+    /// between iterations: its steps are CG iterations.
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<PathBuf>,
     /// With --checkpoint: also every N steps.

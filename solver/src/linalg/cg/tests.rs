@@ -351,3 +351,109 @@ fn dot_does_not_depend_on_the_thread_count() {
     let plain: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
     assert!((on(2) - plain).abs() < 1e-9 * plain.abs().max(1.0));
 }
+
+/// Keeps the state after iteration `at` and, given one, resumes from it.
+struct KeepAt {
+    at: usize,
+    kept: Option<State<Vec<f64>>>,
+    resume: Option<State<Vec<f64>>>,
+}
+
+impl Checkpoints for KeepAt {
+    fn resume(&mut self, len: usize) -> Option<State<Vec<f64>>> {
+        self.resume.take().filter(|s| s.x.len() == len)
+    }
+
+    fn after_iteration(&mut self, state: State<&[f64]>) {
+        if state.iteration == self.at {
+            self.kept = Some(State {
+                iteration: state.iteration,
+                x: state.x.to_vec(),
+                r: state.r.to_vec(),
+                p: state.p.to_vec(),
+                rz: state.rz,
+                reference: state.reference,
+                relative_residual: state.relative_residual,
+            });
+        }
+    }
+}
+
+/// A solve resumed from its state after iteration k, into an x holding anything, ends with the
+/// bits and the convergence of the solve never stopped: for each start and norm, with and
+/// without a preconditioner.
+#[test]
+fn a_solve_resumed_after_any_iteration_has_the_bits_of_one_never_stopped() {
+    let n = 64;
+    let (a, m) = (laplacian(n), scaled(n));
+    let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
+    let mut b = vec![0.0; n];
+    a(&exact, &mut b);
+    let guess: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64).cos()).collect();
+    let mut ax = vec![0.0; n];
+    a(&guess, &mut ax);
+    let r0: Vec<f64> = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
+    let starts = [
+        (Start::Zero, Norm::Residual),
+        (Start::Guess, Norm::Residual),
+        (Start::Residual(&r0), Norm::Preconditioned),
+    ];
+    let mut cg = Cg::new(n);
+    for (start, norm) in starts {
+        for preconditioned in [false, true] {
+            let solve = |cg: &mut Cg, x: &mut [f64], checkpoints: &mut dyn Checkpoints| {
+                let params = params(start, 1e-12, norm, 1000);
+                if preconditioned {
+                    let system = &mut Closures {
+                        len: n,
+                        apply: a,
+                        precondition: m,
+                        dot,
+                    };
+                    cg.solve_checkpointed(system, &b, x, &params, checkpoints)
+                } else {
+                    let system = &mut Closures {
+                        len: n,
+                        apply: a,
+                        precondition: NoPreconditioner,
+                        dot,
+                    };
+                    cg.solve_checkpointed(system, &b, x, &params, checkpoints)
+                }
+            };
+            let mut whole = guess.clone();
+            let never_stopped = solve(&mut cg, &mut whole, &mut NoCheckpoints);
+            assert!(
+                never_stopped.converged && never_stopped.iterations > 10,
+                "{start:?} {norm:?} {preconditioned}: {never_stopped:?}"
+            );
+            for at in [
+                1,
+                never_stopped.iterations / 2,
+                never_stopped.iterations - 1,
+            ] {
+                let what = format!("{start:?} {norm:?} preconditioned {preconditioned} at {at}");
+                let mut keep = KeepAt {
+                    at,
+                    kept: None,
+                    resume: None,
+                };
+                let mut x = guess.clone();
+                solve(&mut cg, &mut x, &mut keep);
+                let kept = keep
+                    .kept
+                    .take()
+                    .unwrap_or_else(|| panic!("{what}: not kept"));
+                let mut resumed = vec![f64::NAN; n];
+                let mut from = KeepAt {
+                    at: usize::MAX,
+                    kept: None,
+                    resume: Some(kept),
+                };
+                let convergence = solve(&mut cg, &mut resumed, &mut from);
+                assert_eq!(convergence, never_stopped, "{what}");
+                assert_eq!(bits(&resumed), bits(&whole), "{what}");
+            }
+        }
+    }
+}

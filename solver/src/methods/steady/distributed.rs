@@ -8,6 +8,7 @@
 use super::feti;
 use super::problem::negate_into;
 use super::problem::{outcome, SteadyProblem, Summary, Termination, Timings};
+use super::resume::SolveCheckpoints;
 use crate::case::ValidCase;
 use crate::case::{CaseError, Method};
 use crate::linalg::cg::{self, Cg};
@@ -72,9 +73,16 @@ pub fn run(
         },
         dot: |x: &[f64], y: &[f64]| mpi.sum(pool.install(|| cg::dot(x, y))),
     };
-    let convergence = Cg::new(b.len()).solve(system, &b, &mut u, &problem.cg_params(Some(&pool)));
-    let solve_s = solve_started.elapsed().as_secs_f64();
-    let comm_s = mpi.seconds() - comm_before;
+    let mut checkpoints = SolveCheckpoints::take(&mpi);
+    let convergence = Cg::new(b.len()).solve_checkpointed(
+        system,
+        &b,
+        &mut u,
+        &problem.cg_params(Some(&pool)),
+        &mut checkpoints,
+    );
+    let segment_s = solve_started.elapsed().as_secs_f64();
+    let comm_s = mpi.seconds() - comm_before + checkpoints.earlier_comm_s();
 
     // Measured where the values are, each rank on its nodes, then summed over ranks: no rank
     // holds the whole field unless it was asked for.
@@ -84,10 +92,12 @@ pub fn run(
         .then(|| gather(world, &nodes, &u, grid.nodes()))
         .flatten();
     let distribution = distribution(&mpi, case, &partition, &share, comm_s);
+    // Reduced after `distribution` has counted the traffic, as reductions that only report.
     let timings = Timings {
         setup_s: mpi.max(setup_s),
-        solve_s: mpi.max(solve_s),
+        solve: checkpoints.resumed(mpi.max(segment_s)),
     };
+    drop(checkpoints);
     let peak_memory_bytes = peak_memory_over_ranks(&mpi);
     if rank != 0 {
         return Ok(None);

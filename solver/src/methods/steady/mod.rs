@@ -35,6 +35,7 @@ pub mod decomposition;
 pub mod distributed;
 pub mod feti;
 pub mod problem;
+mod resume;
 
 use crate::case::Rules;
 use crate::case::ValidCase;
@@ -48,6 +49,7 @@ use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, SteadySolve};
 use crate::parallel::exchange;
 use problem::{negate_into, outcome, SteadyProblem, Termination, Timings};
+use resume::SolveCheckpoints;
 use std::time::Instant;
 
 /// The steady methods' rules; every other field of a time-dependent case is refused by name.
@@ -202,13 +204,21 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             },
             dot: cg::dot,
         };
-        let convergence = Cg::new(b.len()).solve(system, &b, &mut u, &problem.cg_params(None));
-        let solve_s = solve_started.elapsed().as_secs_f64();
+        let mut checkpoints = SolveCheckpoints::take(&exchange::Serial);
+        let convergence = Cg::new(b.len()).solve_checkpointed(
+            system,
+            &b,
+            &mut u,
+            &problem.cg_params(None),
+            &mut checkpoints,
+        );
+        let solve = checkpoints.resumed(solve_started.elapsed().as_secs_f64());
+        drop(checkpoints);
         Ok(outcome(
             case,
             &problem,
             Some(backend),
-            Timings { setup_s, solve_s },
+            Timings { setup_s, solve },
             Termination::of_cg(&convergence),
             SteadySolve::cg(convergence.iterations),
             Distribution::serial(case),

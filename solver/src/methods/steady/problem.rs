@@ -220,9 +220,12 @@ pub(crate) fn negate_into(lu: &[f64], ap: &mut [f64]) {
     ap.par_iter_mut().zip(lu).for_each(|(a, &l)| *a = -l);
 }
 
+use super::resume::Resumed;
+
 pub(crate) struct Timings {
     pub setup_s: f64,
-    pub solve_s: f64,
+    /// The solve's seconds over all its segments, and the iteration it resumed from.
+    pub solve: Resumed,
 }
 
 /// How the iteration ended: within `rtol`, or stopped at the case's `max_iterations` (or on a
@@ -290,8 +293,11 @@ pub(crate) fn outcome(
         status,
         message,
         setup_s: timings.setup_s,
-        solve_s: timings.solve_s,
-        step_s: timings.solve_s / iterations.max(1) as f64,
+        solve_s: timings.solve.solve_s,
+        step_s: timings.solve.solve_s / iterations.max(1) as f64,
+        resumed_from_step: (timings.solve.from_iteration > 0)
+            .then_some(timings.solve.from_iteration),
+        solve_s_segments: timings.solve.segments_s,
         error_l2: Some(error_l2),
         error_l2_norm: Some(error_l2.sqrt()),
         error_max: Some(error_max),

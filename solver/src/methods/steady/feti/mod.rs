@@ -39,6 +39,7 @@ use crate::case::ValidCase;
 use crate::discretization::grid::Window;
 use crate::methods::steady::decomposition::Decomposition;
 use crate::methods::steady::problem::{outcome, SteadyProblem, Summary, Termination, Timings};
+use crate::methods::steady::resume::SolveCheckpoints;
 use crate::operator::LinearOperator;
 use crate::output::outcome::Outcome;
 use crate::output::record::{Distribution, SteadySolve};
@@ -121,6 +122,7 @@ pub fn run_on(
     let comm_before = exchange.seconds();
 
     let solve_started = Instant::now();
+    let mut checkpoints = SolveCheckpoints::take(exchange);
     let dual = projected_cg(
         &mut feti,
         exchange,
@@ -128,6 +130,7 @@ pub fn run_on(
         &g,
         problem.rtol,
         case.max_iterations(),
+        &mut checkpoints,
     );
     // α from Gα = Kλ − e, then u_n = A_n^†(f_n − M_nᵀλ_n) + Z_n α_n.
     let mut w = vec![0.0; feti.layout.len()];
@@ -150,8 +153,9 @@ pub fn run_on(
             })
             .collect()
     });
-    let solve_s = exchange.max(solve_started.elapsed().as_secs_f64());
-    let comm_s = exchange.max(exchange.seconds() - comm_before);
+    let solve_s = checkpoints.resumed(exchange.max(solve_started.elapsed().as_secs_f64()));
+    let comm_s = exchange.max(exchange.seconds() - comm_before + checkpoints.earlier_comm_s());
+    drop(checkpoints);
 
     // Node x's value comes from the subdomain whose block Ω̃_n holds it (None: another rank's).
     let mut piece_of: Vec<Option<&[f64]>> = vec![None; p * p];
@@ -223,7 +227,10 @@ pub fn run_on(
         case,
         problem,
         None,
-        Timings { setup_s, solve_s },
+        Timings {
+            setup_s,
+            solve: solve_s,
+        },
         Termination {
             reached_tolerance: dual.dual_residual <= problem.rtol,
             residual: dual.dual_residual,

@@ -6,6 +6,7 @@ use super::local::{Local, ProductClock};
 use crate::case::FetiPreconditioner;
 use crate::linalg::cg::{dot_serial, Cg, CgParams, CgSystem, Norm, Start};
 use crate::methods::steady::decomposition::Decomposition;
+use crate::methods::steady::resume::SolveCheckpoints;
 use crate::output::record::FetiPhases;
 use crate::parallel::exchange::Exchange;
 use faer::linalg::solvers::Solve;
@@ -272,6 +273,7 @@ pub(super) fn projected_cg(
     g: &[f64],
     rtol: f64,
     max_iterations: usize,
+    checkpoints: &mut SolveCheckpoints,
 ) -> DualSolve {
     let len = feti.layout.len();
     let mut lambda = vec![0.0; len];
@@ -295,14 +297,17 @@ pub(super) fn projected_cg(
         exchange,
         iterations_started: None,
     };
-    let convergence = Cg::new(len).solve(&mut system, e, &mut lambda, &params);
+    let convergence =
+        Cg::new(len).solve_checkpointed(&mut system, e, &mut lambda, &params, checkpoints);
     let started = system.iterations_started;
     if started.is_none() {
         // Solved before any iteration: no phase is timed.
         feti.reset_clocks();
     }
     let loop_s = started.map_or(0.0, |started| started.elapsed().as_secs_f64());
-    let phases = feti.phases(exchange, convergence.iterations, loop_s);
+    // Per iteration of the segment timed: a resumed solve times those after its checkpoint.
+    let timed = convergence.iterations - checkpoints.resumed_from();
+    let phases = feti.phases(exchange, timed, loop_s);
     DualSolve {
         lambda,
         iterations: convergence.iterations,
