@@ -174,7 +174,7 @@ pub(crate) fn timed_steps<S>(
                 carried.put_count("steps", steps);
                 timing.carry(&mut carried, segment_started);
                 carry(state, &mut carried);
-                checkpointer.save(&carried);
+                checkpointer.save(&carried, &[]);
             }
             // Every rank's file is written before any rank exits.
             if stop && on_any_rank(true) {

@@ -137,9 +137,6 @@ impl Checkpoints for SolveCheckpoints<'_> {
         if stop || on_any_rank(checkpointer.due(k)) {
             let (traffic, comm_s, started) = self.at_start;
             let mut carried = Carried::at(k);
-            carried.put("cg.x", state.x.to_vec());
-            carried.put("cg.r", state.r.to_vec());
-            carried.put("cg.p", state.p.to_vec());
             carried.put(
                 "cg.scalars",
                 vec![state.rz, state.reference, state.relative_residual],
@@ -153,7 +150,9 @@ impl Checkpoints for SolveCheckpoints<'_> {
                 self.earlier.comm_s + exchange.seconds() - comm_s,
             );
             carried.put_traffic_since(exchange.traffic(), traffic);
-            checkpointer.save(&carried);
+            // The vectors are written as they lie: no copy of them is made.
+            let vectors = [("cg.x", state.x), ("cg.r", state.r), ("cg.p", state.p)];
+            checkpointer.save(&carried, &vectors);
         }
         // Every rank's file is written before any rank exits.
         if stop && on_any_rank(true) {
