@@ -752,6 +752,23 @@ fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
     );
 }
 
+/// The same for the other integrators, each of which carries its own state (Heun's and RK4's
+/// stages, the θ-steps' solve counts and warm start).
+#[test]
+fn every_integrator_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
+    for (integrator, cfl) in [
+        ("heun", 0.5),
+        ("rk4", 0.9),
+        ("backward_euler", 1.0),
+        ("crank_nicolson", 1.0),
+    ] {
+        let case = format!(
+            r#"{{"dim": 2, "n": 128, "m": 3, "t_end": 0.05, "cfl": {cfl}, "ranks": 2, "source": "discrete", "integrator": "{integrator}"}}"#
+        );
+        stops_over_two_ranks_and_resumes(integrator, &case, 50);
+    }
+}
+
 /// The same for the steady solves, whose steps are CG iterations: steady CG over the ranks'
 /// rows and FETI's projected CG over their subdomains.
 #[test]
