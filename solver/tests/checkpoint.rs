@@ -228,6 +228,36 @@ fn a_steady_solve_stopped_by_sigterm_resumes_at_its_iteration_with_the_same_bits
     }
 }
 
+/// While a steady solve runs, its progress file (`--progress`) says its iteration and the
+/// iterations its residual's decay says it needs (within the cap, 10⁵), and is gone once the
+/// solve is over.
+#[test]
+fn a_steady_solve_says_how_far_it_is_in_iterations() {
+    let dir = scratch("progress");
+    let file = dir.join("run.progress");
+    let case = json!({"method": "steady_cg", "dim": 2, "n": 512, "m": 4, "rtol": 1e-12});
+    let child = start(
+        &case,
+        &["--progress", file.to_str().unwrap()],
+        Stdio::piped(),
+    );
+    assert!(appears(&file), "no progress file was written");
+    let progress: Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    let whole = record(&child.wait_with_output().unwrap());
+    assert_eq!(progress["unit"], "iteration", "{progress}");
+    let (step, steps) = (
+        progress["step"].as_u64().unwrap(),
+        progress["steps"].as_u64().unwrap(),
+    );
+    assert!(
+        step >= 1 && steps > step && steps <= 100_000,
+        "{progress}: iteration {step} of about {steps}"
+    );
+    assert!(step < length(&whole), "{progress}");
+    assert!(!file.exists(), "the progress file stays after the solve");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run_starts_afresh() {
     let dir = scratch("refused");

@@ -79,9 +79,10 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
         if !store.running(&point.key) {
             continue; // left by a run that was killed; the next run clears it
         }
-        let Some((step, steps, left)) = crate::store::progress_of(&progress) else {
+        let Some(progress) = crate::store::progress_of(&progress) else {
             continue;
         };
+        let (step, steps) = (progress.step, progress.steps);
         let t_end = point.case.as_ref().ok().and_then(|c| {
             c.canonical()
                 .get("t_end")
@@ -92,8 +93,10 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
             .unwrap_or_default();
         let _ = writeln!(
             out,
-            "running {}: step {step} of {steps}{time}, about {left:.0} s left",
-            point.point.label()
+            "running {}: {}{time}, about {:.0} s left",
+            point.point.label(),
+            progress.steps_done(),
+            progress.left_s
         );
     }
 }

@@ -285,11 +285,15 @@ const STOP_GRACE: Duration = Duration::from_secs(30);
 /// How often the bar shows how far the running cases are (from their progress files).
 const SHOW_PROGRESS_EVERY: Duration = Duration::from_secs(1);
 
-/// `step k/N, ~S s left` from a running case's progress file (`nlsolve --progress`), once its
-/// time loop has written one (a second into it: short cases never show).
+/// `step k of N, ~S s left` from a running case's progress file (`nlsolve --progress`), once
+/// its time loop (or steady solve) has written one (a second into it: short cases never show).
 fn how_far(progress: &std::path::Path) -> Option<String> {
-    let (step, steps, left) = crate::store::progress_of(progress)?;
-    Some(format!("step {step}/{steps}, ~{left:.0} s left"))
+    let progress = crate::store::progress_of(progress)?;
+    Some(format!(
+        "{}, ~{:.0} s left",
+        progress.steps_done(),
+        progress.left_s
+    ))
 }
 
 /// How long the pool waits for a worker's answer before it looks at its processes again.

@@ -699,16 +699,36 @@ fn key_byte(key: &str) -> i64 {
 /// when a run stops, so that the next one resumes it; the solver removes it with its record.
 pub const CHECKPOINT: &str = "checkpoint";
 
-/// How far a running case's time loop is, from its progress file (`<key>.progress`, which
-/// nlsolve's `integrate::progress` writes): its step, its steps in all and the seconds left.
-pub fn progress_of(path: &Path) -> Option<(u64, u64, f64)> {
+/// How far a running case is, from its progress file (`<key>.progress`, which nlsolve's
+/// `integrate::progress` writes).
+pub struct Progress {
+    pub step: u64,
+    /// The steps in all; a steady solve's iterations in all are an estimate.
+    pub steps: u64,
+    pub left_s: f64,
+    /// Whether its steps are a steady solve's iterations rather than time steps.
+    pub iterations: bool,
+}
+
+impl Progress {
+    /// `step 930 of 3388`, or `iteration 30 of about 46`.
+    pub fn steps_done(&self) -> String {
+        match self.iterations {
+            false => format!("step {} of {}", self.step, self.steps),
+            true => format!("iteration {} of about {}", self.step, self.steps),
+        }
+    }
+}
+
+pub fn progress_of(path: &Path) -> Option<Progress> {
     let text = fs::read_regular(path, 4096).ok()?;
     let progress: Value = serde_json::from_str(&text).ok()?;
-    Some((
-        progress["step"].as_u64()?,
-        progress["steps"].as_u64()?,
-        progress["left_s"].as_f64()?,
-    ))
+    Some(Progress {
+        step: progress["step"].as_u64()?,
+        steps: progress["steps"].as_u64()?,
+        left_s: progress["left_s"].as_f64()?,
+        iterations: progress["unit"] == "iteration",
+    })
 }
 
 /// The step a checkpoint (`<key>.checkpoint`) was taken at and the run's steps in all, from its

@@ -1,6 +1,7 @@
 //! How far a running case is: the time loop writes its step, its steps in all and an estimate
 //! of the time left into a small file, at most once a second, so that `nlstudy status` (another
-//! process) and the pool's progress bar can show it. Like checkpointing it belongs to the
+//! process) and the pool's progress bar can show it. A steady solve writes its iteration and the
+//! iterations its residual's decay so far says it needs. Like checkpointing it belongs to the
 //! process, not to the case: `nlsolve run --progress FILE`, or the line `nlsolve serve` reads.
 
 use std::path::{Path, PathBuf};
@@ -29,6 +30,7 @@ pub fn take() -> Option<Reporter> {
         last: None,
         since: Instant::now(),
         first_step: None,
+        unit: "step",
     })
 }
 
@@ -38,9 +40,18 @@ pub struct Reporter {
     since: Instant,
     /// The step this segment of the run started from (a resumed run's rate is its own).
     first_step: Option<usize>,
+    /// What a step is: a time step, or a steady solve's iteration.
+    unit: &'static str,
 }
 
 impl Reporter {
+    /// A reporter whose steps are `unit`s (the file says so: "iteration" for a steady solve,
+    /// whose iterations in all are an estimate).
+    pub fn counting(mut self, unit: &'static str) -> Reporter {
+        self.unit = unit;
+        self
+    }
+
     /// After `steps_done` of `steps`: rewrites the file when a second has passed since the last
     /// time (and after the first step).
     pub fn note(&mut self, steps_done: usize, steps: usize) {
@@ -54,6 +65,7 @@ impl Reporter {
         let left_s = elapsed / done_here * (steps - steps_done) as f64;
         let text = serde_json::json!({
             "step": steps_done, "steps": steps, "elapsed_s": elapsed, "left_s": left_s,
+            "unit": self.unit,
         })
         .to_string();
         // Whole or absent for a reader; a file that cannot be written is only not shown.

@@ -73,14 +73,10 @@ pub fn run(
         },
         dot: |x: &[f64], y: &[f64]| mpi.sum(pool.install(|| cg::dot(x, y))),
     };
-    let mut checkpoints = SolveCheckpoints::take(&mpi);
-    let convergence = Cg::new(b.len()).solve_checkpointed(
-        system,
-        &b,
-        &mut u,
-        &problem.cg_params(Some(&pool)),
-        &mut checkpoints,
-    );
+    let params = problem.cg_params(Some(&pool));
+    let mut checkpoints = SolveCheckpoints::take(&mpi, params.rtol, params.max_iterations);
+    let convergence =
+        Cg::new(b.len()).solve_checkpointed(system, &b, &mut u, &params, &mut checkpoints);
     let segment_s = solve_started.elapsed().as_secs_f64();
     let comm_s = mpi.seconds() - comm_before + checkpoints.earlier_comm_s();
 

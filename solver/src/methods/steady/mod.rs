@@ -204,14 +204,11 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             },
             dot: cg::dot,
         };
-        let mut checkpoints = SolveCheckpoints::take(&exchange::Serial);
-        let convergence = Cg::new(b.len()).solve_checkpointed(
-            system,
-            &b,
-            &mut u,
-            &problem.cg_params(None),
-            &mut checkpoints,
-        );
+        let params = problem.cg_params(None);
+        let mut checkpoints =
+            SolveCheckpoints::take(&exchange::Serial, params.rtol, params.max_iterations);
+        let convergence =
+            Cg::new(b.len()).solve_checkpointed(system, &b, &mut u, &params, &mut checkpoints);
         let solve = checkpoints.resumed(solve_started.elapsed().as_secs_f64());
         drop(checkpoints);
         Ok(outcome(

@@ -9,15 +9,20 @@
 //! saves its share of the vectors, at an iteration all agree on, as the time loop does.
 
 use crate::integrate::checkpoint::{self, Carried, Checkpointer};
+use crate::integrate::progress::{self, Reporter};
 use crate::linalg::cg::{Checkpoints, State};
 use crate::output::record::Traffic;
 use crate::parallel::exchange::Exchange;
 use std::time::Instant;
 
-/// A steady solve's checkpoints (none when the process has no checkpointer), and what the
-/// segments of the solve before this one measured.
+/// A steady solve's checkpoints (none when the process has no checkpointer), what the segments
+/// of the solve before this one measured, and its progress file (`--progress`), if any.
 pub(crate) struct SolveCheckpoints<'a> {
     checkpointer: Option<Checkpointer>,
+    progress: Option<Reporter>,
+    /// The solve's tolerance and iteration cap, for the progress file's estimate.
+    rtol: f64,
+    max_iterations: usize,
     exchange: &'a dyn Exchange,
     /// The traffic, communication seconds and wall clock when this segment's solve started.
     at_start: (Traffic, f64, Instant),
@@ -43,10 +48,14 @@ pub(crate) struct Resumed {
 }
 
 impl<'a> SolveCheckpoints<'a> {
-    /// The process's checkpointer, taken for the solve about to start on the ranks of `exchange`.
-    pub fn take(exchange: &'a dyn Exchange) -> Self {
+    /// The process's checkpointer and progress file, taken for the solve about to start on the
+    /// ranks of `exchange`, to `rtol` within `max_iterations`.
+    pub fn take(exchange: &'a dyn Exchange, rtol: f64, max_iterations: usize) -> Self {
         SolveCheckpoints {
             checkpointer: checkpoint::take(),
+            progress: progress::take().map(|r| r.counting("iteration")),
+            rtol,
+            max_iterations,
             exchange,
             at_start: (exchange.traffic(), exchange.seconds(), Instant::now()),
             earlier: Earlier::default(),
@@ -127,6 +136,15 @@ impl Checkpoints for SolveCheckpoints<'_> {
     }
 
     fn after_iteration(&mut self, state: State<&[f64]>) {
+        if let Some(reporter) = self.progress.as_mut() {
+            let expected = expected_iterations(
+                state.iteration,
+                state.relative_residual,
+                self.rtol,
+                self.max_iterations,
+            );
+            reporter.note(state.iteration, expected);
+        }
         let Some(checkpointer) = self.checkpointer.as_mut() else {
             return;
         };
@@ -158,5 +176,42 @@ impl Checkpoints for SolveCheckpoints<'_> {
         if stop && on_any_rank(true) {
             checkpointer.stop("iteration", k);
         }
+    }
+}
+
+/// The iterations a solve is likely to take in all, after `k` brought its residual (relative, so
+/// 1 at the start) to `relative_residual`: as many as the decay so far needs to reach `rtol`,
+/// between k + 1 and the cap.
+fn expected_iterations(
+    k: usize,
+    relative_residual: f64,
+    rtol: f64,
+    max_iterations: usize,
+) -> usize {
+    let rate = relative_residual.ln() / k.max(1) as f64;
+    let needed = if rate.is_finite() && rate < 0.0 {
+        (rtol.ln() / rate).round()
+    } else {
+        max_iterations as f64
+    };
+    (needed as usize).clamp(k + 1, max_iterations.max(k + 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::expected_iterations;
+
+    #[test]
+    fn the_iterations_expected_follow_the_residual_s_decay_within_the_cap() {
+        // 10⁻² after 20 iterations: 10⁻⁸ takes 80.
+        assert_eq!(expected_iterations(20, 1e-2, 1e-8, 1000), 80);
+        assert_eq!(expected_iterations(20, 1e-2, 1e-8, 50), 50, "the cap");
+        assert_eq!(expected_iterations(20, 2.0, 1e-8, 500), 500, "no decay yet");
+        assert_eq!(
+            expected_iterations(20, 1e-9, 1e-8, 500),
+            21,
+            "at least one more"
+        );
+        assert_eq!(expected_iterations(3, f64::NAN, 1e-8, 500), 500);
     }
 }

@@ -122,7 +122,7 @@ pub fn run_on(
     let comm_before = exchange.seconds();
 
     let solve_started = Instant::now();
-    let mut checkpoints = SolveCheckpoints::take(exchange);
+    let mut checkpoints = SolveCheckpoints::take(exchange, problem.rtol, case.max_iterations());
     let dual = projected_cg(
         &mut feti,
         exchange,
