@@ -169,14 +169,24 @@ mod literal {
     }
 }
 
-#[test]
-fn every_start_and_norm_gives_the_bits_of_the_loop_it_replaced() {
-    let n = 64;
-    let (a, m) = (laplacian(n), scaled(n));
+/// The 1D Laplacian's system for a smooth x: (b = A x, a guess, the guess's residual b − A guess).
+fn system_with_a_guess(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let a = laplacian(n);
     let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
     let mut b = vec![0.0; n];
     a(&exact, &mut b);
     let guess: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64).cos()).collect();
+    let mut ax = vec![0.0; n];
+    a(&guess, &mut ax);
+    let r0 = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
+    (b, guess, r0)
+}
+
+#[test]
+fn every_start_and_norm_gives_the_bits_of_the_loop_it_replaced() {
+    let n = 64;
+    let (a, m) = (laplacian(n), scaled(n));
+    let (b, guess, r0) = system_with_a_guess(n);
     let mut cg = Cg::new(n);
     for (rtol, max) in [(1e-10, 1000), (0.0, 5), (1e-3, 1000), (1e-10, 0)] {
         // Unpreconditioned from zero: the steady solvers and FETI's interior solves.
@@ -223,9 +233,6 @@ fn every_start_and_norm_gives_the_bits_of_the_loop_it_replaced() {
         );
         assert_eq!(bits(&x), bits(&reference), "pcg {rtol} {max}");
         // FETI's: the caller's residual, the preconditioned norm.
-        let mut ax = vec![0.0; n];
-        a(&guess, &mut ax);
-        let r0: Vec<f64> = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
         let mut x = guess.clone();
         let got = cg.solve(
             system,
@@ -386,13 +393,7 @@ impl Checkpoints for KeepAt {
 fn a_solve_resumed_after_any_iteration_has_the_bits_of_one_never_stopped() {
     let n = 64;
     let (a, m) = (laplacian(n), scaled(n));
-    let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.3).sin()).collect();
-    let mut b = vec![0.0; n];
-    a(&exact, &mut b);
-    let guess: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64).cos()).collect();
-    let mut ax = vec![0.0; n];
-    a(&guess, &mut ax);
-    let r0: Vec<f64> = b.iter().zip(&ax).map(|(b, ax)| b - ax).collect();
+    let (b, guess, r0) = system_with_a_guess(n);
     let starts = [
         (Start::Zero, Norm::Residual),
         (Start::Guess, Norm::Residual),
