@@ -62,11 +62,19 @@ impl Store {
     /// The catalog, brought up to date with the segments; stored again when it had news and
     /// `persist` (a reader's catalog saves the next reader the reading).
     fn catalog(&self, persist: bool) -> MutexGuard<'_, Option<Catalog>> {
-        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
-        let catalog = guard.get_or_insert_with(|| Catalog::load(&self.runs));
+        let mut guard = self.catalog_as_read();
+        let catalog = guard.as_mut().expect("loaded");
         if catalog.refresh(&self.runs) && persist {
             catalog.persist(&self.runs);
         }
+        guard
+    }
+
+    /// The catalog as this process last read it (loaded on first use), without looking for
+    /// what other processes stored since.
+    fn catalog_as_read(&self) -> MutexGuard<'_, Option<Catalog>> {
+        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        guard.get_or_insert_with(|| Catalog::load(&self.runs));
         guard
     }
 
@@ -341,13 +349,16 @@ impl Store {
 
     /// Stores `record` as the record of `key`, unless it is `failed` and the stored one is a
     /// result (`ok`, `diverged`): a run's fault does not erase what an earlier run computed.
-    /// Returns whether it was stored. Call it holding the key's lock.
+    /// Returns whether it was stored. Call it holding the key's lock (`lock`), after `status`
+    /// read the key's record since: it reads the catalog as last read, not the store again.
     /// A stored result, or a record made by another solver (another fingerprint), is not
     /// overwritten: it moves to the study's history first (`history/<key>.<fingerprint>.json`,
     /// see `history_path`), so nothing computed is lost and old and new can be compared.
     pub fn save(&self, key: &str, record: &Stored) -> Result<bool, FileError> {
         let failed = record.status() == Status::Failed;
-        let stored = self.stored_text(key);
+        // The key is this process's (`lock`) since `status` read the store: no other process
+        // has stored it since, so the catalog as last read knows its record.
+        let stored = self.stored_text(key, false);
         let result_stored = stored
             .as_ref()
             .is_some_and(|(s, _, _)| s.status() != Status::Failed);
@@ -382,12 +393,16 @@ impl Store {
 
     /// The stored record of `key`, read now, if whole.
     pub fn stored(&self, key: &str) -> Option<Stored> {
-        Some(self.stored_text(key)?.0)
+        Some(self.stored_text(key, true)?.0)
     }
 
-    /// The stored record of `key`, its text and where it lies.
-    fn stored_text(&self, key: &str) -> Option<(Stored, String, Location)> {
-        let at = self.catalog(false).as_ref()?.get(key)?.at.clone();
+    /// The stored record of `key`, its text and where it lies, as the catalog knows it after
+    /// reading what the store gained since (`refresh`), or as last read.
+    fn stored_text(&self, key: &str, refresh: bool) -> Option<(Stored, String, Location)> {
+        let at = match refresh {
+            true => self.catalog(false).as_ref()?.get(key)?.at.clone(),
+            false => self.catalog_as_read().as_ref()?.get(key)?.at.clone(),
+        };
         let text = match &at {
             Location::Segment { name, span } => {
                 String::from_utf8(segment::read_frame(&self.segments().join(name), span)?).ok()?

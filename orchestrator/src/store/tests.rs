@@ -128,6 +128,8 @@ fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
             "{fingerprint} is not a fingerprint"
         );
         let new = with_fingerprint(record.clone(), &"0".repeat(64));
+        // As the pool does: the key's status read, then its record saved.
+        assert_eq!(store.status(&k), Some(Status::Ok));
         assert!(store.save(&k, &typed(&new)).unwrap(), "{fingerprint}");
     }
     assert_eq!(std::fs::read_to_string(&target).unwrap(), "precious");
