@@ -819,6 +819,60 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
     assert!(checkpoints().is_empty());
 }
 
+/// A checkpointing study's steady point (FETI's projected CG): `nlstudy run` stopped by SIGTERM
+/// after the solve's first checkpoint leaves it, `status` says at which iteration, and the next
+/// `run` resumes the solve there and stores the record an uninterrupted run stores.
+#[test]
+fn a_stopped_run_resumes_its_steady_point_at_its_iteration() {
+    let study = json!({
+        "name": "steady",
+        "checkpoint_every_s": 0.02,
+        "base": {"method": "feti", "dim": 2, "n": 256, "m": 3, "subdomains": 8, "rtol": 1e-12}
+    });
+    let scratch = Scratch::new("steady-checkpointed", &study);
+    let work = scratch.runs("steady").join(".work");
+    let checkpoint = || {
+        files_under(&work)
+            .into_iter()
+            .find(|f| f.extension().is_some_and(|e| e == "checkpoint"))
+    };
+    let run = scratch.spawn("run", &["--no-collect"]);
+    assert!(
+        eventually(Duration::from_secs(120), || checkpoint().is_some()),
+        "no checkpoint was written"
+    );
+    Command::new("kill")
+        .args(["-TERM", &run.id().to_string()])
+        .status()
+        .unwrap();
+    let stopped = run.wait_with_output().unwrap();
+    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    assert!(records(&scratch.runs("steady")).is_empty());
+    let status = text(&scratch.nlstudy("status", &[]));
+    let said = status
+        .lines()
+        .find(|l| l.starts_with("checkpoint "))
+        .unwrap_or_else(|| panic!("status says nothing of the checkpoint: {status}"));
+    assert!(
+        said.contains(": iteration ") && said.ends_with("; the next run resumes it"),
+        "{said}"
+    );
+
+    let resumed = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let stored = records(&scratch.runs("steady"));
+    assert_eq!(stored.len(), 1);
+    let from = stored[0]["resumed_from_step"].as_u64().unwrap_or(0);
+    assert!(
+        from > 0 && from < stored[0]["iterations"].as_u64().unwrap(),
+        "{}",
+        stored[0]
+    );
+    assert!(checkpoint().is_none(), "the checkpoint outlived its record");
+    let whole = run_uninterrupted(&scratch, "steady");
+    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+}
+
 /// An executable shell script `name` in the scratch directory; returns its path.
 fn executable(scratch: &Scratch, name: &str, body: &str) -> String {
     use std::os::unix::fs::PermissionsExt;

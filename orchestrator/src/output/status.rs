@@ -120,8 +120,14 @@ fn with_scratch<'a>(
 /// next run resumes it.
 fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
+        // A steady case (no t_end) checkpoints its CG iterations.
+        let timed = point
+            .case
+            .as_ref()
+            .is_ok_and(|c| c.canonical().get("t_end").is_some_and(|t| !t.is_null()));
         let how_far = match crate::store::checkpoint_steps(&path) {
             Some((step, Some(steps))) => format!("step {step} of {steps}"),
+            Some((step, None)) if !timed => format!("iteration {step}"),
             Some((step, None)) => format!("step {step}"),
             None => "a checkpoint that cannot be read (the next run starts it afresh)".into(),
         };
