@@ -103,17 +103,14 @@ impl Checkpoints for SolveCheckpoints<'_> {
                 .filter(|v| v.len() == len)
                 .map(<[f64]>::to_vec)
         };
-        let (Some(x), Some(r), Some(p), Some(scalars)) = (
-            vector("cg.x"),
-            vector("cg.r"),
-            vector("cg.p"),
-            carried.values("cg.scalars"),
-        ) else {
+        let scalars = carried
+            .values("cg.scalars")
+            .and_then(|s| <[f64; 3]>::try_from(s).ok());
+        let (Some(x), Some(r), Some(p), Some([rz, reference, relative_residual])) =
+            (vector("cg.x"), vector("cg.r"), vector("cg.p"), scalars)
+        else {
             // Of this case and build, so of this solve: unreachable but for a bug, said.
             eprintln!("nlsolve: the checkpoint holds no CG state of this solve; it starts afresh");
-            return None;
-        };
-        let &[rz, reference, relative_residual] = scalars else {
             return None;
         };
         if let Some(earlier) = carried.traffic() {
