@@ -689,12 +689,7 @@ fn a_stopped_run_resumes_its_point_over_two_ranks_from_their_checkpoints() {
         "no checkpoint of both ranks: {:?}",
         checkpoints()
     );
-    Command::new("kill")
-        .args(["-TERM", &run.id().to_string()])
-        .status()
-        .unwrap();
-    let stopped = run.wait_with_output().unwrap();
-    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    stopped_by_sigterm(run);
     assert!(records(&scratch.runs("ranked")).is_empty());
     let files = checkpoints();
     assert_eq!(files.len(), 2, "both ranks' checkpoints stay: {files:?}");
@@ -753,32 +748,19 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         "no checkpoint was written"
     );
     // While it runs, `status` says how far it is.
-    let status = text(&scratch.nlstudy("status", &[]));
-    let said = status
-        .lines()
-        .find(|l| l.starts_with("running "))
-        .unwrap_or_else(|| panic!("status says nothing of the running point: {status}"));
+    let said = status_line(&scratch, "running ");
     assert!(
         said.contains(": step ") && said.contains(" of 1694, t = ") && said.contains(" s left"),
         "{said}"
     );
-    Command::new("kill")
-        .args(["-TERM", &run.id().to_string()])
-        .status()
-        .unwrap();
-    let stopped = run.wait_with_output().unwrap();
-    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    stopped_by_sigterm(run);
     assert!(records(&scratch.runs("long")).is_empty());
     assert_eq!(
         checkpoints().len(),
         1,
         "the stopped point's checkpoint stays"
     );
-    let status = text(&scratch.nlstudy("status", &[]));
-    let said = status
-        .lines()
-        .find(|l| l.starts_with("checkpoint "))
-        .unwrap_or_else(|| panic!("status says nothing of the checkpoint: {status}"));
+    let said = status_line(&scratch, "checkpoint ");
     assert!(
         said.contains(": step ") && said.contains(" of 1694; the next run resumes it"),
         "{said}"
@@ -841,18 +823,9 @@ fn a_stopped_run_resumes_its_steady_point_at_its_iteration() {
         eventually(Duration::from_secs(120), || checkpoint().is_some()),
         "no checkpoint was written"
     );
-    Command::new("kill")
-        .args(["-TERM", &run.id().to_string()])
-        .status()
-        .unwrap();
-    let stopped = run.wait_with_output().unwrap();
-    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+    stopped_by_sigterm(run);
     assert!(records(&scratch.runs("steady")).is_empty());
-    let status = text(&scratch.nlstudy("status", &[]));
-    let said = status
-        .lines()
-        .find(|l| l.starts_with("checkpoint "))
-        .unwrap_or_else(|| panic!("status says nothing of the checkpoint: {status}"));
+    let said = status_line(&scratch, "checkpoint ");
     assert!(
         said.contains(": iteration ") && said.ends_with("; the next run resumes it"),
         "{said}"
@@ -871,6 +844,26 @@ fn a_stopped_run_resumes_its_steady_point_at_its_iteration() {
     assert!(checkpoint().is_none(), "the checkpoint outlived its record");
     let whole = run_uninterrupted(&scratch, "steady");
     assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+}
+
+/// Stops `nlstudy run` as a scheduler's warning does (SIGTERM): it exits 143.
+fn stopped_by_sigterm(run: std::process::Child) {
+    Command::new("kill")
+        .args(["-TERM", &run.id().to_string()])
+        .status()
+        .unwrap();
+    let stopped = run.wait_with_output().unwrap();
+    assert_eq!(stopped.status.code(), Some(143), "{}", text(&stopped));
+}
+
+/// The line of `nlstudy status` that starts with `start` (`running `, `checkpoint `).
+fn status_line(scratch: &Scratch, start: &str) -> String {
+    let status = text(&scratch.nlstudy("status", &[]));
+    status
+        .lines()
+        .find(|l| l.starts_with(start))
+        .unwrap_or_else(|| panic!("status has no line `{start}…`: {status}"))
+        .to_string()
 }
 
 /// An executable shell script `name` in the scratch directory; returns its path.
