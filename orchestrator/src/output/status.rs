@@ -72,6 +72,12 @@ pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) ->
     out
 }
 
+/// The simulated time a point's case runs to; `None` for a steady case.
+fn t_end(point: &Planned) -> Option<f64> {
+    let case = point.case.as_ref().ok()?.canonical();
+    case.get("t_end")?.as_f64()
+}
+
 /// One line per point running now (its key locked by a run) whose time loop says how far it is
 /// (`runs/.work/<key>.progress`): its step of steps, simulated time and the time left.
 fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
@@ -83,12 +89,7 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
             continue;
         };
         let (step, steps) = (progress.step, progress.steps);
-        let t_end = point.case.as_ref().ok().and_then(|c| {
-            c.canonical()
-                .get("t_end")
-                .and_then(serde_json::Value::as_f64)
-        });
-        let time = t_end
+        let time = t_end(point)
             .map(|t| format!(", t = {:.4} of {t}", t * step as f64 / steps.max(1) as f64))
             .unwrap_or_default();
         let _ = writeln!(
@@ -120,14 +121,10 @@ fn with_scratch<'a>(
 /// next run resumes it.
 fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
-        // A steady case (no t_end) checkpoints its CG iterations.
-        let timed = point
-            .case
-            .as_ref()
-            .is_ok_and(|c| c.canonical().get("t_end").is_some_and(|t| !t.is_null()));
         let how_far = match crate::store::checkpoint_steps(&path) {
             Some((step, Some(steps))) => format!("step {step} of {steps}"),
-            Some((step, None)) if !timed => format!("iteration {step}"),
+            // A steady case (no t_end) checkpoints its CG iterations.
+            Some((step, None)) if t_end(point).is_none() => format!("iteration {step}"),
             Some((step, None)) => format!("step {step}"),
             None => "a checkpoint that cannot be read (the next run starts it afresh)".into(),
         };

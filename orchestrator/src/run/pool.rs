@@ -83,9 +83,9 @@ pub struct PoolOptions {
     pub retries: usize,
     /// A process per case (`--isolate`), never a worker.
     pub isolate: bool,
-    /// Time-dependent cases checkpoint this often (and on a stopping signal), in
-    /// `runs/.work/<key>.checkpoint` (and `.rank<r>` beside it over ranks), and resume from it;
-    /// they run as processes.
+    /// Cases checkpoint this often (a time loop, or a steady solve's CG) and on a stopping
+    /// signal, in `runs/.work/<key>.checkpoint` (and `.rank<r>` beside it over ranks), and
+    /// resume from it; they run as processes.
     pub checkpoint_every: Option<Duration>,
     /// Keep each checkpoint after its record is stored.
     pub keep_checkpoints: bool,

@@ -100,8 +100,8 @@ impl Store {
     fn append(&self, bodies: &[(String, Indexed)], sync: bool) -> Result<(), FileError> {
         let dir = self.segments();
         let mut appender = self.appender.lock().unwrap_or_else(PoisonError::into_inner);
-        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
-        let catalog = guard.get_or_insert_with(|| Catalog::load(&self.runs));
+        let mut guard = self.catalog_as_read();
+        let catalog = guard.as_mut().expect("loaded");
         if appender.as_ref().is_none_or(Appender::full) {
             let candidates: Vec<(String, u64)> = catalog
                 .segments
