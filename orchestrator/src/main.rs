@@ -7,6 +7,9 @@ use clap::Parser;
 use orchestrator::cli::Cli;
 use std::process::ExitCode;
 
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     orchestrator::commands::main(Cli::parse())
 }

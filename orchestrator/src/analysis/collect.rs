@@ -100,6 +100,16 @@ const LEADING: &[&str] = &[
 /// One run's row: the point's label and series, then the record, flattened: its columns are
 /// what `Stored` serializes.
 fn run_row(planned: &Planned, stored: &Stored) -> Row {
+    let Value::Object(mut record) = stored.to_value() else {
+        return Row::default();
+    };
+    // The case with its defaults filled in, as the solver resolves it now (records keep the
+    // case as keyed, which leaves some defaults out).
+    if let Ok(checked) = &planned.case {
+        record.insert("case".into(), checked.resolved());
+    }
+    // (The row grows cell by cell, to twice the room it needs at most: room its summary row,
+    // made in place of it, fills.)
     let mut row = Row::default();
     let series = planned.point.series();
     row.set("point", json!(planned.point.label_without_repeat()));
@@ -108,30 +118,18 @@ fn run_row(planned: &Planned, stored: &Stored) -> Row {
     }
     row.set("refinement_series", json!(series.refinement));
     row.set("scaling_series", json!(series.scaling));
-    let record = stored.to_value();
-    let Some(record) = record.as_object() else {
-        return row;
-    };
     for field in LEADING {
-        row.set(field, record.get(*field).cloned().unwrap_or(Value::Null));
+        row.set(field, record.remove(*field).unwrap_or(Value::Null));
     }
     let rank = |name: &str| match name {
         "case" => 0,
         "provenance" => 2,
         _ => 1,
     };
-    let mut rest: Vec<(&String, &Value)> = record
-        .iter()
-        .filter(|(name, _)| !LEADING.contains(&name.as_str()))
-        .collect();
+    let mut rest: Vec<(String, Value)> = record.into_iter().collect();
     rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
     for (name, value) in rest {
-        // The case with its defaults filled in, as the solver resolves it now (records keep
-        // the case as keyed, which leaves some defaults out).
-        match (name.as_str(), &planned.case) {
-            ("case", Ok(checked)) => row.set_flattened(name, &checked.resolved()),
-            _ => row.set_flattened(name, value),
-        }
+        row.set_flattened(&name, value);
     }
     // Beside `ranks` (the record's), the threads each rank ran: what `where` and figure specs
     // call `threads`.
@@ -180,19 +178,30 @@ pub fn collect(
         errln!("nlstudy: warning: the store was not compacted: {e}");
     }
     fits_in_memory(store.count(), available_memory())?;
-    let scan = store.scan();
+    // Each record becomes the rows of the points it is as it is read (on every core), so that
+    // the records are never all held: the rows hold all the tables need.
+    let mut places: HashMap<&str, Vec<usize>> = HashMap::new();
+    for (i, p) in planned.iter().enumerate() {
+        places.entry(p.key.as_str()).or_default().push(i);
+    }
+    let scan = store.scan_map(|stored| {
+        let places = places.get(stored.key.as_str())?;
+        Some(
+            places
+                .iter()
+                .map(|&i| (i, run_row(&planned[i], &stored)))
+                .collect::<Vec<_>>(),
+        )
+    });
     for unreadable in &scan.unreadable[scan.unreadable.len() - scan.found_now..] {
         errln!("nlstudy: warning: {unreadable}");
     }
-    let records = crate::store::by_key(scan.records);
-    let used: HashSet<&str> = planned.iter().map(|p| p.key.as_str()).collect();
-    let left_out = records
-        .keys()
-        .filter(|k| !used.contains(k.as_str()))
-        .count();
-    let rows = run_rows(planned, &records);
-    // The rows hold all the tables need: the records go before the tables are built.
-    drop(records);
+    let left_out = scan.records.iter().filter(|rows| rows.is_none()).count();
+    let mut in_plan_order: Vec<Option<Row>> = (0..planned.len()).map(|_| None).collect();
+    for (i, row) in scan.records.into_iter().flatten().flatten() {
+        in_plan_order[i] = Some(row);
+    }
+    let rows: Vec<Row> = in_plan_order.into_iter().flatten().collect();
     let missing = planned.len() - rows.len();
     if rows.is_empty() {
         return Ok(None);
@@ -202,7 +211,6 @@ pub fn collect(
             "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
         )));
     }
-    let summary_rows = summary::summarize(&rows);
     let _outputs = store.lock_outputs()?;
     let runs = store.table(&format!("{}.parquet", store.study));
     let summary = store.table(&format!("{}-summary.parquet", store.study));
@@ -210,12 +218,18 @@ pub fn collect(
         description: &study.description,
         notes: LABELS,
     };
-    table::write_parquet_about(&[(&runs, &rows), (&summary, &summary_rows)], &about)?;
+    // The run table is written before the summary is made of its rows (taking them apart).
+    let mut tables = table::Staged::new(&about);
+    tables.stage(&runs, &rows)?;
+    let run_count = rows.len();
+    let summary_rows = summary::summarize(rows);
+    tables.stage(&summary, &summary_rows)?;
+    tables.commit()?;
     let swept = crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point));
     let collected = Collected {
         runs,
         summary,
-        rows: rows.len(),
+        rows: run_count,
         points: summary_rows.len(),
         missing,
         left_out,
@@ -233,7 +247,7 @@ pub fn collect(
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would
 /// write them: for comparing what two result sets derive (speedups, orders).
 pub fn summary_of(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
-    summary::summarize(&run_rows(planned, records))
+    summary::summarize(run_rows(planned, records))
 }
 
 /// The run rows of the points whose records `records` holds. Points of different branches may
@@ -245,9 +259,10 @@ pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<R
         .collect()
 }
 
-/// What `collect` holds per stored run while it tabulates (the record as a value, its row and
-/// its share of the summary): 36 KB measured at 10⁵ runs (3.75 GB peak), with a margin.
-const BYTES_PER_RUN: u64 = 40 << 10;
+/// What `collect` holds per stored run while it tabulates (its row, and its share of the run
+/// table's frame or of the summary): 10.6 KB measured at 10⁵ runs (1.06 GB peak, of which the
+/// plan 0.2 GB), with a margin.
+const BYTES_PER_RUN: u64 = 12 << 10;
 
 /// Refuses, before reading a record, a collect that would hold more than the machine has free:
 /// better a sentence now than the kernel's OOM killer midway.
@@ -377,10 +392,22 @@ pub fn headline(summary: &[Row], swept: &[String]) -> (Vec<String>, Vec<Vec<Stri
     (names, pivot::texts(summary, &columns))
 }
 
-/// The summary at a glance, for the terminal: the headline columns, every row, as Markdown.
+/// How many points the overview shows: a screenful; the summary table holds them all.
+const OVERVIEW_POINTS: usize = 40;
+
+/// The summary at a glance, for the terminal: the headline columns of its first
+/// `OVERVIEW_POINTS` rows, as Markdown, and how many more the table has.
 pub fn overview(summary: &[Row], swept: &[String]) -> String {
-    let (names, lines) = headline(summary, swept);
-    pivot::markdown_table(&names, &lines)
+    let shown = &summary[..summary.len().min(OVERVIEW_POINTS)];
+    let (names, lines) = headline(shown, swept);
+    let mut text = pivot::markdown_table(&names, &lines);
+    if summary.len() > shown.len() {
+        text += &format!(
+            "… and {} more points in the summary table (`nlstudy table` pivots them)\n",
+            summary.len() - shown.len()
+        );
+    }
+    text
 }
 
 #[cfg(test)]
@@ -395,7 +422,7 @@ mod tests {
             panic!("refused")
         };
         assert!(
-            message.contains("1000000 stored runs") && message.contains("40.96 GB"),
+            message.contains("1000000 stored runs") && message.contains("12.29 GB"),
             "{message}"
         );
     }
@@ -457,5 +484,22 @@ mod tests {
              | 16 | 4e-7 | ok | 0.0002 | 3e-6 |\n\
              | 32 | 4e-7 | ok | 1.5 | 9.451e-9 |\n"
         );
+    }
+
+    #[test]
+    fn the_overview_of_a_large_study_shows_a_screenful_and_counts_the_rest() {
+        let summary: Vec<Row> = (0..45).map(|n| summary_row(n, 1.0, 1e-3)).collect();
+        let text = overview(&summary, &["n".into()]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2 + OVERVIEW_POINTS + 1, "{text}");
+        assert!(
+            lines[2 + OVERVIEW_POINTS - 1].starts_with("| 39 |"),
+            "{text}"
+        );
+        assert_eq!(
+            lines.last(),
+            Some(&"… and 5 more points in the summary table (`nlstudy table` pivots them)")
+        );
+        assert!(!overview(&summary[..40], &["n".into()]).contains("more points"));
     }
 }

@@ -87,12 +87,20 @@ pub fn column_names() -> Vec<String> {
 
 /// One summary row per point (its repeats: rows sharing the `point` label, or the `case_id`
 /// where rows have no label), in the order points first appear. Points of different branches
-/// that are one case share its records but keep a row each.
-pub fn summarize(runs: &[Row]) -> Vec<Row> {
-    let mut summary: Vec<Row> = groups(runs, |r| r.text("point").or(r.text(columns::CASE_ID)))
-        .par_iter()
-        .map(|members| reduce(&members.iter().map(|&i| &runs[i]).collect::<Vec<_>>()))
+/// that are one case share its records but keep a row each. The runs' rows are taken apart
+/// into their points' (no cell is copied).
+pub fn summarize(runs: Vec<Row>) -> Vec<Row> {
+    let points = groups(&runs, |r| r.text("point").or(r.text(columns::CASE_ID)));
+    let mut runs: Vec<Option<Row>> = runs.into_iter().map(Some).collect();
+    let points: Vec<Vec<Row>> = points
+        .into_iter()
+        .map(|members| {
+            let repeats = members.into_iter().map(|i| runs[i].take());
+            repeats.map(|r| r.expect("a run is one point's")).collect()
+        })
         .collect();
+    drop(runs);
+    let mut summary: Vec<Row> = points.into_par_iter().map(reduce).collect();
     derive_scaling(&mut summary);
     derive_orders(&mut summary);
     summary
@@ -127,31 +135,22 @@ fn is_ok(row: &Row) -> bool {
 
 /// The repeats of one point as one row: the values of its first ok repeat (else its first),
 /// the status they share (`mixed` if they differ), and their timings' statistics.
-fn reduce(repeats: &[&Row]) -> Row {
+fn reduce(mut repeats: Vec<Row>) -> Row {
     let statuses: Vec<&str> = repeats
         .iter()
         .map(|r| r.text(columns::STATUS).unwrap_or(""))
         .collect();
-    let first = repeats.iter().find(|r| is_ok(r)).unwrap_or(&repeats[0]);
-    // The first's cells as they are (their names differ, so none is looked for).
-    let mut row: Row = first
-        .cells()
-        .filter(|(name, _)| {
-            let per_run = matches!(*name, columns::KEY | columns::REPEAT | columns::RUN_ID)
-                || name.starts_with("provenance.");
-            !per_run && !is_timing(name)
-        })
-        .map(|(name, value)| (name.to_string(), value.clone()))
-        .collect();
     let uniform = statuses.iter().all(|s| *s == statuses[0]);
-    row.set("status", json!(if uniform { statuses[0] } else { MIXED }));
-    row.set("repeats", json!(repeats.len()));
+    let status = json!(if uniform { statuses[0] } else { MIXED });
+    let first = repeats.iter().position(is_ok).unwrap_or(0);
     let ran: Vec<&Row> = repeats
         .iter()
         .zip(&statuses)
         .filter(|(_, s)| Status::parse(s) != Some(Status::Failed))
-        .map(|(r, _)| *r)
+        .map(|(r, _)| r)
         .collect();
+    // What the repeats measured, in the summary's column order.
+    let mut measured: Vec<(String, Value)> = Vec::new();
     // The solver build that ran the point: what a figure splits its series by when a table
     // mixes builds (`collect --allow-mixed`).
     let builds: Vec<&str> = ran
@@ -163,22 +162,45 @@ fn reduce(repeats: &[&Row]) -> Row {
             true => crate::run::plan::short(first_build),
             false => MIXED,
         };
-        row.set("build", json!(build));
+        measured.push(("build".into(), json!(build)));
     }
-    for (name, _) in first.cells().filter(|(name, _)| is_timing(name)) {
+    for (name, _) in repeats[first].cells().filter(|(name, _)| is_timing(name)) {
         let mut times: Vec<f64> = ran.iter().filter_map(|r| r.number(name)).collect();
         times.sort_by(f64::total_cmp);
         let statistic = |f: fn(&[f64]) -> f64| match times.is_empty() {
             true => Value::Null,
             false => json!(f(&times)),
         };
-        row.set(&format!("{name}_median"), statistic(|t| quantile(t, 0.5)));
-        row.set(&format!("{name}_min"), statistic(|t| t[0]));
-        row.set(&format!("{name}_max"), statistic(|t| t[t.len() - 1]));
-        row.set(
-            &format!("{name}_iqr"),
-            statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
-        );
+        measured.extend([
+            (format!("{name}_median"), statistic(|t| quantile(t, 0.5))),
+            (format!("{name}_min"), statistic(|t| t[0])),
+            (format!("{name}_max"), statistic(|t| t[t.len() - 1])),
+            (
+                format!("{name}_iqr"),
+                statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
+            ),
+        ]);
+    }
+    // Repeats timed while other tasks wanted the cores they left free.
+    let noisy = repeats
+        .iter()
+        .filter(|r| r.get(columns::NOISY) == Some(&Value::Bool(true)))
+        .count();
+    let count = repeats.len();
+    // The first's cells as they are (their names differ, so none is looked for), in the room
+    // its row had.
+    let mut row: Row = std::mem::take(&mut repeats[first])
+        .into_iter()
+        .filter(|(name, _)| {
+            let per_run = matches!(&**name, columns::KEY | columns::REPEAT | columns::RUN_ID)
+                || name.starts_with("provenance.");
+            !per_run && !is_timing(name)
+        })
+        .collect();
+    row.set("status", status);
+    row.set("repeats", json!(count));
+    for (name, value) in measured {
+        row.set(&name, value);
     }
     let (threads, ranks) = (
         row.count("case.threads").unwrap_or(1),
@@ -193,11 +215,6 @@ fn reduce(repeats: &[&Row]) -> Row {
         (true, true) => "threads × ranks",
     };
     row.set("parallelism", json!(parallelism));
-    // Repeats timed while other tasks wanted the cores they left free.
-    let noisy = repeats
-        .iter()
-        .filter(|r| r.get(columns::NOISY) == Some(&Value::Bool(true)))
-        .count();
     row.set("noisy_repeats", json!(noisy));
     let work = (
         row.number(columns::BONDS),
@@ -311,7 +328,7 @@ mod tests {
             .iter()
             .map(|&t| run("a", 1, 1, t))
             .collect();
-        let summary = summarize(&runs);
+        let summary = summarize(runs);
         assert_eq!(summary.len(), 1);
         let row = &summary[0];
         assert_eq!(row.number("repeats"), Some(4.0));
@@ -333,7 +350,7 @@ mod tests {
             run("t1", 1, 1, amdahl(1.0)),
             run("r4", 2, 2, amdahl(4.0)),
         ];
-        let summary = summarize(&runs);
+        let summary = summarize(runs);
         let s2 = 1.0 / (0.1 + 0.9 / 2.0);
         let s4 = 1.0 / (0.1 + 0.9 / 4.0);
         // Counts are integers (Int64 columns in Parquet), not floats.
@@ -361,7 +378,7 @@ mod tests {
         // Against a baseline of 2 workers the speedups are relative: 4 workers at half the
         // time is perfect scaling.
         let runs = vec![run("t2", 2, 1, 6.0), run("r4", 2, 2, 3.0)];
-        let summary = summarize(&runs);
+        let summary = summarize(runs);
         close(column(&summary, "speedup"), &[Some(1.0), Some(2.0)]);
         close(column(&summary, "efficiency"), &[Some(1.0), Some(1.0)]);
         close(column(&summary, "karp_flatt"), &[None, Some(0.0)]);
@@ -381,7 +398,7 @@ mod tests {
                 row
             })
             .collect();
-        let summary = summarize(&runs);
+        let summary = summarize(runs);
         close(column(&summary, "order_l2"), &[Some(2.0), None, Some(2.0)]);
         close(column(&summary, "order_max"), &[Some(1.0), None, Some(1.0)]);
     }
@@ -391,7 +408,7 @@ mod tests {
         let mut failed = run("a", 1, 1, 1.0);
         failed.set("status", json!("failed"));
         let runs = vec![run("a", 1, 1, 2.0), failed, run("b", 2, 1, 1.0)];
-        let summary = summarize(&runs);
+        let summary = summarize(runs);
         assert_eq!(summary[0].text("status"), Some("mixed"));
         // The failed repeat's time is not a timing.
         assert_eq!(summary[0].number("solve_s_median"), Some(2.0));
@@ -399,7 +416,7 @@ mod tests {
         close(column(&summary, "speedup"), &[None, None]);
         assert_eq!(summary[0].number("bond_updates_per_s"), None);
         // A point alone in its series has no baseline to compare with.
-        let alone = summarize(&[run("c", 2, 1, 1.0)]);
+        let alone = summarize(vec![run("c", 2, 1, 1.0)]);
         assert_eq!(alone[0].number("speedup"), None);
     }
 }

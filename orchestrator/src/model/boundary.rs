@@ -281,8 +281,8 @@ impl Adaptive for BoundarySpec {
 pub fn flips(condition: &str, stored: &Stored) -> Result<bool, String> {
     ran(stored)?;
     let mut cells = Vec::new();
-    columns::flatten("", &stored.to_value(), &mut |name, value| {
-        cells.push((name, value.clone()))
+    columns::flatten("", stored.to_value(), &mut |name, value| {
+        cells.push((name.to_string(), value))
     });
     let fields = expression::fields_of_columns(&cells);
     expression::condition(condition, &Scope::from_fields(&fields))

@@ -54,17 +54,17 @@ impl Scope {
 /// columns. A case field wins over a record column of the same name (the record's `subdomains`
 /// is p², the case's p; its `backend` is the one `auto` chose), so a figure's `where` means what
 /// the study's does; the record's value is the column when the case leaves the field out.
-pub fn fields_of_columns(cells: &[(String, Value)]) -> Map<String, Value> {
+pub fn fields_of_columns<N: AsRef<str>>(cells: &[(N, Value)]) -> Map<String, Value> {
     let mut fields = Map::new();
     for (name, value) in cells {
-        if let Some(field) = name.strip_prefix("case.") {
+        if let Some(field) = name.as_ref().strip_prefix("case.") {
             if !value.is_null() {
                 fields.insert(field.to_string(), value.clone());
             }
         }
     }
     for (name, value) in cells {
-        fields.entry(name.clone()).or_insert_with(|| value.clone());
+        fields.entry(name.as_ref()).or_insert_with(|| value.clone());
     }
     fields
 }

@@ -504,9 +504,17 @@ impl Store {
     }
 
     /// Every stored record (the latest of each key, in key order), and what the store holds that
-    /// is not a whole record. The segments are read one at a time, their records parsed on
-    /// every core.
+    /// is not a whole record.
     pub fn scan(&self) -> Scan {
+        let mut scan = self.scan_map(|record| record);
+        scan.records.sort_unstable_by(|a, b| a.key.cmp(&b.key));
+        scan
+    }
+
+    /// `scan`, each record made into what `make` keeps of it as it is read (in no order), so
+    /// that a reader of every record need not hold them all. The segments are read one at a
+    /// time, their records parsed on every core.
+    pub fn scan_map<T: Send>(&self, make: impl Fn(Stored) -> T + Sync) -> Scan<T> {
         let (mut by_segment, files, unreadable) = {
             let guard = self.catalog(true);
             let catalog = guard.as_ref().expect("loaded");
@@ -536,13 +544,14 @@ impl Store {
         for (name, frames) in std::mem::take(&mut by_segment) {
             let path = dir.join(&name);
             let bytes = segment::read_from(&path, 0).unwrap_or_default();
-            let read: Vec<Result<Stored, Unreadable>> = frames
+            let read: Vec<Result<T, Unreadable>> = frames
                 .into_par_iter()
                 .map(|(key, span)| {
                     segment::body_at(&bytes, &span)
                         .ok_or_else(|| "it changed since it was read".to_string())
                         .and_then(|body| std::str::from_utf8(body).map_err(|e| e.to_string()))
                         .and_then(|text| check_identity(&key, text))
+                        .map(&make)
                         .map_err(|problem| Unreadable {
                             path: path.clone(),
                             at: Some(span),
@@ -552,11 +561,12 @@ impl Store {
                 .collect();
             scan.take(read);
         }
-        let read: Vec<Result<Stored, Unreadable>> = files
+        let read: Vec<Result<T, Unreadable>> = files
             .into_par_iter()
             .map(|(_, path)| {
                 read_regular(&path, RECORD_CAP)
                     .and_then(|t| read_record(&path, &t))
+                    .map(&make)
                     .map_err(|problem| Unreadable {
                         path,
                         at: None,
@@ -579,7 +589,6 @@ impl Store {
                 catalog.persist(&self.runs);
             }
         }
-        scan.records.sort_unstable_by(|a, b| a.key.cmp(&b.key));
         scan
     }
 
@@ -776,18 +785,27 @@ fn located(entry: &catalog::Entry) -> Option<&str> {
     }
 }
 
-#[derive(Default)]
-pub struct Scan {
-    pub records: Vec<Stored>,
+pub struct Scan<T = Stored> {
+    pub records: Vec<T>,
     pub unreadable: Vec<Unreadable>,
     /// How many of `unreadable` (the last ones) this scan found: frames the catalog counted as
     /// records, which changed since.
     pub found_now: usize,
 }
 
-impl Scan {
+impl<T> Default for Scan<T> {
+    fn default() -> Self {
+        Scan {
+            records: Vec::new(),
+            unreadable: Vec::new(),
+            found_now: 0,
+        }
+    }
+}
+
+impl<T> Scan<T> {
     /// Adds what was read: the whole records, and what is not one.
-    fn take(&mut self, read: Vec<Result<Stored, Unreadable>>) {
+    fn take(&mut self, read: Vec<Result<T, Unreadable>>) {
         for record in read {
             match record {
                 Ok(record) => self.records.push(record),

@@ -256,8 +256,7 @@ pub(super) fn check_identity(file_key: &str, text: &str) -> Result<Stored, Strin
     if text_of("status").and_then(Status::parse).is_none() {
         return Err(STATUS_UNKNOWN.into());
     }
-    serde_path_to_error::deserialize(record)
-        .map_err(|e| format!("not a whole record (`{}`: {})", e.path(), e.inner()))
+    Stored::from_value(record).map_err(|e| format!("not a whole record ({e})"))
 }
 
 /// The key a record's path names: its file's name without `.json`.

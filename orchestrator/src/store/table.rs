@@ -12,20 +12,58 @@
 
 use crate::store::fs::Fault;
 use polars::prelude::*;
+use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
-use std::collections::HashMap;
+use std::borrow::Cow;
+use std::cell::RefCell;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
+use std::sync::Arc;
+
+/// A column's name as rows hold it, shared by every row that has the column: a study's rows
+/// repeat the same hundred names, so each is made once, not once per cell (half of what a
+/// collect of 10⁵ runs allocated).
+pub type Name = Arc<str>;
+
+/// How many distinct names a thread keeps for sharing: more than any table has columns.
+const NAMES_KEPT: usize = 4096;
+
+/// `text` as a `Name`: the one this thread made before, if any.
+pub fn name(text: &str) -> Name {
+    thread_local! {
+        static NAMES: RefCell<HashSet<Name>> = RefCell::new(HashSet::new());
+    }
+    NAMES.with_borrow_mut(|names| match names.get(text) {
+        Some(name) => name.clone(),
+        None => {
+            let name: Name = text.into();
+            if names.len() < NAMES_KEPT {
+                names.insert(name.clone());
+            }
+            name
+        }
+    })
+}
 
 /// A table row: named cells in column order.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Row(Vec<(String, Value)>);
+pub struct Row(Vec<(Name, Value)>);
 
-impl FromIterator<(String, Value)> for Row {
+impl IntoIterator for Row {
+    type Item = (Name, Value);
+    type IntoIter = std::vec::IntoIter<(Name, Value)>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.into_iter()
+    }
+}
+
+impl FromIterator<(Name, Value)> for Row {
     /// A row of `cells`, whose names must differ (as another row's do): no name is looked for.
-    fn from_iter<I: IntoIterator<Item = (String, Value)>>(cells: I) -> Row {
+    fn from_iter<I: IntoIterator<Item = (Name, Value)>>(cells: I) -> Row {
         Row(cells.into_iter().collect())
     }
 }
@@ -38,7 +76,7 @@ impl Row {
     }
 
     pub fn get(&self, name: &str) -> Option<&Value> {
-        self.0.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+        self.0.iter().find(|(n, _)| **n == *name).map(|(_, v)| v)
     }
 
     pub fn number(&self, name: &str) -> Option<f64> {
@@ -61,9 +99,9 @@ impl Row {
 
     /// Sets a cell, in place if the column is there, else as a new last column.
     pub fn set(&mut self, name: &str, value: Value) {
-        match self.0.iter_mut().find(|(n, _)| n == name) {
+        match self.0.iter_mut().find(|(n, _)| **n == *name) {
             Some((_, cell)) => *cell = value,
-            None => self.0.push((name.to_string(), value)),
+            None => self.0.push((self::name(name), value)),
         }
     }
 
@@ -78,21 +116,25 @@ impl Row {
     }
 
     pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
-        self.0.iter().map(|(n, v)| (n.as_str(), v))
+        self.0.iter().map(|(n, v)| (&**n, v))
+    }
+
+    fn named_cells(&self) -> impl Iterator<Item = (&Name, &Value)> {
+        self.0.iter().map(|(n, v)| (n, v))
     }
 
     /// Sets a cell, or one cell per field of an object, named `name.field` (recursively).
-    pub fn set_flattened(&mut self, name: &str, value: &Value) {
+    pub fn set_flattened(&mut self, name: &str, value: Value) {
         // The flattened names differ from each other, so each is looked for only among the
         // cells the row had before: a record's hundred columns cost a hundred short lookups,
         // not five thousand long ones.
         let before = self.0.len();
         columns::flatten(name, value, &mut |name, value| match self.0[..before]
             .iter_mut()
-            .find(|(n, _)| *n == name)
+            .find(|(n, _)| **n == *name)
         {
-            Some((_, cell)) => *cell = value.clone(),
-            None => self.0.push((name, value.clone())),
+            Some((_, cell)) => *cell = value,
+            None => self.0.push((self::name(name), value)),
         });
     }
 }
@@ -149,17 +191,27 @@ pub fn column<'a>(rows: &'a [Row], name: &str) -> Vec<&'a Value> {
 /// a cell a row lacks being null.
 pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
     // Each row's cells dealt into their columns in one pass (a row's names are distinct).
+    // Rows mostly have the columns of the row before, in its order: a cell's column is looked
+    // up by name only where it is not the one the row before had in its place.
     static NULL: Value = Value::Null;
     let mut index: HashMap<&str, usize> = HashMap::new();
-    let mut names: Vec<&str> = Vec::new();
+    let mut names: Vec<&Name> = Vec::new();
     let mut columns: Vec<Vec<&Value>> = Vec::new();
+    let mut before: Vec<usize> = Vec::new();
     for (r, row) in rows.iter().enumerate() {
-        for (name, value) in row.cells() {
-            let k = *index.entry(name).or_insert_with(|| {
-                names.push(name);
-                columns.push(vec![&NULL; r]);
-                names.len() - 1
-            });
+        for (place, (name, value)) in row.named_cells().enumerate() {
+            let k = match before.get(place) {
+                Some(&k) if names[k] == name => k,
+                _ => *index.entry(name).or_insert_with(|| {
+                    names.push(name);
+                    columns.push(vec![&NULL; r]);
+                    names.len() - 1
+                }),
+            };
+            match before.get_mut(place) {
+                Some(slot) => *slot = k,
+                None => before.push(k),
+            }
             columns[k].push(value);
         }
         for column in columns.iter_mut().filter(|c| c.len() == r) {
@@ -167,10 +219,10 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
         }
     }
     let columns = names
-        .iter()
+        .into_par_iter()
         .zip(columns)
-        .map(|(&name, cells)| {
-            let name = PlSmallStr::from(name);
+        .map(|(name, cells)| {
+            let name = PlSmallStr::from(&**name);
             match column_type(cells.iter().copied()) {
                 ColumnType::Boolean => {
                     Column::new(name, cells.iter().map(|v| v.as_bool()).collect::<Vec<_>>())
@@ -192,7 +244,9 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
                     Column::new(name, lists)
                 }
                 ColumnType::Text => {
-                    Column::new(name, cells.iter().map(|v| text_of(v)).collect::<Vec<_>>())
+                    let texts: Vec<Option<Cow<str>>> = cells.iter().map(|v| text_of(v)).collect();
+                    let texts: Vec<Option<&str>> = texts.iter().map(Option::as_deref).collect();
+                    Column::new(name, texts)
                 }
             }
         })
@@ -200,11 +254,12 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
     DataFrame::new(rows.len(), columns)
 }
 
-fn text_of(value: &Value) -> Option<String> {
+/// A cell of a text column: a string as it is, anything else as its JSON.
+fn text_of(value: &Value) -> Option<Cow<'_, str>> {
     match value {
         Value::Null => None,
-        Value::String(s) => Some(s.clone()),
-        other => Some(other.to_string()),
+        Value::String(s) => Some(Cow::Borrowed(s)),
+        other => Some(Cow::Owned(other.to_string())),
     }
 }
 
@@ -225,43 +280,61 @@ pub fn write_parquet(tables: &[(&Path, &[Row])]) -> Result<(), Fault> {
     write_parquet_about(tables, &About::default())
 }
 
-/// Writes tables as Parquet, all or none: each goes to a temporary file (named for this
-/// process) that is synced, and only once all are written are they renamed into place.
+/// Writes tables as Parquet, all or none (see `Staged`).
 /// Every failure is the file system's (`Fault::Io`): the rows are whatever the records held.
 pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<(), Fault> {
-    let mut written = Vec::new();
-    let mut outcome = Ok(());
+    let mut staged = Staged::new(about);
     for (path, rows) in tables {
+        staged.stage(path, rows)?;
+    }
+    staged.commit()
+}
+
+/// Tables written all or none: each is staged in a temporary file (named for this process)
+/// that is synced, and only `commit` renames them into place, so that a writer may let go of
+/// one table's rows before it makes the next's. Dropped uncommitted, the staged files go.
+pub struct Staged<'a> {
+    about: &'a About<'a>,
+    /// Each staged file and the table it becomes.
+    written: Vec<(std::path::PathBuf, std::path::PathBuf)>,
+}
+
+impl<'a> Staged<'a> {
+    pub fn new(about: &'a About<'a>) -> Staged<'a> {
+        Staged {
+            about,
+            written: Vec::new(),
+        }
+    }
+
+    /// Writes the table `path` of `rows` to its temporary file.
+    pub fn stage(&mut self, path: &Path, rows: &[Row]) -> Result<(), Fault> {
         let partial = crate::store::fs::partial_path(path);
-        written.push((partial.clone(), path.to_path_buf()));
-        if let Err(e) = write_one(&partial, rows, about) {
-            outcome = Err(Fault::Io(format!("cannot write {}: {e}", path.display())));
-            break;
+        self.written.push((partial.clone(), path.to_path_buf()));
+        write_one(&partial, rows, self.about)
+            .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))
+    }
+
+    /// Puts every staged table in place: each table's sum, then the table. A reader (under the
+    /// outputs lock, as every reader of the tables is) sees both of one collect; a writer killed
+    /// between them leaves a table its sum refuses, which the next collect rebuilds.
+    pub fn commit(self) -> Result<(), Fault> {
+        for (partial, path) in &self.written {
+            let sum = sum_text(partial, path)?;
+            crate::store::write_atomically(&sum_path(path), sum.as_bytes())?;
+            std::fs::rename(partial, path)
+                .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged<'_> {
+    fn drop(&mut self) {
+        for (partial, _) in &self.written {
+            let _ = std::fs::remove_file(partial);
         }
     }
-    // Each table's sum, then the table: a reader (under the outputs lock, as every reader of
-    // the tables is) sees both of one collect; a writer killed between them leaves a table its
-    // sum refuses, which the next collect rebuilds.
-    for (partial, path) in &written {
-        if outcome.is_err() {
-            break;
-        }
-        outcome = sum_text(partial, path)
-            .and_then(|sum| {
-                Ok(crate::store::write_atomically(
-                    &sum_path(path),
-                    sum.as_bytes(),
-                )?)
-            })
-            .and_then(|_| {
-                std::fs::rename(partial, path)
-                    .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))
-            });
-    }
-    for (partial, _) in &written {
-        let _ = std::fs::remove_file(partial);
-    }
-    outcome
 }
 
 /// A column's unit, from its name: the measured times `*_s` (and their statistics `*_s_median`,

@@ -481,3 +481,51 @@ fn compaction_drops_superseded_records_and_leaves_a_writers_segment_alone() {
     after.compact(&forget).unwrap();
     assert_eq!(Store::open(dir.path(), "s").records().len(), 2);
 }
+
+/// The store reads records through `Stored::from_value` (fast); serde's derive is the
+/// definition: both read every record alike, and refuse the same ones.
+#[test]
+fn a_record_reads_the_same_through_from_value_as_through_serde() {
+    let without_optionals = {
+        let mut r = record_json(json!({}));
+        for optional in ["case_id", "repeat", "run_id", "attempt"] {
+            r.as_object_mut().unwrap().remove(optional);
+        }
+        r
+    };
+    let readable = [
+        record_json(json!({})),
+        record_json(json!({"run_id": "r", "attempt": 2, "repeat": 3, "extra": 1})),
+        record_json(json!({"status": "diverged", "diverged_step": 4})),
+        json!({"key": "k", "solver_version": "v", "status": "failed", "case": {"n": 1},
+               "message": "refused"}),
+        json!({"key": "k", "solver_version": "v", "status": "failed"}),
+        without_optionals,
+    ];
+    for value in readable {
+        let derived: Stored = serde_json::from_value(value.clone()).unwrap();
+        assert_eq!(Stored::from_value(value.clone()), Ok(derived), "{value}");
+    }
+    let unreadable = [
+        json!([1]),
+        json!({"solver_version": "v", "status": "failed"}),
+        json!({"key": "k", "solver_version": "v", "status": "unknown"}),
+        json!({"key": "k", "solver_version": "v", "status": "failed", "repeat": "x"}),
+        record_json(json!({"solve_s": "fast"})),
+        {
+            let mut r = record_json(json!({}));
+            r.as_object_mut().unwrap().remove("steps");
+            r
+        },
+    ];
+    for value in unreadable {
+        assert!(
+            serde_json::from_value::<Stored>(value.clone()).is_err(),
+            "{value}"
+        );
+        let refused = Stored::from_value(value.clone()).unwrap_err();
+        assert!(!refused.is_empty(), "{value}");
+    }
+    let named = Stored::from_value(record_json(json!({"solve_s": "fast"}))).unwrap_err();
+    assert!(named.contains("`solve_s`"), "{named}");
+}

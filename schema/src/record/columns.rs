@@ -119,25 +119,34 @@ pub fn is_column(name: &str) -> bool {
 /// The names the tables give `record`'s fields, flattened (`group.field`), in its order.
 pub fn flattened_names(record: &Value) -> Vec<String> {
     let mut names = Vec::new();
-    flatten("", record, &mut |name, _| names.push(name));
+    flatten("", record.clone(), &mut |name, _| {
+        names.push(name.to_string())
+    });
     names
 }
 
 /// Each leaf of `value` with its column's name, `prefix.group.field` (`prefix` alone for a leaf,
-/// none for an empty object): how a table holds a record.
-pub fn flatten<'a>(prefix: &str, value: &'a Value, each: &mut impl FnMut(String, &'a Value)) {
-    match value {
-        Value::Object(fields) => {
-            for (name, inner) in fields {
-                let name = match prefix {
-                    "" => name.clone(),
-                    _ => format!("{prefix}.{name}"),
-                };
-                flatten(&name, inner, each);
+/// none for an empty object): how a table holds a record. It takes the value apart and spells
+/// the names in one buffer, so that nothing is copied (a collect flattens every record of a
+/// study).
+pub fn flatten(prefix: &str, value: Value, each: &mut impl FnMut(&str, Value)) {
+    fn under(name: &mut String, value: Value, each: &mut impl FnMut(&str, Value)) {
+        match value {
+            Value::Object(fields) => {
+                for (field, inner) in fields {
+                    let length = name.len();
+                    if length > 0 {
+                        name.push('.');
+                    }
+                    name.push_str(&field);
+                    under(name, inner, each);
+                    name.truncate(length);
+                }
             }
+            _ => each(name, value),
         }
-        _ => each(prefix.to_string(), value),
     }
+    under(&mut prefix.to_string(), value, each)
 }
 
 /// The object a table's cells were flattened from (`flatten`'s inverse): `case.n` back under
@@ -366,8 +375,8 @@ mod tests {
     fn unflatten_undoes_flatten() {
         let value = every_field().to_value();
         let mut cells = Vec::new();
-        flatten("", &value, &mut |name, value| {
-            cells.push((name, value.clone()))
+        flatten("", value.clone(), &mut |name, value| {
+            cells.push((name.to_string(), value))
         });
         assert!(cells.iter().any(|(name, _)| name == "feti_phases.coarse_s"));
         cells.push(("never_recorded".into(), Value::Null));

@@ -4,7 +4,7 @@ use serde_json::json;
 fn row(value: Value) -> Row {
     let mut row = Row::default();
     for (name, value) in value.as_object().unwrap() {
-        row.set_flattened(name, value);
+        row.set_flattened(name, value.clone());
     }
     row
 }
