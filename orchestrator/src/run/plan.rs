@@ -176,19 +176,19 @@ pub fn plan_points(
             _ if !first => Decision::Duplicate,
             _ if options.force => Decision::Run(Reason::Forced),
             None => match index.version_by_case.get(case_id.as_str()) {
-                Some(from) if *from != solver.version => {
-                    Decision::Run(Reason::SolverChanged { from: from.clone() })
-                }
+                Some(from) if **from != *solver.version => Decision::Run(Reason::SolverChanged {
+                    from: from.to_string(),
+                }),
                 _ => Decision::Run(Reason::Missing),
             },
             Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
             Some(status) => match (&solver.fingerprint, stored.map(|s| &s.fingerprint)) {
-                (Some(now), Some(then)) if now != then && *status != Status::Failed => {
+                (Some(now), Some(then)) if **now != **then && *status != Status::Failed => {
                     let (from, to) = (short(then), short(now));
                     match options.keep_stale {
                         true => Decision::Skip(format!("{status}, stale but kept: {from} → {to}")),
                         false => Decision::Run(Reason::Stale {
-                            from: then.clone(),
+                            from: then.to_string(),
                             to: now.clone(),
                         }),
                     }

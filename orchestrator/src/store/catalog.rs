@@ -10,6 +10,7 @@
 use super::fs::modified_ns;
 use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
+use super::{shared, Shared};
 use rayon::prelude::*;
 use schema::record::Status;
 use serde::{Deserialize, Serialize};
@@ -23,25 +24,25 @@ pub const FILE: &str = "catalog";
 const FORMAT: u32 = 2;
 
 /// Where a record lies.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Location {
     /// A frame of a segment (its name).
-    Segment { name: String, span: Range<u64> },
+    Segment { name: Shared, span: Range<u64> },
     /// A file of the old store, `runs/<key>.json`.
     File(PathBuf),
 }
 
 /// What the catalog keeps of one whole record.
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug)]
 pub struct Entry {
     pub at: Location,
     pub seq: u64,
     pub status: Status,
     /// The fingerprint of the solver that made it ("" when it does not say).
-    pub fingerprint: String,
+    pub fingerprint: Shared,
     pub wall_s: Option<f64>,
     pub case_id: Option<String>,
-    pub solver_version: String,
+    pub solver_version: Shared,
     pub noisy: bool,
     /// The first line of a failed record's message.
     pub failure: Option<String>,
@@ -56,7 +57,7 @@ impl Entry {
             fingerprint: indexed.stored.fingerprint,
             wall_s: indexed.stored.wall_s,
             case_id: indexed.case_id,
-            solver_version: indexed.solver_version.unwrap_or_default(),
+            solver_version: shared(indexed.solver_version.as_deref().unwrap_or_default()),
             noisy: indexed.noisy,
             failure: indexed.failure,
         };
@@ -197,7 +198,7 @@ impl Catalog {
                 }
             };
             let at = Location::Segment {
-                name: name.to_string(),
+                name: shared(name),
                 span: frame.span.clone(),
             };
             let (key, entry) = Entry::of(indexed, at, frame.seq);
@@ -218,7 +219,7 @@ impl Catalog {
 
     fn count_superseded(&mut self, old: &Entry) {
         if let Location::Segment { name, .. } = &old.at {
-            if let Some(state) = self.segments.get_mut(name) {
+            if let Some(state) = self.segments.get_mut(&**name) {
                 state.superseded += old.bytes();
             }
         }
@@ -237,7 +238,7 @@ impl Catalog {
             state.end = frame.span.end;
         }
         let at = Location::Segment {
-            name: name.to_string(),
+            name: shared(name),
             span: frame.span.clone(),
         };
         let (key, entry) = Entry::of(indexed, at, frame.seq);
@@ -416,7 +417,7 @@ impl Persisted {
                 };
                 Some(PersistedEntry(
                     key.clone(),
-                    *names.get(name.as_str())?,
+                    *names.get(&**name)?,
                     span.start,
                     span.end,
                     e.seq,
@@ -441,20 +442,22 @@ impl Persisted {
 
     /// The catalog, `None` when an index points nowhere.
     fn into_catalog(self) -> Option<Catalog> {
-        let names: Vec<&String> = self.segments.keys().collect();
+        let names: Vec<Shared> = self.segments.keys().map(|n| shared(n)).collect();
+        let fingerprints: Vec<Shared> = self.fingerprints.iter().map(|f| shared(f)).collect();
+        let versions: Vec<Shared> = self.versions.iter().map(|v| shared(v)).collect();
         let mut entries = HashMap::with_capacity(self.entries.len());
         for e in self.entries {
             let entry = Entry {
                 at: Location::Segment {
-                    name: (*names.get(e.1)?).clone(),
+                    name: names.get(e.1)?.clone(),
                     span: e.2..e.3,
                 },
                 seq: e.4,
                 status: e.5,
-                fingerprint: self.fingerprints.get(e.6)?.clone(),
+                fingerprint: fingerprints.get(e.6)?.clone(),
                 wall_s: e.7,
                 case_id: e.8,
-                solver_version: self.versions.get(e.9)?.clone(),
+                solver_version: versions.get(e.9)?.clone(),
                 noisy: e.10,
                 failure: e.11,
             };

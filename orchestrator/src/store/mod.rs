@@ -34,7 +34,32 @@ pub use fs::{write_atomically, Fault, FileError};
 pub use record::{case_id_and_key, fingerprint_of, hex, Id, Recorded, Unreadable};
 use record::{check_identity, listing, read_indexed, read_record, read_superseded, Indexed};
 use segment::Appender;
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+
+/// A text many values repeat (a column's name, a solver's fingerprint or version, a segment's
+/// name), made once and shared: at 10⁶ records a copy each is millions of allocations.
+pub type Shared = Arc<str>;
+
+/// How many distinct texts a thread keeps for sharing: more than a table has columns or a
+/// store has builds and segments.
+const SHARED_KEPT: usize = 4096;
+
+/// `text` as a `Shared`: the one this thread made before, if any.
+pub fn shared(text: &str) -> Shared {
+    thread_local! {
+        static KEPT: std::cell::RefCell<std::collections::HashSet<Shared>> = Default::default();
+    }
+    KEPT.with_borrow_mut(|kept| match kept.get(text) {
+        Some(shared) => shared.clone(),
+        None => {
+            let shared: Shared = text.into();
+            if kept.len() < SHARED_KEPT {
+                kept.insert(shared.clone());
+            }
+            shared
+        }
+    })
+}
 
 pub struct Store {
     pub study: String,
@@ -234,13 +259,13 @@ impl Store {
             let Location::Segment { name, span } = &entry.at else {
                 continue;
             };
-            if !held.contains_key(name) {
+            if !held.contains_key(&**name) {
                 continue;
             }
             if forget.contains(key) {
                 dropped += entry.bytes();
             } else {
-                kept.entry(name.clone())
+                kept.entry(name.to_string())
                     .or_default()
                     .push((key.clone(), span.clone()));
             }
@@ -302,7 +327,7 @@ impl Store {
         for (key, k, span) in moved {
             if let Some(entry) = catalog.entries.get_mut(&key) {
                 entry.at = Location::Segment {
-                    name: written[k].name.clone(),
+                    name: shared(&written[k].name),
                     span,
                 };
             }
@@ -405,7 +430,8 @@ impl Store {
         };
         let text = match &at {
             Location::Segment { name, span } => {
-                String::from_utf8(segment::read_frame(&self.segments().join(name), span)?).ok()?
+                String::from_utf8(segment::read_frame(&self.segments().join(&**name), span)?)
+                    .ok()?
             }
             Location::File(path) => read_regular(path, RECORD_CAP).ok()?,
         };
@@ -526,7 +552,7 @@ impl Store {
             for (key, entry) in catalog.latest() {
                 match &entry.at {
                     Location::Segment { name, span } => by_segment
-                        .entry(name.clone())
+                        .entry(name.to_string())
                         .or_default()
                         .push((key.to_string(), span.clone())),
                     Location::File(path) => files.push((key.to_string(), path.clone())),
@@ -780,7 +806,7 @@ pub const PROGRESS: &str = "progress";
 /// The segment `entry` lies in (`None`: a file of the old store).
 fn located(entry: &catalog::Entry) -> Option<&str> {
     match &entry.at {
-        Location::Segment { name, .. } => Some(name.as_str()),
+        Location::Segment { name, .. } => Some(&**name),
         Location::File(_) => None,
     }
 }
@@ -819,7 +845,7 @@ impl<T> Scan<T> {
 pub struct Index {
     /// What each whole record says, by key.
     pub stored: HashMap<String, Recorded>,
-    pub version_by_case: HashMap<String, String>,
+    pub version_by_case: HashMap<String, Shared>,
     pub unreadable: Vec<Unreadable>,
     /// Failed records, by key in name order, with the first line of their message.
     pub failed: Vec<(String, String)>,

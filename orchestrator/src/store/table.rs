@@ -11,6 +11,7 @@
 //! read unchecked, under the footer check and `catch_unwind`, which catch most corruption.
 
 use crate::store::fs::Fault;
+use crate::store::{shared, Shared};
 use polars::prelude::*;
 use rayon::prelude::*;
 use schema::record::columns;
@@ -18,35 +19,13 @@ use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
 use std::borrow::Cow;
-use std::cell::RefCell;
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::path::Path;
-use std::sync::Arc;
 
 /// A column's name as rows hold it, shared by every row that has the column: a study's rows
 /// repeat the same hundred names, so each is made once, not once per cell (half of what a
 /// collect of 10⁵ runs allocated).
-pub type Name = Arc<str>;
-
-/// How many distinct names a thread keeps for sharing: more than any table has columns.
-const NAMES_KEPT: usize = 4096;
-
-/// `text` as a `Name`: the one this thread made before, if any.
-pub fn name(text: &str) -> Name {
-    thread_local! {
-        static NAMES: RefCell<HashSet<Name>> = RefCell::new(HashSet::new());
-    }
-    NAMES.with_borrow_mut(|names| match names.get(text) {
-        Some(name) => name.clone(),
-        None => {
-            let name: Name = text.into();
-            if names.len() < NAMES_KEPT {
-                names.insert(name.clone());
-            }
-            name
-        }
-    })
-}
+pub type Name = Shared;
 
 /// A table row: named cells in column order.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -101,7 +80,7 @@ impl Row {
     pub fn set(&mut self, name: &str, value: Value) {
         match self.0.iter_mut().find(|(n, _)| **n == *name) {
             Some((_, cell)) => *cell = value,
-            None => self.0.push((self::name(name), value)),
+            None => self.0.push((shared(name), value)),
         }
     }
 
@@ -134,7 +113,7 @@ impl Row {
             .find(|(n, _)| **n == *name)
         {
             Some((_, cell)) => *cell = value,
-            None => self.0.push((self::name(name), value)),
+            None => self.0.push((shared(name), value)),
         });
     }
 }

@@ -305,11 +305,11 @@ fn the_index_reads_what_the_typed_record_says() {
     let recorded = &index.stored[&whole.key];
     let record = whole.record().unwrap();
     assert_eq!(recorded.status, whole.status());
-    assert_eq!(recorded.fingerprint, fingerprint_of(&whole));
+    assert_eq!(&*recorded.fingerprint, fingerprint_of(&whole));
     assert_eq!(recorded.wall_s, Some(record.setup_s + record.solve_s));
     assert_eq!(index.noisy, 1);
     let case_id = whole.case_id.as_deref().unwrap();
-    assert_eq!(index.version_by_case[case_id], whole.solver_version);
+    assert_eq!(&*index.version_by_case[case_id], whole.solver_version);
     assert_eq!(index.stored[&failed.key].status, Status::Failed);
     assert_eq!(index.failed, [(failed.key.clone(), "refused".to_string())]);
     assert_eq!(store.records().len(), 2);
