@@ -28,13 +28,14 @@ pub enum Reason {
     Missing,
     FailedBefore,
     Forced,
+    /// (The versions and fingerprints are shared: at 10⁶ points a copy each was 10⁶ allocations.)
     SolverChanged {
-        from: String,
+        from: store::Shared,
     },
     /// Stored by a solver of another fingerprint.
     Stale {
-        from: String,
-        to: String,
+        from: store::Shared,
+        to: store::Shared,
     },
 }
 
@@ -156,6 +157,7 @@ pub fn plan_points(
         .map_err(|e| e.within("solver"))?;
     // Keys seen so far, as their 128 bits.
     let mut seen = HashSet::with_capacity(planned.len());
+    let fingerprint = solver.fingerprint.as_deref().map(store::shared);
     for (p, case) in planned.iter_mut().zip(cases) {
         // A refused case is keyed by its fields as written.
         let written;
@@ -176,19 +178,19 @@ pub fn plan_points(
             _ if !first => Decision::Duplicate,
             _ if options.force => Decision::Run(Reason::Forced),
             None => match index.version_by_case.get(case_id.as_str()) {
-                Some(from) if **from != *solver.version => Decision::Run(Reason::SolverChanged {
-                    from: from.to_string(),
-                }),
+                Some(from) if **from != *solver.version => {
+                    Decision::Run(Reason::SolverChanged { from: from.clone() })
+                }
                 _ => Decision::Run(Reason::Missing),
             },
             Some(Status::Failed) if options.rerun_failed => Decision::Run(Reason::FailedBefore),
-            Some(status) => match (&solver.fingerprint, stored.map(|s| &s.fingerprint)) {
-                (Some(now), Some(then)) if **now != **then && *status != Status::Failed => {
+            Some(status) => match (&fingerprint, stored.map(|s| &s.fingerprint)) {
+                (Some(now), Some(then)) if now != then && *status != Status::Failed => {
                     let (from, to) = (short(then), short(now));
                     match options.keep_stale {
                         true => Decision::Skip(format!("{status}, stale but kept: {from} → {to}")),
                         false => Decision::Run(Reason::Stale {
-                            from: then.to_string(),
+                            from: then.clone(),
                             to: now.clone(),
                         }),
                     }
