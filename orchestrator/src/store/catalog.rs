@@ -10,7 +10,7 @@
 use super::fs::modified_ns;
 use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
-use super::{shared, Shared};
+use super::shared::{shared, Shared};
 use rayon::prelude::*;
 use schema::record::Status;
 use serde::{Deserialize, Serialize};

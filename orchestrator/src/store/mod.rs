@@ -25,6 +25,7 @@ pub mod fs;
 pub mod owner;
 pub mod record;
 pub mod segment;
+pub mod shared;
 pub mod table;
 pub mod timestamp;
 
@@ -34,32 +35,8 @@ pub use fs::{write_atomically, Fault, FileError};
 pub use record::{case_id_and_key, fingerprint_of, hex, Id, Recorded, Unreadable};
 use record::{check_identity, listing, read_indexed, read_record, read_superseded, Indexed};
 use segment::Appender;
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-
-/// A text many values repeat (a column's name, a solver's fingerprint or version, a segment's
-/// name), made once and shared: at 10⁶ records a copy each is millions of allocations.
-pub type Shared = Arc<str>;
-
-/// How many distinct texts a thread keeps for sharing: more than a table has columns or a
-/// store has builds and segments.
-const SHARED_KEPT: usize = 4096;
-
-/// `text` as a `Shared`: the one this thread made before, if any.
-pub fn shared(text: &str) -> Shared {
-    thread_local! {
-        static KEPT: std::cell::RefCell<std::collections::HashSet<Shared>> = Default::default();
-    }
-    KEPT.with_borrow_mut(|kept| match kept.get(text) {
-        Some(shared) => shared.clone(),
-        None => {
-            let shared: Shared = text.into();
-            if kept.len() < SHARED_KEPT {
-                kept.insert(shared.clone());
-            }
-            shared
-        }
-    })
-}
+pub use shared::{shared, Shared};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 pub struct Store {
     pub study: String,

@@ -169,7 +169,9 @@ pub(crate) fn read_indexed(path: Option<&Path>, text: &str) -> Result<Indexed, S
         key,
         stored: Recorded {
             status,
-            fingerprint: super::shared(checked_fingerprint(fingerprint.and_then(Value::as_str))),
+            fingerprint: super::shared::shared(checked_fingerprint(
+                fingerprint.and_then(Value::as_str),
+            )),
             wall_s: wall_s.filter(|w| w.is_finite() && *w >= 0.0),
         },
         case_id: text(&fields.case_id),
@@ -275,7 +277,7 @@ pub(super) fn record_key(path: &Path) -> Result<String, String> {
 pub struct Recorded {
     pub status: Status,
     /// The fingerprint of the solver that made it ("" when it does not say).
-    pub fingerprint: super::Shared,
+    pub fingerprint: super::shared::Shared,
     /// Its wall time, set-up + solve, in seconds, when it says.
     pub wall_s: Option<f64>,
 }

@@ -11,7 +11,7 @@
 //! read unchecked, under the footer check and `catch_unwind`, which catch most corruption.
 
 use crate::store::fs::Fault;
-use crate::store::{shared, Shared};
+use crate::store::shared::{shared, Shared};
 use polars::prelude::*;
 use rayon::prelude::*;
 use schema::record::columns;
