@@ -5,7 +5,7 @@ use nonlocal_study::{binary, planned_keys, records, stored_keys, text, Scratch};
 use polars::prelude::{DataFrame, DataType, ParquetReader, SerReader};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn small_study(sizes: &[u64]) -> Value {
     json!({
@@ -1721,4 +1721,113 @@ fn a_collect_with_nothing_new_leaves_the_tables_and_a_new_record_remakes_them() 
     let remade = scratch.nlstudy("collect", &[]);
     assert!(!text(&remade).contains("up to date"), "{}", text(&remade));
     assert!(summary.exists());
+}
+
+/// The tables and overview a collect from scratch makes of the records stored now: the tables
+/// and what they were made of are put aside, collected again, and put back.
+fn from_scratch(scratch: &Scratch) -> (Vec<u8>, Vec<u8>, String) {
+    let dir = scratch.dir.join("results/small");
+    let made = dir.join(".collected.json");
+    let kept = std::fs::read(&made).unwrap();
+    std::fs::remove_file(&made).unwrap();
+    let again = scratch.nlstudy("collect", &[]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(!text(&again).contains("read anew"), "{}", text(&again));
+    let read = |name: &str| std::fs::read(dir.join(name)).unwrap();
+    let whole = (
+        read("small.parquet"),
+        read("small-summary.parquet"),
+        overview(&dir),
+    );
+    std::fs::write(&made, kept).unwrap();
+    whole
+}
+
+/// The overview the last collect printed, as it keeps it.
+fn overview(study: &Path) -> String {
+    let made: Value =
+        serde_json::from_slice(&std::fs::read(study.join(".collected.json")).unwrap()).unwrap();
+    made["collected"]["overview"].as_str().unwrap().to_string()
+}
+
+/// A collect after some records changed reads only those (and the runs of the series their
+/// points lie on) and splices them into the tables it made before, which come out byte for
+/// byte as a collect from scratch makes them: grown by new points, with a point rerun, and
+/// shrunk by a point taken out of the study. (`small_study` has refinement and scaling series,
+/// so orders and speedups are derived across the changed points.)
+#[test]
+fn a_collect_after_some_records_changed_splices_them_in_as_from_scratch() {
+    let scratch = Scratch::new("spliced", &small_study(&[16, 32, 48, 64]));
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    let dir = scratch.dir.join("results/small");
+    let check = |collected: &Output, read: usize| {
+        assert!(
+            text(collected).contains(&format!(": {read} runs read anew, the rest kept")),
+            "{}",
+            text(collected)
+        );
+        let spliced = (
+            std::fs::read(dir.join("small.parquet")).unwrap(),
+            std::fs::read(dir.join("small-summary.parquet")).unwrap(),
+            overview(&dir),
+        );
+        let whole = from_scratch(&scratch);
+        assert_eq!(spliced.2, whole.2, "the overview");
+        assert!(spliced.0 == whole.0, "the run table: {}", text(collected));
+        assert!(
+            spliced.1 == whole.1,
+            "the summary table: {}",
+            text(collected)
+        );
+    };
+
+    scratch.write_study(&small_study(&[16, 32, 48, 64, 80]));
+    let grown = scratch.nlstudy("run", &[]);
+    check(&grown, 2);
+
+    let key = records(&scratch.runs("small"))[0]["key"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let rerun = scratch.nlstudy("run", &["--force", "--only", &key]);
+    check(&rerun, 1);
+
+    scratch.write_study(&small_study(&[16, 48, 64, 80]));
+    let shrunk = scratch.nlstudy("collect", &[]);
+    check(&shrunk, 0);
+    let made = dir.join(".collected.json");
+    let said_when_shrunk = std::fs::read(&made).unwrap();
+
+    // The same points in another order: the rows move.
+    scratch.write_study(&small_study(&[80, 64, 48, 16]));
+    check(&scratch.nlstudy("collect", &[]), 0);
+    // A collect killed after it wrote these tables but before it said what they are made of
+    // leaves what the one before said, of the same rows in another order: that neither stands
+    // for these tables nor is spliced into them.
+    std::fs::write(&made, said_when_shrunk).unwrap();
+    scratch.write_study(&small_study(&[16, 48, 64, 80]));
+    let recollected = scratch.nlstudy("collect", &[]);
+    assert!(recollected.status.success(), "{}", text(&recollected));
+    assert!(
+        !text(&recollected).contains("up to date"),
+        "{}",
+        text(&recollected)
+    );
+    assert!(
+        !text(&recollected).contains("read anew"),
+        "{}",
+        text(&recollected)
+    );
+    let tables = std::fs::read(dir.join("small.parquet")).unwrap();
+    assert!(tables == from_scratch(&scratch).0);
+
+    // Runs that fail (more threads than this machine runs) have cells of other types and
+    // columns of their own, and join every scaling series.
+    let mut failing = small_study(&[16, 48, 64, 80]);
+    failing["sweep"][0]["product"]["threads"] = json!([1, 2, 1000]);
+    scratch.write_study(&failing);
+    let failed = scratch.nlstudy("run", &[]);
+    assert!(text(&failed).contains("4 failed"), "{}", text(&failed));
+    check(&failed, 4);
 }

@@ -3,18 +3,20 @@
 //! point; see `summary`). Records of points the study no longer has (removed from the sweep,
 //! or run by another solver version) stay stored but are left out.
 
+use crate::analysis::incremental::{self, Identity};
 use crate::analysis::{pivot, summary};
 use crate::model::study::Study;
 use crate::run::plan::{short, Planned};
 use crate::store::table::{self, Row};
 use crate::store::Fault;
 use crate::store::Store;
+use polars::prelude::{DataFrame, PolarsError};
 use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::{Status, Stored};
 use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(serde::Serialize, serde::Deserialize)]
 pub struct Collected {
@@ -31,61 +33,58 @@ pub struct Collected {
     /// Whether the tables were already made of these records, and stand as they were.
     #[serde(skip)]
     pub up_to_date: bool,
+    /// How many run rows were read from their records, when the tables were spliced (the rest
+    /// kept from the tables as they were); `None` when they were made from scratch.
+    #[serde(skip)]
+    pub spliced: Option<usize>,
 }
 
 /// What the last collect made the tables of and said, beside them: when nothing it read has
-/// changed since, the tables stand (make-style) and a collect costs a plan.
+/// changed since, the tables stand (make-style) and a collect costs a plan; when some records
+/// changed, `rows` lets the next splice them in (`incremental`).
 #[derive(serde::Serialize, serde::Deserialize)]
 struct Made {
     inputs: String,
     collected: Collected,
+    #[serde(default)]
+    rows: Option<incremental::Rows>,
 }
 
 /// The file `Made` is kept in, in the study's results directory.
 const MADE: &str = ".collected.json";
 
-/// A signature of everything the tables are made of: this build of nlstudy, the study's
-/// description, each planned point's key, labels and the sequence number of its stored record
-/// (a rerun, a new record or one gone changes it), the records in all (those left out count),
-/// and `allow_mixed`.
-fn inputs_of(planned: &[Planned], store: &Store, study: &Study, allow_mixed: bool) -> String {
+/// A signature of what the tables depend on besides the records: this build of nlstudy, the
+/// study's description and `allow_mixed`.
+fn header_of(study: &Study, allow_mixed: bool) -> String {
     use sha2::Digest;
     let mut hasher = sha2::Sha256::new();
     if let Ok(meta) = std::env::current_exe().and_then(std::fs::metadata) {
         hasher.update(format!("{} {:?}\n", meta.len(), meta.modified().ok()));
     }
-    hasher.update(format!(
-        "{:?} {allow_mixed} {}\n",
-        study.description,
-        store.count()
-    ));
-    let keys: Vec<&str> = planned.iter().map(|p| p.key.as_str()).collect();
-    for (planned, seq) in planned.iter().zip(store.sequence_numbers(&keys)) {
-        let series = planned.point.series();
-        hasher.update(format!(
-            "{} {seq} {:?} {:?} {:?} {:?}\n",
-            planned.key,
-            planned.point.label_without_repeat(),
-            planned.point.branch,
-            series.refinement,
-            series.scaling
-        ));
+    hasher.update(format!("{:?} {allow_mixed}\n", study.description));
+    crate::store::hex(&hasher.finalize())
+}
+
+/// A signature of everything the tables are made of: the header, each planned point's
+/// identity (key, labels, resolved case) and the sequence number of its stored record (a rerun,
+/// a new record or one gone changes it), and the records in all (those left out count).
+fn inputs_of(header: &str, identities: &[Identity], seqs: &[u64], records: usize) -> String {
+    use sha2::Digest;
+    let mut hasher = sha2::Sha256::new();
+    hasher.update(format!("{header} {records}\n"));
+    for (identity, seq) in identities.iter().zip(seqs) {
+        hasher.update(format!("{} {seq}\n", identity.signature));
     }
     crate::store::hex(&hasher.finalize())
 }
 
-/// The tables as the last collect made them, if nothing they are made of changed since and
-/// they are all there, whole (each matches its sum).
-fn made_already(store: &Store, inputs: &str) -> Option<Collected> {
-    let text =
-        crate::store::fs::read_regular(&store.table(MADE), crate::store::fs::RECORD_CAP).ok()?;
-    let made: Made = serde_json::from_str(&text).ok()?;
-    let there = |path: &PathBuf| table::matches_its_sum(path);
-    (made.inputs == inputs && there(&made.collected.runs) && there(&made.collected.summary))
-        .then_some(Collected {
-            up_to_date: true,
-            ..made.collected
-        })
+/// The most `MADE` may hold: its rows take about 60 bytes a run.
+const MADE_CAP: u64 = 1 << 30;
+
+/// What the last collect said it made, if it said it.
+fn made_before(store: &Store) -> Option<Made> {
+    let text = crate::store::fs::read_regular(&store.table(MADE), MADE_CAP).ok()?;
+    serde_json::from_str(&text).ok()
 }
 
 /// The fields that lead a run's row; the case follows, then the results, then provenance.
@@ -160,7 +159,8 @@ const LABELS: &[(&str, &str)] = &[
 ];
 
 /// Writes the tables, with the study's description in their metadata; `None` when no run of the
-/// study is stored yet.
+/// study is stored yet. Tables made before of records some of which changed since are
+/// spliced (`incremental`), else made from scratch.
 /// With `allow_mixed`, runs of several solver builds, hosts or instruction sets are tabulated
 /// together; without it they are refused (see `mixed_provenance`).
 pub fn collect(
@@ -169,14 +169,116 @@ pub fn collect(
     study: &Study,
     allow_mixed: bool,
 ) -> Result<Option<Collected>, Fault> {
-    let inputs = inputs_of(planned, store, study, allow_mixed);
-    if let Some(collected) = made_already(store, &inputs) {
-        return Ok(Some(collected));
+    let identities = incremental::identities(planned);
+    let keys: Vec<&str> = planned.iter().map(|p| p.key.as_str()).collect();
+    let seqs = store.sequence_numbers(&keys);
+    let header = header_of(study, allow_mixed);
+    let inputs = inputs_of(&header, &identities, &seqs, store.count());
+    if let Some(made) = made_before(store).filter(|made| made.inputs == inputs) {
+        // The tables whole, and the ones it said it made (not those of a collect killed before
+        // it said what it made).
+        let sums = [&made.collected.runs, &made.collected.summary].map(|t| table::sum_if_whole(t));
+        let said = made
+            .rows
+            .as_ref()
+            .map(|rows| rows.sums.iter().cloned().map(Some));
+        if said.is_some_and(|said| said.eq(sums)) {
+            return Ok(Some(Collected {
+                up_to_date: true,
+                ..made.collected
+            }));
+        }
     }
     // Superseded records go, and the segments of finished writers become one.
     if let Err(e) = store.compact(&HashSet::new()) {
         errln!("nlstudy: warning: the store was not compacted: {e}");
     }
+    // From here until the tables and what they are made of are in place, no other collect
+    // writes them (nor reads them, as figures do).
+    let _outputs = store.lock_outputs()?;
+    let prior = made_before(store).and_then(|made| made.rows.filter(|r| r.header == header));
+    let paths = (
+        store.table(&format!("{}.parquet", store.study)),
+        store.table(&format!("{}-summary.parquet", store.study)),
+    );
+    let about = table::About {
+        description: &study.description,
+        notes: LABELS,
+    };
+    let mut staged = table::Staged::new(&about);
+    let make_row = |i: usize, stored: &Stored| run_row(&planned[i], stored);
+    let spliced = prior.and_then(|prior| {
+        let paths = (paths.0.as_path(), paths.1.as_path());
+        incremental::spliced(planned, &identities, &seqs, store, prior, paths, &make_row)
+    });
+    let written = match spliced {
+        Some(mut tables) => {
+            refuse_mixed(&tables.runs, allow_mixed)?;
+            staged.stage_frame(&paths.0, &mut tables.runs)?;
+            staged.stage_frame(&paths.1, &mut tables.summary)?;
+            let planned_keys: HashSet<&str> = keys.iter().copied().collect();
+            Written {
+                rows: tables.rows,
+                summary: tables.summary,
+                spliced: Some(tables.read),
+                left_out: store.count_besides(&planned_keys),
+            }
+        }
+        None => {
+            let identity = (header, identities.as_slice(), seqs.as_slice());
+            match from_scratch(planned, identity, store, &mut staged, &paths, allow_mixed)? {
+                Some(written) => written,
+                None => return Ok(None),
+            }
+        }
+    };
+    let mut written = written;
+    written.rows.sums = staged.commit()?;
+    let swept = crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point));
+    let collected = Collected {
+        runs: paths.0,
+        summary: paths.1,
+        rows: written.rows.runs.len(),
+        points: written.summary.height(),
+        missing: planned.len() - written.rows.runs.len(),
+        left_out: written.left_out,
+        overview: overview_of(&written.summary, &swept),
+        up_to_date: false,
+        spliced: written.spliced,
+    };
+    // Said after the tables are whole; compaction above changed no record's sequence number.
+    let made = Made {
+        inputs,
+        collected,
+        rows: Some(written.rows),
+    };
+    if let Ok(text) = serde_json::to_vec(&made) {
+        crate::store::write_atomically(&store.table(MADE), &text)?;
+    }
+    Ok(Some(made.collected))
+}
+
+/// Both tables staged, and what they are made of.
+struct Written {
+    rows: incremental::Rows,
+    summary: DataFrame,
+    /// How many run rows were read from their records when the tables were spliced.
+    spliced: Option<usize>,
+    /// How many stored records are of no point of the study.
+    left_out: usize,
+}
+
+/// Every stored record of the study's points read into rows, and both tables staged (the run
+/// table's frame written and let go before the summary is made of its rows); `None` when no
+/// point has a record. `identity` is the header, each point's identity and sequence number.
+fn from_scratch(
+    planned: &[Planned],
+    (header, identities, seqs): (String, &[Identity], &[u64]),
+    store: &Store,
+    staged: &mut table::Staged,
+    paths: &(PathBuf, PathBuf),
+    allow_mixed: bool,
+) -> Result<Option<Written>, Fault> {
     fits_in_memory(store.count(), available_memory())?;
     // Each record becomes the rows of the points it is as it is read (on every core), so that
     // the records are never all held: the rows hold all the tables need.
@@ -201,47 +303,43 @@ pub fn collect(
     for (i, row) in scan.records.into_iter().flatten().flatten() {
         in_plan_order[i] = Some(row);
     }
-    let rows: Vec<Row> = in_plan_order.into_iter().flatten().collect();
-    let missing = planned.len() - rows.len();
+    let (points, rows): (Vec<usize>, Vec<Row>) = (in_plan_order.into_iter().enumerate())
+        .filter_map(|(i, row)| Some((i, row?)))
+        .unzip();
     if rows.is_empty() {
         return Ok(None);
     }
-    if let (Some(mixed), false) = (mixed_provenance(&rows), allow_mixed) {
-        return Err(Fault::Input(format!(
-            "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
-        )));
+    fn unwritable(path: &Path) -> impl Fn(PolarsError) -> Fault + '_ {
+        move |e| Fault::Io(format!("cannot write {}: {e}", path.display()))
     }
-    let _outputs = store.lock_outputs()?;
-    let runs = store.table(&format!("{}.parquet", store.study));
-    let summary = store.table(&format!("{}-summary.parquet", store.study));
-    let about = table::About {
-        description: &study.description,
-        notes: LABELS,
-    };
-    // The run table is written before the summary is made of its rows (taking them apart).
-    let mut tables = table::Staged::new(&about);
-    tables.stage(&runs, &rows)?;
-    let run_count = rows.len();
+    let mut runs = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
+    refuse_mixed(&runs, allow_mixed)?;
+    staged.stage_frame(&paths.0, &mut runs)?;
+    drop(runs);
+    let run_shapes = table::shapes(&rows);
+    // The summary takes the run rows apart.
     let summary_rows = summary::summarize(rows);
-    tables.stage(&summary, &summary_rows)?;
-    tables.commit()?;
-    let swept = crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point));
-    let collected = Collected {
-        runs,
+    let summary_shapes = table::shapes(&summary_rows);
+    let mut summary = table::data_frame(&summary_rows).map_err(unwritable(&paths.1))?;
+    drop(summary_rows);
+    staged.stage_frame(&paths.1, &mut summary)?;
+    let shapes = (&run_shapes, &summary_shapes);
+    Ok(Some(Written {
+        rows: incremental::Rows::of(header, identities, seqs, &points, shapes),
         summary,
-        rows: run_count,
-        points: summary_rows.len(),
-        missing,
+        spliced: None,
         left_out,
-        overview: overview(&summary_rows, &swept),
-        up_to_date: false,
-    };
-    // Said after the tables are whole; compaction above changed no record's sequence number.
-    let made = Made { inputs, collected };
-    if let Ok(text) = serde_json::to_vec(&made) {
-        crate::store::write_atomically(&store.table(MADE), &text)?;
+    }))
+}
+
+/// Refuses runs of several builds or machines in one table, unless `allow_mixed`.
+fn refuse_mixed(runs: &DataFrame, allow_mixed: bool) -> Result<(), Fault> {
+    match (mixed_provenance_in(runs), allow_mixed) {
+        (Some(mixed), false) => Err(Fault::Input(format!(
+            "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
+        ))),
+        _ => Ok(()),
     }
-    Ok(Some(made.collected))
 }
 
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would
@@ -317,7 +415,7 @@ fn cgroup_limit() -> Option<u64> {
 }
 
 /// What a timing or an error depends on, as the record's provenance names it.
-const PROVENANCE: &[(&str, &str)] = &[
+const PROVENANCE: [(&str, &str); 3] = [
     ("solver fingerprints", columns::FINGERPRINT),
     ("hosts", columns::HOST),
     ("instruction sets", columns::INSTRUCTION_SET),
@@ -326,14 +424,34 @@ const PROVENANCE: &[(&str, &str)] = &[
 /// Whether the runs that measured something (`ok`, `diverged`) came from more than one solver
 /// build, host or instruction set: the first such mix, said with each value and its run count.
 pub fn mixed_provenance(rows: &[Row]) -> Option<String> {
-    let measured: Vec<&Row> = rows
+    let measured = rows
         .iter()
         .filter(|r| matches!(r.status(), Some(Status::Ok | Status::Diverged)))
-        .collect();
-    PROVENANCE.iter().find_map(|(what, column)| {
+        .map(|row| PROVENANCE.map(|(_, column)| row.text(column)));
+    mixed(measured.collect())
+}
+
+/// `mixed_provenance` of a run table's frame.
+fn mixed_provenance_in(runs: &DataFrame) -> Option<String> {
+    let texts = |name| table::texts(runs, name).unwrap_or_else(|| vec![None; runs.height()]);
+    let status = texts(columns::STATUS);
+    let provenance = PROVENANCE.map(|(_, column)| texts(column));
+    let measured = (0..runs.height())
+        .filter(|&i| {
+            let status = status[i].and_then(Status::parse);
+            matches!(status, Some(Status::Ok | Status::Diverged))
+        })
+        .map(|i| [provenance[0][i], provenance[1][i], provenance[2][i]]);
+    mixed(measured.collect())
+}
+
+/// The first provenance of `PROVENANCE` the measured runs (each its values of them) have more
+/// than one value of.
+fn mixed(measured: Vec<[Option<&str>; 3]>) -> Option<String> {
+    PROVENANCE.iter().enumerate().find_map(|(k, (what, _))| {
         let mut counts: Vec<(&str, usize)> = Vec::new();
-        for row in &measured {
-            let value = row.text(column).unwrap_or("");
+        for run in &measured {
+            let value = run[k].unwrap_or("");
             match counts.iter_mut().find(|(v, _)| *v == value) {
                 Some((_, n)) => *n += 1,
                 None => counts.push((value, 1)),
@@ -395,16 +513,25 @@ pub fn headline(summary: &[Row], swept: &[String]) -> (Vec<String>, Vec<Vec<Stri
 /// How many points the overview shows: a screenful; the summary table holds them all.
 const OVERVIEW_POINTS: usize = 40;
 
-/// The summary at a glance, for the terminal: the headline columns of its first
-/// `OVERVIEW_POINTS` rows, as Markdown, and how many more the table has.
-pub fn overview(summary: &[Row], swept: &[String]) -> String {
-    let shown = &summary[..summary.len().min(OVERVIEW_POINTS)];
+/// `overview` of a summary table's frame: its first rows as the table holds them (a null cell
+/// is no cell).
+fn overview_of(summary: &DataFrame, swept: &[String]) -> String {
+    let head = summary.head(Some(OVERVIEW_POINTS));
+    let shown: Vec<Row> = (table::rows_of(&head).unwrap_or_default().into_iter())
+        .map(|row| row.into_iter().filter(|(_, v)| !v.is_null()).collect())
+        .collect();
+    overview_of_rows(&shown, summary.height(), swept)
+}
+
+/// The summary at a glance, for the terminal: the headline columns of `shown`, its first
+/// `OVERVIEW_POINTS` rows (of `points`), as Markdown, and how many more the table has.
+fn overview_of_rows(shown: &[Row], points: usize, swept: &[String]) -> String {
     let (names, lines) = headline(shown, swept);
     let mut text = pivot::markdown_table(&names, &lines);
-    if summary.len() > shown.len() {
+    if points > shown.len() {
         text += &format!(
             "… and {} more points in the summary table (`nlstudy table` pivots them)\n",
-            summary.len() - shown.len()
+            points - shown.len()
         );
     }
     text
@@ -425,6 +552,14 @@ mod tests {
             message.contains("1000000 stored runs") && message.contains("12.29 GB"),
             "{message}"
         );
+    }
+
+    fn overview(summary: &[Row], swept: &[String]) -> String {
+        overview_of_rows(
+            &summary[..summary.len().min(OVERVIEW_POINTS)],
+            summary.len(),
+            swept,
+        )
     }
 
     /// A summary row of the study: one-digit numbers there, four significant digits here.

@@ -7,6 +7,7 @@ pub mod collect;
 pub mod compare;
 pub mod convergence;
 pub mod figure_columns;
+pub mod incremental;
 pub mod pivot;
 pub mod scaling_model;
 pub mod summary;

@@ -90,6 +90,13 @@ pub fn column_names() -> Vec<String> {
 /// that are one case share its records but keep a row each. The runs' rows are taken apart
 /// into their points' (no cell is copied).
 pub fn summarize(runs: Vec<Row>) -> Vec<Row> {
+    let mut summary = reduce_points(runs);
+    derive(&mut summary);
+    summary
+}
+
+/// `summarize` without what the series derive: each point's repeats reduced to its row.
+pub fn reduce_points(runs: Vec<Row>) -> Vec<Row> {
     let points = groups(&runs, |r| r.text("point").or(r.text(columns::CASE_ID)));
     let mut runs: Vec<Option<Row>> = runs.into_iter().map(Some).collect();
     let points: Vec<Vec<Row>> = points
@@ -100,10 +107,39 @@ pub fn summarize(runs: Vec<Row>) -> Vec<Row> {
         })
         .collect();
     drop(runs);
-    let mut summary: Vec<Row> = points.into_par_iter().map(reduce).collect();
-    derive_scaling(&mut summary);
-    derive_orders(&mut summary);
-    summary
+    points.into_par_iter().map(reduce).collect()
+}
+
+/// What the scaling and refinement series derive, set on each point's reduced row; a point's
+/// derived columns read only the `DERIVED_FROM` columns of the points of its series, in their
+/// order.
+pub fn derive(summary: &mut [Row]) {
+    derive_scaling(summary);
+    derive_orders(summary);
+}
+
+/// The columns of a reduced row that `derive` reads, with whether each is text, a count or
+/// another number.
+pub const DERIVED_FROM: &[(&str, Cell)] = &[
+    ("point", Cell::Text),
+    ("scaling_series", Cell::Text),
+    ("refinement_series", Cell::Text),
+    (columns::STATUS, Cell::Text),
+    ("workers", Cell::Count),
+    ("solve_s_median", Cell::Number),
+    (columns::H, Cell::Number),
+    (ORDERS[0].0, Cell::Number),
+    (ORDERS[1].0, Cell::Number),
+    (ORDERS[2].0, Cell::Number),
+    (ORDERS[3].0, Cell::Number),
+];
+
+/// What a cell `derive` reads holds.
+#[derive(Clone, Copy, PartialEq)]
+pub enum Cell {
+    Text,
+    Count,
+    Number,
 }
 
 /// Indices of the rows with each key, keys in first-seen order; rows without a key are left out.

@@ -134,9 +134,11 @@ pub(super) fn print_tables_written(collected: &crate::analysis::collect::Collect
         collected.rows,
         collected.summary.display(),
         collected.points,
-        match collected.up_to_date {
-            true => ": up to date, no record changed since they were made",
-            false => "",
+        match (collected.up_to_date, collected.spliced) {
+            (true, _) => ": up to date, no record changed since they were made".to_string(),
+            (false, Some(read)) =>
+                format!(": {read} runs read anew, the rest kept from the tables"),
+            (false, None) => String::new(),
         }
     );
     if collected.missing > 0 {

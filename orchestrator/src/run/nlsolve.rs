@@ -48,6 +48,15 @@ impl Checked {
         &self.canonical
     }
 
+    /// What the resolved case adds to the canonical one (or the resolved case whole, where it
+    /// drops a field), as text: with `canonical_text`, all a checked case says.
+    pub fn resolution_text(&self) -> &str {
+        match &self.resolved {
+            Resolved::Adds(adds) => adds,
+            Resolved::Whole(whole) => whole,
+        }
+    }
+
     pub fn canonical(&self) -> Value {
         serde_json::from_str(&self.canonical).expect("nlstudy printed it")
     }

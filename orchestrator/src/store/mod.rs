@@ -398,6 +398,12 @@ impl Store {
         Some(self.stored_text(key, true)?.0)
     }
 
+    /// The stored record of `key` where the catalog last saw it (without looking for what
+    /// others stored since), if whole.
+    pub fn stored_as_read(&self, key: &str) -> Option<Stored> {
+        Some(self.stored_text(key, false)?.0)
+    }
+
     /// The stored record of `key`, its text and where it lies, as the catalog knows it after
     /// reading what the store gained since (`refresh`), or as last read.
     fn stored_text(&self, key: &str, refresh: bool) -> Option<(Stored, String, Location)> {
@@ -674,6 +680,17 @@ impl Store {
         keys.iter()
             .map(|key| catalog.get(key).map_or(0, |e| e.seq))
             .collect()
+    }
+
+    /// How many stored records (the latest of each key) are of none of `keys`.
+    pub fn count_besides(&self, keys: &std::collections::HashSet<&str>) -> usize {
+        let guard = self.catalog(false);
+        let catalog = guard.as_ref().expect("loaded");
+        catalog
+            .latest()
+            .into_keys()
+            .filter(|k| !keys.contains(k))
+            .count()
     }
 
     /// How many records the store holds (the latest of each key), and what it holds that is not

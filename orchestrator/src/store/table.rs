@@ -10,6 +10,9 @@
 //! corrupt length asks for), which no `catch_unwind` can stop. A table copied without its sum is
 //! read unchecked, under the footer check and `catch_unwind`, which catch most corruption.
 
+pub mod shape;
+pub mod splice;
+
 use crate::store::fs::Fault;
 use crate::store::shared::{shared, Shared};
 use polars::prelude::*;
@@ -18,6 +21,7 @@ use schema::record::columns;
 use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
+use shape::{column_type, ColumnType, Schema, Shape};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
@@ -94,6 +98,15 @@ impl Row {
         row
     }
 
+    /// The row's shape: its columns' names in order, each with its cell's type.
+    pub fn shape(&self) -> Shape {
+        let typed = self
+            .0
+            .iter()
+            .map(|(n, v)| (n.clone(), shape::column_type_of(v)));
+        typed.collect()
+    }
+
     pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
         self.0.iter().map(|(n, v)| (&**n, v))
     }
@@ -118,45 +131,20 @@ impl Row {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, PartialOrd)]
-enum ColumnType {
-    Boolean,
-    Integer,
-    Float,
-    /// Arrays of numbers (nulls allowed): `c_tot.time`, a field's values.
-    Floats,
-    Text,
+/// The cells of the text column `name` of `frame`; `None` if it has no text column so named.
+pub fn texts<'a>(frame: &'a DataFrame, name: &str) -> Option<Vec<Option<&'a str>>> {
+    let column = frame.column(name).ok()?;
+    (column.dtype() == &DataType::String).then_some(())?;
+    Some(column.as_materialized_series().str().ok()?.iter().collect())
 }
 
-fn column_type_of(value: &Value) -> Option<ColumnType> {
-    match value {
-        Value::Null => None,
-        Value::Bool(_) => Some(ColumnType::Boolean),
-        Value::Number(n) if n.is_i64() => Some(ColumnType::Integer),
-        Value::Number(_) => Some(ColumnType::Float),
-        Value::Array(items) if items.iter().all(|v| v.is_number() || v.is_null()) => {
-            Some(ColumnType::Floats)
-        }
-        _ => Some(ColumnType::Text),
+/// The shapes of `rows`, in order.
+pub fn shapes(rows: &[Row]) -> shape::Shapes {
+    let mut shapes = shape::Shapes::default();
+    for row in rows {
+        shapes.push_cells(row.0.iter().map(|(n, v)| (n, shape::column_type_of(v))));
     }
-}
-
-/// The narrowest type holding every cell: integers widen to floats, anything else mixed to text.
-/// A column of nulls only is a float column.
-fn column_type<'a>(cells: impl Iterator<Item = &'a Value>) -> ColumnType {
-    cells
-        .filter_map(column_type_of)
-        .fold(None, |acc, kind| match acc {
-            None => Some(kind),
-            Some(k) if k == kind => Some(k),
-            Some(ColumnType::Integer | ColumnType::Float)
-                if matches!(kind, ColumnType::Integer | ColumnType::Float) =>
-            {
-                Some(ColumnType::Float)
-            }
-            Some(_) => Some(ColumnType::Text),
-        })
-        .unwrap_or(ColumnType::Float)
+    shapes
 }
 
 /// The cells of column `name`, one per row, null where a row lacks it.
@@ -169,7 +157,53 @@ pub fn column<'a>(rows: &'a [Row], name: &str) -> Vec<&'a Value> {
 /// The rows as a data frame; its columns are the union of the rows' cells in first-seen order,
 /// a cell a row lacks being null.
 pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
-    // Each row's cells dealt into their columns in one pass (a row's names are distinct).
+    let (names, columns) = deal(rows);
+    let columns = names
+        .into_par_iter()
+        .zip(columns)
+        .map(|(name, cells)| {
+            let kind = column_type(cells.iter().copied());
+            typed_column(name, &cells, kind)
+        })
+        .collect();
+    DataFrame::new(rows.len(), columns)
+}
+
+/// The rows as a data frame of the columns `schema` names, of its types (a column no row has
+/// is all null); `None` if a row has a column `schema` lacks or a cell its type cannot hold.
+pub fn data_frame_as(rows: &[Row], schema: &Schema) -> Option<DataFrame> {
+    let (names, mut cells) = deal(rows);
+    let mut at: HashMap<&str, usize> = names.iter().enumerate().map(|(k, n)| (&***n, k)).collect();
+    static NULL: Value = Value::Null;
+    let nulls = vec![&NULL; rows.len()];
+    let columns: Vec<(&Name, Vec<&Value>, ColumnType)> = schema
+        .iter()
+        .map(|(name, kind)| {
+            let column = at.remove(&**name).map(|k| std::mem::take(&mut cells[k]));
+            (name, column.unwrap_or_else(|| nulls.clone()), *kind)
+        })
+        .collect();
+    let fits = |cells: &[&Value], kind| {
+        cells
+            .iter()
+            .copied()
+            .map(shape::column_type_of)
+            .fold(Some(kind), shape::join)
+            == Some(kind)
+    };
+    if !at.is_empty() || !columns.iter().all(|(_, cells, kind)| fits(cells, *kind)) {
+        return None;
+    }
+    let columns = columns
+        .into_par_iter()
+        .map(|(name, cells, kind)| typed_column(name, &cells, kind))
+        .collect();
+    DataFrame::new(rows.len(), columns).ok()
+}
+
+/// The rows' cells dealt into their columns in one pass (a row's names are distinct): the
+/// columns' names in first-seen order, and each column's cells, null where a row lacks it.
+fn deal(rows: &[Row]) -> (Vec<&Name>, Vec<Vec<&Value>>) {
     // Rows mostly have the columns of the row before, in its order: a cell's column is looked
     // up by name only where it is not the one the row before had in its place.
     static NULL: Value = Value::Null;
@@ -197,40 +231,38 @@ pub fn data_frame(rows: &[Row]) -> PolarsResult<DataFrame> {
             column.push(&NULL);
         }
     }
-    let columns = names
-        .into_par_iter()
-        .zip(columns)
-        .map(|(name, cells)| {
-            let name = PlSmallStr::from(&**name);
-            match column_type(cells.iter().copied()) {
-                ColumnType::Boolean => {
-                    Column::new(name, cells.iter().map(|v| v.as_bool()).collect::<Vec<_>>())
-                }
-                ColumnType::Integer => {
-                    Column::new(name, cells.iter().map(|v| v.as_i64()).collect::<Vec<_>>())
-                }
-                ColumnType::Float => {
-                    Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
-                }
-                ColumnType::Floats => {
-                    let lists: Vec<Option<Series>> = cells
-                        .iter()
-                        .map(|v| {
-                            let items = v.as_array()?.iter().map(Value::as_f64);
-                            Some(Series::new(PlSmallStr::EMPTY, items.collect::<Vec<_>>()))
-                        })
-                        .collect();
-                    Column::new(name, lists)
-                }
-                ColumnType::Text => {
-                    let texts: Vec<Option<Cow<str>>> = cells.iter().map(|v| text_of(v)).collect();
-                    let texts: Vec<Option<&str>> = texts.iter().map(Option::as_deref).collect();
-                    Column::new(name, texts)
-                }
-            }
-        })
-        .collect();
-    DataFrame::new(rows.len(), columns)
+    (names, columns)
+}
+
+/// The column `name` of `cells`, of type `kind` (which holds every cell).
+fn typed_column(name: &Name, cells: &[&Value], kind: ColumnType) -> Column {
+    let name = PlSmallStr::from(&**name);
+    match kind {
+        ColumnType::Boolean => {
+            Column::new(name, cells.iter().map(|v| v.as_bool()).collect::<Vec<_>>())
+        }
+        ColumnType::Integer => {
+            Column::new(name, cells.iter().map(|v| v.as_i64()).collect::<Vec<_>>())
+        }
+        ColumnType::Float => {
+            Column::new(name, cells.iter().map(|v| v.as_f64()).collect::<Vec<_>>())
+        }
+        ColumnType::Floats => {
+            let lists: Vec<Option<Series>> = cells
+                .iter()
+                .map(|v| {
+                    let items = v.as_array()?.iter().map(Value::as_f64);
+                    Some(Series::new(PlSmallStr::EMPTY, items.collect::<Vec<_>>()))
+                })
+                .collect();
+            Column::new(name, lists)
+        }
+        ColumnType::Text => {
+            let texts: Vec<Option<Cow<str>>> = cells.iter().map(|v| text_of(v)).collect();
+            let texts: Vec<Option<&str>> = texts.iter().map(Option::as_deref).collect();
+            Column::new(name, texts)
+        }
+    }
 }
 
 /// A cell of a text column: a string as it is, anything else as its JSON.
@@ -266,7 +298,7 @@ pub fn write_parquet_about(tables: &[(&Path, &[Row])], about: &About) -> Result<
     for (path, rows) in tables {
         staged.stage(path, rows)?;
     }
-    staged.commit()
+    staged.commit().map(drop)
 }
 
 /// Tables written all or none: each is staged in a temporary file (named for this process)
@@ -288,23 +320,33 @@ impl<'a> Staged<'a> {
 
     /// Writes the table `path` of `rows` to its temporary file.
     pub fn stage(&mut self, path: &Path, rows: &[Row]) -> Result<(), Fault> {
+        let mut frame = data_frame(rows)
+            .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+        self.stage_frame(path, &mut frame)
+    }
+
+    /// Writes the table `path` of `frame` to its temporary file.
+    pub fn stage_frame(&mut self, path: &Path, frame: &mut DataFrame) -> Result<(), Fault> {
         let partial = crate::store::fs::partial_path(path);
         self.written.push((partial.clone(), path.to_path_buf()));
-        write_one(&partial, rows, self.about)
+        write_one(&partial, frame, self.about)
             .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))
     }
 
     /// Puts every staged table in place: each table's sum, then the table. A reader (under the
     /// outputs lock, as every reader of the tables is) sees both of one collect; a writer killed
     /// between them leaves a table its sum refuses, which the next collect rebuilds.
-    pub fn commit(self) -> Result<(), Fault> {
+    /// Returns each table's SHA-256, in the order they were staged.
+    pub fn commit(self) -> Result<Vec<String>, Fault> {
+        let mut sums = Vec::new();
         for (partial, path) in &self.written {
             let sum = sum_text(partial, path)?;
             crate::store::write_atomically(&sum_path(path), sum.as_bytes())?;
             std::fs::rename(partial, path)
                 .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+            sums.extend(sum.split_whitespace().next().map(str::to_string));
         }
-        Ok(())
+        Ok(sums)
     }
 }
 
@@ -366,26 +408,39 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, Fault> {
 
 /// `read_parquet`, and the SHA-256 of the bytes it parsed (what a figure's stamp records).
 pub fn read_parquet_hashed(path: &Path) -> Result<(Vec<Row>, String), Fault> {
+    let (frame, sum) = read_frame(path)?;
+    match crate::store::fs::without_panicking(|| rows_of(&frame)) {
+        Ok(Ok(rows)) => Ok((rows, sum)),
+        Ok(Err(e)) | Err(e) => Err(not_whole(path, &e)),
+    }
+}
+
+/// The data frame of a Parquet file as `read_parquet` reads it, and the SHA-256 of its bytes.
+pub fn read_frame(path: &Path) -> Result<(DataFrame, String), Fault> {
     if std::fs::symlink_metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
         return Err(Fault::Input(format!(
             "{} does not exist; `nlstudy collect` writes it from the stored runs",
             path.display()
         )));
     }
-    let corrupt = |why: &dyn std::fmt::Display| {
-        Fault::Io(format!(
-            "{} is not a whole Parquet table ({why}); `nlstudy collect` rebuilds it from the stored runs",
-            path.display()
-        ))
-    };
+    let corrupt = |why: &dyn std::fmt::Display| not_whole(path, why);
     let bytes = read_whole(path).map_err(|e| corrupt(&e))?;
     let sum = crate::store::hex(&sha2::Sha256::digest(&bytes));
     check_sum(path, &sum).map_err(|e| corrupt(&e))?;
     check_frame(&bytes).map_err(|e| corrupt(&e))?;
-    match crate::store::fs::without_panicking(|| rows_of(std::io::Cursor::new(bytes))) {
-        Ok(Ok(rows)) => Ok((rows, sum)),
+    let parse = || ParquetReader::new(std::io::Cursor::new(bytes)).finish();
+    match crate::store::fs::without_panicking(|| parse().map_err(|e| e.to_string())) {
+        Ok(Ok(frame)) => Ok((frame, sum)),
         Ok(Err(e)) | Err(e) => Err(corrupt(&e)),
     }
+}
+
+/// The fault of a table that is not whole.
+fn not_whole(path: &Path, why: &dyn std::fmt::Display) -> Fault {
+    Fault::Io(format!(
+        "{} is not a whole Parquet table ({why}); `nlstudy collect` rebuilds it from the stored runs",
+        path.display()
+    ))
 }
 
 /// The most a table may hold: 8 GiB, beyond any study's (10⁶ runs make about 1 GB), so that a
@@ -408,13 +463,14 @@ fn read_whole(path: &Path) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
-/// Whether the table `path` has its sum beside it and its bytes match it: whole as `collect`
-/// wrote it.
-pub fn matches_its_sum(path: &Path) -> bool {
-    sum_path(path).is_file()
-        && read_whole(path).is_ok_and(|bytes| {
-            check_sum(path, &crate::store::hex(&sha2::Sha256::digest(&bytes))).is_ok()
-        })
+/// The SHA-256 of the table `path`, if it has its sum beside it and its bytes match it: whole
+/// as `collect` wrote it.
+pub fn sum_if_whole(path: &Path) -> Option<String> {
+    if !sum_path(path).is_file() {
+        return None;
+    }
+    let sum = crate::store::hex(&sha2::Sha256::digest(read_whole(path).ok()?));
+    check_sum(path, &sum).ok().map(|()| sum)
 }
 
 /// Where the sum of the table `path` is kept: `<table>.sha256`.
@@ -471,10 +527,8 @@ fn check_frame(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-fn rows_of(bytes: std::io::Cursor<Vec<u8>>) -> Result<Vec<Row>, String> {
-    let frame = ParquetReader::new(bytes)
-        .finish()
-        .map_err(|e| e.to_string())?;
+/// The rows of a data frame as a Parquet file holds them (NaN as null, a list as a JSON array).
+pub fn rows_of(frame: &DataFrame) -> Result<Vec<Row>, String> {
     let mut rows = vec![Row::default(); frame.height()];
     for column in frame.columns() {
         for (i, row) in rows.iter_mut().enumerate() {
@@ -502,13 +556,12 @@ fn json_number(x: Option<f64>) -> Value {
         .map_or(Value::Null, Value::Number)
 }
 
-fn write_one(path: &Path, rows: &[Row], about: &About) -> Result<(), String> {
-    let mut frame = data_frame(rows).map_err(|e| e.to_string())?;
-    let metadata = KeyValueMetadata::from_static(metadata(&frame, about));
+fn write_one(path: &Path, frame: &mut DataFrame, about: &About) -> Result<(), String> {
+    let metadata = KeyValueMetadata::from_static(metadata(frame, about));
     let mut file = crate::store::fs::create_fresh(path).map_err(|e| e.to_string())?;
     ParquetWriter::new(&mut file)
         .with_key_value_metadata(Some(metadata))
-        .finish(&mut frame)
+        .finish(frame)
         .map_err(|e| e.to_string())?;
     file.sync_all().map_err(|e| e.to_string())
 }

@@ -1,3 +1,4 @@
+use super::splice::{splice, Source};
 use super::*;
 use serde_json::json;
 
@@ -138,4 +139,129 @@ fn units_are_read_off_column_names() {
     for (column, expected) in units {
         assert_eq!(unit(column), expected, "{column}");
     }
+}
+
+/// A frame's Parquet bytes, as a table file holds them.
+fn parquet_bytes(frame: &mut DataFrame) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    ParquetWriter::new(&mut bytes).finish(frame).unwrap();
+    bytes
+}
+
+/// A frame as it reads back from its file.
+fn read_back(frame: &mut DataFrame) -> DataFrame {
+    let bytes = parquet_bytes(frame);
+    ParquetReader::new(std::io::Cursor::new(bytes))
+        .finish()
+        .unwrap()
+}
+
+/// Rows of a few columns each, mostly of one type per column, sometimes null or of another
+/// type, with columns sometimes missing: a small random table (a linear congruential
+/// generator, so that a failure repeats).
+struct Rows(u64);
+
+impl Rows {
+    fn next(&mut self, below: u64) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 33) % below
+    }
+
+    fn row(&mut self) -> Row {
+        let mut row = Row::default();
+        for (k, name) in ["status", "n", "h", "ok", "c_tot", "message", "case.m"]
+            .into_iter()
+            .enumerate()
+        {
+            if self.next(6) == 0 {
+                continue;
+            }
+            let kind = match self.next(30) {
+                0..=2 => 9,
+                3 => self.next(6),
+                _ => k as u64 % 6,
+            };
+            let value = match kind {
+                0 => json!(["ok", "failed"][self.next(2) as usize]),
+                1 => json!(self.next(100)),
+                2 => json!(self.next(100) as f64 / 7.0),
+                3 => json!(self.next(2) == 0),
+                4 => json!([self.next(9) as f64 / 3.0, null]),
+                5 => json!(self.next(100)),
+                _ => Value::Null,
+            };
+            row.set(name, value);
+        }
+        row
+    }
+}
+
+/// A table spliced from its old frame, its rows' shapes and the rows that changed is the
+/// table of all its rows, byte for byte, with their shapes; or the splice says it cannot.
+#[test]
+fn a_spliced_table_is_byte_for_byte_the_table_of_its_rows() {
+    let mut spliced = 0;
+    for seed in 0..300 {
+        let mut random = Rows(seed);
+        let old: Vec<Row> = (0..1 + random.next(10)).map(|_| random.row()).collect();
+        let (mut order, mut rows, mut new) = (Vec::new(), Vec::new(), Vec::new());
+        for (k, row) in old.iter().enumerate() {
+            if random.next(4) == 0 {
+                order.push(Source::New(new.len()));
+                new.push(random.row());
+                rows.push(new.last().unwrap().clone());
+            }
+            match random.next(5) {
+                0 => {} // gone
+                1 => {
+                    order.push(Source::New(new.len()));
+                    new.push(random.row());
+                    rows.push(new.last().unwrap().clone());
+                }
+                _ => {
+                    order.push(Source::Kept(k));
+                    rows.push(row.clone());
+                }
+            }
+        }
+        if rows.is_empty() {
+            continue;
+        }
+        let old_frame = read_back(&mut data_frame(&old).unwrap());
+        let Some((mut frame, shapes)) = splice(&old_frame, &shapes(&old), &new, &order) else {
+            continue;
+        };
+        spliced += 1;
+        let mut whole = data_frame(&rows).unwrap();
+        assert_eq!(frame.schema(), whole.schema(), "seed {seed}");
+        assert!(
+            parquet_bytes(&mut frame) == parquet_bytes(&mut whole),
+            "seed {seed}: {frame}\nagainst\n{whole}"
+        );
+        assert_eq!(shapes, super::shapes(&rows), "seed {seed}");
+        assert_eq!(shapes.schema().len(), whole.width(), "seed {seed}");
+    }
+    assert!(
+        spliced > 150,
+        "only {spliced} of 300 tables could be spliced"
+    );
+}
+
+/// Where the rows that go were the only floats of a column of integers, the old frame no longer
+/// holds the integers the whole table would: the splice says so rather than guess.
+#[test]
+fn a_splice_that_would_narrow_a_column_declines() {
+    let old = [row(json!({"n": 1})), row(json!({"n": 0.5}))];
+    let frame = read_back(&mut data_frame(&old).unwrap());
+    assert!(splice(&frame, &shapes(&old), &[], &[Source::Kept(0)]).is_none());
+    let widened = splice(
+        &frame,
+        &shapes(&old),
+        &[row(json!({"n": 2.5}))],
+        &[Source::Kept(0), Source::New(0)],
+    );
+    assert!(widened.is_some());
 }
