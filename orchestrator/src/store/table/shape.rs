@@ -61,7 +61,7 @@ pub type Shape = Vec<(Shared, Option<ColumnType>)>;
 pub type Schema = Vec<(Shared, ColumnType)>;
 
 /// The shapes of a table's rows: each distinct shape once, and each row's by its number.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default)]
 pub struct Shapes {
     distinct: Vec<Shape>,
     number: HashMap<Shape, u32>,
@@ -102,9 +102,19 @@ impl Shapes {
         self.of_rows.push(number);
     }
 
-    /// Adds a row of the shape of row `row` of `other`.
-    pub fn push_from(&mut self, other: &Shapes, row: usize) {
-        self.push(other.distinct[other.of_rows[row] as usize].clone());
+    /// No rows yet, and the shapes of `other`'s: a row of `other` added (`push_row_of`) keeps
+    /// its shape's number.
+    pub fn shapes_of(other: &Shapes) -> Shapes {
+        Shapes {
+            distinct: other.distinct.clone(),
+            number: other.number.clone(),
+            of_rows: Vec::new(),
+        }
+    }
+
+    /// Adds a row of the shape of row `row` of `other`, whose shapes these began as.
+    pub fn push_row_of(&mut self, other: &Shapes, row: usize) {
+        self.of_rows.push(other.of_rows[row]);
     }
 
     pub fn rows(&self) -> usize {
@@ -137,16 +147,21 @@ impl Shapes {
             .collect()
     }
 
-    /// As kept beside a table (see `Kept`).
+    /// As kept beside a table (see `Kept`): the shapes its rows have, numbered as they first
+    /// appear.
     pub fn kept(&self) -> Kept {
-        Kept {
-            distinct: self
-                .distinct
-                .iter()
-                .map(|shape| shape.iter().map(|(n, k)| (n.to_string(), *k)).collect())
-                .collect(),
-            of_rows: self.of_rows.clone(),
-        }
+        let mut renumbered: HashMap<u32, u32> = HashMap::new();
+        let mut distinct = Vec::new();
+        let of_rows = (self.of_rows.iter())
+            .map(|&n| {
+                *renumbered.entry(n).or_insert_with(|| {
+                    let shape = &self.distinct[n as usize];
+                    distinct.push(shape.iter().map(|(n, k)| (n.to_string(), *k)).collect());
+                    distinct.len() as u32 - 1
+                })
+            })
+            .collect();
+        Kept { distinct, of_rows }
     }
 
     /// As kept; `None` if a row's number names no shape.
@@ -169,7 +184,7 @@ impl Shapes {
 }
 
 /// `Shapes` as a file keeps them: the distinct shapes, and each row's number.
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Kept {
     distinct: Vec<Vec<(String, Option<ColumnType>)>>,
     of_rows: Vec<u32>,

@@ -28,10 +28,10 @@ pub fn splice(
         return None;
     }
     let mut new_shapes: Vec<Option<Shape>> = new.iter().map(|row| Some(row.shape())).collect();
-    let mut shapes = Shapes::default();
+    let mut shapes = Shapes::shapes_of(old_shapes);
     for &source in order {
         match source {
-            Source::Kept(k) if k < old.height() => shapes.push_from(old_shapes, k),
+            Source::Kept(k) if k < old.height() => shapes.push_row_of(old_shapes, k),
             Source::New(j) => shapes.push(new_shapes.get_mut(j)?.take()?),
             Source::Kept(_) => return None,
         }
