@@ -704,22 +704,18 @@ fn a_stopped_run_resumes_its_point_over_two_ranks_from_their_checkpoints() {
     let stopped_at = step(&files[0]);
     assert_eq!(stopped_at, step(&files[1]), "the ranks stopped at one step");
 
-    let resumed = scratch.nlstudy("run", &["--no-collect"]);
-    assert!(resumed.status.success(), "{}", text(&resumed));
-    let stored = records(&scratch.runs("ranked"));
-    assert_eq!(stored.len(), 1);
+    let stored = resumed_record(&scratch, "ranked");
     assert_eq!(
-        stored[0]["resumed_from_step"].as_u64(),
+        stored["resumed_from_step"].as_u64(),
         Some(stopped_at),
-        "{}",
-        stored[0]
+        "{stored}"
     );
     assert!(
         checkpoints().is_empty(),
         "the ranks' checkpoints outlived the record"
     );
     let whole = run_uninterrupted(&scratch, "ranked");
-    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+    assert_eq!(numbers_of(&stored), numbers_of(&whole[0]));
 }
 
 /// A study that checkpoints (`checkpoint_every_s`): `nlstudy run` stopped by SIGTERM while its
@@ -766,14 +762,10 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         "{said}"
     );
 
-    let resumed = scratch.nlstudy("run", &["--no-collect"]);
-    assert!(resumed.status.success(), "{}", text(&resumed));
-    let stored = records(&scratch.runs("long"));
-    assert_eq!(stored.len(), 1);
+    let stored = resumed_record(&scratch, "long");
     assert!(
-        stored[0]["resumed_from_step"].as_u64().unwrap() > 0,
-        "{}",
-        stored[0]
+        stored["resumed_from_step"].as_u64().unwrap() > 0,
+        "{stored}"
     );
     assert!(
         checkpoints().is_empty(),
@@ -782,11 +774,11 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
 
     let whole = run_uninterrupted(&scratch, "long");
     assert!(whole[0].get("resumed_from_step").is_none());
-    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+    assert_eq!(numbers_of(&stored), numbers_of(&whole[0]));
 
     // `clean` removes the checkpoints no run will resume: a stored point's (as
     // `--keep-checkpoints` leaves it) and one of no point of the study.
-    let key = stored[0]["key"].as_str().unwrap();
+    let key = stored["key"].as_str().unwrap();
     for stale in [key, "0123456789abcdef0123456789abcdef"] {
         std::fs::write(work.join(format!("{stale}.checkpoint")), "kept").unwrap();
     }
@@ -799,6 +791,15 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         text(&cleaned)
     );
     assert!(checkpoints().is_empty());
+}
+
+/// The one record `nlstudy run` stores when it resumes the stopped point of the study `name`.
+fn resumed_record(scratch: &Scratch, name: &str) -> Value {
+    let resumed = scratch.nlstudy("run", &["--no-collect"]);
+    assert!(resumed.status.success(), "{}", text(&resumed));
+    let stored = records(&scratch.runs(name));
+    assert_eq!(stored.len(), 1);
+    stored.into_iter().next().unwrap()
 }
 
 /// A checkpointing study's steady point (FETI's projected CG): `nlstudy run` stopped by SIGTERM
@@ -831,19 +832,15 @@ fn a_stopped_run_resumes_its_steady_point_at_its_iteration() {
         "{said}"
     );
 
-    let resumed = scratch.nlstudy("run", &["--no-collect"]);
-    assert!(resumed.status.success(), "{}", text(&resumed));
-    let stored = records(&scratch.runs("steady"));
-    assert_eq!(stored.len(), 1);
-    let from = stored[0]["resumed_from_step"].as_u64().unwrap_or(0);
+    let stored = resumed_record(&scratch, "steady");
+    let from = stored["resumed_from_step"].as_u64().unwrap_or(0);
     assert!(
-        from > 0 && from < stored[0]["iterations"].as_u64().unwrap(),
-        "{}",
-        stored[0]
+        from > 0 && from < stored["iterations"].as_u64().unwrap(),
+        "{stored}"
     );
     assert!(checkpoint().is_none(), "the checkpoint outlived its record");
     let whole = run_uninterrupted(&scratch, "steady");
-    assert_eq!(numbers_of(&stored[0]), numbers_of(&whole[0]));
+    assert_eq!(numbers_of(&stored), numbers_of(&whole[0]));
 }
 
 /// Stops `nlstudy run` as a scheduler's warning does (SIGTERM): it exits 143.
