@@ -246,6 +246,17 @@ fn runs_and_collects_killed_at_random_moments_resume_with_every_record_once_and_
         points,
         &format!("collects killed after {delays:?} ms"),
     );
+    // Whatever the killed collects left (tables of one, what another said it made), the tables
+    // `run` stands by or splices are those a collect from scratch makes.
+    let study = scratch.dir.join("results/killed");
+    let tables = || {
+        ["killed.parquet", "killed-summary.parquet"].map(|t| std::fs::read(study.join(t)).unwrap())
+    };
+    let kept = tables();
+    std::fs::remove_file(study.join(".collected.json")).unwrap();
+    let afresh = scratch.nlstudy("collect", &[]);
+    assert!(afresh.status.success(), "{}", text(&afresh));
+    assert!(kept == tables(), "collects killed after {delays:?} ms");
 }
 
 #[test]
