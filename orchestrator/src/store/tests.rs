@@ -482,29 +482,52 @@ fn compaction_drops_superseded_records_and_leaves_a_writers_segment_alone() {
     assert_eq!(Store::open(dir.path(), "s").records().len(), 2);
 }
 
-/// The store reads records through `Stored::from_value` (fast); serde's derive is the
-/// definition: both read every record alike, and refuse the same ones.
+/// A record reads through `Stored::from_value` (serde's `Deserialize` is the same reader): its
+/// own fields, with their defaults where it leaves them out, and the outcome its `status` says;
+/// what it cannot read is refused, naming the field.
 #[test]
-fn a_record_reads_the_same_through_from_value_as_through_serde() {
-    let without_optionals = {
-        let mut r = record_json(json!({}));
-        for optional in ["case_id", "repeat", "run_id", "attempt"] {
-            r.as_object_mut().unwrap().remove(optional);
-        }
-        r
-    };
-    let readable = [
-        record_json(json!({})),
-        record_json(json!({"run_id": "r", "attempt": 2, "repeat": 3, "extra": 1})),
-        record_json(json!({"status": "diverged", "diverged_step": 4})),
-        json!({"key": "k", "solver_version": "v", "status": "failed", "case": {"n": 1},
-               "message": "refused"}),
-        json!({"key": "k", "solver_version": "v", "status": "failed"}),
-        without_optionals,
-    ];
-    for value in readable {
-        let derived: Stored = serde_json::from_value(value.clone()).unwrap();
-        assert_eq!(Stored::from_value(value.clone()), Ok(derived), "{value}");
+fn a_record_reads_its_fields_with_their_defaults_and_refuses_a_wrong_one() {
+    let read = |value: &Value| Stored::from_value(value.clone()).unwrap();
+    let full = record_json(json!({"run_id": "r", "attempt": 2, "repeat": 3, "extra": 1}));
+    let stored = read(&full);
+    assert_eq!(stored.key, "k");
+    assert_eq!(stored.case_id.as_deref(), Some("c"));
+    assert_eq!(
+        (stored.run_id.as_deref(), stored.attempt),
+        (Some("r"), Some(2))
+    );
+    assert_eq!((stored.repeat, stored.status()), (3, Status::Ok));
+    assert_eq!(read(&stored.to_value()), stored, "it reads back as itself");
+    let mut bare = record_json(json!({}));
+    for optional in ["case_id", "repeat", "run_id", "attempt"] {
+        bare.as_object_mut().unwrap().remove(optional);
+    }
+    let stored = read(&bare);
+    assert_eq!(
+        (stored.case_id, stored.run_id, stored.attempt),
+        (None, None, None)
+    );
+    assert_eq!(stored.repeat, 0);
+    let diverged = record_json(json!({"status": "diverged", "diverged_step": 4}));
+    let stored = read(&diverged);
+    assert_eq!(stored.status(), Status::Diverged);
+    assert_eq!(stored.record().unwrap().diverged_step, Some(4));
+    let refused = json!({"key": "k", "solver_version": "v", "status": "failed",
+                         "case": {"n": 1}, "message": "refused"});
+    let stored = read(&refused);
+    assert_eq!(
+        (stored.status(), stored.message()),
+        (Status::Failed, "refused")
+    );
+    assert_eq!((stored.case(), stored.record()), (&json!({"n": 1}), None));
+    let said_nothing = json!({"key": "k", "solver_version": "v", "status": "failed"});
+    let stored = read(&said_nothing);
+    assert_eq!((stored.message(), stored.case()), ("", &Value::Null));
+    for value in [full, bare, diverged, refused, said_nothing] {
+        assert_eq!(
+            serde_json::from_value::<Stored>(value.clone()).unwrap(),
+            read(&value)
+        );
     }
     let unreadable = [
         json!([1]),

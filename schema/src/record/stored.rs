@@ -10,7 +10,8 @@ use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::{Map, Value};
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// Read by `Stored::from_value` (see its `Deserialize`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Stored {
     /// The hash of the case, the solver version and the repeat: the record's file name.
     pub key: String,
@@ -119,17 +120,17 @@ impl Serialize for Outcome {
     }
 }
 
-/// By its `status`: a failed run's case and message, or the solver's whole record, whose every
-/// field must be there with its type (the error names the first that is not).
-impl<'de> Deserialize<'de> for Outcome {
+/// One reader of records: serde's reads through `Stored::from_value`.
+impl<'de> Deserialize<'de> for Stored {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        Outcome::of_fields(Map::<String, Value>::deserialize(deserializer)?)
-            .map_err(D::Error::custom)
+        Stored::from_value(Value::deserialize(deserializer)?).map_err(D::Error::custom)
     }
 }
 
 impl Outcome {
-    /// The outcome a record's fields (but those `Stored` reads itself) say.
+    /// The outcome a record's fields (but those `Stored` reads itself) say, by its `status`: a
+    /// failed run's case and message, or the solver's whole record, whose every field must be
+    /// there with its type (the error names the first that is not).
     fn of_fields(mut fields: Map<String, Value>) -> Result<Outcome, String> {
         let status = fields.get("status").and_then(Value::as_str);
         match status.and_then(Status::parse) {
@@ -149,9 +150,9 @@ impl Outcome {
 }
 
 impl Stored {
-    /// A record from its parsed JSON, as `Deserialize` reads it but without the buffering of
-    /// serde's `flatten`, which made reading a record four times the cost of parsing it (a
-    /// collect reads every record of a study). The error names the field.
+    /// A record from its parsed JSON (what `Deserialize` does too): by hand rather than through
+    /// serde's `flatten`, whose buffering made reading a record four times the cost of parsing
+    /// it (a collect reads every record of a study). The error names the field.
     pub fn from_value(value: Value) -> Result<Stored, String> {
         let Value::Object(mut fields) = value else {
             return Err("not a JSON object".into());
