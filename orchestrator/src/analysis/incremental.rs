@@ -6,7 +6,8 @@
 //! (`table::shape`). A run row whose point and record are as they were is kept from the old
 //! table; the others are read from their records. A point's summary row is made again when its
 //! runs changed or when a point of its refinement or scaling series did (orders and speedups
-//! read the series), from the runs of its series; the rest are kept.
+//! read the series): reduced from its runs, then derived along its series, whose other points
+//! lend what the derivation reads from their rows in the old summary. The rest are kept.
 
 use crate::analysis::summary::{self, Cell};
 use crate::run::plan::Planned;
@@ -78,7 +79,7 @@ pub struct Tables {
     pub runs: DataFrame,
     pub summary: DataFrame,
     pub rows: Rows,
-    /// How many run rows were made from their records (all of them from scratch).
+    /// How many run rows were read from their records.
     pub read: usize,
 }
 
