@@ -47,11 +47,16 @@ pub struct Workers {
     pub unsupported: bool,
 }
 
+/// How long an ended worker's last words on standard error are waited for.
+const HEARING: std::time::Duration = std::time::Duration::from_secs(1);
+
 pub struct Worker {
     id: u64,
     child: Child,
     stdin: ChildStdin,
     stderr: Arc<Mutex<VecDeque<String>>>,
+    /// The thread that keeps `stderr`: done once the worker's standard error closed.
+    stderr_reader: std::thread::JoinHandle<()>,
     /// Cases it has answered.
     pub answered: usize,
 }
@@ -163,7 +168,7 @@ impl Worker {
         });
         let stderr = Arc::new(Mutex::new(VecDeque::new()));
         let kept = Arc::clone(&stderr);
-        std::thread::spawn(move || {
+        let stderr_reader = std::thread::spawn(move || {
             for line in BufReader::new(stderr_pipe).lines() {
                 let Ok(line) = line else { break };
                 let mut kept = kept.lock().unwrap_or_else(|e| e.into_inner());
@@ -178,6 +183,7 @@ impl Worker {
             child,
             stdin,
             stderr,
+            stderr_reader,
             answered: 0,
         })
     }
@@ -188,10 +194,14 @@ impl Worker {
 
     /// Sends a canonical case (one line of compact JSON); false when the worker is gone.
     pub fn send(&mut self, case: &str) -> bool {
-        self.stderr
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clear();
+        // What it said about the case before goes; what it said starting up (before any
+        // answer) stays: a solver that cannot serve says why as it starts.
+        if self.answered > 0 {
+            self.stderr
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .clear();
+        }
         let mut line = String::with_capacity(case.len() + 1);
         line.push_str(case);
         line.push('\n');
@@ -205,14 +215,30 @@ impl Worker {
                 self.answered += 1;
                 Served::Answer(line)
             }
-            None => Served::Died(self.child.wait().unwrap_or_else(|_| died())),
+            None => {
+                let exit = self.child.wait().unwrap_or_else(|_| died());
+                self.heard_all();
+                Served::Died(exit)
+            }
         }
     }
 
     /// Kills the worker (past its timeout, or with the run stopping) and reaps it.
     pub fn kill(&mut self) -> ExitStatus {
         let _ = self.child.kill();
-        self.child.wait().unwrap_or_else(|_| died())
+        let exit = self.child.wait().unwrap_or_else(|_| died());
+        self.heard_all();
+        exit
+    }
+
+    /// Waits, a second at most, until the ended worker's standard error is read to its end
+    /// (the reader thread may lag the exit), so that `stderr_tail` has its last words; a
+    /// process the worker started may hold the pipe open longer.
+    fn heard_all(&self) {
+        let since = std::time::Instant::now();
+        while !self.stderr_reader.is_finished() && since.elapsed() < HEARING {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
     }
 
     /// The last lines it wrote to standard error since its case was sent.
