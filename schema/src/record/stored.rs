@@ -10,22 +10,22 @@ use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use serde_json::{Map, Value};
 
-/// Read by `Stored::from_value` (see its `Deserialize`).
+/// Read by `Stored::from_value` (see its `Deserialize`), which gives the defaults of the fields
+/// a record may leave out.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Stored {
     /// The hash of the case, the solver version and the repeat: the record's file name.
     pub key: String,
     /// The hash of the case alone: the repeats of a point share it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub case_id: Option<String>,
-    #[serde(default)]
     pub repeat: usize,
     pub solver_version: String,
     /// The `nlstudy` process that ran it: the runs of one invocation share the machine's state.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub run_id: Option<String>,
     /// Which attempt at the point made it (a failure outside the case is retried).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub attempt: Option<usize>,
     #[serde(flatten)]
     pub outcome: Outcome,
