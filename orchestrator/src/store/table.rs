@@ -21,7 +21,7 @@ use schema::record::columns;
 use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
-use shape::{column_type, ColumnType, Schema, Shape};
+use shape::{column_type, ColumnType, Schema};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
@@ -98,13 +98,9 @@ impl Row {
         row
     }
 
-    /// The row's shape: its columns' names in order, each with its cell's type.
-    pub fn shape(&self) -> Shape {
-        let typed = self
-            .0
-            .iter()
-            .map(|(n, v)| (n.clone(), shape::column_type_of(v)));
-        typed.collect()
+    /// The row's shape, cell by cell: its columns' names in order, each with its cell's type.
+    pub fn typed_cells(&self) -> impl Iterator<Item = (&Name, Option<ColumnType>)> + Clone {
+        self.0.iter().map(|(n, v)| (n, shape::column_type_of(v)))
     }
 
     pub fn cells(&self) -> impl Iterator<Item = (&str, &Value)> {
@@ -142,7 +138,7 @@ pub fn texts<'a>(frame: &'a DataFrame, name: &str) -> Option<Vec<Option<&'a str>
 pub fn shapes(rows: &[Row]) -> shape::Shapes {
     let mut shapes = shape::Shapes::default();
     for row in rows {
-        shapes.push_cells(row.0.iter().map(|(n, v)| (n, shape::column_type_of(v))));
+        shapes.push_cells(row.typed_cells());
     }
     shapes
 }

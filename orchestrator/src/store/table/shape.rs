@@ -69,11 +69,6 @@ pub struct Shapes {
 }
 
 impl Shapes {
-    /// Adds a row of shape `shape`.
-    pub fn push(&mut self, shape: Shape) {
-        self.push_cells(shape.iter().map(|(n, k)| (n, *k)));
-    }
-
     /// Adds a row whose cells are these names and types: made into a shape only when it is not
     /// the shape of the row before (rows mostly are).
     pub fn push_cells<'a>(

@@ -2,7 +2,7 @@
 //! it of all its rows: the columns follow from the rows' shapes (`shape`), the kept rows' cells
 //! from the old frame, and only the new rows are read cell by cell.
 
-use crate::store::table::shape::{ColumnType, Schema, Shape, Shapes};
+use crate::store::table::shape::{ColumnType, Schema, Shapes};
 use crate::store::table::{data_frame_as, Row};
 use polars::prelude::*;
 
@@ -27,12 +27,12 @@ pub fn splice(
     if old.height() != old_shapes.rows() {
         return None;
     }
-    let mut new_shapes: Vec<Option<Shape>> = new.iter().map(|row| Some(row.shape())).collect();
+    let mut unplaced: Vec<Option<&Row>> = new.iter().map(Some).collect();
     let mut shapes = Shapes::shapes_of(old_shapes);
     for &source in order {
         match source {
             Source::Kept(k) if k < old.height() => shapes.push_row_of(old_shapes, k),
-            Source::New(j) => shapes.push(new_shapes.get_mut(j)?.take()?),
+            Source::New(j) => shapes.push_cells(unplaced.get_mut(j)?.take()?.typed_cells()),
             Source::Kept(_) => return None,
         }
     }
