@@ -226,7 +226,7 @@ impl Store {
             }
         }
         // The records to keep, by segment in offset order.
-        let mut kept: std::collections::BTreeMap<String, Vec<(String, std::ops::Range<u64>)>> =
+        let mut kept: std::collections::BTreeMap<Shared, Vec<(String, std::ops::Range<u64>)>> =
             Default::default();
         let mut dropped = held
             .keys()
@@ -242,7 +242,7 @@ impl Store {
             if forget.contains(key) {
                 dropped += entry.bytes();
             } else {
-                kept.entry(name.to_string())
+                kept.entry(name.clone())
                     .or_default()
                     .push((key.clone(), span.clone()));
             }
@@ -528,14 +528,14 @@ impl Store {
             let guard = self.catalog(true);
             let catalog = guard.as_ref().expect("loaded");
             let mut by_segment: std::collections::BTreeMap<
-                String,
+                Shared,
                 Vec<(String, std::ops::Range<u64>)>,
             > = Default::default();
             let mut files = Vec::new();
             for (key, entry) in catalog.latest() {
                 match &entry.at {
                     Location::Segment { name, span } => by_segment
-                        .entry(name.to_string())
+                        .entry(name.clone())
                         .or_default()
                         .push((key.to_string(), span.clone())),
                     Location::File(path) => files.push((key.to_string(), path.clone())),
@@ -551,7 +551,7 @@ impl Store {
         };
         let dir = self.segments();
         for (name, frames) in std::mem::take(&mut by_segment) {
-            let path = dir.join(&name);
+            let path = dir.join(&*name);
             let bytes = segment::read_from(&path, 0).unwrap_or_default();
             let read: Vec<Result<T, Unreadable>> = frames
                 .into_par_iter()
