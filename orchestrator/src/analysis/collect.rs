@@ -96,9 +96,9 @@ const LEADING: &[&str] = &[
     columns::MESSAGE,
 ];
 
-/// One run's row: the point's label and series, then the record, flattened: its columns are
-/// what `Stored` serializes.
-fn run_row(planned: &Planned, stored: &Stored) -> Row {
+/// One run's row: the point's label and series (as its `identity` has them), then the record,
+/// flattened: its columns are what `Stored` serializes.
+fn run_row(planned: &Planned, identity: &Identity, stored: &Stored) -> Row {
     let Value::Object(mut record) = stored.to_value() else {
         return Row::default();
     };
@@ -110,13 +110,12 @@ fn run_row(planned: &Planned, stored: &Stored) -> Row {
     // (The row grows cell by cell, to twice the room it needs at most: room its summary row,
     // made in place of it, fills.)
     let mut row = Row::default();
-    let series = planned.point.series();
-    row.set("point", json!(planned.point.label_without_repeat()));
+    row.set("point", json!(identity.label));
     if let Some(branch) = &planned.point.branch {
         row.set("branch", json!(&**branch));
     }
-    row.set("refinement_series", json!(series.refinement));
-    row.set("scaling_series", json!(series.scaling));
+    row.set("refinement_series", json!(identity.refinement));
+    row.set("scaling_series", json!(identity.scaling));
     for field in LEADING {
         row.set(field, record.remove(*field).unwrap_or(Value::Null));
     }
@@ -206,7 +205,7 @@ pub fn collect(
         notes: LABELS,
     };
     let mut staged = table::Staged::new(&about);
-    let make_row = |i: usize, stored: &Stored| run_row(&planned[i], stored);
+    let make_row = |i: usize, stored: &Stored| run_row(&planned[i], &identities[i], stored);
     let spliced = prior.and_then(|prior| {
         let paths = (paths.0.as_path(), paths.1.as_path());
         incremental::spliced(planned, &identities, &seqs, store, prior, paths, &make_row)
@@ -291,7 +290,7 @@ fn from_scratch(
         Some(
             places
                 .iter()
-                .map(|&i| (i, run_row(&planned[i], &stored)))
+                .map(|&i| (i, run_row(&planned[i], &identities[i], &stored)))
                 .collect::<Vec<_>>(),
         )
     });
@@ -351,9 +350,9 @@ pub fn summary_of(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec
 /// The run rows of the points whose records `records` holds. Points of different branches may
 /// be one case: each gets its row from the one record.
 pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
-    planned
-        .par_iter()
-        .filter_map(|p| Some(run_row(p, records.get(p.key.as_str())?)))
+    let identities = incremental::identities(planned);
+    (planned.par_iter().zip(&identities))
+        .filter_map(|(p, id)| Some(run_row(p, id, records.get(p.key.as_str())?)))
         .collect()
 }
 
