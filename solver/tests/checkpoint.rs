@@ -380,6 +380,11 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
                 "the checkpoint went back from {last_step} to {step}"
             );
             last_step = step;
+        } else {
+            // No checkpoint after a kill: none was written yet, or the run had finished and
+            // removed it when the kill landed, before it exited. Either way the next run
+            // starts afresh.
+            last_step = 0;
         }
     }
     let resumed = record(&run(&case, &["--checkpoint", path]));
