@@ -2,7 +2,8 @@
 //! numbers must equal the serial run's (the field to 1e-12, in fact bit for bit), for every rank
 //! count, both partitions, 1D and 2D, two kernels and horizons from one cell to eight; ε wider
 //! than a subdomain and uneven splits work; a rank count that cannot partition the grid is
-//! refused by every rank with exit code 2, without hanging.
+//! refused by every rank with exit code 2, without hanging. System tests (`make test` runs
+//! them): they launch Open MPI's `mpirun`, and take over a minute together.
 
 use nonlocal_study::{
     binary, mpirun, mpirun_with, nlsolve, numbers_of, read_field, record, RESULT_FIELDS,
@@ -156,11 +157,13 @@ fn rank_sweep(dim: usize, n: usize) {
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn one_dimensional_runs_equal_the_serial_run_on_every_rank_count() {
     rank_sweep(1, 60);
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn two_dimensional_runs_equal_the_serial_run_on_every_rank_count() {
     rank_sweep(2, 24);
 }
@@ -169,6 +172,7 @@ fn two_dimensional_runs_equal_the_serial_run_on_every_rank_count() {
 /// needs ghosts from ranks two away. That works: each rank receives the 8 nodes on each side
 /// (fewer where D ends), whoever owns them.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn a_horizon_wider_than_a_subdomain_reaches_past_the_neighbouring_ranks() {
     let case = [
         "--dim",
@@ -197,6 +201,7 @@ fn a_horizon_wider_than_a_subdomain_reaches_past_the_neighbouring_ranks() {
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
     for dim in ["1", "2"] {
         let case = [
@@ -220,6 +225,7 @@ fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
 /// The explicit Runge–Kutta integrators run over ranks with the serial bits: each stage is one
 /// application of the distributed operator and passes over the rank's own nodes.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
     for integrator in ["heun", "rk4"] {
         let case = [
@@ -257,6 +263,7 @@ fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
 /// rounding (the issue asks 1e-11 relative; `assert_agrees` holds them to 1e-12). 1D and 2D, both
 /// partitions, a horizon wider than a subdomain, forward Euler and Crank–Nicolson.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn the_fft_backend_over_ranks_equals_the_serial_fft_run() {
     for (dim, n, m, integrator, cfl, t_end) in [
         (1, "101", "3", "forward_euler", "0.9", "0.002"),
@@ -309,6 +316,7 @@ fn the_fft_backend_over_ranks_equals_the_serial_fft_run() {
 /// all-to-all, or on the gathered row (1D). The inner products are summed over ranks in another
 /// order, so the fields agree to the solves' tolerance (here 1e-13), not bit for bit.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn implicit_integrators_over_ranks_equal_the_serial_run() {
     for (dim, n, integrator) in [
         ("2", "40", "backward_euler"),
@@ -391,6 +399,7 @@ fn implicit_integrators_over_ranks_equal_the_serial_run() {
 
 /// Every quadrature's weights, and the exact collar's source term, travel to the ranks.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn quadratures_and_the_exact_collar_equal_the_serial_run() {
     for (dim, quadrature, source, collar) in [
         ("1", "partial_volume", "continuum", "exact"),
@@ -434,6 +443,7 @@ fn quadratures_and_the_exact_collar_equal_the_serial_run() {
 
 /// The halo a run exchanges is what `nlsolve partition` reports without running.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn the_partition_report_matches_the_run() {
     let case = [
         "--dim", "2", "--n", "101", "--m", "3", "--t-end", "0.0002", "--cfl", "0.5",
@@ -494,6 +504,7 @@ fn exit_codes_of_every_rank(ranks: usize, args: &str) -> (Output, Vec<String>) {
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn more_ranks_than_nodes_is_refused_by_every_rank_with_exit_code_2() {
     let (output, codes) = exit_codes_of_every_rank(
         5,
@@ -515,6 +526,7 @@ fn more_ranks_than_nodes_is_refused_by_every_rank_with_exit_code_2() {
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn a_rank_count_that_differs_from_mpirun_or_has_no_block_shape_is_refused() {
     let (output, codes) = exit_codes_of_every_rank(
         3,
@@ -541,6 +553,7 @@ fn a_rank_count_that_differs_from_mpirun_or_has_no_block_shape_is_refused() {
 /// Instability is detected by the same reduction on every rank: the run ends `diverged` at the
 /// serial run's step.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn an_unstable_run_diverges_at_the_serial_step() {
     let case = [
         "--dim",
@@ -567,6 +580,7 @@ fn an_unstable_run_diverges_at_the_serial_step() {
 /// the one-process iterates: the same field bit for bit and the same iteration count. The
 /// one-process field equals the single-domain direct solve (solver/tests/steady.rs).
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit_and_its_numbers() {
     for (p, ranks, preconditioner) in [
         ("3", 2, "dirichlet"),
@@ -623,6 +637,7 @@ fn feti_on_several_ranks_gives_the_one_process_field_bit_for_bit_and_its_numbers
 /// CG over ranks applies the same A through the halo exchange; its inner products are summed in
 /// another order, so the iterates agree to rounding, not bit for bit.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
     let case = [
         "--method",
@@ -674,6 +689,7 @@ fn steady_cg_over_ranks_converges_to_the_one_process_solution() {
 /// largest rank's), less a trivial case's on as many ranks (the binary and the MPI library),
 /// falls with the rank count, for forward Euler and Crank–Nicolson (2D, n = 1024, m = 4).
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn peak_memory_per_rank_falls_with_the_rank_count() {
     let peak = |ranks: usize, case: &[&str]| -> f64 {
         let output = if ranks == 1 {
@@ -744,6 +760,7 @@ fn checkpoint_step(path: &Path) -> u64 {
 /// record is the record of a run never stopped, bit for bit but for timings, and the files go.
 /// A set of files not of one step (one missing) is not resumed: the run starts afresh.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
     stops_over_two_ranks_and_resumes(
         "heat",
@@ -755,6 +772,7 @@ fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
 /// The same for the other integrators, each of which carries its own state (Heun's and RK4's
 /// stages, the θ-steps' solve counts and warm start).
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn every_integrator_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
     for (integrator, cfl) in [
         ("heun", 0.5),
@@ -772,6 +790,7 @@ fn every_integrator_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_b
 /// The same for the steady solves, whose steps are CG iterations: steady CG over the ranks'
 /// rows and FETI's projected CG over their subdomains.
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn a_steady_solve_over_two_ranks_stops_at_one_iteration_and_resumes_with_the_same_bits() {
     stops_over_two_ranks_and_resumes(
         "steady_cg",

@@ -36,6 +36,7 @@ fn texts(svg: &str, path: &Path) -> Vec<String> {
 }
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn every_shipped_study_draws_every_figure_and_chromium_renders_each() {
     let scratch = Scratch::new("figures", &json!({}));
     // The interpreter itself, without its site packages: a version manager's shim (pyenv's is a

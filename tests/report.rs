@@ -8,6 +8,7 @@ use serde_json::json;
 use std::path::Path;
 
 #[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn the_report_opens_in_a_browser_with_every_figure_drawn() {
     assert!(
         Path::new(CHROMIUM).exists(),
