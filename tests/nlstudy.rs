@@ -191,19 +191,6 @@ fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
         );
     }
     assert_eq!(runs.column("case.n").unwrap().dtype(), &DataType::Int64);
-    // The README's recipe for the tables' metadata, as a pandas user runs it.
-    let recipe = "import pyarrow.parquet as pq, sys\nmeta = pq.ParquetFile(sys.argv[1]).metadata.metadata\nprint(meta[b'note:point'].decode(), meta[b'unit:solve_s'].decode())";
-    let read = Command::new("python3")
-        .args(["-c", recipe])
-        .arg(table("small.parquet"))
-        .output()
-        .expect("python3 starts");
-    assert!(read.status.success(), "pyarrow: {}", text(&read));
-    assert!(
-        text(&read).contains("label:") && text(&read).trim_end().ends_with(" s"),
-        "{}",
-        text(&read)
-    );
     assert_eq!(runs.column("solve_s").unwrap().dtype(), &DataType::Float64);
     assert_eq!(runs.column("status").unwrap().dtype(), &DataType::String);
     // The case as resolved: defaults the study left out are filled in, never null.
@@ -827,23 +814,6 @@ fn a_results_directory_belongs_to_one_study_file_and_clean_clears_what_it_no_lon
         text(&deleted)
     );
     assert_eq!(records(&scratch.runs("small")).len(), 2);
-}
-
-/// The README's annotated study is studies/first.jsonc, as it is: what a newcomer copies runs.
-#[test]
-fn the_readmes_annotated_study_is_the_shipped_file() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let start = readme
-        .find("```jsonc\n")
-        .expect("a ```jsonc block in README.md")
-        + 9;
-    let block = &readme[start..start + readme[start..].find("```").unwrap()];
-    let file = std::fs::read_to_string(root.join("studies/first.jsonc")).unwrap();
-    assert_eq!(
-        block, file,
-        "README.md's ```jsonc block is not studies/first.jsonc"
-    );
 }
 
 /// A solver of another fingerprint (a wrapper that reports one, and writes it into the records

@@ -26,7 +26,7 @@ pub fn check(study: &Study) -> Result<(), StudyError> {
                     guess(&name).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
                 return Err(StudyError::new(
                     place(what),
-                    format!("no column `{name}` in the summary table{guess} (the columns: the case's fields, the record's, and what the summary derives; see README, Tables)"),
+                    format!("no column `{name}` in the summary table{guess} (the columns: the case's fields, the record's, and what the summary derives; see the guide, docs/guide/results.md)"),
                 ));
             }
         }

@@ -10,7 +10,7 @@ use solver::ValidCase;
 use std::io::Read;
 use std::path::PathBuf;
 
-/// Each flag sets the case field of the same name (dashes become underscores); see README.md.
+/// Each flag sets the case field of the same name (dashes become underscores); see docs/guide/solver.md.
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 pub(crate) struct CaseArgs {

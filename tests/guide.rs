@@ -1,0 +1,375 @@
+//! Every example of the README and the user guide runs here, so that what a newcomer copies
+//! works and what the pages show is what the tools print.
+//!
+//! Each page runs in a scratch directory of its own, its fenced blocks in order, with
+//! `target/release` first on `PATH` and the repository's `studies/`, `cases/`, `sites/` and
+//! `scripts/`
+//! beside it (as a reader in a clone has them). What a block's info string says:
+//!
+//! - `console`: `$ command` lines run in bash; the lines after one are its output (stdout and
+//!   stderr, as a terminal interleaves them), matched line by line, where a line `...` stands
+//!   for any number of lines, `[..]` for any text within a line, and a last line `(exit N)`
+//!   for the exit status (else it must be 0);
+//! - `sh`: every line that is not a comment runs and must succeed (` # …` ends a line);
+//! - `sh no-run`: each line is `make TARGET`, and the Makefile has that target (`make test` is
+//!   this suite; `make run` is the README's main job);
+//! - `file=NAME`: the block is written to NAME, for the commands after it;
+//! - `same-as=PATH`: the block is the repository's file PATH, byte for byte;
+//! - `fragment=PATH`: the block is keys of a study file (`"refine": {…}`): set into the shipped
+//!   study PATH, `nlstudy plan` accepts the study;
+//! - anything else (`text`, an output shown without its command) is prose.
+//!
+//! Pages with `python` blocks (pyarrow) or `sh system` blocks (a local Slurm) are system tests,
+//! which install what they need first.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The README and the guide's pages.
+fn pages() -> Vec<PathBuf> {
+    let mut pages = vec![root().join("README.md")];
+    let mut chapters: Vec<PathBuf> = std::fs::read_dir(root().join("docs/guide"))
+        .unwrap()
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| path.extension().is_some_and(|e| e == "md"))
+        .collect();
+    chapters.sort();
+    pages.extend(chapters);
+    pages
+}
+
+/// A fenced block: its info string's words and its lines.
+struct Block {
+    info: Vec<String>,
+    lines: Vec<String>,
+    /// The page's line of its opening fence, for messages.
+    at: usize,
+}
+
+impl Block {
+    fn attribute(&self, key: &str) -> Option<&str> {
+        self.info
+            .iter()
+            .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
+    }
+
+    fn text(&self) -> String {
+        self.lines.iter().map(|line| format!("{line}\n")).collect()
+    }
+}
+
+fn blocks(page: &str) -> Vec<Block> {
+    let mut blocks = Vec::new();
+    let mut open: Option<Block> = None;
+    for (number, line) in page.lines().enumerate() {
+        match (open.take(), line.strip_prefix("```")) {
+            (None, Some(info)) => {
+                open = Some(Block {
+                    info: info.split_whitespace().map(str::to_string).collect(),
+                    lines: Vec::new(),
+                    at: number + 1,
+                })
+            }
+            (Some(block), Some("")) => blocks.push(block),
+            (Some(mut block), _) => {
+                block.lines.push(line.to_string());
+                open = Some(block);
+            }
+            (None, None) => {}
+        }
+    }
+    if let Some(block) = open {
+        panic!("the fenced block of line {} is not closed", block.at);
+    }
+    blocks
+}
+
+/// Whether `shown` (the page's lines, with `...` for any lines) is what `said` printed.
+fn matches(shown: &[String], said: &[&str]) -> bool {
+    match shown.split_first() {
+        None => said.is_empty(),
+        Some((first, rest)) if first == "..." => {
+            (0..=said.len()).any(|skip| matches(rest, &said[skip..]))
+        }
+        Some((first, rest)) => said
+            .split_first()
+            .is_some_and(|(line, after)| line_matches(first, line) && matches(rest, after)),
+    }
+}
+
+/// Whether a shown line is the said one, where `[..]` stands for any text within it.
+fn line_matches(shown: &str, said: &str) -> bool {
+    let said = said.trim_end();
+    let mut parts = shown.split("[..]");
+    let first = parts.next().unwrap_or_default();
+    let Some(mut rest) = said.strip_prefix(first) else {
+        return false;
+    };
+    let parts: Vec<&str> = parts.collect();
+    let Some((last, middle)) = parts.split_last() else {
+        return rest.is_empty();
+    };
+    for part in middle {
+        match rest.find(part) {
+            Some(at) => rest = &rest[at + part.len()..],
+            None => return false,
+        }
+    }
+    rest.len() >= last.len() && rest.ends_with(last)
+}
+
+/// A page's scratch directory, where its commands run as in a clone.
+struct Reader {
+    dir: tempfile::TempDir,
+    path: String,
+}
+
+impl Reader {
+    fn new() -> Reader {
+        let dir = tempfile::Builder::new()
+            .prefix("nlstudy-guide-")
+            .tempdir()
+            .unwrap();
+        for shared in ["studies", "cases", "sites", "scripts"] {
+            std::os::unix::fs::symlink(root().join(shared), dir.path().join(shared)).unwrap();
+        }
+        let binaries = nonlocal_study::binary("nlstudy");
+        let binaries = binaries.parent().unwrap();
+        std::fs::create_dir(dir.path().join("target")).unwrap();
+        std::os::unix::fs::symlink(binaries, dir.path().join("target/release")).unwrap();
+        let path = format!(
+            "{}:{}",
+            binaries.display(),
+            std::env::var("PATH").unwrap_or_default()
+        );
+        Reader { dir, path }
+    }
+
+    /// Runs `command` in bash, stdout and stderr as one stream; its status and what it said.
+    fn run(&self, command: &str) -> (i32, String) {
+        let out = Command::new("bash")
+            .arg("-c")
+            .arg(format!("exec 2>&1\n{command}"))
+            .current_dir(self.dir.path())
+            .env("PATH", &self.path)
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stdout).into_owned();
+        (out.status.code().unwrap_or(-1), said)
+    }
+}
+
+/// The commands of a `console` block, each with the lines shown after it.
+fn console(block: &Block) -> Vec<(String, Vec<String>)> {
+    let mut commands: Vec<(String, Vec<String>)> = Vec::new();
+    for line in &block.lines {
+        match (line.strip_prefix("$ "), commands.last_mut()) {
+            (Some(command), _) => commands.push((command.to_string(), Vec::new())),
+            (None, Some((_, shown))) => shown.push(line.clone()),
+            (None, None) => panic!("line {}: output before a `$ ` command", block.at),
+        }
+    }
+    commands
+}
+
+/// Runs every example of `page`; the failures, each a paragraph.
+fn run_page(page: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(page).unwrap();
+    let name = page.strip_prefix(root()).unwrap().display().to_string();
+    let reader = Reader::new();
+    let mut failures = Vec::new();
+    for block in blocks(&text) {
+        let at = format!("{name}:{}", block.at);
+        if let Some(file) = block.attribute("same-as") {
+            let shipped = std::fs::read_to_string(root().join(file)).unwrap();
+            if block.text() != shipped {
+                failures.push(format!("{at}: the block is not {file} as it is"));
+            }
+        }
+        if let Some(file) = block.attribute("file") {
+            std::fs::write(reader.dir.path().join(file), block.text()).unwrap();
+        }
+        if let Some(file) = block.attribute("fragment") {
+            let keys: serde_json::Map<String, serde_json::Value> =
+                serde_json::from_str(&format!("{{{}}}", block.text()))
+                    .unwrap_or_else(|e| panic!("{at}: not keys of a study file: {e}"));
+            let shipped = std::fs::read_to_string(root().join(file)).unwrap();
+            let mut study: serde_json::Value = serde_json::from_str(&shipped).unwrap();
+            study.as_object_mut().unwrap().extend(keys);
+            let path = reader.dir.path().join("fragment.json");
+            std::fs::write(&path, study.to_string()).unwrap();
+            let (status, said) = reader.run("nlstudy plan fragment.json >/dev/null");
+            if status != 0 {
+                failures.push(format!("{at}: {file} with these keys is refused:\n{said}"));
+            }
+        }
+        let kind = block.info.first().map(String::as_str).unwrap_or_default();
+        let no_run = block.info.iter().any(|word| word == "no-run");
+        match kind {
+            "sh" if no_run => {
+                for line in block.lines.iter().filter(|l| !l.trim().is_empty()) {
+                    let command = line.split(" #").next().unwrap().trim();
+                    let target = command.strip_prefix("make ").unwrap_or_else(|| {
+                        panic!("{at}: a no-run block holds only `make TARGET` lines")
+                    });
+                    let dry = Command::new("make")
+                        .args(["-n", target])
+                        .current_dir(root())
+                        .output()
+                        .unwrap();
+                    if !dry.status.success() {
+                        failures.push(format!("{at}: the Makefile has no target `{target}`"));
+                    }
+                }
+            }
+            "sh" => {
+                // A line ending in `\` goes on in the next.
+                let joined = block.lines.join("\n").replace("\\\n", " ");
+                for line in joined.lines() {
+                    let command = line.split(" #").next().unwrap().trim();
+                    if command.is_empty() || command.starts_with('#') {
+                        continue;
+                    }
+                    let (status, said) = reader.run(command);
+                    if status != 0 {
+                        failures.push(format!("{at}: `{command}` exited {status}:\n{said}"));
+                    }
+                }
+            }
+            "console" => {
+                for (command, mut shown) in console(&block) {
+                    let expected = match shown.last().and_then(|l| l.strip_prefix("(exit ")) {
+                        Some(code) => {
+                            let code = code.trim_end_matches(')').parse().unwrap();
+                            shown.pop();
+                            code
+                        }
+                        None => 0,
+                    };
+                    let (status, said) = reader.run(&command);
+                    let lines: Vec<&str> = said.lines().collect();
+                    if status != expected || !matches(&shown, &lines) {
+                        failures.push(format!(
+                            "{at}: `{command}` exited {status} (the page says {expected}) and \
+                             printed:\n{said}\nThe page shows:\n{}",
+                            shown.join("\n")
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    failures
+}
+
+/// Whether a page needs the system's components: pyarrow, or a local Slurm.
+fn is_system(page: &Path) -> bool {
+    blocks(&std::fs::read_to_string(page).unwrap())
+        .iter()
+        .any(|block| {
+            block
+                .info
+                .iter()
+                .any(|word| word == "python" || word == "system")
+        })
+}
+
+fn run_pages(system: bool) {
+    let mut ran = 0;
+    let failures: Vec<String> = (pages().into_iter())
+        .filter(|page| is_system(page) == system)
+        .inspect(|_| ran += 1)
+        .flat_map(|page| run_page(&page))
+        .collect();
+    assert!(ran > 0, "no page to run");
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
+#[test]
+fn every_example_of_the_readme_and_the_guide_runs_and_prints_what_it_shows() {
+    run_pages(false);
+}
+
+#[test]
+#[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
+fn every_example_with_pyarrow_or_slurm_runs() {
+    let setup = Command::new(root().join("scripts/setup.sh"))
+        .args(["--tests", "--slurm"])
+        .output()
+        .unwrap();
+    assert!(
+        setup.status.success(),
+        "the set-up could not install pyarrow or Slurm: {}",
+        String::from_utf8_lossy(&setup.stderr)
+    );
+    run_pages(true);
+}
+
+#[test]
+fn the_output_matching_takes_dots_for_any_lines() {
+    let shown = |lines: &[&str]| lines.iter().map(|l| l.to_string()).collect::<Vec<_>>();
+    assert!(matches(&shown(&["a", "...", "d"]), &["a", "b", "c", "d"]));
+    assert!(matches(&shown(&["...", "d"]), &["d"]));
+    assert!(!matches(&shown(&["a", "d"]), &["a", "b", "d"]));
+    assert!(!matches(&shown(&["a", "...", "e"]), &["a", "b", "d"]));
+    assert!(!matches(&shown(&["a  "]), &["a"]));
+    assert!(matches(&shown(&["a"]), &["a  "]));
+    assert!(line_matches(
+        "at [..]/mine.json; [..] owner",
+        "at /tmp/x/mine.json; the owner"
+    ));
+    assert!(line_matches("[..]", ""));
+    assert!(!line_matches("at [..]/mine.json", "at /tmp/x/theirs.json"));
+    assert!(!line_matches("ab[..]ba", "aba"));
+}
+
+/// The study language's reference names every key the study reader knows: those it lists when
+/// it refuses an unknown one, at each level of a study file.
+#[test]
+fn the_reference_names_every_key_of_a_study_file() {
+    let reference = std::fs::read_to_string(root().join("docs/guide/study-language.md")).unwrap();
+    let reader = Reader::new();
+    let unknown = r#""zzzz": 1"#;
+    let places = [
+        format!("{{{unknown}}}"),
+        format!(r#""resources": {{{unknown}}}"#),
+        format!(r#""figures": [{{"name": "a", "kind": "convergence", {unknown}}}]"#),
+        format!(r#""boundary": {{{unknown}}}"#),
+        format!(r#""refine": {{{unknown}}}"#),
+        format!(r#""target": {{{unknown}}}"#),
+        format!(r#""budget": {{{unknown}}}"#),
+        format!(r#""sweep": [{{"branches": {{"a": {{{unknown}}}}}}}]"#),
+        format!(r#""sweep": [{{{unknown}}}]"#),
+    ];
+    let mut keys = Vec::new();
+    for place in places {
+        let study = match place.starts_with('{') {
+            true => r#"{"name": "keys", "base": {}, "zzzz": 1}"#.to_string(),
+            false => format!(r#"{{"name": "keys", "base": {{}}, {place}}}"#),
+        };
+        std::fs::write(reader.dir.path().join("keys.json"), study).unwrap();
+        let (status, said) = reader.run("nlstudy plan keys.json");
+        assert_eq!(status, 2, "{said}");
+        let listed = said
+            .split_once("expected ")
+            .unwrap_or_else(|| panic!("no list of keys in: {said}"))
+            .1;
+        let named: Vec<String> = (listed.split('`').skip(1).step_by(2))
+            .map(str::to_string)
+            .collect();
+        assert!(named.len() >= 2, "{said}");
+        keys.extend(named);
+    }
+    let missing: Vec<String> = (keys.into_iter())
+        .filter(|key| !reference.contains(&format!("`{key}`")))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/guide/study-language.md does not name {missing:?}"
+    );
+}
