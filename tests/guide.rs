@@ -10,7 +10,7 @@
 //!   stderr, as a terminal interleaves them), matched line by line, where a line `...` stands
 //!   for any number of lines, `[..]` for any text within a line, and a last line `(exit N)`
 //!   for the exit status (else it must be 0);
-//! - `sh`: every line that is not a comment runs and must succeed (` # …` ends a line);
+//! - `sh`: the block runs as one bash script, each line of which must succeed;
 //! - `sh no-run`: each line is `make TARGET`, and the Makefile has that target (`make test` is
 //!   this suite; `make run` is the README's main job);
 //! - `file=NAME`: the block is written to NAME, for the commands after it;
@@ -227,17 +227,11 @@ fn run_page(page: &Path) -> Vec<String> {
                 }
             }
             "sh" => {
-                // A line ending in `\` goes on in the next.
-                let joined = block.lines.join("\n").replace("\\\n", " ");
-                for line in joined.lines() {
-                    let command = line.split(" #").next().unwrap().trim();
-                    if command.is_empty() || command.starts_with('#') {
-                        continue;
-                    }
-                    let (status, said) = reader.run(command);
-                    if status != 0 {
-                        failures.push(format!("{at}: `{command}` exited {status}:\n{said}"));
-                    }
+                // One shell for the block, as a reader pastes it: an `export` holds for the
+                // lines after it, and the first line that fails stops the block.
+                let (status, said) = reader.run(&format!("set -e\n{}", block.text()));
+                if status != 0 {
+                    failures.push(format!("{at}: the block exited {status}:\n{said}"));
                 }
             }
             "console" => {
