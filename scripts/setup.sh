@@ -3,7 +3,7 @@
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
 # a person would, Python's vtk, whose readers open the solver's VTK files, and pyarrow, which
-# reads the Parquet tables as the README says. With --slurm, the
+# reads the Parquet tables as the guide's results chapter does. With --slurm, the
 # packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its accounting
 # (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs (iproute2).
 # Cheap when everything is there, so `make run` and `make test` call it every time.

@@ -367,3 +367,24 @@ fn the_reference_names_every_key_of_a_study_file() {
         "docs/guide/study-language.md does not name {missing:?}"
     );
 }
+
+/// Every link of the README and the guide to a file of the repository finds it.
+#[test]
+fn every_link_between_the_pages_finds_its_file() {
+    let mut broken = Vec::new();
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        for (at, _) in text.match_indices("](") {
+            let target = &text[at + 2..];
+            let target = &target[..target.find(')').unwrap_or(0)];
+            let file = target.split('#').next().unwrap_or_default();
+            if file.is_empty() || file.contains("://") {
+                continue;
+            }
+            if !page.parent().unwrap().join(file).exists() {
+                broken.push(format!("{}: {target}", page.display()));
+            }
+        }
+    }
+    assert!(broken.is_empty(), "links to no file: {broken:#?}");
+}
