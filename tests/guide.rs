@@ -3,8 +3,7 @@
 //!
 //! Each page runs in a scratch directory of its own, its fenced blocks in order, with
 //! `target/release` first on `PATH` and the repository's `studies/`, `cases/`, `sites/` and
-//! `scripts/`
-//! beside it (as a reader in a clone has them). What a block's info string says:
+//! `scripts/` beside it (as a reader in a clone has them). What a block's info string says:
 //!
 //! - `console`: `$ command` lines run in bash; the lines after one are its output (stdout and
 //!   stderr, as a terminal interleaves them), matched line by line, where a line `...` stands
