@@ -100,7 +100,8 @@ fn the_layer_check_sees_an_arrow_up() {
 /// The schema both binaries read is plain serde data (and strsim, for "did you mean" in its
 /// errors): it links no numerics, tables or plots, so the orchestrator never compiles the solver
 /// to read a case or a record. clap comes only with the feature `cli` (nlsolve's flags), and
-/// `workspace-hack` adds no crate, only features of these (see its Cargo.toml).
+/// `workspace-hack` adds only crates the workspace builds anyway, for their features (see its
+/// Cargo.toml).
 #[test]
 fn the_schema_is_serde_only_and_acyclic() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("schema");
