@@ -154,6 +154,7 @@ fn run_collects_every_run_into_parquet_and_a_summary_per_point() {
     let scratch = Scratch::new("collect", &study);
     let run = scratch.nlstudy("run", &[]);
     assert!(run.status.success(), "{}", text(&run));
+    the_same_when_sliced(&scratch);
     let table = |name: &str| scratch.dir.join("results/small").join(name);
 
     // One row per run and repeat, flat columns of the case, results, timings and provenance.
@@ -1709,8 +1710,31 @@ fn from_scratch(scratch: &Scratch) -> (Vec<u8>, Vec<u8>, String) {
         read("small-summary.parquet"),
         overview(&dir),
     );
+    the_same_when_sliced(scratch);
     std::fs::write(&made, kept).unwrap();
     whole
+}
+
+/// Collected from scratch a slice of the plan at a time, as a large study is (a run or three at
+/// a time, a point's repeats kept together), the tables of study `small` are those a collect in
+/// one slice made.
+fn the_same_when_sliced(scratch: &Scratch) {
+    let dir = scratch.dir.join("results/small");
+    let read = |name: &str| std::fs::read(dir.join(name)).unwrap();
+    let whole = (read("small.parquet"), read("small-summary.parquet"));
+    for slice in ["1", "3"] {
+        let _ = std::fs::remove_file(dir.join(".collected.json"));
+        let sliced = (scratch.command("collect", &[]))
+            .env("NLSTUDY_COLLECT_SLICE", slice)
+            .output()
+            .unwrap();
+        assert!(sliced.status.success(), "{}", text(&sliced));
+        assert!(read("small.parquet") == whole.0, "runs, slices of {slice}");
+        assert!(
+            read("small-summary.parquet") == whole.1,
+            "summary, slices of {slice}"
+        );
+    }
 }
 
 /// The overview the last collect printed, as it keeps it.

@@ -14,6 +14,7 @@
 //! Derived values come only from points whose every repeat is `ok`.
 
 use crate::statistics::quantile;
+use crate::store::shared;
 use crate::store::table::Row;
 use rayon::prelude::*;
 use schema::record::columns;
@@ -133,6 +134,22 @@ pub const DERIVED_FROM: &[(&str, Cell)] = &[
     (ORDERS[2].0, Cell::Number),
     (ORDERS[3].0, Cell::Number),
 ];
+
+/// What `derive` reads of a reduced row: its `DERIVED_FROM` cells. `derive` run on these in
+/// place of the rows sets the cells it would set on them, in the same order (it sets only
+/// columns no reduced row has: `derived_cells`).
+pub fn derived_from(row: &Row) -> Row {
+    (DERIVED_FROM.iter())
+        .filter_map(|(name, _)| Some((shared(name), row.get(name)?.clone())))
+        .collect()
+}
+
+/// The cells `derive` set on a row of `derived_from`.
+pub fn derived_cells(row: Row) -> Row {
+    (row.into_iter())
+        .filter(|(name, _)| DERIVED_FROM.iter().all(|(from, _)| **name != **from))
+        .collect()
+}
 
 /// What a cell `derive` reads holds.
 #[derive(Clone, Copy, PartialEq)]
@@ -355,6 +372,45 @@ mod tests {
                 ),
                 _ => assert_eq!(g, e, "{got:?} vs {expected:?}"),
             }
+        }
+    }
+
+    #[test]
+    fn derive_on_what_it_reads_sets_what_it_sets_on_whole_rows() {
+        // Two scaling series and a refinement series, one point failed.
+        let mut runs: Vec<Row> = (0..6)
+            .map(|k| {
+                let mut row = run(&format!("p{k}"), 1 << (k % 3), 1, 4.0 / (1 + k % 3) as f64);
+                row.set("point", json!(format!("p{k}")));
+                row.set("scaling_series", json!(format!("n={}", k / 3)));
+                row.set("refinement_series", json!(format!("t={}", k % 3)));
+                row.set("h", json!(1.0 / (16 << (k / 3)) as f64));
+                row.set("error_l2_norm", json!(1.0 / (16 << (k / 3)) as f64));
+                row
+            })
+            .collect();
+        runs[4].set("status", json!("failed"));
+        let whole = summarize(runs.clone());
+        let reduced = reduce_points(runs);
+        let mut series: Vec<Row> = reduced.iter().map(derived_from).collect();
+        derive(&mut series);
+        for (row, (reduced, series)) in whole.iter().zip(reduced.into_iter().zip(series)) {
+            let cells: Vec<_> = reduced.into_iter().chain(derived_cells(series)).collect();
+            assert_eq!(*row, cells.into_iter().collect::<Row>());
+        }
+        assert!(whole[3].get("order_l2").is_some() && whole[1].get("speedup").is_some());
+    }
+
+    #[test]
+    fn no_record_column_is_one_the_series_derive() {
+        let derived = ["baseline_workers", "speedup", "efficiency", "karp_flatt"];
+        let orders = ORDERS.iter().map(|(_, order)| *order);
+        for name in derived.into_iter().chain(orders) {
+            assert!(!schema::record::is_column(name), "{name}");
+            assert!(
+                !DERIVED_FROM.iter().any(|(from, _)| *from == name),
+                "{name}"
+            );
         }
     }
 

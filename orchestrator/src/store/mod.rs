@@ -586,19 +586,83 @@ impl Store {
         scan.take(read);
         scan.found_now = scan.unreadable.len() - known_unreadable;
         if scan.found_now > 0 {
-            // A frame changed under the catalog (a bad block, a hand edit of the same size):
-            // the next reader reads every segment again, and its point runs again.
-            if let Some(catalog) = self
-                .catalog
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .as_mut()
-            {
-                catalog.invalidate();
-                catalog.persist(&self.runs);
-            }
+            self.forget_catalog();
         }
         scan
+    }
+
+    /// The stored record of each of `keys`, made into what `make` keeps of it (given the key's
+    /// place in `keys`), on every core; `None` where a key has none. Each segment is opened
+    /// once and only its frames of `keys` are read, so a reader that takes the store a slice of
+    /// keys at a time holds one slice. What is not a whole record is reported as `scan_map`
+    /// reports it, and the catalog is read afresh by the next reader.
+    pub fn read_each<T: Send>(
+        &self,
+        keys: &[&str],
+        make: impl Fn(usize, Stored) -> T + Sync,
+    ) -> (Vec<Option<T>>, Vec<Unreadable>) {
+        let places: Vec<Option<Location>> = {
+            // (Brought up to date: a compaction since the last slice moved the records.)
+            let guard = self.catalog(false);
+            let catalog = guard.as_ref().expect("loaded");
+            keys.iter()
+                .map(|key| Some(catalog.get(key)?.at.clone()))
+                .collect()
+        };
+        let dir = self.segments();
+        let mut open: HashMap<Shared, Option<File>> = HashMap::new();
+        for place in places.iter().flatten() {
+            if let Location::Segment { name, .. } = place {
+                open.entry(name.clone())
+                    .or_insert_with(|| fs::open_regular(&dir.join(&**name)).ok().map(|f| f.0));
+            }
+        }
+        let read: Vec<Option<Result<T, Unreadable>>> = (places.into_par_iter().enumerate())
+            .map(|(i, place)| {
+                let (text, path, at) = match place? {
+                    Location::Segment { name, span } => {
+                        let path = dir.join(&*name);
+                        let body = (open.get(&name)?.as_ref())
+                            .and_then(|file| segment::read_frame_of(file, &span))
+                            .ok_or_else(|| "it changed since it was read".to_string());
+                        let text =
+                            body.and_then(|b| String::from_utf8(b).map_err(|e| e.to_string()));
+                        (text, path, Some(span))
+                    }
+                    Location::File(path) => (read_regular(&path, RECORD_CAP), path, None),
+                };
+                let stored = text.and_then(|text| check_identity(keys[i], &text));
+                Some(
+                    stored
+                        .map(|stored| make(i, stored))
+                        .map_err(|problem| Unreadable { path, at, problem }),
+                )
+            })
+            .collect();
+        let mut unreadable = Vec::new();
+        let made = (read.into_iter())
+            .map(|read| match read? {
+                Ok(made) => Some(made),
+                Err(e) => {
+                    unreadable.push(e);
+                    None
+                }
+            })
+            .collect();
+        if !unreadable.is_empty() {
+            self.forget_catalog();
+        }
+        (made, unreadable)
+    }
+
+    /// Makes the next reader read every segment again: a frame changed under the catalog (a
+    /// bad block, a hand edit of the same size), and its point runs again.
+    fn forget_catalog(&self) {
+        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(catalog) = guard.as_mut() {
+            catalog.invalidate();
+            catalog.persist(&self.runs);
+        }
     }
 
     /// Every stored record.

@@ -191,9 +191,13 @@ fn read_at_most(file: &File, buffer: &mut [u8], offset: u64) -> io::Result<usize
 /// The body of the frame at `span` of segment `path`, checked again (the file may have changed
 /// since it was indexed).
 pub fn read_frame(path: &Path, span: &Range<u64>) -> Option<Vec<u8>> {
-    let (file, _) = super::fs::open_regular(path).ok()?;
+    read_frame_of(&super::fs::open_regular(path).ok()?.0, span)
+}
+
+/// `read_frame` of a segment held open.
+pub fn read_frame_of(file: &File, span: &Range<u64>) -> Option<Vec<u8>> {
     let mut bytes = vec![0; (span.end - span.start) as usize];
-    if read_at_most(&file, &mut bytes, span.start).ok()? != bytes.len() {
+    if read_at_most(file, &mut bytes, span.start).ok()? != bytes.len() {
         return None;
     }
     let body = body_at(&bytes, &(0..bytes.len() as u64))?.to_vec();

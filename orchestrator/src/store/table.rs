@@ -135,6 +135,7 @@ pub fn texts<'a>(frame: &'a DataFrame, name: &str) -> Option<Vec<Option<&'a str>
 }
 
 /// The shapes of `rows`, in order.
+#[cfg(test)]
 pub fn shapes(rows: &[Row]) -> shape::Shapes {
     let mut shapes = shape::Shapes::default();
     for row in rows {

@@ -116,6 +116,11 @@ impl Shapes {
         self.of_rows.len()
     }
 
+    /// The shape of row `row`.
+    pub fn of_row(&self, row: usize) -> &Shape {
+        &self.distinct[self.of_rows[row] as usize]
+    }
+
     /// The columns a table of these rows has, as `table::data_frame` makes them: each name
     /// where it is first seen, typed to hold every cell.
     pub fn schema(&self) -> Schema {

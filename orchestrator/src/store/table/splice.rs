@@ -55,7 +55,7 @@ pub fn splice(
 /// The old frame's columns as `schema` has them: a column it lacks all null, integers widened
 /// to floats, a column of nulls only of any type; `None` if a column's cells cannot be of the
 /// type `schema` gives it.
-fn conform(old: &DataFrame, schema: &Schema) -> Option<DataFrame> {
+pub fn conform(old: &DataFrame, schema: &Schema) -> Option<DataFrame> {
     let columns = schema
         .iter()
         .map(|(name, kind)| {

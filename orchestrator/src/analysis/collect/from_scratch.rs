@@ -1,0 +1,276 @@
+//! Both tables made from the records alone, a slice of the plan at a time: each slice's runs
+//! become their rows, the rows a slice of each table's frame (typed columns) and the rows'
+//! shapes, and are let go. So a collect holds the frames, not a row of named cells per run
+//! (about 7 KB each): the tables come out as `table::data_frame` of all the rows would make
+//! them, their columns following from the shapes (`table::shape`).
+//!
+//! A slice ends only where every point begun in it has all its runs (a point's repeats lie
+//! together in the plan), so each point's summary row is reduced within one slice. What the
+//! scaling and refinement series derive reads other slices' points: it is derived at the end
+//! from each point's `summary::derived_from` cells, which are all it reads.
+
+use super::{fits_in_memory, refuse_mixed, run_row, Written};
+use crate::analysis::incremental::{self, Identity};
+use crate::analysis::summary;
+use crate::run::plan::Planned;
+use crate::store::table::shape::{Schema, Shapes};
+use crate::store::table::splice::conform;
+use crate::store::table::{self, Row};
+use crate::store::{Fault, Store};
+use polars::prelude::{Column, DataFrame, PolarsError};
+use std::collections::{HashMap, HashSet};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+/// Planned points per slice, at most (more only to keep a point's runs together): about 15 MB
+/// of rows at a time. (8192 held 40 MB more at 10⁵ runs, and took as long.)
+const SLICE: usize = 2048;
+
+/// `SLICE`, or `NLSTUDY_COLLECT_SLICE` where it is a whole number from 1: the tests slice small
+/// studies as large ones are sliced.
+fn slice_size() -> usize {
+    (std::env::var("NLSTUDY_COLLECT_SLICE").ok())
+        .and_then(|size| size.parse().ok())
+        .filter(|&size| size > 0)
+        .unwrap_or(SLICE)
+}
+
+/// A table's slices: each one's planned points and its rows' frame.
+type Parts = Vec<(Range<usize>, DataFrame)>;
+
+/// Every stored record of the study's points read into both tables, which are staged (the run
+/// table written and let go before the summary is stacked); `None` when no point has a record.
+/// `identity` is the header, each point's identity and sequence number.
+pub(super) fn from_scratch(
+    planned: &[Planned],
+    (header, identities, seqs): (String, &[Identity], &[u64]),
+    store: &Store,
+    staged: &mut table::Staged,
+    paths: &(PathBuf, PathBuf),
+    allow_mixed: bool,
+) -> Result<Option<Written>, Fault> {
+    fits_in_memory(store.count(), super::available_memory())?;
+    let keys: Vec<&str> = planned.iter().map(|p| p.key.as_str()).collect();
+    let runs_of = |slice: Range<usize>| -> (Vec<usize>, Vec<Row>) {
+        let (rows, unreadable) = store.read_each(&keys[slice.clone()], |j, stored| {
+            let i = slice.start + j;
+            run_row(&planned[i], &identities[i], &stored)
+        });
+        for unreadable in &unreadable {
+            errln!("nlstudy: warning: {unreadable}");
+        }
+        (rows.into_iter().enumerate())
+            .filter_map(|(j, row)| Some((slice.start + j, row?)))
+            .unzip()
+    };
+    let mut points = Vec::new();
+    let (mut run_parts, mut run_shapes) = (Parts::new(), Shapes::default());
+    let (mut reduced_parts, mut reduced_shapes) = (Parts::new(), Shapes::default());
+    let mut series: Vec<Row> = Vec::new();
+    for slice in slices(identities, slice_size()) {
+        let (indices, rows) = runs_of(slice.clone());
+        if rows.is_empty() {
+            continue;
+        }
+        points.extend(indices);
+        rows.iter()
+            .for_each(|row| run_shapes.push_cells(row.typed_cells()));
+        let frame = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
+        run_parts.push((slice.clone(), frame));
+        let reduced = summary::reduce_points(rows);
+        for row in &reduced {
+            reduced_shapes.push_cells(row.typed_cells());
+            series.push(summary::derived_from(row));
+        }
+        let frame = table::data_frame(&reduced).map_err(unwritable(&paths.1))?;
+        reduced_parts.push((slice, frame));
+    }
+    if points.is_empty() {
+        return Ok(None);
+    }
+    // A slice whose frame cannot be conformed to the whole table's columns (a column of
+    // numbers there, of text in the whole) is made again of its rows.
+    let run_schema = run_shapes.schema();
+    let mut runs = stack(run_parts, &run_schema, &|slice| {
+        let rows = runs_of(slice).1;
+        table::data_frame_as(&rows, &run_schema)
+    })
+    .ok_or_else(|| changed(&paths.0))?;
+    refuse_mixed(&runs, allow_mixed)?;
+    staged.stage_frame(&paths.0, &mut runs)?;
+    drop(runs);
+
+    summary::derive(&mut series);
+    let derived: Vec<Row> = series.into_iter().map(summary::derived_cells).collect();
+    let mut summary_shapes = Shapes::default();
+    for (k, cells) in derived.iter().enumerate() {
+        let reduced = reduced_shapes
+            .of_row(k)
+            .iter()
+            .map(|(name, kind)| (name, *kind));
+        summary_shapes.push_cells(reduced.chain(cells.typed_cells()));
+    }
+    let schema = summary_shapes.schema();
+    let derived_names: HashSet<&str> = (derived.iter())
+        .flat_map(|row| row.cells().map(|(name, _)| name))
+        .collect();
+    let (derived_schema, reduced_schema): (Schema, Schema) =
+        (schema.iter().cloned()).partition(|(name, _)| derived_names.contains(&**name));
+    if (reduced_shapes.schema().iter()).any(|(name, _)| derived_names.contains(&**name)) {
+        // (No record has a column the series derive: `summary`'s tests hold it.)
+        return Err(Fault::Io(format!(
+            "cannot write {}: a run's row has a column the summary derives",
+            paths.1.display()
+        )));
+    }
+    let reduced = stack(reduced_parts, &reduced_schema, &|slice| {
+        let rows = summary::reduce_points(runs_of(slice).1);
+        table::data_frame_as(&rows, &reduced_schema)
+    })
+    .ok_or_else(|| changed(&paths.1))?;
+    let derived_frame =
+        table::data_frame_as(&derived, &derived_schema).ok_or_else(|| changed(&paths.1))?;
+    let column = |name: &str| -> Column {
+        (derived_frame.column(name).or_else(|_| reduced.column(name)))
+            .expect("a column of the schema")
+            .clone()
+    };
+    let columns = schema.iter().map(|(name, _)| column(name)).collect();
+    let mut summary = DataFrame::new(reduced.height(), columns).map_err(unwritable(&paths.1))?;
+    drop((reduced, derived_frame));
+    staged.stage_frame(&paths.1, &mut summary)?;
+    let planned_keys: HashSet<&str> = keys.iter().copied().collect();
+    Ok(Some(Written {
+        rows: incremental::Rows::of(
+            header,
+            identities,
+            seqs,
+            &points,
+            (&run_shapes, &summary_shapes),
+        ),
+        summary,
+        spliced: None,
+        left_out: store.count_besides(&planned_keys),
+    }))
+}
+
+fn unwritable(path: &Path) -> impl Fn(PolarsError) -> Fault + '_ {
+    move |e| Fault::Io(format!("cannot write {}: {e}", path.display()))
+}
+
+/// A table's slices are not what its records make now: a record changed under the collect.
+fn changed(path: &Path) -> Fault {
+    Fault::Io(format!(
+        "cannot write {}: the stored records changed while they were read; collect again",
+        path.display()
+    ))
+}
+
+/// The planned points in slices of about `size` (in plan order), each ending where every point
+/// label begun in it has ended: a label seen again after a slice ended would split a point.
+fn slices(identities: &[Identity], size: usize) -> Vec<Range<usize>> {
+    let mut last: HashMap<&str, usize> = HashMap::new();
+    for (i, identity) in identities.iter().enumerate() {
+        last.insert(&identity.label, i);
+    }
+    let (mut slices, mut start, mut reach) = (Vec::new(), 0, 0);
+    for (i, identity) in identities.iter().enumerate() {
+        reach = reach.max(last[identity.label.as_str()]);
+        if i == reach && i + 1 - start >= size {
+            slices.push(start..i + 1);
+            start = i + 1;
+        }
+    }
+    if start < identities.len() {
+        slices.push(start..identities.len());
+    }
+    slices
+}
+
+/// The slices' frames as one of the columns `schema` names, in order: each conformed to it, or
+/// where it cannot be, made again (`remake`, of its slice's records). Put together a column at a
+/// time, each slice's piece let go as its column is made, so that the table is held once and
+/// a column, not twice.
+fn stack(
+    parts: Parts,
+    schema: &Schema,
+    remake: &dyn Fn(Range<usize>) -> Option<DataFrame>,
+) -> Option<DataFrame> {
+    let mut conformed = Vec::with_capacity(parts.len());
+    for (slice, part) in parts {
+        conformed.push(conform(&part, schema).or_else(|| {
+            drop(part);
+            remake(slice)
+        })?);
+    }
+    let height = conformed.iter().map(DataFrame::height).sum();
+    let columns = (schema.iter())
+        .map(|(name, _)| {
+            let mut pieces = conformed.iter_mut().map(|part| part.drop_in_place(name));
+            let mut column = pieces.next()?.ok()?;
+            for piece in pieces {
+                column.append_owned(piece.ok()?).ok()?;
+            }
+            Some(column.rechunk())
+        })
+        .collect::<Option<Vec<Column>>>()?;
+    DataFrame::new(height, columns).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::{json, Value};
+
+    fn identities(labels: &[&str]) -> Vec<Identity> {
+        (labels.iter())
+            .map(|label| Identity {
+                signature: String::new(),
+                label: label.to_string(),
+                refinement: String::new(),
+                scaling: String::new(),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn slices_are_stacked_as_one_frame_of_their_rows_would_be() {
+        let row = |a: Value| Row::of_cells(json!({ "a": a, "b": 2 }));
+        let rows = [
+            row(json!(1)),
+            row(json!(1.5)),
+            row(json!(2)),
+            row(json!("x")),
+        ];
+        let part = |slice: Range<usize>| (slice.clone(), table::data_frame(&rows[slice]).unwrap());
+        let remade = std::cell::RefCell::new(Vec::new());
+        let remake = |slice: Range<usize>| {
+            remade.borrow_mut().push(slice.clone());
+            table::data_frame_as(&rows[slice], &table::shapes(&rows).schema())
+        };
+        // Integers widen to floats in place; a slice of numbers where the table has text is
+        // made again of its rows.
+        let schema = table::shapes(&rows[..3]).schema();
+        let floats = stack(vec![part(0..1), part(1..3)], &schema, &remake).unwrap();
+        assert!(floats.equals_missing(&table::data_frame(&rows[..3]).unwrap()));
+        assert!(remade.borrow().is_empty());
+        let schema = table::shapes(&rows).schema();
+        let texts = stack(vec![part(0..3), part(3..4)], &schema, &remake).unwrap();
+        assert!(texts.equals_missing(&table::data_frame(&rows).unwrap()));
+        assert_eq!(*remade.borrow(), [0..3]);
+    }
+
+    #[test]
+    fn slices_keep_each_points_runs_together() {
+        let labels = ["a", "a", "b", "c", "c", "c", "d", "b", "e", "f"];
+        let slices = slices(&identities(&labels), 2);
+        // "b" comes again at 7, so the slice begun at 2 runs to 7.
+        assert_eq!(slices, [0..2, 2..8, 8..10]);
+        assert_eq!(super::slices(&identities(&labels), 100), [0..10]);
+        assert_eq!(
+            super::slices(&identities(&["a", "b", "c"]), 1),
+            [0..1, 1..2, 2..3]
+        );
+        assert!(super::slices(&identities(&[]), 4).is_empty());
+    }
+}
