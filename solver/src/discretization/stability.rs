@@ -136,20 +136,31 @@ impl Symbol {
         values
     }
 
-    /// Hill-climbs from a coarse sample on ever finer 5 × 5 (or 5 in 1D) patterns.
+    /// Hill-climbs from a coarse sample on ever finer 5 × 5 (or 5 in 1D) patterns. Each
+    /// pattern's column sums are made once per ξ₂ (once in 1D) and the cosines into buffers
+    /// kept for the climb: σ is `value`'s, bit for bit, at a third of its cost (this search was
+    /// a fifth of a tiny case's time in a worker).
     fn zoom(&self, mut best: f64, mut xi1: f64, mut xi2: f64, mut spacing: f64) -> f64 {
         let steps2: &[f64] = if self.dim == 2 {
             &[-1.0, -0.5, 0.0, 0.5, 1.0]
         } else {
             &[0.0]
         };
+        let mut cosines = vec![0.0; self.reach + 1];
+        let mut g = vec![0.0; self.reach + 1];
+        let fill = |cosines: &mut [f64], xi: f64| {
+            (cosines.iter_mut().enumerate()).for_each(|(d, c)| *c = (d as f64 * xi).cos())
+        };
         for _ in 0..ZOOM_STEPS {
             let (c1, c2) = (xi1, xi2);
             for &s2 in steps2 {
+                let t2 = (c2 + s2 * spacing).clamp(0.0, PI);
+                fill(&mut cosines, t2);
+                self.column_sums(&cosines, &mut g);
                 for s1 in [-1.0, -0.5, 0.0, 0.5, 1.0] {
                     let t1 = (c1 + s1 * spacing).clamp(0.0, PI);
-                    let t2 = (c2 + s2 * spacing).clamp(0.0, PI);
-                    let v = self.value(t1, t2);
+                    fill(&mut cosines, t1);
+                    let v = self.value_with(&cosines, &g);
                     if v > best {
                         (best, xi1, xi2) = (v, t1, t2);
                     }
@@ -224,4 +235,65 @@ pub fn positive_step(
     };
     let dt = 1.0 / (explicit_part * largest_diagonal);
     (off_diagonal_nonnegative && dt.is_finite() && dt > 0.0).then_some(dt)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::{Kernel, Quadrature};
+    use crate::discretization::grid::{Grid, Horizon};
+
+    /// The climb as first written: σ by `value` at each of the pattern's points.
+    fn zoom_by_value(
+        symbol: &Symbol,
+        mut best: f64,
+        mut xi1: f64,
+        mut xi2: f64,
+        mut spacing: f64,
+    ) -> f64 {
+        let steps2: &[f64] = if symbol.dim == 2 {
+            &[-1.0, -0.5, 0.0, 0.5, 1.0]
+        } else {
+            &[0.0]
+        };
+        for _ in 0..ZOOM_STEPS {
+            let (c1, c2) = (xi1, xi2);
+            for &s2 in steps2 {
+                for s1 in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+                    let t1 = (c1 + s1 * spacing).clamp(0.0, PI);
+                    let t2 = (c2 + s2 * spacing).clamp(0.0, PI);
+                    let v = symbol.value(t1, t2);
+                    if v > best {
+                        (best, xi1, xi2) = (v, t1, t2);
+                    }
+                }
+            }
+            spacing *= 0.5;
+        }
+        best
+    }
+
+    #[test]
+    fn the_climb_finds_the_maximum_of_sigma_by_value_bit_for_bit() {
+        for (dim, n, m) in [(1, 64, 1), (1, 100, 3), (1, 200, 8), (2, 32, 2), (2, 48, 5)] {
+            for kernel in Kernel::ALL {
+                let grid = Grid::new(dim, n);
+                let horizon = Horizon::from_m(&grid, m);
+                let stencil = Stencil::new(grid, horizon, kernel, Quadrature::Midpoint, 1.0);
+                let symbol = Symbol::new(&stencil);
+                let spacing = PI / (SAMPLES_PER_CELL * symbol.reach + 8) as f64;
+                for (xi1, xi2) in [(0.0, 0.0), (1.0, 0.5), (PI, PI), (2.5, 0.1)] {
+                    let xi2 = if dim == 2 { xi2 } else { 0.0 };
+                    let start = symbol.value(xi1, xi2);
+                    let climbed = symbol.zoom(start, xi1, xi2, spacing);
+                    let by_value = zoom_by_value(&symbol, start, xi1, xi2, spacing);
+                    assert_eq!(
+                        climbed.to_bits(),
+                        by_value.to_bits(),
+                        "{dim}D m={m} {kernel:?}"
+                    );
+                }
+            }
+        }
+    }
 }
