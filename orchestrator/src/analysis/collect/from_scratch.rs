@@ -100,44 +100,9 @@ pub(super) fn from_scratch(
     staged.stage_frame(&paths.0, &mut runs)?;
     drop(runs);
 
-    summary::derive(&mut series);
-    let derived: Vec<Row> = series.into_iter().map(summary::derived_cells).collect();
-    let mut summary_shapes = Shapes::default();
-    for (k, cells) in derived.iter().enumerate() {
-        let reduced = reduced_shapes
-            .of_row(k)
-            .iter()
-            .map(|(name, kind)| (name, *kind));
-        summary_shapes.push_cells(reduced.chain(cells.typed_cells()));
-    }
-    let schema = summary_shapes.schema();
-    let derived_names: HashSet<&str> = (derived.iter())
-        .flat_map(|row| row.cells().map(|(name, _)| name))
-        .collect();
-    let (derived_schema, reduced_schema): (Schema, Schema) =
-        (schema.iter().cloned()).partition(|(name, _)| derived_names.contains(&**name));
-    if (reduced_shapes.schema().iter()).any(|(name, _)| derived_names.contains(&**name)) {
-        // (No record has a column the series derive: `summary`'s tests hold it.)
-        return Err(Fault::Io(format!(
-            "cannot write {}: a run's row has a column the summary derives",
-            paths.1.display()
-        )));
-    }
-    let reduced = stack(reduced_parts, &reduced_schema, &|slice| {
-        let rows = summary::reduce_points(runs_of(slice).1);
-        table::data_frame_as(&rows, &reduced_schema)
-    })
-    .ok_or_else(|| changed(&paths.1))?;
-    let derived_frame =
-        table::data_frame_as(&derived, &derived_schema).ok_or_else(|| changed(&paths.1))?;
-    let column = |name: &str| -> Column {
-        (derived_frame.column(name).or_else(|_| reduced.column(name)))
-            .expect("a column of the schema")
-            .clone()
-    };
-    let columns = schema.iter().map(|(name, _)| column(name)).collect();
-    let mut summary = DataFrame::new(reduced.height(), columns).map_err(unwritable(&paths.1))?;
-    drop((reduced, derived_frame));
+    let remake = |slice| summary::reduce_points(runs_of(slice).1);
+    let (mut summary, summary_shapes) =
+        summary_frame(reduced_parts, &reduced_shapes, series, &remake, &paths.1)?;
     staged.stage_frame(&paths.1, &mut summary)?;
     let planned_keys: HashSet<&str> = keys.iter().copied().collect();
     Ok(Some(Written {
@@ -152,6 +117,52 @@ pub(super) fn from_scratch(
         spliced: None,
         left_out: store.count_besides(&planned_keys),
     }))
+}
+
+/// The summary's frame and its rows' shapes: the slices' reduced rows (`parts`, of the shapes
+/// `reduced_shapes`; made again of their runs by `remake` where they cannot be stacked) with
+/// the cells the series derive from `series` (each point's `derived_from` cells) in their
+/// columns' places, as one frame of whole summary rows would have them.
+fn summary_frame(
+    parts: Parts,
+    reduced_shapes: &Shapes,
+    mut series: Vec<Row>,
+    remake: &dyn Fn(Range<usize>) -> Vec<Row>,
+    path: &Path,
+) -> Result<(DataFrame, Shapes), Fault> {
+    summary::derive(&mut series);
+    let derived: Vec<Row> = series.into_iter().map(summary::derived_cells).collect();
+    let mut shapes = Shapes::default();
+    for (k, cells) in derived.iter().enumerate() {
+        let reduced = (reduced_shapes.of_row(k).iter()).map(|(name, kind)| (name, *kind));
+        shapes.push_cells(reduced.chain(cells.typed_cells()));
+    }
+    let schema = shapes.schema();
+    let derived_names: HashSet<&str> = (derived.iter())
+        .flat_map(|row| row.cells().map(|(name, _)| name))
+        .collect();
+    let (derived_schema, reduced_schema): (Schema, Schema) =
+        (schema.iter().cloned()).partition(|(name, _)| derived_names.contains(&**name));
+    if (reduced_shapes.schema().iter()).any(|(name, _)| derived_names.contains(&**name)) {
+        // (No record has a column the series derive: `summary`'s tests hold it.)
+        return Err(Fault::Io(format!(
+            "cannot write {}: a run's row has a column the summary derives",
+            path.display()
+        )));
+    }
+    let reduced = stack(parts, &reduced_schema, &|slice| {
+        table::data_frame_as(&remake(slice), &reduced_schema)
+    })
+    .ok_or_else(|| changed(path))?;
+    let derived = table::data_frame_as(&derived, &derived_schema).ok_or_else(|| changed(path))?;
+    let column = |name: &str| -> Column {
+        (derived.column(name).or_else(|_| reduced.column(name)))
+            .expect("a column of the schema")
+            .clone()
+    };
+    let columns = schema.iter().map(|(name, _)| column(name)).collect();
+    let frame = DataFrame::new(reduced.height(), columns).map_err(unwritable(path))?;
+    Ok((frame, shapes))
 }
 
 fn unwritable(path: &Path) -> impl Fn(PolarsError) -> Fault + '_ {
