@@ -217,18 +217,17 @@ pub fn collect(
             refuse_mixed(&tables.runs, allow_mixed)?;
             staged.stage_frame(&paths.0, &mut tables.runs)?;
             staged.stage_frame(&paths.1, &mut tables.summary)?;
-            let planned_keys: HashSet<&str> = keys.iter().copied().collect();
             Written {
                 rows: tables.rows,
                 summary: tables.summary,
                 spliced: Some(tables.read),
-                left_out: store.count_besides(&planned_keys),
             }
         }
         None => {
             let identity = (header, identities.as_slice(), seqs.as_slice());
+            let keyed = (planned, keys.as_slice());
             match from_scratch::from_scratch(
-                planned,
+                keyed,
                 identity,
                 store,
                 &mut staged,
@@ -242,6 +241,7 @@ pub fn collect(
     };
     let mut written = written;
     written.rows.sums = staged.commit()?;
+    let planned_keys: HashSet<&str> = keys.iter().copied().collect();
     let swept = crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point));
     let collected = Collected {
         runs: paths.0,
@@ -249,7 +249,7 @@ pub fn collect(
         rows: written.rows.runs.len(),
         points: written.summary.height(),
         missing: planned.len() - written.rows.runs.len(),
-        left_out: written.left_out,
+        left_out: store.count_besides(&planned_keys),
         overview: overview_of(&written.summary, &swept),
         up_to_date: false,
         spliced: written.spliced,
@@ -272,8 +272,6 @@ struct Written {
     summary: DataFrame,
     /// How many run rows were read from their records when the tables were spliced.
     spliced: Option<usize>,
-    /// How many stored records are of no point of the study.
-    left_out: usize,
 }
 
 /// Refuses runs of several builds or machines in one table, unless `allow_mixed`.

@@ -40,9 +40,10 @@ type Parts = Vec<(Range<usize>, DataFrame)>;
 
 /// Every stored record of the study's points read into both tables, which are staged (the run
 /// table written and let go before the summary is stacked); `None` when no point has a record.
-/// `identity` is the header, each point's identity and sequence number.
+/// `keyed` is the planned points and their keys; `identity` the header, each point's identity
+/// and sequence number.
 pub(super) fn from_scratch(
-    planned: &[Planned],
+    (planned, keys): (&[Planned], &[&str]),
     (header, identities, seqs): (String, &[Identity], &[u64]),
     store: &Store,
     staged: &mut table::Staged,
@@ -50,7 +51,6 @@ pub(super) fn from_scratch(
     allow_mixed: bool,
 ) -> Result<Option<Written>, Fault> {
     fits_in_memory(store.count(), super::available_memory())?;
-    let keys: Vec<&str> = planned.iter().map(|p| p.key.as_str()).collect();
     let runs_of = |slice: Range<usize>| -> (Vec<usize>, Vec<Row>) {
         let (rows, unreadable) = store.read_each(&keys[slice.clone()], |j, stored| {
             let i = slice.start + j;
@@ -104,7 +104,6 @@ pub(super) fn from_scratch(
     let (mut summary, summary_shapes) =
         summary_frame(reduced_parts, &reduced_shapes, series, &remake, &paths.1)?;
     staged.stage_frame(&paths.1, &mut summary)?;
-    let planned_keys: HashSet<&str> = keys.iter().copied().collect();
     Ok(Some(Written {
         rows: incremental::Rows::of(
             header,
@@ -115,7 +114,6 @@ pub(super) fn from_scratch(
         ),
         summary,
         spliced: None,
-        left_out: store.count_besides(&planned_keys),
     }))
 }
 
