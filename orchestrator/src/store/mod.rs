@@ -556,10 +556,7 @@ impl Store {
             let read: Vec<Result<T, Unreadable>> = frames
                 .into_par_iter()
                 .map(|(key, span)| {
-                    segment::body_at(&bytes, &span)
-                        .ok_or_else(|| "it changed since it was read".to_string())
-                        .and_then(|body| std::str::from_utf8(body).map_err(|e| e.to_string()))
-                        .and_then(|text| check_identity(&key, text))
+                    record_in(&key, segment::body_at(&bytes, &span))
                         .map(&make)
                         .map_err(|problem| Unreadable {
                             path: path.clone(),
@@ -619,19 +616,18 @@ impl Store {
         }
         let read: Vec<Option<Result<T, Unreadable>>> = (places.into_par_iter().enumerate())
             .map(|(i, place)| {
-                let (text, path, at) = match place? {
+                let (stored, path, at) = match place? {
                     Location::Segment { name, span } => {
-                        let path = dir.join(&*name);
                         let body = (open.get(&name)?.as_ref())
-                            .and_then(|file| segment::read_frame_of(file, &span))
-                            .ok_or_else(|| "it changed since it was read".to_string());
-                        let text =
-                            body.and_then(|b| String::from_utf8(b).map_err(|e| e.to_string()));
-                        (text, path, Some(span))
+                            .and_then(|file| segment::read_frame_of(file, &span));
+                        let stored = record_in(keys[i], body.as_deref());
+                        (stored, dir.join(&*name), Some(span))
                     }
-                    Location::File(path) => (read_regular(&path, RECORD_CAP), path, None),
+                    Location::File(path) => {
+                        let text = read_regular(&path, RECORD_CAP);
+                        (text.and_then(|t| check_identity(keys[i], &t)), path, None)
+                    }
                 };
-                let stored = text.and_then(|text| check_identity(keys[i], &text));
                 Some(
                     stored
                         .map(|stored| make(i, stored))
@@ -784,6 +780,13 @@ fn history_path(history: &Path, key: &str, fingerprint: &str) -> PathBuf {
         .map(|k| history.join(format!("{key}.{build}.{k}.json")))
         .find(|path| std::fs::symlink_metadata(path).is_err())
         .expect("some index is free")
+}
+
+/// The record of `key` in the body of its segment's frame, as read (`None`: the frame is no
+/// longer whole where the catalog says it lies).
+fn record_in(key: &str, body: Option<&[u8]>) -> Result<Stored, String> {
+    let body = body.ok_or("it changed since it was read")?;
+    check_identity(key, std::str::from_utf8(body).map_err(|e| e.to_string())?)
 }
 
 /// Records by their key.
