@@ -16,15 +16,13 @@ run: setup
 
 # Tests and runs share the release profile and the features of every dependency (see
 # workspace-hack/Cargo.toml), so after `make run` the tests compile only the project's crates, and
-# the reverse. The binaries are built with the tests, in one build that keeps both cores busy
-# (the end-to-end tests drive nlstudy, whose package has no integration test of its own to make
-# cargo build it). scripts/run-tests is `cargo test --release --workspace -- --include-ignored`
-# with the Slurm test in a lane of its own: it runs the system tests too (Slurm, Chromium,
+# the reverse. scripts/run-tests builds the binaries and the tests and is `cargo test --release
+# --workspace -- --include-ignored` with the Slurm test in a lane of its own, started while the
+# other tests compile: it runs the system tests too (Slurm, Chromium,
 # Python's vtk, a tmpfs, mpirun), which a bare `cargo test` leaves out, saying "system tests:
 # off"; here a missing component fails them.
 test:
 	@scripts/setup.sh --tests
-	cargo build --release --workspace --bins --tests
 	scripts/run-tests
 
 # Every study of the set, each run (make-style) then collected and plotted into
