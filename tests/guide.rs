@@ -384,3 +384,179 @@ fn every_link_between_the_pages_finds_its_file() {
     }
     assert!(broken.is_empty(), "links to no file: {broken:#?}");
 }
+
+/// The code spans of a page's prose (its fenced blocks left out), each as one line: a span may
+/// run over a line break, and one of N backticks ends at the next run of exactly N.
+fn code_spans(page: &str) -> Vec<String> {
+    let mut prose = String::new();
+    let mut fenced = false;
+    for line in page.lines() {
+        if line.starts_with("```") {
+            fenced = !fenced;
+            prose.push('\n');
+        } else if !fenced {
+            prose.push_str(line);
+            prose.push('\n');
+        }
+    }
+    // The runs of backticks, as (byte offset, length).
+    let bytes = prose.as_bytes();
+    let mut runs = Vec::new();
+    let mut at = 0;
+    while at < bytes.len() {
+        let length = bytes[at..].iter().take_while(|&&b| b == b'`').count();
+        if length > 0 {
+            runs.push((at, length));
+        }
+        at += length.max(1);
+    }
+    let mut spans = Vec::new();
+    let mut runs = runs.into_iter();
+    while let Some((open, length)) = runs.next() {
+        if let Some((close, _)) = runs.find(|&(_, other)| other == length) {
+            let body = &prose[open + length..close];
+            spans.push(body.split_whitespace().collect::<Vec<_>>().join(" "));
+        }
+    }
+    spans
+}
+
+/// Each subcommand of `tool` (the tool itself as ""), with the flags its `--help` names.
+fn flags_of(tool: &str) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
+    let help = |args: &[&str]| {
+        let out = Command::new(nonlocal_study::binary(tool))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{tool} {args:?}");
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let flags = |text: &str| -> std::collections::BTreeSet<String> {
+        text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+            .filter(|word| word.starts_with('-') && word.len() > 1 && word != &"--")
+            .map(str::to_string)
+            .collect()
+    };
+    let top = help(&["--help"]);
+    let commands: Vec<String> = top
+        .split("Commands:")
+        .nth(1)
+        .unwrap_or_default()
+        .split("Options:")
+        .next()
+        .unwrap()
+        .lines()
+        .filter_map(|line| line.strip_prefix("  ").filter(|l| !l.starts_with(' ')))
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|word| word.chars().all(|c| c.is_ascii_lowercase()) && *word != "help")
+        .map(str::to_string)
+        .collect();
+    let mut all = std::collections::BTreeMap::from([(String::new(), flags(&top))]);
+    for command in commands {
+        let text = help(&[&command, "--help"]);
+        all.insert(command, flags(&text));
+    }
+    all
+}
+
+/// The flags of other tools that the pages name (Slurm's, LSF's, cargo's, rustc's), which no
+/// `--help` of ours lists.
+const OTHER_TOOLS_FLAGS: &[&str] = &[
+    "--signal",              // sbatch
+    "--open-mode",           // sbatch
+    "--mem",                 // sbatch
+    "--cpus-per-task",       // sbatch
+    "--requeue",             // sbatch
+    "--mpi",                 // srun
+    "--no-default-features", // cargo
+    "--nocapture",           // the test harness
+    "--include-ignored",     // the test harness
+];
+
+type Help = std::collections::BTreeMap<String, std::collections::BTreeSet<String>>;
+
+/// What is wrong in the code spans of `page` (named `name`) that name a command or a flag of
+/// `tools`, and how many such spans it has.
+fn wrong_commands_and_flags(
+    name: &str,
+    page: &str,
+    tools: &[(&str, Help)],
+) -> (Vec<String>, usize) {
+    let any_tool = |flag: &str| {
+        let prefix = flag.strip_suffix('*');
+        tools.iter().any(|(_, commands)| {
+            commands.values().flatten().any(|known| match prefix {
+                Some(prefix) => known.starts_with(prefix),
+                None => known == flag,
+            })
+        })
+    };
+    let flags_in = |words: &[&str]| -> Vec<String> {
+        words
+            .iter()
+            .flat_map(|word| word.split('|'))
+            .map(|word| word.trim_matches(|c| c == '[' || c == ']' || c == '…'))
+            .filter(|word| word.starts_with("--") && word.len() > 2)
+            .map(|word| word.split('=').next().unwrap().to_string())
+            .collect()
+    };
+    let (mut wrong, mut checked) = (Vec::new(), 0);
+    for span in code_spans(page) {
+        let words: Vec<&str> = span.split(' ').collect();
+        if let Some((_, commands)) = tools.iter().find(|(tool, _)| *tool == words[0]) {
+            let command = words.get(1).filter(|word| commands.contains_key(**word));
+            if let Some(word) = words.get(1) {
+                let placeholder = word.starts_with('-') || word.starts_with('<');
+                if command.is_none() && !placeholder {
+                    wrong.push(format!("{name}: `{span}`: no command `{word}`"));
+                    continue;
+                }
+            }
+            let known = &commands[command.copied().unwrap_or("")];
+            for flag in flags_in(&words) {
+                if !known.contains(&flag) {
+                    wrong.push(format!("{name}: `{span}`: no flag {flag}"));
+                }
+            }
+            checked += 1;
+        } else if words[0].starts_with("--") {
+            for flag in flags_in(&words) {
+                if !any_tool(&flag) && !OTHER_TOOLS_FLAGS.contains(&flag.as_str()) {
+                    wrong.push(format!("{name}: `{span}`: no tool of ours has {flag}"));
+                }
+            }
+            checked += 1;
+        }
+    }
+    (wrong, checked)
+}
+
+/// Every `nlstudy …` and `nlsolve …` command a page names in its prose is a command the tool
+/// has, with flags its `--help` lists, and every flag named alone is one of the tools' (or of
+/// the few other tools the pages name): prose that names a renamed or removed flag fails here,
+/// as the examples the pages run fail in the tests above.
+#[test]
+fn every_command_and_flag_the_prose_names_exists() {
+    let tools = [
+        ("nlstudy", flags_of("nlstudy")),
+        ("nlsolve", flags_of("nlsolve")),
+    ];
+    let (mut wrong, mut checked) = (Vec::new(), 0);
+    for page in pages() {
+        let name = page.strip_prefix(root()).unwrap().display().to_string();
+        let (page_wrong, page_checked) =
+            wrong_commands_and_flags(&name, &std::fs::read_to_string(&page).unwrap(), &tools);
+        wrong.extend(page_wrong);
+        checked += page_checked;
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+    assert!(
+        checked > 50,
+        "only {checked} spans checked: is the parsing right?"
+    );
+    // And the check finds what it is for: a flag a command lacks, a command a tool lacks, a
+    // flag no tool has, over a line break and inside a double-backtick span.
+    let page = "Run `nlstudy run\n--no-such-flag` or `nlstudy frobnicate`; ``--nor-this `x` ``.\n";
+    let (wrong, _) = wrong_commands_and_flags("page", page, &tools);
+    assert_eq!(wrong.len(), 3, "{wrong:#?}");
+}
