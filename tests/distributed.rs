@@ -15,13 +15,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 const TOLERANCE: f64 = 1e-12;
 
-/// A fresh path for a field file.
+/// A fresh path for a field file (removed once read).
 fn field_path() -> PathBuf {
     static NEXT: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir().join(format!("nlsolve-distributed-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(format!(
-        "field-{}.bin",
+    std::env::temp_dir().join(format!(
+        "nlsolve-distributed-{}-field-{}.bin",
+        std::process::id(),
         NEXT.fetch_add(1, Ordering::Relaxed)
     ))
 }
@@ -38,10 +37,12 @@ fn finished(output: &Output, path: &Path, what: &str) -> Run {
         "{what} failed: {}",
         String::from_utf8_lossy(&output.stderr)
     );
-    Run {
+    let run = Run {
         record: record(output),
         field: read_field(path),
-    }
+    };
+    std::fs::remove_file(path).unwrap();
+    run
 }
 
 fn serial(case: &[&str]) -> Run {
