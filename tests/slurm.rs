@@ -64,11 +64,17 @@ impl LocalSlurm {
 }
 
 impl Drop for LocalSlurm {
+    /// Stops the daemons; their directory (logs, spool and accounting database, about 180 MB)
+    /// goes too unless the test failed, when its logs say why.
     fn drop(&mut self) {
-        let _ = Command::new(script("slurm-local"))
+        let stopped = Command::new(script("slurm-local"))
             .arg("stop")
             .arg(&self.dir)
-            .status();
+            .status()
+            .is_ok_and(|status| status.success());
+        if stopped && !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
     }
 }
 
