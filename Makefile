@@ -18,9 +18,9 @@ run: setup
 # workspace-hack/Cargo.toml), so after `make run` the tests compile only the project's crates, and
 # the reverse. scripts/run-tests builds the binaries and the tests and is `cargo test --release
 # --workspace -- --include-ignored` with the Slurm test in a lane of its own, started while the
-# other tests compile: it runs the system tests too (Slurm, Chromium,
-# Python's vtk, a tmpfs, mpirun), which a bare `cargo test` leaves out, saying "system tests:
-# off"; here a missing component fails them.
+# other tests compile: it runs the system tests too (Slurm, Chromium, Python's vtk, a tmpfs,
+# mpirun), which a bare `cargo test` leaves out, saying "system tests: off"; here a missing
+# component fails them.
 test:
 	@scripts/setup.sh --tests
 	scripts/run-tests
