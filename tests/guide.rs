@@ -421,8 +421,11 @@ fn code_spans(page: &str) -> Vec<String> {
     spans
 }
 
-/// Each subcommand of `tool` (the tool itself as ""), with the flags its `--help` names.
-fn flags_of(tool: &str) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
+/// Each subcommand of a tool (the tool itself as ""), with the flags its `--help` names.
+type Help = std::collections::BTreeMap<String, std::collections::BTreeSet<String>>;
+
+/// The subcommands and flags of `tool`, from its `--help` and each subcommand's.
+fn flags_of(tool: &str) -> Help {
     let help = |args: &[&str]| {
         let out = Command::new(nonlocal_study::binary(tool))
             .args(args)
@@ -472,8 +475,6 @@ const OTHER_TOOLS_FLAGS: &[&str] = &[
     "--nocapture",           // the test harness
     "--include-ignored",     // the test harness
 ];
-
-type Help = std::collections::BTreeMap<String, std::collections::BTreeSet<String>>;
 
 /// What is wrong in the code spans of `page` (named `name`) that name a command or a flag of
 /// `tools`, and how many such spans it has.

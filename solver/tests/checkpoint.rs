@@ -129,10 +129,10 @@ fn stopped_and_resumed(
     // The signal must reach the run inside its time loop, as its first checkpoint says it is.
     // The run has the lowest priority, so that this thread sees the file at once on a loaded
     // machine; a run that still ends before the signal is started again (not the run's fault).
+    let every = every.to_string();
+    let extra = ["--checkpoint", path, "--checkpoint-every-steps", &every];
     let mut stopped = None;
     for _attempt in 0..5 {
-        let every = every.to_string();
-        let extra = ["--checkpoint", path, "--checkpoint-every-steps", &every];
         let mut child = start_as(lowest_priority(), &first, &extra, Stdio::piped());
         let mut ended = false;
         while !file.exists() && !ended {
