@@ -3,7 +3,7 @@
 
 use nonlocal_study::{nlsolve, record, RESULT_FIELDS};
 use schema::case::Case;
-use serde_json::Value;
+use serde_json::{json, Value};
 
 const BASE: &[&str] = &[
     "run", "--dim", "2", "--n", "48", "--m", "3", "--kernel", "linear", "--t-end", "0.02", "--cfl",
@@ -469,4 +469,56 @@ fn every_method_reports_the_grid_spacing_and_the_columns_of_the_schema() {
             );
         }
     }
+}
+
+/// `nlsolve machine` and the `needs_bytes` of `nlsolve check` are all `check`'s sentence on
+/// whether a case fits this machine depends on: a case within `most_threads` and
+/// `available_bytes` has none, one beyond either has one (a plan that keeps verdicts decides on
+/// these numbers whether a kept verdict still stands).
+#[test]
+fn check_says_a_case_does_not_fit_exactly_where_its_needs_exceed_the_machine() {
+    let machine: Value = serde_json::from_slice(&nlsolve(&["machine"], None).stdout).unwrap();
+    let cores = machine["cores"].as_u64().unwrap();
+    let most = machine["most_threads"].as_u64().unwrap();
+    let available = machine["available_bytes"].as_u64().unwrap();
+    assert!(cores >= 1 && most >= cores && available > 0, "{machine}");
+    let case = |dim: u64, n: u64, threads: u64| {
+        json!({"dim": dim, "n": n, "m": 2, "t_end": 1e-9, "cfl": 0.5, "threads": threads})
+            .to_string()
+    };
+    let cases = [
+        case(1, 16, most),
+        case(1, 16, most + 1),
+        case(2, 4096, 1),
+        // 10¹⁰ nodes of a few fields: more than any machine this runs on has.
+        case(2, 100_000, 1),
+    ]
+    .join("\n");
+    let out = nlsolve(&["check"], Some(&cases));
+    let verdicts: Vec<Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|line| serde_json::from_str(line).unwrap())
+        .collect();
+    assert_eq!(verdicts.len(), 4);
+    for verdict in &verdicts {
+        let threads = verdict["resolved"]["threads"].as_u64().unwrap();
+        let needs = verdict["needs_bytes"].as_u64().unwrap();
+        let fits = threads <= most && needs <= available;
+        assert_eq!(
+            verdict.get("machine").is_none(),
+            fits,
+            "{verdict} on {machine}"
+        );
+    }
+    let said = |k: usize| {
+        verdicts[k]["machine"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string()
+    };
+    assert!(
+        said(1).contains("`threads`") && said(3).contains("`n`"),
+        "{verdicts:?}"
+    );
+    assert!(verdicts[3]["needs_bytes"].as_u64().unwrap() > available);
 }

@@ -290,6 +290,65 @@ fn plan_explains_a_changed_solver_version() {
     );
 }
 
+/// A plan asks `nlsolve check` only of cases this solver build has not checked before: the
+/// verdicts are kept beside the store (`.verdicts`), and a plan made of them says what a plan
+/// that asked says, to the byte: refusals, cases this machine has too few cores for, repeats.
+#[test]
+fn a_plan_of_kept_verdicts_says_what_the_solver_said() {
+    let scratch = Scratch::new("verdicts", &small_study(&[16]));
+    assert!(scratch.nlstudy("run", &[]).status.success());
+    let mut study = small_study(&[16, 24]);
+    study["sweep"][0]["product"]["threads"] = json!([1, 2, 1000]);
+    study["sweep"][0]["product"]["m"] = json!([2, 200]);
+    study["repeat"] = json!(2);
+    scratch.write_study(&study);
+    // A solver that writes down what it is asked to do, and otherwise is nlsolve.
+    let asked = scratch.dir.join("asked");
+    let wrapper = scratch.dir.join("nlsolve-logged");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\necho \"$1\" >>{}\nexec {} \"$@\"\n",
+            asked.display(),
+            binary("nlsolve").display()
+        ),
+    )
+    .unwrap();
+    Command::new("chmod")
+        .arg("+x")
+        .arg(&wrapper)
+        .status()
+        .unwrap();
+    let plan = || {
+        let _ = std::fs::remove_file(&asked);
+        let out = scratch.nlstudy("plan", &["--solver", wrapper.to_str().unwrap()]);
+        let asked = std::fs::read_to_string(&asked).unwrap();
+        (
+            out.status.code(),
+            text(&out),
+            asked.lines().any(|verb| verb == "check"),
+        )
+    };
+    let (status, said, checked) = plan();
+    assert!(checked);
+    assert_eq!(status, Some(2), "m = 200 is refused: {said}");
+    assert!(
+        said.contains("do not fit this machine") && said.contains("`m`"),
+        "{said}"
+    );
+    let kept = scratch.dir.join("results/small/.verdicts");
+    assert!(kept.is_file());
+    let (status_again, said_again, checked_again) = plan();
+    assert_eq!((status_again, &said_again), (status, &said));
+    assert!(!checked_again, "every verdict was kept");
+    // A file of verdicts that is not whole is asked again where it is not.
+    let text_kept = std::fs::read(&kept).unwrap();
+    std::fs::write(&kept, &text_kept[..text_kept.len() * 2 / 3]).unwrap();
+    let (status_cut, said_cut, checked_cut) = plan();
+    assert_eq!((status_cut, &said_cut, checked_cut), (status, &said, true));
+    assert_eq!(plan(), (status, said, false));
+}
+
 #[test]
 fn an_interrupted_run_resumes_with_every_record_once() {
     // Ctrl-C, a scheduler's warning (or scancel, or a preemption), a closed session: each

@@ -10,6 +10,9 @@ use crate::run::plan::{Options, Planned};
 use crate::store::owner::Refusal;
 use crate::store::{Index, Store};
 
+/// The file beside a study's store that keeps the solver's verdicts on its cases.
+const VERDICTS: &str = ".verdicts";
+
 /// The study file, its figures checked against the columns its tables will have.
 pub(super) fn read_study(path: &std::path::Path) -> Result<Study, Failure> {
     let study = Study::read(path)?;
@@ -67,8 +70,9 @@ pub(super) fn planned_and_index(
     writes: bool,
 ) -> Result<(Study, Nlsolve, Store, Index, Vec<Planned>), Failure> {
     let study = read_study(&args.study)?;
-    let solver = Nlsolve::locate(args.solver.as_deref())?;
+    let mut solver = Nlsolve::locate(args.solver.as_deref())?;
     let store = open_store(args, &study, writes)?;
+    solver.keep_verdicts_in(store.table(VERDICTS));
     let index = store.index();
     for unreadable in &index.unreadable {
         errln!("nlstudy: warning: {unreadable}");

@@ -1,6 +1,8 @@
 //! The `nlsolve` process, the orchestrator's only way to the numerics: its version, the check
 //! that turns a point into a canonical case, and the command line of one run.
 
+mod kept;
+
 use crate::model::study::Point;
 use crate::store::Fault;
 use serde_json::{Map, Value};
@@ -17,6 +19,8 @@ pub struct Nlsolve {
     /// `nlsolve fingerprint`: what made the numbers (sources, compiler, flags); a stored record
     /// of another fingerprint is stale. `None` for a solver from before fingerprints.
     pub fingerprint: Option<String>,
+    /// Where the solver's verdicts on the study's cases are kept (`keep_verdicts_in`).
+    verdicts: Option<PathBuf>,
 }
 
 /// A case the solver accepted, in its two forms. The canonical one is kept as its compact JSON
@@ -118,16 +122,78 @@ impl Nlsolve {
             binary,
             version,
             fingerprint,
+            verdicts: None,
         })
     }
 
+    /// Keeps the solver's verdicts on cases in `path` (beside a study's store), so that a
+    /// later `check` of the same cases by this solver build need not ask it (`kept`).
+    pub fn keep_verdicts_in(&mut self, path: PathBuf) {
+        self.verdicts = Some(path);
+    }
+
+    /// What this machine offers a run, as the solver finds it (`nlsolve machine`); `None` from
+    /// a solver that cannot say.
+    fn offer(&self) -> Option<kept::Offer> {
+        let output = Command::new(&self.binary).arg("machine").output().ok()?;
+        match output.status.success() {
+            true => serde_json::from_slice(&output.stdout).ok(),
+            false => None,
+        }
+    }
+
     /// Each point's case as the solver reads it, or the solver's sentence saying which field is
-    /// wrong; one `nlsolve check` for all points, its answers read as they come.
-    pub fn check<'a>(
-        &self,
-        points: impl ExactSizeIterator<Item = &'a Point> + Send,
-    ) -> Result<Vec<Result<Checked, String>>, Fault> {
+    /// wrong: the verdicts kept for this solver where they stand, the others asked of
+    /// `nlsolve check` (and kept).
+    pub fn check(&self, points: &[&Point]) -> Result<Vec<Result<Checked, String>>, Fault> {
+        let (Some(path), Some(fingerprint)) = (&self.verdicts, &self.fingerprint) else {
+            return Ok(self.ask(points)?.into_iter().map(|(v, _)| v).collect());
+        };
+        let mut kept = kept::Kept::load(path.clone(), &self.version, fingerprint);
+        let keys: Vec<kept::FieldsKey> = points
+            .iter()
+            .map(|point| {
+                let mut line = Vec::with_capacity(256);
+                point.write_fields(&mut line).expect("a map prints");
+                kept::fields_key(&line)
+            })
+            .collect();
+        let offer = self.offer();
+        // Points of the same fields (repeats, branches that meet) share the first one's verdict.
+        let mut first: HashMap<kept::FieldsKey, usize> = HashMap::with_capacity(keys.len());
+        let mut verdicts: Vec<Option<Result<Checked, String>>> = Vec::with_capacity(keys.len());
+        for (i, key) in keys.iter().enumerate() {
+            let verdict = match first.entry(*key) {
+                std::collections::hash_map::Entry::Occupied(at) => verdicts[*at.get()].clone(),
+                std::collections::hash_map::Entry::Vacant(at) => {
+                    at.insert(i);
+                    kept.take(key, offer.as_ref())
+                }
+            };
+            verdicts.push(verdict);
+        }
+        let asked: Vec<usize> = (0..points.len())
+            .filter(|&i| verdicts[i].is_none())
+            .collect();
+        let answers = self.ask(&asked.iter().map(|&i| points[i]).collect::<Vec<_>>())?;
+        for (i, (verdict, needs)) in asked.into_iter().zip(answers) {
+            kept.keep(&keys[i], &verdict, needs, offer.as_ref());
+            verdicts[i] = Some(verdict);
+        }
+        kept.save();
+        Ok(verdicts
+            .into_iter()
+            .map(|v| v.expect("each point answered"))
+            .collect())
+    }
+
+    /// Each point's verdict and what it needs of a machine, asked of one `nlsolve check` for
+    /// all points, its answers read as they come.
+    fn ask(&self, points: &[&Point]) -> Result<Vec<Answer>, Fault> {
         let count = points.len();
+        if count == 0 {
+            return Ok(Vec::new());
+        }
         let mut child = Command::new(&self.binary)
             .arg("check")
             .stdin(Stdio::piped())
@@ -148,11 +214,11 @@ impl Nlsolve {
                 stdin.flush()
             });
             let mut shared = HashMap::new();
-            let verdicts: Vec<Result<Checked, String>> = std::io::BufReader::new(stdout)
+            let verdicts: Vec<Answer> = std::io::BufReader::new(stdout)
                 .lines()
-                .map(|line| {
-                    let line = line.map_err(|e| format!("cannot read nlsolve check: {e}"))?;
-                    verdict(&line, &mut shared)
+                .map(|line| match line {
+                    Ok(line) => verdict(&line, &mut shared),
+                    Err(e) => (Err(format!("cannot read nlsolve check: {e}")), None),
                 })
                 .collect();
             (
@@ -180,28 +246,44 @@ impl Nlsolve {
     }
 }
 
-/// One line of `nlsolve check`: the case in its two forms, or the refusal.
+/// One line of `nlsolve check`: the case in its two forms and what it needs, or the refusal.
 #[derive(serde::Deserialize)]
 struct CheckLine {
     case: Option<Map<String, Value>>,
     resolved: Option<Map<String, Value>>,
+    needs_bytes: Option<u64>,
     error: Option<String>,
     machine: Option<String>,
 }
 
+/// A verdict, and what its case needs of a machine where the solver says.
+type Answer = (Result<Checked, String>, Option<kept::Needs>);
+
 /// The verdict on one line; `shared` holds the distinct sets of filled-in defaults seen so far.
-fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked, String> {
-    let verdict: CheckLine = serde_json::from_str(line)
-        .map_err(|e| format!("nlsolve check printed an unreadable line: {e}"))?;
+fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Answer {
+    let verdict: CheckLine = match serde_json::from_str(line) {
+        Ok(verdict) => verdict,
+        Err(e) => {
+            return (
+                Err(format!("nlsolve check printed an unreadable line: {e}")),
+                None,
+            )
+        }
+    };
     match verdict {
         CheckLine {
             case: Some(canonical),
             resolved,
+            needs_bytes,
             machine,
             ..
         } => {
             // A solver from before `resolved` was printed: its case as it is.
             let resolved = resolved.unwrap_or_else(|| canonical.clone());
+            let threads = resolved.get("threads").and_then(Value::as_u64);
+            let needs = threads
+                .zip(needs_bytes)
+                .map(|(threads, bytes)| kept::Needs { threads, bytes });
             let resolved = match canonical.keys().all(|k| resolved.contains_key(k)) {
                 true => {
                     let adds: Map<String, Value> = resolved
@@ -216,16 +298,20 @@ fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Result<Checked
                 }
                 false => Resolved::Whole(Value::Object(resolved).to_string().into()),
             };
-            Ok(Checked {
+            let checked = Checked {
                 canonical: Value::Object(canonical).to_string().into(),
                 resolved,
                 machine: machine.map(String::into_boxed_str),
-            })
+            };
+            (Ok(checked), needs)
         }
         CheckLine {
             error: Some(error), ..
-        } => Err(error),
-        _ => Err("nlsolve check printed neither a case nor an error".to_string()),
+        } => (Err(error), None),
+        _ => (
+            Err("nlsolve check printed neither a case nor an error".to_string()),
+            None,
+        ),
     }
 }
 
@@ -249,7 +335,7 @@ mod tests {
             .iter()
             .map(|resolved| {
                 let line = json!({"case": canonical, "resolved": resolved}).to_string();
-                verdict(&line, &mut shared).unwrap()
+                verdict(&line, &mut shared).0.unwrap()
             })
             .collect();
         for (checked, resolved) in checked.iter().zip(&lines) {
@@ -261,12 +347,12 @@ mod tests {
         assert_eq!(shared.len(), 1, "the two alike share one text");
         let old_solver = json!({"case": canonical}).to_string();
         assert_eq!(
-            verdict(&old_solver, &mut shared).unwrap().resolved(),
+            verdict(&old_solver, &mut shared).0.unwrap().resolved(),
             canonical
         );
         let refused = json!({"error": "case field `m`: too big"}).to_string();
         assert_eq!(
-            verdict(&refused, &mut shared),
+            verdict(&refused, &mut shared).0,
             Err("case field `m`: too big".into())
         );
     }

@@ -152,9 +152,8 @@ pub fn plan_points(
             decision: Decision::Duplicate,
         })
         .collect();
-    let cases = solver
-        .check(planned.iter().map(|p| &p.point))
-        .map_err(|e| e.within("solver"))?;
+    let points: Vec<&Point> = planned.iter().map(|p| &p.point).collect();
+    let cases = solver.check(&points).map_err(|e| e.within("solver"))?;
     // Keys seen so far, as their 128 bits.
     let mut seen = HashSet::with_capacity(planned.len());
     let fingerprint = solver.fingerprint.as_deref().map(store::shared);

@@ -45,6 +45,11 @@ impl Machine {
             available: available_memory(),
         }
     }
+
+    /// The most threads a run may start here.
+    pub fn most_threads(&self) -> usize {
+        OVERSUBSCRIPTION * self.cores
+    }
 }
 
 /// Refuses a case this machine cannot run: too many threads for its cores, or more memory than
@@ -56,7 +61,7 @@ pub fn fit_machine(case: &ValidCase) -> Result<(), CaseError> {
 /// `fit_machine` against a machine read before.
 pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
     let cores = machine.cores;
-    let most = OVERSUBSCRIPTION * cores;
+    let most = machine.most_threads();
     if case.threads > most {
         return Err(CaseError::new(
             "threads",
@@ -69,13 +74,7 @@ pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
     let Some(available) = machine.available else {
         return Ok(());
     };
-    // The ranks Open MPI started on this node share its memory.
-    let local_ranks = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
-        .ok()
-        .and_then(|s| s.parse::<f64>().ok())
-        .unwrap_or(1.0);
-    let estimate = memory_estimate(case);
-    let needed = estimate.bytes / case.ranks as f64 * local_ranks;
+    let (needed, estimate) = needed_on_this_node(case);
     if needed > available {
         return Err(CaseError::new(
             "n",
@@ -90,6 +89,26 @@ pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
         ));
     }
     Ok(())
+}
+
+/// The bytes the run needs of the memory of the node it starts on (its ranks there share it),
+/// which `fit` compares with what the machine has available; and the estimate it comes from.
+fn needed_on_this_node(case: &ValidCase) -> (f64, Estimate) {
+    // The ranks Open MPI started on this node share its memory.
+    let local_ranks = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .unwrap_or(1.0);
+    let estimate = memory_estimate(case);
+    (estimate.bytes / case.ranks as f64 * local_ranks, estimate)
+}
+
+/// The bytes of available memory `fit` asks of a machine for the case: with its threads, all
+/// it asks. A case fits a machine that offers both (`Machine::most_threads`,
+/// `Machine::available`), which lets a plan that keeps the solver's verdicts tell that a case
+/// still fits without asking again.
+pub fn needed_bytes(case: &ValidCase) -> f64 {
+    needed_on_this_node(case).0
 }
 
 /// What a run holds at its peak over all ranks: bytes, and which arrays they are.

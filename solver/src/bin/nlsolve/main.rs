@@ -48,7 +48,9 @@ enum Command {
     /// Check cases without running them: reads one JSON case per line on standard input and
     /// prints one line for each: `{"case": …, "resolved": …}` (`case` in canonical form, keys
     /// sorted, what a run's key is taken from; `resolved` the same case with every default the
-    /// method uses filled in) or `{"error": "…"}` naming the field at fault.
+    /// method uses filled in; `needs_bytes` the memory it needs available, and `machine` why
+    /// this machine could not run it, where it could not) or `{"error": "…"}` naming the field
+    /// at fault.
     Check,
     /// Serve cases, one process for many: reads one JSON case per line on standard input and
     /// prints one line for each, as soon as it has run: the record `run` prints for it (its
@@ -56,6 +58,10 @@ enum Command {
     /// What a study's worker pool keeps up, so that a point costs no process start. One
     /// process: a case on more than one rank is refused (start it with a launcher).
     Serve,
+    /// Print what this machine offers a run, as `{"cores", "most_threads", "available_bytes"}`
+    /// (`available_bytes` null where it cannot be read): a case whose `threads` and whose
+    /// `needs_bytes` (from `check`) are within them fits here.
+    Machine,
     /// Print the build's fingerprint: the hash of everything that decides a record's numbers
     /// (the solver's and schema's sources, Cargo.lock, the compiler, target, flags, profile and
     /// features), which every record carries in its provenance.
@@ -241,6 +247,7 @@ fn main() -> ExitCode {
             Command::Partition(args) => partition_report(&args),
             Command::Check => check_cases(),
             Command::Serve => serve_cases(),
+            Command::Machine => print_machine(),
             Command::Fingerprint => {
                 print_line(solver::output::record::FINGERPRINT, "the fingerprint")
             }
@@ -374,8 +381,9 @@ fn partition_report(args: &CaseArgs) -> Result<(), ErrorExit> {
 /// `nlsolve check`: validates each case of standard input and prints its canonical form.
 /// `nlsolve check`'s answer on a case whose fields are valid: its time step checked as `run`
 /// would check it (`methods::preflight`), then `case` (which keys the run), `resolved` (the same
-/// case as people read it) and, when this machine could not run it, `machine`: why, which a plan
-/// reports without refusing (the case may run elsewhere).
+/// case as people read it), `needs_bytes` (the memory it needs available, `resources::needed_bytes`)
+/// and, when this machine could not run it, `machine`: why, which a plan reports without
+/// refusing (the case may run elsewhere).
 fn verdict(
     case: &ValidCase,
     memo: &mut std::collections::HashMap<String, Result<f64, solver::case::CaseError>>,
@@ -384,11 +392,26 @@ fn verdict(
     if let Err(e) = solver::methods::preflight(case, memo) {
         return serde_json::json!({ "error": e.to_string() });
     }
-    let mut verdict = serde_json::json!({ "case": **case, "resolved": case.resolved() });
+    let needs_bytes = solver::methods::resources::needed_bytes(case);
+    let mut verdict = serde_json::json!({
+        "case": **case,
+        "resolved": case.resolved(),
+        "needs_bytes": needs_bytes.ceil() as u64,
+    });
     if let Err(e) = solver::methods::resources::fit(case, machine) {
         verdict["machine"] = Value::from(e.to_string());
     }
     verdict
+}
+
+fn print_machine() -> Result<(), ErrorExit> {
+    let machine = solver::methods::resources::Machine::now();
+    let line = serde_json::json!({
+        "cores": machine.cores,
+        "most_threads": machine.most_threads(),
+        "available_bytes": machine.available.map(|bytes| bytes.floor() as u64),
+    });
+    print_line(&line.to_string(), "the machine")
 }
 
 fn check_cases() -> Result<(), ErrorExit> {
