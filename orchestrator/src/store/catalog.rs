@@ -104,6 +104,9 @@ pub struct Catalog {
     /// The old store's files, by key, as last read (with the modification time and size they
     /// had then, so an unchanged file is not read again).
     files: HashMap<PathBuf, (FileStamp, FileRead)>,
+    /// Read news that the stored catalog lacks (a reader that does not persist found them):
+    /// the next that may persist does.
+    pub unsaved: bool,
 }
 
 /// What a file of the old store was read as: its key and entry, or why it is not a record.
@@ -127,13 +130,13 @@ impl Catalog {
 
     /// Stores the catalog whole or not at all. A failure (a read-only store, a full disk) only
     /// costs the next reader a longer read.
-    pub fn persist(&self, runs: &Path) {
+    pub fn persist(&mut self, runs: &Path) {
         let dir = runs.join(segment::DIR);
         if !dir.is_dir() {
             return;
         }
         if let Ok(text) = serde_json::to_vec(&Persisted::of(self)) {
-            let _ = super::fs::write_atomically(&dir.join(FILE), &text);
+            self.unsaved &= super::fs::write_atomically(&dir.join(FILE), &text).is_err();
         }
     }
 
@@ -468,6 +471,7 @@ impl Persisted {
             segments: self.segments,
             entries,
             files: HashMap::new(),
+            unsaved: false,
         })
     }
 }

@@ -66,7 +66,8 @@ impl Store {
     fn catalog(&self, persist: bool) -> MutexGuard<'_, Option<Catalog>> {
         let mut guard = self.catalog_as_read();
         let catalog = guard.as_mut().expect("loaded");
-        if catalog.refresh(&self.runs) && persist {
+        catalog.unsaved |= catalog.refresh(&self.runs);
+        if persist && catalog.unsaved {
             catalog.persist(&self.runs);
         }
         guard
@@ -91,8 +92,8 @@ impl Store {
         {
             appender.sync();
         }
-        let guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(catalog) = guard.as_ref() {
+        let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(catalog) = guard.as_mut() {
             catalog.persist(&self.runs);
         }
     }

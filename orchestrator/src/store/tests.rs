@@ -346,6 +346,27 @@ fn a_thousand_records_make_one_segment_and_a_catalog_a_new_process_reads() {
     }
 }
 
+/// A catalog that is gone (or not whole) is made again from the segments by whoever reads
+/// the store first, and stored by the first that may: a migrating command reads without
+/// storing, and what it read is not lost to the next reader (which would read every record
+/// again: a second of a collect at 10⁵ records).
+#[test]
+fn a_catalog_made_again_by_a_reader_that_does_not_store_it_is_stored_by_the_next() {
+    let (dir, store) = scratch();
+    for (key, record) in (0..20).map(|n| keyed(n, "ok")) {
+        assert!(store.save(&key, &typed(&record)).unwrap());
+    }
+    store.persist_catalog();
+    let file = store.segments().join(catalog::FILE);
+    std::fs::remove_file(&file).unwrap();
+    let again = Store::open(dir.path(), "s");
+    assert_eq!(again.migrate().unwrap(), 0);
+    assert!(!file.exists(), "migrate reads, it does not store");
+    assert_eq!(again.index().stored.len(), 20);
+    assert!(file.exists(), "the index stores what migrate read");
+    assert_eq!(Store::open(dir.path(), "s").index().stored.len(), 20);
+}
+
 #[test]
 fn the_old_layout_is_read_as_it_is_and_moved_into_a_segment_whole() {
     let (dir, store) = scratch();
