@@ -3,7 +3,7 @@
 use super::failure::Failure;
 use super::open::{no_refusals, planned, say_what_does_not_fit};
 use crate::cli::args::PlanArgs;
-use crate::run::plan::Decision;
+use crate::run::plan::{Decision, Planned};
 use std::fmt::Write as _;
 use std::process::ExitCode;
 
@@ -26,36 +26,30 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
             out!("{listing}");
             listing.clear();
         }
-        let what = match &p.decision {
-            Decision::Run(reason) => format!("run   ({reason})"),
-            Decision::Skip(status) => format!("skip  ({status})"),
-            Decision::Duplicate => "skip  (the same case as an earlier point)".into(),
+        // A refused point never starts: `run --allow-refused` stores it failed with the
+        // solver's sentence (said once per distinct sentence below).
+        let what = match (&p.decision, &p.case) {
+            (Decision::Run(_), Err(_)) => "refused (stored as failed, not run)".into(),
+            (Decision::Run(reason), Ok(_)) => format!("run   ({reason})"),
+            (Decision::Skip(status), _) => format!("skip  ({status})"),
+            (Decision::Duplicate, _) => "skip  (the same case as an earlier point)".into(),
         };
-        // Said once per distinct sentence below.
-        let refused = match &p.case {
-            Err(_) => "  refused",
-            Ok(_) => "",
-        };
-        let _ = writeln!(
-            listing,
-            "{}  {what:<40} {}{refused}",
-            p.key,
-            p.point.label()
-        );
+        let _ = writeln!(listing, "{}  {what:<40} {}", p.key, p.point.label());
     }
     out!("{listing}");
-    let runs = planned.iter().filter(|p| p.runs()).count();
-    let duplicates = planned
-        .iter()
-        .filter(|p| p.decision == Decision::Duplicate)
-        .count();
-    let shared = match duplicates {
+    let count = |which: &dyn Fn(&Planned) -> bool| planned.iter().filter(|p| which(p)).count();
+    let refused = count(&|p| p.runs() && p.case.is_err());
+    let runs = count(&|p| p.runs()) - refused;
+    let duplicates = count(&|p| p.decision == Decision::Duplicate);
+    let also = |n: usize, what: &str| match n {
         0 => String::new(),
-        n => format!(", {n} the same case as an earlier point"),
+        n => format!(", {n} {what}"),
     };
     outln!(
-        "{runs} to run, {} stored{shared}",
-        planned.len() - runs - duplicates
+        "{runs} to run{}, {} stored{}",
+        also(refused, "refused"),
+        planned.len() - runs - refused - duplicates,
+        also(duplicates, "the same case as an earlier point")
     );
     // What an adaptive study's plan shows: the probes so far and the next round, and the most
     // runs its questions can take.
