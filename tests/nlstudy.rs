@@ -130,7 +130,11 @@ fn a_refused_case_stops_the_run_unless_allowed_then_is_stored_as_failed() {
     );
     // A refused point is not said to run: it never starts, and is stored failed again.
     let retry = text(&scratch.nlstudy("plan", &["--rerun-failed", "--allow-refused"]));
-    assert_eq!(retry.matches("refused (stored as failed, not run)").count(), 2, "{retry}");
+    assert_eq!(
+        retry.matches("refused (stored as failed, not run)").count(),
+        2,
+        "{retry}"
+    );
     assert!(retry.contains("0 to run, 2 refused, 2 stored"), "{retry}");
     assert!(!retry.contains("run   ("), "{retry}");
 }
