@@ -274,20 +274,11 @@ fn plan_explains_a_changed_solver_version() {
     let scratch = Scratch::new("version", &small_study(&[16]));
     assert!(scratch.nlstudy("run", &[]).status.success());
     // A solver that reports another version and otherwise is nlsolve.
-    let wrapper = scratch.dir.join("nlsolve-next");
-    std::fs::write(
-        &wrapper,
-        format!(
-            "#!/bin/sh\nif [ \"$1\" = --version ]; then echo 'nlsolve 9.9.9'; exit 0; fi\nexec {} \"$@\"\n",
-            binary("nlsolve").display()
-        ),
-    )
-    .unwrap();
-    Command::new("chmod")
-        .arg("+x")
-        .arg(&wrapper)
-        .status()
-        .unwrap();
+    let wrapper = shell_wrapper(
+        &scratch,
+        "nlsolve-next",
+        "if [ \"$1\" = --version ]; then echo 'nlsolve 9.9.9'; exit 0; fi",
+    );
     let plan = text(&scratch.nlstudy("plan", &["--solver", wrapper.to_str().unwrap()]));
     assert_eq!(
         plan.matches("run   (solver version changed (was nlsolve 0.1.0))")
@@ -311,21 +302,8 @@ fn a_plan_of_kept_verdicts_says_what_the_solver_said() {
     scratch.write_study(&study);
     // A solver that writes down what it is asked to do, and otherwise is nlsolve.
     let asked = scratch.dir.join("asked");
-    let wrapper = scratch.dir.join("nlsolve-logged");
-    std::fs::write(
-        &wrapper,
-        format!(
-            "#!/bin/sh\necho \"$1\" >>{}\nexec {} \"$@\"\n",
-            asked.display(),
-            binary("nlsolve").display()
-        ),
-    )
-    .unwrap();
-    Command::new("chmod")
-        .arg("+x")
-        .arg(&wrapper)
-        .status()
-        .unwrap();
+    let log = format!("echo \"$1\" >>{}", asked.display());
+    let wrapper = shell_wrapper(&scratch, "nlsolve-logged", &log);
     let plan = || {
         let _ = std::fs::remove_file(&asked);
         let out = scratch.nlstudy("plan", &["--solver", wrapper.to_str().unwrap()]);
@@ -1255,6 +1233,17 @@ awk -v factor="$RUN_FACTOR" -v seed="$RUN_SEED" -v key="$key" -v slow="$SLOW_N" 
         worse.iter().all(|l| l.contains("n=24")),
         "only the slower point: {said}"
     );
+}
+
+/// A solver `name` in the scratch directory that runs the shell lines `first`, then is nlsolve.
+fn shell_wrapper(scratch: &Scratch, name: &str, first: &str) -> PathBuf {
+    let wrapper = scratch.dir.join(name);
+    let nlsolve = binary("nlsolve");
+    let script = format!("#!/bin/sh\n{first}\nexec {} \"$@\"\n", nlsolve.display());
+    std::fs::write(&wrapper, script).unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    wrapper
 }
 
 /// A solver wrapper whose records report timings of a scale `compare` judges: solve 0.2 s ×
