@@ -20,6 +20,7 @@ use super::{Checked, Resolved};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::io::{BufRead as _, Write as _};
+use std::os::unix::fs::OpenOptionsExt as _;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -344,8 +345,10 @@ impl Kept {
                     writeln!(file, "{}", self.header)?;
                     Ok(file)
                 }),
+                // (Not through a link planted since the file was read.)
                 false => std::fs::OpenOptions::new()
                     .append(true)
+                    .custom_flags(libc::O_NOFOLLOW)
                     .open(&self.path)
                     .and_then(|mut file| {
                         if self.cut_short {
@@ -569,6 +572,25 @@ mod tests {
                 Some(&verdicts[k].1)
             );
         }
+    }
+
+    #[test]
+    fn a_link_planted_in_its_place_is_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(".verdicts");
+        let precious = dir.path().join("precious");
+        kept_five(&precious);
+        let before = std::fs::read(&precious).unwrap();
+        std::os::unix::fs::symlink(&precious, &path).unwrap();
+        // Read as no file; kept afresh in a file of its own, the link replaced, not followed.
+        let verdicts = kept_five(&path);
+        assert_eq!(std::fs::read(&precious).unwrap(), before);
+        assert!(!std::fs::symlink_metadata(&path).unwrap().is_symlink());
+        let mut kept = Kept::load(path.clone(), "nlsolve 1", "ab12");
+        assert_eq!(
+            kept.take(&verdicts[3].0, None).as_ref(),
+            Some(&verdicts[3].1)
+        );
     }
 
     #[test]
