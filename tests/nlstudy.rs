@@ -334,6 +334,39 @@ fn a_plan_of_kept_verdicts_says_what_the_solver_said() {
     assert_eq!(plan(), (status, said, false));
 }
 
+/// A refinement at fixed ε whose step comes from `cfl` keeps its time error as h shrinks, which
+/// the observed orders come to measure: `plan` says so once, naming the first such series, and
+/// says nothing where the step shrinks with h (derived, or ε = m·h).
+#[test]
+fn plan_notes_a_refinement_at_fixed_eps_whose_step_does_not_shrink() {
+    let study = |base: Value, derive: Value| {
+        json!({
+            "name": "refined",
+            "base": base,
+            "derive": derive,
+            "sweep": [{"product": {"n": [16, 32, 64], "kernel": ["constant", "linear"]}}]
+        })
+    };
+    let fixed = json!({"dim": 1, "eps": 0.125, "t_end": 0.01, "cfl": 0.5});
+    let derived = json!({"dim": 1, "eps": 0.125, "t_end": 0.01});
+    let moving = json!({"dim": 1, "m": 2, "t_end": 0.01, "cfl": 0.5});
+    let said = |base: Value, derive: Value| {
+        let scratch = Scratch::new("refined", &study(base, derive));
+        let out = scratch.nlstudy("plan", &[]);
+        assert!(out.status.success(), "{}", text(&out));
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let noted = said(fixed, json!({}));
+    assert_eq!(noted.matches("nlstudy: note: ").count(), 1, "{noted}");
+    assert!(
+        noted.contains("2 refinement series hold `eps` fixed")
+            && noted.contains("(first: kernel=constant)"),
+        "{noted}"
+    );
+    assert!(!said(derived, json!({"dt": "h^2/4"})).contains("note"));
+    assert!(!said(moving, json!({})).contains("note"));
+}
+
 #[test]
 fn an_interrupted_run_resumes_with_every_record_once() {
     // Ctrl-C, a scheduler's warning (or scancel, or a preemption), a closed session: each

@@ -101,6 +101,58 @@ pub(super) fn say_what_does_not_fit(planned: &[Planned]) {
     }
 }
 
+/// Notes refinement series whose observed orders may come to measure the time error, not the
+/// grid's: `eps` held fixed while `cfl` sets the step. At fixed ε the nonlocal operator's largest
+/// eigenvalue goes as 1/ε², not 1/h², so dt_stable, and with it the time error, stays as h
+/// shrinks while the spatial error falls below it.
+pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
+    use std::collections::{BTreeSet, HashMap};
+    let given = |p: &Planned, field: &str| p.point.get(field).filter(|v| !v.is_null()).cloned();
+    let fixed_eps_cfl = |p: &Planned| {
+        let method = given(p, "method");
+        (method.is_none() || method == Some("nonlocal".into()))
+            && given(p, "eps").is_some()
+            && given(p, "m").is_none()
+            && given(p, "dt").is_none()
+            && given(p, "cfl").is_some()
+    };
+    // Per series: whether every point holds ε fixed with `cfl`, its grids, its horizons.
+    type Series = (bool, BTreeSet<String>, BTreeSet<String>);
+    let mut series: HashMap<(Option<&str>, String), Series> = HashMap::new();
+    let mut order = Vec::new();
+    for p in planned.iter().filter(|p| p.point.repeat == 0) {
+        let name = (p.point.branch.as_deref(), p.point.series().refinement);
+        let entry = series.entry(name.clone()).or_insert_with(|| {
+            order.push(name);
+            (true, BTreeSet::new(), BTreeSet::new())
+        });
+        entry.0 &= fixed_eps_cfl(p);
+        entry
+            .1
+            .insert(given(p, "n").unwrap_or_default().to_string());
+        entry
+            .2
+            .insert(given(p, "eps").unwrap_or_default().to_string());
+    }
+    let hidden: Vec<&(Option<&str>, String)> = (order.iter())
+        .filter(|name| {
+            let (all, grids, horizons) = &series[name];
+            *all && grids.len() > 1 && horizons.len() == 1
+        })
+        .collect();
+    if let Some((branch, first)) = hidden.first() {
+        // (The label names the branch, when there is one.)
+        let first = match (branch, first.as_str()) {
+            (None, "") => String::new(),
+            (_, label) => format!(" (first: {label})"),
+        };
+        errln!(
+            "nlstudy: note: {} refinement series hold `eps` fixed and take the time step from `cfl`{first}: at fixed ε the stable step, and with it the time error, does not shrink with h, so their observed orders are the grid's only while its error stays well above the time error (a run at a smaller `cfl` tells); to refine both, give `\"cfl\": null` and `dt` zipped with `n` or derived (`\"derive\": {{\"dt\": \"h^2/4\"}}`)",
+            hidden.len()
+        );
+    }
+}
+
 /// Stops a command when the solver refused points (unless `allowed`): each distinct refusal
 /// once, with the number of points it refused.
 pub(super) fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {

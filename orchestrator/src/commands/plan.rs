@@ -1,7 +1,7 @@
 //! `nlstudy plan`: every point of the study, whether it would run and why; nothing runs.
 
 use super::failure::Failure;
-use super::open::{no_refusals, planned, say_what_does_not_fit};
+use super::open::{no_refusals, planned, say_what_does_not_fit, say_what_refinement_cannot_show};
 use crate::cli::args::PlanArgs;
 use crate::run::plan::{Decision, Planned};
 use std::fmt::Write as _;
@@ -65,6 +65,7 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         );
     }
     say_what_does_not_fit(&planned);
+    say_what_refinement_cannot_show(&planned);
     no_refusals(&planned, args.allow_refused)?;
     Ok(ExitCode::SUCCESS)
 }

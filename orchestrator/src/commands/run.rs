@@ -4,6 +4,7 @@
 use super::failure::Failure;
 use super::open::{
     no_refusals, planned, print_figures_drawn, print_tables_written, say_what_does_not_fit,
+    say_what_refinement_cannot_show,
 };
 use crate::cli::args::RunArgs;
 use crate::model::study::fields_telling_apart;
@@ -20,6 +21,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
     no_refusals(&planned, args.plan.allow_refused)?;
     say_what_does_not_fit(&planned);
+    say_what_refinement_cannot_show(&planned);
     let cores = crate::run::pool::machine_cores();
     let timeout = match args.timeout {
         Some(seconds) => Some(period(seconds, "--timeout")?),
