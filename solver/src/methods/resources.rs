@@ -55,11 +55,26 @@ impl Machine {
 /// Refuses a case this machine cannot run: too many threads for its cores, or more memory than
 /// it has available.
 pub fn fit_machine(case: &ValidCase) -> Result<(), CaseError> {
-    fit(case, Machine::now())
+    fit(case, Machine::now()).1
 }
 
-/// `fit_machine` against a machine read before.
-pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
+/// `fit_machine` against a machine read before, with the bytes of available memory the case
+/// needs, of one estimate. With its threads that is all `fit` asks of a machine: a case fits
+/// one that offers both (`Machine::most_threads`, `Machine::available`), which lets a plan that
+/// keeps the solver's verdicts (`nlsolve check`'s `needs_bytes`) tell that a case still fits
+/// without asking again.
+pub fn fit(case: &ValidCase, machine: Machine) -> (f64, Result<(), CaseError>) {
+    let (needed, estimate) = needed_on_this_node(case);
+    (needed, refusal(case, machine, needed, &estimate))
+}
+
+/// Why `machine` cannot run the case, which `needed` bytes of it by `estimate`.
+fn refusal(
+    case: &ValidCase,
+    machine: Machine,
+    needed: f64,
+    estimate: &Estimate,
+) -> Result<(), CaseError> {
     let cores = machine.cores;
     let most = machine.most_threads();
     if case.threads > most {
@@ -74,7 +89,6 @@ pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
     let Some(available) = machine.available else {
         return Ok(());
     };
-    let (needed, estimate) = needed_on_this_node(case);
     if needed > available {
         return Err(CaseError::new(
             "n",
@@ -92,7 +106,7 @@ pub fn fit(case: &ValidCase, machine: Machine) -> Result<(), CaseError> {
 }
 
 /// The bytes the run needs of the memory of the node it starts on (its ranks there share it),
-/// which `fit` compares with what the machine has available; and the estimate it comes from.
+/// and the estimate they come from.
 fn needed_on_this_node(case: &ValidCase) -> (f64, Estimate) {
     // The ranks Open MPI started on this node share its memory.
     let local_ranks = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
@@ -101,14 +115,6 @@ fn needed_on_this_node(case: &ValidCase) -> (f64, Estimate) {
         .unwrap_or(1.0);
     let estimate = memory_estimate(case);
     (estimate.bytes / case.ranks as f64 * local_ranks, estimate)
-}
-
-/// The bytes of available memory `fit` asks of a machine for the case: with its threads, all
-/// it asks. A case fits a machine that offers both (`Machine::most_threads`,
-/// `Machine::available`), which lets a plan that keeps the solver's verdicts tell that a case
-/// still fits without asking again.
-pub fn needed_bytes(case: &ValidCase) -> f64 {
-    needed_on_this_node(case).0
 }
 
 /// What a run holds at its peak over all ranks: bytes, and which arrays they are.

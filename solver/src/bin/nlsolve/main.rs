@@ -381,7 +381,7 @@ fn partition_report(args: &CaseArgs) -> Result<(), ErrorExit> {
 /// `nlsolve check`: validates each case of standard input and prints its canonical form.
 /// `nlsolve check`'s answer on a case whose fields are valid: its time step checked as `run`
 /// would check it (`methods::preflight`), then `case` (which keys the run), `resolved` (the same
-/// case as people read it), `needs_bytes` (the memory it needs available, `resources::needed_bytes`)
+/// case as people read it), `needs_bytes` (the memory it needs available, from `resources::fit`)
 /// and, when this machine could not run it, `machine`: why, which a plan reports without
 /// refusing (the case may run elsewhere).
 fn verdict(
@@ -392,13 +392,13 @@ fn verdict(
     if let Err(e) = solver::methods::preflight(case, memo) {
         return serde_json::json!({ "error": e.to_string() });
     }
-    let needs_bytes = solver::methods::resources::needed_bytes(case);
+    let (needs_bytes, fits) = solver::methods::resources::fit(case, machine);
     let mut verdict = serde_json::json!({
         "case": **case,
         "resolved": case.resolved(),
         "needs_bytes": needs_bytes.ceil() as u64,
     });
-    if let Err(e) = solver::methods::resources::fit(case, machine) {
+    if let Err(e) = fits {
         verdict["machine"] = Value::from(e.to_string());
     }
     verdict
