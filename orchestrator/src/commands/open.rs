@@ -116,12 +116,13 @@ pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
             && given(p, "dt").is_none()
             && given(p, "cfl").is_some()
     };
-    // Per series: whether every point holds ε fixed with `cfl`, its grids, its horizons.
+    // Per series (by its label, which names the branch too): whether every point holds ε
+    // fixed with `cfl`, its grids, its horizons.
     type Series = (bool, BTreeSet<String>, BTreeSet<String>);
-    let mut series: HashMap<(Option<&str>, String), Series> = HashMap::new();
+    let mut series: HashMap<String, Series> = HashMap::new();
     let mut order = Vec::new();
     for p in planned.iter().filter(|p| p.point.repeat == 0) {
-        let name = (p.point.branch.as_deref(), p.point.series().refinement);
+        let name = p.point.series().refinement;
         let entry = series.entry(name.clone()).or_insert_with(|| {
             order.push(name);
             (true, BTreeSet::new(), BTreeSet::new())
@@ -134,17 +135,16 @@ pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
             .2
             .insert(given(p, "eps").unwrap_or_default().to_string());
     }
-    let hidden: Vec<&(Option<&str>, String)> = (order.iter())
+    let hidden: Vec<&String> = (order.iter())
         .filter(|name| {
-            let (all, grids, horizons) = &series[name];
+            let (all, grids, horizons) = &series[*name];
             *all && grids.len() > 1 && horizons.len() == 1
         })
         .collect();
-    if let Some((branch, first)) = hidden.first() {
-        // (The label names the branch, when there is one.)
-        let first = match (branch, first.as_str()) {
-            (None, "") => String::new(),
-            (_, label) => format!(" (first: {label})"),
+    if let Some(first) = hidden.first() {
+        let first = match first.as_str() {
+            "" => String::new(),
+            label => format!(" (first: {label})"),
         };
         errln!(
             "nlstudy: note: {} refinement series hold `eps` fixed and take the time step from `cfl`{first}: at fixed ε the stable step, and with it the time error, does not shrink with h, so their observed orders are the grid's only while its error stays well above the time error (a run at a smaller `cfl` tells); to refine both, give `\"cfl\": null` and `dt` zipped with `n` or derived (`\"derive\": {{\"dt\": \"h^2/4\"}}`)",

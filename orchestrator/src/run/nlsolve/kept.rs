@@ -149,7 +149,6 @@ impl Kept {
             return kept;
         }
         kept.afresh = false;
-        let mut shared: HashMap<Box<str>, Arc<str>> = HashMap::new();
         loop {
             line.clear();
             match file.read_line(&mut line) {
@@ -163,7 +162,7 @@ impl Kept {
             // A case whose resolution is not read yet (two writers' lines interleaved) is lost,
             // and asked again.
             match checked_line(&line) {
-                Some(("R", rest)) => kept.read_resolution(rest, &mut shared),
+                Some(("R", rest)) => kept.read_resolution(rest),
                 Some(("C", rest)) => kept.read_case(rest),
                 Some(("E", rest)) => kept.read_refusal(rest),
                 _ => None,
@@ -172,20 +171,13 @@ impl Kept {
         kept
     }
 
-    fn read_resolution(
-        &mut self,
-        rest: &str,
-        shared: &mut HashMap<Box<str>, Arc<str>>,
-    ) -> Option<()> {
+    /// A resolution, once per id: its id is its text's hash, so the points that share it
+    /// share one text.
+    fn read_resolution(&mut self, rest: &str) -> Option<()> {
         let (id, rest) = rest.split_once('\t')?;
         let (kind, text) = rest.split_once('\t')?;
         let resolved = match kind {
-            "A" => Resolved::Adds(
-                shared
-                    .entry(text.into())
-                    .or_insert_with(|| text.into())
-                    .clone(),
-            ),
+            "A" => Resolved::Adds(Arc::from(text)),
             "W" => Resolved::Whole(text.into()),
             _ => return None,
         };
