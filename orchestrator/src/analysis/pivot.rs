@@ -157,7 +157,9 @@ fn no_column(name: &str, table: &[Row]) -> String {
             }
         }
     }
-    let mut close: Vec<(usize, &str)> = names
+    // Headline results first (`error_l2_norm` before `error_l2`, the norm's square), then the
+    // nearest.
+    let mut close: Vec<(bool, usize, &str)> = names
         .into_iter()
         .filter_map(|known| {
             let distance = strsim::damerau_levenshtein(name, known);
@@ -165,14 +167,15 @@ fn no_column(name: &str, table: &[Row]) -> String {
             // `solve_s_median`).
             let near = distance <= (name.chars().count() / 3).max(1)
                 || (name.len() >= 3 && known.contains(name));
-            near.then_some((distance, known))
+            let headline = crate::analysis::collect::HEADLINE_RESULTS.contains(&known);
+            near.then_some((!headline, distance, known))
         })
         .collect();
     close.sort();
     let close: Vec<String> = close
         .iter()
         .take(5)
-        .map(|(_, n)| format!("`{n}`"))
+        .map(|(_, _, n)| format!("`{n}`"))
         .collect();
     match close.is_empty() {
         true => format!("the summary table has no column `{name}`"),
@@ -401,6 +404,15 @@ mod tests {
         assert!(stem.ends_with("close: `solve_s_median`"), "{stem}");
         let far = markdown(&spec("n", "bandwidth"), &table).unwrap_err();
         assert_eq!(far, "the summary table has no column `bandwidth`");
+        // A headline result before a nearer name: the norm, not its square.
+        let errors = [row(
+            json!({"point": "n=16", "n": 16, "error_l2": 1e-6, "error_l2_norm": 1e-3, "error_max": 2e-3}),
+        )];
+        let error = markdown(&spec("n", "error"), &errors).unwrap_err();
+        assert_eq!(
+            error,
+            "the summary table has no column `error`; close: `error_l2_norm`, `error_l2`, `error_max`"
+        );
         // The rows the filter leaves hold no null: the pivot is made.
         let only_nonlocal = PivotSpec {
             filter: vec!["method == 'nonlocal'".into()],
