@@ -47,9 +47,33 @@ pub fn splice(
             Source::New(j) => (old.height() + j) as IdxSize,
         })
         .collect();
-    let mut frame = all.take(&IdxCa::from_vec(PlSmallStr::EMPTY, index)).ok()?;
+    let mut frame = rows_at(&all, index)?;
     frame.rechunk_mut_par();
     Some((frame, shapes))
+}
+
+/// The rows of `all` at `index`: slices of its runs of consecutive rows where they are few (a
+/// table that grew or lost a few points is a few runs, and a slice costs no copy), else
+/// gathered one by one (a row at a time costs a copy of each cell, text the most).
+fn rows_at(all: &DataFrame, index: Vec<IdxSize>) -> Option<DataFrame> {
+    const MOST_RUNS: usize = 64;
+    let mut runs: Vec<(IdxSize, IdxSize)> = Vec::new();
+    for &k in &index {
+        if let Some((_, length)) = runs.last_mut().filter(|(s, l)| *s + *l == k) {
+            *length += 1;
+        } else if runs.len() == MOST_RUNS {
+            return all.take(&IdxCa::from_vec(PlSmallStr::EMPTY, index)).ok();
+        } else {
+            runs.push((k, 1));
+        }
+    }
+    let mut frame = all.clear();
+    for (start, length) in runs {
+        frame
+            .vstack_mut(&all.slice(start as i64, length as usize))
+            .ok()?;
+    }
+    Some(frame)
 }
 
 /// The old frame's columns as `schema` has them: a column it lacks all null, integers widened

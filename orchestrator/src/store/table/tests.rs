@@ -203,10 +203,12 @@ impl Rows {
 /// table of all its rows, byte for byte, with their shapes; or the splice says it cannot.
 #[test]
 fn a_spliced_table_is_byte_for_byte_the_table_of_its_rows() {
-    let mut spliced = 0;
+    let (mut spliced, mut gathered) = (0, 0);
     for seed in 0..300 {
         let mut random = Rows(seed);
-        let old: Vec<Row> = (0..1 + random.next(10)).map(|_| random.row()).collect();
+        // One table in ten long enough to be spliced of more runs than are sliced.
+        let most = if seed % 10 == 0 { 300 } else { 10 };
+        let old: Vec<Row> = (0..1 + random.next(most)).map(|_| random.row()).collect();
         let (mut order, mut rows, mut new) = (Vec::new(), Vec::new(), Vec::new());
         for (k, row) in old.iter().enumerate() {
             if random.next(4) == 0 {
@@ -235,6 +237,12 @@ fn a_spliced_table_is_byte_for_byte_the_table_of_its_rows() {
             continue;
         };
         spliced += 1;
+        let at = |source: &Source| match *source {
+            Source::Kept(k) => k,
+            Source::New(j) => old.len() + j,
+        };
+        let breaks = order.windows(2).filter(|w| at(&w[0]) + 1 != at(&w[1]));
+        gathered += usize::from(breaks.count() >= 64);
         let mut whole = data_frame(&rows).unwrap();
         assert_eq!(frame.schema(), whole.schema(), "seed {seed}");
         assert!(
@@ -247,6 +255,10 @@ fn a_spliced_table_is_byte_for_byte_the_table_of_its_rows() {
     assert!(
         spliced > 150,
         "only {spliced} of 300 tables could be spliced"
+    );
+    assert!(
+        gathered > 0,
+        "no table was spliced of more runs than are sliced"
     );
 }
 
