@@ -116,6 +116,9 @@ pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
             && given(p, "dt").is_none()
             && given(p, "cfl").is_some()
     };
+    if !planned.iter().any(fixed_eps_cfl) {
+        return; // (the common case, said without naming each point's series)
+    }
     // Per series (by its label, which names the branch too): whether every point holds ε
     // fixed with `cfl`, its grids, its horizons.
     type Series = (bool, BTreeSet<String>, BTreeSet<String>);

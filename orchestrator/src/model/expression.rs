@@ -32,21 +32,39 @@ impl Scope {
     pub fn from_fields(fields: &Map<String, Value>) -> Scope {
         let mut names: BTreeMap<String, Val> = fields
             .iter()
-            .filter_map(|(name, value)| {
-                let v = match value {
-                    Value::Number(x) => Val::Num(x.as_f64()?),
-                    Value::String(s) => Val::Str(s.clone()),
-                    Value::Bool(b) => Val::Bool(*b),
-                    _ => return None,
-                };
-                Some((name.clone(), v))
-            })
+            .filter_map(|(name, value)| Some((name.clone(), val_of(value)?)))
             .collect();
-        if let Some(h) = grid_spacing(fields) {
+        if let Some(h) = grid_spacing(|field| fields.get(field)) {
             names.insert("h".into(), Val::Num(h));
         }
         Scope { names }
     }
+
+    /// The scope of just `names`, their values from `get`: all an expression reading only
+    /// them needs, without copying every field (a plan evaluates `where` at each of 10⁶ points).
+    pub fn of_names<'v>(names: &[String], get: impl Fn(&str) -> Option<&'v Value>) -> Scope {
+        let mut scope = BTreeMap::new();
+        for name in names {
+            let value = match name.as_str() {
+                "h" => grid_spacing(&get).map(Val::Num),
+                _ => get(name).and_then(val_of),
+            };
+            if let Some(value) = value {
+                scope.insert(name.clone(), value);
+            }
+        }
+        Scope { names: scope }
+    }
+}
+
+/// A field's value as an expression sees it; none for arrays, objects and null.
+fn val_of(value: &Value) -> Option<Val> {
+    Some(match value {
+        Value::Number(x) => Val::Num(x.as_f64()?),
+        Value::String(s) => Val::Str(s.clone()),
+        Value::Bool(b) => Val::Bool(*b),
+        _ => return None,
+    })
 }
 
 /// A run's columns (a table row, or a record flattened as one) as expression names, as a
@@ -71,49 +89,105 @@ pub fn fields_of_columns<N: AsRef<str>>(cells: &[(N, Value)]) -> Map<String, Val
 
 /// h as the solver defines it (`schema`'s `Method::grid_spacing`); none while the method is
 /// not one the solver knows (its check will say so).
-fn grid_spacing(fields: &Map<String, Value>) -> Option<f64> {
-    let n = fields
-        .get("n")?
+fn grid_spacing<'v>(get: impl Fn(&str) -> Option<&'v Value>) -> Option<f64> {
+    let n = get("n")?
         .as_f64()
         .filter(|n| n.fract() == 0.0 && *n >= 1.0)?;
-    let method: Method = match fields.get("method") {
+    let method: Method = match get("method") {
         Some(name) => serde_json::from_value(name.clone()).ok()?,
         None => Method::default(),
     };
-    let length = fields
-        .get("length")
+    let length = get("length")
         .and_then(Value::as_f64)
         .unwrap_or(DEFAULT_LENGTH);
     Some(method.grid_spacing(n as usize, length))
 }
 
-/// Evaluates a numeric expression; an integral result becomes a JSON integer.
-pub fn evaluate_number(text: &str, scope: &Scope) -> Result<Value, String> {
-    match evaluate(text, scope)? {
-        Val::Num(x) if x.fract() == 0.0 && x.abs() < 9.0e15 => Ok(Value::from(x as i64)),
-        Val::Num(x) if x.is_finite() => Ok(Value::from(x)),
-        Val::Num(x) => Err(format!("`{text}` evaluates to {x}, not a finite number")),
-        other => Err(format!("`{text}` must give a number, not {other:?}")),
-    }
-}
-
 /// Evaluates a condition.
 pub fn condition(text: &str, scope: &Scope) -> Result<bool, String> {
-    match evaluate(text, scope)? {
-        Val::Bool(b) => Ok(b),
-        other => Err(format!("`{text}` must be true or false, not {other:?}")),
-    }
+    Expression::parse(text)?.condition(scope)
 }
 
 /// The names an expression reads (its fields), without evaluating it.
 pub fn names(text: &str) -> Result<Vec<String>, String> {
-    Ok(tokenize(text)?
+    Ok(Expression::parse(text)?
+        .names()
         .into_iter()
-        .filter_map(|token| match token {
-            Token::Name(name) if name != "true" && name != "false" => Some(name),
-            _ => None,
-        })
+        .map(str::to_string)
         .collect())
+}
+
+/// An expression read once, to be evaluated at many points.
+pub struct Expression {
+    text: Box<str>,
+    tokens: Vec<Token>,
+}
+
+impl Expression {
+    /// The expression's words; its syntax shows when it is evaluated.
+    pub fn parse(text: &str) -> Result<Expression, String> {
+        Ok(Expression {
+            text: text.into(),
+            tokens: tokenize(text)?,
+        })
+    }
+
+    /// The names it reads, each once, in the order first read.
+    pub fn names(&self) -> Vec<&str> {
+        let mut names: Vec<&str> = Vec::new();
+        for token in &self.tokens {
+            if let Token::Name(name) = token {
+                if name != "true" && name != "false" && !names.contains(&name.as_str()) {
+                    names.push(name);
+                }
+            }
+        }
+        names
+    }
+
+    /// Its value as a number; an integral result becomes a JSON integer.
+    pub fn number(&self, scope: &Scope) -> Result<Value, String> {
+        let text = &self.text;
+        match self.evaluate(scope)? {
+            Val::Num(x) if x.fract() == 0.0 && x.abs() < 9.0e15 => Ok(Value::from(x as i64)),
+            Val::Num(x) if x.is_finite() => Ok(Value::from(x)),
+            Val::Num(x) => Err(format!("`{text}` evaluates to {x}, not a finite number")),
+            other => Err(format!("`{text}` must give a number, not {other:?}")),
+        }
+    }
+
+    /// Whether it holds.
+    pub fn condition(&self, scope: &Scope) -> Result<bool, String> {
+        match self.evaluate(scope)? {
+            Val::Bool(b) => Ok(b),
+            other => Err(format!(
+                "`{}` must be true or false, not {other:?}",
+                self.text
+            )),
+        }
+    }
+
+    fn evaluate(&self, scope: &Scope) -> Result<Val, String> {
+        match self.evaluate_as_far_as_known(scope)? {
+            Val::Missing(why) => Err(why),
+            value => Ok(value),
+        }
+    }
+
+    /// Its value, `Missing` when a name it needs is not in `scope`.
+    fn evaluate_as_far_as_known(&self, scope: &Scope) -> Result<Val, String> {
+        let mut parser = Parser {
+            tokens: &self.tokens,
+            at: 0,
+            scope,
+            depth: 0,
+        };
+        let value = parser.or()?;
+        match parser.tokens.get(parser.at) {
+            None => Ok(value),
+            Some(token) => Err(format!("`{}`: unexpected {token:?}", self.text)),
+        }
+    }
 }
 
 /// Whether `text` is an expression (a record's condition, before any record gives its names
@@ -122,30 +196,9 @@ pub fn check_syntax(text: &str) -> Result<(), String> {
     let nothing = Scope {
         names: BTreeMap::new(),
     };
-    evaluate_as_far_as_known(text, &nothing).map(drop)
-}
-
-fn evaluate(text: &str, scope: &Scope) -> Result<Val, String> {
-    match evaluate_as_far_as_known(text, scope)? {
-        Val::Missing(why) => Err(why),
-        value => Ok(value),
-    }
-}
-
-/// The value of `text`, `Missing` when a name it needs is not in `scope`.
-fn evaluate_as_far_as_known(text: &str, scope: &Scope) -> Result<Val, String> {
-    let tokens = tokenize(text)?;
-    let mut parser = Parser {
-        tokens: &tokens,
-        at: 0,
-        scope,
-        depth: 0,
-    };
-    let value = parser.or()?;
-    match parser.tokens.get(parser.at) {
-        None => Ok(value),
-        Some(token) => Err(format!("`{text}`: unexpected {token:?}")),
-    }
+    Expression::parse(text)?
+        .evaluate_as_far_as_known(&nothing)
+        .map(drop)
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -348,18 +401,15 @@ impl Parser<'_> {
     }
 
     fn atom(&mut self) -> Result<Val, String> {
-        let token = self
-            .tokens
-            .get(self.at)
-            .cloned()
-            .ok_or("the expression ends too early")?;
+        let tokens = self.tokens;
+        let token = tokens.get(self.at).ok_or("the expression ends too early")?;
         self.at += 1;
         match token {
-            Token::Num(x) => Ok(Val::Num(x)),
-            Token::Str(s) => Ok(Val::Str(s)),
+            Token::Num(x) => Ok(Val::Num(*x)),
+            Token::Str(s) => Ok(Val::Str(s.clone())),
             Token::Name(name) if name == "true" => Ok(Val::Bool(true)),
             Token::Name(name) if name == "false" => Ok(Val::Bool(false)),
-            Token::Name(name) => Ok(self.scope.names.get(&name).cloned().unwrap_or_else(|| {
+            Token::Name(name) => Ok(self.scope.names.get(name).cloned().unwrap_or_else(|| {
                 let known = self.scope.names.keys().map(String::as_str);
                 let guess = schema::error::nearest(&name, known.clone())
                     .map_or(String::new(), |g| format!("did you mean `{g}`? "));
@@ -411,6 +461,10 @@ mod tests {
 
     fn scope(fields: Value) -> Scope {
         Scope::from_fields(fields.as_object().expect("an object"))
+    }
+
+    fn evaluate_number(text: &str, scope: &Scope) -> Result<Value, String> {
+        Expression::parse(text)?.number(scope)
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use crate::model::adaptive::{Adaptive, Budget};
 use crate::model::boundary::BoundarySpec;
-use crate::model::expression::{self};
+use crate::model::expression::{self, Expression};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
@@ -507,12 +507,20 @@ impl Study {
         // The fields that move along each branch's series, worked out once per branch.
         let mut moving: HashMap<Option<Arc<str>>, Arc<Moving>> = HashMap::new();
         let mut names = SharedNames::default();
+        let formulas = Expressions::of([("derive".to_string(), self.derive.values())]);
         for point in &mut points {
-            self.derive_fields(point, &mut names)?;
+            self.derive_fields(point, &formulas, &mut names)?;
         }
         // Filtered in place: at 10⁶ points a second list is a hundred megabytes more.
         let mut failure = None;
-        points.retain(|point| match self.keeps(point, &branches) {
+        let (study_filter, branch_filters) = self.filters(&branches);
+        let filter_of = |point: &Point| {
+            let branch = point.branch.as_deref();
+            branch
+                .and_then(|b| branch_filters.get(b))
+                .unwrap_or(&study_filter)
+        };
+        points.retain(|point| match filter_of(point).keeps(point) {
             Ok(keep) => keep && failure.is_none(),
             Err(e) => {
                 failure.get_or_insert(e);
@@ -593,14 +601,21 @@ impl Study {
         Ok(found)
     }
 
-    fn derive_fields(&self, point: &mut Point, names: &mut SharedNames) -> Result<(), StudyError> {
+    fn derive_fields(
+        &self,
+        point: &mut Point,
+        formulas: &Expressions,
+        names: &mut SharedNames,
+    ) -> Result<(), StudyError> {
         if self.derive.is_empty() {
             return Ok(());
         }
-        let scope = point.scope();
+        let scope = point.scope_of(&formulas.names);
         let mut derived = Vec::with_capacity(self.derive.len());
-        for (field, formula) in &self.derive {
-            let value = expression::evaluate_number(formula, &scope)
+        for (field, formula) in self.derive.keys().zip(&formulas.expressions) {
+            // A name the point lacks is said with all the names it has.
+            let value = (formula.1.as_ref().map_err(Clone::clone))
+                .and_then(|f| f.number(&scope).or_else(|_| f.number(&point.scope())))
                 .map_err(|e| StudyError::new(format!("derive.{field}"), e))?;
             derived.push(value);
         }
@@ -625,29 +640,59 @@ impl Study {
         Ok(())
     }
 
-    /// Whether the point meets the study's `where`, then its branch's.
-    fn keeps(
+    /// The study's `where`, and each branch's after it, read once for all points.
+    fn filters<'b>(
         &self,
-        point: &Point,
-        branches: &BTreeMap<String, (String, &Branch)>,
-    ) -> Result<bool, StudyError> {
-        let study = self.filter.iter().map(|c| ("where".to_string(), c));
-        let own = point.branch.as_deref().and_then(|b| branches.get(b));
-        let branch = own
-            .into_iter()
-            .flat_map(|(place, b)| b.filter.iter().map(move |c| (format!("{place}.where"), c)));
-        let mut conditions = study.enumerate().chain(branch.enumerate()).peekable();
-        if conditions.peek().is_none() {
+        branches: &'b BTreeMap<String, (String, &Branch)>,
+    ) -> (Expressions, HashMap<&'b str, Expressions>) {
+        let study = || std::iter::once(("where".to_string(), self.filter.iter()));
+        let of_branch = branches.iter().map(|(name, (place, branch))| {
+            let own = (format!("{place}.where"), branch.filter.iter());
+            (name.as_str(), Expressions::of(study().chain([own])))
+        });
+        (Expressions::of(study()), of_branch.collect())
+    }
+}
+
+/// Expressions read once for all the points they are evaluated at (a plan evaluates `where`
+/// at each of 10⁶ points): each with its place (`where[0]`), and the names they read, the only
+/// fields a point's scope needs to hold for them.
+struct Expressions {
+    expressions: Vec<(String, Result<Expression, String>)>,
+    names: Vec<String>,
+}
+
+impl Expressions {
+    fn of<'a>(lists: impl IntoIterator<Item = (String, impl Iterator<Item = &'a String>)>) -> Self {
+        let mut expressions = Vec::new();
+        let mut names: Vec<String> = Vec::new();
+        for (place, list) in lists {
+            for (k, text) in list.enumerate() {
+                let condition = Expression::parse(text);
+                if let Ok(condition) = &condition {
+                    for name in condition.names() {
+                        if !names.iter().any(|n| n == name) {
+                            names.push(name.to_string());
+                        }
+                    }
+                }
+                expressions.push((format!("{place}[{k}]"), condition));
+            }
+        }
+        Expressions { expressions, names }
+    }
+
+    /// Whether the point meets every condition.
+    fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
+        if self.expressions.is_empty() {
             return Ok(true);
         }
-        let scope = point.scope();
-        for (k, (place, condition)) in conditions {
-            let holds = expression::condition(condition, &scope).map_err(|e| {
-                StudyError::new(
-                    format!("{place}[{k}]"),
-                    format!("{e} (at {})", point.label()),
-                )
-            })?;
+        let scope = point.scope_of(&self.names);
+        for (place, condition) in &self.expressions {
+            // A name the point lacks is said with all the names it has.
+            let holds = (condition.as_ref().map_err(Clone::clone))
+                .and_then(|c| c.condition(&scope).or_else(|_| c.condition(&point.scope())))
+                .map_err(|e| StudyError::new(place, format!("{e} (at {})", point.label())))?;
             if !holds {
                 return Ok(false);
             }

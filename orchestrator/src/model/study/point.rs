@@ -152,20 +152,36 @@ impl Point {
     }
 
     fn label_without(&self, left_out: &[String]) -> String {
-        let branch = self.branch.iter().map(|b| format!("{BRANCH}={b}"));
-        let parts: Vec<String> = branch
-            .chain(
-                self.swept
-                    .iter()
-                    .zip(&self.values)
-                    .filter(|(f, _)| !left_out.contains(f))
-                    .map(|(f, v)| match v {
-                        Value::String(s) => format!("{f}={s}"),
-                        v => format!("{f}={v}"),
-                    }),
-            )
-            .collect();
-        parts.join(" ")
+        use std::fmt::Write as _;
+        let mut label = String::new();
+        if let Some(branch) = &self.branch {
+            label.push_str(BRANCH);
+            label.push('=');
+            label.push_str(branch);
+        }
+        let swept = self.swept.iter().zip(&self.values);
+        for (field, value) in swept.filter(|(f, _)| !left_out.contains(f)) {
+            if !label.is_empty() {
+                label.push(' ');
+            }
+            label.push_str(field);
+            label.push('=');
+            match value {
+                Value::String(s) => label.push_str(s),
+                v => write!(label, "{v}").expect("a String takes any text"),
+            }
+        }
+        label
+    }
+
+    /// `scope()` of only the fields `names` (the branch among them): all an expression reading
+    /// no other name needs.
+    pub(super) fn scope_of(&self, names: &[String]) -> Scope {
+        let branch = self.branch.as_ref().map(|b| Value::from(&**b));
+        Scope::of_names(names, |name| match (name, &branch) {
+            (BRANCH, Some(branch)) => Some(branch),
+            _ => self.get(name),
+        })
     }
 
     /// The fields an expression sees: the case's, and the branch.
