@@ -5,6 +5,7 @@ mod kept;
 
 use crate::model::study::Point;
 use crate::store::Fault;
+use rayon::prelude::*;
 use serde_json::{Map, Value};
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -149,18 +150,22 @@ impl Nlsolve {
         let (Some(path), Some(fingerprint)) = (&self.verdicts, &self.fingerprint) else {
             return Ok(self.ask(points)?.into_iter().map(|(v, _)| v).collect());
         };
-        let mut kept = kept::Kept::load(path.clone(), &self.version, fingerprint);
-        let keys: Vec<kept::FieldsKey> = points
-            .iter()
-            .map(|point| {
-                let mut line = Vec::with_capacity(256);
-                point.write_fields(&mut line).expect("a map prints");
-                kept::fields_key(&line)
-            })
-            .collect();
+        // The file read on one core while the points' keys are hashed on the other.
+        let (mut kept, keys) = rayon::join(
+            || kept::Kept::load(path.clone(), &self.version, fingerprint),
+            || {
+                let key = |point: &&Point| {
+                    let mut line = Vec::with_capacity(256);
+                    point.write_fields(&mut line).expect("a map prints");
+                    kept::fields_key(&line)
+                };
+                points.par_iter().map(key).collect::<Vec<_>>()
+            },
+        );
         let offer = self.offer();
         // Points of the same fields (repeats, branches that meet) share the first one's verdict.
-        let mut first: HashMap<kept::FieldsKey, usize> = HashMap::with_capacity(keys.len());
+        let mut first: kept::KeyMap<usize> =
+            kept::KeyMap::with_capacity_and_hasher(keys.len(), Default::default());
         let mut verdicts: Vec<Option<Result<Checked, String>>> = Vec::with_capacity(keys.len());
         for (i, key) in keys.iter().enumerate() {
             let verdict = match first.entry(*key) {

@@ -11,6 +11,7 @@ use super::fs::modified_ns;
 use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
 use super::shared::{shared, Shared};
+use super::KeyMap;
 use rayon::prelude::*;
 use schema::record::Status;
 use serde::{Deserialize, Serialize};
@@ -21,7 +22,7 @@ use std::path::{Path, PathBuf};
 /// The catalog's file, among the segments (its name has no `.seg`).
 pub const FILE: &str = "catalog";
 /// Bumped when what the catalog holds changes: an older one is rebuilt.
-const FORMAT: u32 = 2;
+const FORMAT: u32 = 3;
 
 /// Where a record lies.
 #[derive(Clone, Debug, PartialEq)]
@@ -100,7 +101,7 @@ pub struct Catalog {
     format: u32,
     pub segments: BTreeMap<String, SegmentState>,
     /// The latest record of each key among the segments.
-    pub entries: HashMap<String, Entry>,
+    pub entries: KeyMap<Entry>,
     /// The old store's files, by key, as last read (with the modification time and size they
     /// had then, so an unchanged file is not read again).
     files: HashMap<PathBuf, (FileStamp, FileRead)>,
@@ -122,8 +123,8 @@ impl Catalog {
         let path = runs.join(segment::DIR).join(FILE);
         super::fs::read_regular(&path, 1 << 30)
             .ok()
-            .and_then(|text| serde_json::from_str::<Persisted>(&text).ok())
-            .filter(|p| p.format == FORMAT)
+            .and_then(|text| Persisted::read(&text))
+            .filter(|p| p.head.format == FORMAT)
             .and_then(Persisted::into_catalog)
             .unwrap_or_default()
     }
@@ -135,7 +136,7 @@ impl Catalog {
         if !dir.is_dir() {
             return;
         }
-        if let Ok(text) = serde_json::to_vec(&Persisted::of(self)) {
+        if let Ok(text) = Persisted::of(self).text() {
             self.unsaved &= super::fs::write_atomically(&dir.join(FILE), &text).is_err();
         }
     }
@@ -294,8 +295,8 @@ impl Catalog {
     }
 
     /// The latest record of each key, the old store's files included.
-    pub fn latest(&self) -> HashMap<&str, &Entry> {
-        let mut latest: HashMap<&str, &Entry> =
+    pub fn latest(&self) -> HashMap<&str, &Entry, foldhash::fast::RandomState> {
+        let mut latest: HashMap<&str, &Entry, _> =
             self.entries.iter().map(|(k, e)| (k.as_str(), e)).collect();
         for (key, entry) in self.files.values().filter_map(|(_, r)| r.as_ref().ok()) {
             match latest.get(key.as_str()) {
@@ -372,15 +373,20 @@ impl Catalog {
     }
 }
 
-/// The catalog as its file holds it: an entry as an array, its segment, fingerprint and solver
-/// version as indices into lists (a 10⁵-record catalog: 15 MB, not 38).
-#[derive(Serialize, Deserialize)]
+/// The catalog as its file holds it: a line of what the entries share, then a line per entry,
+/// as an array, its segment, fingerprint and solver version as indices into the lists of the
+/// first line (a 10⁵-record catalog: 15 MB, not 38). Lines, so that both cores read it.
 struct Persisted {
+    head: Head,
+    entries: Vec<PersistedEntry>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct Head {
     format: u32,
     segments: BTreeMap<String, SegmentState>,
     fingerprints: Vec<String>,
     versions: Vec<String>,
-    entries: Vec<PersistedEntry>,
 }
 
 /// key, segment (its index among `segments`), start, end, seq, status, fingerprint, wall_s,
@@ -434,21 +440,43 @@ impl Persisted {
                 ))
             })
             .collect();
-        Persisted {
+        let head = Head {
             format: catalog.format,
             segments: catalog.segments.clone(),
             fingerprints: fingerprints.values,
             versions: versions.values,
-            entries,
+        };
+        Persisted { head, entries }
+    }
+
+    fn text(&self) -> serde_json::Result<Vec<u8>> {
+        let mut text = serde_json::to_vec(&self.head)?;
+        for entry in &self.entries {
+            text.push(b'\n');
+            serde_json::to_writer(&mut text, entry)?;
         }
+        Ok(text)
+    }
+
+    /// What `text` holds; `None` unless every line is whole.
+    fn read(text: &str) -> Option<Persisted> {
+        let (head, entries) = text.split_once('\n').unwrap_or((text, ""));
+        let entries = entries
+            .par_lines()
+            .map(|line| serde_json::from_str(line).ok());
+        Some(Persisted {
+            head: serde_json::from_str(head).ok()?,
+            entries: entries.collect::<Option<_>>()?,
+        })
     }
 
     /// The catalog, `None` when an index points nowhere.
     fn into_catalog(self) -> Option<Catalog> {
-        let names: Vec<Shared> = self.segments.keys().map(|n| shared(n)).collect();
-        let fingerprints: Vec<Shared> = self.fingerprints.iter().map(|f| shared(f)).collect();
-        let versions: Vec<Shared> = self.versions.iter().map(|v| shared(v)).collect();
-        let mut entries = HashMap::with_capacity(self.entries.len());
+        let head = self.head;
+        let names: Vec<Shared> = head.segments.keys().map(|n| shared(n)).collect();
+        let fingerprints: Vec<Shared> = head.fingerprints.iter().map(|f| shared(f)).collect();
+        let versions: Vec<Shared> = head.versions.iter().map(|v| shared(v)).collect();
+        let mut entries = KeyMap::with_capacity_and_hasher(self.entries.len(), Default::default());
         for e in self.entries {
             let entry = Entry {
                 at: Location::Segment {
@@ -467,8 +495,8 @@ impl Persisted {
             entries.insert(e.0, entry);
         }
         Some(Catalog {
-            format: self.format,
-            segments: self.segments,
+            format: head.format,
+            segments: head.segments,
             entries,
             files: HashMap::new(),
             unsaved: false,

@@ -903,11 +903,15 @@ impl<T> Scan<T> {
     }
 }
 
+/// A map by record key (or case id): 10⁵–10⁶ of them in a plan, hashed fast (the keys are
+/// hashes themselves, and the seed is random).
+pub type KeyMap<V> = HashMap<String, V, foldhash::fast::RandomState>;
+
 #[derive(Default)]
 pub struct Index {
     /// What each whole record says, by key.
-    pub stored: HashMap<String, Recorded>,
-    pub version_by_case: HashMap<String, Shared>,
+    pub stored: KeyMap<Recorded>,
+    pub version_by_case: KeyMap<Shared>,
     pub unreadable: Vec<Unreadable>,
     /// Failed records, by key in name order, with the first line of their message.
     pub failed: Vec<(String, String)>,

@@ -33,6 +33,9 @@ const CAP: u64 = 1 << 31;
 /// A case's fields as `nlsolve check` reads them, hashed: what a verdict is kept under.
 pub(super) type FieldsKey = [u8; 16];
 
+/// A map by `FieldsKey` (or resolution id): hashed fast, for the 10⁵–10⁶ of a plan.
+pub(super) type KeyMap<V> = HashMap<FieldsKey, V, foldhash::fast::RandomState>;
+
 pub(super) fn fields_key(fields_line: &[u8]) -> FieldsKey {
     let digest = Sha256::digest(fields_line);
     digest[..16].try_into().expect("16 of 32 bytes")
@@ -99,8 +102,8 @@ pub(super) struct Kept {
     afresh: bool,
     /// The file's last line is cut short: what is appended starts on a line of its own.
     cut_short: bool,
-    resolutions: HashMap<u64, Resolved>,
-    verdicts: HashMap<FieldsKey, Verdict>,
+    resolutions: HashMap<u64, Resolved, foldhash::fast::RandomState>,
+    verdicts: KeyMap<Verdict>,
     /// Where what is kept goes (the file, or a fresh one beside it), once something is;
     /// `Err` after a write failed.
     out: Result<Option<std::io::BufWriter<std::fs::File>>, ()>,
@@ -133,8 +136,8 @@ impl Kept {
             header,
             afresh: true,
             cut_short: false,
-            resolutions: HashMap::new(),
-            verdicts: HashMap::new(),
+            resolutions: HashMap::default(),
+            verdicts: KeyMap::default(),
             out: Ok(None),
         };
         let Ok((file, length)) = crate::store::fs::open_regular(&kept.path) else {
