@@ -747,11 +747,7 @@ impl Store {
     pub fn count_besides(&self, keys: &std::collections::HashSet<&str>) -> usize {
         let guard = self.catalog(false);
         let catalog = guard.as_ref().expect("loaded");
-        catalog
-            .latest()
-            .into_keys()
-            .filter(|k| !keys.contains(k))
-            .count()
+        catalog.latest_keys().filter(|k| !keys.contains(k)).count()
     }
 
     /// How many records the store holds (the latest of each key), and what it holds that is not
@@ -759,7 +755,7 @@ impl Store {
     pub fn count(&self) -> usize {
         let guard = self.catalog(false);
         let catalog = guard.as_ref().expect("loaded");
-        catalog.latest().len() + catalog.unreadable(&self.runs).len()
+        catalog.latest_keys().count() + catalog.unreadable(&self.runs).len()
     }
 }
 

@@ -56,7 +56,7 @@ pub fn splice(
 /// table that grew or lost a few points is a few runs, and a slice costs no copy), else
 /// gathered one by one (a row at a time costs a copy of each cell, text the most).
 fn rows_at(all: &DataFrame, index: Vec<IdxSize>) -> Option<DataFrame> {
-    const MOST_RUNS: usize = 64;
+    const MOST_RUNS: usize = 1024;
     let mut runs: Vec<(IdxSize, IdxSize)> = Vec::new();
     for &k in &index {
         if let Some((_, length)) = runs.last_mut().filter(|(s, l)| *s + *l == k) {
