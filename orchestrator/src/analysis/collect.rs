@@ -83,10 +83,23 @@ fn inputs_of(header: &str, identities: &[Identity], seqs: &[u64], records: usize
 /// The most `MADE` may hold: its rows take about 60 bytes a run.
 const MADE_CAP: u64 = 1 << 30;
 
-/// What the last collect said it made, if it said it.
-fn made_before(store: &Store) -> Option<Made> {
-    let text = crate::store::fs::read_regular(&store.table(MADE), MADE_CAP).ok()?;
-    serde_json::from_str(&text).ok()
+/// What the last collect said it made, if it said it, and which file said it.
+fn made_before(store: &Store) -> Option<(Made, Said)> {
+    let path = store.table(MADE);
+    let said = said_by(&path)?;
+    let text = crate::store::fs::read_regular(&path, MADE_CAP).ok()?;
+    Some((serde_json::from_str(&text).ok()?, said))
+}
+
+/// A file of `MADE` as its metadata tells it apart: device, inode, size and time (a collect
+/// writes it afresh and renames it over the last).
+type Said = (u64, u64, u64, i128);
+
+fn said_by(path: &std::path::Path) -> Option<Said> {
+    use std::os::unix::fs::MetadataExt;
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    let time = crate::store::fs::modified_ns(&meta);
+    Some((meta.dev(), meta.ino(), meta.len(), time))
 }
 
 /// Transparent huge pages off for this process while it collects, on again after. The
@@ -201,7 +214,8 @@ pub fn collect(
     let seqs = store.sequence_numbers(&keys);
     let header = header_of(study, allow_mixed);
     let inputs = inputs_of(&header, &identities, &seqs, store.count());
-    if let Some(made) = made_before(store).filter(|made| made.inputs == inputs) {
+    let before = made_before(store);
+    if let Some((made, _)) = before.as_ref().filter(|(made, _)| made.inputs == inputs) {
         // The tables whole, and the ones it said it made (not those of a collect killed before
         // it said what it made).
         let sums = [&made.collected.runs, &made.collected.summary].map(|t| table::sum_if_whole(t));
@@ -210,6 +224,7 @@ pub fn collect(
             .as_ref()
             .map(|rows| rows.sums.iter().cloned().map(Some));
         if said.is_some_and(|said| said.eq(sums)) {
+            let (made, _) = before.expect("matched above");
             return Ok(Some(Collected {
                 up_to_date: true,
                 ..made.collected
@@ -223,7 +238,12 @@ pub fn collect(
     // From here until the tables and what they are made of are in place, no other collect
     // writes them (nor reads them, as figures do).
     let _outputs = store.lock_outputs()?;
-    let prior = made_before(store).and_then(|made| made.rows.filter(|r| r.header == header));
+    // What was read before the lock, unless another collect has said more since.
+    let made = match before {
+        Some((made, said)) if said_by(&store.table(MADE)) == Some(said) => Some(made),
+        _ => made_before(store).map(|(made, _)| made),
+    };
+    let prior = made.and_then(|made| made.rows.filter(|r| r.header == header));
     let paths = (
         store.table(&format!("{}.parquet", store.study)),
         store.table(&format!("{}-summary.parquet", store.study)),
