@@ -385,6 +385,68 @@ fn every_link_between_the_pages_finds_its_file() {
     assert!(broken.is_empty(), "links to no file: {broken:#?}");
 }
 
+/// The numbers the pages show between `<!--m:KEY-->` and `<!--/m-->` are the ones
+/// docs/guide/measured.json holds (written by `scripts/measure-guide`, with the command that
+/// measured each and the day): a number changed by hand, or a measurement no page shows, fails.
+#[test]
+fn every_measured_number_is_the_one_its_measurement_wrote() {
+    let file = root().join("docs/guide/measured.json");
+    let measured: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    let numbers = measured["numbers"]
+        .as_object()
+        .expect("measured.json has `numbers`");
+    let mut wrong = Vec::new();
+    let mut shown = std::collections::BTreeSet::new();
+    for page in pages() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        let name = page.file_name().unwrap().to_string_lossy().into_owned();
+        for (at, _) in text.match_indices("<!--m:") {
+            let rest = &text[at + "<!--m:".len()..];
+            let Some((key, rest)) = rest.split_once("-->") else {
+                wrong.push(format!("{name}: a marker is not closed"));
+                continue;
+            };
+            // (A key is lower-case letters, digits, `_` and `.`: `<!--m:KEY-->` is prose.)
+            let is_key = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "_.".contains(c);
+            if !key.chars().all(is_key) {
+                continue;
+            }
+            let Some((shows, _)) = rest.split_once("<!--/m-->") else {
+                wrong.push(format!("{name}: `{key}` has no <!--/m-->"));
+                continue;
+            };
+            shown.insert(key.to_string());
+            match numbers.get(key).and_then(|n| n["text"].as_str()) {
+                Some(text) if text == shows => {}
+                Some(text) => wrong.push(format!(
+                    "{name}: `{key}` shows {shows:?}, measured {text:?}"
+                )),
+                None => wrong.push(format!("{name}: `{key}` is not in measured.json")),
+            }
+        }
+    }
+    for (key, number) in numbers {
+        if !shown.contains(key) {
+            wrong.push(format!("measured.json: `{key}` is shown by no page"));
+        }
+        for field in ["text", "command", "measured"] {
+            if number[field].as_str().is_none_or(str::is_empty) {
+                wrong.push(format!("measured.json: `{key}` has no `{field}`"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{wrong:#?}\n(scripts/measure-guide measures the numbers and writes the pages)"
+    );
+    assert!(
+        shown.len() >= 30,
+        "only {} measured numbers shown",
+        shown.len()
+    );
+}
+
 /// The code spans of a page's prose (its fenced blocks left out), each as one line: a span may
 /// run over a line break, and one of N backticks ends at the next run of exactly N.
 fn code_spans(page: &str) -> Vec<String> {
