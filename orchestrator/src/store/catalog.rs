@@ -396,6 +396,8 @@ struct Head {
     segments: BTreeMap<String, SegmentState>,
     fingerprints: Vec<String>,
     versions: Vec<String>,
+    /// How many entry lines follow: a file cut short at a line's end is not whole either.
+    entries: usize,
 }
 
 /// key, segment (its index among `segments`), start, end, seq, status, fingerprint, wall_s,
@@ -426,7 +428,7 @@ impl Persisted {
             .collect();
         let mut fingerprints = Interned::default();
         let mut versions = Interned::default();
-        let entries = catalog
+        let entries: Vec<PersistedEntry> = catalog
             .entries
             .iter()
             .filter_map(|(key, e)| {
@@ -454,6 +456,7 @@ impl Persisted {
             segments: catalog.segments.clone(),
             fingerprints: fingerprints.values,
             versions: versions.values,
+            entries: entries.len(),
         };
         Persisted { head, entries }
     }
@@ -473,10 +476,11 @@ impl Persisted {
         let entries = entries
             .par_lines()
             .map(|line| serde_json::from_str(line).ok());
-        Some(Persisted {
+        let persisted = Persisted {
             head: serde_json::from_str(head).ok()?,
             entries: entries.collect::<Option<_>>()?,
-        })
+        };
+        (persisted.entries.len() == persisted.head.entries).then_some(persisted)
     }
 
     /// The catalog, `None` when an index points nowhere.

@@ -346,6 +346,27 @@ fn a_thousand_records_make_one_segment_and_a_catalog_a_new_process_reads() {
     }
 }
 
+/// A catalog cut short at the end of an entry's line is not whole either: it is made again
+/// from the segments, and no record goes missing from the index.
+#[test]
+fn a_catalog_cut_at_the_end_of_a_line_is_made_again() {
+    let (dir, store) = scratch();
+    for (key, record) in (0..20).map(|n| keyed(n, "ok")) {
+        assert!(store.save(&key, &typed(&record)).unwrap());
+    }
+    store.persist_catalog();
+    let file = store.segments().join(catalog::FILE);
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert_eq!(
+        text.lines().count(),
+        21,
+        "a line of what they share, a line per entry"
+    );
+    std::fs::write(&file, &text[..text.rfind('\n').unwrap()]).unwrap();
+    let again = Store::open(dir.path(), "s");
+    assert_eq!(again.index().stored.len(), 20);
+}
+
 /// A catalog that is gone (or not whole) is made again from the segments by whoever reads
 /// the store first, and stored by the first that may: a migrating command reads without
 /// storing, and what it read is not lost to the next reader (which would read every record
