@@ -411,7 +411,7 @@ impl Parser<'_> {
             Token::Name(name) if name == "false" => Ok(Val::Bool(false)),
             Token::Name(name) => Ok(self.scope.names.get(name).cloned().unwrap_or_else(|| {
                 let known = self.scope.names.keys().map(String::as_str);
-                let guess = schema::error::nearest(&name, known.clone())
+                let guess = schema::error::nearest(name, known.clone())
                     .map_or(String::new(), |g| format!("did you mean `{g}`? "));
                 let known: Vec<&str> = known.collect();
                 Val::Missing(format!(
