@@ -460,18 +460,6 @@ fn mixed(measured: Vec<[Option<&str>; 3]>) -> Option<String> {
     })
 }
 
-/// The results the summary's overview shows where the study has them: what most questions
-/// read first.
-pub const HEADLINE_RESULTS: &[&str] = &[
-    columns::STATUS,
-    "solve_s_median",
-    "solve_s_iqr",
-    columns::ERROR_L2_NORM,
-    "order_l2",
-    "speedup",
-    "efficiency",
-];
-
 /// The summary's headline columns: the swept fields (as `(column, shown name)`: from the case,
 /// or derived by the solver), then the headline results the study has.
 fn headline_columns(summary: &[Row], swept: &[String]) -> Vec<(String, String)> {
@@ -486,7 +474,7 @@ fn headline_columns(summary: &[Row], swept: &[String]) -> Vec<(String, String)> 
         })
         .collect();
     shown.extend(
-        HEADLINE_RESULTS
+        summary::HEADLINE_RESULTS
             .iter()
             .filter(|name| has(name))
             .map(|name| (name.to_string(), name.to_string())),

@@ -167,7 +167,7 @@ fn no_column(name: &str, table: &[Row]) -> String {
             // `solve_s_median`).
             let near = distance <= (name.chars().count() / 3).max(1)
                 || (name.len() >= 3 && known.contains(name));
-            let headline = crate::analysis::collect::HEADLINE_RESULTS.contains(&known);
+            let headline = crate::analysis::summary::HEADLINE_RESULTS.contains(&known);
             near.then_some((!headline, distance, known))
         })
         .collect();

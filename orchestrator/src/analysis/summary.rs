@@ -22,6 +22,18 @@ use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 
+/// The results the summary's overview shows where the study has them: what most questions
+/// read first.
+pub const HEADLINE_RESULTS: &[&str] = &[
+    columns::STATUS,
+    "solve_s_median",
+    "solve_s_iqr",
+    columns::ERROR_L2_NORM,
+    "order_l2",
+    "speedup",
+    "efficiency",
+];
+
 /// The status of a summary row whose repeats ended differently.
 const MIXED: &str = "mixed";
 

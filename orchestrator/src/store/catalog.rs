@@ -11,7 +11,6 @@ use super::fs::modified_ns;
 use super::record::{listing, read_indexed, Indexed, Unreadable};
 use super::segment::{self, Frame};
 use super::shared::{shared, Shared};
-use super::KeyMap;
 use rayon::prelude::*;
 use schema::record::Status;
 use serde::{Deserialize, Serialize};
@@ -23,6 +22,10 @@ use std::path::{Path, PathBuf};
 pub const FILE: &str = "catalog";
 /// Bumped when what the catalog holds changes: an older one is rebuilt.
 const FORMAT: u32 = 3;
+
+/// A map by record key (or case id): 10⁵–10⁶ of them in a plan, hashed fast (the keys are
+/// hashes themselves, and the seed is random).
+pub type KeyMap<V> = HashMap<String, V, foldhash::fast::RandomState>;
 
 /// Where a record lies.
 #[derive(Clone, Debug, PartialEq)]

@@ -29,7 +29,7 @@ pub mod shared;
 pub mod table;
 pub mod timestamp;
 
-use catalog::{Catalog, Location};
+use catalog::{Catalog, KeyMap, Location};
 use fs::{create_dir, lock_file, read_regular, remove_where, RECORD_CAP};
 pub use fs::{write_atomically, Fault, FileError};
 pub use record::{case_id_and_key, fingerprint_of, hex, Id, Recorded, Unreadable};
@@ -898,10 +898,6 @@ impl<T> Scan<T> {
         }
     }
 }
-
-/// A map by record key (or case id): 10⁵–10⁶ of them in a plan, hashed fast (the keys are
-/// hashes themselves, and the seed is random).
-pub type KeyMap<V> = HashMap<String, V, foldhash::fast::RandomState>;
 
 #[derive(Default)]
 pub struct Index {
