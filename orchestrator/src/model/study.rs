@@ -3,7 +3,7 @@
 
 use crate::model::adaptive::{Adaptive, Budget};
 use crate::model::boundary::BoundarySpec;
-use crate::model::expression::{self, Expression};
+use crate::model::expression::{self, Expression, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
@@ -610,14 +610,13 @@ impl Study {
         if self.derive.is_empty() {
             return Ok(());
         }
-        let scope = point.scope_of(&formulas.names);
         let mut derived = Vec::with_capacity(self.derive.len());
-        for (field, formula) in self.derive.keys().zip(&formulas.expressions) {
-            // A name the point lacks is said with all the names it has.
-            let value = (formula.1.as_ref().map_err(Clone::clone))
-                .and_then(|f| f.number(&scope).or_else(|_| f.number(&point.scope())))
-                .map_err(|e| StudyError::new(format!("derive.{field}"), e))?;
-            derived.push(value);
+        for (field, (_, value)) in self
+            .derive
+            .keys()
+            .zip(formulas.at(point, Expression::number))
+        {
+            derived.push(value.map_err(|e| StudyError::new(format!("derive.{field}"), e))?);
         }
         // A derived field the sweep set too keeps its place; the others follow the swept ones.
         point.swept = names.extended(&point.swept, 0, |swept| {
@@ -682,18 +681,30 @@ impl Expressions {
         Expressions { expressions, names }
     }
 
+    /// `evaluate` of each expression at `point`, with its place, one at a time: over a scope of
+    /// the names they read, and where that fails over all the point's fields, so that a name
+    /// the point lacks is said with all the names it has.
+    fn at<'s, T>(
+        &'s self,
+        point: &'s Point,
+        evaluate: impl Fn(&Expression, &Scope) -> Result<T, String> + 's,
+    ) -> impl Iterator<Item = (&'s str, Result<T, String>)> + 's {
+        let scope = point.scope_of(&self.names);
+        self.expressions.iter().map(move |(place, expression)| {
+            let value = (expression.as_ref().map_err(Clone::clone))
+                .and_then(|e| evaluate(e, &scope).or_else(|_| evaluate(e, &point.scope())));
+            (place.as_str(), value)
+        })
+    }
+
     /// Whether the point meets every condition.
     fn keeps(&self, point: &Point) -> Result<bool, StudyError> {
         if self.expressions.is_empty() {
             return Ok(true);
         }
-        let scope = point.scope_of(&self.names);
-        for (place, condition) in &self.expressions {
-            // A name the point lacks is said with all the names it has.
-            let holds = (condition.as_ref().map_err(Clone::clone))
-                .and_then(|c| c.condition(&scope).or_else(|_| c.condition(&point.scope())))
-                .map_err(|e| StudyError::new(place, format!("{e} (at {})", point.label())))?;
-            if !holds {
+        for (place, holds) in self.at(point, Expression::condition) {
+            let at = |e| StudyError::new(place, format!("{e} (at {})", point.label()));
+            if !holds.map_err(at)? {
                 return Ok(false);
             }
         }

@@ -346,16 +346,23 @@ fn a_thousand_records_make_one_segment_and_a_catalog_a_new_process_reads() {
     }
 }
 
-/// A catalog cut short at the end of an entry's line is not whole either: it is made again
-/// from the segments, and no record goes missing from the index.
-#[test]
-fn a_catalog_cut_at_the_end_of_a_line_is_made_again() {
+/// A scratch store of 20 records, its catalog stored, and the catalog's file (the store
+/// kept open by the caller, as a writer that has not ended).
+fn twenty_with_their_catalog() -> (tempfile::TempDir, Store, std::path::PathBuf) {
     let (dir, store) = scratch();
     for (key, record) in (0..20).map(|n| keyed(n, "ok")) {
         assert!(store.save(&key, &typed(&record)).unwrap());
     }
     store.persist_catalog();
     let file = store.segments().join(catalog::FILE);
+    (dir, store, file)
+}
+
+/// A catalog cut short at the end of an entry's line is not whole either: it is made again
+/// from the segments, and no record goes missing from the index.
+#[test]
+fn a_catalog_cut_at_the_end_of_a_line_is_made_again() {
+    let (dir, _store, file) = twenty_with_their_catalog();
     let text = std::fs::read_to_string(&file).unwrap();
     assert_eq!(
         text.lines().count(),
@@ -373,12 +380,7 @@ fn a_catalog_cut_at_the_end_of_a_line_is_made_again() {
 /// again: a second of a collect at 10⁵ records).
 #[test]
 fn a_catalog_made_again_by_a_reader_that_does_not_store_it_is_stored_by_the_next() {
-    let (dir, store) = scratch();
-    for (key, record) in (0..20).map(|n| keyed(n, "ok")) {
-        assert!(store.save(&key, &typed(&record)).unwrap());
-    }
-    store.persist_catalog();
-    let file = store.segments().join(catalog::FILE);
+    let (dir, _store, file) = twenty_with_their_catalog();
     std::fs::remove_file(&file).unwrap();
     let again = Store::open(dir.path(), "s");
     assert_eq!(again.migrate().unwrap(), 0);
