@@ -38,6 +38,49 @@ fn slice_size() -> usize {
 /// A table's slices: each one's planned points and its rows' frame.
 type Parts = Vec<(Range<usize>, DataFrame)>;
 
+/// A slice's runs: the places in the plan of the points with a record, and their rows.
+type Runs = (Vec<usize>, Vec<Row>);
+
+/// The slices tabulated so far: both tables' parts and their rows' shapes, and what the series
+/// derive from.
+#[derive(Default)]
+struct Slices {
+    /// The places in the plan of the points with a record.
+    points: Vec<usize>,
+    run_parts: Parts,
+    run_shapes: Shapes,
+    reduced_parts: Parts,
+    reduced_shapes: Shapes,
+    /// Each point's `summary::derived_from` cells.
+    series: Vec<Row>,
+}
+
+impl Slices {
+    /// The slice `slice`'s runs as both tables' parts.
+    fn add(
+        &mut self,
+        slice: Range<usize>,
+        (indices, rows): Runs,
+        paths: &(PathBuf, PathBuf),
+    ) -> Result<(), Fault> {
+        if rows.is_empty() {
+            return Ok(());
+        }
+        self.points.extend(indices);
+        (rows.iter()).for_each(|row| self.run_shapes.push_cells(row.typed_cells()));
+        let frame = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
+        self.run_parts.push((slice.clone(), frame));
+        let reduced = summary::reduce_points(rows);
+        for row in &reduced {
+            self.reduced_shapes.push_cells(row.typed_cells());
+            self.series.push(summary::derived_from(row));
+        }
+        let frame = table::data_frame(&reduced).map_err(unwritable(&paths.1))?;
+        self.reduced_parts.push((slice, frame));
+        Ok(())
+    }
+}
+
 /// Every stored record of the study's points read into both tables, which are staged (the run
 /// table written and let go before the summary is stacked); `None` when no point has a record.
 /// `keyed` is the planned points and their keys; `identity` the header, each point's identity
@@ -51,7 +94,7 @@ pub(super) fn from_scratch(
     allow_mixed: bool,
 ) -> Result<Option<Written>, Fault> {
     fits_in_memory(store.count(), super::available_memory())?;
-    let runs_of = |slice: Range<usize>| -> (Vec<usize>, Vec<Row>) {
+    let runs_of = |slice: Range<usize>| -> Runs {
         let (rows, unreadable) = store.read_each(&keys[slice.clone()], |j, stored| {
             let i = slice.start + j;
             run_row(&planned[i], &identities[i], &stored)
@@ -63,28 +106,26 @@ pub(super) fn from_scratch(
             .filter_map(|(j, row)| Some((slice.start + j, row?)))
             .unzip()
     };
-    let mut points = Vec::new();
-    let (mut run_parts, mut run_shapes) = (Parts::new(), Shapes::default());
-    let (mut reduced_parts, mut reduced_shapes) = (Parts::new(), Shapes::default());
-    let mut series: Vec<Row> = Vec::new();
-    for slice in slices(identities, slice_size()) {
-        let (indices, rows) = runs_of(slice.clone());
-        if rows.is_empty() {
-            continue;
-        }
-        points.extend(indices);
-        rows.iter()
-            .for_each(|row| run_shapes.push_cells(row.typed_cells()));
-        let frame = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
-        run_parts.push((slice.clone(), frame));
-        let reduced = summary::reduce_points(rows);
-        for row in &reduced {
-            reduced_shapes.push_cells(row.typed_cells());
-            series.push(summary::derived_from(row));
-        }
-        let frame = table::data_frame(&reduced).map_err(unwritable(&paths.1))?;
-        reduced_parts.push((slice, frame));
+    let mut made = Slices::default();
+    // Each slice is tabulated while the next one's records are read: the reading runs on
+    // every core, the tabulating mostly on one.
+    let mut read: Option<(Range<usize>, Runs)> = None;
+    for slice in slices(identities, slice_size()).into_iter().map(Some).chain([None]) {
+        let (next, tabulated) = rayon::join(
+            || slice.map(|slice| (slice.clone(), runs_of(slice))),
+            || read.take().map_or(Ok(()), |(slice, runs)| made.add(slice, runs, paths)),
+        );
+        tabulated?;
+        read = next;
     }
+    let Slices {
+        points,
+        run_parts,
+        run_shapes,
+        reduced_parts,
+        reduced_shapes,
+        series,
+    } = made;
     if points.is_empty() {
         return Ok(None);
     }
