@@ -15,7 +15,8 @@ const SHARED_KEPT: usize = 4096;
 /// `text` as a `Shared`: the one this thread made before, if any.
 pub fn shared(text: &str) -> Shared {
     thread_local! {
-        static KEPT: RefCell<HashSet<Shared>> = Default::default();
+        // (foldhash: a collect asks for a name at every cell of every row.)
+        static KEPT: RefCell<HashSet<Shared, foldhash::fast::RandomState>> = Default::default();
     }
     KEPT.with_borrow_mut(|kept| match kept.get(text) {
         Some(shared) => shared.clone(),
