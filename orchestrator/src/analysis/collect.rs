@@ -167,8 +167,11 @@ fn run_row(planned: &Planned, identity: &Identity, stored: &Stored) -> Row {
     };
     let mut rest: Vec<(String, Value)> = record.into_iter().collect();
     rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
-    for (name, value) in rest {
-        row.set_flattened(&name, value);
+    match rest.iter().any(|(name, _)| name.contains('.')) {
+        false => row.set_all_flattened(rest),
+        // (A field named like a group's flattened one, `case.n` beside `case`: the later cell
+        // takes the name's place, field by field.)
+        true => (rest.into_iter()).for_each(|(name, value)| row.set_flattened(&name, value)),
     }
     // Beside `ranks` (the record's), the threads each rank ran: what `where` and figure specs
     // call `threads`.

@@ -113,17 +113,28 @@ impl Row {
 
     /// Sets a cell, or one cell per field of an object, named `name.field` (recursively).
     pub fn set_flattened(&mut self, name: &str, value: Value) {
-        // The flattened names differ from each other, so each is looked for only among the
-        // cells the row had before: a record's hundred columns cost a hundred short lookups,
-        // not five thousand long ones.
+        self.set_all_flattened([(name, value)]);
+    }
+
+    /// `set_flattened` of each of `fields`, whose names differ and hold no `.`: so their
+    /// flattened names differ too, and each is looked for only among the cells the row had
+    /// before. (A record's hundred columns then cost a hundred short lookups, not five thousand
+    /// long ones.)
+    pub fn set_all_flattened<N: AsRef<str>>(
+        &mut self,
+        fields: impl IntoIterator<Item = (N, Value)>,
+    ) {
         let before = self.0.len();
-        columns::flatten(name, value, &mut |name, value| match self.0[..before]
-            .iter_mut()
-            .find(|(n, _)| **n == *name)
-        {
-            Some((_, cell)) => *cell = value,
-            None => self.0.push((shared(name), value)),
-        });
+        for (name, value) in fields {
+            columns::flatten(
+                name.as_ref(),
+                value,
+                &mut |name, value| match self.0[..before].iter_mut().find(|(n, _)| **n == *name) {
+                    Some((_, cell)) => *cell = value,
+                    None => self.0.push((shared(name), value)),
+                },
+            );
+        }
     }
 }
 

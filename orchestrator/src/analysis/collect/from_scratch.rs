@@ -110,10 +110,17 @@ pub(super) fn from_scratch(
     // Each slice is tabulated while the next one's records are read: the reading runs on
     // every core, the tabulating mostly on one.
     let mut read: Option<(Range<usize>, Runs)> = None;
-    for slice in slices(identities, slice_size()).into_iter().map(Some).chain([None]) {
+    for slice in slices(identities, slice_size())
+        .into_iter()
+        .map(Some)
+        .chain([None])
+    {
         let (next, tabulated) = rayon::join(
             || slice.map(|slice| (slice.clone(), runs_of(slice))),
-            || read.take().map_or(Ok(()), |(slice, runs)| made.add(slice, runs, paths)),
+            || {
+                read.take()
+                    .map_or(Ok(()), |(slice, runs)| made.add(slice, runs, paths))
+            },
         );
         tabulated?;
         read = next;

@@ -277,3 +277,23 @@ fn a_splice_that_would_narrow_a_column_declines() {
     );
     assert!(widened.is_some());
 }
+
+/// Fields flattened together are the cells each flattened in turn would make, where their
+/// names hold no `.` (as `run_row` calls it); a cell the row had before takes the new value.
+#[test]
+fn fields_flattened_together_are_those_flattened_one_by_one() {
+    let fields = json!({"case": {"n": 8, "dim": {"x": 1}}, "h": 0.5, "point": "n=8", "c": []});
+    let mut one_by_one = Row::default();
+    let mut together = Row::default();
+    for row in [&mut one_by_one, &mut together] {
+        row.set("point", json!("before"));
+    }
+    for (name, value) in fields.as_object().unwrap() {
+        one_by_one.set_flattened(name, value.clone());
+    }
+    together.set_all_flattened(fields.as_object().unwrap().clone());
+    assert_eq!(together, one_by_one);
+    let names: Vec<&str> = together.cells().map(|(name, _)| name).collect();
+    assert_eq!(names, ["point", "c", "case.dim.x", "case.n", "h"]);
+    assert_eq!(together.text("point"), Some("n=8"));
+}
