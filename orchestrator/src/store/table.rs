@@ -233,7 +233,13 @@ fn deal(rows: &[Row]) -> (Vec<&Name>, Vec<Vec<&Value>>) {
                 Some(slot) => *slot = k,
                 None => before.push(k),
             }
-            columns[k].push(value);
+            match columns[k].len() > r {
+                // A second cell of one name in this row (a record's field `a.b` beside a group
+                // `a`, flattened alike): the later stands, as the later of two equal keys does
+                // in a JSON object; a second push would shift every row after it.
+                true => *columns[k].last_mut().expect("this row's cell") = value,
+                false => columns[k].push(value),
+            }
         }
         for column in columns.iter_mut().filter(|c| c.len() == r) {
             column.push(&NULL);

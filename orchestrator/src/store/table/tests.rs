@@ -297,3 +297,23 @@ fn fields_flattened_together_are_those_flattened_one_by_one() {
     assert_eq!(names, ["point", "c", "case.dim.x", "case.n", "h"]);
     assert_eq!(together.text("point"), Some("n=8"));
 }
+
+/// A row with two cells of one name (a record's unknown field holding both `a.b` and `a: {b}`,
+/// flattened alike) is one cell of its column, the later, in whichever place the row stands:
+/// never a second cell that shifts the rows after it.
+#[test]
+fn two_cells_of_one_name_in_a_row_are_one_cell_of_its_column() {
+    let mut twice = Row::default();
+    twice.set_flattened("extra", json!({"a.b": 1, "a": {"b": 2}}));
+    assert_eq!(twice.cells().count(), 2, "flattened alike: {twice:?}");
+    let other = Row::of_cells(json!({"x": 1}));
+    let later = twice.cells().last().unwrap().1.as_i64();
+    for (rows, at) in [([twice.clone(), other.clone()], 0), ([other, twice], 1)] {
+        let frame = data_frame(&rows).unwrap();
+        assert_eq!(frame.shape(), (2, 2));
+        let column = frame.column("extra.a.b").unwrap().i64().unwrap().to_vec();
+        let mut expected = vec![None, None];
+        expected[at] = later;
+        assert_eq!(column, expected);
+    }
+}
