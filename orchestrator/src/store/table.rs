@@ -116,10 +116,10 @@ impl Row {
         self.set_all_flattened([(name, value)]);
     }
 
-    /// `set_flattened` of each of `fields`, whose names differ and hold no `.`: so their
-    /// flattened names differ too, and each is looked for only among the cells the row had
-    /// before. (A record's hundred columns then cost a hundred short lookups, not five thousand
-    /// long ones.)
+    /// `set_flattened` of each of `fields`, whose names differ and, if they are more than one,
+    /// hold no `.`: so the fields' flattened names differ from each other's, and each is looked
+    /// for only among the cells the row had before. (A record's hundred columns then cost a
+    /// hundred short lookups, not five thousand long ones.)
     pub fn set_all_flattened<N: AsRef<str>>(
         &mut self,
         fields: impl IntoIterator<Item = (N, Value)>,
