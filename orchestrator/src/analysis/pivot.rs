@@ -6,7 +6,7 @@
 //! column.
 
 use crate::console::numbers_alike;
-use crate::model::expression::{self, Scope};
+use crate::model::expression::Filter;
 use crate::store::table::Row;
 use schema::record::columns;
 use serde_json::{Map, Value};
@@ -126,17 +126,12 @@ type Kept<'a> = (&'a Row, Map<String, Value>);
 
 /// The table's rows the filter keeps.
 fn kept_rows<'a>(spec: &PivotSpec, table: &'a [Row]) -> Result<Vec<Kept<'a>>, String> {
+    let at = |(k, e)| format!("--where {k}: {e}");
+    let filter = Filter::parse(&spec.filter).map_err(at)?;
     let mut kept = Vec::new();
     for row in table {
-        let named = row.expression_fields();
-        let scope = Scope::from_fields(&named);
-        let mut keep = true;
-        for (k, condition) in spec.filter.iter().enumerate() {
-            keep &= expression::condition(condition, &scope)
-                .map_err(|e| format!("--where {k}: {e}"))?;
-        }
-        if keep {
-            kept.push((row, named));
+        if row.meets(&filter).map_err(at)? {
+            kept.push((row, row.expression_fields()));
         }
     }
     Ok(kept)

@@ -46,7 +46,8 @@ impl Scope {
         let mut scope = BTreeMap::new();
         for name in names {
             let value = match name.as_str() {
-                "h" => grid_spacing(&get).map(Val::Num),
+                // (As `from_fields`: the grid's spacing, else a field of that name.)
+                "h" => (grid_spacing(&get).map(Val::Num)).or_else(|| get(name).and_then(val_of)),
                 _ => get(name).and_then(val_of),
             };
             if let Some(value) = value {
@@ -115,6 +116,49 @@ pub fn names(text: &str) -> Result<Vec<String>, String> {
         .into_iter()
         .map(str::to_string)
         .collect())
+}
+
+/// The conditions of a figure's or a table's `where`, read once to keep the rows of a table by:
+/// a row's scope holds just the names they read (a table of 10⁵ rows would otherwise copy every
+/// cell of each). Like `&&`, they are read in order and stop at the first that does not hold.
+pub struct Filter {
+    conditions: Vec<Expression>,
+    names: Vec<String>,
+}
+
+impl Filter {
+    /// The conditions read; one that cannot be says which (its index) and why.
+    pub fn parse(conditions: &[String]) -> Result<Filter, (usize, String)> {
+        let conditions = (conditions.iter().enumerate())
+            .map(|(k, text)| Expression::parse(text).map_err(|e| (k, e)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut names: Vec<String> = Vec::new();
+        for name in conditions.iter().flat_map(Expression::names) {
+            if !names.iter().any(|n| n == name) {
+                names.push(name.to_string());
+            }
+        }
+        Ok(Filter { conditions, names })
+    }
+
+    /// Whether a row, its fields by `get`, meets every condition; the first condition that
+    /// cannot be evaluated there says which and why, naming all the row's fields (`all`).
+    pub fn keeps<'v>(
+        &self,
+        get: impl Fn(&str) -> Option<&'v Value>,
+        all: impl Fn() -> Map<String, Value>,
+    ) -> Result<bool, (usize, String)> {
+        let scope = Scope::of_names(&self.names, get);
+        for (k, condition) in self.conditions.iter().enumerate() {
+            let holds = (condition.condition(&scope))
+                .or_else(|_| condition.condition(&Scope::from_fields(&all())))
+                .map_err(|e| (k, e))?;
+            if !holds {
+                return Ok(false);
+            }
+        }
+        Ok(true)
+    }
 }
 
 /// An expression read once, to be evaluated at many points.

@@ -13,6 +13,7 @@
 pub mod shape;
 pub mod splice;
 
+use crate::model::expression::Filter;
 use crate::store::fs::Fault;
 use crate::store::shared::{shared, Shared};
 use polars::prelude::*;
@@ -56,6 +57,24 @@ impl Row {
     /// (`expression::fields_of_columns`).
     pub fn expression_fields(&self) -> Map<String, Value> {
         crate::model::expression::fields_of_columns(&self.0)
+    }
+
+    /// The cell an expression's name reads (`expression_fields`): the case's field of that
+    /// name unless null, else the column.
+    fn expression_field(&self, name: &str) -> Option<&Value> {
+        let case = self
+            .cells()
+            .find(|(n, v)| n.strip_prefix("case.") == Some(name) && !v.is_null());
+        case.map(|(_, v)| v).or_else(|| self.get(name))
+    }
+
+    /// Whether the row meets `filter`'s conditions (the first that cannot be evaluated here
+    /// says which and why).
+    pub fn meets(&self, filter: &Filter) -> Result<bool, (usize, String)> {
+        filter.keeps(
+            |name| self.expression_field(name),
+            || self.expression_fields(),
+        )
     }
 
     pub fn get(&self, name: &str) -> Option<&Value> {

@@ -1,6 +1,6 @@
 //! The charts each figure kind makes of a study's summary table (one row per point).
 
-use crate::model::expression::{self, Scope};
+use crate::model::expression::Filter;
 use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::study::Question;
 use crate::output::draw::{Chart, Glyph, Panel};
@@ -36,15 +36,11 @@ fn column(rows: &[Row], name: &str) -> Option<String> {
 
 /// The rows of the summary table that figure `k`'s `where` keeps.
 pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<&'a Row>, String> {
+    let at = |(j, e)| fault(k, spec, format!("where[{j}]: {e}"));
+    let filter = Filter::parse(&spec.filter).map_err(at)?;
     let mut kept = Vec::new();
     for row in rows {
-        let scope = Scope::from_fields(&row.expression_fields());
-        let mut keep = true;
-        for (j, condition) in spec.filter.iter().enumerate() {
-            keep &= expression::condition(condition, &scope)
-                .map_err(|e| fault(k, spec, format!("where[{j}]: {e}")))?;
-        }
-        if keep {
+        if row.meets(&filter).map_err(at)? {
             kept.push(row);
         }
     }

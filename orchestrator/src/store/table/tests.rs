@@ -67,6 +67,50 @@ fn a_case_field_wins_over_the_record_column_of_the_same_name() {
 }
 
 #[test]
+fn a_filter_reads_a_row_as_its_expression_fields_do() {
+    use crate::model::expression::{condition, Filter, Scope};
+    let mut row = Row::default();
+    row.set("subdomains", json!(16));
+    row.set("backend", json!("stencil"));
+    row.set("collar", json!("zero"));
+    row.set("h", json!(0.5));
+    row.set("case.subdomains", json!(4));
+    row.set("case.backend", json!("auto"));
+    row.set("case.collar", serde_json::Value::Null);
+    row.set("case.n", json!(63));
+    let everything = Scope::from_fields(&row.expression_fields());
+    for text in [
+        "subdomains == 4",
+        "subdomains == 16",
+        "backend == 'auto'",
+        "collar == 'zero'",
+        "case.subdomains == 4 && case.collar == 'zero'",
+        "h == 1/32",
+        "n * h < 2",
+        "absent > 1",
+    ] {
+        let filter = Filter::parse(&[text.to_string()]).unwrap();
+        let kept = row.meets(&filter).map_err(|(_, e)| e);
+        assert_eq!(kept, condition(text, &everything), "{text}");
+    }
+    // In order, stopping at the first that does not hold; one that cannot be evaluated says
+    // which, with the row's names.
+    let filter = |texts: [&str; 2]| Filter::parse(&texts.map(String::from)).unwrap();
+    assert_eq!(
+        row.meets(&filter(["subdomains == 16", "absent > 1"])),
+        Ok(false)
+    );
+    let (k, why) = row
+        .meets(&filter(["subdomains == 4", "absent > 1"]))
+        .unwrap_err();
+    assert_eq!(k, 1);
+    assert!(
+        why.contains("unknown name `absent`") && why.contains("subdomains"),
+        "{why}"
+    );
+}
+
+#[test]
 fn a_table_reads_back_typed_with_its_description_units_and_notes() {
     let temporary = tempfile::tempdir().unwrap();
     let dir = temporary.path().to_path_buf();
