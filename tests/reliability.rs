@@ -418,8 +418,8 @@ fn a_case_past_its_timeout_is_killed_and_stored_failed() {
     );
 }
 
-/// `--retries`: a case whose process was killed from outside runs again and its record keeps the
-/// attempt; a case past its timeout is tried once more and then stored failed; a diverged case is
+/// `--retries`: a case whose process was killed from outside, or whose launcher failed after
+/// the record was printed, runs again and its record keeps the attempt; a case past its timeout is tried once more and then stored failed; a diverged case is
 /// a result and never runs again.
 #[test]
 fn failures_outside_the_case_are_retried_and_results_are_not() {
@@ -445,6 +445,29 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
     let stored = records(&scratch.runs("retry"));
     assert_eq!(stored.len(), 1);
     assert_eq!(stored[0]["status"], "ok");
+    assert_eq!(stored[0]["attempt"], 2);
+
+    // A launcher that fails after the solver printed its record (as Open MPI 4.1's mpirun now
+    // and then reports a finished rank "exiting improperly"): the case ran, its launcher did not.
+    scratch.write_study(&json!({
+        "name": "teardown",
+        "base": {"dim": 2, "n": 32, "m": 3, "t_end": 0.001, "cfl": 0.5, "ranks": 2}
+    }));
+    let launcher = launcher_script(
+        &scratch,
+        "failing-teardown",
+        "marker=\"$(dirname \"$0\")/failed-once\"\n\
+         if [ ! -e \"$marker\" ]; then touch \"$marker\"; mpirun --oversubscribe \"$@\"; exit 1; fi\n\
+         exec mpirun --oversubscribe \"$@\"\n",
+    );
+    let out = scratch.nlstudy(
+        "run",
+        &["--no-collect", "--launcher", &launcher, "--retries", "1"],
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("(attempt 2)"), "{}", text(&out));
+    let stored = records(&scratch.runs("teardown"));
+    assert_eq!((stored.len(), &stored[0]["status"]), (1, &json!("ok")));
     assert_eq!(stored[0]["attempt"], 2);
 
     scratch.write_study(&json!({

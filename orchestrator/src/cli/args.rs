@@ -221,7 +221,8 @@ pub struct RunArgs {
     #[arg(long, default_value = DEFAULT_LAUNCHER)]
     pub launcher: Launcher,
     /// Run a case again, up to N more times, when it failed for a reason outside it (past its
-    /// timeout, killed by a signal, its MPI launcher hung); the record keeps its `attempt`.
+    /// timeout, killed by a signal, its MPI launcher hung or failed after the solver printed
+    /// the record); the record keeps its `attempt`.
     /// Divergence and refused input are results and never run again.
     #[arg(long, default_value_t = 0)]
     pub retries: usize,

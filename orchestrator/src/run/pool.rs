@@ -78,8 +78,8 @@ pub struct PoolOptions {
     /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
     pub launcher: Launcher,
     /// Further attempts at a case that failed for a reason outside it: past its timeout, killed
-    /// by a signal, or its MPI launcher hung. A case that diverges or is refused is a result and
-    /// never runs again.
+    /// by a signal, or its MPI launcher hung or failed after the record was printed. A case
+    /// that diverges or is refused is a result and never runs again.
     pub retries: usize,
     /// A process per case (`--isolate`), never a worker.
     pub isolate: bool,
@@ -478,7 +478,13 @@ impl Pool<'_> {
                     Some(exit) => process.record(planned, self.solver, job.cores, exit)?,
                 };
                 let killed = exit.is_none_or(|e| e.signal().is_some() && !e.success());
-                (record, killed)
+                // A launcher that failed after its ranks printed the record: the case ran to its
+                // end, the MPI runtime did not (Open MPI 4.1 now and then reports a finished
+                // rank "exiting improperly" at the job's teardown).
+                let launcher_failed = process.launcher_watch.is_some()
+                    && exit.is_some_and(|e| !e.success())
+                    && process.printed_a_record();
+                (record, killed || launcher_failed)
             }
             Ended::LauncherHung => {
                 let How::Process(process) = &job.how else {
@@ -803,13 +809,7 @@ impl Process {
             let message = format!("nlsolve exited with {ended}: {}", self.stderr_tail());
             return Ok(failed_record(planned, solver, message));
         }
-        // The record is nlsolve's last line that is a JSON object.
-        let last_object = printed.lines().rev().find_map(|line| {
-            serde_json::from_str::<Value>(line)
-                .ok()
-                .filter(Value::is_object)
-        });
-        Ok(match last_object {
+        Ok(match last_object(&printed) {
             Some(object) => printed_record(planned, solver, cores, object),
             None => failed_record(
                 planned,
@@ -817,6 +817,11 @@ impl Process {
                 format!("nlsolve exited with {ended}: {}", self.stderr_tail()),
             ),
         })
+    }
+
+    /// Whether the solver printed its record before its process ended.
+    fn printed_a_record(&self) -> bool {
+        read_regular(&self.stdout, RECORD_CAP).is_ok_and(|printed| last_object(&printed).is_some())
     }
 
     fn stderr_tail(&self) -> String {
@@ -830,6 +835,15 @@ impl Process {
             let _ = std::fs::remove_file(path);
         }
     }
+}
+
+/// The record in what nlsolve printed: its last line that is a JSON object.
+fn last_object(printed: &str) -> Option<Value> {
+    (printed.lines().rev()).find_map(|line| {
+        serde_json::from_str::<Value>(line)
+            .ok()
+            .filter(Value::is_object)
+    })
 }
 
 /// The stored record of a worker's answer: the record, or its error as the failed record of
