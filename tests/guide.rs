@@ -149,7 +149,18 @@ impl Reader {
     }
 
     /// Runs `command` in bash, stdout and stderr as one stream; its status and what it said.
+    /// `command`'s exit status and what it printed; once more if it met Open MPI's fault at a
+    /// job's teardown (`open_mpi_teardown_fault`), which is the runtime's, not the page's.
     fn run(&self, command: &str) -> (i32, String) {
+        let (status, said) = self.run_once(command);
+        if status == 0 || !nonlocal_study::open_mpi_teardown_fault(&said) {
+            return (status, said);
+        }
+        eprintln!("`{command}` met Open MPI's teardown fault; run once more:\n{said}");
+        self.run_once(command)
+    }
+
+    fn run_once(&self, command: &str) -> (i32, String) {
         let out = Command::new("bash")
             .arg("-c")
             .arg(format!("exec 2>&1\n{command}"))

@@ -64,11 +64,33 @@ pub fn mpirun(ranks: usize, program: &[&str]) -> Output {
     mpirun_with(ranks, program, &[])
 }
 
+/// Whether an mpirun's output is Open MPI 4.1's fault at a job's teardown: a rank that ran to
+/// its end reported as "exiting improperly" (with "PID 0"), now and then and more often on a
+/// loaded machine (open-mpi/ompi issues 7833 and 12607, not fixed on the 4.x branches). The job's
+/// results were printed; its exit status is the runtime's.
+pub fn open_mpi_teardown_fault(said: &str) -> bool {
+    said.contains("with PID 0 on") && said.contains("exiting improperly")
+}
+
 /// `mpirun` with extra environment variables (Open MPI reads `OMPI_MCA_*` as its settings). One
-/// job at a time: ranks beyond the cores already oversubscribe this machine.
+/// job at a time: ranks beyond the cores already oversubscribe this machine. A job that meets
+/// Open MPI's teardown fault (`open_mpi_teardown_fault`) runs once more, saying so: the fault
+/// is the runtime's, and a run of the tests should not fail by it.
 pub fn mpirun_with(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
     static ONE_JOB_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _turn = ONE_JOB_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+    let output = mpirun_once(ranks, program, env);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if output.status.success() || !open_mpi_teardown_fault(&stderr) {
+        return output;
+    }
+    eprintln!(
+        "mpirun -n {ranks} {program:?} met Open MPI's teardown fault; run once more:\n{stderr}"
+    );
+    mpirun_once(ranks, program, env)
+}
+
+fn mpirun_once(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/mpirun");
     let child = Command::new(script)
         .args(["-n", &ranks.to_string()])
