@@ -562,8 +562,13 @@ fn check_frame(bytes: &[u8]) -> Result<(), String> {
 
 /// The rows of a data frame as a Parquet file holds them (NaN as null, a list as a JSON array).
 pub fn rows_of(frame: &DataFrame) -> Result<Vec<Row>, String> {
-    let mut rows = vec![Row::default(); frame.height()];
+    let mut rows: Vec<Row> = (0..frame.height())
+        .map(|_| Row(Vec::with_capacity(frame.width())))
+        .collect();
     for column in frame.columns() {
+        // (A frame's column names differ: each cell is pushed, none looked for, and the name
+        // is made once for all the rows.)
+        let name = shared(column.name());
         for (i, row) in rows.iter_mut().enumerate() {
             let value = match column.get(i).map_err(|e| e.to_string())? {
                 AnyValue::Boolean(b) => Value::from(b),
@@ -577,7 +582,7 @@ pub fn rows_of(frame: &DataFrame) -> Result<Vec<Row>, String> {
                 }
                 _ => Value::Null,
             };
-            row.set(column.name(), value);
+            row.0.push((name.clone(), value));
         }
     }
     Ok(rows)
