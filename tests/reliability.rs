@@ -428,47 +428,37 @@ fn failures_outside_the_case_are_retried_and_results_are_not() {
         "base": {"dim": 2, "n": 32, "m": 2, "t_end": 0.001, "cfl": 0.5, "ranks": 2}
     });
     let scratch = Scratch::new("retries", &study);
-    // A launcher whose first start is killed (as by an out-of-memory killer or a node failure).
-    let launcher = launcher_script(
-        &scratch,
-        "flaky-launcher",
-        "marker=\"$(dirname \"$0\")/killed-once\"\n\
-         if [ ! -e \"$marker\" ]; then touch \"$marker\"; kill -9 $$; fi\n\
-         exec mpirun --oversubscribe \"$@\"\n",
-    );
-    let out = scratch.nlstudy(
-        "run",
-        &["--no-collect", "--launcher", &launcher, "--retries", "1"],
-    );
-    assert!(out.status.success(), "{}", text(&out));
-    assert!(text(&out).contains("(attempt 2)"), "{}", text(&out));
-    let stored = records(&scratch.runs("retry"));
-    assert_eq!(stored.len(), 1);
-    assert_eq!(stored[0]["status"], "ok");
-    assert_eq!(stored[0]["attempt"], 2);
-
-    // A launcher that fails after the solver printed its record (as Open MPI 4.1's mpirun now
-    // and then reports a finished rank "exiting improperly"): the case ran, its launcher did not.
+    // A launcher whose first start fails as `first` says, and whose second runs the case.
+    let retried_once = |study: &str, first: &str| {
+        let body = format!(
+            "marker=\"$(dirname \"$0\")/{study}-once\"\n\
+             if [ ! -e \"$marker\" ]; then touch \"$marker\"; {first}; fi\n\
+             exec mpirun --oversubscribe \"$@\"\n"
+        );
+        let launcher = launcher_script(&scratch, &format!("{study}-launcher"), &body);
+        let out = scratch.nlstudy(
+            "run",
+            &["--no-collect", "--launcher", &launcher, "--retries", "1"],
+        );
+        assert!(out.status.success(), "{}", text(&out));
+        assert!(text(&out).contains("(attempt 2)"), "{}", text(&out));
+        let stored = records(&scratch.runs(study));
+        let first = &stored[0];
+        assert_eq!(stored.len(), 1);
+        assert_eq!(
+            (&first["status"], &first["attempt"]),
+            (&json!("ok"), &json!(2))
+        );
+    };
+    // Killed (as by an out-of-memory killer or a node failure).
+    retried_once("retry", "kill -9 $$");
+    // Failed after the solver printed its record (as Open MPI 4.1's mpirun now and then reports
+    // a finished rank "exiting improperly"): the case ran, its launcher did not.
     scratch.write_study(&json!({
         "name": "teardown",
         "base": {"dim": 2, "n": 32, "m": 3, "t_end": 0.001, "cfl": 0.5, "ranks": 2}
     }));
-    let launcher = launcher_script(
-        &scratch,
-        "failing-teardown",
-        "marker=\"$(dirname \"$0\")/failed-once\"\n\
-         if [ ! -e \"$marker\" ]; then touch \"$marker\"; mpirun --oversubscribe \"$@\"; exit 1; fi\n\
-         exec mpirun --oversubscribe \"$@\"\n",
-    );
-    let out = scratch.nlstudy(
-        "run",
-        &["--no-collect", "--launcher", &launcher, "--retries", "1"],
-    );
-    assert!(out.status.success(), "{}", text(&out));
-    assert!(text(&out).contains("(attempt 2)"), "{}", text(&out));
-    let stored = records(&scratch.runs("teardown"));
-    assert_eq!((stored.len(), &stored[0]["status"]), (1, &json!("ok")));
-    assert_eq!(stored[0]["attempt"], 2);
+    retried_once("teardown", "mpirun --oversubscribe \"$@\"; exit 1");
 
     scratch.write_study(&json!({
         "name": "slow",
