@@ -48,10 +48,9 @@ fn columns_take_the_narrowest_type_of_their_cells() {
     );
 }
 
-#[test]
-fn a_case_field_wins_over_the_record_column_of_the_same_name() {
-    // FETI's record holds p² subdomains and the backend `auto` chose; the case holds p and
-    // `auto`. A figure's `where` speaks the study's language: the case's.
+/// A row where the case and the record differ: FETI's record holds p² subdomains and the
+/// backend `auto` chose, the case p and `auto`; the case leaves `collar` out.
+fn feti_row() -> Row {
     let mut row = Row::default();
     row.set("subdomains", json!(16));
     row.set("backend", json!("stencil"));
@@ -59,6 +58,13 @@ fn a_case_field_wins_over_the_record_column_of_the_same_name() {
     row.set("case.subdomains", json!(4));
     row.set("case.backend", json!("auto"));
     row.set("case.collar", serde_json::Value::Null);
+    row
+}
+
+#[test]
+fn a_case_field_wins_over_the_record_column_of_the_same_name() {
+    // A figure's `where` speaks the study's language: the case's.
+    let row = feti_row();
     let named = row.expression_fields();
     assert_eq!(named["subdomains"], json!(4));
     assert_eq!(named["backend"], json!("auto"));
@@ -69,14 +75,8 @@ fn a_case_field_wins_over_the_record_column_of_the_same_name() {
 #[test]
 fn a_filter_reads_a_row_as_its_expression_fields_do() {
     use crate::model::expression::{condition, Filter, Scope};
-    let mut row = Row::default();
-    row.set("subdomains", json!(16));
-    row.set("backend", json!("stencil"));
-    row.set("collar", json!("zero"));
+    let mut row = feti_row();
     row.set("h", json!(0.5));
-    row.set("case.subdomains", json!(4));
-    row.set("case.backend", json!("auto"));
-    row.set("case.collar", serde_json::Value::Null);
     row.set("case.n", json!(63));
     let everything = Scope::from_fields(&row.expression_fields());
     for text in [
