@@ -147,13 +147,11 @@ impl Outcome {
                 // Read as borrowed (its texts copied once, not buffered as owned), and read
                 // again to find the field that failed only when it did fail: the path kept at
                 // every field was a tenth of a collect's CPU.
-                match Record::deserialize(&fields) {
-                    Ok(record) => Ok(Outcome::Ran(Box::new(record))),
-                    Err(_) => match serde_path_to_error::deserialize(fields) {
-                        Ok(record) => Ok(Outcome::Ran(Box::new(record))),
-                        Err(e) => Err(format!("field `{}`: {}", e.path(), e.inner())),
-                    },
-                }
+                let record = Record::deserialize(&fields).or_else(|_| {
+                    serde_path_to_error::deserialize(fields)
+                        .map_err(|e| format!("field `{}`: {}", e.path(), e.inner()))
+                })?;
+                Ok(Outcome::Ran(Box::new(record)))
             }
         }
     }
