@@ -1825,6 +1825,30 @@ fn the_same_when_sliced(scratch: &Scratch) {
     }
 }
 
+/// A study whose later points have columns the first lack (two methods, resolved to cases of
+/// different fields) is collected alike in any slices: the run table, written as its slices
+/// come while they keep the first's columns, is read back and stacked with the rest once one
+/// does not.
+#[test]
+fn a_study_whose_later_slices_bring_columns_is_tabulated_alike_in_any_slices() {
+    let study = json!({
+        "name": "small",
+        "base": {"dim": 1, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [
+            {"zip": {"method": ["nonlocal", "fd_explicit"], "problem": ["manufactured", "eigenmode"], "m": [2, null]}},
+            {"product": {"n": [16, 48]}}
+        ]
+    });
+    let scratch = Scratch::new("two-methods", &study);
+    let ran = scratch.nlstudy("run", &[]);
+    assert!(ran.status.success(), "{}", text(&ran));
+    let frame = read_parquet(&scratch.dir.join("results/small/small.parquet"));
+    let first_lacks =
+        (frame.columns().iter()).any(|c| c.get(0).unwrap().is_null() && c.null_count() < c.len());
+    assert!(first_lacks, "the first run has every column: {frame}");
+    the_same_when_sliced(&scratch);
+}
+
 /// The overview the last collect printed, as it keeps it.
 fn overview(study: &Path) -> String {
     let made: Value =

@@ -263,10 +263,10 @@ pub fn collect(
         incremental::spliced(planned, &identities, &seqs, store, prior, paths, &make_row)
     });
     let written = match spliced {
-        Some(mut tables) => {
-            refuse_mixed(&tables.runs, allow_mixed)?;
-            staged.stage_frame(&paths.0, &mut tables.runs)?;
-            staged.stage_frame(&paths.1, &mut tables.summary)?;
+        Some(tables) => {
+            Provenances::of_frame(&tables.runs).refuse_mixed(allow_mixed)?;
+            staged.stage_frame(&paths.0, &tables.runs)?;
+            staged.stage_frame(&paths.1, &tables.summary)?;
             Written {
                 rows: tables.rows,
                 summary: tables.summary,
@@ -322,16 +322,6 @@ struct Written {
     summary: DataFrame,
     /// How many run rows were read from their records when the tables were spliced.
     spliced: Option<usize>,
-}
-
-/// Refuses runs of several builds or machines in one table, unless `allow_mixed`.
-fn refuse_mixed(runs: &DataFrame, allow_mixed: bool) -> Result<(), Fault> {
-    match (mixed_provenance_in(runs), allow_mixed) {
-        (Some(mixed), false) => Err(Fault::Input(format!(
-            "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
-        ))),
-        _ => Ok(()),
-    }
 }
 
 /// The summary rows of the points whose records `records` (by key) holds, as `collect` would
@@ -420,47 +410,77 @@ pub fn mixed_provenance(rows: &[Row]) -> Option<String> {
         .iter()
         .filter(|r| matches!(r.status(), Some(Status::Ok | Status::Diverged)))
         .map(|row| PROVENANCE.map(|(_, column)| row.text(column)));
-    mixed(measured.collect())
+    let mut provenances = Provenances::default();
+    provenances.count(measured);
+    provenances.mixed()
 }
 
-/// `mixed_provenance` of a run table's frame.
-fn mixed_provenance_in(runs: &DataFrame) -> Option<String> {
-    let texts = |name| table::texts(runs, name).unwrap_or_else(|| vec![None; runs.height()]);
-    let status = texts(columns::STATUS);
-    let provenance = PROVENANCE.map(|(_, column)| texts(column));
-    let measured = (0..runs.height())
-        .filter(|&i| {
-            let status = status[i].and_then(Status::parse);
-            matches!(status, Some(Status::Ok | Status::Diverged))
-        })
-        .map(|i| [provenance[0][i], provenance[1][i], provenance[2][i]]);
-    mixed(measured.collect())
-}
+/// How many measured runs (`ok`, `diverged`) have each value of each of `PROVENANCE`, the values
+/// in first-seen order: counted a table, or a table's slice, at a time.
+#[derive(Default)]
+struct Provenances([Vec<(String, usize)>; 3]);
 
-/// The first provenance of `PROVENANCE` the measured runs (each its values of them) have more
-/// than one value of.
-fn mixed(measured: Vec<[Option<&str>; 3]>) -> Option<String> {
-    PROVENANCE.iter().enumerate().find_map(|(k, (what, _))| {
-        let mut counts: Vec<(&str, usize)> = Vec::new();
-        for run in &measured {
-            let value = run[k].unwrap_or("");
-            match counts.iter_mut().find(|(v, _)| *v == value) {
-                Some((_, n)) => *n += 1,
-                None => counts.push((value, 1)),
+impl Provenances {
+    /// The counts of a run table's frame.
+    fn of_frame(runs: &DataFrame) -> Provenances {
+        let mut provenances = Provenances::default();
+        provenances.count_frame(runs);
+        provenances
+    }
+
+    /// Counts the measured runs of a run table's frame (or a slice of it).
+    fn count_frame(&mut self, runs: &DataFrame) {
+        let texts = |name| table::texts(runs, name).unwrap_or_else(|| vec![None; runs.height()]);
+        let status = texts(columns::STATUS);
+        let provenance = PROVENANCE.map(|(_, column)| texts(column));
+        let measured = (0..runs.height())
+            .filter(|&i| {
+                let status = status[i].and_then(Status::parse);
+                matches!(status, Some(Status::Ok | Status::Diverged))
+            })
+            .map(|i| [provenance[0][i], provenance[1][i], provenance[2][i]]);
+        self.count(measured);
+    }
+
+    /// Counts runs, each given by its values of `PROVENANCE`.
+    fn count<'a>(&mut self, measured: impl Iterator<Item = [Option<&'a str>; 3]>) {
+        for run in measured {
+            for (counts, value) in self.0.iter_mut().zip(run) {
+                let value = value.unwrap_or("");
+                match counts.iter_mut().find(|(v, _)| v == value) {
+                    Some((_, n)) => *n += 1,
+                    None => counts.push((value.to_string(), 1)),
+                }
             }
         }
-        (counts.len() > 1).then(|| {
-            let listed: Vec<String> = counts
-                .iter()
-                .map(|(v, n)| match (*what, *v) {
-                    (_, "") => format!("unknown ({n} runs)"),
-                    ("solver fingerprints", v) => format!("{} ({n} runs)", short(v)),
-                    (_, v) => format!("{v:?} ({n} runs)"),
-                })
-                .collect();
-            format!("the runs mix {what}: {}", listed.join(", "))
+    }
+
+    /// The first provenance of `PROVENANCE` the runs have more than one value of, said.
+    fn mixed(&self) -> Option<String> {
+        (PROVENANCE.iter().zip(&self.0)).find_map(|((what, _), counts)| {
+            (counts.len() > 1).then(|| {
+                let listed: Vec<String> = counts
+                    .iter()
+                    .map(|(v, n)| match (*what, v.as_str()) {
+                        (_, "") => format!("unknown ({n} runs)"),
+                        ("solver fingerprints", v) => format!("{} ({n} runs)", short(v)),
+                        (_, v) => format!("{v:?} ({n} runs)"),
+                    })
+                    .collect();
+                format!("the runs mix {what}: {}", listed.join(", "))
+            })
         })
-    })
+    }
+
+    /// Refuses runs of several builds or machines in one table, unless `allow_mixed`.
+    fn refuse_mixed(&self, allow_mixed: bool) -> Result<(), Fault> {
+        match (self.mixed(), allow_mixed) {
+            (Some(mixed), false) => Err(Fault::Input(format!(
+                "{mixed}: one table would compare runs of different builds or machines; rerun the stale points (`nlstudy run`), or give --allow-mixed to tabulate them together"
+            ))),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// The summary's headline columns: the swept fields (as `(column, shown name)`: from the case,

@@ -23,6 +23,8 @@ use schema::record::Status;
 use serde_json::{Map, Value};
 use sha2::Digest;
 use shape::{column_type, ColumnType, Schema};
+// A frame's columns as polars has them (`Schema` is the table's, of `shape`).
+use polars::prelude::Schema as Columns;
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
@@ -353,17 +355,28 @@ impl<'a> Staged<'a> {
 
     /// Writes the table `path` of `rows` to its temporary file.
     pub fn stage(&mut self, path: &Path, rows: &[Row]) -> Result<(), Fault> {
-        let mut frame = data_frame(rows)
+        let frame = data_frame(rows)
             .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
-        self.stage_frame(path, &mut frame)
+        self.stage_frame(path, &frame)
     }
 
     /// Writes the table `path` of `frame` to its temporary file.
-    pub fn stage_frame(&mut self, path: &Path, frame: &mut DataFrame) -> Result<(), Fault> {
+    pub fn stage_frame(&mut self, path: &Path, frame: &DataFrame) -> Result<(), Fault> {
+        let mut writer = self.begin(path, frame.schema())?;
+        (writer.write(frame.clone()))
+            .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+        writer.finish()
+    }
+
+    /// Begins the table `path` of the columns `schema` in its temporary file, to be written a
+    /// batch of rows at a time (staged once its writer is finished). A table begun again is
+    /// written afresh.
+    pub fn begin(&mut self, path: &Path, schema: &Columns) -> Result<TableWriter, Fault> {
         let partial = crate::store::fs::partial_path(path);
-        self.written.push((partial.clone(), path.to_path_buf()));
-        write_one(&partial, frame, self.about)
-            .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))
+        if !self.written.iter().any(|(_, p)| p == path) {
+            self.written.push((partial.clone(), path.to_path_buf()));
+        }
+        TableWriter::create(&partial, path, schema, self.about)
     }
 
     /// Puts every staged table in place: each table's sum, then the table. A reader (under the
@@ -411,19 +424,19 @@ fn unit(column: &str) -> Option<&'static str> {
     }
 }
 
-/// The key–value metadata of the file holding `frame`.
-fn metadata(frame: &DataFrame, about: &About) -> Vec<(String, String)> {
+/// The key–value metadata of the file holding a table of the columns `schema`.
+fn metadata(schema: &Columns, about: &About) -> Vec<(String, String)> {
     let mut pairs = Vec::new();
     if !about.description.is_empty() {
         pairs.push(("description".to_string(), about.description.to_string()));
     }
-    for name in frame.get_column_names() {
+    for name in schema.iter_names() {
         if let Some(unit) = unit(name) {
             pairs.push((format!("unit:{name}"), unit.to_string()));
         }
     }
     for (column, note) in about.notes {
-        if frame.column(column).is_ok() {
+        if schema.contains(column) {
             pairs.push((format!("note:{column}"), note.to_string()));
         }
     }
@@ -594,14 +607,105 @@ fn json_number(x: Option<f64>) -> Value {
         .map_or(Value::Null, Value::Number)
 }
 
-fn write_one(path: &Path, frame: &mut DataFrame, about: &About) -> Result<(), String> {
-    let metadata = KeyValueMetadata::from_static(metadata(frame, about));
-    let mut file = crate::store::fs::create_fresh(path).map_err(|e| e.to_string())?;
-    ParquetWriter::new(&mut file)
-        .with_key_value_metadata(Some(metadata))
-        .finish(frame)
-        .map_err(|e| e.to_string())?;
-    file.sync_all().map_err(|e| e.to_string())
+/// Rows per Parquet row group: every table is written in groups of this many rows (the last
+/// fewer) however its rows are handed to the writer, so that a table written a slice at a time
+/// is the same bytes as the one written whole. (polars' own, 512², put 10⁵ rows in one group,
+/// which a writer must hold whole before it writes a byte.)
+const ROW_GROUP: usize = 1 << 14;
+
+/// A table written to its file a batch of rows at a time, in row groups of `ROW_GROUP` rows:
+/// it holds at most a group and a batch.
+pub struct TableWriter {
+    writer: BatchedWriter<std::fs::File>,
+    /// The file, for the sync once it is whole.
+    file: std::fs::File,
+    /// The table's path, for the faults.
+    table: std::path::PathBuf,
+    /// Rows handed to the writer and not yet in a group.
+    pending: DataFrame,
+    /// Rows per group.
+    group: usize,
+    /// Whether a group has been written.
+    grouped: bool,
+}
+
+impl TableWriter {
+    /// A writer of the table `table` of the columns `schema` into the new file `path`.
+    fn create(
+        path: &Path,
+        table: &Path,
+        schema: &Columns,
+        about: &About,
+    ) -> Result<TableWriter, Fault> {
+        Self::with_groups(path, table, schema, about, ROW_GROUP)
+    }
+
+    fn with_groups(
+        path: &Path,
+        table: &Path,
+        schema: &Columns,
+        about: &About,
+        group: usize,
+    ) -> Result<TableWriter, Fault> {
+        let fault =
+            |e: &dyn std::fmt::Display| Fault::Io(format!("cannot write {}: {e}", table.display()));
+        let metadata = KeyValueMetadata::from_static(metadata(schema, about));
+        let file = crate::store::fs::create_fresh(path).map_err(|e| fault(&e))?;
+        let writer = (file.try_clone())
+            .map_err(|e| fault(&e))
+            .and_then(|clone| {
+                (ParquetWriter::new(clone).with_key_value_metadata(Some(metadata)))
+                    .batched(schema)
+                    .map_err(|e| fault(&e))
+            })?;
+        Ok(TableWriter {
+            writer,
+            file,
+            table: table.to_path_buf(),
+            pending: DataFrame::empty_with_schema(schema),
+            group,
+            grouped: false,
+        })
+    }
+
+    /// Writes `rows`, a frame of the table's columns in order: each group as it fills.
+    pub fn write(&mut self, rows: DataFrame) -> PolarsResult<()> {
+        self.pending.vstack_mut_owned(rows)?;
+        while self.pending.height() >= self.group {
+            let group = self.pending.slice(0, self.group);
+            self.pending = self.pending.slice(self.group as i64, usize::MAX);
+            self.write_group(group)?;
+        }
+        Ok(())
+    }
+
+    fn write_group(&mut self, mut group: DataFrame) -> PolarsResult<()> {
+        // (One chunk is one group: the writer writes a group per chunk.)
+        group.rechunk_mut_par();
+        self.grouped = true;
+        self.writer.write_batch(&group)
+    }
+
+    /// Writes the rows still pending as the last group, the file's footer, and syncs it.
+    pub fn finish(mut self) -> Result<(), Fault> {
+        let table = std::mem::take(&mut self.table);
+        let fault =
+            |e: &dyn std::fmt::Display| Fault::Io(format!("cannot write {}: {e}", table.display()));
+        let rest = std::mem::take(&mut self.pending);
+        if rest.height() > 0 || !self.grouped {
+            self.write_group(rest).map_err(|e| fault(&e))?;
+        }
+        self.writer.finish().map_err(|e| fault(&e))?;
+        self.file.sync_all().map_err(|e| fault(&e))
+    }
+}
+
+/// The frame of a Parquet file this process has written (no sum to check).
+pub fn read_written(path: &Path) -> Result<DataFrame, Fault> {
+    let fault =
+        |e: &dyn std::fmt::Display| Fault::Io(format!("cannot read {}: {e}", path.display()));
+    let bytes = std::fs::read(path).map_err(|e| fault(&e))?;
+    (ParquetReader::new(std::io::Cursor::new(bytes)).finish()).map_err(|e| fault(&e))
 }
 
 #[cfg(test)]

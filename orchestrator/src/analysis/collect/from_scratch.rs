@@ -9,13 +9,13 @@
 //! scaling and refinement series derive reads other slices' points: it is derived at the end
 //! from each point's `summary::derived_from` cells, which are all it reads.
 
-use super::{fits_in_memory, refuse_mixed, run_row, Written};
+use super::{fits_in_memory, run_row, Provenances, Written};
 use crate::analysis::incremental::{self, Identity};
 use crate::analysis::summary;
 use crate::run::plan::Planned;
 use crate::store::table::shape::{Schema, Shapes};
-use crate::store::table::splice::conform;
-use crate::store::table::{self, Row};
+use crate::store::table::splice::{conform, frame_columns};
+use crate::store::table::{self, Row, TableWriter};
 use crate::store::{Fault, Store};
 use polars::prelude::{Column, DataFrame, PolarsError};
 use std::collections::{HashMap, HashSet};
@@ -41,18 +41,36 @@ type Parts = Vec<(Range<usize>, DataFrame)>;
 /// A slice's runs: the places in the plan of the points with a record, and their rows.
 type Runs = (Vec<usize>, Vec<Row>);
 
-/// The slices tabulated so far: both tables' parts and their rows' shapes, and what the series
-/// derive from.
+/// The slices tabulated so far: the run table, the summary's parts, both tables' rows' shapes,
+/// and what the series derive from.
 #[derive(Default)]
 struct Slices {
     /// The places in the plan of the points with a record.
     points: Vec<usize>,
-    run_parts: Parts,
+    runs: RunTable,
     run_shapes: Shapes,
+    /// The runs' provenances, for `refuse_mixed`.
+    provenances: Provenances,
     reduced_parts: Parts,
     reduced_shapes: Shapes,
     /// Each point's `summary::derived_from` cells.
     series: Vec<Row>,
+}
+
+/// The run table as its slices come: written to its file while every slice keeps the columns
+/// the first had (the table's columns are then known from it: a study's runs mostly have the
+/// same), else held, to be stacked at the end.
+#[derive(Default)]
+enum RunTable {
+    #[default]
+    Begun,
+    /// Written through the plan's point `through` (excluded), of the columns `schema`.
+    Writing {
+        writer: TableWriter,
+        schema: Schema,
+        through: usize,
+    },
+    Held(Parts),
 }
 
 impl Slices {
@@ -61,6 +79,7 @@ impl Slices {
         &mut self,
         slice: Range<usize>,
         (indices, rows): Runs,
+        staged: &mut table::Staged,
         paths: &(PathBuf, PathBuf),
     ) -> Result<(), Fault> {
         if rows.is_empty() {
@@ -69,7 +88,30 @@ impl Slices {
         self.points.extend(indices);
         (rows.iter()).for_each(|row| self.run_shapes.push_cells(row.typed_cells()));
         let frame = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
-        self.run_parts.push((slice.clone(), frame));
+        self.provenances.count_frame(&frame);
+        self.runs = match std::mem::take(&mut self.runs) {
+            RunTable::Begun => {
+                let schema = self.run_shapes.schema();
+                let writer = staged.begin(&paths.0, &frame_columns(&schema))?;
+                write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
+            }
+            RunTable::Writing { writer, schema, .. } if self.run_shapes.schema() == schema => {
+                write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
+            }
+            RunTable::Writing {
+                writer, through, ..
+            } => {
+                // A slice with a column the first lacked, or of another type: what was written
+                // is read back to be stacked with the rest.
+                writer.finish()?;
+                let written = table::read_written(&crate::store::fs::partial_path(&paths.0))?;
+                RunTable::Held(vec![(0..through, written), (slice.clone(), frame)])
+            }
+            RunTable::Held(mut parts) => {
+                parts.push((slice.clone(), frame));
+                RunTable::Held(parts)
+            }
+        };
         let reduced = summary::reduce_points(rows);
         for row in &reduced {
             self.reduced_shapes.push_cells(row.typed_cells());
@@ -81,10 +123,35 @@ impl Slices {
     }
 }
 
+/// The slice ending at the plan's point `through`, of `frame` (made of `rows`), written as a
+/// part of the table of the columns `schema`.
+fn write_slice(
+    mut writer: TableWriter,
+    schema: Schema,
+    through: usize,
+    frame: DataFrame,
+    rows: &[Row],
+    path: &Path,
+) -> Result<RunTable, Fault> {
+    // (A column of text where the slice has numbers is made again of its rows.)
+    let part = conform(&frame, &schema).or_else(|| {
+        drop(frame);
+        table::data_frame_as(rows, &schema)
+    });
+    writer
+        .write(part.ok_or_else(|| changed(path))?)
+        .map_err(unwritable(path))?;
+    Ok(RunTable::Writing {
+        writer,
+        schema,
+        through,
+    })
+}
+
 /// Every stored record of the study's points read into both tables, which are staged (the run
-/// table written and let go before the summary is stacked); `None` when no point has a record.
-/// `keyed` is the planned points and their keys; `identity` the header, each point's identity
-/// and sequence number.
+/// table written as its slices come, or before the summary is stacked); `None` when no point
+/// has a record. `keyed` is the planned points and their keys; `identity` the header, each
+/// point's identity and sequence number.
 pub(super) fn from_scratch(
     (planned, keys): (&[Planned], &[&str]),
     (header, identities, seqs): (String, &[Identity], &[u64]),
@@ -119,7 +186,7 @@ pub(super) fn from_scratch(
             || slice.map(|slice| (slice.clone(), runs_of(slice))),
             || {
                 read.take()
-                    .map_or(Ok(()), |(slice, runs)| made.add(slice, runs, paths))
+                    .map_or(Ok(()), |(slice, runs)| made.add(slice, runs, staged, paths))
             },
         );
         tabulated?;
@@ -127,8 +194,9 @@ pub(super) fn from_scratch(
     }
     let Slices {
         points,
-        run_parts,
+        runs,
         run_shapes,
+        provenances,
         reduced_parts,
         reduced_shapes,
         series,
@@ -136,22 +204,27 @@ pub(super) fn from_scratch(
     if points.is_empty() {
         return Ok(None);
     }
-    // A slice whose frame cannot be conformed to the whole table's columns (a column of
-    // numbers there, of text in the whole) is made again of its rows.
-    let run_schema = run_shapes.schema();
-    let mut runs = stack(run_parts, &run_schema, &|slice| {
-        let rows = runs_of(slice).1;
-        table::data_frame_as(&rows, &run_schema)
-    })
-    .ok_or_else(|| changed(&paths.0))?;
-    refuse_mixed(&runs, allow_mixed)?;
-    staged.stage_frame(&paths.0, &mut runs)?;
-    drop(runs);
+    provenances.refuse_mixed(allow_mixed)?;
+    match runs {
+        RunTable::Writing { writer, .. } => writer.finish()?,
+        RunTable::Held(parts) => {
+            // A slice whose frame cannot be conformed to the whole table's columns (a column of
+            // numbers there, of text in the whole) is made again of its rows.
+            let run_schema = run_shapes.schema();
+            let runs = stack(parts, &run_schema, &|slice| {
+                let rows = runs_of(slice).1;
+                table::data_frame_as(&rows, &run_schema)
+            })
+            .ok_or_else(|| changed(&paths.0))?;
+            staged.stage_frame(&paths.0, &runs)?;
+        }
+        RunTable::Begun => unreachable!("a slice with runs begins the table"),
+    }
 
     let remake = |slice| summary::reduce_points(runs_of(slice).1);
-    let (mut summary, summary_shapes) =
+    let (summary, summary_shapes) =
         summary_frame(reduced_parts, &reduced_shapes, series, &remake, &paths.1)?;
-    staged.stage_frame(&paths.1, &mut summary)?;
+    staged.stage_frame(&paths.1, &summary)?;
     Ok(Some(Written {
         rows: incremental::Rows::of(
             header,

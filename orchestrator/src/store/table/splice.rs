@@ -100,6 +100,13 @@ pub fn conform(old: &DataFrame, schema: &Schema) -> Option<DataFrame> {
     DataFrame::new(old.height(), columns).ok()
 }
 
+/// The columns of a frame of `schema` as polars has them (`conform` makes them so).
+pub fn frame_columns(schema: &Schema) -> polars::prelude::Schema {
+    (schema.iter())
+        .map(|(name, kind)| Field::new(PlSmallStr::from(&**name), data_type(*kind)))
+        .collect()
+}
+
 /// The polars type of a column of `kind`, as `table::data_frame` makes it.
 fn data_type(kind: ColumnType) -> DataType {
     match kind {

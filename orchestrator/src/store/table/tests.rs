@@ -361,3 +361,47 @@ fn two_cells_of_one_name_in_a_row_are_one_cell_of_its_column() {
         assert_eq!(column, expected);
     }
 }
+
+/// However a table's rows are handed to its writer (whole, or in slices of any size), its file
+/// is the same bytes, in row groups of the writer's size; and it reads back as the frame.
+#[test]
+fn a_table_written_in_slices_is_the_bytes_of_the_table_written_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let about = About {
+        description: "a study",
+        notes: &[("status", "what became of the run")],
+    };
+    for seed in 0..20 {
+        let mut random = Rows(seed);
+        let rows: Vec<Row> = (0..1 + random.next(120)).map(|_| random.row()).collect();
+        let frame = data_frame(&rows).unwrap();
+        let written = |slices: &[usize]| -> Vec<u8> {
+            let path = dir.path().join("t.parquet");
+            let mut writer =
+                TableWriter::with_groups(&path, &path, frame.schema(), &about, 16).unwrap();
+            let mut start = 0;
+            for &length in slices {
+                writer.write(frame.slice(start as i64, length)).unwrap();
+                start += length;
+            }
+            writer.finish().unwrap();
+            std::fs::read(&path).unwrap()
+        };
+        let whole = written(&[frame.height()]);
+        let mut slices = Vec::new();
+        let mut left = frame.height();
+        while left > 0 {
+            let length = (random.next(40) as usize).min(left);
+            slices.push(length); // (an empty slice among them, now and then)
+            left -= length;
+        }
+        assert!(written(&slices) == whole, "seed {seed}: slices {slices:?}");
+        let mut reader = ParquetReader::new(std::io::Cursor::new(whole));
+        let groups = reader.get_metadata().unwrap().row_groups.len();
+        assert_eq!(groups, frame.height().div_ceil(16), "seed {seed}");
+        assert!(
+            reader.finish().unwrap().equals_missing(&frame),
+            "seed {seed}"
+        );
+    }
+}
