@@ -18,6 +18,7 @@ use crate::store::table::splice::{conform, frame_columns};
 use crate::store::table::{self, Row, TableWriter};
 use crate::store::{Fault, Store};
 use polars::prelude::{Column, DataFrame, PolarsError};
+use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -250,7 +251,7 @@ fn summary_frame(
     path: &Path,
 ) -> Result<(DataFrame, Shapes), Fault> {
     summary::derive(&mut series);
-    let derived: Vec<Row> = series.into_iter().map(summary::derived_cells).collect();
+    let derived: Vec<Row> = (series.into_par_iter().map(summary::derived_cells)).collect();
     let mut shapes = Shapes::default();
     for (k, cells) in derived.iter().enumerate() {
         let reduced = (reduced_shapes.of_row(k).iter()).map(|(name, kind)| (name, *kind));
