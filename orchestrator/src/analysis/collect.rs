@@ -9,7 +9,7 @@ use crate::analysis::incremental::{self, Identity};
 use crate::analysis::{pivot, summary};
 use crate::model::study::Study;
 use crate::run::plan::{short, Planned};
-use crate::store::table::{self, Row};
+use crate::store::table::{self, Row, ROW_GROUP, STREAMED_ROW_GROUP};
 use crate::store::Fault;
 use crate::store::Store;
 use polars::prelude::DataFrame;
@@ -265,8 +265,8 @@ pub fn collect(
     let written = match spliced {
         Some(tables) => {
             Provenances::of_frame(&tables.runs).refuse_mixed(allow_mixed)?;
-            staged.stage_frame(&paths.0, &tables.runs)?;
-            staged.stage_frame(&paths.1, &tables.summary)?;
+            staged.stage_frame(&paths.0, &tables.runs, STREAMED_ROW_GROUP)?;
+            staged.stage_frame(&paths.1, &tables.summary, ROW_GROUP)?;
             Written {
                 rows: tables.rows,
                 summary: tables.summary,

@@ -15,7 +15,7 @@ use crate::analysis::summary;
 use crate::run::plan::Planned;
 use crate::store::table::shape::{Schema, Shapes};
 use crate::store::table::splice::{conform, frame_columns};
-use crate::store::table::{self, Row, TableWriter};
+use crate::store::table::{self, Row, TableWriter, ROW_GROUP, STREAMED_ROW_GROUP};
 use crate::store::{Fault, Store};
 use polars::prelude::{Column, DataFrame, PolarsError};
 use rayon::prelude::*;
@@ -93,7 +93,7 @@ impl Slices {
         self.runs = match std::mem::take(&mut self.runs) {
             RunTable::Begun => {
                 let schema = self.run_shapes.schema();
-                let writer = staged.begin(&paths.0, &frame_columns(&schema))?;
+                let writer = staged.begin(&paths.0, &frame_columns(&schema), STREAMED_ROW_GROUP)?;
                 write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
             }
             RunTable::Writing { writer, schema, .. } if self.run_shapes.schema() == schema => {
@@ -217,7 +217,7 @@ pub(super) fn from_scratch(
                 table::data_frame_as(&rows, &run_schema)
             })
             .ok_or_else(|| changed(&paths.0))?;
-            staged.stage_frame(&paths.0, &runs)?;
+            staged.stage_frame(&paths.0, &runs, STREAMED_ROW_GROUP)?;
         }
         RunTable::Begun => unreachable!("a slice with runs begins the table"),
     }
@@ -225,7 +225,7 @@ pub(super) fn from_scratch(
     let remake = |slice| summary::reduce_points(runs_of(slice).1);
     let (summary, summary_shapes) =
         summary_frame(reduced_parts, &reduced_shapes, series, &remake, &paths.1)?;
-    staged.stage_frame(&paths.1, &summary)?;
+    staged.stage_frame(&paths.1, &summary, ROW_GROUP)?;
     Ok(Some(Written {
         rows: incremental::Rows::of(
             header,

@@ -377,8 +377,7 @@ fn a_table_written_in_slices_is_the_bytes_of_the_table_written_whole() {
         let frame = data_frame(&rows).unwrap();
         let written = |slices: &[usize]| -> Vec<u8> {
             let path = dir.path().join("t.parquet");
-            let mut writer =
-                TableWriter::with_groups(&path, &path, frame.schema(), &about, 16).unwrap();
+            let mut writer = TableWriter::create(&path, &path, frame.schema(), &about, 16).unwrap();
             let mut start = 0;
             for &length in slices {
                 writer.write(frame.slice(start as i64, length)).unwrap();
