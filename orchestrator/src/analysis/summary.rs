@@ -14,13 +14,13 @@
 //! Derived values come only from points whose every repeat is `ok`.
 
 use crate::statistics::quantile;
-use crate::store::shared;
 use crate::store::table::Row;
+use crate::store::Shared;
 use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// The results the summary's overview shows where the study has them: what most questions
 /// read first.
@@ -39,7 +39,7 @@ const MIXED: &str = "mixed";
 
 /// The errors whose observed orders are derived, and the order columns' names (`coupled_1d`'s
 /// two models each have their own).
-const ORDERS: &[(&str, &str)] = &[
+const ORDERS: [(&str, &str); 4] = [
     (columns::ERROR_L2_NORM, "order_l2"),
     (columns::ERROR_MAX, "order_max"),
     ("coupling.error_nonlocal", "order_nonlocal"),
@@ -127,8 +127,23 @@ pub fn reduce_points(runs: Vec<Row>) -> Vec<Row> {
 /// derived columns read only the `DERIVED_FROM` columns of the points of its series, in their
 /// order.
 pub fn derive(summary: &mut [Row]) {
-    derive_scaling(summary);
-    derive_orders(summary);
+    let mut labels = Labels::default();
+    let mut points: Vec<SeriesPoint> = (summary.iter())
+        .map(|row| SeriesPoint::of(row, &mut labels))
+        .collect();
+    derive_series(&mut points);
+    for (row, point) in summary.iter_mut().zip(points) {
+        for (name, value) in point.derived {
+            row.set(name, value);
+        }
+    }
+}
+
+/// What the scaling and refinement series derive, of the points' `SeriesPoint`s: each point's
+/// `derived` cells, which `derive` sets on its row in their order.
+pub fn derive_series(points: &mut [SeriesPoint]) {
+    derive_scaling(points);
+    derive_orders(points);
 }
 
 /// The columns of a reduced row that `derive` reads, with whether each is text, a count or
@@ -147,20 +162,63 @@ pub const DERIVED_FROM: &[(&str, Cell)] = &[
     (ORDERS[3].0, Cell::Number),
 ];
 
-/// What `derive` reads of a reduced row: its `DERIVED_FROM` cells. `derive` run on these in
-/// place of the rows sets the cells it would set on them, in the same order (it sets only
-/// columns no reduced row has: `derived_cells`).
-pub fn derived_from(row: &Row) -> Row {
-    (DERIVED_FROM.iter())
-        .filter_map(|(name, _)| Some((shared(name), row.get(name)?.clone())))
-        .collect()
+/// What `derive` reads of a point's reduced row (its `DERIVED_FROM` cells, typed: about 200
+/// bytes, where the cells were a kilobyte), and the cells it derives for it.
+#[derive(Clone, Debug)]
+pub struct SeriesPoint {
+    scaling: Option<Shared>,
+    refinement: Option<Shared>,
+    ok: bool,
+    workers: Option<u64>,
+    solve_s_median: Option<f64>,
+    h: Option<f64>,
+    /// The errors of `ORDERS`, in order.
+    errors: [Option<f64>; 4],
+    /// The cells derived for the point, in the order they are set (no two of one name, and
+    /// none a reduced row has: `no_record_column_is_one_the_series_derive`).
+    pub derived: Vec<(&'static str, Value)>,
 }
 
-/// The cells `derive` set on a row of `derived_from`.
-pub fn derived_cells(row: Row) -> Row {
-    (row.into_iter())
-        .filter(|(name, _)| DERIVED_FROM.iter().all(|(from, _)| **name != **from))
-        .collect()
+impl SeriesPoint {
+    /// What `derive` reads of `row`, its series' labels kept in `labels`.
+    pub fn of(row: &Row, labels: &mut Labels) -> SeriesPoint {
+        let mut label = |name| row.text(name).map(|text| labels.of(text));
+        SeriesPoint {
+            scaling: label("scaling_series"),
+            refinement: label("refinement_series"),
+            ok: is_ok(row),
+            workers: row.count("workers"),
+            solve_s_median: row.number("solve_s_median"),
+            h: row.number(columns::H),
+            errors: ORDERS.map(|(error, _)| row.number(error)),
+            derived: Vec::new(),
+        }
+    }
+
+    /// The derived cell `name` set to `value`: in place if the point has it, else last.
+    fn set(&mut self, name: &'static str, value: Value) {
+        match self.derived.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, cell)) => *cell = value,
+            None => self.derived.push((name, value)),
+        }
+    }
+}
+
+/// Series labels, each kept once: the points of a series share its label.
+#[derive(Default)]
+pub struct Labels(HashSet<Shared>);
+
+impl Labels {
+    fn of(&mut self, text: &str) -> Shared {
+        match self.0.get(text) {
+            Some(kept) => kept.clone(),
+            None => {
+                let kept: Shared = text.into();
+                self.0.insert(kept.clone());
+                kept
+            }
+        }
+    }
 }
 
 /// What a cell `derive` reads holds.
@@ -174,7 +232,7 @@ pub enum Cell {
 /// Indices of the rows with each key, keys in first-seen order; rows without a key are left out.
 /// (By a hash of the keys: a search through the groups made so far made `collect` of 10⁵ points
 /// quadratic, half of its time in comparing labels.)
-fn groups<'a>(rows: &'a [Row], key: impl Fn(&'a Row) -> Option<&'a str>) -> Vec<Vec<usize>> {
+fn groups<'a, T>(rows: &'a [T], key: impl Fn(&'a T) -> Option<&'a str>) -> Vec<Vec<usize>> {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut at: HashMap<&str, usize> = HashMap::new();
     for (i, row) in rows.iter().enumerate() {
@@ -294,44 +352,44 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
     row
 }
 
-fn derive_scaling(rows: &mut [Row]) {
-    for members in groups(rows, |r| r.text("scaling_series")) {
+fn derive_scaling(points: &mut [SeriesPoint]) {
+    for members in groups(points, |p| p.scaling.as_deref()) {
         let workers: Vec<u64> = members
             .iter()
-            .map(|&i| rows[i].count("workers").unwrap_or(1))
+            .map(|&i| points[i].workers.unwrap_or(1))
             .collect();
         let base = (0..members.len())
             .min_by_key(|&k| workers[k])
             .expect("a group has members");
-        let base_time = rows[members[base]]
-            .number("solve_s_median")
-            .filter(|_| is_ok(&rows[members[base]]) && members.len() > 1);
+        let baseline = &points[members[base]];
+        let base_time = (baseline.solve_s_median).filter(|_| baseline.ok && members.len() > 1);
         let Some(t0) = base_time else { continue };
         for (k, &i) in members.iter().enumerate() {
-            let time = rows[i].number("solve_s_median").filter(|_| is_ok(&rows[i]));
+            let point = &mut points[i];
+            let time = point.solve_s_median.filter(|_| point.ok);
             let speedup = time.filter(|t| *t > 0.0).map(|t| t0 / t);
             let q = workers[k] as f64 / workers[base] as f64;
             let karp_flatt = speedup
                 .filter(|_| q > 1.0)
                 .map(|s| (1.0 / s - 1.0 / q) / (1.0 - 1.0 / q));
-            rows[i].set("baseline_workers", json!(workers[base]));
-            rows[i].set("speedup", json!(speedup));
-            rows[i].set("efficiency", json!(speedup.map(|s| s / q)));
-            rows[i].set("karp_flatt", json!(karp_flatt));
+            point.set("baseline_workers", json!(workers[base]));
+            point.set("speedup", json!(speedup));
+            point.set("efficiency", json!(speedup.map(|s| s / q)));
+            point.set("karp_flatt", json!(karp_flatt));
         }
     }
 }
 
-fn derive_orders(rows: &mut [Row]) {
-    for mut members in groups(rows, |r| r.text("refinement_series").filter(|_| is_ok(r))) {
-        let h = |i: usize| rows[i].number(columns::H).unwrap_or(f64::NAN);
+fn derive_orders(points: &mut [SeriesPoint]) {
+    for mut members in groups(points, |p| p.refinement.as_deref().filter(|_| p.ok)) {
+        let h = |i: usize| points[i].h.unwrap_or(f64::NAN);
         members.sort_by(|&a, &b| h(b).total_cmp(&h(a))); // coarse first
         let mut orders = Vec::new();
         for pair in members.windows(2) {
             let (coarse, fine) = (pair[0], pair[1]);
             let ratio = h(coarse) / h(fine);
-            for &(error, order) in ORDERS {
-                let errors = (rows[coarse].number(error), rows[fine].number(error));
+            for (k, &(_, order)) in ORDERS.iter().enumerate() {
+                let errors = (points[coarse].errors[k], points[fine].errors[k]);
                 let observed = match errors {
                     (Some(e_c), Some(e)) if e_c > 0.0 && e > 0.0 && ratio > 1.0 => {
                         Some((e_c / e).ln() / ratio.ln())
@@ -342,7 +400,7 @@ fn derive_orders(rows: &mut [Row]) {
             }
         }
         for (i, order, observed) in orders {
-            rows[i].set(order, json!(observed));
+            points[i].set(order, json!(observed));
         }
     }
 }
@@ -350,6 +408,7 @@ fn derive_orders(rows: &mut [Row]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::store::shared;
 
     /// A run's row with the fields the summary reads.
     fn run(case_id: &str, threads: u64, ranks: u64, solve_s: f64) -> Row {
@@ -404,11 +463,29 @@ mod tests {
         runs[4].set("status", json!("failed"));
         let whole = summarize(runs.clone());
         let reduced = reduce_points(runs);
-        let mut series: Vec<Row> = reduced.iter().map(derived_from).collect();
-        derive(&mut series);
+        // Of the `DERIVED_FROM` cells alone, as a collect from scratch keeps them.
+        let mut read: Vec<Row> = (reduced.iter())
+            .map(|row| {
+                (DERIVED_FROM.iter())
+                    .filter_map(|(name, _)| Some((shared(name), row.get(name)?.clone())))
+                    .collect()
+            })
+            .collect();
+        let mut labels = Labels::default();
+        let mut series: Vec<SeriesPoint> = (read.iter())
+            .map(|row| SeriesPoint::of(row, &mut labels))
+            .collect();
+        derive_series(&mut series);
+        derive(&mut read);
         for (row, (reduced, series)) in whole.iter().zip(reduced.into_iter().zip(series)) {
-            let cells: Vec<_> = reduced.into_iter().chain(derived_cells(series)).collect();
+            let derived = series.derived.into_iter().map(|(n, v)| (shared(n), v));
+            let cells: Vec<_> = reduced.into_iter().chain(derived).collect();
             assert_eq!(*row, cells.into_iter().collect::<Row>());
+        }
+        for (row, read) in whole.iter().zip(&read) {
+            for (name, value) in read.cells() {
+                assert_eq!(row.get(name), Some(value), "{name}");
+            }
         }
         assert!(whole[3].get("order_l2").is_some() && whole[1].get("speedup").is_some());
     }

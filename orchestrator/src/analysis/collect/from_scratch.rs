@@ -7,16 +7,16 @@
 //! A slice ends only where every point begun in it has all its runs (a point's repeats lie
 //! together in the plan), so each point's summary row is reduced within one slice. What the
 //! scaling and refinement series derive reads other slices' points: it is derived at the end
-//! from each point's `summary::derived_from` cells, which are all it reads.
+//! from each point's `summary::SeriesPoint`, which is all it reads.
 
 use super::{fits_in_memory, run_row, Provenances, Written};
 use crate::analysis::incremental::{self, Identity};
-use crate::analysis::summary;
+use crate::analysis::summary::{self, Labels, SeriesPoint};
 use crate::run::plan::Planned;
 use crate::store::table::shape::{Schema, Shapes};
 use crate::store::table::splice::{conform, frame_columns};
 use crate::store::table::{self, Row, TableWriter, ROW_GROUP, STREAMED_ROW_GROUP};
-use crate::store::{Fault, Store};
+use crate::store::{shared, Fault, Store};
 use polars::prelude::{Column, DataFrame, PolarsError};
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
@@ -54,8 +54,10 @@ struct Slices {
     provenances: Provenances,
     reduced_parts: Parts,
     reduced_shapes: Shapes,
-    /// Each point's `summary::derived_from` cells.
-    series: Vec<Row>,
+    /// What the series derive from, point by point.
+    series: Vec<SeriesPoint>,
+    /// The series' labels, each kept once.
+    labels: Labels,
 }
 
 /// The run table as its slices come: written to its file while every slice keeps the columns
@@ -116,7 +118,7 @@ impl Slices {
         let reduced = summary::reduce_points(rows);
         for row in &reduced {
             self.reduced_shapes.push_cells(row.typed_cells());
-            self.series.push(summary::derived_from(row));
+            self.series.push(SeriesPoint::of(row, &mut self.labels));
         }
         let frame = table::data_frame(&reduced).map_err(unwritable(&paths.1))?;
         self.reduced_parts.push((slice, frame));
@@ -201,6 +203,7 @@ pub(super) fn from_scratch(
         reduced_parts,
         reduced_shapes,
         series,
+        labels: _,
     } = made;
     if points.is_empty() {
         return Ok(None);
@@ -241,17 +244,20 @@ pub(super) fn from_scratch(
 
 /// The summary's frame and its rows' shapes: the slices' reduced rows (`parts`, of the shapes
 /// `reduced_shapes`; made again of their runs by `remake` where they cannot be stacked) with
-/// the cells the series derive from `series` (each point's `derived_from` cells) in their
-/// columns' places, as one frame of whole summary rows would have them.
+/// the cells the series derive from `series` (what they read of each point) in their columns'
+/// places, as one frame of whole summary rows would have them.
 fn summary_frame(
     parts: Parts,
     reduced_shapes: &Shapes,
-    mut series: Vec<Row>,
+    mut series: Vec<SeriesPoint>,
     remake: &dyn Fn(Range<usize>) -> Vec<Row>,
     path: &Path,
 ) -> Result<(DataFrame, Shapes), Fault> {
-    summary::derive(&mut series);
-    let derived: Vec<Row> = (series.into_par_iter().map(summary::derived_cells)).collect();
+    summary::derive_series(&mut series);
+    let derived: Vec<Row> = (series.into_par_iter())
+        .map(|point| (point.derived.into_iter()).map(|(name, value)| (shared(name), value)))
+        .map(Row::from_iter)
+        .collect();
     let mut shapes = Shapes::default();
     for (k, cells) in derived.iter().enumerate() {
         let reduced = (reduced_shapes.of_row(k).iter()).map(|(name, kind)| (name, *kind));
