@@ -15,12 +15,13 @@
 
 use crate::statistics::quantile;
 use crate::store::table::Row;
-use crate::store::Shared;
+use crate::store::{shared, Shared};
 use rayon::prelude::*;
 use schema::record::columns;
 use schema::record::{Status, TIMINGS};
 use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
+use std::sync::OnceLock;
 
 /// The results the summary's overview shows where the study has them: what most questions
 /// read first.
@@ -69,7 +70,19 @@ const DERIVED: &[&str] = &[
 ];
 
 /// The statistics each timing `T_s` becomes (`T_s_median`, …).
-const STATISTICS: &[&str] = &["median", "min", "max", "iqr"];
+const STATISTICS: [&str; 4] = ["median", "min", "max", "iqr"];
+
+/// The columns of `timing`'s statistics (`solve_s_median`, …), named once for every row.
+fn statistics_of(timing: &str) -> &'static [Shared; 4] {
+    static NAMES: OnceLock<Vec<(&str, [Shared; 4])>> = OnceLock::new();
+    let names = NAMES.get_or_init(|| {
+        (TIMINGS.iter())
+            .map(|t| (*t, STATISTICS.map(|s| Shared::from(format!("{t}_{s}")))))
+            .collect()
+    });
+    let found = names.iter().find(|(t, _)| *t == timing);
+    &found.expect("a timing of TIMINGS").1
+}
 
 /// Whether `name` is a column of a summary table: a record's (`schema::record::columns`), or
 /// one the summary derives.
@@ -273,7 +286,7 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
         .map(|(r, _)| r)
         .collect();
     // What the repeats measured, in the summary's column order.
-    let mut measured: Vec<(String, Value)> = Vec::new();
+    let mut measured: Vec<(Shared, Value)> = Vec::new();
     // The solver build that ran the point: what a figure splits its series by when a table
     // mixes builds (`collect --allow-mixed`).
     let builds: Vec<&str> = ran
@@ -285,7 +298,7 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
             true => crate::run::plan::short(first_build),
             false => MIXED,
         };
-        measured.push(("build".into(), json!(build)));
+        measured.push((shared("build"), json!(build)));
     }
     for (name, _) in repeats[first].cells().filter(|(name, _)| is_timing(name)) {
         let mut times: Vec<f64> = ran.iter().filter_map(|r| r.number(name)).collect();
@@ -294,15 +307,13 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
             true => Value::Null,
             false => json!(f(&times)),
         };
-        measured.extend([
-            (format!("{name}_median"), statistic(|t| quantile(t, 0.5))),
-            (format!("{name}_min"), statistic(|t| t[0])),
-            (format!("{name}_max"), statistic(|t| t[t.len() - 1])),
-            (
-                format!("{name}_iqr"),
-                statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
-            ),
-        ]);
+        let values = [
+            statistic(|t| quantile(t, 0.5)),
+            statistic(|t| t[0]),
+            statistic(|t| t[t.len() - 1]),
+            statistic(|t| quantile(t, 0.75) - quantile(t, 0.25)),
+        ];
+        measured.extend(statistics_of(name).iter().cloned().zip(values));
     }
     // Repeats timed while other tasks wanted the cores they left free.
     let noisy = repeats
@@ -321,15 +332,17 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
         })
         .collect();
     row.set("status", status);
-    row.set("repeats", json!(count));
+    // The columns the summary adds are no run's (`a_summary_adds_no_column_a_run_has`): each
+    // is pushed, none looked for among the run's hundred.
+    row.push_new(shared("repeats"), json!(count));
     for (name, value) in measured {
-        row.set(&name, value);
+        row.push_new(name, value);
     }
     let (threads, ranks) = (
         row.count("case.threads").unwrap_or(1),
         row.count("case.ranks").unwrap_or(1),
     );
-    row.set("workers", json!(threads * ranks));
+    row.push_new(shared("workers"), json!(threads * ranks));
     // What multiplies the workers: a scaling figure draws each kind as a line of its own.
     let parallelism = match (threads > 1, ranks > 1) {
         (false, false) => "serial",
@@ -337,8 +350,8 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
         (false, true) => columns::RANKS,
         (true, true) => "threads × ranks",
     };
-    row.set("parallelism", json!(parallelism));
-    row.set("noisy_repeats", json!(noisy));
+    row.push_new(shared("parallelism"), json!(parallelism));
+    row.push_new(shared("noisy_repeats"), json!(noisy));
     let work = (
         row.number(columns::BONDS),
         row.number(columns::STEPS_DONE),
@@ -348,7 +361,7 @@ fn reduce(mut repeats: Vec<Row>) -> Row {
         (Some(bonds), Some(steps), Some(t)) if t > 0.0 && is_ok(&row) => json!(bonds * steps / t),
         _ => Value::Null,
     };
-    row.set(BOND_UPDATES_PER_S, updates);
+    row.push_new(shared(BOND_UPDATES_PER_S), updates);
     row
 }
 
@@ -408,7 +421,6 @@ fn derive_orders(points: &mut [SeriesPoint]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::shared;
 
     /// A run's row with the fields the summary reads.
     fn run(case_id: &str, threads: u64, ranks: u64, solve_s: f64) -> Row {
@@ -488,6 +500,26 @@ mod tests {
             }
         }
         assert!(whole[3].get("order_l2").is_some() && whole[1].get("speedup").is_some());
+    }
+
+    #[test]
+    fn a_summary_adds_no_column_a_run_has() {
+        // A run's row of every column a record has, and the labels and `threads` beside them.
+        let labels = ["point", "branch", "refinement_series", "scaling_series"];
+        let mut run = Row::default();
+        for name in (schema::record::columns().iter().map(String::as_str))
+            .chain(labels)
+            .chain([columns::THREADS])
+        {
+            run.set(name, json!(2.0));
+        }
+        run.set("point", json!("p"));
+        run.set(columns::STATUS, json!("ok"));
+        let reduced = reduce_points(vec![run]);
+        let names: Vec<&str> = reduced[0].cells().map(|(name, _)| name).collect();
+        let distinct: HashSet<&str> = names.iter().copied().collect();
+        assert_eq!(distinct.len(), names.len(), "{names:?}");
+        assert!(names.contains(&"solve_s_median") && names.contains(&"workers"));
     }
 
     #[test]

@@ -109,6 +109,12 @@ impl Row {
         }
     }
 
+    /// Adds the cell of a column the row lacks, last; the caller knows it lacks it (nothing is
+    /// looked for).
+    pub fn push_new(&mut self, name: Name, value: Value) {
+        self.0.push((name, value));
+    }
+
     /// A row of the given cells, a JSON object's fields in their order (for tests).
     #[cfg(test)]
     pub(crate) fn of_cells(cells: Value) -> Row {
