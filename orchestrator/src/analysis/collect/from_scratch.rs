@@ -89,7 +89,13 @@ impl Slices {
             return Ok(());
         }
         self.points.extend(indices);
+        let known = self.run_shapes.known();
         (rows.iter()).for_each(|row| self.run_shapes.push_cells(row.typed_cells()));
+        // (The whole schema, made again only when the slice brought a shape: each time would
+        // go over every row so far, quadratic in the study.)
+        let same_columns = |shapes: &Shapes, schema: &Schema| {
+            shapes.known() == known || shapes.schema() == *schema
+        };
         let frame = table::data_frame(&rows).map_err(unwritable(&paths.0))?;
         self.provenances.count_frame(&frame);
         self.runs = match std::mem::take(&mut self.runs) {
@@ -98,7 +104,7 @@ impl Slices {
                 let writer = staged.begin(&paths.0, &frame_columns(&schema), STREAMED_ROW_GROUP)?;
                 write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
             }
-            RunTable::Writing { writer, schema, .. } if self.run_shapes.schema() == schema => {
+            RunTable::Writing { writer, schema, .. } if same_columns(&self.run_shapes, &schema) => {
                 write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
             }
             RunTable::Writing {

@@ -116,6 +116,12 @@ impl Shapes {
         self.of_rows.len()
     }
 
+    /// How many distinct shapes are known. Rows added by `push_cells` change the `schema` only
+    /// where they make this grow (a row of a shape seen before adds no name and no type).
+    pub fn known(&self) -> usize {
+        self.distinct.len()
+    }
+
     /// The shape of row `row`.
     pub fn of_row(&self, row: usize) -> &Shape {
         &self.distinct[self.of_rows[row] as usize]
