@@ -69,7 +69,7 @@ enum RunTable {
     Begun,
     /// Written through the plan's point `through` (excluded), of the columns `schema`.
     Writing {
-        writer: TableWriter,
+        writer: Box<TableWriter>, // (boxed: the other variants are a word or three)
         schema: Schema,
         through: usize,
     },
@@ -102,7 +102,7 @@ impl Slices {
             RunTable::Begun => {
                 let schema = self.run_shapes.schema();
                 let writer = staged.begin(&paths.0, &frame_columns(&schema), STREAMED_ROW_GROUP)?;
-                write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
+                write_slice(Box::new(writer), schema, slice.end, frame, &rows, &paths.0)?
             }
             RunTable::Writing { writer, schema, .. } if same_columns(&self.run_shapes, &schema) => {
                 write_slice(writer, schema, slice.end, frame, &rows, &paths.0)?
@@ -135,7 +135,7 @@ impl Slices {
 /// The slice ending at the plan's point `through`, of `frame` (made of `rows`), written as a
 /// part of the table of the columns `schema`.
 fn write_slice(
-    mut writer: TableWriter,
+    mut writer: Box<TableWriter>,
     schema: Schema,
     through: usize,
     frame: DataFrame,
