@@ -162,7 +162,6 @@ pub fn derive_series(points: &mut [SeriesPoint]) {
 /// The columns of a reduced row that `derive` reads, with whether each is text, a count or
 /// another number.
 pub const DERIVED_FROM: &[(&str, Cell)] = &[
-    ("point", Cell::Text),
     ("scaling_series", Cell::Text),
     ("refinement_series", Cell::Text),
     (columns::STATUS, Cell::Text),

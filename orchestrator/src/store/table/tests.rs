@@ -404,3 +404,12 @@ fn a_table_written_in_slices_is_the_bytes_of_the_table_written_whole() {
         );
     }
 }
+
+/// A table of no rows is written and reads back as no rows.
+#[test]
+fn a_table_of_no_rows_reads_back_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("empty.parquet");
+    write_parquet(&[(path.as_path(), &[])]).unwrap();
+    assert!(read_parquet(&path).unwrap().is_empty());
+}
