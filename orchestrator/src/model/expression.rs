@@ -132,12 +132,7 @@ impl Filter {
         let conditions = (conditions.iter().enumerate())
             .map(|(k, text)| Expression::parse(text).map_err(|e| (k, e)))
             .collect::<Result<Vec<_>, _>>()?;
-        let mut names: Vec<String> = Vec::new();
-        for name in conditions.iter().flat_map(Expression::names) {
-            if !names.iter().any(|n| n == name) {
-                names.push(name.to_string());
-            }
-        }
+        let names = names_read(&conditions);
         Ok(Filter { conditions, names })
     }
 
@@ -159,6 +154,17 @@ impl Filter {
         }
         Ok(true)
     }
+}
+
+/// The names `expressions` read, each once, in the order first read: all a scope for them needs.
+pub fn names_read<'a>(expressions: impl IntoIterator<Item = &'a Expression>) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for name in expressions.into_iter().flat_map(Expression::names) {
+        if !names.iter().any(|n| n == name) {
+            names.push(name.to_string());
+        }
+    }
+    names
 }
 
 /// An expression read once, to be evaluated at many points.

@@ -663,21 +663,13 @@ struct Expressions {
 
 impl Expressions {
     fn of<'a>(lists: impl IntoIterator<Item = (String, impl Iterator<Item = &'a String>)>) -> Self {
-        let mut expressions = Vec::new();
-        let mut names: Vec<String> = Vec::new();
+        let mut expressions: Vec<(String, Result<Expression, String>)> = Vec::new();
         for (place, list) in lists {
             for (k, text) in list.enumerate() {
-                let condition = Expression::parse(text);
-                if let Ok(condition) = &condition {
-                    for name in condition.names() {
-                        if !names.iter().any(|n| n == name) {
-                            names.push(name.to_string());
-                        }
-                    }
-                }
-                expressions.push((format!("{place}[{k}]"), condition));
+                expressions.push((format!("{place}[{k}]"), Expression::parse(text)));
             }
         }
+        let names = expression::names_read(expressions.iter().filter_map(|(_, e)| e.as_ref().ok()));
         Expressions { expressions, names }
     }
 
