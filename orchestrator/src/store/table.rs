@@ -639,8 +639,9 @@ pub const STREAMED_ROW_GROUP: usize = 1 << 14;
 /// holds at most a group and a batch.
 pub struct TableWriter {
     writer: BatchedWriter<std::fs::File>,
-    /// The file, for the sync once it is whole.
+    /// The file, for the sync once it is whole, and its path.
     file: std::fs::File,
+    path: std::path::PathBuf,
     /// The table's path, for the faults.
     table: std::path::PathBuf,
     /// Rows handed to the writer and not yet in a group.
@@ -661,8 +662,7 @@ impl TableWriter {
         about: &About,
         group: usize,
     ) -> Result<TableWriter, Fault> {
-        let fault =
-            |e: &dyn std::fmt::Display| Fault::Io(format!("cannot write {}: {e}", table.display()));
+        let fault = cannot("write", table);
         let metadata = KeyValueMetadata::from_static(metadata(schema, about));
         let file = crate::store::fs::create_fresh(path).map_err(|e| fault(&e))?;
         let writer = (file.try_clone())
@@ -675,6 +675,7 @@ impl TableWriter {
         Ok(TableWriter {
             writer,
             file,
+            path: path.to_path_buf(),
             table: table.to_path_buf(),
             pending: DataFrame::empty_with_schema(schema),
             group,
@@ -703,8 +704,7 @@ impl TableWriter {
     /// Writes the rows still pending as the last group, the file's footer, and syncs it.
     pub fn finish(mut self) -> Result<(), Fault> {
         let table = std::mem::take(&mut self.table);
-        let fault =
-            |e: &dyn std::fmt::Display| Fault::Io(format!("cannot write {}: {e}", table.display()));
+        let fault = cannot("write", &table);
         let rest = std::mem::take(&mut self.pending);
         if rest.height() > 0 || !self.grouped {
             self.write_group(rest).map_err(|e| fault(&e))?;
@@ -712,14 +712,20 @@ impl TableWriter {
         self.writer.finish().map_err(|e| fault(&e))?;
         self.file.sync_all().map_err(|e| fault(&e))
     }
+
+    /// `finish`, and the frame of the file written (no sum to check: this process wrote it).
+    pub fn read_back(mut self) -> Result<DataFrame, Fault> {
+        let path = std::mem::take(&mut self.path);
+        self.finish()?;
+        let fault = cannot("read", &path);
+        let bytes = std::fs::read(&path).map_err(|e| fault(&e))?;
+        (ParquetReader::new(std::io::Cursor::new(bytes)).finish()).map_err(|e| fault(&e))
+    }
 }
 
-/// The frame of a Parquet file this process has written (no sum to check).
-pub fn read_written(path: &Path) -> Result<DataFrame, Fault> {
-    let fault =
-        |e: &dyn std::fmt::Display| Fault::Io(format!("cannot read {}: {e}", path.display()));
-    let bytes = std::fs::read(path).map_err(|e| fault(&e))?;
-    (ParquetReader::new(std::io::Cursor::new(bytes)).finish()).map_err(|e| fault(&e))
+/// The fault of a file `path` that could not be `verb` ("write", "read").
+fn cannot<'a>(verb: &'a str, path: &'a Path) -> impl Fn(&dyn std::fmt::Display) -> Fault + 'a {
+    move |e| Fault::Io(format!("cannot {verb} {}: {e}", path.display()))
 }
 
 #[cfg(test)]

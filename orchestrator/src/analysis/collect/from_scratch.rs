@@ -112,8 +112,7 @@ impl Slices {
             } => {
                 // A slice with a column the first lacked, or of another type: what was written
                 // is read back to be stacked with the rest.
-                writer.finish()?;
-                let written = table::read_written(&crate::store::fs::partial_path(&paths.0))?;
+                let written = writer.read_back()?;
                 RunTable::Held(vec![(0..through, written), (slice.clone(), frame)])
             }
             RunTable::Held(mut parts) => {
