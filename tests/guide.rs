@@ -148,9 +148,8 @@ impl Reader {
         Reader { dir, path }
     }
 
-    /// Runs `command` in bash, stdout and stderr as one stream; its status and what it said.
-    /// `command`'s exit status and what it printed; once more if it met Open MPI's fault at a
-    /// job's teardown (`open_mpi_teardown_fault`), which is the runtime's, not the page's.
+    /// `run_once`, and once more if `command` met Open MPI's fault at a job's teardown
+    /// (`open_mpi_teardown_fault`), which is the runtime's, not the page's.
     fn run(&self, command: &str) -> (i32, String) {
         let (status, said) = self.run_once(command);
         if status == 0 || !nonlocal_study::open_mpi_teardown_fault(&said) {
@@ -160,6 +159,7 @@ impl Reader {
         self.run_once(command)
     }
 
+    /// Runs `command` in bash, stdout and stderr as one stream; its status and what it said.
     fn run_once(&self, command: &str) -> (i32, String) {
         let out = Command::new("bash")
             .arg("-c")

@@ -419,8 +419,8 @@ fn a_case_past_its_timeout_is_killed_and_stored_failed() {
 }
 
 /// `--retries`: a case whose process was killed from outside, or whose launcher failed after
-/// the record was printed, runs again and its record keeps the attempt; a case past its timeout is tried once more and then stored failed; a diverged case is
-/// a result and never runs again.
+/// the record was printed, runs again and its record keeps the attempt; a case past its timeout
+/// is tried once more and then stored failed; a diverged case is a result and never runs again.
 #[test]
 fn failures_outside_the_case_are_retried_and_results_are_not() {
     let study = json!({
