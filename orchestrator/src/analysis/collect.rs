@@ -144,9 +144,10 @@ fn run_row(planned: &Planned, identity: &Identity, stored: &Stored) -> Row {
         return Row::default();
     };
     // The case with its defaults filled in, as the solver resolves it now (records keep the
-    // case as keyed, which leaves some defaults out).
-    if let Ok(checked) = &planned.case {
-        record.insert("case".into(), checked.resolved());
+    // case as keyed, which leaves some defaults out; the record's case is the planned one,
+    // since its key is the point's).
+    if let (Ok(checked), Some(case)) = (&planned.case, record.get_mut("case")) {
+        *case = checked.resolve(case.take());
     }
     // (The row grows cell by cell, to twice the room it needs at most: room its summary row,
     // made in place of it, fills.)

@@ -67,10 +67,17 @@ impl Checked {
     }
 
     pub fn resolved(&self) -> Value {
+        self.resolve(self.canonical())
+    }
+
+    /// The resolved case from the canonical one, parsed already (a stored record whose key is
+    /// this case's carries it: the key is the hash of its text): what `resolved` gives, without
+    /// parsing the canonical text again at every row of a table.
+    pub fn resolve(&self, canonical: Value) -> Value {
         match &self.resolved {
             Resolved::Whole(text) => serde_json::from_str(text).expect("nlstudy printed it"),
             Resolved::Adds(adds) => {
-                let mut resolved = self.canonical();
+                let mut resolved = canonical;
                 let adds: Map<String, Value> =
                     serde_json::from_str(adds).expect("nlstudy printed it");
                 resolved

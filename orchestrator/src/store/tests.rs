@@ -596,3 +596,71 @@ fn a_record_reads_its_fields_with_their_defaults_and_refuses_a_wrong_one() {
     let named = Stored::from_value(record_json(json!({"solve_s": "fast"}))).unwrap_err();
     assert!(named.contains("`solve_s`"), "{named}");
 }
+
+/// A record read straight from its text (`Stored::from_ran_text`, how a collect reads whole
+/// runs) is the record read from its parsed tree, whatever its fields: optional ones left out,
+/// a newer solver's, a whole number where a real is read, a name written twice; what it does
+/// not read (a failure, a record that is not whole) is read from the tree, which names why.
+#[test]
+fn a_record_read_from_its_text_is_the_record_read_from_its_tree() {
+    let mut bare = record_json(json!({}));
+    for optional in ["case_id", "repeat", "run_id", "attempt", "error_l2"] {
+        bare.as_object_mut().unwrap().remove(optional);
+    }
+    let every_field = schema::record::every_field().to_value().to_string();
+    let whole = [
+        record_json(json!({"run_id": "r", "attempt": 2, "repeat": 3})).to_string(),
+        bare.to_string(),
+        record_json(json!({"status": "diverged", "diverged_step": 4})).to_string(),
+        record_json(json!({"newer": {"b": [1, 2], "a": null}, "solve_s": 2})).to_string(),
+        every_field.clone(),
+        include_str!("../../fixtures/record-rk4.json").to_string(),
+        include_str!("../../fixtures/record-threads.json").to_string(),
+        // A newer solver's field twice: the later one, as a parsed tree keeps it.
+        every_field.replacen('{', r#"{"newer":1,"newer":2,"#, 1),
+    ];
+    let read_from_tree = |text: &str| Stored::from_value(serde_json::from_str(text).unwrap());
+    for text in &whole {
+        let from_text = Stored::from_ran_text(text).unwrap_or_else(|| panic!("{text}"));
+        assert_eq!(Ok(from_text), read_from_tree(text), "{text}");
+    }
+    let not_read = [
+        json!({"key": "k", "solver_version": "v", "status": "failed", "case": {"n": 1}, "message": "m"})
+            .to_string(),
+        record_json(json!({"solve_s": "fast"})).to_string(),
+        record_json(json!({"repeat": "x"})).to_string(),
+        record_json(json!({"status": "unknown"})).to_string(),
+        // Failed, though every field of a run is there: a failure, as the tree reads it.
+        record_json(json!({"status": "failed"})).to_string(),
+        every_field.replacen('{', r#"{"solve_s":1,"#, 1),
+    ];
+    for text in &not_read {
+        assert_eq!(Stored::from_ran_text(text), None, "{text}");
+    }
+    // And `check_identity` takes the record from either reading alike, its key checked.
+    for text in whole.iter().chain(&not_read) {
+        let Ok(value) = serde_json::from_str::<Value>(text) else {
+            continue;
+        };
+        let key = value["key"].as_str().unwrap_or_default();
+        let file_key = match (value.get("case"), value["solver_version"].as_str()) {
+            (Some(case), Some(version)) => {
+                let repeat = value["repeat"].as_u64().unwrap_or(0) as usize;
+                case_id_and_key(&case.to_string(), version, repeat)
+                    .1
+                    .to_string()
+            }
+            _ => key.to_string(),
+        };
+        let mut rekeyed = value.clone();
+        rekeyed["key"] = json!(file_key);
+        let text = rekeyed.to_string();
+        assert_eq!(
+            record::check_identity(&file_key, &text),
+            record::check_identity_of_tree(&file_key, &text),
+            "{text}"
+        );
+        // A key that is not the case's is refused by both.
+        assert!(record::check_identity(&"0".repeat(32), &text).is_err());
+    }
+}
