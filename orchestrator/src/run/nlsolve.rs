@@ -4,7 +4,7 @@
 mod kept;
 
 use crate::model::study::Point;
-use crate::store::Fault;
+use crate::store::{Fault, Shared};
 use rayon::prelude::*;
 use serde_json::{Map, Value};
 use std::collections::HashMap;
@@ -35,8 +35,9 @@ pub struct Checked {
     /// Every field the method uses, defaults filled in: what tables and messages show.
     resolved: Resolved,
     /// Why this machine could not run it (memory, cores), when it could not: said by a plan
-    /// that runs here, never a refusal (the case may run on a cluster).
-    pub machine: Option<Box<str>>,
+    /// that runs here, never a refusal (the case may run on a cluster). Shared: points on the
+    /// same threads repeat it.
+    pub machine: Option<Shared>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -313,7 +314,7 @@ fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Answer {
             let checked = Checked {
                 canonical: Value::Object(canonical).to_string().into(),
                 resolved,
-                machine: machine.map(String::into_boxed_str),
+                machine: machine.as_deref().map(crate::store::shared),
             };
             (Ok(checked), needs)
         }

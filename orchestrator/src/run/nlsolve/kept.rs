@@ -17,6 +17,7 @@
 //! the study's distinct cases and starts over with each new build.
 
 use super::{Checked, Resolved};
+use crate::store::{shared, Shared};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::io::{BufRead as _, Write as _};
@@ -79,8 +80,9 @@ enum Fit {
 }
 
 /// The solver's sentence on a case with more threads than a machine runs, and that machine's
-/// `most_threads`.
-type Crowded = Option<(u64, Box<str>)>;
+/// `most_threads`. (Shared: the sentence names only the case's threads and the machine's
+/// cores, so most points of a study on many threads repeat one of a few.)
+type Crowded = Option<(u64, Shared)>;
 
 enum Verdict {
     Case {
@@ -200,7 +202,7 @@ impl Kept {
             note => {
                 let (most, sentence) = note.split_once(':')?;
                 let sentence: String = serde_json::from_str(sentence).ok()?;
-                Some((most.parse().ok()?, sentence.into()))
+                Some((most.parse().ok()?, shared(&sentence)))
             }
         };
         let canonical = fields.next()?;
@@ -249,7 +251,7 @@ impl Kept {
                     (Fit::TooManyThreads, Some((most, sentence)))
                         if *most == offer.most_threads =>
                     {
-                        Some(std::mem::take(sentence))
+                        Some(sentence.clone())
                     }
                     _ => return None,
                 };
@@ -291,7 +293,7 @@ impl Kept {
                     Some((most, sentence)) => {
                         format!(
                             "{most}:{}",
-                            serde_json::to_string(sentence).expect("a string serializes")
+                            serde_json::to_string(&**sentence).expect("a string serializes")
                         )
                     }
                 };
