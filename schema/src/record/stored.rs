@@ -157,7 +157,8 @@ impl Outcome {
     }
 }
 
-/// The fields `Stored` adds to the solver's record, which `Record` would keep among its unknown ones.
+/// The fields `Stored` adds to the solver's record (which `Record` would keep among its unknown
+/// ones), as `from_value` takes them.
 const STORED_FIELDS: [&str; 6] = [
     "key",
     "case_id",
@@ -170,7 +171,7 @@ const STORED_FIELDS: [&str; 6] = [
 impl Stored {
     /// A ran (`ok` or `diverged`) record from its text, read straight into the typed structs:
     /// the same `Stored` as `from_value` of the parsed text, without a tree of the whole record
-    /// first (the tree and its reading were two fifths of a collect's CPU). `None` wherever it
+    /// first (the tree and its reading were a quarter of a collect's CPU). `None` wherever it
     /// reads nothing (a failed run, a field missing or of another type, a name written twice):
     /// `from_value` then reads the record and names what is wrong.
     pub fn from_ran_text(text: &str) -> Option<Stored> {
