@@ -84,12 +84,12 @@ pub struct Tables {
 }
 
 /// The tables as the last collect made them (`prior`, its tables at `paths`) with the runs of
-/// `planned` whose records changed since made from the store (`make_row`), and the summary
+/// the points (by their `keys`) whose records changed since made from the store (`make_row`), and the summary
 /// rows they change; `None` when they cannot be spliced (a table not whole, a column whose
 /// type the change narrows) or when most runs changed: then a collect from scratch is as
 /// quick.
 pub fn spliced(
-    planned: &[Planned],
+    keys: &[&str],
     identities: &[Identity],
     seqs: &[u64],
     store: &Store,
@@ -107,7 +107,7 @@ pub fn spliced(
     if prior.runs.len() != old_runs.height() {
         return None;
     }
-    let row_of = |i: usize| Some(make_row(i, &store.stored_as_read(planned[i].key.as_str())?));
+    let row_of = |i: usize| Some(make_row(i, &store.stored_as_read(keys[i])?));
     let runs = run_rows(identities, seqs, &prior.runs, &row_of)?;
     let (summary_order, new_summary) =
         summary_rows(identities, &runs, &old_runs, &old_summary, &row_of)?;

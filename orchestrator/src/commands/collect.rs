@@ -2,6 +2,7 @@
 
 use super::failure::Failure;
 use super::open::{planned, print_tables_written};
+use crate::analysis::collect::ToCollect;
 use crate::cli::args::CollectArgs;
 use crate::run::plan::Options;
 use std::process::ExitCode;
@@ -10,7 +11,10 @@ pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
     let allow_mixed = args.allow_mixed;
     let args = &args.common;
     let (study, _, store, planned) = planned(args, &Options::default(), true)?;
-    let collected = crate::analysis::collect::collect(&planned, &store, &study, allow_mixed)?
+    // (The plan let go before the records are read: the tables need little of it.)
+    let to_collect = ToCollect::of(&planned);
+    drop(planned);
+    let collected = crate::analysis::collect::collect(to_collect, &store, &study, allow_mixed)?
         .ok_or_else(|| {
             Failure::BadInput(format!(
                 "nothing to collect: no run of study {} is stored yet; `nlstudy run` it first",

@@ -40,42 +40,29 @@ pub struct Checked {
     pub machine: Option<Shared>,
 }
 
+/// How the solver resolves a case: what it adds to the canonical one.
 #[derive(Clone, Debug, PartialEq)]
-enum Resolved {
+pub enum Resolved {
     /// The canonical case and these fields (the defaults filled in), as a JSON object.
     Adds(Arc<str>),
     /// A resolved case that drops a canonical field, whole.
     Whole(Box<str>),
 }
 
-impl Checked {
-    /// The canonical case as text: what keys hash and what `nlsolve run` reads.
-    pub fn canonical_text(&self) -> &str {
-        &self.canonical
-    }
-
-    /// What the resolved case adds to the canonical one (or the resolved case whole, where it
-    /// drops a field), as text: with `canonical_text`, all a checked case says.
-    pub fn resolution_text(&self) -> &str {
-        match &self.resolved {
+impl Resolved {
+    /// What the resolved case adds to the canonical one (or the resolved case whole), as text.
+    pub fn text(&self) -> &str {
+        match self {
             Resolved::Adds(adds) => adds,
             Resolved::Whole(whole) => whole,
         }
     }
 
-    pub fn canonical(&self) -> Value {
-        serde_json::from_str(&self.canonical).expect("nlstudy printed it")
-    }
-
-    pub fn resolved(&self) -> Value {
-        self.resolve(self.canonical())
-    }
-
     /// The resolved case from the canonical one, parsed already (a stored record whose key is
-    /// this case's carries it: the key is the hash of its text): what `resolved` gives, without
-    /// parsing the canonical text again at every row of a table.
+    /// the case's carries it: the key is the hash of its text): what `Checked::resolved`
+    /// gives, without parsing the canonical text again at every row of a table.
     pub fn resolve(&self, canonical: Value) -> Value {
-        match &self.resolved {
+        match self {
             Resolved::Whole(text) => serde_json::from_str(text).expect("nlstudy printed it"),
             Resolved::Adds(adds) => {
                 let mut resolved = canonical;
@@ -88,6 +75,32 @@ impl Checked {
                 resolved
             }
         }
+    }
+}
+
+impl Checked {
+    /// The canonical case as text: what keys hash and what `nlsolve run` reads.
+    pub fn canonical_text(&self) -> &str {
+        &self.canonical
+    }
+
+    /// What the resolved case adds to the canonical one (or the resolved case whole, where it
+    /// drops a field), as text: with `canonical_text`, all a checked case says.
+    pub fn resolution_text(&self) -> &str {
+        self.resolved.text()
+    }
+
+    /// How the solver resolves the case.
+    pub fn resolution(&self) -> &Resolved {
+        &self.resolved
+    }
+
+    pub fn canonical(&self) -> Value {
+        serde_json::from_str(&self.canonical).expect("nlstudy printed it")
+    }
+
+    pub fn resolved(&self) -> Value {
+        self.resolved.resolve(self.canonical())
     }
 
     /// A whole-number field of the resolved case (`threads`, `ranks`).

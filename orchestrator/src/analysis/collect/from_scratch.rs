@@ -9,10 +9,9 @@
 //! scaling and refinement series derive reads other slices' points: it is derived at the end
 //! from each point's `summary::SeriesPoint`, which is all it reads.
 
-use super::{fits_in_memory, run_row, Provenances, Written};
+use super::{fits_in_memory, run_row, Provenances, Tabulated, Written};
 use crate::analysis::incremental::{self, Identity};
 use crate::analysis::summary::{self, Labels, SeriesPoint};
-use crate::run::plan::Planned;
 use crate::store::table::shape::{Schema, Shapes};
 use crate::store::table::splice::{conform, frame_columns};
 use crate::store::table::{self, Row, TableWriter, ROW_GROUP, STREAMED_ROW_GROUP};
@@ -158,10 +157,10 @@ fn write_slice(
 
 /// Every stored record of the study's points read into both tables, which are staged (the run
 /// table written as its slices come, or before the summary is stacked); `None` when no point
-/// has a record. `keyed` is the planned points and their keys; `identity` the header, each
+/// has a record. `keyed` is the points and their keys; `identity` the header, each
 /// point's identity and sequence number.
 pub(super) fn from_scratch(
-    (planned, keys): (&[Planned], &[&str]),
+    (points, keys): (&[Tabulated], &[&str]),
     (header, identities, seqs): (String, &[Identity], &[u64]),
     store: &Store,
     staged: &mut table::Staged,
@@ -172,7 +171,7 @@ pub(super) fn from_scratch(
     let runs_of = |slice: Range<usize>| -> Runs {
         let (rows, unreadable) = store.read_each(&keys[slice.clone()], |j, stored| {
             let i = slice.start + j;
-            run_row(&planned[i], &identities[i], &stored)
+            run_row(&points[i], &identities[i], &stored)
         });
         for unreadable in &unreadable {
             errln!("nlstudy: warning: {unreadable}");
