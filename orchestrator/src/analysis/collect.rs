@@ -4,6 +4,7 @@
 //! or run by another solver version) stay stored but are left out.
 
 mod from_scratch;
+mod run_row;
 
 use crate::analysis::incremental::{self, Identity};
 use crate::analysis::{pivot, summary};
@@ -15,9 +16,9 @@ use crate::store::Store;
 use crate::store::{Fault, Id};
 use polars::prelude::DataFrame;
 use rayon::prelude::*;
+use run_row::run_row;
 use schema::record::columns;
 use schema::record::{Status, Stored};
-use serde_json::{json, Value};
 use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -130,15 +131,6 @@ impl Drop for SmallPages {
     }
 }
 
-/// The fields that lead a run's row; the case follows, then the results, then provenance.
-const LEADING: &[&str] = &[
-    columns::KEY,
-    columns::CASE_ID,
-    columns::REPEAT,
-    columns::STATUS,
-    columns::MESSAGE,
-];
-
 /// What the tables read of a planned point: its key, the branch it lies on and how the solver
 /// resolves its case (`None`: refused); its plan's texts of the case and its fields are let go.
 pub struct Tabulated {
@@ -171,51 +163,6 @@ impl ToCollect {
             swept: crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point)),
         }
     }
-}
-
-/// One run's row: the point's label and series (as its `identity` has them), then the record,
-/// flattened: its columns are what `Stored` serializes.
-fn run_row(point: &Tabulated, identity: &Identity, stored: &Stored) -> Row {
-    let Value::Object(mut record) = stored.to_value() else {
-        return Row::default();
-    };
-    // The case with its defaults filled in, as the solver resolves it now (records keep the
-    // case as keyed, which leaves some defaults out; the record's case is the planned one,
-    // since its key is the point's).
-    if let (Some(resolution), Some(case)) = (&point.resolution, record.get_mut("case")) {
-        *case = resolution.resolve(case.take());
-    }
-    // (The row grows cell by cell, to twice the room it needs at most: room its summary row,
-    // made in place of it, fills.)
-    let mut row = Row::default();
-    row.set("point", json!(identity.label));
-    if let Some(branch) = &point.branch {
-        row.set("branch", json!(&**branch));
-    }
-    row.set("refinement_series", json!(identity.refinement));
-    row.set("scaling_series", json!(identity.scaling));
-    for field in LEADING {
-        row.set(field, record.remove(*field).unwrap_or(Value::Null));
-    }
-    let rank = |name: &str| match name {
-        "case" => 0,
-        "provenance" => 2,
-        _ => 1,
-    };
-    let mut rest: Vec<(String, Value)> = record.into_iter().collect();
-    rest.sort_by_key(|(name, _)| rank(name)); // stable: names stay sorted within a rank
-    match rest.iter().any(|(name, _)| name.contains('.')) {
-        false => row.set_all_flattened(rest),
-        // (A field named like a group's flattened one, `case.n` beside `case`: the later cell
-        // takes the name's place, field by field.)
-        true => (rest.into_iter()).for_each(|(name, value)| row.set_flattened(&name, value)),
-    }
-    // Beside `ranks` (the record's), the threads each rank ran: what `where` and figure specs
-    // call `threads`.
-    if let Some(threads) = row.get("case.threads").cloned() {
-        row.set(columns::THREADS, threads);
-    }
-    row
 }
 
 /// The columns that name a point's place in the study rather than measure it: labels, as the
@@ -584,6 +531,7 @@ fn overview_of_rows(shown: &[Row], points: usize, swept: &[String]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     /// Huge pages are off while a collect holds `SmallPages` and on again after, so that what
     /// the process starts later (a run's solvers) keeps the machine's setting.

@@ -13,6 +13,9 @@ use crate::choices::{Backend, Collar, Integrator, Partition, Quadrature};
 use serde_json::{json, Map, Value};
 use std::sync::OnceLock;
 
+mod leaves;
+pub use leaves::{dotted, each_leaf, tree_order};
+
 /// The record's timings in seconds (setup, time loop, median step, communication per step):
 /// the fields whose repeats the orchestrator's summary reduces to min, median and max.
 pub const TIMINGS: [&str; 4] = ["setup_s", "solve_s", "step_s", "comm_s"];
