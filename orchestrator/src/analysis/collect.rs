@@ -328,8 +328,8 @@ pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<R
 
 /// What `collect` holds per stored run while it tabulates (its point's plan, and its share of
 /// the summary's frame): 4.5 KB measured at 10⁵ runs (446 MB peak) and 4.1 KB at 10⁶ (4.1 GB)
-/// with the plan held throughout, as `nlstudy run` holds it (`nlstudy collect` lets it go: 3.7
-/// and 3.4 KB), with a margin for records of more columns.
+/// with the plan held throughout, as `nlstudy run` holds it (`nlstudy collect` lets it go: 3.8
+/// and 3.1 KB), with a margin for records of more columns.
 const BYTES_PER_RUN: u64 = 7 << 10;
 
 /// Refuses, before reading a record, a collect that would hold more than the machine has free:

@@ -81,7 +81,10 @@ impl Collector<'_> {
     fn leaf(&mut self, value: Value) -> Result<(), GiveUp> {
         match self.depth {
             0 => Err(GiveUp),
-            _ => Ok((self.each)(&self.name, value)),
+            _ => {
+                (self.each)(&self.name, value);
+                Ok(())
+            }
         }
     }
 
@@ -112,6 +115,17 @@ fn json<T: Serialize>(value: T) -> Result<Value, GiveUp> {
     serde_json::to_value(value).map_err(|_| GiveUp)
 }
 
+/// The serializer's methods for scalars, each one leaf, its value made by `$make`
+/// (`Value::from` where that is what `to_value` gives, else `json`).
+macro_rules! leaves {
+    ($make:expr; $($method:ident: $kind:ty),*) => {$(
+        fn $method(self, v: $kind) -> Result<(), GiveUp> {
+            let value: Result<Value, GiveUp> = ($make)(v);
+            self.leaf(value?)
+        }
+    )*};
+}
+
 impl<'a, 'w> Serializer for &'a mut Collector<'w> {
     type Ok = ();
     type Error = GiveUp;
@@ -123,48 +137,12 @@ impl<'a, 'w> Serializer for &'a mut Collector<'w> {
     type SerializeStruct = Group<'a, 'w>;
     type SerializeStructVariant = Impossible<(), GiveUp>;
 
-    fn serialize_bool(self, v: bool) -> Result<(), GiveUp> {
-        self.leaf(Value::Bool(v))
-    }
-    fn serialize_i8(self, v: i8) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_i16(self, v: i16) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_i32(self, v: i32) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_i64(self, v: i64) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_i128(self, v: i128) -> Result<(), GiveUp> {
-        self.leaf(json(v)?)
-    }
-    fn serialize_u8(self, v: u8) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_u16(self, v: u16) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_u32(self, v: u32) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_u64(self, v: u64) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_u128(self, v: u128) -> Result<(), GiveUp> {
-        self.leaf(json(v)?)
-    }
-    fn serialize_f32(self, v: f32) -> Result<(), GiveUp> {
-        self.leaf(json(v)?)
-    }
-    fn serialize_f64(self, v: f64) -> Result<(), GiveUp> {
-        self.leaf(Value::from(v))
-    }
-    fn serialize_char(self, v: char) -> Result<(), GiveUp> {
-        self.leaf(json(v)?)
-    }
+    leaves!(|v| Ok(Value::from(v));
+        serialize_bool: bool, serialize_i8: i8, serialize_i16: i16, serialize_i32: i32,
+        serialize_i64: i64, serialize_u8: u8, serialize_u16: u16, serialize_u32: u32,
+        serialize_u64: u64, serialize_f64: f64);
+    leaves!(json;
+        serialize_i128: i128, serialize_u128: u128, serialize_f32: f32, serialize_char: char);
     fn serialize_str(self, v: &str) -> Result<(), GiveUp> {
         self.leaf(Value::String(v.to_string()))
     }
@@ -266,38 +244,27 @@ impl Items<'_, '_> {
     }
 }
 
-impl ser::SerializeSeq for Items<'_, '_> {
-    type Ok = ();
-    type Error = GiveUp;
-    fn serialize_element<T: Serialize + ?Sized>(&mut self, item: &T) -> Result<(), GiveUp> {
-        self.push(item)
-    }
-    fn end(self) -> Result<(), GiveUp> {
-        self.done()
-    }
+/// The three kinds of list serde writes, each one leaf.
+macro_rules! items {
+    ($($kind:ident :: $item:ident),*) => {$(
+        impl ser::$kind for Items<'_, '_> {
+            type Ok = ();
+            type Error = GiveUp;
+            fn $item<T: Serialize + ?Sized>(&mut self, item: &T) -> Result<(), GiveUp> {
+                self.push(item)
+            }
+            fn end(self) -> Result<(), GiveUp> {
+                self.done()
+            }
+        }
+    )*};
 }
 
-impl ser::SerializeTuple for Items<'_, '_> {
-    type Ok = ();
-    type Error = GiveUp;
-    fn serialize_element<T: Serialize + ?Sized>(&mut self, item: &T) -> Result<(), GiveUp> {
-        self.push(item)
-    }
-    fn end(self) -> Result<(), GiveUp> {
-        self.done()
-    }
-}
-
-impl ser::SerializeTupleStruct for Items<'_, '_> {
-    type Ok = ();
-    type Error = GiveUp;
-    fn serialize_field<T: Serialize + ?Sized>(&mut self, item: &T) -> Result<(), GiveUp> {
-        self.push(item)
-    }
-    fn end(self) -> Result<(), GiveUp> {
-        self.done()
-    }
-}
+items!(
+    SerializeSeq::serialize_element,
+    SerializeTuple::serialize_element,
+    SerializeTupleStruct::serialize_field
+);
 
 /// A group of named fields (a struct, or a map whose keys are texts): each field written under
 /// its name; an empty group leaves no leaf, as `flatten` of an empty object.
@@ -312,7 +279,10 @@ impl ser::SerializeMap for Group<'_, '_> {
     type Error = GiveUp;
     fn serialize_key<T: Serialize + ?Sized>(&mut self, key: &T) -> Result<(), GiveUp> {
         match json(key)? {
-            Value::String(key) => Ok(self.key = Some(key)),
+            Value::String(key) => {
+                self.key = Some(key);
+                Ok(())
+            }
             _ => Err(GiveUp),
         }
     }
