@@ -154,23 +154,22 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     }
     if !args.no_collect {
         let to_collect = crate::analysis::collect::ToCollect::of(&planned);
-        let tables =
-            crate::analysis::collect::collect(to_collect, &store, &study, args.allow_mixed)
-                .and_then(|collected| match collected {
-                    Some(collected) => {
-                        let figures =
-                            crate::output::plot::plot(&study.figures, study.question(), &store)?;
-                        let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
-                        let page = crate::output::report::write(&study, &store, &swept)?;
-                        if !args.quiet {
-                            print_tables_written(&collected);
-                            print_figures_drawn(&figures);
-                            errln!("report: {}", page.display());
-                        }
-                        Ok(crate::output::plot::all_drawn(&figures).err())
-                    }
-                    None => Ok(None),
-                });
+        let collected =
+            crate::analysis::collect::collect(to_collect, &store, &study, args.allow_mixed);
+        let tables = collected.and_then(|collected| match collected {
+            Some(collected) => {
+                let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
+                let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
+                let page = crate::output::report::write(&study, &store, &swept)?;
+                if !args.quiet {
+                    print_tables_written(&collected);
+                    print_figures_drawn(&figures);
+                    errln!("report: {}", page.display());
+                }
+                Ok(crate::output::plot::all_drawn(&figures).err())
+            }
+            None => Ok(None),
+        });
         // A table or figure that cannot be made of these runs exits 1; a file that cannot be
         // read or written, 3.
         let (message, code) = match tables {

@@ -21,9 +21,6 @@ const LEADING: [&str; 5] = [
     columns::MESSAGE,
 ];
 
-/// The cells a run's row begins with, before its record's.
-const LABELS: [&str; 4] = ["point", "branch", "refinement_series", "scaling_series"];
-
 /// Where a record's top-level field goes among the cells after `LEADING` (stable: fields stay
 /// in the order of their names within a rank).
 fn rank(field: &str) -> u8 {
@@ -184,7 +181,7 @@ impl Cells {
                 (None, field) => {
                     let dotted = columns::dotted(name);
                     // (The record's cell would take the label's place.)
-                    if LABELS.contains(&dotted.as_str()) {
+                    if super::LABELS.iter().any(|(label, _)| *label == dotted) {
                         return None;
                     }
                     ranked.push((rank(field), k, shared(&dotted)));
