@@ -163,6 +163,11 @@ impl ToCollect {
             swept: crate::model::study::fields_telling_apart(planned.iter().map(|p| &p.point)),
         }
     }
+
+    /// The fields that tell the points apart (`fields_telling_apart`): the tables' label columns.
+    pub fn swept(&self) -> &[String] {
+        &self.swept
+    }
 }
 
 /// The columns that name a point's place in the study rather than measure it: labels, as the

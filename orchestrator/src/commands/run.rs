@@ -7,7 +7,6 @@ use super::open::{
     say_what_refinement_cannot_show,
 };
 use crate::cli::args::RunArgs;
-use crate::model::study::fields_telling_apart;
 use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
@@ -154,12 +153,12 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     }
     if !args.no_collect {
         let to_collect = crate::analysis::collect::ToCollect::of(&planned);
+        let swept = to_collect.swept().to_vec();
         let collected =
             crate::analysis::collect::collect(to_collect, &store, &study, args.allow_mixed);
         let tables = collected.and_then(|collected| match collected {
             Some(collected) => {
                 let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
-                let swept = fields_telling_apart(planned.iter().map(|p| &p.point));
                 let page = crate::output::report::write(&study, &store, &swept)?;
                 if !args.quiet {
                     print_tables_written(&collected);
