@@ -31,7 +31,7 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         let what = match (&p.decision, &p.case) {
             (Decision::Run(_), Err(_)) => "refused (stored as failed, not run)".into(),
             (Decision::Run(reason), Ok(_)) => format!("run   ({reason})"),
-            (Decision::Skip(status), _) => format!("skip  ({status})"),
+            (Decision::Skip(why), _) => format!("skip  ({why})"),
             (Decision::Duplicate, _) => "skip  (the same case as an earlier point)".into(),
         };
         let _ = writeln!(listing, "{}  {what:<40} {}", p.key, p.point.label());
