@@ -24,7 +24,8 @@ const SOLVER_LAYERS: [&str; 10] = [
 ];
 
 /// The orchestrator's top-level modules (its folders), lowest first.
-const ORCHESTRATOR_LAYERS: [&str; 9] = [
+const ORCHESTRATOR_LAYERS: [&str; 10] = [
+    "allocator",
     "console",
     "statistics",
     "model",

@@ -2,6 +2,7 @@
 //! Parquet tables → SVG figures. Its folders are its layers, lowest first; each imports only
 //! the layers before it (tests/architecture.rs checks this):
 //!
+//! - `allocator`: how the allocator gives freed memory back;
 //! - `console`: printing that never panics on a closed or full stream;
 //! - `statistics`: order statistics (quantiles, the median) of measured values;
 //! - `model`: the study file, its sweeps and expressions, its figure specs — pure data;
@@ -32,6 +33,7 @@ macro_rules! errln {
     ($($arg:tt)*) => { $crate::console::err(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
+pub mod allocator;
 pub(crate) mod analysis;
 pub mod cli;
 pub mod commands;

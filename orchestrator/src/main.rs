@@ -11,5 +11,6 @@ use std::process::ExitCode;
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> ExitCode {
+    orchestrator::allocator::return_freed_memory_sooner();
     orchestrator::commands::main(Cli::parse())
 }

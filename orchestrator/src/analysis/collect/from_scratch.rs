@@ -181,8 +181,6 @@ pub(super) fn from_scratch(
             .unzip()
     };
     let mut made = Slices::default();
-    // At most a series point per planned point with a record (doubling would hold up to twice).
-    made.series.reserve_exact(points.len().min(store.count()));
     // Each slice is tabulated while the next one's records are read: the reading runs on
     // every core, the tabulating mostly on one.
     let mut read: Option<(Range<usize>, Runs)> = None;
