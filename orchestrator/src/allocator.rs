@@ -6,7 +6,7 @@
 //! collects peak at 353 MB and 2.8 GB in the same time (docs/performance.md, "The allocator's
 //! purge delay"). `MIMALLOC_PURGE_DELAY` in the environment still wins.
 
-use libmimalloc_sys::{mi_option_get, mi_option_set_default, mi_option_t};
+use libmimalloc_sys::{mi_option_set_default, mi_option_t};
 
 /// `mi_option_purge_delay` of mimalloc.h, which libmimalloc-sys does not name (its options'
 /// numbers are mimalloc's ABI; a test checks this one is the delay by its default).
@@ -22,15 +22,10 @@ pub fn return_freed_memory_sooner() {
     unsafe { mi_option_set_default(PURGE_DELAY, PURGE_AFTER_MS) }
 }
 
-/// The purge delay in force, in milliseconds.
-pub fn purge_delay_ms() -> i64 {
-    // SAFETY: reads an integer option.
-    unsafe { mi_option_get(PURGE_DELAY) as i64 }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use libmimalloc_sys::mi_option_get;
 
     /// Option 15 is the purge delay: in this process (the tests' allocator is the system's, so
     /// nothing set it) it holds mimalloc 3's default for that option. A mimalloc whose options
@@ -38,7 +33,8 @@ mod tests {
     #[test]
     fn option_15_is_mimallocs_purge_delay() {
         if std::env::var_os("MIMALLOC_PURGE_DELAY").is_none() {
-            assert_eq!(purge_delay_ms(), 1000);
+            // SAFETY: reads an integer option.
+            assert_eq!(unsafe { mi_option_get(PURGE_DELAY) }, 1000);
         }
     }
 }
