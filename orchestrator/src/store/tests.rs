@@ -122,6 +122,13 @@ fn a_fingerprint_that_is_not_hex_never_reaches_a_path() {
         std::fs::create_dir_all(&store.runs).unwrap();
         let stored = with_fingerprint(record.clone(), fingerprint);
         std::fs::write(store.path(&k), stored.to_string()).unwrap();
+        // Newer than the record saved the round before: a file's time is the kernel's coarse
+        // clock, which can fall behind a segment record's (read at once) within a tick, and
+        // then the store rightly takes the segment's record as the latest (1 run in 20).
+        let later = std::time::SystemTime::now() + std::time::Duration::from_secs(1);
+        (std::fs::File::options().write(true).open(store.path(&k)))
+            .and_then(|file| file.set_modified(later))
+            .unwrap();
         assert_eq!(
             fingerprint_of(&typed(&stored)),
             "",
