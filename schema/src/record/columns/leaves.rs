@@ -235,8 +235,7 @@ struct Items<'a, 'w> {
 
 impl Items<'_, '_> {
     fn push<T: Serialize + ?Sized>(&mut self, item: &T) -> Result<(), GiveUp> {
-        self.items
-            .push(serde_json::to_value(item).map_err(|_| GiveUp)?);
+        self.items.push(json(item)?);
         Ok(())
     }
 
