@@ -327,16 +327,29 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
         assert!(record.get("resumed_from_step").is_none(), "{why}: {record}");
         record
     };
-    // The header names the build: 64 hex digits after `"fingerprint":"`.
-    let at = good
-        .windows(15)
-        .position(|w| w == b"\"fingerprint\":\"")
-        .unwrap()
-        + 15;
-    let mut other = good.clone();
-    other[at..at + 64].fill(b'0');
+    // The header edited, one digit of its step: the checksum covers it.
+    let text = String::from_utf8_lossy(&good).into_owned();
+    let at = text.find("\"step\":").unwrap() + 7;
+    let mut stepped = good.clone();
+    stepped[at] = if stepped[at] == b'1' { b'2' } else { b'1' };
+    refused_with(&stepped, &case, "checksum");
+    // Rewritten whole with another header, under a checksum that matches it.
+    let rewritten = |edit: &dyn Fn(&mut schema::checkpoint::Header)| {
+        let read = schema::checkpoint::parse(good.clone()).unwrap();
+        let mut header = read.header.clone();
+        edit(&mut header);
+        let mut bytes = Vec::new();
+        let values: Vec<f64> = read.parts().flat_map(|(_, v)| v).collect();
+        schema::checkpoint::write(&mut bytes, &header, values).unwrap();
+        bytes
+    };
+    let other = rewritten(&|h| h.identity.fingerprint = "0".repeat(64));
     let afresh = refused_with(&other, &case, "another solver build");
     assert_eq!(numbers_of(afresh), numbers_of(whole.clone()));
+    let past = rewritten(&|h| h.step = h.steps.unwrap() + 1);
+    refused_with(&past, &case, "of a run of");
+    let fewer = rewritten(&|h| h.steps = Some(h.step));
+    refused_with(&fewer, &case, "its header says");
     let mut other_case = case.clone();
     other_case["n"] = json!(128);
     refused_with(&good, &other_case, "another case");
@@ -346,6 +359,26 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
     flipped[last] ^= 0x10;
     refused_with(&flipped, &case, "checksum");
     refused_with(b"{\"step\": 3}", &case, "not a checkpoint");
+    // A FIFO is not waited on, a link to /dev/zero not followed (nor read past the case's cap).
+    let not_read = |why: &str| {
+        let out = run(&case, &["--checkpoint", path]);
+        let said = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(
+            said.contains(why) && said.contains("starts at step 0"),
+            "{why}: {said}"
+        );
+        assert_eq!(numbers_of(record(&out)), numbers_of(whole.clone()), "{why}");
+    };
+    // (Each run removes what stands at the path once its record is written.)
+    let made = Command::new("mkfifo").arg(&file).status().unwrap();
+    assert!(made.success());
+    not_read("a FIFO");
+    std::os::unix::fs::symlink("/dev/zero", &file).unwrap();
+    not_read("symbolic link");
+    // A regular file larger than any checkpoint of the case can be is not read.
+    let big = std::fs::File::create(&file).unwrap();
+    big.set_len(1 << 40).unwrap();
+    not_read("bytes a checkpoint of this case may hold");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -389,20 +422,14 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
             // It ran to its end before the kill: its checkpoint went with its record.
             last_step = 0;
         } else if file.exists() {
-            // The header is the JSON line after the first.
             let bytes = std::fs::read(&file).unwrap();
-            let header = bytes.split(|&b| b == b'\n').nth(1).unwrap_or_default();
-            let step = serde_json::from_slice::<Value>(header)
-                .ok()
-                .and_then(|h| h["step"].as_u64())
-                .unwrap_or_else(|| {
-                    panic!(
-                        "no step in a checkpoint of {} bytes, status {}: {:?}",
-                        bytes.len(),
-                        out.status,
-                        String::from_utf8_lossy(&bytes[..bytes.len().min(400)])
-                    )
-                });
+            let size = bytes.len();
+            let step = schema::checkpoint::parse(bytes)
+                .unwrap_or_else(|e| {
+                    panic!("a checkpoint of {size} bytes, status {}: {e}", out.status)
+                })
+                .header
+                .step as u64;
             assert!(
                 step >= last_step,
                 "the checkpoint went back from {last_step} to {step}"

@@ -21,11 +21,15 @@ pub fn rows(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Row> {
         .map(|(mut row, s)| {
             let search = &s.outcome;
             let predicted = s.record.as_ref().and_then(|r| prediction(spec, r));
-            let found = search.ended == Some(Ended::Found);
+            // The bracket was narrowed by probes, whether or not to the tolerance.
+            let bracketed = matches!(
+                search.ended,
+                Some(Ended::Found | Ended::Resolution | Ended::Budget | Ended::StudyBudget)
+            );
             row.set("field", Value::from(spec.field.as_str()));
             row.set("boundary", measured(search.boundary()));
-            row.set("boundary_lo", measured(found.then_some(search.below)));
-            row.set("boundary_hi", measured(found.then_some(search.above)));
+            row.set("boundary_lo", measured(bracketed.then_some(search.below)));
+            row.set("boundary_hi", measured(bracketed.then_some(search.above)));
             row.set("predicted", measured(predicted));
             row.set(
                 "gap",
@@ -52,8 +56,8 @@ pub fn below_theory(row: &Row, rtol: f64) -> bool {
 pub const NOTES: &[(&str, &str)] = &[
     ("field", "the case field searched along"),
     ("boundary", "the middle of the final bracket, where the condition starts to hold; null if the search found none"),
-    ("boundary_lo", "the largest value probed where the condition does not hold"),
-    ("boundary_hi", "the smallest value probed where it holds"),
+    ("boundary_lo", "the largest value probed where the condition does not hold, once the bracket narrowed (found, at the field's resolution, or a budget spent)"),
+    ("boundary_hi", "the smallest value probed where it holds, likewise"),
     ("predicted", "the boundary the solver's theory gives for what the condition reads: the symbol's dt_stable for stability, dt_positive for `positivity`; null where it has none"),
     ("gap", "boundary / predicted - 1"),
     ("probes", "runs the search spent, the bracket's ends included"),

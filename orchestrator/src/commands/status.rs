@@ -8,7 +8,12 @@ use crate::run::plan::Options;
 use std::process::ExitCode;
 
 pub(super) fn status(args: &CommonArgs) -> Result<ExitCode, Failure> {
-    let (study, _, store, index, planned) = planned_and_index(args, &Options::default(), false)?;
-    out!("{}", status::render(&study.name, &store, &index, &planned));
+    let (study, solver, store, index, planned) =
+        planned_and_index(args, &Options::default(), false)?;
+    let fingerprint = solver.fingerprint.as_deref();
+    out!(
+        "{}",
+        status::render(&study.name, &store, &index, &planned, fingerprint)
+    );
     Ok(ExitCode::SUCCESS)
 }

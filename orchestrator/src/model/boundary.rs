@@ -40,6 +40,10 @@ fn one() -> usize {
     1
 }
 
+/// The finest relative tolerance a search may ask: a few dozen of a double's relative spacing
+/// (2.2e-16), so that the bracket can still be split into `per_round` + 1 distinct parts.
+pub const FINEST_RTOL: f64 = 1e-14;
+
 /// Why a search stopped.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Ended {
@@ -51,6 +55,9 @@ pub enum Ended {
     NoneUpTo,
     /// `max_probes` was spent before the tolerance was reached.
     Budget,
+    /// The bracket cannot narrow further: its ends are neighbouring values the field can take
+    /// (floating-point numbers, or whole ones), short of the tolerance.
+    Resolution,
     /// The study's `budget` was spent first.
     StudyBudget,
     /// A probe's record could not answer (the run failed, or lacks a field the condition reads).
@@ -101,11 +108,11 @@ impl BoundarySpec {
                 format!("[{below}, {above}] is empty; give [below, above] with below < above"),
             );
         }
-        if !(self.rtol > 0.0 && self.rtol < 1.0) {
+        if !(self.rtol >= FINEST_RTOL && self.rtol < 1.0) {
             return fail(
                 "rtol",
                 format!(
-                    "must lie in (0, 1) (got {}); 1e-3 finds a boundary to 0.1 %",
+                    "must lie in [{FINEST_RTOL:e}, 1) (got {}): a double resolves no finer; 1e-3 finds a boundary to 0.1 %",
                     self.rtol
                 ),
             );
@@ -162,12 +169,10 @@ impl BoundarySpec {
         let k = self.per_round.min(left);
         let width = search.above - search.below;
         let inside = (1..=k).map(|j| search.below + width * j as f64 / (k + 1) as f64);
-        if !self.whole() {
-            return inside.collect();
-        }
-        // Whole values strictly inside the bracket, each once.
+        let inside = inside.map(|v| if self.whole() { v.round() } else { v });
+        // Values strictly inside the bracket, each once: none when its ends are neighbours
+        // (`observe` then ends the search at the field's resolution).
         let mut values: Vec<f64> = inside
-            .map(f64::round)
             .filter(|v| *v > search.below && *v < search.above)
             .collect();
         values.dedup();
@@ -230,6 +235,8 @@ impl BoundarySpec {
         loop {
             let round = self.round(&search);
             if round.is_empty() {
+                // Nothing lies strictly inside a bracket that has not ended: it cannot narrow.
+                search.ended.get_or_insert(Ended::Resolution);
                 return (search, Vec::new());
             }
             let mut answers = Vec::with_capacity(round.len());
@@ -289,9 +296,11 @@ pub fn flips(condition: &str, stored: &Stored) -> Result<bool, String> {
 }
 
 impl Search {
-    /// The boundary's estimate: the middle of the final bracket, once found.
+    /// The boundary's estimate: the middle of the final bracket, once found (to the tolerance,
+    /// or to the field's resolution).
     pub fn boundary(&self) -> Option<f64> {
-        (self.ended == Some(Ended::Found)).then_some(0.5 * (self.below + self.above))
+        matches!(self.ended, Some(Ended::Found | Ended::Resolution))
+            .then_some(0.5 * (self.below + self.above))
     }
 }
 
@@ -302,6 +311,10 @@ impl std::fmt::Display for Ended {
             Ended::FlipsBelow => write!(f, "holds at the lower end already"),
             Ended::NoneUpTo => write!(f, "does not hold at the upper end: no boundary up to it"),
             Ended::Budget => write!(f, "max_probes spent before the tolerance"),
+            Ended::Resolution => write!(
+                f,
+                "at the field's resolution: the bracket's ends are neighbouring values"
+            ),
             Ended::StudyBudget => write!(f, "the study's budget spent before the tolerance"),
             Ended::Unanswered { value, why } => {
                 write!(f, "the probe at {value} cannot answer: {why}")
@@ -416,6 +429,26 @@ mod tests {
         assert_eq!(whole.boundary(), search(&spec, |v| v >= 1.2345).boundary());
     }
 
+    /// A tolerance finer than the field can resolve (a study's `rtol` is refused below
+    /// `FINEST_RTOL`, but a bracket can still meet neighbouring doubles) ends the search there,
+    /// in bounded probes, with a boundary.
+    #[test]
+    fn a_search_ends_at_the_fields_resolution() {
+        for (rtol, per_round) in [(1e-300, 1), (f64::MIN_POSITIVE, 3), (1e-17, 2)] {
+            let spec = BoundarySpec {
+                rtol,
+                max_probes: Some(usize::MAX),
+                ..spec(per_round)
+            };
+            let found = search(&spec, |v| v >= 1.2345);
+            assert_eq!(found.ended, Some(Ended::Resolution), "{rtol}");
+            assert!(found.probes < 200, "{} probes", found.probes);
+            assert_eq!(found.above, f64::from_bits(found.below.to_bits() + 1));
+            assert!(found.below < 1.2345 && 1.2345 <= found.above);
+            assert!(found.boundary().is_some());
+        }
+    }
+
     #[test]
     fn bad_specs_are_refused_naming_the_field() {
         let refused = |change: fn(&mut BoundarySpec)| {
@@ -426,6 +459,8 @@ mod tests {
         assert_eq!(refused(|s| s.bracket = [1.0, 1.0]), "boundary.bracket");
         assert_eq!(refused(|s| s.bracket = [f64::NAN, 1.0]), "boundary.bracket");
         assert_eq!(refused(|s| s.rtol = 0.0), "boundary.rtol");
+        assert_eq!(refused(|s| s.rtol = 1e-17), "boundary.rtol");
+        assert_eq!(refused(|s| s.rtol = 1e-300), "boundary.rtol");
         assert_eq!(refused(|s| s.per_round = 0), "boundary.per_round");
         assert_eq!(refused(|s| s.max_probes = Some(0)), "boundary.max_probes");
         assert_eq!(refused(|s| s.field = "integrator".into()), "boundary.field");

@@ -40,8 +40,15 @@ fn noisy_sentence(noisy: usize, runs: usize) -> Option<String> {
 }
 
 /// The report, from the store's index: one line of counts, one line per failed run, the
-/// missing points, the jobs.
-pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) -> String {
+/// missing points, their checkpoints (read as the solver of `fingerprint` reads them), the
+/// jobs.
+pub fn render(
+    study: &str,
+    store: &Store,
+    index: &Index,
+    planned: &[Planned],
+    fingerprint: Option<&str>,
+) -> String {
     let summary = counts(index.stored.values().map(|s| s.status.as_str()));
     let mut out = String::new();
     let _ = writeln!(
@@ -67,7 +74,7 @@ pub fn render(study: &str, store: &Store, index: &Index, planned: &[Planned]) ->
     let missing = planned.iter().filter(|p| p.runs()).count();
     let _ = writeln!(out, "{missing} of {} points to run", planned.len());
     running_report(&mut out, store, planned);
-    checkpoints_report(&mut out, store, planned);
+    checkpoints_report(&mut out, store, planned, fingerprint);
     jobs_report(&mut out, store, index);
     out
 }
@@ -118,21 +125,29 @@ fn with_scratch<'a>(
 }
 
 /// One line per point to run that has a checkpoint: how far its stopped run got, where the
-/// next run resumes it.
-fn checkpoints_report(out: &mut String, store: &Store, planned: &[Planned]) {
+/// next run resumes it, or why the next run starts it afresh.
+fn checkpoints_report(
+    out: &mut String,
+    store: &Store,
+    planned: &[Planned],
+    fingerprint: Option<&str>,
+) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
-        let how_far = match crate::store::checkpoint_steps(&path) {
-            Some((step, Some(steps))) => format!("step {step} of {steps}"),
-            // A steady case (no t_end) checkpoints its CG iterations.
-            Some((step, None)) if t_end(point).is_none() => format!("iteration {step}"),
-            Some((step, None)) => format!("step {step}"),
-            None => "a checkpoint that cannot be read (the next run starts it afresh)".into(),
+        let Ok(case) = &point.case else { continue };
+        let line = match crate::store::checkpoint_of(&path, case, fingerprint) {
+            None => continue,
+            Some(Ok((step, steps))) => {
+                let how_far = match steps {
+                    Some(steps) => format!("step {step} of {steps}"),
+                    // A steady case (no t_end) checkpoints its CG iterations.
+                    None if t_end(point).is_none() => format!("iteration {step}"),
+                    None => format!("step {step}"),
+                };
+                format!("{how_far}; the next run resumes it")
+            }
+            Some(Err(why)) => format!("not resumed, {why}; the next run starts it afresh"),
         };
-        let _ = writeln!(
-            out,
-            "checkpoint {}: {how_far}; the next run resumes it",
-            point.point.label()
-        );
+        let _ = writeln!(out, "checkpoint {}: {line}", point.point.label());
     }
 }
 

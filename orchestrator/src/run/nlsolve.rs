@@ -79,6 +79,16 @@ impl Resolved {
 }
 
 impl Checked {
+    /// A case as if the solver had checked it: `canonical` as it is, resolved to itself.
+    #[cfg(test)]
+    pub fn unresolved(canonical: &Value) -> Checked {
+        Checked {
+            canonical: canonical.to_string().into(),
+            resolved: Resolved::Adds("{}".into()),
+            machine: None,
+        }
+    }
+
     /// The canonical case as text: what keys hash and what `nlsolve run` reads.
     pub fn canonical_text(&self) -> &str {
         &self.canonical

@@ -83,9 +83,9 @@ pub struct PoolOptions {
     pub retries: usize,
     /// A process per case (`--isolate`), never a worker.
     pub isolate: bool,
-    /// Cases checkpoint this often (a time loop, or a steady solve's CG) and on a stopping
+    /// Cases checkpoint this often (a time loop, or a steady solve's CG), besides on a stopping
     /// signal, in `runs/.work/<key>.checkpoint` (and `.rank<r>` beside it over ranks), and
-    /// resume from it; they run as processes.
+    /// resume from it.
     pub checkpoint_every: Option<Duration>,
     /// Keep each checkpoint after its record is stored.
     pub keep_checkpoints: bool,
@@ -400,9 +400,9 @@ impl Pool<'_> {
             };
             let how = if self.serves(case, next.alone) {
                 let mut worker = self.workers.take(self.solver)?;
-                let progress = self.store.scratch(&planned.key, PROGRESS);
+                let line = served_line(case, &planned.key, self.store, self.options);
                 // A worker that is gone already says so when its output closes.
-                worker.send(&served_line(case, &progress));
+                worker.send(&line);
                 How::Served {
                     worker,
                     heard: None,
@@ -428,21 +428,14 @@ impl Pool<'_> {
         Ok(())
     }
 
-    /// Does a worker run this case? Cases of one process that write no files of their own (no
-    /// VTK, no checkpoint).
+    /// Does a worker run this case? Cases of one process that write no VTK files.
     fn serves(&self, case: &Checked, alone: bool) -> bool {
         let asks = |field: &str| case.resolved_count(field).is_some_and(|value| value > 1);
         let writes_vtk = case
             .canonical()
             .get("vtk_every")
             .is_some_and(|every| !every.is_null());
-        let checkpoints = self.options.checkpoint_every.is_some();
-        !(alone
-            || self.options.isolate
-            || self.workers.unsupported
-            || asks("ranks")
-            || writes_vtk
-            || checkpoints)
+        !(alone || self.options.isolate || self.workers.unsupported || asks("ranks") || writes_vtk)
     }
 
     /// Stores the record of a case that ended, or queues it again.
@@ -676,7 +669,7 @@ impl Running {
                 process.remove_files();
             }
             How::Served { mut worker, .. } => {
-                worker.kill();
+                worker.stop(STOP_GRACE);
             }
         }
     }
@@ -702,18 +695,23 @@ fn cores_of(planned: &Planned) -> usize {
     field("threads").max(1) * field("ranks").max(1)
 }
 
-/// The line a worker reads for `case`: the case, with the file its time loop says how far it
-/// is in (absolute: a worker runs in the work directory; when the path is text, as JSON needs).
-fn served_line(case: &Checked, progress: &std::path::Path) -> String {
-    let progress = std::path::absolute(progress).unwrap_or_default();
-    match progress.to_str().filter(|p| !p.is_empty()) {
-        Some(path) => format!(
-            "{{\"case\":{},\"progress\":{}}}",
-            case.canonical_text(),
-            Value::from(path)
-        ),
-        None => case.canonical_text().to_string(),
-    }
+/// The line a worker reads for `case` (`schema::protocol::ServeLine`): the case, the file its
+/// time loop says how far it is in, and its checkpoint, written on a stopping signal (and
+/// every `checkpoint_every`) and resumed from. Paths are absolute (a worker runs in the work
+/// directory), and given only when they are text, as JSON needs.
+fn served_line(case: &Checked, key: &str, store: &Store, options: &PoolOptions) -> String {
+    let text = |name: &str| {
+        let path = std::path::absolute(store.scratch(key, name)).ok()?;
+        path.to_str().filter(|p| !p.is_empty()).map(str::to_string)
+    };
+    let line = schema::protocol::ServeLine {
+        case: case.canonical(),
+        progress: text(PROGRESS),
+        checkpoint: text(CHECKPOINT),
+        checkpoint_every_s: options.checkpoint_every.map(|every| every.as_secs_f64()),
+        keep_checkpoint: options.keep_checkpoints,
+    };
+    serde_json::to_string(&line).expect("a line serializes")
 }
 
 /// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
@@ -752,15 +750,18 @@ fn start(
     if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
         command.arg("--write-vtk").arg(store.fields(&planned.key));
     }
+    // Every case may be stopped (Ctrl-C, a scheduler's warning): its time loop then writes a
+    // checkpoint, which the next run resumes from.
+    command
+        .arg("--checkpoint")
+        .arg(store.scratch(&planned.key, CHECKPOINT));
     if let Some(every) = options.checkpoint_every {
         command
-            .arg("--checkpoint")
-            .arg(store.scratch(&planned.key, CHECKPOINT))
             .arg("--checkpoint-every-seconds")
             .arg(every.as_secs_f64().to_string());
-        if options.keep_checkpoints {
-            command.arg("--keep-checkpoint");
-        }
+    }
+    if options.keep_checkpoints {
+        command.arg("--keep-checkpoint");
     }
     command
         .stdin(Stdio::null())

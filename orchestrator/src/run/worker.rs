@@ -223,6 +223,20 @@ impl Worker {
         }
     }
 
+    /// Asks the worker to stop (SIGTERM: a case in its time loop writes its checkpoint first),
+    /// kills it once `grace` has passed, and reaps it.
+    pub fn stop(&mut self, grace: Duration) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            // SAFETY: kill(2) on our own child, not reaped yet (`try_wait` caches an exit).
+            unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+            let asked = std::time::Instant::now();
+            while asked.elapsed() < grace && matches!(self.child.try_wait(), Ok(None)) {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        self.kill();
+    }
+
     /// Kills the worker (past its timeout, or with the run stopping) and reaps it.
     pub fn kill(&mut self) -> ExitStatus {
         let _ = self.child.kill();

@@ -77,37 +77,11 @@ pub const RECORD_CAP: u64 = 64 << 20;
 /// The most a small bookkeeping file (the owner file, a figure's stamp, a table's sum) may hold.
 pub const SMALL_FILE_CAP: u64 = 1 << 20;
 
-/// Opens `path` only if it is a regular file: a symbolic link is not followed (`O_NOFOLLOW`) and
-/// a FIFO or device does not block the open (`O_NONBLOCK`); the open descriptor's own `fstat`
-/// decides, so nothing swapped in between is read. The error says what the file is instead.
+/// Opens `path` only if it is a regular file (`schema::regular::open`: a link is not followed,
+/// a FIFO or device does not block the open, the descriptor's own `fstat` decides). The error
+/// says what the file is instead.
 pub fn open_regular(path: &Path) -> Result<(File, u64), String> {
-    use std::os::unix::fs::OpenOptionsExt;
-    let file = File::options()
-        .read(true)
-        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
-        .open(path)
-        .map_err(|e| match e.raw_os_error() {
-            Some(libc::ELOOP) => "a symbolic link, which the store does not follow".to_string(),
-            _ => e.to_string(),
-        })?;
-    let meta = file.metadata().map_err(|e| e.to_string())?;
-    let kind = meta.file_type();
-    if !kind.is_file() {
-        use std::os::unix::fs::FileTypeExt;
-        let what = if kind.is_dir() {
-            "a directory"
-        } else if kind.is_fifo() {
-            "a FIFO"
-        } else if kind.is_socket() {
-            "a socket"
-        } else if kind.is_char_device() || kind.is_block_device() {
-            "a device"
-        } else {
-            "not a regular file"
-        };
-        return Err(format!("{what}, not a regular file; it is not read"));
-    }
-    Ok((file, meta.len()))
+    schema::regular::open(path).map_err(|e| e.to_string())
 }
 
 /// The text of the regular file `path`, refused (not read to its end, never waited on) when it is

@@ -468,8 +468,12 @@ impl Store {
         for name in SCRATCH {
             let _ = std::fs::remove_file(self.scratch(key, name));
         }
-        // A checkpoint's partial file, left by a solver killed while writing it.
-        let _ = std::fs::remove_file(work.join(format!(".{key}.{CHECKPOINT}.partial")));
+        // A checkpoint's partial file, left by a solver killed while writing it
+        // (`schema::atomic::partial_path`: `.<name>.<pid>.partial`).
+        let partial = format!(".{key}.{CHECKPOINT}.");
+        remove_where(&work, |name| {
+            name.starts_with(&partial) && name.ends_with(".partial")
+        });
         Ok(Some(file))
     }
 
@@ -839,18 +843,34 @@ pub fn progress_of(path: &Path) -> Option<Progress> {
     })
 }
 
-/// The step a checkpoint (`<key>.checkpoint`) was taken at and the run's steps in all, from its
-/// header: the line after the file's first (nlsolve's `integrate::checkpoint` writes it).
-pub fn checkpoint_steps(path: &Path) -> Option<(u64, Option<u64>)> {
-    use std::io::BufRead;
-    let (file, _) = fs::open_regular(path).ok()?;
-    let mut lines = std::io::BufReader::new(file).split(b'\n');
-    let magic = lines.next()?.ok()?;
-    if !magic.starts_with(b"nlsolve checkpoint") {
-        return None;
+/// How far the stopped run of `case` got, as its checkpoint at `path` says, read as the solver
+/// `fingerprint` reads it (`schema::checkpoint`: a regular file within the case's cap, whole
+/// under its checksum, of this build and case): `Ok` with the step it was taken at and the
+/// run's steps in all, when the next run resumes from it; `Err` with why the next run starts
+/// afresh instead; `None` when there is none.
+pub fn checkpoint_of(
+    path: &Path,
+    case: &crate::run::nlsolve::Checked,
+    fingerprint: Option<&str>,
+) -> Option<Result<(u64, Option<u64>), String>> {
+    use schema::checkpoint::{most_bytes, read, Identity};
+    let canonical = case.canonical();
+    let cap = schema::case::Case::parse(canonical.clone()).map_or(u64::MAX, |c| most_bytes(&c));
+    let checkpoint = match read(path, cap) {
+        Ok(checkpoint) => checkpoint?,
+        Err(why) => return Some(Err(why)),
+    };
+    let header = checkpoint.header;
+    let ours = Identity {
+        fingerprint: fingerprint.unwrap_or_default().to_string(),
+        case: Identity::case_text(&canonical),
+        ranks: case.resolved_count("ranks").unwrap_or(1) as usize,
+        rank: 0,
+    };
+    if let Some(why) = ours.refuses(&header.identity) {
+        return Some(Err(why));
     }
-    let header: Value = serde_json::from_slice(&lines.next()?.ok()?).ok()?;
-    Some((header["step"].as_u64()?, header["steps"].as_u64()))
+    Some(Ok((header.step as u64, header.steps.map(|s| s as u64))))
 }
 
 /// The scratch files of a point run as a process (in the work directory, `<key>.<name>`): its

@@ -24,14 +24,10 @@
 use crate::output::record::Traffic;
 use crate::parallel::exchange::Exchange;
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-
-/// The first line of every checkpoint file.
-const MAGIC: &[u8] = b"nlsolve checkpoint 1\n";
 
 /// What a run carries from step to step, by name: values saved bit for bit.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -104,18 +100,8 @@ impl Carried {
     }
 }
 
-/// Whose run a checkpoint is: a checkpoint of another build, case, rank count or rank is
-/// refused.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Identity {
-    pub fingerprint: String,
-    /// The canonical case, as compact JSON.
-    pub case: String,
-    pub ranks: usize,
-    /// The rank whose share of the run it holds (0 for a run of one process).
-    #[serde(default)]
-    pub rank: usize,
-}
+use schema::checkpoint::Header;
+pub use schema::checkpoint::Identity;
 
 /// The checkpoint file of `rank`: `path` itself for rank 0 (so a run of one process and the
 /// first rank of many read the same name), `<path>.rank<r>` for the others.
@@ -158,13 +144,16 @@ static CONFIGURED: Mutex<Option<Checkpointer>> = Mutex::new(None);
 static STOP: AtomicI32 = AtomicI32::new(0);
 
 /// Sets up this process's run to checkpoint by `policy`, resuming from the file there when it
-/// holds a whole checkpoint of the same `identity`. Returns why a file that is there was
-/// refused (the run then starts at step 0).
-pub fn configure(policy: Policy, identity: Identity) -> Option<String> {
-    let (resume, refused) = match read(&policy.path, &identity) {
+/// holds a whole checkpoint of the same `identity` no larger than `cap` bytes
+/// (`schema::checkpoint::most_bytes` of the case). Returns why a file that is there was
+/// refused (the run then starts at step 0). A process that runs case after case (`serve`)
+/// configures each.
+pub fn configure(policy: Policy, identity: Identity, cap: u64) -> Option<String> {
+    let (resume, refused) = match read(&policy.path, &identity, cap) {
         Ok(resume) => (resume, None),
         Err(why) => (None, Some(why)),
     };
+    OVER.store(false, Ordering::SeqCst);
     *CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()) = Some(Checkpointer {
         policy,
         identity,
@@ -175,10 +164,37 @@ pub fn configure(policy: Policy, identity: Identity) -> Option<String> {
     refused
 }
 
-/// The checkpointer `configure` set, for the run's timed loop (once: the untimed runs after it,
-/// such as the amplification's, find none).
-pub fn take() -> Option<Checkpointer> {
-    let taken = CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()).take();
+/// `configure` for the run of `case` on `rank`: its identity (this build, the case without its
+/// thread count, which changes no bit of a run, so a run may resume on another) and the most a
+/// checkpoint of it can hold.
+pub fn configure_for(case: &crate::ValidCase, policy: Policy, rank: usize) -> Option<String> {
+    let canonical = serde_json::to_value(&**case).expect("a case serializes");
+    let identity = Identity {
+        fingerprint: crate::output::record::FINGERPRINT.to_string(),
+        case: Identity::case_text(&canonical),
+        ranks: case.ranks,
+        rank,
+    };
+    configure(policy, identity, schema::checkpoint::most_bytes(case))
+}
+
+/// The checkpointer `configure` set, for the run's timed loop of `steps` steps (or a steady
+/// solve of at most `steps` iterations; once: the untimed runs after it, such as the
+/// amplification's, find none), its field `field_len` values long where the loop carries one.
+/// A checkpoint that does not fit that loop (another step count, a step past it, a field
+/// of another length: a file that is whole and of this case, but of a writer at fault) is
+/// refused on stderr and the run starts at step 0.
+pub fn take(steps: usize, field_len: Option<usize>) -> Option<Checkpointer> {
+    let mut taken = CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()).take();
+    if let Some(checkpointer) = taken.as_mut() {
+        if let Err(why) = checkpointer.fits(steps, field_len) {
+            eprintln!(
+                "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
+                checkpointer.policy.path.display()
+            );
+            checkpointer.resume = None;
+        }
+    }
     IN_LOOP.store(taken.is_some(), Ordering::SeqCst);
     taken
 }
@@ -228,6 +244,18 @@ impl Drop for Checkpointer {
     }
 }
 
+/// Between the cases of a process that runs many (`serve`), once the last one's answer is out:
+/// a stop asked during it ends the process now (with 128 + the signal's number), and until the
+/// next case's loop takes its checkpointer a stopping signal ends the process at once.
+pub fn between_cases() {
+    CONFIGURED.lock().unwrap_or_else(|e| e.into_inner()).take();
+    IN_LOOP.store(false, Ordering::SeqCst);
+    OVER.store(false, Ordering::SeqCst);
+    if stop_requested() {
+        std::process::exit(stopped_status());
+    }
+}
+
 pub fn stop_requested() -> bool {
     STOP.load(Ordering::SeqCst) != 0
 }
@@ -242,6 +270,32 @@ impl Checkpointer {
                 .policy
                 .every
                 .is_some_and(|every| self.last.elapsed() >= every)
+    }
+
+    /// Whether what it resumes from fits a loop of `steps` steps over a field of `field_len`.
+    fn fits(&self, steps: usize, field_len: Option<usize>) -> Result<(), String> {
+        let Some(resume) = &self.resume else {
+            return Ok(());
+        };
+        if resume.step > steps {
+            return Err(format!("it is at step {} of a run of {steps}", resume.step));
+        }
+        if resume.count("steps").is_some_and(|theirs| theirs != steps) {
+            return Err(format!(
+                "it is of a run of {} steps, this one has {steps}",
+                resume.count("steps").unwrap_or(0)
+            ));
+        }
+        let Some(field_len) = field_len else {
+            return Ok(());
+        };
+        match resume.values("field").map(<[f64]>::len) {
+            Some(len) if len == field_len => Ok(()),
+            Some(len) => Err(format!(
+                "its field has {len} values, this run's {field_len}"
+            )),
+            None => Err("it holds no field".into()),
+        }
     }
 
     /// Over ranks, a run resumes only if every rank resumes from the same step: otherwise
@@ -296,30 +350,9 @@ impl Checkpointer {
     }
 }
 
-/// The header of a checkpoint file: its identity, step, and the parts' names and lengths in
-/// the order their values follow.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Header {
-    identity: Identity,
-    step: usize,
-    /// The run's steps in all, when the loop said (`nlstudy status` shows step of steps).
-    #[serde(default)]
-    steps: Option<usize>,
-    parts: Vec<(String, usize)>,
-    /// FNV-1a of the values' bits (`checksum`), in hex.
-    checksum: String,
-}
-
-/// FNV-1a over the values' bits in the order they lie in the file, a 64-bit word at a time
-/// (eight times the speed of a byte at a time: 16 ms for a field of 4096² values).
-fn checksum(values: impl IntoIterator<Item = f64>) -> u64 {
-    values.into_iter().fold(0xcbf2_9ce4_8422_2325, |hash, v| {
-        (hash ^ v.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
 /// Writes `carried` and the parts `borrowed` (large vectors of the run's own, not copied) as one
-/// checkpoint.
+/// checkpoint (`schema::checkpoint`: the header and the values under one checksum), beside its
+/// place, synced, then renamed over it.
 fn write(
     path: &Path,
     identity: &Identity,
@@ -338,20 +371,13 @@ fn write(
         step: carried.step,
         steps: carried.count("steps"),
         parts: parts().map(|(n, v)| (n.to_string(), v.len())).collect(),
-        checksum: format!("{:016x}", checksum(parts().flat_map(|(_, v)| v).copied())),
     };
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let partial = path.with_file_name(format!(".{name}.partial"));
+    let partial = schema::atomic::partial_path(path);
     let written = (|| {
         // The values go out as they are, in large writes: no copy of the field is made.
         let mut out =
             std::io::BufWriter::with_capacity(1 << 20, schema::atomic::create_fresh(&partial)?);
-        out.write_all(MAGIC)?;
-        serde_json::to_writer(&mut out, &header).map_err(std::io::Error::other)?;
-        out.write_all(b"\n")?;
-        for v in parts().flat_map(|(_, v)| v) {
-            out.write_all(&v.to_le_bytes())?;
-        }
+        schema::checkpoint::write(&mut out, &header, parts().flat_map(|(_, v)| v).copied())?;
         let file = out.into_inner().map_err(|e| e.into_error())?;
         // Whole on disk before it replaces the previous one (a node may fail, not only a process).
         file.sync_data()?;
@@ -363,70 +389,25 @@ fn write(
     written
 }
 
-/// The checkpoint at `path` of the run `identity`: `None` when there is none, an error saying
-/// why when the file is not a whole checkpoint of that run.
-fn read(path: &Path, identity: &Identity) -> Result<Option<Carried>, String> {
-    let mut bytes = Vec::new();
-    match std::fs::File::open(path) {
-        Ok(mut file) => file
-            .read_to_end(&mut bytes)
-            .map_err(|e| format!("it cannot be read ({e})"))?,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(format!("it cannot be read ({e})")),
+/// The checkpoint at `path` of the run `identity`, read no further than `cap` bytes: `None`
+/// when there is none, an error saying why when the file is not a whole checkpoint of that run.
+fn read(path: &Path, identity: &Identity, cap: u64) -> Result<Option<Carried>, String> {
+    let Some(checkpoint) = schema::checkpoint::read(path, cap)? else {
+        return Ok(None);
     };
-    let rest = bytes
-        .strip_prefix(MAGIC)
-        .ok_or("it is not a checkpoint of nlsolve")?;
-    let end = rest
-        .iter()
-        .position(|&b| b == b'\n')
-        .ok_or("its header is cut short")?;
-    let header: Header = serde_json::from_slice(&rest[..end])
-        .map_err(|e| format!("its header is not whole ({e})"))?;
-    let body = &rest[end + 1..];
-    let expected: usize = header.parts.iter().map(|(_, len)| 8 * len).sum();
-    if body.len() != expected {
+    if let Some(why) = identity.refuses(&checkpoint.header.identity) {
+        return Err(why);
+    }
+    let mut carried = Carried::at(checkpoint.header.step);
+    for (name, values) in checkpoint.parts() {
+        carried.put(name, values);
+    }
+    // What others read of it (`nlstudy status`) is what the run resumes from.
+    if checkpoint.header.steps != carried.count("steps") {
         return Err(format!(
-            "it is cut short or padded ({} bytes of values, its header says {expected})",
-            body.len()
-        ));
-    }
-    let value = |bytes: &[u8]| f64::from_le_bytes(bytes.try_into().expect("8 bytes"));
-    if format!("{:016x}", checksum(body.chunks_exact(8).map(value))) != header.checksum {
-        return Err("its values do not match their checksum (the file is damaged)".into());
-    }
-    // Each part straight from the file's bytes (no copy of the whole body besides).
-    let mut carried = Carried::at(header.step);
-    let mut rest = body;
-    for (name, len) in &header.parts {
-        let (part, after) = rest.split_at(8 * len);
-        carried.put(name, part.chunks_exact(8).map(value).collect());
-        rest = after;
-    }
-    let theirs = &header.identity;
-    if theirs.fingerprint != identity.fingerprint {
-        return Err(format!(
-            "another solver build wrote it (fingerprint {} here {})",
-            &theirs.fingerprint[..theirs.fingerprint.len().min(8)],
-            &identity.fingerprint[..identity.fingerprint.len().min(8)]
-        ));
-    }
-    if theirs.case != identity.case {
-        return Err(format!(
-            "it is the checkpoint of another case ({})",
-            theirs.case
-        ));
-    }
-    if theirs.ranks != identity.ranks {
-        return Err(format!(
-            "it was written on {} ranks, this run has {}",
-            theirs.ranks, identity.ranks
-        ));
-    }
-    if theirs.rank != identity.rank {
-        return Err(format!(
-            "it holds rank {}'s share, not rank {}'s",
-            theirs.rank, identity.rank
+            "its header says {:?} steps, its values {:?}",
+            checkpoint.header.steps,
+            carried.count("steps")
         ));
     }
     Ok(Some(carried))
@@ -450,7 +431,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("nlsolve-checkpoint-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("run.checkpoint");
-        assert_eq!(read(&path, &identity()), Ok(None), "none yet");
+        assert_eq!(read(&path, &identity(), 1 << 20), Ok(None), "none yet");
         let mut carried = Carried::at(17);
         carried.put(
             "field",
@@ -459,13 +440,13 @@ mod tests {
         carried.put_count("solves", 12);
         carried.put("empty", Vec::new());
         write(&path, &identity(), &carried, &[]).unwrap();
-        assert_eq!(read(&path, &identity()), Ok(Some(carried.clone())));
+        assert_eq!(read(&path, &identity(), 1 << 20), Ok(Some(carried.clone())));
         // Parts lent by the run read back as parts of their own.
         let lent = [2.5, -1e-300, f64::MAX];
         write(&path, &identity(), &carried, &[("lent", &lent)]).unwrap();
         let mut with_lent = carried.clone();
         with_lent.put("lent", lent.to_vec());
-        assert_eq!(read(&path, &identity()), Ok(Some(with_lent)));
+        assert_eq!(read(&path, &identity(), 1 << 20), Ok(Some(with_lent)));
         write(&path, &identity(), &carried, &[]).unwrap();
         let bits = |c: &Carried| -> Vec<u64> {
             c.values("field")
@@ -475,11 +456,11 @@ mod tests {
                 .collect()
         };
         assert_eq!(
-            bits(&read(&path, &identity()).unwrap().unwrap()),
+            bits(&read(&path, &identity(), 1 << 20).unwrap().unwrap()),
             bits(&carried)
         );
 
-        let refused = |identity: Identity| read(&path, &identity).unwrap_err();
+        let refused = |identity: Identity| read(&path, &identity, 1 << 20).unwrap_err();
         let other_build = Identity {
             fingerprint: "cd".repeat(32),
             ..identity()

@@ -105,17 +105,16 @@ pub fn integrate(
     let error_total = Cell::new(squared_error(&u, 0.0));
     let comm_seconds = RefCell::new(Vec::with_capacity(stepping.steps.min(MAX_TIMED_STEPS)));
     let stepper = RefCell::new(stepper);
-    let mut checkpointer = checkpoint::take();
+    let mut checkpointer = checkpoint::take(stepping.steps, Some(u.len()));
     if let Some(checkpointer) = checkpointer.as_mut() {
         checkpointer.agree_over_ranks(ranks.exchange);
     }
     let exchange = ranks.exchange;
     if let Some(resume) = checkpointer.as_ref().and_then(|c| c.resume.as_ref()) {
-        u.copy_from_slice(
-            resume
-                .values("field")
-                .expect("a checkpoint holds its field"),
-        );
+        // `take` checked that it holds a field of this length.
+        if let Some(field) = resume.values("field") {
+            u.copy_from_slice(field);
+        }
         error_total.set(resume.number("error_total").unwrap_or(0.0));
         *comm_seconds.borrow_mut() = resume.values("comm_seconds").unwrap_or(&[]).to_vec();
         stepper.borrow_mut().take_back(resume);

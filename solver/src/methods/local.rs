@@ -212,7 +212,7 @@ impl ExplicitFd {
 
     fn integrate(&self, u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         let mut state = (u, vec![0.0; self.grid.nodes()]);
-        let checkpointer = resumed(&mut state.0);
+        let checkpointer = resumed(&mut state.0, stepping.steps);
         let mut carry =
             |(u, _): &(Vec<f64>, Vec<f64>), carried: &mut Carried| carried.put("field", u.clone());
         let (timing, observed) = timed_steps_observed(
@@ -235,10 +235,11 @@ impl ExplicitFd {
     }
 }
 
-/// The process's checkpointer, if any (`checkpoint::take`), with the field `u` of the run it
-/// resumes from put in place: the grid methods carry nothing else from step to step.
-fn resumed(u: &mut [f64]) -> Option<Checkpointer> {
-    let checkpointer = checkpoint::take()?;
+/// The process's checkpointer for a loop of `steps` steps, if any (`checkpoint::take`), with
+/// the field `u` of the run it resumes from put in place: the grid methods carry nothing else
+/// from step to step.
+fn resumed(u: &mut [f64], steps: usize) -> Option<Checkpointer> {
+    let checkpointer = checkpoint::take(steps, Some(u.len()))?;
     if let Some(field) = checkpointer.resume.as_ref().and_then(|c| c.values("field")) {
         u.copy_from_slice(field);
     }
@@ -487,7 +488,7 @@ impl Adi {
     /// Steps forward from u, in the shared timed loop.
     fn integrate(&self, mut u: Vec<f64>, stepping: &Stepping) -> Trajectory {
         let mut workspace = self.workspace();
-        let checkpointer = resumed(&mut u);
+        let checkpointer = resumed(&mut u, stepping.steps);
         let mut carry = |u: &Vec<f64>, carried: &mut Carried| carried.put("field", u.clone());
         let (timing, observed) = timed_steps_observed(
             &mut u,

@@ -13,7 +13,7 @@
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
-use crate::store::{checkpoint_steps, Index, Store, CHECKPOINT};
+use crate::store::{checkpoint_of, Index, Store, CHECKPOINT};
 use schema::record::Status;
 use std::collections::HashMap;
 
@@ -68,17 +68,24 @@ impl History {
         }
     }
 
-    /// Counts the checkpoints in `store` of the points to run: each resumes where it stopped.
-    /// The work directory is listed once (a submit of 10⁵ points opens no file per point).
-    pub fn resuming(mut self, store: &Store, planned: &[Planned]) -> History {
+    /// Counts the checkpoints in `store` of the points to run that the solver of `fingerprint`
+    /// resumes: each resumes where it stopped. The work directory is listed once (a submit of
+    /// 10⁵ points opens no file per point).
+    pub fn resuming(
+        mut self,
+        store: &Store,
+        planned: &[Planned],
+        fingerprint: Option<&str>,
+    ) -> History {
         let stopped = store.scratch_keys(CHECKPOINT);
         for p in planned
             .iter()
             .filter(|p| p.runs() && stopped.contains(p.key.as_str()))
         {
             let path = store.scratch(&p.key, CHECKPOINT);
-            if let Some((step, Some(steps))) = checkpoint_steps(&path).filter(|(_, n)| *n > Some(0))
-            {
+            let Ok(case) = &p.case else { continue };
+            let resumed = checkpoint_of(&path, case, fingerprint).and_then(Result::ok);
+            if let Some((step, Some(steps))) = resumed.filter(|(_, n)| *n > Some(0)) {
                 let left = 1.0 - step.min(steps) as f64 / steps as f64;
                 self.left.insert(p.key.to_string(), left);
             }
@@ -189,6 +196,7 @@ fn grid(point: &Planned) -> Option<u64> {
 mod tests {
     use super::*;
     use crate::model::study::Study;
+    use crate::run::nlsolve::Checked;
     use crate::run::plan::{Decision, Reason};
     use serde_json::json;
 
@@ -275,20 +283,36 @@ mod tests {
         );
     }
 
-    /// `resuming` reads the step of steps from the checkpoint's header.
+    /// `resuming` reads the step of steps from the checkpoint's header, of a checkpoint the
+    /// solver would resume from only.
     #[test]
     fn the_share_left_comes_from_the_checkpoints_header() {
-        let dir = std::env::temp_dir().join(format!("limits-resuming-{}", std::process::id()));
-        let store = Store::open(&dir, "limits");
+        use schema::checkpoint::{write, Header, Identity};
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(dir.path(), "limits");
         std::fs::create_dir_all(store.work_dir()).unwrap();
-        let p = point("a", 1, 64);
-        std::fs::write(
-            store.scratch(&p.key, CHECKPOINT),
-            b"nlsolve checkpoint 1\n{\"step\": 300, \"steps\": 400, \"parts\": []}\n",
-        )
-        .unwrap();
-        let h = history("a", &[]).resuming(&store, std::slice::from_ref(&p));
-        assert_eq!(h.left.get(p.key.as_str()), Some(&0.25));
-        std::fs::remove_dir_all(&dir).unwrap();
+        let canonical = json!({"dim": 1, "n": 64, "m": 2, "t_end": 0.1, "cfl": 0.5, "threads": 2});
+        let mut p = point("a", 1, 64);
+        p.case = Ok(Checked::unresolved(&canonical));
+        let checkpoint = |fingerprint: &str| {
+            let header = Header {
+                identity: Identity {
+                    fingerprint: fingerprint.into(),
+                    case: Identity::case_text(&canonical),
+                    ranks: 1,
+                    rank: 0,
+                },
+                step: 300,
+                steps: Some(400),
+                parts: vec![("field".into(), 2)],
+            };
+            let mut bytes = Vec::new();
+            write(&mut bytes, &header, [1.0, 2.0]).unwrap();
+            std::fs::write(store.scratch(&p.key, CHECKPOINT), bytes).unwrap();
+            history("a", &[]).resuming(&store, std::slice::from_ref(&p), Some("f1"))
+        };
+        assert_eq!(checkpoint("f1").left.get(p.key.as_str()), Some(&0.25));
+        // Another build's checkpoint is not resumed: the point counts whole.
+        assert_eq!(checkpoint("f2").left.get(p.key.as_str()), None);
     }
 }

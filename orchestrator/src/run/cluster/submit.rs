@@ -113,7 +113,8 @@ pub fn submit_study(
         target.site.cores_per_node,
         target.array,
     );
-    let history = History::from_index(planned, index).resuming(store, planned);
+    let history =
+        History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {

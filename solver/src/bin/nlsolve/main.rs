@@ -326,7 +326,7 @@ fn start_checkpoints(
     case: &ValidCase,
     rank: usize,
 ) -> Result<(), ErrorExit> {
-    use solver::integrate::checkpoint::{self, Identity, Policy};
+    use solver::integrate::checkpoint::{self, Policy};
     let path = &checkpoint::rank_path(path, rank);
     let every = match args.checkpoint_every_seconds {
         Some(s) if !(s.is_finite() && s > 0.0) => {
@@ -341,18 +341,7 @@ fn start_checkpoints(
         every_steps: args.checkpoint_every_steps.filter(|&n| n > 0),
         every,
     };
-    // The thread count changes no bit of a run: a run may resume on another.
-    let mut keyed = serde_json::to_value(&**case).expect("a case serializes");
-    if let Some(fields) = keyed.as_object_mut() {
-        fields.remove("threads");
-    }
-    let identity = Identity {
-        fingerprint: solver::output::record::FINGERPRINT.to_string(),
-        case: keyed.to_string(),
-        ranks: case.ranks,
-        rank,
-    };
-    if let Some(why) = checkpoint::configure(policy, identity) {
+    if let Some(why) = checkpoint::configure_for(case, policy, rank) {
         note(&format!(
             "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
             path.display()
@@ -417,27 +406,34 @@ fn print_machine() -> Result<(), ErrorExit> {
 fn check_cases() -> Result<(), ErrorExit> {
     let mut memo = std::collections::HashMap::new();
     let machine = solver::methods::resources::Machine::now();
-    answer_each_line("the verdicts", false, |line| {
-        let verdict = match schema::json::parse(line) {
-            Ok(fields) => match ValidCase::from_json(fields) {
-                Ok(case) => verdict(&case, &mut memo, machine),
-                Err(e) => serde_json::json!({ "error": e.to_string() }),
-            },
-            Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
-        };
-        verdict.to_string()
-    })
+    answer_each_line(
+        "the verdicts",
+        false,
+        |line| {
+            let verdict = match schema::json::parse(line) {
+                Ok(fields) => match ValidCase::from_json(fields) {
+                    Ok(case) => verdict(&case, &mut memo, machine),
+                    Err(e) => serde_json::json!({ "error": e.to_string() }),
+                },
+                Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+            };
+            verdict.to_string()
+        },
+        || {},
+    )
 }
 
 /// Answers each line of standard input that is not blank with one line on standard output
 /// (`what` names them in an error): `check`'s verdicts and `serve`'s records. Flushed after
-/// each answer with `flush_each`, else whenever no more input is waiting, so that a reader
-/// sending one case at a time sees each answer as its case is read and many cases go out in
-/// large writes; on `standard_output()`, so that a closed descriptor is an error too.
+/// each answer with `flush_each` (then `answered` runs), else whenever no more input is
+/// waiting, so that a reader sending one case at a time sees each answer as its case is read
+/// and many cases go out in large writes; on `standard_output()`, so that a closed descriptor
+/// is an error too.
 fn answer_each_line(
     what: &str,
     flush_each: bool,
     mut answer: impl FnMut(&str) -> String,
+    mut answered: impl FnMut(),
 ) -> Result<(), ErrorExit> {
     let failed = |e: std::io::Error| {
         ErrorExit::Output(format!("cannot write {what} to standard output: {e}"))
@@ -461,36 +457,48 @@ fn answer_each_line(
         if flush_each || input.buffer().is_empty() {
             out.flush().map_err(failed)?;
         }
+        if flush_each {
+            answered();
+        }
     }
     out.flush().map_err(failed)
 }
 
 /// `nlsolve serve`'s answer to one line of input: the record's JSON, or `{"error": …}`. A line
-/// is a case, or `{"case": CASE, "progress": FILE}` to keep FILE up to date with how far the
-/// case's time loop is (as `run --progress`).
-fn served(line: &str) -> String {
-    let error = |message: String| serde_json::json!({ "error": message }).to_string();
-    let mut fields = match schema::json::parse(line) {
+/// is a case, or a `schema::protocol::ServeLine`: the case with the file its time loop keeps
+/// up to date with how far it is (as `run --progress`) and the checkpoint it writes on a
+/// stopping signal and resumes from (as `run --checkpoint`).
+/// Returns the answer and the checkpoint to remove once it is out.
+fn served(line: &str) -> (String, Option<PathBuf>) {
+    let refusal = |message: String| {
+        serde_json::to_string(&schema::protocol::Refusal { error: message })
+            .expect("a refusal serializes")
+    };
+    let error = |message: String| (refusal(message), None);
+    let fields = match schema::json::parse(line) {
         Ok(fields @ Value::Object(_)) => fields,
         Ok(_) => return error("a case is one JSON object of case fields".into()),
         Err(e) => return error(format!("not valid JSON: {e}")),
     };
-    let mut progress = None;
-    if let Some(envelope) = fields.as_object_mut().filter(|f| f.contains_key("case")) {
-        progress = match envelope.remove("progress") {
-            None => None,
-            Some(Value::String(path)) => Some(PathBuf::from(path)),
-            Some(_) => return error("`progress`: a file's path, as a string".into()),
-        };
-        if let Some(unknown) = envelope.keys().find(|k| *k != "case") {
-            return error(format!(
-                "`{unknown}`: a line is a case, or {{\"case\": …, \"progress\": FILE}}"
-            ));
-        }
-        fields = envelope.remove("case").expect("it is there");
-    }
-    solver::integrate::progress::configure(progress);
-    let case = match ValidCase::from_json(fields) {
+    let line = match fields.get("case") {
+        Some(_) => match serde_json::from_value::<schema::protocol::ServeLine>(fields) {
+            Ok(line) => line,
+            Err(e) => {
+                return error(format!(
+                    "{e}; a line is a case, or {{\"case\": …, \"progress\": FILE, \"checkpoint\": FILE}}"
+                ))
+            }
+        },
+        None => schema::protocol::ServeLine {
+            case: fields,
+            progress: None,
+            checkpoint: None,
+            checkpoint_every_s: None,
+            keep_checkpoint: false,
+        },
+    };
+    solver::integrate::progress::configure(line.progress.as_ref().map(PathBuf::from));
+    let case = match ValidCase::from_json(line.case) {
         Ok(case) if case.ranks > 1 => {
             return error(format!(
                 "case field `ranks`: {} ranks need a launcher; run the case as `mpirun -n {0} nlsolve run`",
@@ -500,17 +508,60 @@ fn served(line: &str) -> String {
         Ok(case) => case,
         Err(e) => return error(e.to_string()),
     };
+    let checkpoint = line.checkpoint.as_ref().map(PathBuf::from);
+    if let Some(path) = &checkpoint {
+        let every = match line.checkpoint_every_s {
+            Some(s) if !(s.is_finite() && s > 0.0) => {
+                return error(format!(
+                    "`checkpoint_every_s`: must be a positive number of seconds (got {s})"
+                ))
+            }
+            seconds => seconds.map(std::time::Duration::from_secs_f64),
+        };
+        let policy = solver::integrate::checkpoint::Policy {
+            path: path.clone(),
+            every_steps: None,
+            every,
+        };
+        if let Some(why) = solver::integrate::checkpoint::configure_for(&case, policy, 0) {
+            note(&format!(
+                "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
+                path.display()
+            ));
+        }
+    }
     // Each case's provenance and peak memory are its own, as if it ran in a process of its own.
     solver::output::record::note_start();
     solver::output::record::reset_peak_memory();
-    match solver::run(&case) {
+    let answer = match solver::run(&case) {
         Ok(outcome) => serde_json::to_string(&outcome.record)
-            .unwrap_or_else(|e| error(format!("cannot write the record: {e}"))),
-        Err(e) => error(e.to_string()),
-    }
+            .unwrap_or_else(|e| refusal(format!("cannot write the record: {e}"))),
+        Err(e) => refusal(e.to_string()),
+    };
+    (answer, checkpoint.filter(|_| !line.keep_checkpoint))
 }
 
 /// `nlsolve serve`: runs each case of standard input and prints its answer line at once.
+/// A stopping signal (SIGTERM, SIGINT, SIGHUP) ends it: at once between cases and in a case's
+/// set-up, with a checkpoint from a case's time loop when the case has one, and after its answer
+/// when it came once the loop was over.
 fn serve_cases() -> Result<(), ErrorExit> {
-    answer_each_line("the records", true, served)
+    solver::integrate::checkpoint::stop_on_signals();
+    // The checkpoint of the case answered last, removed once its answer is out.
+    let written = std::cell::Cell::new(None);
+    answer_each_line(
+        "the records",
+        true,
+        |line| {
+            let (answer, checkpoint) = served(line);
+            written.set(checkpoint);
+            answer
+        },
+        || {
+            if let Some(path) = written.take() {
+                let _ = std::fs::remove_file(path);
+            }
+            solver::integrate::checkpoint::between_cases();
+        },
+    )
 }

@@ -52,7 +52,7 @@ impl<'a> SolveCheckpoints<'a> {
     /// ranks of `exchange`, to `rtol` within `max_iterations`.
     pub fn take(exchange: &'a dyn Exchange, rtol: f64, max_iterations: usize) -> Self {
         SolveCheckpoints {
-            checkpointer: checkpoint::take(),
+            checkpointer: checkpoint::take(max_iterations, None),
             progress: progress::take().map(|r| r.counting("iteration")),
             rtol,
             max_iterations,

@@ -1,0 +1,59 @@
+//! The messages between the binaries besides the case and the record: typed once here, written
+//! by one side and read by the other, so that a renamed field fails to compile instead of
+//! breaking at run time.
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+/// A line `nlsolve serve` reads: a case, or a case with what the worker does beside it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServeLine {
+    /// The case's fields.
+    pub case: Value,
+    /// Where its time loop says how far it is (as `nlsolve run --progress`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub progress: Option<String>,
+    /// Where it checkpoints its time loop, on a stopping signal and at `checkpoint_every_s`, and
+    /// resumes from (as `nlsolve run --checkpoint`); removed once the record is written.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint_every_s: Option<f64>,
+    /// Keep the checkpoint after the record is written.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub keep_checkpoint: bool,
+}
+
+/// What a worker or `nlsolve check` answers to a line it cannot take: one sentence naming the
+/// field at fault.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Refusal {
+    pub error: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_serve_line_reads_back_as_written() {
+        let line = ServeLine {
+            case: serde_json::json!({"dim": 1, "n": 16}),
+            progress: Some("/w/k.progress".into()),
+            checkpoint: Some("/w/k.checkpoint".into()),
+            checkpoint_every_s: Some(0.5),
+            keep_checkpoint: true,
+        };
+        let text = serde_json::to_string(&line).unwrap();
+        assert_eq!(serde_json::from_str::<ServeLine>(&text).unwrap(), line);
+        let bare: ServeLine = serde_json::from_str(r#"{"case": {"n": 8}}"#).unwrap();
+        assert_eq!(
+            (bare.progress, bare.checkpoint, bare.keep_checkpoint),
+            (None, None, false)
+        );
+        let unknown = serde_json::from_str::<ServeLine>(r#"{"case": {}, "progres": "x"}"#);
+        assert!(unknown.unwrap_err().to_string().contains("progres"));
+    }
+}
