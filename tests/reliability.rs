@@ -1238,3 +1238,122 @@ fn hostile_input_is_refused_naming_the_field() {
     }
     assert!(!Path::new("/tmp/pwned").exists());
 }
+
+/// A busy process at the machine's normal priority, ended when dropped: the background load
+/// under which stops land at other moments than on a quiet machine.
+struct Busy(Child);
+
+impl Busy {
+    fn start() -> Busy {
+        Busy(
+            Command::new("sh")
+                .args(["-c", "while :; do :; done"])
+                .spawn()
+                .unwrap(),
+        )
+    }
+}
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Points stopped through `nlstudy run` at 200 random moments and more, under a background load:
+/// SIGTERM, SIGINT or SIGHUP, to `nlstudy` alone or to its process group (as Ctrl-C and
+/// `scancel` reach it), in its set-up, its pool or a solver's time loop, with and without a
+/// checkpoint period. Each time-dependent point stopped in its loop writes a checkpoint, and
+/// every point's stored record, however many times it was stopped and resumed, is the record of
+/// a run never stopped, bit for bit (errors, max |u|, mass, every number but the timings).
+#[test]
+fn points_stopped_at_random_moments_resume_with_the_bits_of_a_run_never_stopped() {
+    use std::os::unix::process::CommandExt;
+    let study = |period: bool| {
+        let mut study = json!({
+            "name": "stops",
+            "base": {"dim": 2, "n": 80, "m": 3, "source": "discrete", "t_end": 0.3, "cfl": 0.5,
+                     "diagnostics_every": 0.05, "error_total": true},
+            "sweep": [{"branches": {
+                "explicit": [{"product": {"integrator": ["forward_euler", "heun", "rk4"]}}],
+                "implicit": [{"zip": {"integrator": ["crank_nicolson"], "cfl": [4.0]}}]
+            }}]
+        });
+        if period {
+            study["checkpoint_every_s"] = json!(0.02);
+        }
+        study
+    };
+    let scratch = Scratch::new("stops", &study(false));
+    let whole: std::collections::HashMap<String, Value> = run_uninterrupted(&scratch, "stops")
+        .into_iter()
+        .map(|r| (r["key"].as_str().unwrap().to_string(), numbers_of(&r)))
+        .collect();
+    assert_eq!(whole.len(), 4);
+    let mut rng = random();
+    let _load = Busy::start();
+    let (mut stops, mut round) = (0, 0);
+    // Records resumed from a checkpoint, in rounds without a checkpoint period and with one.
+    let mut resumed = [0, 0];
+    while stops < 200 {
+        round += 1;
+        let period = round % 2 == 0;
+        scratch.write_study(&study(period));
+        let results = scratch.dir.join(format!("round{round}"));
+        for attempt in 1.. {
+            assert!(attempt < 200, "round {round} never finished");
+            let mut run = Command::new(nonlocal_study::binary("nlstudy"));
+            run.args(["run", "--no-collect", "--results"])
+                .arg(&results)
+                .arg(scratch.study())
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .process_group(0);
+            let child = run.spawn().unwrap();
+            std::thread::sleep(Duration::from_millis(rng.u64(0..300)));
+            let signal = ["TERM", "INT", "HUP"][rng.usize(0..3)];
+            let whom = match rng.bool() {
+                true => format!("-{}", child.id()),
+                false => child.id().to_string(),
+            };
+            Command::new("kill")
+                .args([format!("-{signal}"), "--".into(), whom])
+                .stderr(std::process::Stdio::null())
+                .status()
+                .unwrap();
+            let out = child.wait_with_output().unwrap();
+            // Ended by the signal itself when it came before nlstudy caught it.
+            use std::os::unix::process::ExitStatusExt;
+            match (out.status.code(), out.status.signal()) {
+                (Some(0), _) => break,
+                (Some(129 | 130 | 143), _) | (_, Some(1 | 2 | 15)) => stops += 1,
+                _ => panic!(
+                    "round {round}: a stopped run ended with {}: {}",
+                    out.status,
+                    text(&out)
+                ),
+            }
+        }
+        let stored = records(&results.join("stops/runs"));
+        assert_eq!(stored.len(), 4, "round {round}");
+        for record in &stored {
+            let key = record["key"].as_str().unwrap();
+            resumed[usize::from(period)] += usize::from(record.get("resumed_from_step").is_some());
+            assert_eq!(
+                numbers_of(record),
+                whole[key],
+                "round {round}: a stopped point came back with other bits: {record}"
+            );
+        }
+        std::fs::remove_dir_all(&results).unwrap();
+    }
+    eprintln!(
+        "{stops} stops over {round} rounds; records resumed from a checkpoint: {} without a period, {} with one",
+        resumed[0], resumed[1]
+    );
+    assert!(
+        resumed.iter().all(|&r| r >= 10),
+        "too few resumed: {resumed:?}"
+    );
+}
