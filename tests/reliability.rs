@@ -1357,3 +1357,75 @@ fn points_stopped_at_random_moments_resume_with_the_bits_of_a_run_never_stopped(
         "too few resumed: {resumed:?}"
     );
 }
+
+/// `nlstudy run` answers SIGTERM within a second in each of its phases: the plan, between an
+/// adaptive study's rounds, the pool (its solvers asked to checkpoint first), the tables, the
+/// figures and the report. A test hook (`NLSTUDY_PAUSE_IN`) holds it in a phase until the
+/// signal comes; in the pool a long point is running.
+#[test]
+fn sigterm_is_answered_within_a_second_in_every_phase_of_a_run() {
+    use std::io::BufRead;
+    let study = json!({
+        "name": "phases",
+        "base": {"dim": 1, "n": 64, "m": 2, "t_end": 1e-6, "allow_unstable": true,
+                 "amplification_steps": 50},
+        "sweep": [{"product": {"integrator": ["forward_euler", "heun"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 1e-2},
+        "figures": [{"name": "limits", "kind": "boundaries", "series": ["integrator"]}]
+    });
+    let long = json!({
+        "name": "long",
+        "base": {"dim": 2, "n": 128, "m": 3, "source": "discrete", "t_end": 2.0, "cfl": 0.5}
+    });
+    for (phase, study) in [
+        ("plan", &study),
+        ("round", &study),
+        ("pool", &long),
+        ("collect", &study),
+        ("figures", &study),
+        ("report", &study),
+    ] {
+        let scratch = Scratch::new("phases", study);
+        let mut run = scratch.command("run", &[]);
+        run.env("NLSTUDY_PAUSE_IN", phase)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped());
+        let mut child = run.spawn().unwrap();
+        let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+        let mut said = String::new();
+        if phase == "pool" {
+            // The point is in its time loop once its progress file is there.
+            let work = scratch.runs("long").join(".work");
+            let running = || {
+                files_under(&work)
+                    .iter()
+                    .any(|f| f.extension().is_some_and(|e| e == "progress"))
+            };
+            assert!(
+                eventually(Duration::from_secs(60), running),
+                "the point never ran"
+            );
+        } else {
+            let paused = format!("nlstudy: paused in {phase}");
+            while !said.contains(&paused) {
+                let mut line = String::new();
+                let read = stderr.read_line(&mut line).unwrap();
+                assert!(read > 0, "{phase}: ended without pausing: {said}");
+                said.push_str(&line);
+            }
+        }
+        let sent = Instant::now();
+        Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        let status = child.wait().unwrap();
+        let took = sent.elapsed();
+        let mut rest = String::new();
+        let _ = std::io::Read::read_to_string(&mut stderr, &mut rest);
+        assert_eq!(status.code(), Some(143), "{phase}: {status}: {said}{rest}");
+        assert!(rest.contains("stopped by SIGTERM"), "{phase}: {rest}");
+        assert!(took < Duration::from_secs(1), "{phase}: {took:?}");
+    }
+}

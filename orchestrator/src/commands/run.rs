@@ -12,11 +12,14 @@ use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
 use crate::run::search::{self, Answered};
+use crate::run::signals;
 use schema::exit;
 use std::process::ExitCode;
 use std::time::Duration;
 
 pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
+    let stop = signals::Stop::on_signals().map_err(Failure::Io)?;
+    signals::phase("plan");
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
     no_refusals(&planned, args.plan.allow_refused)?;
     say_what_does_not_fit(&planned);
@@ -47,7 +50,6 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         keep_checkpoints: args.keep_checkpoints,
     };
     store.clear_abandoned_outputs()?;
-    let stop = crate::run::signals::Stop::on_signals().map_err(Failure::Io)?;
     let mut tally = Tally::default();
     let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
     // Runs the planned points not stored, counting what happened into `tally`.
@@ -55,15 +57,17 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         let (to_run, copies) = counts(planned);
         let stored = planned.len() - to_run - copies;
         let mut progress = Progress::new(Mode::detect(args.quiet), to_run, stored);
-        let ran = crate::run::pool::run(
-            planned,
-            &solver,
-            &store,
-            &options,
-            &mut workers,
-            &stop,
-            &mut progress,
-        );
+        let ran = stop.asking(|| {
+            crate::run::pool::run(
+                planned,
+                &solver,
+                &store,
+                &options,
+                &mut workers,
+                &stop,
+                &mut progress,
+            )
+        });
         progress.close();
         store.persist_catalog();
         let ran = ran.map_err(|e| {
@@ -72,6 +76,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             ))
         })?;
         tally.add(&ran);
+        signals::phase("round");
         Ok(!ran.interrupted)
     };
     // A cluster job runs its share of the round it was given (`--only`); the questions of an
@@ -152,13 +157,16 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         }
     }
     if !args.no_collect {
+        signals::phase("collect");
         let to_collect = crate::analysis::collect::ToCollect::of(&planned);
         let swept = to_collect.swept().to_vec();
         let collected =
             crate::analysis::collect::collect(to_collect, &store, &study, args.allow_mixed);
         let tables = collected.and_then(|collected| match collected {
             Some(collected) => {
+                signals::phase("figures");
                 let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
+                signals::phase("report");
                 let page = crate::output::report::write(&study, &store, &swept)?;
                 if !args.quiet {
                     print_tables_written(&collected);
