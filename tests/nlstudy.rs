@@ -1937,3 +1937,107 @@ fn a_collect_after_some_records_changed_splices_them_in_as_from_scratch() {
     assert!(text(&failed).contains("4 failed"), "{}", text(&failed));
     check(&failed, 4);
 }
+
+/// A study with a record of every kind: a nonlocal run with its c_tot series, histogram,
+/// snapshot and amplification; a point over two ranks (its `hosts` and `cpus`, lists of text); a
+/// diverged run, a refused point (failed), an implicit integrator, the grid and particle
+/// methods, the steady solvers over ranks, a varying horizon's patch test, the coupled problem,
+/// and repeats.
+fn every_kind_of_record() -> Value {
+    json!({"name": "kinds", "base": {"threads": 1}, "sweep": [{"branches": {"nonlocal": [{"product": {"dim": [1], "n": [64], "m": [2], "t_end": [0.01], "cfl": [0.5], "source": ["discrete"], "diagnostics_every": [0.005], "histogram_bins": [4], "field_snapshot": [8], "amplification_steps": [20], "error_total": [true]}}], "ranks": [{"product": {"dim": [2], "n": [32], "m": [2], "t_end": [0.002], "cfl": [0.5], "ranks": [2]}}], "diverged": [{"product": {"dim": [1], "n": [32], "m": [2], "t_end": [0.05], "cfl": [3.0], "allow_unstable": [true]}}], "refused": [{"product": {"dim": [1], "n": [3], "m": [2], "t_end": [0.01], "cfl": [0.5]}}], "implicit": [{"product": {"dim": [2], "n": [32], "m": [2], "t_end": [0.01], "cfl": [2.0], "integrator": ["crank_nicolson"]}}], "local": [{"zip": {"method": ["fd_explicit", "adi", "pse"], "cfl": [0.5, 2.0, 0.4], "m": [null, null, 2]}}, {"product": {"dim": [2], "n": [32], "t_end": [0.01], "problem": ["square"]}}], "steady": [{"product": {"method": ["steady_cg", "feti"], "dim": [2], "n": [32], "m": [2], "ranks": [2], "subdomains": [2]}}], "patch": [{"product": {"method": ["patch_test"], "dim": [1], "kernel": ["linear"], "n": [100], "horizon_profile": [{"kind": "linear", "left": 0.1, "right": 0.05}], "formulation": ["standard"], "patch": ["quadratic"]}}], "coupled": [{"product": {"method": ["coupled_1d"], "dim": [1], "eps": [0.065], "kernel": ["inverse_distance"], "coupling": ["optimization"], "patch": ["quadratic"], "n": [32]}}], "repeated": {"sweep": [{"product": {"dim": [1], "n": [32], "m": [2], "t_end": [0.01], "cfl": [0.5], "integrator": ["rk4"]}}], "repeat": 2}}}]})
+}
+
+/// Every kind of record reads back from the run table: `show --from-table` gives each record
+/// `show` gives from the store, field for field (the case with the solver's defaults filled in).
+/// A results folder copied elsewhere collects again (`.collected.json` names its tables by file
+/// name, so the copy's stand for themselves, not the original's), and one copied without its
+/// runs makes its report from the tables alone.
+#[test]
+fn every_kind_of_record_reads_back_from_the_run_table_and_a_copied_folder_collects() {
+    let scratch = Scratch::new("kinds", &every_kind_of_record());
+    let run = scratch.nlstudy("run", &["--allow-refused"]);
+    assert_eq!(
+        run.status.code(),
+        Some(1),
+        "a refused point fails: {}",
+        text(&run)
+    );
+    let show = |results: &Path, extra: &[&str]| -> Vec<Value> {
+        let out = Command::new(binary("nlstudy"))
+            .arg("show")
+            .arg(scratch.study())
+            .arg("--results")
+            .arg(results)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", text(&out));
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .lines()
+            .map(|line| serde_json::from_str(line).unwrap())
+            .collect()
+    };
+    let results = scratch.dir.join("results");
+    let stored = show(&results, &[]);
+    let tabled = show(&results, &["--from-table"]);
+    assert_eq!(stored.len(), 14);
+    assert_eq!(tabled.len(), stored.len());
+    let statuses: std::collections::BTreeSet<&str> = stored
+        .iter()
+        .map(|r| r["status"].as_str().unwrap())
+        .collect();
+    assert_eq!(statuses, ["diverged", "failed", "ok"].into());
+    let two_hosts = |r: &&Value| r["hosts"].as_array().is_some_and(|h| h.len() == 2);
+    assert!(
+        stored.iter().any(|r| two_hosts(&r)),
+        "no record of two ranks"
+    );
+    for (store, table) in stored.iter().zip(&tabled) {
+        let (mut store, mut table) = (store.clone(), table.clone());
+        let (case, resolved) = (store["case"].take(), table["case"].take());
+        assert_eq!(store, table, "a record read back from the table differs");
+        for (field, value) in case.as_object().unwrap() {
+            assert_eq!(
+                &resolved[field], value,
+                "the table's case differs in `{field}`"
+            );
+        }
+    }
+
+    // The folder copied: its collect reads its own tables, and rebuilds a corrupt one.
+    let copy = scratch.dir.join("copy");
+    let copied = Command::new("cp")
+        .arg("-a")
+        .arg(&results)
+        .arg(&copy)
+        .status()
+        .unwrap();
+    assert!(copied.success());
+    std::fs::write(copy.join("kinds/kinds.parquet"), b"not a table").unwrap();
+    let collect = Command::new(binary("nlstudy"))
+        .arg("collect")
+        .arg(scratch.study())
+        .arg("--results")
+        .arg(&copy)
+        .output()
+        .unwrap();
+    assert!(collect.status.success(), "{}", text(&collect));
+    assert!(!text(&collect).contains("up to date"), "{}", text(&collect));
+    assert_eq!(show(&copy, &["--from-table"]), tabled);
+
+    // Copied without its runs: the report from the tables alone.
+    std::fs::remove_dir_all(copy.join("kinds/runs")).unwrap();
+    let report = Command::new(binary("nlstudy"))
+        .arg("report")
+        .arg(scratch.study())
+        .arg("--results")
+        .arg(&copy)
+        .args(["--solver", "/nonexistent/nlsolve"])
+        .output()
+        .unwrap();
+    assert!(report.status.success(), "{}", text(&report));
+    let page = std::fs::read_to_string(copy.join("kinds/report.html")).unwrap();
+    assert!(page.contains("Built from the run table kinds.parquet alone"));
+    assert!(page.contains("14 stored runs"), "{page}");
+}

@@ -23,7 +23,7 @@ use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 use std::sync::Arc;
 
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
 pub struct Collected {
     pub runs: PathBuf,
     pub summary: PathBuf,
@@ -86,12 +86,18 @@ fn inputs_of(header: &str, identities: &[Identity], seqs: &[u64], records: usize
 /// The most `MADE` may hold: its rows take about 60 bytes a run.
 const MADE_CAP: u64 = 1 << 30;
 
-/// What the last collect said it made, if it said it, and which file said it.
+/// What the last collect said it made, if it said it, and which file said it. The tables it
+/// names are this results folder's own (it names them by file name): a folder copied or moved
+/// elsewhere reads its own tables, never the original's.
 fn made_before(store: &Store) -> Option<(Made, Said)> {
     let path = store.table(MADE);
     let said = said_by(&path)?;
     let text = crate::store::fs::read_regular(&path, MADE_CAP).ok()?;
-    Some((serde_json::from_str(&text).ok()?, said))
+    let mut made: Made = serde_json::from_str(&text).ok()?;
+    for table in [&mut made.collected.runs, &mut made.collected.summary] {
+        *table = store.table(table.file_name()?.to_str()?);
+    }
+    Some((made, said))
 }
 
 /// A file of `MADE` as its metadata tells it apart: device, inode, size and time (a collect
@@ -189,6 +195,32 @@ const LABELS: &[(&str, &str)] = &[
         "label: the point's swept fields but threads, ranks, px, py and what moves with them; the points of one scaling series share it",
     ),
 ];
+
+/// The records the run table at `path` holds, one per row, as the table has them: every field
+/// of the stored record (a list of text, such as `hosts`, read back from its JSON), with the
+/// case resolved as the table holds it (the solver's defaults filled in) and without the row's
+/// labels. What `report` shows of a results folder copied without its runs.
+pub fn records_of_run_table(path: &std::path::Path) -> Result<Vec<Stored>, Fault> {
+    let labels: HashSet<&str> = (LABELS.iter().map(|(name, _)| *name))
+        .chain([columns::THREADS])
+        .collect();
+    table::read_parquet(path)?
+        .iter()
+        .enumerate()
+        .map(|(k, row)| {
+            let cells = row.cells().filter(|(name, _)| !labels.contains(name));
+            serde_path_to_error::deserialize(columns::unflatten_row(cells)).map_err(|e| {
+                Fault::Input(format!(
+                    "{}: row {} is not a run's record (`{}`: {}); collect the study again",
+                    path.display(),
+                    k + 1,
+                    e.path(),
+                    e.inner()
+                ))
+            })
+        })
+        .collect()
+}
 
 /// Writes the tables, with the study's description in their metadata; `None` when no run of the
 /// study is stored yet. Tables made before of records some of which changed since are
@@ -297,15 +329,21 @@ pub fn collect(
         spliced: written.spliced,
     };
     // Said after the tables are whole; compaction above changed no record's sequence number.
+    // The tables are named by file name, beside the file that says it (`made_before`).
+    let named = |path: &PathBuf| PathBuf::from(path.file_name().unwrap_or_default());
     let made = Made {
         inputs,
-        collected,
+        collected: Collected {
+            runs: named(&collected.runs),
+            summary: named(&collected.summary),
+            ..collected.clone()
+        },
         rows: Some(written.rows),
     };
     if let Ok(text) = serde_json::to_vec(&made) {
         crate::store::write_atomically(&store.table(MADE), &text)?;
     }
-    Ok(Some(made.collected))
+    Ok(Some(collected))
 }
 
 /// Both tables staged, and what they are made of.

@@ -50,10 +50,26 @@ pub enum Command {
     /// point: the ratio B/A of each metric's median over the repeats with a bootstrap 95 %
     /// interval, and a verdict; exits 1 when something got worse (for CI jobs).
     Compare(CompareArgs),
+    /// Print stored records as JSON, one line each in key order: every point's latest record,
+    /// or those of --key; with --from-table, the records the run table holds (what a results
+    /// folder copied without its runs keeps), their cases resolved as the table has them.
+    Show(ShowArgs),
     /// Draw each point's metric against the date each solver build (fingerprint) first ran it,
     /// from the current records and the superseded ones in history/, into
     /// <results>/<study>/history.svg.
     History(HistoryArgs),
+}
+
+#[derive(Args)]
+pub struct ShowArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Only the records of these keys (comma-separated, as `plan` and `status` print them).
+    #[arg(long, value_delimiter = ',')]
+    pub key: Option<Vec<String>>,
+    /// Read the records from the run table, <results>/<study>/<study>.parquet, not the store.
+    #[arg(long)]
+    pub from_table: bool,
 }
 
 #[derive(Args)]

@@ -15,6 +15,7 @@ mod plan;
 mod plot;
 mod report;
 mod run;
+mod show;
 mod status;
 mod submit;
 mod table;
@@ -56,6 +57,7 @@ pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
         Command::Submit(args) => submit::submit(&args),
         Command::Clean(args) => clean::clean(&args),
         Command::Compare(args) => compare::compare(&args),
+        Command::Show(args) => show::show(&args),
         Command::History(args) => history::history(&args),
     }
 }

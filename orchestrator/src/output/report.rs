@@ -28,19 +28,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
     let run_table = store.table(&format!("{}.parquet", study.name));
     let from_table = records.is_empty() && run_table.exists();
     if from_table {
-        records = table::read_parquet(&run_table)?
-            .iter()
-            .enumerate()
-            .map(|(k, row)| {
-                stored_of_row(row).map_err(|why| {
-                    Fault::Input(format!(
-                        "{}: row {} is not a run's record ({why}); collect the study again",
-                        run_table.display(),
-                        k + 1
-                    ))
-                })
-            })
-            .collect::<Result<_, _>>()?;
+        records = crate::analysis::collect::records_of_run_table(&run_table)?;
     }
     let summary_path = store.table(&format!("{}-summary.parquet", study.name));
     let summary = match summary_path.exists() {
@@ -92,12 +80,6 @@ figcaption{font-style:italic;margin-top:.3em}table{border-collapse:collapse;font
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}th{background:#f3f3f3}\
 pre{white-space:pre-wrap;background:#f8f8f8;padding:.5em}.description{max-width:60em}\
 .finding{color:#b00000;font-weight:bold}tr.finding td{background:#fde8e8}";
-
-/// A run table's row as the record it was flattened from.
-fn stored_of_row(row: &Row) -> Result<Stored, String> {
-    serde_path_to_error::deserialize(columns::unflatten(row.cells()))
-        .map_err(|e| format!("`{}`: {}", e.path(), e.inner()))
-}
 
 /// The stored runs counted by status.
 fn runs_section(records: &[Stored]) -> Markup {

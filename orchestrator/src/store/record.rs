@@ -105,29 +105,6 @@ pub(super) fn listing(dir: &Path) -> Vec<PathBuf> {
     paths
 }
 
-/// The fields of a record the index keeps; serde skips the rest without building values.
-#[derive(serde::Deserialize)]
-struct IndexedFields {
-    // Named as `Stored` and `Record` name them (a test reads a whole record through both), not
-    // a flattened `Stored`: flattening would buffer every other field of the record.
-    key: Option<String>,
-    status: Option<String>,
-    case: Option<Value>,
-    solver_version: Option<String>,
-    repeat: Option<usize>,
-    case_id: Option<Value>,
-    provenance: Option<IndexedProvenance>,
-    message: Option<Value>,
-    setup_s: Option<Value>,
-    solve_s: Option<Value>,
-}
-
-#[derive(serde::Deserialize)]
-struct IndexedProvenance {
-    fingerprint: Option<Value>,
-    noisy: Option<Value>,
-}
-
 /// What the catalog keeps of one whole record (its identity checked as `read_record` checks it).
 #[derive(Clone)]
 pub(crate) struct Indexed {
@@ -140,48 +117,38 @@ pub(crate) struct Indexed {
     pub(super) failure: Option<String>,
 }
 
-/// `text` as a record, what the catalog keeps of it; its key checked against its case and, for a
-/// file of the old store, against the file's name (`path`).
+/// `text` as a record, what the catalog keeps of it: read whole as the typed record, as every
+/// other reader reads it (a record `collect` would drop is no record for `plan` and `status`
+/// either: its point runs again), its key checked against its case and, for a file of the old
+/// store, against the file's name (`path`).
 pub(crate) fn read_indexed(path: Option<&Path>, text: &str) -> Result<Indexed, String> {
-    let fields: IndexedFields =
-        serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
-    let (Some(key), Some(case), Some(version)) = (fields.key, &fields.case, fields.solver_version)
-    else {
-        return Err(IDENTITY_MISSING.into());
-    };
-    let file_key = match path {
-        Some(path) => record_key(path)?,
-        None => key.clone(),
-    };
-    check_key(&file_key, &key, case, &version, fields.repeat.unwrap_or(0))?;
-    let status = fields
-        .status
-        .as_deref()
-        .and_then(Status::parse)
-        .ok_or(STATUS_UNKNOWN)?;
-    let text = |v: &Option<Value>| v.as_ref().and_then(Value::as_str).map(str::to_string);
-    let provenance = fields.provenance.as_ref();
-    let seconds = |v: &Option<Value>| v.as_ref().and_then(Value::as_f64);
-    let wall_s =
-        seconds(&fields.solve_s).map(|solve| seconds(&fields.setup_s).unwrap_or(0.0) + solve);
-    let fingerprint = provenance.and_then(|p| p.fingerprint.as_ref());
-    Ok(Indexed {
-        key,
-        stored: Recorded {
-            status,
-            fingerprint: super::shared::shared(checked_fingerprint(
-                fingerprint.and_then(Value::as_str),
-            )),
-            wall_s: wall_s.filter(|w| w.is_finite() && *w >= 0.0),
-        },
-        case_id: text(&fields.case_id),
-        solver_version: Some(version),
-        noisy: provenance.and_then(|p| p.noisy.as_ref()) == Some(&Value::Bool(true)),
-        failure: (status == Status::Failed).then(|| {
-            let message = text(&fields.message).unwrap_or_default();
-            message.lines().next().unwrap_or("").to_string()
-        }),
-    })
+    let file_key = path.map(record_key).transpose()?;
+    let stored = check_identity_as(file_key.as_deref(), text)?;
+    Ok(Indexed::of(stored))
+}
+
+impl Indexed {
+    fn of(stored: Stored) -> Indexed {
+        let status = stored.status();
+        let wall_s = stored
+            .record()
+            .map(|r| r.setup_s + r.solve_s)
+            .filter(|w| w.is_finite() && *w >= 0.0);
+        let failure = (status == Status::Failed)
+            .then(|| stored.message().lines().next().unwrap_or("").to_string());
+        Indexed {
+            stored: Recorded {
+                status,
+                fingerprint: super::shared::shared(fingerprint_of(&stored)),
+                wall_s,
+            },
+            noisy: stored.noisy(),
+            failure,
+            case_id: stored.case_id,
+            solver_version: Some(stored.solver_version),
+            key: stored.key,
+        }
+    }
 }
 
 /// The fingerprint of the solver that made `record`: 64 hex digits, as `nlsolve fingerprint`
@@ -241,10 +208,17 @@ pub(super) fn read_superseded(path: &Path, text: &str) -> Result<Stored, String>
 }
 
 pub(super) fn check_identity(file_key: &str, text: &str) -> Result<Stored, String> {
+    check_identity_as(Some(file_key), text)
+}
+
+/// `check_identity`, against the record's own `key` where no file names it (`None`: a frame of a
+/// segment).
+fn check_identity_as(file_key: Option<&str>, text: &str) -> Result<Stored, String> {
     // Most records are whole runs, read straight from their text; anything else is read again
     // through its tree, which names what is wrong.
     if let Some(stored) = Stored::from_ran_text(text) {
         let (key, version) = (&stored.key, &stored.solver_version);
+        let file_key = file_key.unwrap_or(key);
         if check_key(file_key, key, stored.case(), version, stored.repeat).is_ok() {
             return Ok(stored);
         }
@@ -253,7 +227,7 @@ pub(super) fn check_identity(file_key: &str, text: &str) -> Result<Stored, Strin
 }
 
 /// `check_identity` through the parsed tree of `text`: every record, and every error named.
-pub(super) fn check_identity_of_tree(file_key: &str, text: &str) -> Result<Stored, String> {
+pub(super) fn check_identity_of_tree(file_key: Option<&str>, text: &str) -> Result<Stored, String> {
     let record: Value = serde_json::from_str(text).map_err(|e| format!("not whole JSON ({e})"))?;
     let fields = record
         .as_object()
@@ -267,7 +241,7 @@ pub(super) fn check_identity_of_tree(file_key: &str, text: &str) -> Result<Store
         return Err(IDENTITY_MISSING.into());
     };
     let repeat = fields.get("repeat").and_then(Value::as_u64).unwrap_or(0) as usize;
-    check_key(file_key, key, case, version, repeat)?;
+    check_key(file_key.unwrap_or(key), key, case, version, repeat)?;
     if text_of("status").and_then(Status::parse).is_none() {
         return Err(STATUS_UNKNOWN.into());
     }

@@ -664,7 +664,7 @@ fn a_record_read_from_its_text_is_the_record_read_from_its_tree() {
         let text = rekeyed.to_string();
         assert_eq!(
             record::check_identity(&file_key, &text),
-            record::check_identity_of_tree(&file_key, &text),
+            record::check_identity_of_tree(Some(&file_key), &text),
             "{text}"
         );
         // A key that is not the case's is refused by both.

@@ -177,6 +177,71 @@ pub fn unflatten<'a>(cells: impl IntoIterator<Item = (&'a str, &'a Value)>) -> V
     Value::Object(object)
 }
 
+/// How a table holds a record's column where it does not hold it as the record does.
+#[derive(Clone, Copy, PartialEq)]
+enum Held {
+    /// As the text of its JSON: a list of text (`hosts`, `cpus`).
+    Json,
+    /// As a list of floats: a list of counts (`histogram.counts`).
+    Counts,
+}
+
+/// The record's columns a table holds otherwise than the record (`Held`), read off the leaves
+/// of `every_field`.
+fn held_otherwise() -> &'static [(String, Held)] {
+    static HELD: OnceLock<Vec<(String, Held)>> = OnceLock::new();
+    HELD.get_or_init(|| {
+        let mut held = Vec::new();
+        flatten("", every_field().to_value(), &mut |name, value| {
+            let items = value.as_array().map(Vec::as_slice).unwrap_or_default();
+            let kind = if value.is_object() || items.iter().any(|v| !v.is_number()) {
+                Some(Held::Json)
+            } else if items.iter().any(|v| v.is_u64() || v.is_i64()) {
+                Some(Held::Counts)
+            } else {
+                None
+            };
+            if let Some(kind) = kind {
+                held.push((name.to_string(), kind));
+            }
+        });
+        held
+    })
+}
+
+/// `unflatten` of a row read back from a table, each column as the record holds it: text of
+/// JSON parsed again, and counts held as floats whole again, so that every record a table holds
+/// reads back as the record.
+pub fn unflatten_row<'a>(cells: impl IntoIterator<Item = (&'a str, &'a Value)>) -> Value {
+    let held = |name: &str| {
+        held_otherwise()
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, h)| *h)
+    };
+    let as_held: Vec<(&str, Value)> = cells
+        .into_iter()
+        .map(|(name, value)| {
+            let read = match (held(name), value) {
+                (Some(Held::Json), Value::String(text)) => serde_json::from_str(text).ok(),
+                (Some(Held::Counts), Value::Array(items)) => items
+                    .iter()
+                    .map(|v| match v.as_f64() {
+                        Some(x) if x.fract() == 0.0 && x >= 0.0 && x < 2f64.powi(53) => {
+                            Some(Value::from(x as u64))
+                        }
+                        _ => None,
+                    })
+                    .collect::<Option<Vec<_>>>()
+                    .map(Value::Array),
+                _ => None,
+            };
+            (name, read.unwrap_or_else(|| value.clone()))
+        })
+        .collect();
+    unflatten(as_held.iter().map(|(name, value)| (*name, value)))
+}
+
 /// A stored record with every field given (each optional one, each group, each list not
 /// empty): what `columns` is read off. A field added to the record fails to compile here until
 /// it has a value.

@@ -1,0 +1,43 @@
+//! `nlstudy show`: stored records as JSON lines, for scripts and for bit-for-bit checks (records
+//! live packed in segments, where no other tool reads them).
+
+use super::failure::Failure;
+use super::open::{open_store, read_study};
+use crate::cli::args::ShowArgs;
+use std::process::ExitCode;
+
+/// Needs no solver. A key asked for that has no record is said on stderr, and exits 1.
+pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
+    let study = read_study(&args.common.study)?;
+    let store = open_store(&args.common, &study, false)?;
+    let mut records = match args.from_table {
+        true => crate::analysis::collect::records_of_run_table(
+            &store.table(&format!("{}.parquet", study.name)),
+        )?,
+        false => {
+            let scan = store.scan();
+            for unreadable in &scan.unreadable {
+                errln!("nlstudy: warning: {unreadable}");
+            }
+            scan.records
+        }
+    };
+    records.sort_by(|a, b| (&a.key, a.repeat).cmp(&(&b.key, b.repeat)));
+    let mut missing = Vec::new();
+    if let Some(keys) = &args.key {
+        records.retain(|r| keys.contains(&r.key));
+        missing = (keys.iter())
+            .filter(|k| !records.iter().any(|r| &&r.key == k))
+            .collect();
+    }
+    for record in &records {
+        outln!("{}", record.to_value());
+    }
+    for key in &missing {
+        errln!("nlstudy: no record of key {key:?} is stored");
+    }
+    Ok(match missing.is_empty() {
+        true => ExitCode::SUCCESS,
+        false => ExitCode::from(schema::exit::CASE_FAILED),
+    })
+}
