@@ -20,8 +20,9 @@ use std::path::{Path, PathBuf};
 
 /// The catalog's file, among the segments (its name has no `.seg`).
 pub const FILE: &str = "catalog";
-/// Bumped when what the catalog holds changes: an older one is rebuilt.
-const FORMAT: u32 = 3;
+/// Bumped when what the catalog holds changes: an older one is rebuilt. (4: records indexed only
+/// when they read whole as the typed record, and the file under a checksum.)
+const FORMAT: u32 = 4;
 
 /// A map by record key (or case id): 10⁵–10⁶ of them in a plan, hashed fast (the keys are
 /// hashes themselves, and the seed is random).
@@ -464,17 +465,27 @@ impl Persisted {
         Persisted { head, entries }
     }
 
+    /// The head's line, an entry's line each, then `crc32 <8 hex digits>` of all before it: a
+    /// catalog changed by hand (an entry's span, its status) is no catalog, and is rebuilt from
+    /// the segments.
     fn text(&self) -> serde_json::Result<Vec<u8>> {
         let mut text = serde_json::to_vec(&self.head)?;
         for entry in &self.entries {
             text.push(b'\n');
             serde_json::to_writer(&mut text, entry)?;
         }
+        let crc = crc32fast::hash(&text);
+        text.extend_from_slice(format!("\ncrc32 {crc:08x}").as_bytes());
         Ok(text)
     }
 
-    /// What `text` holds; `None` unless every line is whole.
+    /// What `text` holds; `None` unless its checksum matches and every line is whole.
     fn read(text: &str) -> Option<Persisted> {
+        let (text, sum) = text.rsplit_once('\n')?;
+        let crc = u32::from_str_radix(sum.strip_prefix("crc32 ")?, 16).ok()?;
+        if crc32fast::hash(text.as_bytes()) != crc {
+            return None;
+        }
         let (head, entries) = text.split_once('\n').unwrap_or((text, ""));
         let entries = entries
             .par_lines()

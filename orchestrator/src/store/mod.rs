@@ -408,6 +408,15 @@ impl Store {
     /// The stored record of `key`, its text and where it lies, as the catalog knows it after
     /// reading what the store gained since (`refresh`), or as last read.
     fn stored_text(&self, key: &str, refresh: bool) -> Option<(Stored, String, Location)> {
+        self.stored_text_once(key, refresh).or_else(|| {
+            // A frame that is not its key's whole record: the catalog is read again.
+            let cataloged = self.catalog_as_read().as_ref()?.get(key).is_some();
+            cataloged.then(|| self.reread_catalog())?;
+            self.stored_text_once(key, false)
+        })
+    }
+
+    fn stored_text_once(&self, key: &str, refresh: bool) -> Option<(Stored, String, Location)> {
         let at = match refresh {
             true => self.catalog(false).as_ref()?.get(key)?.at.clone(),
             false => self.catalog_as_read().as_ref()?.get(key)?.at.clone(),
@@ -528,7 +537,19 @@ impl Store {
     /// `scan`, each record made into what `make` keeps of it as it is read (in no order), so
     /// that a reader of every record need not hold them all. The segments are read one at a
     /// time, their records parsed on every core.
+    /// Where a frame the catalog pointed at is not a whole record of its key, the segments are
+    /// read again and so is the store.
     pub fn scan_map<T: Send>(&self, make: impl Fn(Stored) -> T + Sync) -> Scan<T> {
+        let scan = self.scan_once(&make);
+        if scan.found_now == 0 {
+            return scan;
+        }
+        self.reread_catalog();
+        self.scan_once(&make)
+    }
+
+    /// `scan_map` through the catalog as it stands.
+    fn scan_once<T: Send>(&self, make: &(impl Fn(Stored) -> T + Sync)) -> Scan<T> {
         let (mut by_segment, files, unreadable) = {
             let guard = self.catalog(true);
             let catalog = guard.as_ref().expect("loaded");
@@ -562,7 +583,7 @@ impl Store {
                 .into_par_iter()
                 .map(|(key, span)| {
                     record_in(&key, segment::body_at(&bytes, &span))
-                        .map(&make)
+                        .map(make)
                         .map_err(|problem| Unreadable {
                             path: path.clone(),
                             at: Some(span),
@@ -577,7 +598,7 @@ impl Store {
             .map(|(_, path)| {
                 read_regular(&path, RECORD_CAP)
                     .and_then(|t| read_record(&path, &t))
-                    .map(&make)
+                    .map(make)
                     .map_err(|problem| Unreadable {
                         path,
                         at: None,
@@ -587,28 +608,48 @@ impl Store {
             .collect();
         scan.take(read);
         scan.found_now = scan.unreadable.len() - known_unreadable;
-        if scan.found_now > 0 {
-            self.forget_catalog();
-        }
         scan
     }
 
     /// The stored record of each of `keys`, made into what `make` keeps of it (given the key's
     /// place in `keys`), on every core; `None` where a key has none. Each segment is opened
     /// once and only its frames of `keys` are read, so a reader that takes the store a slice of
-    /// keys at a time holds one slice. What is not a whole record is reported as `scan_map`
-    /// reports it, and the catalog is read afresh by the next reader.
+    /// keys at a time holds one slice. The catalog is a cache: where a frame it points at is
+    /// not a whole record of its key, every segment is read again and those keys are looked
+    /// for where the segments have them; what is still not a whole record is reported as
+    /// `scan_map` reports it.
     pub fn read_each<T: Send>(
         &self,
         keys: &[&str],
         make: impl Fn(usize, Stored) -> T + Sync,
     ) -> (Vec<Option<T>>, Vec<Unreadable>) {
+        let all: Vec<usize> = (0..keys.len()).collect();
+        let mut made: Vec<Option<T>> = (0..keys.len()).map(|_| None).collect();
+        let mut failed = self.read_at(keys, &all, &make, &mut made);
+        if !failed.is_empty() {
+            self.reread_catalog();
+            let again: Vec<usize> = failed.iter().map(|(i, _)| *i).collect();
+            failed = self.read_at(keys, &again, &make, &mut made);
+        }
+        (made, failed.into_iter().map(|(_, e)| e).collect())
+    }
+
+    /// `read_each` of the keys at `which`, once, where the catalog puts them: what it made goes
+    /// into `made`; returns the places whose frames were not whole records of their keys.
+    fn read_at<T: Send>(
+        &self,
+        keys: &[&str],
+        which: &[usize],
+        make: &(impl Fn(usize, Stored) -> T + Sync),
+        made: &mut [Option<T>],
+    ) -> Vec<(usize, Unreadable)> {
         let places: Vec<Option<Location>> = {
             // (Brought up to date: a compaction since the last slice moved the records.)
             let guard = self.catalog(false);
             let catalog = guard.as_ref().expect("loaded");
-            keys.iter()
-                .map(|key| Some(catalog.get(key)?.at.clone()))
+            which
+                .iter()
+                .map(|&i| Some(catalog.get(keys[i])?.at.clone()))
                 .collect()
         };
         let dir = self.segments();
@@ -619,8 +660,8 @@ impl Store {
                     .or_insert_with(|| fs::open_regular(&dir.join(&**name)).ok().map(|f| f.0));
             }
         }
-        let read: Vec<Option<Result<T, Unreadable>>> = (places.into_par_iter().enumerate())
-            .map(|(i, place)| {
+        let read: Vec<Option<Result<T, Unreadable>>> = (places.into_par_iter().zip(which))
+            .map(|(place, &i)| {
                 let (stored, path, at) = match place? {
                     Location::Segment { name, span } => {
                         let body = (open.get(&name)?.as_ref())
@@ -640,28 +681,24 @@ impl Store {
                 )
             })
             .collect();
-        let mut unreadable = Vec::new();
-        let made = (read.into_iter())
-            .map(|read| match read? {
-                Ok(made) => Some(made),
-                Err(e) => {
-                    unreadable.push(e);
-                    None
-                }
-            })
-            .collect();
-        if !unreadable.is_empty() {
-            self.forget_catalog();
+        let mut failed = Vec::new();
+        for (read, &i) in read.into_iter().zip(which) {
+            match read {
+                Some(Ok(one)) => made[i] = Some(one),
+                Some(Err(e)) => failed.push((i, e)),
+                None => {}
+            }
         }
-        (made, unreadable)
+        failed
     }
 
-    /// Makes the next reader read every segment again: a frame changed under the catalog (a
-    /// bad block, a hand edit of the same size), and its point runs again.
-    fn forget_catalog(&self) {
+    /// Reads every segment again, now: a frame the catalog pointed at was not a whole record
+    /// of its key (the catalog is a cache, never the truth).
+    fn reread_catalog(&self) {
         let mut guard = self.catalog.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(catalog) = guard.as_mut() {
             catalog.invalidate();
+            catalog.unsaved |= catalog.refresh(&self.runs);
             catalog.persist(&self.runs);
         }
     }

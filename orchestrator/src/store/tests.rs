@@ -373,12 +373,77 @@ fn a_catalog_cut_at_the_end_of_a_line_is_made_again() {
     let text = std::fs::read_to_string(&file).unwrap();
     assert_eq!(
         text.lines().count(),
-        21,
-        "a line of what they share, a line per entry"
+        22,
+        "a line of what they share, a line per entry, its checksum"
     );
-    std::fs::write(&file, &text[..text.rfind('\n').unwrap()]).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    // The last entry and the checksum cut; the checksum alone cut.
+    for kept in [20, 21] {
+        std::fs::write(&file, lines[..kept].join("\n")).unwrap();
+        let again = Store::open(dir.path(), "s");
+        assert_eq!(again.index().stored.len(), 20);
+    }
+}
+
+/// The catalog is a cache: one edited by hand (a digit of an entry's span, another key's span,
+/// a status) is no catalog, and the store reads its segments instead; every record is found
+/// where it lies, with its own status.
+#[test]
+fn a_catalog_edited_by_hand_is_refused_and_made_again_from_the_segments() {
+    let (dir, store, file) = twenty_with_their_catalog();
+    let keys: Vec<String> = store.records().into_iter().map(|r| r.key).collect();
+    let text = std::fs::read_to_string(&file).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let entry = |k: usize| -> Vec<serde_json::Value> { serde_json::from_str(lines[k]).unwrap() };
+    let edits: [&dyn Fn(&mut Vec<serde_json::Value>); 3] = [
+        &|e| e[2] = (e[2].as_u64().unwrap() + 1).into(),
+        &|e| (e[2], e[3]) = (entry(2)[2].clone(), entry(2)[3].clone()),
+        &|e| e[5] = "failed".into(),
+    ];
+    for edit in edits {
+        let mut edited: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+        let mut first = entry(1);
+        edit(&mut first);
+        edited[1] = serde_json::to_string(&first).unwrap();
+        std::fs::write(&file, edited.join("\n")).unwrap();
+        let again = Store::open(dir.path(), "s");
+        let index = again.index();
+        assert_eq!(index.stored.len(), 20);
+        assert!(index.stored.values().all(|r| r.status == Status::Ok));
+        let key_refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+        let (read, unreadable) = again.read_each(&key_refs, |_, stored| stored.key);
+        assert!(unreadable.is_empty(), "{unreadable:?}");
+        assert_eq!(read.into_iter().flatten().collect::<Vec<_>>(), keys);
+    }
+}
+
+/// Where a catalog that reads whole points at a frame that is not its key's whole record (a
+/// segment changed under it), a reader reads the segments again and finds each record where
+/// it lies.
+#[test]
+fn a_frame_that_is_not_where_the_catalog_says_is_looked_for_in_the_segments() {
+    let (dir, store, _) = twenty_with_their_catalog();
+    let keys: Vec<String> = store.records().into_iter().map(|r| r.key).collect();
+    // Two catalogs' worth of entries swapped under a valid checksum: as a catalog of another
+    // moment would point.
+    let mut guard = store.catalog_as_read();
+    let catalog = guard.as_mut().unwrap();
+    let (a, b) = (keys[0].clone(), keys[1].clone());
+    let (at_a, at_b) = (
+        catalog.entries[&a].at.clone(),
+        catalog.entries[&b].at.clone(),
+    );
+    catalog.entries.get_mut(&a).unwrap().at = at_b;
+    catalog.entries.get_mut(&b).unwrap().at = at_a;
+    catalog.persist(&store.runs);
+    drop(guard);
     let again = Store::open(dir.path(), "s");
-    assert_eq!(again.index().stored.len(), 20);
+    let key_refs: Vec<&str> = keys.iter().map(String::as_str).collect();
+    let (read, unreadable) = again.read_each(&key_refs, |_, stored| stored.key);
+    assert!(unreadable.is_empty(), "{unreadable:?}");
+    assert_eq!(read.into_iter().flatten().collect::<Vec<_>>(), keys);
+    assert_eq!(again.stored(&a).unwrap().key, a);
+    assert_eq!(Store::open(dir.path(), "s").records().len(), 20);
 }
 
 /// A catalog that is gone (or not whole) is made again from the segments by whoever reads
@@ -669,5 +734,31 @@ fn a_record_read_from_its_text_is_the_record_read_from_its_tree() {
         );
         // A key that is not the case's is refused by both.
         assert!(record::check_identity(&"0".repeat(32), &text).is_err());
+    }
+}
+
+/// A frame whose checksum holds but whose record does not read as the typed record (a string
+/// where a number goes) is no record for `plan` and `status` either, as it is none for
+/// `collect`: it is reported once, and its point counts as not run.
+#[test]
+fn a_whole_frame_that_is_not_a_typed_record_is_not_counted_stored() {
+    let (dir, store, _) = twenty_with_their_catalog();
+    let (key, mut record) = keyed(100, "ok");
+    record["solve_s"] = json!("fast");
+    let segment = store.segments().join("hand.seg");
+    let frame = segment::encode(segment::now_ns(), record.to_string().as_bytes());
+    std::fs::write(&segment, frame).unwrap();
+    for store in [store, Store::open(dir.path(), "s")] {
+        let index = store.index();
+        assert_eq!(
+            index.stored.len(),
+            20,
+            "the hand-made record is not counted"
+        );
+        assert!(!index.stored.contains_key(&key));
+        let said: Vec<String> = index.unreadable.iter().map(|u| u.to_string()).collect();
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(said[0].contains("solve_s"), "{said:?}");
+        assert!(store.stored(&key).is_none());
     }
 }
