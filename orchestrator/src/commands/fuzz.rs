@@ -354,3 +354,102 @@ fn fuzz_parquet_tables() {
         );
     }
 }
+
+/// A checkpoint as the solver writes it (`schema::checkpoint`), mutated: read as the solver and
+/// `nlstudy status` read it. None may panic, and none that differs from the written file may be
+/// taken: every byte is under its checksum.
+#[test]
+fn fuzz_checkpoints() {
+    use schema::checkpoint::{parse, write, Header, Identity};
+    let header = Header {
+        identity: Identity {
+            fingerprint: "ab".repeat(32),
+            case: r#"{"dim":1,"m":2,"n":64,"t_end":0.1}"#.into(),
+            ranks: 1,
+            rank: 0,
+        },
+        step: 300,
+        steps: Some(400),
+        parts: vec![
+            ("field".into(), 64),
+            ("steps".into(), 1),
+            ("timing.step_seconds".into(), 30),
+            ("c_tot.time".into(), 3),
+        ],
+    };
+    let values = (0..98).map(|k| (k as f64).sin() * 1e-3);
+    let mut original = Vec::new();
+    write(&mut original, &header, values).unwrap();
+    assert!(parse(original.clone()).is_ok());
+    let (_scratch, root) = scratch();
+    let path = root.join("k.checkpoint");
+    let mut taken = 0;
+    fuzz("checkpoint", std::slice::from_ref(&original), |bytes| {
+        std::fs::write(&path, bytes).unwrap();
+        let read = schema::checkpoint::read(&path, 1 << 20);
+        if let Ok(Some(checkpoint)) = read {
+            assert_eq!(bytes, original.as_slice(), "a changed checkpoint was taken");
+            let _ = checkpoint.parts().count();
+            taken += 1;
+        }
+    });
+    println!("fuzz checkpoint: {taken} unchanged inputs taken");
+}
+
+/// A store of the fixture records as segments (and their catalog), one file at a time mutated:
+/// the store reads what is whole and reports the rest. None may panic; every record it reads
+/// is one of those it stored, and a mutated catalog changes nothing it says is stored (the
+/// catalog is a cache of the segments).
+#[test]
+fn fuzz_segments_and_the_catalog() {
+    let (_scratch, root) = scratch();
+    let store = Store::open(&root, "s");
+    let records: Vec<schema::record::Stored> = records()
+        .iter()
+        .map(|bytes| serde_json::from_slice(bytes).unwrap())
+        .collect();
+    for record in &records {
+        assert!(store.save(&record.key, record).unwrap());
+    }
+    store.persist_catalog();
+    let dir = store.runs.join("segments");
+    let segment = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "seg"))
+        .unwrap();
+    let catalog = dir.join(crate::store::catalog::FILE);
+    let originals = [read(&segment), read(&catalog)];
+    let stored = |store: &Store| -> Vec<(String, schema::record::Status)> {
+        let mut stored: Vec<_> = (store.index().stored.into_iter())
+            .map(|(key, recorded)| (key, recorded.status))
+            .collect();
+        stored.sort_by(|a, b| a.0.cmp(&b.0));
+        stored
+    };
+    let whole = stored(&store);
+    assert_eq!(whole.len(), records.len());
+    let restore = || {
+        std::fs::write(&segment, &originals[0]).unwrap();
+        std::fs::write(&catalog, &originals[1]).unwrap();
+    };
+    fuzz("segment", &originals[..1], |bytes| {
+        restore();
+        std::fs::write(&segment, bytes).unwrap();
+        let reader = Store::open(&root, "s");
+        for record in reader.scan().records {
+            assert!(records.contains(&record), "a changed record was read");
+        }
+        let _ = reader.index();
+    });
+    fuzz("catalog", &originals[1..], |bytes| {
+        restore();
+        std::fs::write(&catalog, bytes).unwrap();
+        let reader = Store::open(&root, "s");
+        assert_eq!(stored(&reader), whole, "a changed catalog changed what is stored");
+        for record in &records {
+            assert_eq!(reader.stored(&record.key).as_ref(), Some(record));
+        }
+    });
+}
