@@ -61,6 +61,20 @@ pub fn read(path: &Path, cap: u64, what: &str) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The bytes of `path`, whatever kind of file it is (a study given as `<(…)` is a FIFO), refused
+/// once it holds more than `cap` bytes (a device such as /dev/zero is never read to its end).
+pub fn read_at_most(path: &Path, cap: u64, what: &str) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    File::open(path)?.take(cap + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(std::io::Error::other(format!(
+            "more than the {} MiB {what} may hold",
+            cap >> 20
+        )));
+    }
+    Ok(bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

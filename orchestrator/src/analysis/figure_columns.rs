@@ -7,9 +7,12 @@ use crate::model::expression;
 use crate::model::figure_spec::{FigureKind, FigureSpec};
 use crate::model::study::{Study, StudyError};
 use schema::case::Case;
+use schema::record::columns;
 
-/// Refuses the first figure that names a column no summary table has, with a guess.
+/// Refuses the first figure that names a column no summary table has, with a guess, and an
+/// adaptive question that reads what no probe's record has (`questions`).
 pub fn check(study: &Study) -> Result<(), StudyError> {
+    questions(study)?;
     for (k, figure) in study.figures.iter().enumerate() {
         let place = |what: &str| format!("figures[{k}] ({}).{what}", figure.name);
         let named = figure_names(figure).map_err(|e| StudyError::new(place("where"), e))?;
@@ -32,6 +35,74 @@ pub fn check(study: &Study) -> Result<(), StudyError> {
         }
     }
     Ok(())
+}
+
+/// An adaptive question checked against the record every probe will have: a boundary's
+/// `flips` reads only case fields and record columns and is a condition (true or false), and
+/// the columns a refinement or a target reads as errors and costs are numbers of the record.
+fn questions(study: &Study) -> Result<(), StudyError> {
+    use crate::model::study::Question;
+    match study.question() {
+        Some(Question::Boundary(spec)) => {
+            let place = "boundary.flips";
+            let names = expression::names(&spec.flips).map_err(|e| StudyError::new(place, e))?;
+            for name in &names {
+                let field = name.split('.').next().unwrap_or(name);
+                if !(Case::field_names().contains(&field) || columns::is_column(name)) {
+                    let guess =
+                        guess(name).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
+                    return Err(StudyError::new(
+                        place,
+                        format!("no field `{name}` in a probe's record{guess}"),
+                    ));
+                }
+            }
+            // With a value for every name it reads (a probe's record of every field, the
+            // study's first point's case), it must be true or false.
+            let mut probe = columns::every_field();
+            if let (Some(record), Ok(points)) = (probe.record_mut(), study.expand()) {
+                if let Some(point) = points.first() {
+                    record.case = serde_json::Value::Object(point.fields());
+                }
+            }
+            let mut cells = Vec::new();
+            columns::flatten("", probe.to_value(), &mut |name, value| {
+                cells.push((name.to_string(), value))
+            });
+            let fields = expression::fields_of_columns(&cells);
+            if names.iter().all(|n| fields.contains_key(n)) {
+                let scope = expression::Scope::from_fields(&fields);
+                expression::condition(&spec.flips, &scope).map_err(|e| {
+                    StudyError::new(
+                        place,
+                        format!("{e}; write a condition such as `amplification > 1`"),
+                    )
+                })?;
+            }
+            Ok(())
+        }
+        Some(Question::Refine(spec)) => measured("refine.error", &spec.error),
+        Some(Question::Target(spec)) => {
+            measured("target.error", &spec.error)?;
+            measured("target.cost", &spec.cost)
+        }
+        None => Ok(()),
+    }
+}
+
+/// `column`, read as a measurement at `place`: a number of the record.
+fn measured(place: &str, column: &str) -> Result<(), StudyError> {
+    match columns::column(&columns::every_field(), column) {
+        Some(value) if value.is_number() => Ok(()),
+        Some(value) => Err(StudyError::new(
+            place,
+            format!("`{column}` is no number of the record (it holds {value}); give an error or cost column such as `error_l2_norm` or `solve_s`"),
+        )),
+        None => {
+            let guess = guess(column).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
+            Err(StudyError::new(place, format!("no column `{column}` in a probe's record{guess}")))
+        }
+    }
 }
 
 /// The names a figure reads, with the place each stands in.
@@ -91,6 +162,51 @@ mod tests {
 
     fn study(figures: serde_json::Value) -> Study {
         Study::parse(&json!({"name": "s", "base": {}, "figures": figures}).to_string()).unwrap()
+    }
+
+    /// What an adaptive question reads of a probe's record is checked at plan: a misspelt name
+    /// in `flips`, a `flips` that is a number and not a condition, an error or cost column that
+    /// is no number.
+    #[test]
+    fn a_question_reading_what_no_record_has_is_refused_at_plan() {
+        let with = |question: serde_json::Value| {
+            let mut study = json!({"name": "s", "base": {"dim": 1, "n": 32, "kernel": "linear"}});
+            for (k, v) in question.as_object().unwrap() {
+                study[k] = v.clone();
+            }
+            check(&Study::parse(&study.to_string()).unwrap())
+        };
+        let boundary = |flips: &str| {
+            with(
+                json!({"boundary": {"field": "cfl", "bracket": [0.5, 2], "flips": flips, "rtol": 1e-2}}),
+            )
+        };
+        assert_eq!(boundary("amplification > 1"), Ok(()));
+        assert_eq!(
+            boundary("kernel == 'linear' && status == 'diverged'"),
+            Ok(())
+        );
+        let misspelt = boundary("amplificaton > 1").unwrap_err();
+        assert_eq!(misspelt.field, "boundary.flips");
+        assert!(
+            misspelt.message.contains("did you mean `amplification`?"),
+            "{misspelt}"
+        );
+        let number = boundary("amplification").unwrap_err();
+        assert!(number.message.contains("must be true or false"), "{number}");
+        let refine =
+            |error: &str| with(json!({"refine": {"field": "n", "start": 16, "error": error}}));
+        assert_eq!(refine("error_max"), Ok(()));
+        assert_eq!(refine("status").unwrap_err().field, "refine.error");
+        let target = with(
+            json!({"target": {"field": "n", "start": 16, "below": 1e-3, "cost": "solve_sec"}}),
+        );
+        let target = target.unwrap_err();
+        assert_eq!(target.field, "target.cost");
+        assert!(
+            target.message.contains("did you mean `solve_s`?"),
+            "{target}"
+        );
     }
 
     #[test]

@@ -227,8 +227,9 @@ pub struct PlanArgs {
 pub struct RunArgs {
     #[command(flatten)]
     pub plan: PlanArgs,
-    /// Cores the running cases may use together (threads × ranks each); default: all.
-    #[arg(short = 'j', long)]
+    /// Cores the running cases may use together (threads × ranks each), at least 1; default:
+    /// all.
+    #[arg(short = 'j', long, value_parser = cores)]
     pub jobs: Option<usize>,
     /// Seconds after which a case is stopped and stored as failed (overrides the study's).
     #[arg(long)]
@@ -283,5 +284,14 @@ impl PlanArgs {
                 .map(|keys| keys.iter().cloned().collect()),
             keep_stale: self.keep_stale,
         }
+    }
+}
+
+/// A count of cores: a whole number from 1.
+fn cores(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("give at least 1 core (0 would run nothing)".into()),
+        Ok(cores) => Ok(cores),
+        Err(_) => Err("give a whole number of cores, at least 1".into()),
     }
 }

@@ -447,7 +447,11 @@ fn fuzz_segments_and_the_catalog() {
         restore();
         std::fs::write(&catalog, bytes).unwrap();
         let reader = Store::open(&root, "s");
-        assert_eq!(stored(&reader), whole, "a changed catalog changed what is stored");
+        assert_eq!(
+            stored(&reader),
+            whole,
+            "a changed catalog changed what is stored"
+        );
         for record in &records {
             assert_eq!(reader.stored(&record.key).as_ref(), Some(record));
         }

@@ -39,7 +39,7 @@ pub(super) fn claim(
     store: &Store,
     writes: bool,
 ) -> Result<(), Failure> {
-    let text = std::fs::read_to_string(&args.study).unwrap_or_default();
+    let text = Study::text_of(&args.study).unwrap_or_default();
     match store.claim(&args.study, &text, args.adopt, writes) {
         Ok(()) => Ok(()),
         Err(Refusal::Io(e)) => Err(e.into()),

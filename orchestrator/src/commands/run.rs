@@ -40,7 +40,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             .transpose()?,
     };
     let options = PoolOptions {
-        cores: args.jobs.unwrap_or(cores).max(1),
+        cores: args.jobs.unwrap_or(cores),
         exclusive: !study.share_machine,
         timeout,
         launcher: args.launcher.clone(),

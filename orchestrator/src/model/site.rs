@@ -103,7 +103,8 @@ impl Site {
 
     /// The profile in `path`, TOML or JSON by its extension.
     pub fn read(path: &Path) -> Result<Site, String> {
-        let text = std::fs::read_to_string(path)
+        let text = schema::regular::read_at_most(path, 1 << 20, "a site profile")
+            .and_then(|b| String::from_utf8(b).map_err(|_| std::io::Error::other("not UTF-8")))
             .map_err(|e| format!("cannot read the site profile {}: {e}", path.display()))?;
         let toml = path.extension().is_none_or(|x| x != "json");
         let mut site = Site::parse(&text, toml)

@@ -21,6 +21,11 @@ mod sweep;
 pub use point::{fields_telling_apart, label_parts, Point};
 use point::{Moving, Names, BRANCH, REFINED, SCALED};
 
+/// The most a study file may hold: far beyond any written by hand or generated (the shipped
+/// ones are a few KB), so that a device given as one (/dev/zero) is not read until memory runs
+/// out.
+pub const TEXT_CAP: u64 = 16 << 20;
+
 /// A study file, as written.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -340,17 +345,24 @@ impl Study {
     /// Reads and parses a study file, naming the field at fault: TOML when its name ends in
     /// `.toml`, else JSON in which comments are allowed (JSONC).
     pub fn read(path: &Path) -> Result<Study, StudyError> {
+        let text = Study::text_of(path)?;
+        match path.extension().and_then(|x| x.to_str()) {
+            Some("toml") => Study::parse_toml(&text),
+            _ => Study::parse(&text),
+        }
+    }
+
+    /// The text of the study file `path`: at most `TEXT_CAP` bytes of UTF-8.
+    pub fn text_of(path: &Path) -> Result<String, StudyError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| {
+        let bytes = schema::regular::read_at_most(path, TEXT_CAP, "a study file").map_err(|e| {
             StudyError::new(
                 &name,
                 format!("cannot read the study file: {e}; check the path"),
             )
         })?;
-        match path.extension().and_then(|x| x.to_str()) {
-            Some("toml") => Study::parse_toml(&text),
-            _ => Study::parse(&text),
-        }
+        String::from_utf8(bytes)
+            .map_err(|_| StudyError::new(&name, "the study file is not UTF-8 text"))
     }
 
     /// A study from JSON with comments (`//`, `/* */`, `#`): they become spaces, so the lines
