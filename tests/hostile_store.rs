@@ -528,3 +528,75 @@ fn tables_plan_status_and_run_agree_on_what_is_stored_whatever_is_damaged() {
     }
     eprintln!("24 damages, {damaged_points} points lost and run again");
 }
+
+/// A solver whose stderr holds escape sequences (clear the screen, retitle the window): none
+/// reaches the terminal through `run` or `status`, nor the stored record, where they are kept
+/// escaped (`\u{1b}`), so the message still says what the solver said.
+#[test]
+fn a_solvers_escape_sequences_reach_neither_the_terminal_nor_the_store() {
+    use std::os::unix::fs::PermissionsExt;
+    let scratch = Scratch::new("escapes", &tiny("escapes"));
+    let wrapper = scratch.dir.join("nlsolve");
+    let real = nonlocal_study::binary("nlsolve");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\ncase \"$1\" in run|serve) printf '\\033[2Jboom\\033]0;pwned\\007\\n' >&2; exit 1;; esac\nexec {} \"$@\"\n",
+            real.display()
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let solver = wrapper.to_str().unwrap();
+    let run = scratch.nlstudy("run", &["--solver", solver, "--retries", "0"]);
+    assert_eq!(run.status.code(), Some(1), "{}", text(&run));
+    let status = scratch.nlstudy("status", &["--solver", solver]);
+    for out in [&run, &status] {
+        assert!(!text(out).contains('\u{1b}'), "{:?}", text(out));
+        assert!(text(out).contains("\\u{1b}[2Jboom"), "{}", text(out));
+    }
+    for record in records(&scratch.runs("escapes")) {
+        let message = record["message"].as_str().unwrap();
+        assert!(
+            !message.contains('\u{1b}') && message.contains("\\u{1b}]0;pwned\\u{7}"),
+            "{message}"
+        );
+    }
+}
+
+/// A segment's last frame whose length was changed reads as a frame cut short (as a write torn
+/// by a crash would): its point runs again, and the writer that cuts the bytes off says so.
+#[test]
+fn a_last_frame_cut_short_is_cut_off_with_a_warning_and_its_point_runs_again() {
+    let scratch = Scratch::new("torn", &tiny("torn"));
+    ran(&scratch, "torn");
+    let segments = scratch.runs("torn").join("segments");
+    let segment = std::fs::read_dir(&segments)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "seg"))
+        .unwrap();
+    let mut bytes = std::fs::read(&segment).unwrap();
+    let last = bytes.windows(9).rposition(|w| w == b"nlrecord ").unwrap();
+    let header_end = last + bytes[last..].iter().position(|&b| b == b'\n').unwrap();
+    let header = String::from_utf8(bytes[last..header_end].to_vec()).unwrap();
+    let fields: Vec<&str> = header.split(' ').collect();
+    let longer = format!(
+        "{} {} {} {}",
+        fields[0],
+        fields[1],
+        fields[2].parse::<u64>().unwrap() + 10,
+        fields[3]
+    );
+    bytes.splice(last..header_end, longer.into_bytes());
+    std::fs::write(&segment, &bytes).unwrap();
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let said = text(&run);
+    assert!(said.contains("1 ran (1 ok"), "{said}");
+    assert!(
+        said.contains("bytes of a frame cut short") && said.contains("cut off"),
+        "{said}"
+    );
+    assert_eq!(records(&scratch.runs("torn")).len(), 2);
+}

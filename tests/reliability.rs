@@ -1052,6 +1052,12 @@ fn a_full_disk_while_writing_tables_the_report_or_a_figure_exits_3() {
             "{verb} names the path: {}",
             text(&out)
         );
+        // The file system's own words, not a Parquet writer's ("Invalid thrift").
+        assert!(
+            text(&out).contains("No space left on device") && !text(&out).contains("thrift"),
+            "{verb} says why: {}",
+            text(&out)
+        );
         assert_no_panic(&out);
         let partials: Vec<PathBuf> = files_under(&results)
             .into_iter()

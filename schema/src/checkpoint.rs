@@ -93,7 +93,7 @@ const HEADER_CAP: u64 = 1 << 20;
 /// The most bytes a checkpoint of `case` can hold: every array a run carries is at most the
 /// nodes' count long, a few of them (the field, a steady solve's CG vectors, the stepper's
 /// state), one per frame the case asks for, the c_tot series' two per sample, and the timings
-/// of at most 2²⁰ steps each (`MAX_TIMED_STEPS` of the solver's timed loop). Generous: it is a
+/// of at most 2¹⁶ steps each (`MAX_TIMED_STEPS` of the solver's timed loop). Generous: it is a
 /// bound that stops a file that is no checkpoint (a link to /dev/zero) from being read until
 /// memory runs out, not a size check.
 pub fn most_bytes(case: &Case) -> u64 {

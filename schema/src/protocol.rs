@@ -25,6 +25,32 @@ pub struct ServeLine {
     pub keep_checkpoint: bool,
 }
 
+/// How far a running case is: the file `nlsolve run --progress` (and a served case's
+/// `progress`) keeps up to date, at most once a second, and `nlstudy status` and the pool's bar
+/// read.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Progress {
+    /// Steps done (a steady solve's: CG iterations).
+    pub step: u64,
+    /// The steps in all; a steady solve's iterations in all are an estimate.
+    pub steps: u64,
+    /// Wall seconds since the loop began.
+    pub elapsed_s: f64,
+    /// Wall seconds left, at the pace so far.
+    pub left_s: f64,
+    pub unit: ProgressUnit,
+}
+
+/// What a case's progress counts.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProgressUnit {
+    /// Time steps.
+    Step,
+    /// A steady solve's CG iterations.
+    Iteration,
+}
+
 /// What a worker or `nlsolve check` answers to a line it cannot take: one sentence naming the
 /// field at fault.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

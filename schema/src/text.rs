@@ -1,5 +1,6 @@
-//! Numbers as people read them, in the messages, tables, axes and summaries of both binaries:
-//! four significant digits (`%.4g`), whole numbers in full.
+//! Text as people read it, in the messages, tables, axes and summaries of both binaries: numbers
+//! to four significant digits (`%.4g`), whole numbers in full; and text from elsewhere (a
+//! solver's stderr, a study's strings) made safe for a terminal (`printable`).
 
 /// Significant digits of every number people read: tables, summaries, axes, messages.
 pub const SIGNIFICANT: usize = 4;
@@ -74,6 +75,27 @@ fn trim_zeros(text: String) -> String {
     }
 }
 
+/// `text` with what a terminal would act on instead of showing escaped as `\u{…}`: control
+/// characters but newline and tab (an escape sequence could move the cursor, clear the screen
+/// or retitle the window), and the characters that reorder text (bidirectional overrides).
+pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    let acts = |c: char| {
+        (c.is_control() && c != '\n' && c != '\t')
+            || matches!(c, '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+    };
+    if !text.chars().any(acts) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut shown = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        match acts(c) {
+            true => shown.push_str(&format!("\\u{{{:x}}}", c as u32)),
+            false => shown.push(c),
+        }
+    }
+    std::borrow::Cow::Owned(shown)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -104,5 +126,15 @@ mod tests {
         assert_eq!(numbers_alike(&[1e-5, 0.01, 1.0]), ["1e-5", "1e-2", "1e0"]);
         assert_eq!(numbers_alike(&[1e-4, 0.01, 1.0]), ["0.0001", "0.01", "1"]);
         assert_eq!(numbers_alike(&[0.0, 0.5, 1.0]), ["0", "0.5", "1"]);
+    }
+
+    #[test]
+    fn what_a_terminal_acts_on_is_shown_escaped() {
+        assert_eq!(printable("plain\ttext\n"), "plain\ttext\n");
+        assert_eq!(printable("\u{1b}[2Jcleared"), "\\u{1b}[2Jcleared");
+        assert_eq!(
+            printable("a\u{202e}b\rc\u{7f}"),
+            "a\\u{202e}b\\u{d}c\\u{7f}"
+        );
     }
 }

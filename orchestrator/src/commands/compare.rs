@@ -41,6 +41,19 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
     };
     let a = baseline(&args.against, &study, &store, &args.common)?;
     let points = repeats_by_point(&planned);
+    // A side that mixes builds or machines is said first: that is why its points may not
+    // pair with the other side's.
+    for (name, side) in [("A", &a), ("B", &b)] {
+        let rows = crate::analysis::collect::run_rows(&planned, side);
+        if let (Some(mixed), false) = (
+            crate::analysis::collect::mixed_provenance(&rows),
+            args.allow_mixed,
+        ) {
+            return Err(Failure::BadInput(format!(
+                "side {name}: {mixed}; its timings would be a blend of builds or machines; rerun the stale points, or give --allow-mixed"
+            )));
+        }
+    }
     let paired = compare::pair(&points, &a, &b);
     if paired.iter().all(|p| p.a.is_empty() || p.b.is_empty()) {
         return Err(Failure::BadInput(format!(
@@ -53,17 +66,6 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
             "study {} runs each point once, so no interval can be formed for its timings; set `repeat` to 5 or more and run both sides again",
             study.name
         )));
-    }
-    for (name, side) in [("A", &a), ("B", &b)] {
-        let rows = crate::analysis::collect::run_rows(&planned, side);
-        if let (Some(mixed), false) = (
-            crate::analysis::collect::mixed_provenance(&rows),
-            args.allow_mixed,
-        ) {
-            return Err(Failure::BadInput(format!(
-                "side {name}: {mixed}; its timings would be a blend of builds or machines; rerun the stale points, or give --allow-mixed"
-            )));
-        }
     }
     let side = |records: Vec<&Stored>| compare::machines(&records);
     let (machines_a, machines_b) = (

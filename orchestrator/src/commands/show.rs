@@ -6,7 +6,7 @@ use super::open::{open_store, read_study};
 use crate::cli::args::ShowArgs;
 use std::process::ExitCode;
 
-/// Needs no solver. A key asked for that has no record is said on stderr, and exits 1.
+/// Needs no solver. A key asked for that has no record is bad input: nothing is printed.
 pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, false)?;
@@ -23,21 +23,16 @@ pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
         }
     };
     records.sort_by(|a, b| (&a.key, a.repeat).cmp(&(&b.key, b.repeat)));
-    let mut missing = Vec::new();
     if let Some(keys) = &args.key {
+        if let Some(missing) = keys.iter().find(|k| !records.iter().any(|r| &&r.key == k)) {
+            return Err(Failure::BadInput(format!(
+                "--key {missing:?}: no record of that key is stored; `nlstudy plan` lists the keys"
+            )));
+        }
         records.retain(|r| keys.contains(&r.key));
-        missing = (keys.iter())
-            .filter(|k| !records.iter().any(|r| &&r.key == k))
-            .collect();
     }
     for record in &records {
         outln!("{}", record.to_value());
     }
-    for key in &missing {
-        errln!("nlstudy: no record of key {key:?} is stored");
-    }
-    Ok(match missing.is_empty() {
-        true => ExitCode::SUCCESS,
-        false => ExitCode::from(schema::exit::CASE_FAILED),
-    })
+    Ok(ExitCode::SUCCESS)
 }

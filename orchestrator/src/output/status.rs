@@ -63,7 +63,7 @@ pub fn render(
         }
     );
     for (key, message) in &index.failed {
-        let _ = writeln!(out, "failed {key}: {message}");
+        let _ = writeln!(out, "failed {key}: {}", schema::text::printable(message));
     }
     if let Some(noisy) = noisy_sentence(index.noisy, index.stored.len()) {
         let _ = writeln!(out, "{noisy}");
@@ -95,16 +95,16 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
         let Some(progress) = crate::store::progress_of(&progress) else {
             continue;
         };
-        let (step, steps) = (progress.step, progress.steps);
+        let (step, steps) = (progress.said.step, progress.said.steps);
         let time = t_end(point)
             .map(|t| format!(", t = {:.4} of {t}", t * step as f64 / steps.max(1) as f64))
             .unwrap_or_default();
         let _ = writeln!(
             out,
-            "running {}: {}{time}, about {:.0} s left",
+            "running {}: {}{time}, {}",
             point.point.label(),
             progress.steps_done(),
-            progress.left_s
+            progress.left()
         );
     }
 }

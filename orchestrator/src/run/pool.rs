@@ -285,15 +285,12 @@ const STOP_GRACE: Duration = Duration::from_secs(30);
 /// How often the bar shows how far the running cases are (from their progress files).
 const SHOW_PROGRESS_EVERY: Duration = Duration::from_secs(1);
 
-/// `step k of N, ~S s left` from a running case's progress file (`nlsolve --progress`), once
-/// its time loop (or steady solve) has written one (a second into it: short cases never show).
+/// `step k of N, about S s left` from a running case's progress file (`nlsolve --progress`),
+/// once its time loop (or steady solve) has written one (a second into it: short cases never
+/// show).
 fn how_far(progress: &std::path::Path) -> Option<String> {
     let progress = crate::store::progress_of(progress)?;
-    Some(format!(
-        "{}, ~{:.0} s left",
-        progress.steps_done(),
-        progress.left_s
-    ))
+    Some(format!("{}, {}", progress.steps_done(), progress.left()))
 }
 
 /// How long the pool waits for a worker's answer before it looks at its processes again.
@@ -825,10 +822,13 @@ impl Process {
         read_regular(&self.stdout, RECORD_CAP).is_ok_and(|printed| last_object(&printed).is_some())
     }
 
+    /// The last lines of its stderr, as stored in a failed record: what a terminal would act on
+    /// (an escape sequence) escaped, since the record's message is printed.
     fn stderr_tail(&self) -> String {
         let text = tail_of(&self.stderr);
         let lines: Vec<&str> = text.lines().collect();
-        lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n")
+        let tail = lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n");
+        schema::text::printable(&tail).into_owned()
     }
 
     fn remove_files(&self) {

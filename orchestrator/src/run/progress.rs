@@ -66,7 +66,7 @@ impl Progress {
             Mode::Bar => {
                 let bar = self.bar.as_ref().expect("bar mode has a bar");
                 if status == Status::Failed {
-                    bar.println(format!("failed: {label}: {}", first_line(message)));
+                    bar.println(shown(format!("failed: {label}: {}", first_line(message))));
                 }
                 bar.inc(1);
                 self.update_message();
@@ -76,7 +76,8 @@ impl Progress {
                     Status::Failed => format!(": {}", first_line(message)),
                     Status::Ok | Status::Diverged => String::new(),
                 };
-                errln!("[{}/{}] {status} {label}{detail}", self.done, self.total);
+                let line = format!("[{}/{}] {status} {label}{detail}", self.done, self.total);
+                errln!("{}", shown(line));
             }
             Mode::Quiet => {}
         }
@@ -100,6 +101,7 @@ impl Progress {
 
     /// A line above the bar, or on its own; nothing when quiet.
     fn say(&self, line: String) {
+        let line = shown(line);
         match self.mode {
             Mode::Bar => self.bar.as_ref().expect("bar mode has a bar").println(line),
             Mode::Lines => errln!("{line}"),
@@ -114,11 +116,17 @@ impl Progress {
         match self.mode {
             Mode::Bar => {
                 let bar = self.bar.as_ref().expect("bar mode has a bar");
-                bar.println(format!("skipped: {label}: {why}"));
+                bar.println(shown(format!("skipped: {label}: {why}")));
                 bar.inc(1);
                 self.update_message();
             }
-            Mode::Lines => errln!("[{}/{}] skipped {label}: {why}", self.done, self.total),
+            Mode::Lines => errln!(
+                "{}",
+                shown(format!(
+                    "[{}/{}] skipped {label}: {why}",
+                    self.done, self.total
+                ))
+            ),
             Mode::Quiet => {}
         }
     }
@@ -153,4 +161,13 @@ impl Progress {
 
 fn first_line(message: &str) -> &str {
     message.lines().next().unwrap_or("")
+}
+
+/// A line for the terminal: labels and messages come from study files and solvers, and what a
+/// terminal would act on in them (escape sequences) is shown escaped.
+fn shown(line: String) -> String {
+    match schema::text::printable(&line) {
+        std::borrow::Cow::Borrowed(_) => line,
+        std::borrow::Cow::Owned(escaped) => escaped,
+    }
 }

@@ -256,12 +256,15 @@ impl Worker {
     }
 
     /// The last lines it wrote to standard error since its case was sent.
+    /// (Escaped as the stderr of a process is: `schema::text::printable`.)
     pub fn stderr_tail(&self) -> String {
         let kept = self.stderr.lock().unwrap_or_else(|e| e.into_inner());
-        kept.iter()
+        let tail = kept
+            .iter()
             .map(String::as_str)
             .collect::<Vec<_>>()
-            .join("\n")
+            .join("\n");
+        schema::text::printable(&tail).into_owned()
     }
 
     /// Lets an idle worker finish: its input closes and it exits.

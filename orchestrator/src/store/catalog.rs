@@ -112,6 +112,8 @@ pub struct Catalog {
     /// Read news that the stored catalog lacks (a reader that does not persist found them):
     /// the next that may persist does.
     pub unsaved: bool,
+    /// Names of `*.seg` that are no regular file, and what they are, as last listed.
+    foreign: Vec<(String, String)>,
 }
 
 /// What a file of the old store was read as: its key and entry, or why it is not a record.
@@ -149,7 +151,8 @@ impl Catalog {
     /// returns whether any segment had news.
     pub fn refresh(&mut self, runs: &Path) -> bool {
         let dir = runs.join(segment::DIR);
-        let listed = segments(&dir);
+        let (listed, foreign) = listed(&dir);
+        self.foreign = foreign;
         let stale = self.segments.iter().any(|(name, state)| {
             listed.get(name).is_none_or(|&(size, modified)| {
                 size < state.end || (size == state.end && modified != state.modified)
@@ -362,6 +365,13 @@ impl Catalog {
                 Ok(_) => None,
             })
             .collect();
+        for (name, what) in &self.foreign {
+            found.push(Unreadable {
+                path: dir.join(name),
+                at: None,
+                problem: format!("{what}; no segment is read through it"),
+            });
+        }
         for (name, state) in &self.segments {
             for range in &state.corrupt {
                 found.push(Unreadable {
@@ -527,6 +537,7 @@ impl Persisted {
             entries,
             files: HashMap::new(),
             unsaved: false,
+            foreign: Vec::new(),
         })
     }
 }
@@ -550,18 +561,38 @@ impl Interned {
 }
 
 /// The segments of `dir` (regular files named `*.seg`), their sizes and modification times.
+#[cfg(test)]
 pub fn segments(dir: &Path) -> BTreeMap<String, FileStamp> {
-    std::fs::read_dir(dir)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter_map(|e| {
-            let name = e.file_name().to_str()?.to_string();
-            let meta = e.metadata().ok()?;
-            (name.ends_with(segment::SUFFIX) && !name.starts_with('.') && meta.is_file())
-                .then_some((name, (meta.len(), modified_ns(&meta))))
-        })
-        .collect()
+    listed(dir).0
+}
+
+/// The segments of `dir`, and the names of `*.seg` there that are no regular file (a link, a
+/// FIFO, a folder), which are not read: reported as what they are instead.
+fn listed(dir: &Path) -> (BTreeMap<String, FileStamp>, Vec<(String, String)>) {
+    let (mut segments, mut foreign) = (BTreeMap::new(), Vec::new());
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let Some(name) = entry.file_name().to_str().map(str::to_string) else {
+            continue;
+        };
+        if !name.ends_with(segment::SUFFIX) || name.starts_with('.') {
+            continue;
+        }
+        // The entry's own metadata: a link is not followed.
+        let Ok(meta) = entry.metadata() else { continue };
+        match meta.is_file() {
+            true => {
+                segments.insert(name, (meta.len(), modified_ns(&meta)));
+            }
+            false => {
+                let what = match meta.file_type().is_symlink() {
+                    true => "a symbolic link, which the store does not follow",
+                    false => "not a regular file",
+                };
+                foreign.push((name, what.to_string()));
+            }
+        }
+    }
+    (segments, foreign)
 }
 
 fn stamp(path: &Path) -> Option<FileStamp> {

@@ -12,6 +12,7 @@
 //! `failed` record never replaces a result, and a file that is not a whole record is reported and treated as absent, never trusted.
 
 use rayon::prelude::*;
+use schema::protocol::ProgressUnit;
 use schema::record::{Status, Stored};
 use serde_json::Value;
 use std::collections::HashMap;
@@ -112,7 +113,16 @@ impl Store {
                 .filter(|(_, s)| s.clean() && s.end < segment::TARGET_BYTES)
                 .map(|(name, s)| (name.clone(), s.end))
                 .collect();
-            *appender = Some(Appender::open(&dir, &candidates)?);
+            let opened = Appender::open(&dir, &candidates)?;
+            if let Some(cut) = &opened.cut {
+                errln!(
+                    "nlstudy: warning: segment runs/{}/{} ended in {} bytes of a frame cut short (a write torn by a crash, or a frame's length changed): cut off; a record they held counts as not run",
+                    segment::DIR,
+                    opened.name,
+                    cut.end - cut.start
+                );
+            }
+            *appender = Some(opened);
         }
         let appender = appender.as_mut().expect("opened above");
         let texts: Vec<&[u8]> = bodies.iter().map(|(b, _)| b.as_bytes()).collect();
@@ -851,32 +861,46 @@ pub const CHECKPOINT: &str = "checkpoint";
 /// How far a running case is, from its progress file (`<key>.progress`, which nlsolve's
 /// `integrate::progress` writes).
 pub struct Progress {
-    pub step: u64,
-    /// The steps in all; a steady solve's iterations in all are an estimate.
-    pub steps: u64,
-    pub left_s: f64,
-    /// Whether its steps are a steady solve's iterations rather than time steps.
-    pub iterations: bool,
+    /// What the running case last said (`schema::protocol::Progress`).
+    pub said: schema::protocol::Progress,
+    /// How long ago it said it: the case writes it each second it makes progress, so a long
+    /// silence is a case stopped (SIGSTOP) or starved of its cores.
+    pub silent_s: f64,
 }
 
 impl Progress {
     /// `step 930 of 3388`, or `iteration 30 of about 46`.
     pub fn steps_done(&self) -> String {
-        match self.iterations {
-            false => format!("step {} of {}", self.step, self.steps),
-            true => format!("iteration {} of about {}", self.step, self.steps),
+        let said = &self.said;
+        match said.unit {
+            ProgressUnit::Step => format!("step {} of {}", said.step, said.steps),
+            ProgressUnit::Iteration => format!("iteration {} of about {}", said.step, said.steps),
+        }
+    }
+
+    /// `~S s left`, or, after a silence of more than a few seconds, that it is not heard from.
+    pub fn left(&self) -> String {
+        match self.silent_s > SILENCE_S {
+            true => format!(
+                "no progress for {:.0} s (stopped, or starved of its cores)",
+                self.silent_s
+            ),
+            false => format!("about {:.0} s left", self.said.left_s),
         }
     }
 }
 
+/// How long a running case may say nothing before `Progress::left` says so: it writes its
+/// progress at most once a second.
+const SILENCE_S: f64 = 5.0;
+
 pub fn progress_of(path: &Path) -> Option<Progress> {
+    let (file, _) = fs::open_regular(path).ok()?;
+    let modified = file.metadata().ok()?.modified().ok()?;
     let text = fs::read_regular(path, 4096).ok()?;
-    let progress: Value = serde_json::from_str(&text).ok()?;
     Some(Progress {
-        step: progress["step"].as_u64()?,
-        steps: progress["steps"].as_u64()?,
-        left_s: progress["left_s"].as_f64()?,
-        iterations: progress["unit"] == "iteration",
+        said: serde_json::from_str(&text).ok()?,
+        silent_s: modified.elapsed().map_or(0.0, |d| d.as_secs_f64()),
     })
 }
 

@@ -224,6 +224,9 @@ pub struct Appender {
     last_seq: u64,
     /// When the segment was last synced, if something was written since.
     unsynced_since: Option<std::time::Instant>,
+    /// The bytes of a frame cut short that opening it cut off (a write torn by a crash, or a
+    /// last frame whose length was changed: no record either way, and its point runs again).
+    pub cut: Option<Range<u64>>,
 }
 
 /// How long a record may wait in the page cache for its `fdatasync`.
@@ -273,6 +276,7 @@ impl Appender {
             if !read.corrupt.is_empty() {
                 continue;
             }
+            let length = *known_end + tail.len() as u64;
             if file
                 .set_len(read.end)
                 .and_then(|()| file.sync_data())
@@ -287,6 +291,7 @@ impl Appender {
                 end: read.end,
                 last_seq,
                 unsynced_since: None,
+                cut: (length > read.end).then_some(read.end..length),
             });
         }
         let name = fresh_name();
@@ -308,6 +313,7 @@ impl Appender {
             end: 0,
             last_seq: 0,
             unsynced_since: None,
+            cut: None,
         })
     }
 

@@ -374,8 +374,7 @@ impl<'a> Staged<'a> {
         group: usize,
     ) -> Result<(), Fault> {
         let mut writer = self.begin(path, frame.schema(), group)?;
-        (writer.write(frame.clone()))
-            .map_err(|e| Fault::Io(format!("cannot write {}: {e}", path.display())))?;
+        writer.write(frame.clone())?;
         writer.finish()
     }
 
@@ -638,7 +637,10 @@ pub const STREAMED_ROW_GROUP: usize = 1 << 14;
 /// A table written to its file a batch of rows at a time, in row groups of a given size: it
 /// holds at most a group and a batch.
 pub struct TableWriter {
-    writer: BatchedWriter<std::fs::File>,
+    writer: BatchedWriter<Recorded>,
+    /// The first error of the file under the writer (polars reports a full disk as "Invalid
+    /// thrift: transport error"): the fault says it instead.
+    failed: std::sync::Arc<std::sync::Mutex<Option<std::io::Error>>>,
     /// The file, for the sync once it is whole, and its path.
     file: std::fs::File,
     path: std::path::PathBuf,
@@ -665,15 +667,21 @@ impl TableWriter {
         let fault = cannot("write", table);
         let metadata = KeyValueMetadata::from_static(metadata(schema, about));
         let file = crate::store::fs::create_fresh(path).map_err(|e| fault(&e))?;
+        let failed = std::sync::Arc::default();
         let writer = (file.try_clone())
             .map_err(|e| fault(&e))
             .and_then(|clone| {
-                (ParquetWriter::new(clone).with_key_value_metadata(Some(metadata)))
+                let recorded = Recorded {
+                    file: clone,
+                    failed: std::sync::Arc::clone(&failed),
+                };
+                (ParquetWriter::new(recorded).with_key_value_metadata(Some(metadata)))
                     .batched(schema)
                     .map_err(|e| fault(&e))
             })?;
         Ok(TableWriter {
             writer,
+            failed,
             file,
             path: path.to_path_buf(),
             table: table.to_path_buf(),
@@ -684,14 +692,26 @@ impl TableWriter {
     }
 
     /// Writes `rows`, a frame of the table's columns in order: each group as it fills.
-    pub fn write(&mut self, rows: DataFrame) -> PolarsResult<()> {
-        self.pending.vstack_mut_owned(rows)?;
-        while self.pending.height() >= self.group {
-            let group = self.pending.slice(0, self.group);
-            self.pending = self.pending.slice(self.group as i64, usize::MAX);
-            self.write_group(group)?;
+    pub fn write(&mut self, rows: DataFrame) -> Result<(), Fault> {
+        let written = (|| -> PolarsResult<()> {
+            self.pending.vstack_mut_owned(rows)?;
+            while self.pending.height() >= self.group {
+                let group = self.pending.slice(0, self.group);
+                self.pending = self.pending.slice(self.group as i64, usize::MAX);
+                self.write_group(group)?;
+            }
+            Ok(())
+        })();
+        written.map_err(|e| self.fault(&e))
+    }
+
+    /// The fault of a write that failed with `e`: the file's own error where it had one.
+    fn fault(&self, e: &dyn std::fmt::Display) -> Fault {
+        let failed = self.failed.lock().unwrap_or_else(|p| p.into_inner());
+        match failed.as_ref() {
+            Some(io) => cannot("write", &self.table)(io),
+            None => cannot("write", &self.table)(e),
         }
-        Ok(())
     }
 
     fn write_group(&mut self, mut group: DataFrame) -> PolarsResult<()> {
@@ -703,14 +723,14 @@ impl TableWriter {
 
     /// Writes the rows still pending as the last group, the file's footer, and syncs it.
     pub fn finish(mut self) -> Result<(), Fault> {
-        let table = std::mem::take(&mut self.table);
-        let fault = cannot("write", &table);
         let rest = std::mem::take(&mut self.pending);
         if rest.height() > 0 || !self.grouped {
-            self.write_group(rest).map_err(|e| fault(&e))?;
+            self.write_group(rest).map_err(|e| self.fault(&e))?;
         }
-        self.writer.finish().map_err(|e| fault(&e))?;
-        self.file.sync_all().map_err(|e| fault(&e))
+        if let Err(e) = self.writer.finish() {
+            return Err(self.fault(&e));
+        }
+        self.file.sync_all().map_err(|e| self.fault(&e))
     }
 
     /// `finish`, and the frame of the file written (no sum to check: this process wrote it).
@@ -720,6 +740,34 @@ impl TableWriter {
         let fault = cannot("read", &path);
         let bytes = std::fs::read(&path).map_err(|e| fault(&e))?;
         (ParquetReader::new(std::io::Cursor::new(bytes)).finish()).map_err(|e| fault(&e))
+    }
+}
+
+/// The file under a table's writer, keeping its first error.
+struct Recorded {
+    file: std::fs::File,
+    failed: std::sync::Arc<std::sync::Mutex<Option<std::io::Error>>>,
+}
+
+impl Recorded {
+    fn kept<T>(&self, done: std::io::Result<T>) -> std::io::Result<T> {
+        if let Err(e) = &done {
+            let mut failed = self.failed.lock().unwrap_or_else(|p| p.into_inner());
+            failed.get_or_insert_with(|| std::io::Error::new(e.kind(), e.to_string()));
+        }
+        done
+    }
+}
+
+impl std::io::Write for Recorded {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        let done = self.file.write(bytes);
+        self.kept(done)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        let done = self.file.flush();
+        self.kept(done)
     }
 }
 

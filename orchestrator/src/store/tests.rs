@@ -762,3 +762,61 @@ fn a_whole_frame_that_is_not_a_typed_record_is_not_counted_stored() {
         assert!(store.stored(&key).is_none());
     }
 }
+
+/// A `*.seg` that is a symbolic link (to a segment of the store, or anywhere) is not read
+/// through, and is said, not passed over in silence.
+#[test]
+fn a_segment_that_is_a_link_is_reported_not_read() {
+    let (dir, store, _) = twenty_with_their_catalog();
+    let real = catalog::segments(&store.segments())
+        .into_keys()
+        .next()
+        .unwrap();
+    std::os::unix::fs::symlink(
+        store.segments().join(&real),
+        store.segments().join("linked.seg"),
+    )
+    .unwrap();
+    let again = Store::open(dir.path(), "s");
+    let index = again.index();
+    assert_eq!(index.stored.len(), 20);
+    let said: Vec<String> = index.unreadable.iter().map(|u| u.to_string()).collect();
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(
+        said[0].contains("linked.seg") && said[0].contains("symbolic link"),
+        "{said:?}"
+    );
+}
+
+/// A running case's progress file is typed (`schema::protocol::Progress`, as nlsolve writes it);
+/// one not rewritten for more than a few seconds says so instead of a time left that no longer
+/// holds (a worker stopped by SIGSTOP said "about 2 s left" for as long as it was stopped).
+#[test]
+fn a_progress_file_says_how_far_and_whether_it_is_still_heard_from() {
+    let (dir, _) = scratch();
+    let path = dir.path().join("k.progress");
+    std::fs::write(
+        &path,
+        r#"{"step": 930, "steps": 3388, "elapsed_s": 1.5, "left_s": 4.0, "unit": "step"}"#,
+    )
+    .unwrap();
+    let mut progress = progress_of(&path).unwrap();
+    assert_eq!(progress.steps_done(), "step 930 of 3388");
+    assert_eq!(progress.left(), "about 4 s left");
+    progress.silent_s = 15.0;
+    assert_eq!(
+        progress.left(),
+        "no progress for 15 s (stopped, or starved of its cores)"
+    );
+    std::fs::write(
+        &path,
+        r#"{"step": 3, "steps": 40, "elapsed_s": 1, "left_s": 9, "unit": "iteration"}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        progress_of(&path).unwrap().steps_done(),
+        "iteration 3 of about 40"
+    );
+    std::fs::write(&path, r#"{"step": "3"}"#).unwrap();
+    assert!(progress_of(&path).is_none());
+}

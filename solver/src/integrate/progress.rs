@@ -4,6 +4,7 @@
 //! iterations its residual's decay so far says it needs. Like checkpointing it belongs to the
 //! process, not to the case: `nlsolve run --progress FILE`, or the line `nlsolve serve` reads.
 
+use schema::protocol::ProgressUnit;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -30,7 +31,7 @@ pub fn take() -> Option<Reporter> {
         last: None,
         since: Instant::now(),
         first_step: None,
-        unit: "step",
+        unit: ProgressUnit::Step,
     })
 }
 
@@ -41,13 +42,13 @@ pub struct Reporter {
     /// The step this segment of the run started from (a resumed run's rate is its own).
     first_step: Option<usize>,
     /// What a step is: a time step, or a steady solve's iteration.
-    unit: &'static str,
+    unit: ProgressUnit,
 }
 
 impl Reporter {
-    /// A reporter whose steps are `unit`s (the file says so: "iteration" for a steady solve,
+    /// A reporter whose steps are `unit`s (the file says so: iterations for a steady solve,
     /// whose iterations in all are an estimate).
-    pub fn counting(mut self, unit: &'static str) -> Reporter {
+    pub fn counting(mut self, unit: ProgressUnit) -> Reporter {
         self.unit = unit;
         self
     }
@@ -63,11 +64,14 @@ impl Reporter {
         let elapsed = self.since.elapsed().as_secs_f64();
         let done_here = (steps_done - first).max(1) as f64;
         let left_s = elapsed / done_here * (steps - steps_done) as f64;
-        let text = serde_json::json!({
-            "step": steps_done, "steps": steps, "elapsed_s": elapsed, "left_s": left_s,
-            "unit": self.unit,
+        let text = serde_json::to_string(&schema::protocol::Progress {
+            step: steps_done as u64,
+            steps: steps as u64,
+            elapsed_s: elapsed,
+            left_s,
+            unit: self.unit,
         })
-        .to_string();
+        .expect("progress serializes");
         // Whole or absent for a reader; a file that cannot be written is only not shown.
         let _ = write(&self.path, text.as_bytes());
     }

@@ -11,8 +11,11 @@ use std::borrow::Cow;
 use std::cell::RefCell;
 use std::time::Instant;
 
-/// Most step times kept for the median: longer runs time every k-th step.
-pub(crate) const MAX_TIMED_STEPS: usize = 1 << 20;
+/// Most step times kept for the median: longer runs time every k-th step. 2¹⁶ samples give the
+/// median to a fraction of a percent, and bound what a checkpoint carries of them (the step
+/// and communication times: 1 MiB at most, where 2²⁰ made a checkpoint of a long run 16 MiB
+/// larger than its field).
+pub(crate) const MAX_TIMED_STEPS: usize = 1 << 16;
 
 pub struct Stepping {
     pub dt: f64,
@@ -360,6 +363,32 @@ mod tests {
             None,
         )
         .diverged_at
+    }
+
+    /// However long the run, at most `MAX_TIMED_STEPS` step times are kept (and carried by a
+    /// checkpoint), spread over the whole run.
+    #[test]
+    fn the_step_times_kept_are_bounded_whatever_the_steps() {
+        for steps in [
+            1,
+            1000,
+            MAX_TIMED_STEPS,
+            MAX_TIMED_STEPS + 1,
+            10_000_000,
+            100_000_000,
+        ] {
+            let stride = steps.div_ceil(MAX_TIMED_STEPS).max(1);
+            let kept = steps.div_ceil(stride);
+            assert!(kept <= MAX_TIMED_STEPS, "{steps}: {kept}");
+            assert_eq!(
+                kept,
+                (0..steps)
+                    .step_by(stride)
+                    .filter(|&k| is_sampled(steps, k))
+                    .count()
+            );
+            assert!(kept >= MAX_TIMED_STEPS.min(steps) / 2, "{steps}: {kept}");
+        }
     }
 
     #[test]

@@ -145,9 +145,7 @@ fn write_slice(
         drop(frame);
         table::data_frame_as(rows, &schema)
     });
-    writer
-        .write(part.ok_or_else(|| changed(path))?)
-        .map_err(unwritable(path))?;
+    writer.write(part.ok_or_else(|| changed(path))?)?;
     Ok(RunTable::Writing {
         writer,
         schema,

@@ -53,7 +53,8 @@ impl<'a> SolveCheckpoints<'a> {
     pub fn take(exchange: &'a dyn Exchange, rtol: f64, max_iterations: usize) -> Self {
         SolveCheckpoints {
             checkpointer: checkpoint::take(max_iterations, None),
-            progress: progress::take().map(|r| r.counting("iteration")),
+            progress: progress::take()
+                .map(|r| r.counting(schema::protocol::ProgressUnit::Iteration)),
             rtol,
             max_iterations,
             exchange,
