@@ -785,6 +785,21 @@ fn a_stopped_run_resumes_its_long_point_from_its_checkpoint() {
         said.contains(": step ") && said.contains(" of 1694; the next run resumes it"),
         "{said}"
     );
+    // Damaged, it is said not to be resumed, and why (as the solver would refuse it).
+    let file = &checkpoints()[0];
+    let whole_file = std::fs::read(file).unwrap();
+    let mut damaged = whole_file.clone();
+    let last = damaged.len() - 1;
+    damaged[last] ^= 1;
+    std::fs::write(file, &damaged).unwrap();
+    let said = status_line(&scratch, "checkpoint ");
+    assert!(
+        said.contains("not resumed, it does not match its checksum")
+            && said.ends_with("the next run starts it afresh")
+            && !said.contains("resumes it"),
+        "{said}"
+    );
+    std::fs::write(file, &whole_file).unwrap();
 
     let stored = resumed_record(&scratch, "long");
     assert!(
