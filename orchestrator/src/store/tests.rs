@@ -395,7 +395,8 @@ fn a_catalog_edited_by_hand_is_refused_and_made_again_from_the_segments() {
     let text = std::fs::read_to_string(&file).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     let entry = |k: usize| -> Vec<serde_json::Value> { serde_json::from_str(lines[k]).unwrap() };
-    let edits: [&dyn Fn(&mut Vec<serde_json::Value>); 3] = [
+    type Edit<'a> = &'a dyn Fn(&mut Vec<serde_json::Value>);
+    let edits: [Edit; 3] = [
         &|e| e[2] = (e[2].as_u64().unwrap() + 1).into(),
         &|e| (e[2], e[3]) = (entry(2)[2].clone(), entry(2)[3].clone()),
         &|e| e[5] = "failed".into(),
