@@ -99,8 +99,10 @@ fn the_layer_check_sees_an_arrow_up() {
 }
 
 /// The schema both binaries read is plain serde data (and strsim, for "did you mean" in its
-/// errors): it links no numerics, tables or plots, so the orchestrator never compiles the solver
-/// to read a case or a record. clap comes only with the feature `cli` (nlsolve's flags), and
+/// errors; libc, for opening files others may have put in place without following a link or
+/// waiting on a FIFO; crc32fast, for the checkpoint's checksum both binaries check): it links no
+/// numerics, tables or plots, so the orchestrator never compiles the solver to read a case, a
+/// record or a checkpoint. clap comes only with the feature `cli` (nlsolve's flags), and
 /// `workspace-hack` adds only crates the workspace builds anyway, for their features (see its
 /// Cargo.toml).
 #[test]
@@ -128,7 +130,9 @@ fn the_schema_is_serde_only_and_acyclic() {
             "workspace-hack",
             "serde_json",
             "serde_path_to_error",
-            "strsim"
+            "strsim",
+            "libc",
+            "crc32fast"
         ]
     );
     assert_eq!(optional.iter().map(name).collect::<Vec<_>>(), ["clap"]);

@@ -134,7 +134,8 @@ fn checkpoints_report(
 ) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
         let Ok(case) = &point.case else { continue };
-        let line = match crate::store::checkpoint_of(&path, case, fingerprint) {
+        let ranks = case.resolved_count("ranks").unwrap_or(1) as usize;
+        let line = match crate::store::checkpoint_of(&path, &case.canonical(), ranks, fingerprint) {
             None => continue,
             Some(Ok((step, steps))) => {
                 let how_far = match steps {

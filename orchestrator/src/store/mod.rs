@@ -904,18 +904,18 @@ pub fn progress_of(path: &Path) -> Option<Progress> {
     })
 }
 
-/// How far the stopped run of `case` got, as its checkpoint at `path` says, read as the solver
-/// `fingerprint` reads it (`schema::checkpoint`: a regular file within the case's cap, whole
-/// under its checksum, of this build and case): `Ok` with the step it was taken at and the
-/// run's steps in all, when the next run resumes from it; `Err` with why the next run starts
-/// afresh instead; `None` when there is none.
+/// How far the stopped run of the case `canonical` over `ranks` ranks got, as its checkpoint at
+/// `path` says, read as the solver `fingerprint` reads it (`schema::checkpoint`: a regular file
+/// within the case's cap, whole under its checksum, of this build and case): `Ok` with the step
+/// it was taken at and the run's steps in all, when the next run resumes from it; `Err` with why
+/// the next run starts afresh instead; `None` when there is none.
 pub fn checkpoint_of(
     path: &Path,
-    case: &crate::run::nlsolve::Checked,
+    canonical: &Value,
+    ranks: usize,
     fingerprint: Option<&str>,
 ) -> Option<Result<(u64, Option<u64>), String>> {
     use schema::checkpoint::{most_bytes, read, Identity};
-    let canonical = case.canonical();
     let cap = schema::case::Case::parse(canonical.clone()).map_or(u64::MAX, |c| most_bytes(&c));
     let checkpoint = match read(path, cap) {
         Ok(checkpoint) => checkpoint?,
@@ -924,8 +924,8 @@ pub fn checkpoint_of(
     let header = checkpoint.header;
     let ours = Identity {
         fingerprint: fingerprint.unwrap_or_default().to_string(),
-        case: Identity::case_text(&canonical),
-        ranks: case.resolved_count("ranks").unwrap_or(1) as usize,
+        case: Identity::case_text(canonical),
+        ranks,
         rank: 0,
     };
     if let Some(why) = ours.refuses(&header.identity) {

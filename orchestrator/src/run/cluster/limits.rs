@@ -84,7 +84,9 @@ impl History {
         {
             let path = store.scratch(&p.key, CHECKPOINT);
             let Ok(case) = &p.case else { continue };
-            let resumed = checkpoint_of(&path, case, fingerprint).and_then(Result::ok);
+            let ranks = case.resolved_count("ranks").unwrap_or(1) as usize;
+            let resumed =
+                checkpoint_of(&path, &case.canonical(), ranks, fingerprint).and_then(Result::ok);
             if let Some((step, Some(steps))) = resumed.filter(|(_, n)| *n > Some(0)) {
                 let left = 1.0 - step.min(steps) as f64 / steps as f64;
                 self.left.insert(p.key.to_string(), left);
