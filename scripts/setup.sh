@@ -2,7 +2,7 @@
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
-# a person would, Python's vtk, whose readers open the solver's VTK files, and pyarrow, which
+# a person would, Valgrind, whose cachegrind counts instructions (`compare --instructions`), Python's vtk, whose readers open the solver's VTK files, and pyarrow, which
 # reads the Parquet tables as the guide's results chapter does. With --slurm, the
 # packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its accounting
 # (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs (iproute2).
@@ -13,7 +13,7 @@ for_tests=false
 packages=(openmpi-bin libopenmpi-dev libclang-dev pkg-config)
 for option in "$@"; do
   case "$option" in
-    --tests) for_tests=true; packages+=(chromium) ;;
+    --tests) for_tests=true; packages+=(chromium valgrind) ;;
     # A single-node Slurm (scripts/slurm-local).
     --slurm) packages+=(munge slurmctld slurmd slurm-client) ;;
     --slurm-accounting) packages+=(slurmdbd mariadb-server) ;;

@@ -522,3 +522,97 @@ fn check_says_a_case_does_not_fit_exactly_where_its_needs_exceed_the_machine() {
     );
     assert!(verdicts[3]["needs_bytes"].as_u64().unwrap() > available);
 }
+
+/// A busy process at the machine's normal priority, ended when dropped.
+struct Busy(std::process::Child);
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// CPU time beside wall time (`solve_cpu_s`, `solve_wait_s`): a one-thread solve with a core to
+/// itself computes its whole wall time (its CPU time within 10 % of `solve_s`; `nice -n -20`, so
+/// that the tests running beside it take nothing from it); beside two busy processes on this
+/// 2-core machine it computes clearly less than its wall time, says it waited for a core the
+/// rest of it, and is `noisy`.
+#[test]
+fn cpu_time_is_the_solve_on_a_core_of_its_own_and_clearly_less_under_load() {
+    let case = [
+        "run",
+        "--dim",
+        "2",
+        "--n",
+        "128",
+        "--m",
+        "3",
+        "--t-end",
+        "0.2",
+        "--cfl",
+        "0.5",
+        "--source",
+        "discrete",
+        "--threads",
+        "1",
+    ];
+    let timed = |nice: &str| -> Value {
+        let out = std::process::Command::new("nice")
+            .args(["-n", nice])
+            .arg(nonlocal_study::binary("nlsolve"))
+            .args(case)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        record(&out)
+    };
+    let quiet = timed("-20");
+    let (wall, cpu) = (
+        quiet["solve_s"].as_f64().unwrap(),
+        quiet["solve_cpu_s"].as_f64().unwrap(),
+    );
+    let waited = quiet["solve_wait_s"].as_f64().unwrap();
+    assert!(
+        (cpu / wall - 1.0).abs() < 0.1,
+        "quiet: {cpu} s of CPU in {wall} s"
+    );
+    assert!(waited < 0.1 * wall, "quiet: waited {waited} s of {wall} s");
+    assert!(quiet["setup_cpu_s"].as_f64().unwrap() > 0.0);
+    let load: Vec<Busy> = (0..2)
+        .map(|_| {
+            let mut spin = std::process::Command::new("sh");
+            Busy(spin.args(["-c", "while :; do :; done"]).spawn().unwrap())
+        })
+        .collect();
+    // Running before the solve starts: each has spent 50 ms of CPU (5 ticks of /proc's clock).
+    let spent = |busy: &Busy| -> u64 {
+        let stat =
+            std::fs::read_to_string(format!("/proc/{}/stat", busy.0.id())).unwrap_or_default();
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        after
+            .split_whitespace()
+            .nth(11)
+            .and_then(|t| t.parse().ok())
+            .unwrap_or(0)
+    };
+    while load.iter().any(|busy| spent(busy) < 5) {
+        std::thread::yield_now();
+    }
+    let loaded = timed("0");
+    let (wall, cpu) = (
+        loaded["solve_s"].as_f64().unwrap(),
+        loaded["solve_cpu_s"].as_f64().unwrap(),
+    );
+    let waited = loaded["solve_wait_s"].as_f64().unwrap();
+    assert!(cpu < 0.85 * wall, "loaded: {cpu} s of CPU in {wall} s");
+    assert!(
+        waited > 0.1 * (cpu + waited),
+        "loaded: waited {waited} s beside {cpu} s"
+    );
+    assert_eq!(loaded["provenance"]["noisy"], true, "{loaded}");
+}

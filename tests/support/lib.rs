@@ -381,6 +381,7 @@ pub fn numbers_of(record: &Value) -> Value {
     let fields = record.as_object_mut().expect("a record is an object");
     for measured in schema::record::columns::TIMINGS.iter().chain(&[
         "peak_memory_bytes",
+        "solve_cpu_s_ranks",
         "run_id",
         "resumed_from_step",
         "solve_s_segments",

@@ -31,6 +31,7 @@ use std::collections::HashMap;
 mod bootstrap;
 mod metrics;
 mod noise;
+pub mod paired;
 
 pub use metrics::{is_order, measured, order_shift, ORDER_TOLERANCE};
 pub use noise::NoiseModel;
@@ -60,8 +61,10 @@ impl Verdict {
             Verdict::Worse => "worse",
             Verdict::Same => "same",
             Verdict::NoInterval => "no interval (fewer than 2 repeats)",
-            Verdict::TooShort => "too short to judge",
-            Verdict::Abstained => "no verdict: every run noisy",
+            Verdict::TooShort => "too short to judge (under 1 ms of wall time)",
+            Verdict::Abstained => {
+                "no verdict: every run timed on a busy machine (its CPU time, solve_cpu_s, is judged)"
+            }
         }
     }
 }
@@ -150,7 +153,8 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
                 median(&scale_b)
             });
             let short = metric.span.is_some() && shortest < RESOLUTION_S;
-            let set_aside = match (short, all_noisy(a) || all_noisy(b)) {
+            let noisy = !metric.cpu && (all_noisy(a) || all_noisy(b));
+            let set_aside = match (short, noisy) {
                 _ if kind == Kind::Deterministic => None,
                 (true, _) => Some(Verdict::TooShort),
                 (_, true) => Some(Verdict::Abstained),

@@ -87,10 +87,26 @@ pub struct CompareArgs {
     pub common: CommonArgs,
     /// The baseline A: `history` (the records that the current ones superseded, of the most
     /// recent other solver fingerprint), `fingerprint:PREFIX` (the stored or superseded records
-    /// of the build whose fingerprint starts with PREFIX), or another results directory holding
-    /// the same study.
+    /// of the build whose fingerprint starts with PREFIX), another results directory holding
+    /// the same study, or `solver:PATH`: that nlsolve binary, run now in turns with this one
+    /// (interleaved: A B, B A, … for --rounds rounds, one case at a time), each pair's ratio
+    /// judged, so that a busy machine's drift hits both sides alike.
     #[arg(long)]
     pub against: String,
+    /// With `--against solver:PATH`: rounds of interleaved runs (each point runs this many times
+    /// with each build); at least 2, for an interval. 11 calls a 1.25× slower solve's CPU time
+    /// worse 20 times in 20 on this 2-core machine under a load of two busy processes
+    /// (docs/performance.md); an odd count keeps the median a run's own.
+    #[arg(long, default_value_t = 11)]
+    pub rounds: usize,
+    /// With `--against solver:PATH`: also count each point's instructions under Valgrind (one
+    /// run per build, 20–50× slower, the same count on any machine), judged to 0.5 %.
+    #[arg(long)]
+    pub instructions: bool,
+    /// With `--against solver:PATH`: only the points with these keys (comma-separated, as
+    /// `plan` prints them); default: every point of the study.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Option<Vec<String>>,
     /// The smallest change of a timing that counts, as a fraction: with 0.1, B/A's interval
     /// must lie above 1.1 or below 1/1.1.
     #[arg(long, default_value_t = 0.1)]

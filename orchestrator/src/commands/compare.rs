@@ -26,6 +26,9 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
             args.threshold
         )));
     }
+    if let Some(path) = args.against.strip_prefix("solver:") {
+        return super::interleaved::compare(args, std::path::Path::new(path));
+    }
     // Read only until every check has passed: a refused compare takes no results directory.
     let (study, _, store, planned) = planned(&args.common, &Options::default(), false)?;
     let b = match &args.of {
@@ -93,7 +96,36 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         .changes
         .extend(compare::compare_orders(&summary_a, &summary_b));
     claim(&args.common, &study, &store, true)?;
-    out!("{}", compare::markdown(&comparison));
+    let title = format!(
+        "study {}: B = {} against A = {}",
+        study.name,
+        args.of.as_deref().unwrap_or("the current runs"),
+        args.against
+    );
+    errln!("{}", noise.describe());
+    report(
+        &comparison,
+        &study,
+        &store,
+        &args.against,
+        &title,
+        args.threshold,
+        points.len(),
+    )
+}
+
+/// Prints a comparison's verdicts, writes `compare.parquet` and `compare.svg` beside the study's
+/// tables, says where, and exits 1 when something got worse.
+pub(super) fn report(
+    comparison: &compare::Comparison,
+    study: &Study,
+    store: &Store,
+    against: &str,
+    title: &str,
+    threshold: f64,
+    points: usize,
+) -> Result<ExitCode, Failure> {
+    out!("{}", compare::markdown(comparison));
     for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
         for point in points {
             outln!("only in {side}: {point}");
@@ -101,31 +133,23 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
     }
     let table = store.table("compare.parquet");
     crate::store::table::write_parquet_about(
-        &[(&table, &compare::rows(&comparison))],
+        &[(&table, &compare::rows(comparison))],
         &crate::store::table::About {
-            description: &format!("{} against {}", study.name, args.against),
+            description: &format!("{} against {against}", study.name),
             notes: &[],
         },
     )?;
     let figure = store.table("compare.svg");
-    let title = format!(
-        "study {}: B = {} against A = {}",
-        study.name,
-        args.of.as_deref().unwrap_or("the current runs"),
-        args.against
-    );
-    let chart = crate::output::compare_figure::chart(&comparison, &title, args.threshold);
+    let chart = crate::output::compare_figure::chart(comparison, title, threshold);
     // A figure that cannot be drawn stops nothing: the table holds every verdict.
     match crate::output::draw::render(&chart) {
         Ok(svg) => crate::store::write_atomically(&figure, svg.as_bytes())?,
         Err(why) => errln!("nlstudy: the comparison's figure is not drawn: {why}"),
     }
     let regressions = comparison.regressions();
-    errln!("{}", noise.describe());
     errln!(
-        "compare: {} metrics of {} points, {regressions} worse; table: {}, figure: {}",
+        "compare: {} metrics of {points} points, {regressions} worse; table: {}, figure: {}",
         comparison.changes.len(),
-        points.len(),
         table.display(),
         figure.display()
     );

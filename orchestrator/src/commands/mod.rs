@@ -10,6 +10,7 @@ mod failure;
 #[cfg(test)]
 mod fuzz;
 mod history;
+mod interleaved;
 mod open;
 mod plan;
 mod plot;

@@ -243,7 +243,7 @@ mod tests {
         ] {
             assert!(svg.contains(drawn), "{drawn}");
         }
-        for absent in ["no interval", "too short", "every run noisy"] {
+        for absent in ["no interval", "too short", "every run timed"] {
             assert!(
                 !svg.contains(absent),
                 "{absent} is in the legend but not drawn"

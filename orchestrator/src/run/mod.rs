@@ -2,6 +2,8 @@
 //! worker pool and its progress output, and clusters (job scripts, schedulers, the jobs ledger).
 
 pub mod cluster;
+pub mod instructions;
+pub mod interleave;
 pub mod nlsolve;
 pub mod plan;
 pub mod pool;

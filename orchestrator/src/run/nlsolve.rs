@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Arc;
 
+#[derive(Clone)]
 pub struct Nlsolve {
     pub binary: PathBuf,
     /// `nlsolve --version`: part of every run's key, so a new solver version runs again.
@@ -125,7 +126,8 @@ impl Nlsolve {
     /// could not be started (exit 3).
     pub fn locate(explicit: Option<&Path>) -> Result<Nlsolve, Fault> {
         let binary = match explicit {
-            Some(path) => path.to_path_buf(),
+            // Absolute: workers run in the store's work directory, not here.
+            Some(path) => std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()),
             None => match std::env::var_os("NLSOLVE") {
                 Some(path) => PathBuf::from(path),
                 None => std::env::current_exe()

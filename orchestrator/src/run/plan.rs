@@ -66,6 +66,7 @@ pub enum Decision {
 
 /// A point, its case as the solver resolved it (or why the solver refused it), its key and
 /// what happens to it.
+#[derive(Clone)]
 pub struct Planned {
     pub point: Point,
     pub case: Result<Checked, String>,

@@ -16,9 +16,18 @@ use std::sync::OnceLock;
 mod leaves;
 pub use leaves::{dotted, each_leaf, tree_order};
 
-/// The record's timings in seconds (setup, time loop, median step, communication per step):
-/// the fields whose repeats the orchestrator's summary reduces to min, median and max.
-pub const TIMINGS: [&str; 4] = ["setup_s", "solve_s", "step_s", "comm_s"];
+/// The record's timings in seconds (setup, time loop, median step, communication per step, the
+/// set-up's and the solve's CPU, the solve's wait for a core): the fields whose repeats the
+/// orchestrator's summary reduces to min, median and max.
+pub const TIMINGS: [&str; 7] = [
+    "setup_s",
+    "solve_s",
+    "step_s",
+    "comm_s",
+    "setup_cpu_s",
+    "solve_cpu_s",
+    "solve_wait_s",
+];
 
 /// Declares each column the orchestrator reads by name off a table's rows, and `NAMED`, all of
 /// them (a test checks each is one of `columns()`).
@@ -44,6 +53,8 @@ named! {
     STEPS_DONE = "steps_done",
     SETUP_S = "setup_s",
     SOLVE_S = "solve_s",
+    SOLVE_CPU_S = "solve_cpu_s",
+    INSTRUCTIONS = "instructions",
     STEP_S = "step_s",
     ERROR_L2_NORM = "error_l2_norm",
     ERROR_MAX = "error_max",
@@ -273,6 +284,11 @@ pub fn every_field() -> Stored {
         setup_s: 1e-3,
         solve_s: 1e-2,
         step_s: 1e-3,
+        setup_cpu_s: Some(1e-3),
+        solve_cpu_s: Some(2e-2),
+        solve_wait_s: Some(1e-4),
+        instructions: Some(123_456_789),
+        instructions_by: Some("cachegrind".into()),
         resumed_from_step: Some(4),
         solve_s_segments: Some(vec![4e-3, 6e-3]),
         error_l2: Some(1e-8),
@@ -315,6 +331,7 @@ pub fn every_field() -> Stored {
             comm_s: 1e-5,
             hosts: vec!["host".into(), "host".into()],
             cpus: vec!["0".into(), "1".into()],
+            solve_cpu_s_ranks: vec![1e-2, 1e-2],
             oversubscribed: Some(false),
             traffic: Some(Traffic::default()),
         },

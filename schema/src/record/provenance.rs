@@ -35,7 +35,8 @@ pub struct Provenance {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_end: Option<Load>,
     /// Timed while other tasks wanted more cores than the run left free (cores online minus
-    /// threads × ranks), at its start or its end: its timings measure contention too.
+    /// threads × ranks), at its start or its end, or while its solve waited for cores other
+    /// tasks held more than `NOISY_WAIT_SHARE` of its time: its timings measure contention too.
     #[serde(default)]
     pub noisy: bool,
 }
@@ -47,7 +48,20 @@ pub struct Load {
     pub other_runnable: usize,
 }
 
+/// The share of its time a solve may wait, ready to run, for cores other tasks hold before its
+/// timings are noisy: its wait over its CPU and wait together.
+pub const NOISY_WAIT_SHARE: f64 = 0.1;
+
 impl Provenance {
+    /// Noisy too when a solve that computed `cpu_s` waited `wait_s` for cores other tasks held
+    /// beyond `NOISY_WAIT_SHARE` of its time: it lost that share of its cores, whatever the
+    /// load samples at its ends said.
+    pub fn with_wait(mut self, cpu_s: f64, wait_s: f64) -> Self {
+        let runnable = cpu_s + wait_s;
+        self.noisy |= runnable > 0.0 && wait_s / runnable > NOISY_WAIT_SHARE;
+        self
+    }
+
     /// The load at the run's start and end, and whether it made the run noisy.
     pub fn with_load(mut self, start: Option<Load>, end: Option<Load>) -> Self {
         let free = self.cores_online.saturating_sub(self.threads * self.ranks);

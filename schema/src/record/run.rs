@@ -25,6 +25,28 @@ pub struct Record<C = Case> {
     pub setup_s: f64,
     pub solve_s: f64,
     pub step_s: f64,
+    /// CPU seconds (user and system, every thread; over ranks, their sum) of the set-up, from
+    /// the run's start to its solve, and of the solve (the time loop with its bookkeeping, or a
+    /// steady solve): the work itself, whatever else the machine runs. Absent where the system
+    /// does not tell, and in records of builds before them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup_cpu_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_cpu_s: Option<f64>,
+    /// Seconds the solve's threads were ready to run but waited for a core (the kernel's
+    /// run-queue delay, summed over threads and ranks): for a run of one thread, the part of its
+    /// wall time that other tasks took, and over 10 % of the solve's CPU and wait together it is
+    /// `noisy`; a pool of threads also waits each time a step wakes it, its own cost.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solve_wait_s: Option<f64>,
+    /// The instructions the run's process executed, counted by `instructions_by` (`cachegrind`:
+    /// Valgrind's count, the same on any machine however busy; set by `nlstudy compare
+    /// --instructions`, whose counted runs' timings are Valgrind's, not the solver's). Counts are
+    /// compared only with counts of the same kind.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instructions: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instructions_by: Option<String>,
     /// The step this run resumed from, from a checkpoint (`nlsolve run --checkpoint`); absent
     /// for a run that started at step 0. Its numbers are those of a run never stopped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -122,6 +144,11 @@ impl Record {
             setup_s: 0.0,
             solve_s: 0.0,
             step_s: 0.0,
+            setup_cpu_s: None,
+            solve_cpu_s: None,
+            solve_wait_s: None,
+            instructions: None,
+            instructions_by: None,
             resumed_from_step: None,
             solve_s_segments: None,
             error_l2: None,
@@ -360,6 +387,9 @@ pub struct Distribution {
     /// rank order (absent on one rank): how a scheduler placed the ranks' threads.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cpus: Vec<String>,
+    /// Each rank's `solve_cpu_s`, in rank order (absent on one rank).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub solve_cpu_s_ranks: Vec<f64>,
     /// Whether some rank ran more threads than its CPUs, or the ranks of one host more threads
     /// than their CPUs together (absent on one rank, where `nlstudy` judges it): its timings
     /// measure contention, not scaling.
@@ -400,6 +430,7 @@ impl Distribution {
             comm_s: 0.0,
             hosts: Vec::new(),
             cpus: Vec::new(),
+            solve_cpu_s_ranks: Vec::new(),
             oversubscribed: None,
             traffic: None,
         }

@@ -595,13 +595,13 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let started = Instant::now();
     let problem = Coupled::new(case)?;
     let setup_s = started.elapsed().as_secs_f64();
-    let solving = Instant::now();
+    let solving = crate::output::usage::Solving::starts();
     let optimum = problem.optimum()?;
     let (theta_n, theta_l) = optimum.theta.split_at(optimum.theta.len() - 1);
     let states = problem.states(&optimum.theta);
     let (nonlocal, local) = (&problem.nonlocal, &problem.local);
     let (u_n, u_l) = (&states.0, &states.1);
-    let solve_s = solving.elapsed().as_secs_f64();
+    let solve_s = solving.ends();
 
     let field = case.patch();
     let exact = |x: f64| field.value(x);

@@ -139,7 +139,8 @@ pub fn run(case: &Case) -> Result<Outcome, CaseError> {
             CouplingKind::Seamless => in_pool(&case, seamless::run),
         },
     };
-    outcome.map(|outcome| finished(&case, outcome))
+    let used = used_by_this_process();
+    outcome.map(|outcome| finished(&case, with_usage(outcome, &[used])))
 }
 
 /// What `nlsolve check` verifies beyond `validate` without running: for the time-stepping
@@ -162,6 +163,39 @@ pub fn preflight(
 
 /// Every outcome leaves through here: an `ok` record may hold no result that is not finite, and
 /// each carries the memory estimate beside its measured peak.
+/// This process's set-up CPU, solve CPU and solve wait (`output::usage`), `NAN` where unknown.
+fn used_by_this_process() -> [f64; 3] {
+    let (setup, solve) = crate::output::usage::taken();
+    [
+        setup.map_or(f64::NAN, |u| u.cpu_s),
+        solve.map_or(f64::NAN, |u| u.cpu_s),
+        solve.and_then(|u| u.wait_s).unwrap_or(f64::NAN),
+    ]
+}
+
+/// The record with what each rank's process used (`used_by_this_process` of each, in rank
+/// order): the CPU times and the wait summed over ranks, each rank's solve CPU beside them over
+/// ranks, and the run noisy if its solve waited for cores beyond its share. Only a run of one
+/// thread per rank is judged by its wait: the threads of a pool wait too each time a step wakes
+/// them (tens of microseconds a step on a virtual machine's idle cores), which is the run's own
+/// cost, not a neighbour's.
+fn with_usage(mut outcome: Outcome, ranks: &[[f64; 3]]) -> Outcome {
+    let sum = |k: usize| {
+        let total: f64 = ranks.iter().map(|r| r[k]).sum();
+        total.is_finite().then_some(total)
+    };
+    let record = &mut outcome.record;
+    (record.setup_cpu_s, record.solve_cpu_s, record.solve_wait_s) = (sum(0), sum(1), sum(2));
+    if ranks.len() > 1 && ranks.iter().all(|r| r[1].is_finite()) {
+        record.distribution.solve_cpu_s_ranks = ranks.iter().map(|r| r[1]).collect();
+    }
+    let one_thread = record.provenance.threads == 1;
+    if let (Some(cpu), Some(wait), true) = (record.solve_cpu_s, record.solve_wait_s, one_thread) {
+        record.provenance = record.provenance.clone().with_wait(cpu, wait);
+    }
+    outcome
+}
+
 fn finished(case: &ValidCase, mut outcome: Outcome) -> Outcome {
     outcome.record.diverge_if_not_finite();
     outcome.record.memory_estimate_bytes = Some(resources::estimated_bytes_per_rank(case));
@@ -224,5 +258,11 @@ pub fn run_on_ranks(
             unreachable!("refused above")
         }
     };
-    outcome.map(|outcome| outcome.map(|outcome| finished(&case, outcome)))
+    // Every rank's usage, gathered on every rank (each rank took part in the run's collectives,
+    // so each takes part in this one).
+    let mine = used_by_this_process();
+    let mut all = vec![0.0; 3 * ranks];
+    world.all_gather_into(&mine[..], &mut all[..]);
+    let used: Vec<[f64; 3]> = all.chunks(3).map(|r| [r[0], r[1], r[2]]).collect();
+    outcome.map(|outcome| outcome.map(|outcome| finished(&case, with_usage(outcome, &used))))
 }

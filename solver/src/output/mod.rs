@@ -5,4 +5,5 @@ pub mod diagnostics;
 pub mod field;
 pub mod outcome;
 pub mod record;
+pub mod usage;
 pub mod vtk;

@@ -75,6 +75,7 @@ static START: std::sync::Mutex<Option<Load>> = std::sync::Mutex::new(None);
 /// case; only this thread runs then).
 pub fn note_start() {
     *START.lock().unwrap_or_else(|e| e.into_inner()) = load_now(1);
+    super::usage::run_starts();
 }
 
 /// Starts the count of the most resident memory afresh (Linux's `clear_refs`, value 5), so

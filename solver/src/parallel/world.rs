@@ -258,6 +258,7 @@ pub(crate) fn distribution(
         hosts: hosts.clone(),
         oversubscribed: oversubscribed(&hosts, &cpus, case.threads),
         cpus,
+        solve_cpu_s_ranks: Vec::new(), // known once the run is over (`methods::finished`)
         traffic: Some(traffic),
     }
 }

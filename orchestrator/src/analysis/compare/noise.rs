@@ -50,6 +50,9 @@ pub struct NoiseModel {
     within: BTreeMap<(String, i32), (f64, usize)>,
     /// Whole-run drift by metric, with the pairs of runs it came from.
     between: BTreeMap<String, (f64, usize)>,
+    /// What the history held, whether or not enough to measure from: point pairs (of the metric
+    /// with the most), and pairs of runs (of `COMMON_POINTS` points or more).
+    found: (usize, usize),
 }
 
 impl NoiseModel {
@@ -59,6 +62,7 @@ impl NoiseModel {
         NoiseModel {
             within: BTreeMap::new(),
             between: BTreeMap::new(),
+            found: (0, 0),
         }
     }
 
@@ -103,12 +107,17 @@ impl NoiseModel {
         }
         let mut within: BTreeMap<(String, i32), Vec<f64>> = BTreeMap::new();
         let mut between: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        // Point pairs by metric, and the pairs of runs they came from.
+        let mut found: (BTreeMap<&str, usize>, std::collections::BTreeSet<String>) =
+            Default::default();
         // A pair of runs of fewer points has no common factor to speak of (the distances of a
         // single point from its own median are 0): it calibrates nothing.
-        for ((metric, _), pairs) in by_runs
+        for ((metric, runs), pairs) in by_runs
             .into_iter()
             .filter(|(_, p)| p.len() >= COMMON_POINTS)
         {
+            *found.0.entry(metric).or_default() += pairs.len();
+            found.1.insert(runs.clone());
             let logs: Vec<f64> = pairs.iter().map(|p| p.0).collect();
             let common = median(&logs);
             between
@@ -123,6 +132,7 @@ impl NoiseModel {
         NoiseModel {
             within: robust(within, CALIBRATION_SAMPLES),
             between: robust(between, CALIBRATION_RUNS),
+            found: (found.0.into_values().max().unwrap_or(0), found.1.len()),
         }
     }
 
@@ -172,18 +182,32 @@ impl NoiseModel {
         (Z * self.between(metric)).exp()
     }
 
-    /// One sentence on where the floors came from.
+    /// Where the floors came from, in words a user can act on: what the study's history held,
+    /// what was measured from it, and what more would measure the rest.
     pub fn describe(&self) -> String {
-        // The pairs of the best-measured metric: each pair of runs gives one per metric.
-        let pairs = self.within.values().map(|(_, k)| *k).max().unwrap_or(0);
-        let runs = self.between.values().map(|(_, k)| *k).max().unwrap_or(0);
-        match (pairs, runs) {
-            (0, 0) => "noise floors: the default run-to-run drift (the study's history holds no A/A pairs of one build; `nlstudy run --force` on this machine makes them)".to_string(),
-            _ => format!(
-                "noise floors: measured from the study's A/A history (up to {pairs} point pairs at each of {} metric scales, {runs} pairs of runs), the default elsewhere",
-                self.within.len()
-            ),
+        let (point_pairs, run_pairs) = self.found;
+        if run_pairs == 0 {
+            return format!(
+                "noise floors: this machine's default drift (the study's history holds no two runs of one build of {COMMON_POINTS} points or more to measure it from: `nlstudy run --force` makes them; `compare --against solver:PATH` pairs interleaved runs instead)"
+            );
         }
+        let scales = self.within.len();
+        let points = match scales {
+            0 => format!(
+                "point drift: the default (its {point_pairs} point pairs fill no timing scale to the {CALIBRATION_SAMPLES} pairs each needs)"
+            ),
+            _ => format!(
+                "point drift measured at {scales} metric scales from {point_pairs} point pairs, the default at others"
+            ),
+        };
+        let runs = match self.between.values().map(|(_, k)| *k).max() {
+            Some(measured) => format!("whole-run drift measured from {measured} pairs of runs"),
+            None => format!(
+                "whole-run drift: the default ({run_pairs} pairs of runs of the {CALIBRATION_RUNS} it needs: `nlstudy run --force` {} more times)",
+                CALIBRATION_RUNS - run_pairs.min(CALIBRATION_RUNS)
+            ),
+        };
+        format!("noise floors from the study's history of {run_pairs} pairs of runs of one build: {points}; {runs}")
     }
 }
 

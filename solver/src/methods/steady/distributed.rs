@@ -61,7 +61,7 @@ pub fn run(
     let mut lp = vec![0.0; b.len()];
     let setup_s = started.elapsed().as_secs_f64();
 
-    let solve_started = Instant::now();
+    let solving = crate::output::usage::Solving::starts();
     let comm_before = mpi.seconds();
     let mut u = vec![0.0; b.len()];
     let system = &mut cg::Closures {
@@ -77,7 +77,7 @@ pub fn run(
     let mut checkpoints = SolveCheckpoints::take(&mpi, params.rtol, params.max_iterations);
     let convergence =
         Cg::new(b.len()).solve_checkpointed(system, &b, &mut u, &params, &mut checkpoints);
-    let segment_s = solve_started.elapsed().as_secs_f64();
+    let segment_s = solving.ends();
     let comm_s = mpi.seconds() - comm_before + checkpoints.earlier_comm_s();
 
     // Measured where the values are, each rank on its nodes, then summed over ranks: no rank

@@ -194,7 +194,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         let mut u = vec![0.0; b.len()];
         let mut lu = vec![0.0; b.len()];
         let setup_s = started.elapsed().as_secs_f64();
-        let solve_started = Instant::now();
+        let solving = crate::output::usage::Solving::starts();
         let system = &mut cg::Closures {
             len: b.len(),
             precondition: cg::NoPreconditioner,
@@ -209,7 +209,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
             SolveCheckpoints::take(&exchange::Serial, params.rtol, params.max_iterations);
         let convergence =
             Cg::new(b.len()).solve_checkpointed(system, &b, &mut u, &params, &mut checkpoints);
-        let solve = checkpoints.resumed(solve_started.elapsed().as_secs_f64());
+        let solve = checkpoints.resumed(solving.ends());
         drop(checkpoints);
         Ok(outcome(
             case,

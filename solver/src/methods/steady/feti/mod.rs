@@ -121,7 +121,7 @@ pub fn run_on(
     let setup_s = exchange.max(started.elapsed().as_secs_f64());
     let comm_before = exchange.seconds();
 
-    let solve_started = Instant::now();
+    let solving = crate::output::usage::Solving::starts();
     let mut checkpoints = SolveCheckpoints::take(exchange, problem.rtol, case.max_iterations());
     let dual = projected_cg(
         &mut feti,
@@ -153,7 +153,7 @@ pub fn run_on(
             })
             .collect()
     });
-    let solve_s = checkpoints.resumed(exchange.max(solve_started.elapsed().as_secs_f64()));
+    let solve_s = checkpoints.resumed(exchange.max(solving.ends()));
     let comm_s = exchange.max(exchange.seconds() - comm_before + checkpoints.earlier_comm_s());
     drop(checkpoints);
 

@@ -1,0 +1,177 @@
+//! `nlstudy compare --against solver:PATH`: the study's points rerun now with two builds in
+//! turns (`run::interleave`), each pair's ratio judged (`analysis::compare::paired`), and with
+//! `--instructions` each point's instruction count by each build (`run::instructions`).
+
+use super::compare::report;
+use super::failure::Failure;
+use super::open::{claim, planned};
+use crate::analysis::compare::paired::{self, Rounds};
+use crate::cli::args::CompareArgs;
+use crate::run::interleave::{self, Side};
+use crate::run::nlsolve::Nlsolve;
+use crate::run::plan::{short, Decision, Options, Planned};
+use crate::run::pool::PoolOptions;
+use crate::run::progress::{Mode, Progress};
+use crate::run::signals;
+use std::path::Path;
+use std::process::ExitCode;
+
+pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, Failure> {
+    if args.rounds < 2 {
+        return Err(Failure::BadInput(format!(
+            "--rounds {}: give at least 2, so that each point has an interval",
+            args.rounds
+        )));
+    }
+    let stop = signals::Stop::on_signals().map_err(Failure::Io)?;
+    let (study, solver_b, store, planned) = planned(&args.common, &Options::default(), false)?;
+    let solver_a = Nlsolve::locate(Some(baseline))?;
+    let points = chosen(&planned, args.only.as_deref())?;
+    let build = |s: &Nlsolve| short(s.fingerprint.as_deref().unwrap_or(&s.version)).to_string();
+    let dir =
+        (store.table("interleaved")).join(format!("{}-{}", build(&solver_a), build(&solver_b)));
+    claim(&args.common, &study, &store, true)?;
+    let counted = args
+        .instructions
+        .then(|| [(solver_a.clone(), "a-count"), (solver_b.clone(), "b-count")]);
+    let mut sides = [
+        Side::open(solver_a, &dir, "a", &study.name),
+        Side::open(solver_b, &dir, "b", &study.name),
+    ];
+    let options = PoolOptions {
+        cores: crate::run::pool::machine_cores(),
+        exclusive: true,
+        timeout: None,
+        launcher: (crate::model::launcher::DEFAULT_LAUNCHER.parse())
+            .expect("the default launcher parses"),
+        retries: 0,
+        isolate: false,
+        checkpoint_every: None,
+        keep_checkpoints: false,
+    };
+    let missing = interleave::missing(&points, args.rounds, &sides);
+    let total = 2 * args.rounds * points.len();
+    errln!(
+        "interleaved: {} points × {} rounds × 2 builds, {missing} runs to go ({} stored in {})",
+        points.len(),
+        args.rounds,
+        total - missing,
+        dir.display()
+    );
+    let mut progress = Progress::new(Mode::detect(false), missing, total - missing);
+    let (_, finished) = interleave::run(
+        &points,
+        args.rounds,
+        &mut sides,
+        &options,
+        &stop,
+        &mut progress,
+    )?;
+    progress.close();
+    if !finished {
+        let signal = stop.signal().unwrap_or(libc::SIGTERM);
+        errln!(
+            "nlstudy: stopped by {}; the pairs that finished are stored, run again to resume",
+            signals::name(signal)
+        );
+        return Ok(ExitCode::from(
+            stop.exit_code().unwrap_or(schema::exit::INTERRUPTED),
+        ));
+    }
+    let counts = match counted {
+        Some(solvers) => Some(count(&points, solvers, &dir, &study.name)?),
+        None => None,
+    };
+    let rounds: Vec<Rounds> = points
+        .iter()
+        .enumerate()
+        .map(|(k, point)| Rounds {
+            point: point.point.label(),
+            pairs: (0..args.rounds)
+                .map(|r| (sides[0].stored(point, r), sides[1].stored(point, r)))
+                .collect(),
+            counted: counts.as_ref().and_then(|c| c[k].clone()),
+        })
+        .collect();
+    let comparison = paired::judge(&rounds, args.threshold);
+    let title = format!(
+        "study {}: B = this build against A = {} (interleaved, {} rounds)",
+        study.name,
+        baseline.display(),
+        args.rounds
+    );
+    errln!(
+        "noise: each point's pairs of runs, one right after the other ({} rounds, A B then B A): their spread is the interval; no history needed",
+        args.rounds
+    );
+    report(
+        &comparison,
+        &study,
+        &store,
+        &args.against,
+        &title,
+        args.threshold,
+        points.len(),
+    )
+}
+
+/// The study's points to rerun: one per case (repeats and the same case on another branch run
+/// once), those the solver accepts, among `only` when given.
+fn chosen(planned: &[Planned], only: Option<&[String]>) -> Result<Vec<Planned>, Failure> {
+    if let Some(unknown) = only.and_then(|keys| {
+        keys.iter()
+            .find(|k| !planned.iter().any(|p| p.key.as_str() == k.as_str()))
+    }) {
+        return Err(Failure::BadInput(format!(
+            "--only {unknown:?}: no point of the study has that key; `nlstudy plan` lists them"
+        )));
+    }
+    Ok(planned
+        .iter()
+        .filter(|p| p.point.repeat == 0 && p.case.is_ok() && p.decision != Decision::Duplicate)
+        .filter(|p| only.is_none_or(|keys| keys.iter().any(|k| k == p.key.as_str())))
+        .cloned()
+        .collect())
+}
+
+/// Each point's instruction count by each build, counted once and kept (`a-count`, `b-count`).
+fn count(
+    points: &[Planned],
+    solvers: [(Nlsolve, &str); 2],
+    dir: &Path,
+    study: &str,
+) -> Result<Vec<Option<(schema::record::Stored, schema::record::Stored)>>, Failure> {
+    let sides: Vec<Side> = solvers
+        .into_iter()
+        .map(|(solver, name)| Side::open(solver, dir, name, study))
+        .collect();
+    let mut counted = Vec::with_capacity(points.len());
+    for point in points {
+        let mut both = Vec::new();
+        for side in &sides {
+            if let Some(stored) = side.stored(point, 0) {
+                both.push(stored);
+                continue;
+            }
+            let scratch = side.store.work_dir();
+            crate::store::fs::create_dir(&scratch)?;
+            let planned = side.planned(point, 0).expect("a chosen point has its case");
+            errln!(
+                "counting the instructions of {} ({})",
+                point.point.label(),
+                side.solver.binary.display()
+            );
+            match crate::run::instructions::count(&planned, &side.solver, &scratch) {
+                Ok(stored) => {
+                    side.store.save(planned.key.as_str(), &stored)?;
+                    side.store.persist_catalog();
+                    both.push(stored);
+                }
+                Err(why) => return Err(Failure::Io(format!("{}: {why}", point.point.label()))),
+            }
+        }
+        let mut both = both.into_iter();
+        counted.push(both.next().zip(both.next()));
+    }
+    Ok(counted)
+}
