@@ -281,6 +281,7 @@ pub fn every_field() -> Stored {
             integrator: Some(Integrator::default()),
         },
         steps_done: 10,
+        operator_applications: Some(40),
         setup_s: 1e-3,
         solve_s: 1e-2,
         step_s: 1e-3,

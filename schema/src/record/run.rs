@@ -21,6 +21,13 @@ pub struct Record<C = Case> {
     pub resolved: Resolved,
     /// Steps completed (fewer than `steps` when diverged).
     pub steps_done: usize,
+    /// The times the time loop applied the operator L_h (each stage of a step, each iteration
+    /// of an implicit step's Krylov solve, over a resumed run's segments): the run's work the
+    /// same on any machine, as the function evaluations of the ODE literature's work–precision
+    /// diagrams. Absent for the methods that do not count it (the local methods, the steady
+    /// solves) and in records of builds before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub operator_applications: Option<u64>,
     // Timings in seconds: setup (operator plan, sources, dt_stable), the time loop, its median step.
     pub setup_s: f64,
     pub solve_s: f64,
@@ -141,6 +148,7 @@ impl Record {
             message: String::new(),
             resolved,
             steps_done: 0,
+            operator_applications: None,
             setup_s: 0.0,
             solve_s: 0.0,
             step_s: 0.0,

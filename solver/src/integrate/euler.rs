@@ -43,6 +43,10 @@ impl<Op: LinearOperator> Stepper for ForwardEuler<'_, Op> {
         });
         ranks.max(local_max)
     }
+
+    fn applications(&self) -> Option<usize> {
+        Some(self.rhs.applications)
+    }
 }
 
 /// uᵢ += dt · rate(i, (L u)ᵢ); returns max |uᵢ| after the update (+∞ if any is NaN).

@@ -72,6 +72,7 @@ pub(crate) fn measure(
             .map(|side| ranks.on(|| field::snapshot(lattice, u, exact, side))),
         distribution,
         implicit: trajectory.implicit,
+        operator_applications: trajectory.operator_applications,
         amplification: trajectory.amplification,
         positivity: trajectory.positivity,
     }

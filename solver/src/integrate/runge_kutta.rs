@@ -82,6 +82,10 @@ impl<Op: LinearOperator> Stepper for RungeKutta<'_, Op> {
         ranks.on(|| axpy(dt, sum, u));
         self.rhs.ranks.max_abs(u)
     }
+
+    fn applications(&self) -> Option<usize> {
+        Some(self.rhs.applications)
+    }
 }
 
 /// out = a y.

@@ -25,6 +25,12 @@ pub trait Stepper {
         ImplicitSolves::default()
     }
 
+    /// The times it applied its operator L_h so far (each stage, each Krylov iteration): the
+    /// machine-independent work of its run; None for a stepper that does not count.
+    fn applications(&self) -> Option<usize> {
+        None
+    }
+
     /// Adds what the stepper carries from step to step, beyond the field, to a checkpoint.
     fn carry(&self, _: &mut Carried) {}
 
@@ -39,6 +45,8 @@ pub struct Rhs<'a, Op: LinearOperator> {
     workspace: Op::Workspace,
     pub source: Option<&'a Source>,
     pub ranks: Ranks<'a>,
+    /// The times `apply` ran.
+    pub applications: usize,
 }
 
 impl<'a, Op: LinearOperator> Rhs<'a, Op> {
@@ -48,11 +56,13 @@ impl<'a, Op: LinearOperator> Rhs<'a, Op> {
             operator,
             source,
             ranks,
+            applications: 0,
         }
     }
 
     /// out = L v.
     pub fn apply(&mut self, v: &[f64], out: &mut [f64]) {
+        self.applications += 1;
         self.operator.apply(v, out, &mut self.workspace);
     }
 
@@ -82,6 +92,9 @@ impl<'a, Op: LinearOperator> Rhs<'a, Op> {
         });
     }
 }
+
+/// The checkpoint's part that counts the operator's applications.
+const APPLICATIONS: &str = "operator_applications";
 
 /// The timed run of `stepper` over `stepping` from u, with the total error e = Σₖ eᵏ against the
 /// manufactured solution of `source` when the case tracks it (summed over ranks).
@@ -119,6 +132,14 @@ pub fn integrate(
         *comm_seconds.borrow_mut() = resume.values("comm_seconds").unwrap_or(&[]).to_vec();
         stepper.borrow_mut().take_back(resume);
     }
+    // The operator's applications: those before a checkpoint resumed from, and the loop's.
+    let applied_earlier = (checkpointer.as_ref())
+        .and_then(|c| c.resume.as_ref()?.count(APPLICATIONS))
+        .unwrap_or(0);
+    let at_start = stepper.borrow().applications();
+    let applied = |stepper: &dyn Stepper| {
+        Some(applied_earlier + stepper.applications()? - at_start.unwrap_or(0))
+    };
     // The loop's traffic: a resumed run counts the steps before its checkpoint as sent.
     let at_loop_start = exchange.traffic();
     if let Some(earlier) = checkpointer
@@ -132,6 +153,9 @@ pub fn integrate(
         carried.put_number("error_total", error_total.get());
         carried.put("comm_seconds", comm_seconds.borrow().clone());
         carried.put_traffic_since(exchange.traffic(), at_loop_start);
+        if let Some(applied) = applied(*stepper.borrow()) {
+            carried.put_count(APPLICATIONS, applied);
+        }
         stepper.borrow().carry(carried);
     };
     let on_any_rank = |holds: bool| exchange.bookkeeping_max(f64::from(u8::from(holds))) > 0.0;
@@ -169,6 +193,7 @@ pub fn integrate(
         error_total: tracked.then_some(error_total),
         step_comm_s: diagnostics::median(comm_seconds),
         implicit: stepper.solves(),
+        operator_applications: applied(stepper),
         ..Trajectory::observed(u, timing, observed)
     }
 }

@@ -188,6 +188,10 @@ impl<Op: LinearOperator, P: LinearOperator> Stepper for Theta<'_, Op, P> {
             solve_rtol: Some(self.rtol),
         }
     }
+
+    fn applications(&self) -> Option<usize> {
+        Some(self.rhs.applications)
+    }
 }
 
 #[cfg(test)]

@@ -57,6 +57,8 @@ pub struct Trajectory {
     /// Median seconds a step spent communicating (halo and reductions; 0 on one process).
     pub step_comm_s: f64,
     pub implicit: ImplicitSolves,
+    /// The times the loop applied the operator, where its stepper counts them.
+    pub operator_applications: Option<usize>,
     /// The step's measured amplification (`integrate::amplification`), when the case asks.
     pub amplification: Option<f64>,
     /// The step's measured positivity (`integrate::amplification::positivity`), with it.
@@ -74,6 +76,7 @@ impl Trajectory {
             frames: observed.frames,
             step_comm_s: 0.0,
             implicit: ImplicitSolves::default(),
+            operator_applications: None,
             amplification: None,
             positivity: None,
         }

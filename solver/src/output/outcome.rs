@@ -42,6 +42,7 @@ pub(crate) struct Measured {
     pub field: Option<FieldSnapshot>,
     pub distribution: Distribution,
     pub implicit: ImplicitSolves,
+    pub operator_applications: Option<usize>,
     pub amplification: Option<f64>,
     pub positivity: Option<f64>,
 }
@@ -106,6 +107,7 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         histogram: measured.histogram,
         field: measured.field,
         implicit: measured.implicit,
+        operator_applications: measured.operator_applications.map(|a| a as u64),
         ..record::fresh(case, resolved, measured.distribution)
     }
 }
@@ -171,6 +173,7 @@ mod tests {
             field: None,
             distribution: Distribution::serial(&case),
             implicit: ImplicitSolves::default(),
+            operator_applications: None,
             amplification: None,
             positivity: None,
         };
