@@ -210,6 +210,16 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
     comparison
 }
 
+/// The median of `values` and its percentile bootstrap interval (as a comparison's), seeded by
+/// `label` so that it is the same every time.
+pub fn median_interval(label: &str, values: &[f64]) -> (f64, (f64, f64)) {
+    let mut random = Rng::with_seed(seed_of(label, "median"));
+    (
+        median(values),
+        bootstrap(&mut random, |r| resampled(r, values)),
+    )
+}
+
 /// What a measured verdict is judged against.
 struct Setting {
     threshold: f64,

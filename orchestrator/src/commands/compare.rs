@@ -9,7 +9,6 @@ use crate::cli::args::{CommonArgs, CompareArgs};
 use crate::model::study::Study;
 use crate::run::plan::Options;
 use crate::store::{by_key, Store};
-use schema::exit;
 use schema::record::Stored;
 use sha2::Digest;
 use std::collections::HashSet;
@@ -103,7 +102,7 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         args.against
     );
     errln!("{}", noise.describe());
-    report(
+    super::verdicts::report(
         &comparison,
         &study,
         &store,
@@ -112,51 +111,6 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         args.threshold,
         points.len(),
     )
-}
-
-/// Prints a comparison's verdicts, writes `compare.parquet` and `compare.svg` beside the study's
-/// tables, says where, and exits 1 when something got worse.
-pub(super) fn report(
-    comparison: &compare::Comparison,
-    study: &Study,
-    store: &Store,
-    against: &str,
-    title: &str,
-    threshold: f64,
-    points: usize,
-) -> Result<ExitCode, Failure> {
-    out!("{}", compare::markdown(comparison));
-    for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
-        for point in points {
-            outln!("only in {side}: {point}");
-        }
-    }
-    let table = store.table("compare.parquet");
-    crate::store::table::write_parquet_about(
-        &[(&table, &compare::rows(comparison))],
-        &crate::store::table::About {
-            description: &format!("{} against {against}", study.name),
-            notes: &[],
-        },
-    )?;
-    let figure = store.table("compare.svg");
-    let chart = crate::output::compare_figure::chart(comparison, title, threshold);
-    // A figure that cannot be drawn stops nothing: the table holds every verdict.
-    match crate::output::draw::render(&chart) {
-        Ok(svg) => crate::store::write_atomically(&figure, svg.as_bytes())?,
-        Err(why) => errln!("nlstudy: the comparison's figure is not drawn: {why}"),
-    }
-    let regressions = comparison.regressions();
-    errln!(
-        "compare: {} metrics of {points} points, {regressions} worse; table: {}, figure: {}",
-        comparison.changes.len(),
-        table.display(),
-        figure.display()
-    );
-    Ok(match regressions {
-        0 => ExitCode::SUCCESS,
-        _ => ExitCode::from(exit::CASE_FAILED),
-    })
 }
 
 /// The drift of this study's runs on this machine: A/A pairs of its stored and superseded

@@ -2,9 +2,9 @@
 //! turns (`run::interleave`), each pair's ratio judged (`analysis::compare::paired`), and with
 //! `--instructions` each point's instruction count by each build (`run::instructions`).
 
-use super::compare::report;
 use super::failure::Failure;
 use super::open::{claim, planned};
+use super::verdicts::report;
 use crate::analysis::compare::paired::{self, Rounds};
 use crate::cli::args::CompareArgs;
 use crate::run::interleave::{self, Side};

@@ -20,6 +20,7 @@ mod show;
 mod status;
 mod submit;
 mod table;
+mod verdicts;
 
 use crate::cli::args::{Cli, Command};
 use schema::exit;
