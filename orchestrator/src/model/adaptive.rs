@@ -1,7 +1,8 @@
-//! Adaptive studies: from each point of the sweep, probes along one case field, each round's
-//! values chosen from the records of the rounds before: a boundary search (`boundary`) or a
-//! refinement that stops once its order is established (`refine`). Every probe is a point like
-//! any other. A question is a function of its records: `replay` walks it from the first round
+//! Adaptive studies: from each point of the sweep, probes along one case field (two for an
+//! error target in space and time), each round's values chosen from the records of the rounds
+//! before: a boundary search (`boundary`), a refinement that stops once its order is
+//! established (`refine`), the cheapest configuration for an error target (`target`). Every
+//! probe is a point like any other. A question is a function of its records: `replay` walks it from the first round
 //! with the records known and stops at the first round with a probe not run yet, so an
 //! interrupted study resumes from the store without running a probe twice.
 
@@ -10,9 +11,12 @@ use schema::record::{column, columns, Stored};
 use serde::Deserialize;
 use serde_json::Value;
 
+/// A probe: the values of the question's fields, in the order of `Adaptive::fields`.
+pub type Probe = Vec<f64>;
+
 /// The record of a probe that ran (Err: the solver refused it or it stored nothing), None
 /// for a probe not run yet.
-pub type Lookup<'a> = dyn FnMut(f64) -> Option<Result<Stored, String>> + 'a;
+pub type Lookup<'a> = dyn FnMut(&[f64]) -> Option<Result<Stored, String>> + 'a;
 
 pub trait Adaptive {
     /// What a question found from one point.
@@ -21,27 +25,43 @@ pub trait Adaptive {
     /// The study file's name for the question (`boundary`, `refine`), for messages.
     const SECTION: &'static str;
 
-    /// The case field probed.
-    fn field(&self) -> &str;
+    /// Whether a point's repeats are one question, searched once (an error target, whose
+    /// answer is timed over the repeats), rather than a question each.
+    const ONE_SEARCH_PER_POINT: bool = false;
 
-    /// A probe's value as its case holds it: a whole number for a field that takes only whole
-    /// ones (`n`, `m`), else the number.
-    fn value(&self, v: f64) -> Value {
-        match Case::numeric(self.field()) {
-            Numeric::Whole => Value::from(v.round() as u64),
-            Numeric::Real | Numeric::No => Value::from(v),
-        }
+    /// The case fields probed: one, or a spatial and a temporal one.
+    fn fields(&self) -> Vec<&str>;
+
+    /// The first field probed, which names the question in messages.
+    fn field(&self) -> &str {
+        self.fields()[0]
     }
 
     /// The most probes one point's question can take.
     fn worst_case_probes(&self) -> usize;
 
+    /// Whether the solver's refusal of a probe (`nlsolve check`'s sentence) is an answer the
+    /// question reads, such as a step above the stable one, rather than a fault of the study:
+    /// such a probe is not run, and not counted among the study's refusals.
+    fn absorbs(&self, _refusal: &str) -> bool {
+        false
+    }
+
     /// Ends an outcome not ended yet because the study's budget is spent.
     fn out_of_budget(&self, outcome: &mut Self::Outcome);
 
-    /// The question as far as `record` knows it, and the values of the first round with a
-    /// probe not run yet (none once it is answered).
-    fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<f64>);
+    /// The question as far as `record` knows it, and the probes of the first round not run yet
+    /// (none once it is answered).
+    fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<Probe>);
+}
+
+/// A probe's value of `field` as its case holds it: a whole number for a field that takes only
+/// whole ones (`n`, `m`), else the number.
+pub fn value(field: &str, v: f64) -> Value {
+    match Case::numeric(field) {
+        Numeric::Whole => Value::from(v.round() as u64),
+        Numeric::Real | Numeric::No => Value::from(v),
+    }
 }
 
 /// Whether `field` counts nodes (`n`: whole, finer upward) rather than being a step (`dt`:
@@ -64,6 +84,11 @@ pub fn check_start(section: &str, field: &str, start: f64) -> Result<(), (String
         ));
     }
     Ok(())
+}
+
+/// Whether the solver refused a case for its time step (above the integrator's stable one).
+pub fn refused_for_its_step(refusal: &str) -> bool {
+    refusal.contains("above dt_stable")
 }
 
 /// Whether a probe ran: a failed run answers no question, and says why.
@@ -145,11 +170,16 @@ impl Spent {
 
     /// `stored` counted in: a run, and its core-seconds.
     fn add(&mut self, stored: &Stored) {
-        let number = |name: &str| column(stored, name).and_then(|v| v.as_f64());
-        let seconds =
-            number(columns::SETUP_S).unwrap_or(0.0) + number(columns::SOLVE_S).unwrap_or(0.0);
-        let cores = number(columns::THREADS).unwrap_or(1.0) * number(columns::RANKS).unwrap_or(1.0);
         self.runs += 1;
-        self.core_seconds += seconds * cores;
+        self.core_seconds += core_seconds(stored);
     }
+}
+
+/// A run's core-seconds: its set-up and solve seconds × threads × ranks (0 for a run that
+/// failed before it timed anything).
+pub fn core_seconds(stored: &Stored) -> f64 {
+    let number = |name: &str| column(stored, name).and_then(|v| v.as_f64());
+    let seconds = number(columns::SETUP_S).unwrap_or(0.0) + number(columns::SOLVE_S).unwrap_or(0.0);
+    let cores = number(columns::THREADS).unwrap_or(1.0) * number(columns::RANKS).unwrap_or(1.0);
+    seconds * cores
 }

@@ -7,7 +7,7 @@
 //! search killed at any moment and run again, with the records of its probes stored, asks for
 //! exactly the probes it had not run, and reaches the same boundary.
 
-use crate::model::adaptive::{ran, Adaptive, Lookup};
+use crate::model::adaptive::{ran, Adaptive, Lookup, Probe};
 use crate::model::expression::{self, Scope};
 use schema::case::{Case, Numeric};
 use schema::record::{columns, Stored};
@@ -263,8 +263,8 @@ impl Adaptive for BoundarySpec {
     type Outcome = Search;
     const SECTION: &'static str = "boundary";
 
-    fn field(&self) -> &str {
-        &self.field
+    fn fields(&self) -> Vec<&str> {
+        vec![&self.field]
     }
 
     fn worst_case_probes(&self) -> usize {
@@ -275,10 +275,11 @@ impl Adaptive for BoundarySpec {
         search.ended.get_or_insert(Ended::StudyBudget);
     }
 
-    fn replay(&self, record: &mut Lookup) -> (Search, Vec<f64>) {
-        BoundarySpec::replay(self, |v| {
-            record(v).map(|stored| stored.and_then(|s| flips(&self.flips, &s)))
-        })
+    fn replay(&self, record: &mut Lookup) -> (Search, Vec<Probe>) {
+        let (search, pending) = BoundarySpec::replay(self, |v| {
+            record(&[v]).map(|stored| stored.and_then(|s| flips(&self.flips, &s)))
+        });
+        (search, pending.into_iter().map(|v| vec![v]).collect())
     }
 }
 

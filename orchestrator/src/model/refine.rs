@@ -4,7 +4,7 @@
 //! orders agree (with the expected order, where the study names one), the error reaches a
 //! target, the error stops falling (round-off: a plateau), or the levels run out. Never beyond.
 
-use crate::model::adaptive::{check_start, counts_nodes, positive, Adaptive, Lookup};
+use crate::model::adaptive::{check_start, counts_nodes, positive, Adaptive, Lookup, Probe};
 use crate::statistics::fitted_slope;
 use serde::Deserialize;
 
@@ -246,8 +246,8 @@ impl Adaptive for RefineSpec {
     type Outcome = Refinement;
     const SECTION: &'static str = "refine";
 
-    fn field(&self) -> &str {
-        &self.field
+    fn fields(&self) -> Vec<&str> {
+        vec![&self.field]
     }
 
     fn worst_case_probes(&self) -> usize {
@@ -258,10 +258,11 @@ impl Adaptive for RefineSpec {
         refinement.stopped.get_or_insert(Stopped::StudyBudget);
     }
 
-    fn replay(&self, record: &mut Lookup) -> (Refinement, Vec<f64>) {
-        self.replay_errors(|v| {
-            record(v).map(|stored| stored.and_then(|s| positive(&self.error, &s)))
-        })
+    fn replay(&self, record: &mut Lookup) -> (Refinement, Vec<Probe>) {
+        let (refinement, pending) = self.replay_errors(|v| {
+            record(&[v]).map(|stored| stored.and_then(|s| positive(&self.error, &s)))
+        });
+        (refinement, pending.into_iter().map(|v| vec![v]).collect())
     }
 }
 
@@ -392,13 +393,19 @@ mod tests {
             ..spec()
         };
         assert_eq!(dt.level(2), 0.025);
-        assert_eq!(dt.value(0.025), serde_json::json!(0.025));
+        assert_eq!(
+            crate::model::adaptive::value(&dt.field, 0.025),
+            serde_json::json!(0.025)
+        );
         let n = RefineSpec {
             start: 10.0,
             factor: 1.5,
             ..spec()
         };
-        assert_eq!(n.value(n.level(3)), serde_json::json!(34));
+        assert_eq!(
+            crate::model::adaptive::value(&n.field, n.level(3)),
+            serde_json::json!(34)
+        );
         let found = refine(&dt, |dt| 5.0 * dt);
         assert!((found.finest_order().unwrap() - 1.0).abs() < 1e-12);
     }

@@ -10,7 +10,7 @@ use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 /// What the command line asks beyond the study.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct Options {
     /// Run every selected point, stored or not.
     pub force: bool,
@@ -147,23 +147,27 @@ pub fn restrict(planned: &mut [Planned], only: &HashSet<String>) -> Result<(), F
 }
 
 /// The probe of `origin` at `v` of the question's field: a point like any other.
-pub fn probe<A: Adaptive>(question: &A, origin: &Point, v: f64) -> Point {
-    origin.with(question.field(), question.value(v))
+pub fn probe<A: Adaptive>(question: &A, origin: &Point, probe: &[f64]) -> Point {
+    let fields = question.fields();
+    (fields.iter().zip(probe)).fold(origin.clone(), |point, (field, &v)| {
+        point.with(field, crate::model::adaptive::value(field, v))
+    })
 }
 
 /// Refuses a question along a field the sweep sets too: the question sets it.
 pub fn origins_may_search<A: Adaptive>(question: &A, origins: &[Point]) -> Result<(), StudyError> {
-    match origins.iter().any(|origin| origin.sweeps(question.field())) {
-        true => Err(StudyError::new(
-            format!("{}.field", A::SECTION),
-            format!(
-                "`{}` is swept (or derived) too; the {} sets it, so take it out of the sweep",
-                question.field(),
-                A::SECTION
-            ),
-        )),
-        false => Ok(()),
+    for field in question.fields() {
+        if origins.iter().any(|origin| origin.sweeps(field)) {
+            return Err(StudyError::new(
+                format!("{}.field", A::SECTION),
+                format!(
+                    "`{field}` is swept (or derived) too; the {} sets it, so take it out of the sweep",
+                    A::SECTION
+                ),
+            ));
+        }
     }
+    Ok(())
 }
 
 /// Plans `points` against what the store holds (`index`).
