@@ -7,7 +7,7 @@ use crate::console::number;
 use crate::model::adaptive::{Budget, Spent};
 use crate::model::boundary::{BoundarySpec, Search};
 use crate::model::refine::Refinement;
-use crate::model::target::{Aimed, TargetSpec};
+use crate::model::target::{Aimed, Reached, TargetSpec};
 use crate::run::search::{Answered, Searched};
 
 /// What the study's budget allowed and what its probes spent: `budget: 312 of 400 runs, 18.2 of
@@ -36,44 +36,62 @@ pub fn lines(answered: &Answered) -> Vec<String> {
     }
 }
 
-/// The candidates by cost: `1. method=adi: n = 384, error 9.1e-07, solve_s 0.41 (5 runs)`, and
-/// those that found no answer after them.
+/// The candidates by cost: `1. method=adi: n = 384, error 9.1e-07, solve_s 0.41 [0.39, 0.44]
+/// over 3 repeats (5 runs)`, candidates that tie within noise as one place (`1–2 (tie within
+/// noise): …`), and those that found no answer after them, with why.
 fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
-    let mut lines: Vec<(usize, String)> = crate::analysis::target::ranked(spec, aimed)
-        .into_iter()
-        .zip(aimed)
-        .map(|((answer, rank), s)| {
-            let runs = s.outcome.levels.len();
-            let label = s.origin.label();
-            match (answer, rank) {
-                (Some(l), Some(rank)) => (
-                    rank,
-                    format!(
-                        "{rank}. {label}: {} = {}, error {}, {} {} ({runs} runs)",
-                        spec.field,
-                        number(l.value),
-                        number(l.error),
-                        spec.cost,
-                        number(l.cost)
-                    ),
-                ),
-                _ => {
-                    let why = s
-                        .outcome
-                        .reached
-                        .as_ref()
-                        .map_or_else(String::new, ToString::to_string);
-                    (
-                        usize::MAX,
-                        format!("–. {label}: no answer: {why} ({runs} runs)"),
-                    )
-                }
-            }
-        })
-        .collect();
-    lines.sort_by_key(|(rank, _)| *rank);
+    let ranked = crate::analysis::target::ranked(spec, aimed);
+    let mut places: Vec<(usize, usize, Vec<String>)> = Vec::new();
+    let mut unanswered = Vec::new();
+    for (ranked, s) in ranked.iter().zip(aimed) {
+        let runs = s.outcome.runs();
+        let label = s.origin.label();
+        let Some(r) = ranked else {
+            let why = (s.outcome.reached.as_ref()).map_or_else(String::new, ToString::to_string);
+            unanswered.push(format!("–. {label}: no answer: {why} ({runs} runs)"));
+            continue;
+        };
+        let l = &r.answer;
+        let mut resolution = format!("{} = {}", spec.field, number(l.value));
+        if let (Some(time), Some(value)) = (&spec.time, l.time) {
+            resolution.push_str(&format!(", {} = {}", time.field, number(value)));
+        }
+        let cost = match r.repeats {
+            1 => number(r.cost),
+            k => format!(
+                "{} [{}, {}] over {k} repeats",
+                number(r.cost),
+                number(r.interval.0),
+                number(r.interval.1)
+            ),
+        };
+        // An answer not narrowed to the tolerance says why.
+        let caveat = match &s.outcome.reached {
+            Some(Reached::Found) | None => String::new(),
+            Some(reached) => format!("; {reached}"),
+        };
+        let line = format!(
+            "{label}: {resolution}, error {}, {} {cost} ({runs} runs{caveat})",
+            number(l.error),
+            spec.cost
+        );
+        match places.iter_mut().find(|(rank, _, _)| *rank == r.rank) {
+            Some((_, _, lines)) => lines.push(line),
+            None => places.push((r.rank, r.tied_to, vec![line])),
+        }
+    }
+    places.sort_by_key(|(rank, _, _)| *rank);
     let mut said = vec![format!("to reach {} ≤ {}:", spec.error, number(spec.below))];
-    said.extend(lines.into_iter().map(|(_, line)| line));
+    for (rank, tied_to, lines) in places {
+        match lines.as_slice() {
+            [one] => said.push(format!("{rank}. {one}")),
+            many => {
+                said.push(format!("{rank}–{tied_to} (tie within noise):"));
+                said.extend(many.iter().map(|line| format!("   {line}")));
+            }
+        }
+    }
+    said.extend(unanswered);
     said
 }
 

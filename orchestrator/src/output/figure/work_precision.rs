@@ -42,8 +42,9 @@ pub(super) fn work_precision(groups: &[Group], x: &str, y: &str) -> Panel {
 }
 
 /// Marks an error-target study's answers on its work–precision panel: for each candidate the
-/// coarsest resolution that met the target (a square around its point), and the target itself
-/// where the x axis is the error the target bounds.
+/// resolution that met the target (a square around its point, its series' note naming it: `n =
+/// 128, dt = 0.0012 (rank 1–2, a tie)`), a candidate with no answer named so in the legend, and
+/// the target itself where the x axis is the error the target bounds.
 pub(super) fn mark_target(
     panel: &mut Panel,
     groups: &[Group],
@@ -61,25 +62,53 @@ pub(super) fn mark_target(
             .or_else(|| row.get(name))
             .cloned()
     };
-    let is_answer = |row: &Row| {
-        answers.iter().any(|answer| {
-            answer.number("rank").is_some()
-                && same(
-                    summary_value(row, &spec.field).as_ref(),
-                    answer.get("resolution"),
-                )
-                && swept
-                    .iter()
-                    .all(|name| same(summary_value(row, name).as_ref(), answer.get(name)))
+    // The candidate a summary row is a point of, and whether it is that candidate's answer.
+    let candidate = |row: &Row| {
+        answers.iter().find(|answer| {
+            swept
+                .iter()
+                .all(|name| same(summary_value(row, name).as_ref(), answer.get(name)))
         })
     };
+    let is_answer = |row: &Row, answer: &Row| {
+        answer.number("rank").is_some()
+            && same(
+                summary_value(row, &spec.field).as_ref(),
+                answer.get("resolution"),
+            )
+            && spec.time.as_ref().is_none_or(|time| {
+                same(
+                    summary_value(row, &time.field).as_ref(),
+                    answer.get("time_resolution"),
+                )
+            })
+    };
     for (line, group) in panel.series.iter_mut().zip(groups) {
-        let answered = group.rows.iter().filter(|row| is_answer(row));
-        line.marks.extend(
-            answered
-                .filter_map(|row| Some((row.number(x)?, row.number(y)?)))
-                .map(|point| (point, Glyph::Square)),
-        );
+        let mut named = None;
+        for row in &group.rows {
+            let Some(answer) = candidate(row) else {
+                continue;
+            };
+            if is_answer(row, answer) {
+                if let (Some(px), Some(py)) = (row.number(x), row.number(y)) {
+                    line.marks.push(((px, py), Glyph::Square));
+                }
+                named = Some(answer_note(spec, answer));
+            } else if answer.number("rank").is_none() {
+                named = named.or_else(|| {
+                    answer
+                        .text("reached")
+                        .map(|why| format!("no answer: {why}"))
+                });
+            }
+        }
+        match named {
+            Some(note) if note.starts_with("no answer") => {
+                line.label = format!("{} ({note})", line.label)
+            }
+            Some(note) => line.note = Some(note),
+            None => {}
+        }
     }
     if x.strip_prefix("case.").unwrap_or(x) == spec.error {
         panel.x.include.push(spec.below);
@@ -92,6 +121,29 @@ pub(super) fn mark_target(
             x: spec.below,
         });
     }
+}
+
+/// An answer's note: its resolutions and its rank, a tie said.
+fn answer_note(spec: &TargetSpec, answer: &Row) -> String {
+    let number = crate::console::number;
+    let mut note = format!(
+        "{} = {}",
+        spec.field,
+        answer.number("resolution").map_or("?".into(), number)
+    );
+    if let Some(time) = &spec.time {
+        let value = answer.number("time_resolution").map_or("?".into(), number);
+        note.push_str(&format!(", {} = {value}", time.field));
+    }
+    let (rank, last) = (answer.count("rank"), answer.count("tied_to"));
+    match (rank, last) {
+        (Some(rank), Some(last)) if last > rank => {
+            note.push_str(&format!(" (rank {rank}–{last}, a tie within noise)"))
+        }
+        (Some(rank), _) => note.push_str(&format!(" (rank {rank})")),
+        _ => {}
+    }
+    note
 }
 
 #[cfg(test)]
