@@ -7,7 +7,7 @@
 //! must parse with no empty or dangling text; and headless Chromium renders each to PNG, which
 //! must hold ink.
 
-use nonlocal_study::{binary, chromium, measured, screenshot, text, Scratch};
+use nonlocal_study::{binary, chromium, measured, python_stub, screenshot, text, Scratch};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -39,25 +39,7 @@ fn texts(svg: &str, path: &Path) -> Vec<String> {
 #[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn every_shipped_study_draws_every_figure_and_chromium_renders_each() {
     let scratch = Scratch::new("figures", &json!({}));
-    // The interpreter itself, without its site packages: a version manager's shim (pyenv's is a
-    // bash script) or the site's imports would cost more than the runs.
-    let python = Command::new("python3")
-        .args(["-c", "import sys; print(sys.executable)"])
-        .output()
-        .expect("python3 starts");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scripts/synthetic-nlsolve");
-    let stub = scratch.dir.join("synthetic-nlsolve");
-    std::fs::write(
-        &stub,
-        format!(
-            "#!/bin/sh\nexec '{}' -S '{}' \"$@\"\n",
-            text(&python).trim(),
-            script.display()
-        ),
-    )
-    .unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let stub = python_stub(&scratch.dir, "synthetic-nlsolve");
     let fingerprint = text(
         &Command::new(binary("nlsolve"))
             .arg("fingerprint")

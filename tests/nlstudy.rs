@@ -2,7 +2,11 @@
 //! solver version explained, and an interrupted run resumed with nothing lost or duplicated.
 
 use nonlocal_study::{binary, planned_keys, records, stored_keys, text, Scratch};
-use polars::prelude::{DataFrame, DataType, ParquetReader, SerReader};
+#[path = "support/parquet.rs"]
+mod parquet;
+
+use parquet::{floats, read_parquet};
+use polars::prelude::DataType;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -137,21 +141,6 @@ fn a_refused_case_stops_the_run_unless_allowed_then_is_stored_as_failed() {
     );
     assert!(retry.contains("0 to run, 2 refused, 2 stored"), "{retry}");
     assert!(!retry.contains("run   ("), "{retry}");
-}
-
-/// A column of a Parquet table as floats (null as NaN).
-fn floats(frame: &DataFrame, name: &str) -> Vec<f64> {
-    let column = frame.column(name).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let column = column.cast(&DataType::Float64).unwrap();
-    let floats = column.f64().unwrap();
-    (0..floats.len())
-        .map(|i| floats.get(i).unwrap_or(f64::NAN))
-        .collect()
-}
-
-fn read_parquet(path: &Path) -> DataFrame {
-    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    ParquetReader::new(file).finish().expect("a Parquet file")
 }
 
 #[test]
@@ -1581,63 +1570,6 @@ fn a_refinement_stops_once_its_order_is_established() {
     let levels: f64 = floats(&table, "levels").iter().sum();
     assert!(levels <= 16.0);
     assert_eq!(levels as usize, records(&scratch.runs("refined")).len());
-    let again = scratch.nlstudy("run", &[]);
-    assert!(text(&again).contains("0 ran"), "{}", text(&again));
-}
-
-/// The error-target search ranks the candidates by the measured cost of the coarsest n that
-/// meets the target; a dense grid over n finds no configuration that meets it more cheaply (the
-/// cost here is `steps_done`, deterministic, so the check is exact to the search's tolerance).
-#[test]
-fn the_cheapest_configuration_for_an_error_target_is_not_beaten_by_a_dense_grid() {
-    let base = json!({"dim": 1, "problem": "eigenmode", "t_end": 0.05, "cfl": 0.4});
-    let methods = json!({"method": ["fd_explicit", "adi"]});
-    let target = json!({
-        "name": "aimed", "base": base, "sweep": [{"product": methods}],
-        "target": {"field": "n", "start": 16, "below": 1e-6, "cost": "steps_done", "rtol": 0.01},
-        "figures": [{"name": "work", "kind": "work_precision", "series": ["method"]}]
-    });
-    let scratch = Scratch::new("aimed", &target);
-    let run = scratch.nlstudy("run", &[]);
-    assert!(run.status.success(), "{}", text(&run));
-    let table = read_parquet(&scratch.dir.join("results/aimed/aimed-target.parquet"));
-    let (rank, cost, error) = (
-        floats(&table, "rank"),
-        floats(&table, "cost"),
-        floats(&table, "error"),
-    );
-    assert!(error.iter().all(|&e| e <= 1e-6), "{error:?}");
-    let best = (0..2).find(|&k| rank[k] == 1.0).expect("a first");
-    let svg = std::fs::read_to_string(scratch.dir.join("results/aimed/figures/work.svg")).unwrap();
-    assert!(
-        svg.contains("target: error_l2_norm ≤ 1e-6"),
-        "the target is drawn"
-    );
-    assert!(
-        svg.contains("meets the error target"),
-        "the answers are marked"
-    );
-    let dense_study = json!({
-        "name": "dense", "base": base,
-        "sweep": [{"product": methods}, {"product": {"n": (100..=340).collect::<Vec<_>>()}}]
-    });
-    let dense = Scratch::new("dense", &dense_study);
-    assert!(dense.nlstudy("run", &["--no-collect"]).status.success());
-    let cheapest = records(&dense.runs("dense"))
-        .iter()
-        .filter(|r| r["error_l2_norm"].as_f64().is_some_and(|e| e <= 1e-6))
-        .map(|r| r["steps_done"].as_f64().unwrap())
-        .fold(f64::INFINITY, f64::min);
-    assert!(
-        cheapest.is_finite(),
-        "no point of the dense grid meets the target"
-    );
-    // Within the search's 1 % in n, and steps ∝ n².
-    assert!(
-        cheapest >= cost[best] / 1.0201,
-        "the dense grid meets the target with {cheapest} steps, the search answered {}",
-        cost[best]
-    );
     let again = scratch.nlstudy("run", &[]);
     assert!(text(&again).contains("0 ran"), "{}", text(&again));
 }

@@ -184,6 +184,32 @@ impl Scratch {
     }
 }
 
+/// An executable in `dir` that runs `tests/scripts/<script>` with the interpreter itself,
+/// without its site packages: a version manager's shim (pyenv's is a bash script) or the site's
+/// imports would cost more than the runs.
+pub fn python_stub(dir: &Path, script: &str) -> PathBuf {
+    let python = Command::new("python3")
+        .args(["-c", "import sys; print(sys.executable)"])
+        .output()
+        .expect("python3 starts");
+    let source = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/scripts")
+        .join(script);
+    let stub = dir.join(script);
+    std::fs::write(
+        &stub,
+        format!(
+            "#!/bin/sh\nexec '{}' -S '{}' \"$@\"\n",
+            text(&python).trim(),
+            source.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&stub, std::fs::Permissions::from_mode(0o755)).unwrap();
+    stub
+}
+
 pub fn text(output: &Output) -> String {
     format!(
         "{}{}",
