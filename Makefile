@@ -4,15 +4,23 @@
 setup:
 	@scripts/setup.sh
 
-# The main job: the quick study (make-style: a second `make run` runs only what is missing), its
-# tables and figures, then its records by status, its summary table and the path of its report
-# (results/quick/report.html, one page with the figures and tables).
+# The main job, the mission's three questions (make-style: a second `make run` runs only what is
+# missing): how accurate and how fast the methods are (the quick study: convergence, scaling,
+# run time against error; its records by status, its summary table and its report), where
+# the explicit integrators stop being stable (a boundary search, seconds), and which integrator
+# reaches an error target at the least run time, with which grid and step (an error-target
+# search, seconds). The last lines are those two answers and the three reports.
 run: setup
 	cargo build --release --workspace
 	target/release/nlstudy run studies/quick.json
 	target/release/nlstudy status studies/quick.json
 	target/release/nlstudy collect studies/quick.json
 	target/release/nlstudy report studies/quick.json
+	target/release/nlstudy run studies/quick_stability.json
+	target/release/nlstudy run studies/quick_target.json
+	@echo "reports: results/quick/report.html (accuracy, scaling, run time against error)," \
+	  "results/quick_stability/report.html (stability limits)," \
+	  "results/quick_target/report.html (the cheapest configuration for an error target)"
 
 # Tests and runs share the release profile and the features of every dependency (see
 # workspace-hack/Cargo.toml), so after `make run` the tests compile only the project's crates, and
@@ -27,7 +35,7 @@ test:
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong feti_projection integrators variable_horizon coupling
+STUDIES := quick quick_stability quick_target convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong feti_projection integrators variable_horizon coupling error_target error_target_local
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
