@@ -83,10 +83,21 @@ pub struct Record<C = Case> {
     /// message (time-dependent runs only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub growth: Option<f64>,
-    /// The step's growth per step of a rough field under the homogeneous problem (the case's
-    /// `amplification_steps`): above 1 the step amplifies some mode, so it is unstable.
+    /// The step's amplification, where the case asks (`amplification_steps`): above 1 the step
+    /// amplifies some mode, so it is unstable. For a symmetric L_h the step's spectral radius
+    /// from L_h's spectrum (`amplification_low`/`_high` hold it); otherwise the growth per step
+    /// of a rough field under the homogeneous problem over `amplification_steps` steps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub amplification: Option<f64>,
+    /// The interval that holds `amplification` where it was measured from L_h's spectrum (a
+    /// symmetric L_h: Lanczos on its ends, mapped by the integrator's stability function).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplification_low: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplification_high: Option<f64>,
+    /// The applications of L_h the measurement of `amplification` spent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplification_applications: Option<u64>,
     /// The step's positivity, measured with `amplification`: one homogeneous step of a unit
     /// spike at the middle node, its smallest value over its largest. Below 0 the step makes a
     /// negative value of non-negative data; values within 1e-10 of the largest count as 0 (the
@@ -168,6 +179,9 @@ impl Record {
             max_abs: None,
             growth: None,
             amplification: None,
+            amplification_low: None,
+            amplification_high: None,
+            amplification_applications: None,
             positivity: None,
             diverged_step: None,
             diverged_time: None,

@@ -10,8 +10,141 @@
 //! from below, by O(1/steps) through the modes beside the top one; the field is rescaled as it
 //! grows or decays, so no step overflows.
 
-use super::stepper::Stepper;
+use super::stepper::{Rhs, Stepper};
+use crate::case::Integrator;
+use crate::discretization::stability::stability_function;
+use crate::discretization::stencil::Stencil;
+use crate::linalg::lanczos::{self, Ends};
+use crate::operator::LinearOperator;
+use crate::output::diagnostics::Amplification;
 use crate::parallel::exchange::Ranks;
+use std::collections::BTreeMap;
+use std::hash::{Hash, Hasher};
+use std::sync::Mutex;
+
+/// The ends of L_h's spectrum are sought to this relative tolerance (of its largest |λ|),
+/// whatever the step: a boundary then lies within about this of the exact one, far below any
+/// search's rtol, and the ends serve every step and integrator of the operator.
+pub const SPECTRAL_RTOL: f64 = 1e-10;
+
+/// Most applications of L_h one measurement of the ends spends (the bound it reached is then
+/// what the interval says).
+pub const SPECTRAL_MAX_APPLICATIONS: usize = 2000;
+
+/// The ends of the spectra this process measured, by operator (`spectrum_key`), None for an
+/// operator found not symmetric: a served worker runs a search's probes one after another, and
+/// they differ in the step alone. The ends do not depend on the step, so a remembered operator
+/// gives the same bits as a measured one.
+static MEASURED: Mutex<BTreeMap<String, Option<Ends>>> = Mutex::new(BTreeMap::new());
+
+/// What tells one operator on one process from another for `MEASURED`: its implementation,
+/// grid and weights (bit for bit).
+pub fn spectrum_key<Op>(stencil: &Stencil) -> String {
+    let mut weights = std::hash::DefaultHasher::new();
+    for row in &stencil.rows {
+        (row.dy, row.dx_min).hash(&mut weights);
+        row.weights
+            .iter()
+            .for_each(|w| w.to_bits().hash(&mut weights));
+    }
+    format!(
+        "{} {:?} {:x}",
+        std::any::type_name::<Op>(),
+        stencil.grid,
+        weights.finish()
+    )
+}
+
+/// The step's amplification from the spectrum of a symmetric `operator` (checked: else None,
+/// and the rough field measures it): the step of `integrator` multiplies an eigenvector with
+/// eigenvalue λ by R(dt·λ) (`stability_function`), whose largest |R| over the spectrum is at
+/// one of its ends, so the spectral radius of the step is max |R(dt·λ)| over λ_min and λ_max,
+/// their intervals found by Lanczos from the rough field to `SPECTRAL_RTOL`, or remembered
+/// under `key` from an earlier run of this process. Where the radius's interval holds 1 the
+/// value is its top: never called stable on a guess. None when a value is not finite.
+pub fn spectral<Op: LinearOperator>(
+    operator: &Op,
+    ranks: Ranks,
+    nodes: Option<&[usize]>,
+    len: usize,
+    (integrator, dt): (Integrator, f64),
+    key: Option<&str>,
+) -> Option<Amplification> {
+    let remembered = key.and_then(|key| MEASURED.lock().ok()?.get(key).copied());
+    let (ends, applications) = match remembered {
+        Some(ends) => (ends?, 0),
+        None => {
+            let ends = spectrum_ends(operator, ranks, nodes, len);
+            if let (Some(key), Ok(mut measured)) = (key, MEASURED.lock()) {
+                measured.insert(key.to_string(), ends.map(|(ends, _)| ends));
+            }
+            ends?
+        }
+    };
+    let [lowest, highest] = ends.intervals();
+    let growth = |l: f64| stability_function(integrator, dt * l).abs();
+    // Over each (narrow) interval |R| lies between its values at the ends: it turns only where
+    // |R| is far from 1 (Heun's ½ at z = −1, forward Euler's 0).
+    let (a, b) = (growth(lowest.0), growth(lowest.1));
+    let (c, d) = (growth(highest.0), growth(highest.1));
+    let (low, high) = (a.min(b).max(c.min(d)), a.max(b).max(c.max(d)));
+    let value = match low <= 1.0 && 1.0 < high {
+        true => high,
+        false => growth(ends.lowest.ritz).max(growth(ends.highest.ritz)),
+    };
+    (value.is_finite() && low.is_finite() && high.is_finite()).then_some(Amplification {
+        value,
+        bounds: Some((low, high)),
+        applications: Some(applications),
+    })
+}
+
+/// The ends of a symmetric `operator`'s spectrum to `SPECTRAL_RTOL` and the applications spent
+/// (the symmetry check's two included); None if it is not symmetric or a value is not finite.
+fn spectrum_ends<Op: LinearOperator>(
+    operator: &Op,
+    ranks: Ranks,
+    nodes: Option<&[usize]>,
+    len: usize,
+) -> Option<(Ends, usize)> {
+    let mut rhs = Rhs::new(operator, None, ranks);
+    let dot = |a: &[f64], b: &[f64]| ranks.sum(a.iter().zip(b).map(|(x, y)| x * y).sum());
+    if !symmetric(&mut rhs, &dot, nodes, len) {
+        return None;
+    }
+    let mut settled = |ends: &Ends| {
+        let scale = ends.lowest.ritz.abs().max(ends.highest.ritz.abs());
+        ends.lowest.bound.max(ends.highest.bound) <= SPECTRAL_RTOL * scale
+    };
+    let start = on_nodes(nodes, len, rough);
+    let mut apply = |u: &[f64], out: &mut [f64]| rhs.apply(u, out);
+    let ends = lanczos::ends(
+        &mut apply,
+        &dot,
+        start,
+        &mut settled,
+        SPECTRAL_MAX_APPLICATIONS,
+    )?;
+    Some((ends, ends.applications + 2))
+}
+
+/// Whether L_h is symmetric: ⟨v, L w⟩ = ⟨L v, w⟩ for two rough fields, to round-off (two
+/// applications).
+fn symmetric<Op: LinearOperator>(
+    rhs: &mut Rhs<Op>,
+    dot: &dyn Fn(&[f64], &[f64]) -> f64,
+    nodes: Option<&[usize]>,
+    len: usize,
+) -> bool {
+    let v = on_nodes(nodes, len, rough);
+    let w = on_nodes(nodes, len, |g| rough(g + 0x5bd1_e995));
+    let (mut lv, mut lw) = (vec![0.0; len], vec![0.0; len]);
+    rhs.apply(&v, &mut lv);
+    rhs.apply(&w, &mut lw);
+    let (a, b) = (dot(&v, &lw), dot(&lv, &w));
+    let scale = dot(&lv, &lv).sqrt() * dot(&w, &w).sqrt();
+    (a - b).abs() <= 1e-12 * scale
+}
 
 /// The growth per step of a rough field over the second half of `steps` steps of `stepper`
 /// (which must have no source), on this rank's `nodes` (all `len` nodes when None). None if
@@ -23,7 +156,8 @@ pub fn amplification(
     len: usize,
     dt: f64,
     steps: usize,
-) -> Option<f64> {
+) -> Option<Amplification> {
+    let applied = stepper.applications();
     let mut u = on_nodes(nodes, len, rough);
     let half = steps / 2;
     // ln of the factor the field was divided by, and ln max |u| after step `half`.
@@ -44,7 +178,11 @@ pub fn amplification(
         }
     }
     let growth = ((rescaled + max_abs.ln() - at_half) / (steps - half) as f64).exp();
-    growth.is_finite().then_some(growth)
+    growth.is_finite().then_some(Amplification {
+        value: growth,
+        bounds: None,
+        applications: stepper.applications().zip(applied).map(|(a, b)| a - b),
+    })
 }
 
 /// The solves' relative tolerance in the measurement of positivity: far tighter than any
@@ -125,7 +263,7 @@ mod tests {
     fn a_pure_growth_is_measured_whatever_its_size() {
         for g in [0.5, 0.999, 1.0, 1.001, 3.0, 1e3] {
             let measured = amplification(&mut Scale(g), Ranks::single(), None, 50, 0.1, 400);
-            let measured = measured.unwrap();
+            let measured = measured.unwrap().value;
             assert!((measured / g - 1.0).abs() < 1e-12, "{g}: {measured}");
         }
         assert_eq!(

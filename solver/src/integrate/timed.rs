@@ -4,7 +4,7 @@
 
 use super::checkpoint::{Carried, Checkpointer};
 use crate::case::Case;
-use crate::output::diagnostics::{self, MassSampling, MassSeries, Schedule};
+use crate::output::diagnostics::{self, Amplification, MassSampling, MassSeries, Schedule};
 use crate::output::field::Frame;
 use crate::output::record::ImplicitSolves;
 use std::borrow::Cow;
@@ -60,7 +60,7 @@ pub struct Trajectory {
     /// The times the loop applied the operator, where its stepper counts them.
     pub operator_applications: Option<usize>,
     /// The step's measured amplification (`integrate::amplification`), when the case asks.
-    pub amplification: Option<f64>,
+    pub amplification: Option<Amplification>,
     /// The step's measured positivity (`integrate::amplification::positivity`), with it.
     pub positivity: Option<f64>,
 }

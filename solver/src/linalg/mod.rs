@@ -5,4 +5,5 @@
 pub mod bicgstab;
 pub mod cg;
 pub mod cholesky;
+pub mod lanczos;
 pub mod spectrum;

@@ -4,6 +4,20 @@
 use crate::threads::BLOCK;
 use rayon::prelude::*;
 
+/// The step's amplification as measured: from L_h's spectrum with an interval that holds it,
+/// or from a rough field's growth (no interval).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Amplification {
+    /// From the spectrum, the step's spectral radius: |R(dt·λ)| largest over L_h's extreme
+    /// eigenvalues, the interval's top when the interval holds 1 (never called stable on a
+    /// guess). From a rough field, its growth per step.
+    pub value: f64,
+    /// The interval that holds the spectral radius (from the spectrum only).
+    pub bounds: Option<(f64, f64)>,
+    /// Applications of L_h spent on it (where they are counted).
+    pub applications: Option<usize>,
+}
+
 /// Σᵢ term(i) for i < len, with the same rounding whatever the number of threads.
 pub(crate) fn fixed_order_sum(len: usize, term: impl Fn(usize) -> f64 + Sync) -> f64 {
     let partials: Vec<f64> = (0..len.div_ceil(BLOCK))

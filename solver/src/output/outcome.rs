@@ -3,7 +3,7 @@
 use crate::case::readable;
 use crate::case::Case;
 use crate::discretization::grid::Lattice;
-use crate::output::diagnostics::{Histogram, MassSeries};
+use crate::output::diagnostics::{Amplification, Histogram, MassSeries};
 use crate::output::field::{FieldSnapshot, Frame};
 use crate::output::record::{
     self, first_non_finite, Distribution, ImplicitSolves, Record, Resolved, Status,
@@ -43,7 +43,7 @@ pub(crate) struct Measured {
     pub distribution: Distribution,
     pub implicit: ImplicitSolves,
     pub operator_applications: Option<usize>,
-    pub amplification: Option<f64>,
+    pub amplification: Option<Amplification>,
     pub positivity: Option<f64>,
 }
 
@@ -87,7 +87,12 @@ pub(crate) fn record(case: &Case, resolved: Resolved, measured: Measured) -> Rec
         status,
         message,
         growth,
-        amplification: measured.amplification,
+        amplification: measured.amplification.map(|a| a.value),
+        amplification_low: measured.amplification.and_then(|a| a.bounds).map(|b| b.0),
+        amplification_high: measured.amplification.and_then(|a| a.bounds).map(|b| b.1),
+        amplification_applications: (measured.amplification)
+            .and_then(|a| a.applications)
+            .map(|a| a as u64),
         positivity: measured.positivity,
         steps_done: measured.steps_done,
         resumed_from_step: (measured.resumed_from_step > 0).then_some(measured.resumed_from_step),
