@@ -184,7 +184,7 @@ pub fn write(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::example::record;
+    use schema::record::example::record;
     use serde_json::json;
 
     /// Candidates of costs drawn from one distribution tie; one twice as costly is ranked after

@@ -125,7 +125,7 @@ fn unit_for(seconds: f64) -> (&'static str, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::example::record;
+    use schema::record::example::record;
     use serde_json::json;
 
     #[test]

@@ -229,7 +229,7 @@ fn described(state: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::example::record;
+    use schema::record::example::record;
     use serde_json::json;
 
     #[test]

@@ -20,8 +20,6 @@ use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 
 pub mod catalog;
-#[cfg(test)]
-pub mod example;
 pub mod fs;
 pub mod owner;
 pub mod record;

@@ -1,5 +1,5 @@
 use super::*;
-use crate::store::example::record_json;
+use schema::record::example::record_json;
 use serde_json::json;
 
 /// Keys are the first 16 bytes of SHA-256 of the case's compact JSON, the solver version

@@ -1,7 +1,8 @@
 //! Whole records for tests: a complete `ok` run of a small case, with the fields a test cares
 //! about set over it, so that every test record reads back through `Stored` as the store's do.
+//! Here, outside any `cfg(test)`, so that the tests of every layer of the orchestrator share it.
 
-use schema::record::Stored;
+use super::Stored;
 use serde_json::Value;
 
 /// The JSON of a whole record: `fields` set over a complete run of the case `{"n": 16}`

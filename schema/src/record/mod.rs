@@ -5,6 +5,7 @@
 //! module graph stays acyclic.
 
 pub mod columns;
+pub mod example;
 mod field;
 mod method;
 mod provenance;

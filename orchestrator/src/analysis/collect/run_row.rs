@@ -220,7 +220,7 @@ fn cells_of_tree(row: &mut Row, stored: &Stored, resolve: &dyn Fn(Value) -> Valu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::example::record_json;
+    use schema::record::example::record_json;
 
     /// A record's cells placed by its shape are those its tree gives, in the same order, for
     /// records of every kind met one after another (shapes met again, and more shapes than a

@@ -172,7 +172,7 @@ fn instructions(point: &Rounds) -> Option<Change> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::store::example::record;
+    use schema::record::example::record;
     use serde_json::json;
 
     fn run(solve_s: f64, cpu: f64) -> Stored {

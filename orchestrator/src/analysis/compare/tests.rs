@@ -1,5 +1,5 @@
 use super::*;
-use crate::store::example::record;
+use schema::record::example::record;
 use schema::record::Stored;
 
 fn run(solve_s: f64, error: f64) -> Stored {

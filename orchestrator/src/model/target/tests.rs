@@ -1,5 +1,5 @@
 use super::*;
-use crate::store::example::record;
+use schema::record::example::record;
 use serde_json::json;
 
 fn spec(below: f64) -> TargetSpec {
