@@ -46,16 +46,19 @@ pub fn rows(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Row> {
         .collect()
 }
 
-/// Whether a row's boundary lies below the prediction by more than the search's tolerance: the
-/// theory calls that value stable and the measurement finds it unstable.
+/// Whether a row's boundary lies below the prediction by more than the search's tolerance, its
+/// whole bracket below it: the theory calls that value stable and the measurement finds it
+/// unstable.
 pub fn below_theory(row: &Row, rtol: f64) -> bool {
-    row.number("gap").is_some_and(|gap| gap < -rtol)
+    let bracket_below = (row.number("boundary_hi").zip(row.number("predicted")))
+        .is_none_or(|(high, predicted)| high < predicted);
+    row.number("gap").is_some_and(|gap| gap < -rtol) && bracket_below
 }
 
 /// What the columns hold, in the file's metadata; the columns before them are the swept fields.
 pub const NOTES: &[(&str, &str)] = &[
     ("field", "the case field searched along"),
-    ("boundary", "the middle of the final bracket, where the condition starts to hold; null if the search found none"),
+    ("boundary", "the middle of the final bracket, where the condition starts to hold (to the tolerance, or as far as a budget let the probes narrow it: see boundary_lo, boundary_hi); null if the search found none"),
     ("boundary_lo", "the largest value probed where the condition does not hold, once the bracket narrowed (found, at the field's resolution, or a budget spent)"),
     ("boundary_hi", "the smallest value probed where it holds, likewise"),
     ("predicted", "the boundary the solver's theory gives for what the condition reads: the symbol's dt_stable for stability, dt_positive for `positivity`; null where it has none"),

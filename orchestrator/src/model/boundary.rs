@@ -297,11 +297,15 @@ pub fn flips(condition: &str, stored: &Stored) -> Result<bool, String> {
 }
 
 impl Search {
-    /// The boundary's estimate: the middle of the final bracket, once found (to the tolerance,
-    /// or to the field's resolution).
+    /// The boundary's estimate: the middle of the final bracket, once the probes narrowed it
+    /// (to the tolerance, to the field's resolution, or as far as a budget let them: the
+    /// bracket then says how far the estimate may be off).
     pub fn boundary(&self) -> Option<f64> {
-        matches!(self.ended, Some(Ended::Found | Ended::Resolution))
-            .then_some(0.5 * (self.below + self.above))
+        matches!(
+            self.ended,
+            Some(Ended::Found | Ended::Resolution | Ended::Budget | Ended::StudyBudget)
+        )
+        .then_some(0.5 * (self.below + self.above))
     }
 }
 

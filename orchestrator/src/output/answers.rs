@@ -5,7 +5,7 @@
 use crate::analysis::boundaries::prediction;
 use crate::console::number;
 use crate::model::adaptive::{Budget, Spent};
-use crate::model::boundary::{BoundarySpec, Search};
+use crate::model::boundary::{BoundarySpec, Ended, Search};
 use crate::model::refine::Refinement;
 use crate::model::target::{Aimed, Reached, TargetSpec};
 use crate::run::search::{Answered, Searched};
@@ -103,7 +103,7 @@ fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Str
         .map(|s| {
             let search = &s.outcome;
             let predicted = s.record.as_ref().and_then(|r| prediction(spec, r));
-            let answer = match (search.boundary(), predicted) {
+            let mut answer = match (search.boundary(), predicted) {
                 (Some(b), Some(p)) => format!(
                     "{field} = {} (predicted {}, {:+.2} %)",
                     number(b),
@@ -122,6 +122,14 @@ fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Str
                     .as_ref()
                     .map_or_else(String::new, ToString::to_string),
             };
+            // A spent budget's estimate comes with its bracket and the reason it is that wide.
+            if let Some(ended @ (Ended::Budget | Ended::StudyBudget)) = &search.ended {
+                answer += &format!(
+                    " in [{}, {}]: {ended}",
+                    number(search.below),
+                    number(search.above)
+                );
+            }
             format!("{}: {answer}, {} probes", s.origin.label(), search.probes)
         })
         .collect()
