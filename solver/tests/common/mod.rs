@@ -1,6 +1,8 @@
 //! Helpers shared by the solver's tests.
 #![allow(dead_code)]
 
+pub mod spectrum;
+
 use solver::case::Case;
 use solver::ValidCase;
 use std::io::Write;
