@@ -388,5 +388,6 @@ fn the_amplification_meets_the_dense_spectrums_boundary_on_both_sides() {
         covered * 100 >= 95 * probes,
         "{covered} of {probes} probes covered"
     );
-    assert!(widest < 1e-8, "an interval {widest} wide");
+    // 400 steps' applications (forward Euler's 400 the fewest) leave the 2D intervals ~2e-7 wide.
+    assert!(widest < 1e-6, "an interval {widest} wide");
 }

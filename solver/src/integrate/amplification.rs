@@ -27,9 +27,17 @@ use std::sync::Mutex;
 /// search's rtol, and the ends serve every step and integrator of the operator.
 pub const SPECTRAL_RTOL: f64 = 1e-10;
 
-/// Most applications of L_h one measurement of the ends spends (the bound it reached is then
-/// what the interval says).
-pub const SPECTRAL_MAX_APPLICATIONS: usize = 2000;
+/// The applications of L_h a measurement may spend: those of the rough field's `steps` steps
+/// of `integrator` (one per stage of an explicit step, one per implicit step), so that the case's
+/// `amplification_steps` bounds the effort either way; the interval then says what it reached.
+pub fn spectral_budget(integrator: Integrator, steps: usize) -> usize {
+    let stages = match integrator {
+        Integrator::Heun => 2,
+        Integrator::Rk4 => 4,
+        Integrator::ForwardEuler | Integrator::BackwardEuler | Integrator::CrankNicolson => 1,
+    };
+    steps.saturating_mul(stages)
+}
 
 /// The ends of the spectra this process measured, by operator (`spectrum_key`), None for an
 /// operator found not symmetric: a served worker runs a search's probes one after another, and
@@ -37,9 +45,9 @@ pub const SPECTRAL_MAX_APPLICATIONS: usize = 2000;
 /// gives the same bits as a measured one.
 static MEASURED: Mutex<BTreeMap<String, Option<Ends>>> = Mutex::new(BTreeMap::new());
 
-/// What tells one operator on one process from another for `MEASURED`: its implementation,
-/// grid and weights (bit for bit).
-pub fn spectrum_key<Op>(stencil: &Stencil) -> String {
+/// What tells one measurement on one process from another for `MEASURED`: the operator's
+/// implementation, grid and weights (bit for bit), and the applications it may spend.
+pub fn spectrum_key<Op>(stencil: &Stencil, budget: usize) -> String {
     let mut weights = std::hash::DefaultHasher::new();
     for row in &stencil.rows {
         (row.dy, row.dx_min).hash(&mut weights);
@@ -48,7 +56,7 @@ pub fn spectrum_key<Op>(stencil: &Stencil) -> String {
             .for_each(|w| w.to_bits().hash(&mut weights));
     }
     format!(
-        "{} {:?} {:x}",
+        "{} {:?} {:x} {budget}",
         std::any::type_name::<Op>(),
         stencil.grid,
         weights.finish()
@@ -59,7 +67,8 @@ pub fn spectrum_key<Op>(stencil: &Stencil) -> String {
 /// and the rough field measures it): the step of `integrator` multiplies an eigenvector with
 /// eigenvalue λ by R(dt·λ) (`stability_function`), whose largest |R| over the spectrum is at
 /// one of its ends, so the spectral radius of the step is max |R(dt·λ)| over λ_min and λ_max,
-/// their intervals found by Lanczos from the rough field to `SPECTRAL_RTOL`, or remembered
+/// their intervals found by Lanczos from the rough field to `SPECTRAL_RTOL` in at most `budget`
+/// applications (`spectral_budget`), or remembered
 /// under `key` from an earlier run of this process. Where the radius's interval holds 1 the
 /// value is its top: never called stable on a guess. None when a value is not finite.
 pub fn spectral<Op: LinearOperator>(
@@ -68,13 +77,14 @@ pub fn spectral<Op: LinearOperator>(
     nodes: Option<&[usize]>,
     len: usize,
     (integrator, dt): (Integrator, f64),
+    budget: usize,
     key: Option<&str>,
 ) -> Option<Amplification> {
     let remembered = key.and_then(|key| MEASURED.lock().ok()?.get(key).copied());
     let (ends, applications) = match remembered {
         Some(ends) => (ends?, 0),
         None => {
-            let ends = spectrum_ends(operator, ranks, nodes, len);
+            let ends = spectrum_ends(operator, ranks, (nodes, len), budget);
             if let (Some(key), Ok(mut measured)) = (key, MEASURED.lock()) {
                 measured.insert(key.to_string(), ends.map(|(ends, _)| ends));
             }
@@ -99,13 +109,14 @@ pub fn spectral<Op: LinearOperator>(
     })
 }
 
-/// The ends of a symmetric `operator`'s spectrum to `SPECTRAL_RTOL` and the applications spent
-/// (the symmetry check's two included); None if it is not symmetric or a value is not finite.
+/// The ends of a symmetric `operator`'s spectrum to `SPECTRAL_RTOL` (or as far as `budget`
+/// applications take them) and the applications spent (the symmetry check's two included);
+/// None if it is not symmetric or a value is not finite.
 fn spectrum_ends<Op: LinearOperator>(
     operator: &Op,
     ranks: Ranks,
-    nodes: Option<&[usize]>,
-    len: usize,
+    (nodes, len): (Option<&[usize]>, usize),
+    budget: usize,
 ) -> Option<(Ends, usize)> {
     let mut rhs = Rhs::new(operator, None, ranks);
     let dot = |a: &[f64], b: &[f64]| ranks.sum(a.iter().zip(b).map(|(x, y)| x * y).sum());
@@ -123,7 +134,7 @@ fn spectrum_ends<Op: LinearOperator>(
         &dot,
         start,
         &mut settled,
-        SPECTRAL_MAX_APPLICATIONS,
+        budget.saturating_sub(2).max(1),
     )?;
     Some((ends, ends.applications + 2))
 }

@@ -15,7 +15,8 @@ use crate::discretization::stability::{
 };
 use crate::discretization::stencil::Stencil;
 use crate::integrate::amplification::{
-    amplification, middle_node, positivity, spectral, spectrum_key, POSITIVITY_RTOL,
+    amplification, middle_node, positivity, spectral, spectral_budget, spectrum_key,
+    POSITIVITY_RTOL,
 };
 use crate::integrate::integrator::stepper;
 use crate::integrate::measure::serial_outcome;
@@ -286,10 +287,11 @@ pub(crate) fn solve<Op: LinearOperator>(
         let nodes = rough_nodes.as_deref();
         // Over ranks each run measures afresh: every rank then takes the same path.
         let single = ranks.exchange.ranks() == 1;
-        let key = single.then(|| spectrum_key::<Op>(&plan.stencil));
+        let budget = spectral_budget(case.integrator, steps);
+        let key = single.then(|| spectrum_key::<Op>(&plan.stencil, budget));
         let step = (case.integrator, asked.dt);
-        trajectory.amplification = spectral(operator, ranks, nodes, len, step, key.as_deref())
-            .or_else(|| {
+        trajectory.amplification =
+            spectral(operator, ranks, nodes, len, step, budget, key.as_deref()).or_else(|| {
                 with_stepper(on, rough_nodes.clone(), &asked, None, |stepper| {
                     amplification(stepper, ranks, nodes, len, asked.dt, steps)
                 })
