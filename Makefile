@@ -35,7 +35,7 @@ test:
 
 # Every study of the set, each run (make-style) then collected and plotted into
 # results/<study>/figures/.
-STUDIES := quick quick_stability quick_target convergence stability local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong feti_projection integrators variable_horizon coupling error_target error_target_local
+STUDIES := quick quick_stability quick_target convergence stability stability_map local_methods threads ranks work_precision patch ac_limit perf feti_weak feti_strong feti_projection integrators variable_horizon coupling error_target error_target_local
 figures: setup
 	cargo build --release --workspace
 	for study in $(STUDIES); do target/release/nlstudy run studies/$$study.json || exit 1; done
