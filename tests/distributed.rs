@@ -224,7 +224,8 @@ fn an_uneven_split_of_101_nodes_on_4_ranks_equals_the_serial_run() {
 }
 
 /// The explicit Runge–Kutta integrators run over ranks with the serial bits: each stage is one
-/// application of the distributed operator and passes over the rank's own nodes.
+/// application of the distributed operator and passes over the rank's own nodes. The step's
+/// amplification measured with them agrees too.
 #[test]
 #[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
@@ -244,17 +245,23 @@ fn runge_kutta_integrators_over_ranks_equal_the_serial_run() {
             "0.9",
             "--integrator",
             integrator,
+            "--amplification-steps",
+            "400",
         ];
         let reference = serial(&case);
         for partition in ["block", "graph"] {
             let run = distributed(2, partition, 1, &case);
-            assert_agrees(
-                &reference,
-                &run,
-                2,
-                partition,
-                &format!("{integrator}, {partition}"),
-            );
+            let what = format!("{integrator}, {partition}");
+            assert_agrees(&reference, &run, 2, partition, &what);
+            // The step's amplification from L_h's spectrum: Lanczos's inner products summed
+            // over ranks, to round-off.
+            for field in ["amplification", "amplification_low", "amplification_high"] {
+                let (a, b) = (&reference.record[field], &run.record[field]);
+                assert!(
+                    a.is_f64() && close(a, b),
+                    "{what}: {field} serial {a}, distributed {b}"
+                );
+            }
         }
     }
 }

@@ -148,10 +148,12 @@ pub struct Case {
     #[cfg_attr(feature = "cli", arg(long, value_parser = finite_number))]
     pub vtk_every: Option<f64>,
     /// `nonlocal`, `fd_explicit`, `adi` and `pse`: also measure the step's
-    /// amplification, the growth per step of a rough field under the homogeneous problem over
-    /// this many steps (a few hundred; untimed), at the step asked for (`dt`, or `cfl` times
-    /// dt_stable, before it is lowered to land on `t_end`), into the record's `amplification`:
-    /// above 1 it is unstable. Its `positivity` is measured with it: one step of a unit spike,
+    /// amplification (untimed), at the step asked for (`dt`, or `cfl` times dt_stable, before it
+    /// is lowered to land on `t_end`), into the record's `amplification`: above 1 it is unstable.
+    /// For a constant horizon the step's spectral radius from L_h's spectrum (Lanczos on its
+    /// ends, with the interval that holds it, in at most the applications of this many steps);
+    /// otherwise the growth per step of a rough field under the homogeneous problem over this
+    /// many steps (a few hundred). Its `positivity` is measured with it: one step of a unit spike,
     /// below 0 where the step makes negative values of non-negative data.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "cli", arg(long))]

@@ -377,7 +377,7 @@ fn the_amplification_meets_the_dense_spectrums_boundary_on_both_sides() {
                     );
                     widest = widest.max(high - low);
                     assert!(
-                        record.amplification_applications.unwrap() <= 2002,
+                        record.amplification_applications.unwrap() <= 1600,
                         "{label}"
                     );
                 }

@@ -39,11 +39,12 @@ pub fn spectral_budget(integrator: Integrator, steps: usize) -> usize {
     steps.saturating_mul(stages)
 }
 
-/// The ends of the spectra this process measured, by operator (`spectrum_key`), None for an
-/// operator found not symmetric: a served worker runs a search's probes one after another, and
-/// they differ in the step alone. The ends do not depend on the step, so a remembered operator
-/// gives the same bits as a measured one.
-static MEASURED: Mutex<BTreeMap<String, Option<Ends>>> = Mutex::new(BTreeMap::new());
+/// The ends of the spectra this process measured, by operator (`spectrum_key`), with the
+/// applications that took; None for an operator found not symmetric. A served worker runs a
+/// search's probes one after another, and they differ in the step alone. The ends do not depend
+/// on the step, so a remembered operator gives the record a measured one would, bit for bit.
+type Measured = Option<(Ends, usize)>;
+static MEASURED: Mutex<BTreeMap<String, Measured>> = Mutex::new(BTreeMap::new());
 
 /// What tells one measurement on one process from another for `MEASURED`: the operator's
 /// implementation, grid and weights (bit for bit), and the applications it may spend.
@@ -82,13 +83,13 @@ pub fn spectral<Op: LinearOperator>(
 ) -> Option<Amplification> {
     let remembered = key.and_then(|key| MEASURED.lock().ok()?.get(key).copied());
     let (ends, applications) = match remembered {
-        Some(ends) => (ends?, 0),
+        Some(measured) => measured?,
         None => {
-            let ends = spectrum_ends(operator, ranks, (nodes, len), budget);
-            if let (Some(key), Ok(mut measured)) = (key, MEASURED.lock()) {
-                measured.insert(key.to_string(), ends.map(|(ends, _)| ends));
+            let measured = spectrum_ends(operator, ranks, (nodes, len), budget);
+            if let (Some(key), Ok(mut remembered)) = (key, MEASURED.lock()) {
+                remembered.insert(key.to_string(), measured);
             }
-            ends?
+            measured?
         }
     };
     let [lowest, highest] = ends.intervals();
