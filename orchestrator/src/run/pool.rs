@@ -569,6 +569,12 @@ impl Pool<'_> {
         if !self.store.save(&planned.key, &record)? {
             message.push_str("; the stored result of an earlier run is kept");
         }
+        // A whole record makes the point's checkpoint useless. The solver removes it after its
+        // answer, but a worker's removal can come after this process has ended: a checkpoint
+        // would then outlive its record.
+        if status != Status::Failed {
+            self.store.remove_checkpoint(&planned.key);
+        }
         match status {
             Status::Ok => self.tally.ok += 1,
             Status::Diverged => self.tally.diverged += 1,
