@@ -572,7 +572,7 @@ impl Pool<'_> {
         // A whole record makes the point's checkpoint useless. The solver removes it after its
         // answer, but a worker's removal can come after this process has ended: a checkpoint
         // would then outlive its record.
-        if status != Status::Failed {
+        if status != Status::Failed && !self.options.keep_checkpoints {
             self.store.remove_checkpoint(&planned.key);
         }
         match status {
