@@ -197,20 +197,6 @@ pub fn forward_euler_dt_stable(stencil: &Stencil) -> f64 {
 /// x = 2; RK4's R(z) = Σ_{j ≤ 4} z^j/j! gives x = 2.7852935634… (the root of R(z) = 1 on z < 0).
 const RK4_REAL_STABILITY: f64 = 2.785_293_563_405_282;
 
-/// The integrator's stability function R(z): one step multiplies an eigenvector of L_h with
-/// eigenvalue λ by R(dt·λ). Forward Euler 1 + z, Heun 1 + z + z²/2, RK4 Σ_{j ≤ 4} z^j/j!,
-/// backward Euler 1/(1 − z), Crank–Nicolson (1 + z/2)/(1 − z/2). On the negative real axis each
-/// |R| is convex or monotone, so over an interval of eigenvalues its largest value is at an end.
-pub fn stability_function(integrator: Integrator, z: f64) -> f64 {
-    match integrator {
-        Integrator::ForwardEuler => 1.0 + z,
-        Integrator::Heun => 1.0 + z + z * z / 2.0,
-        Integrator::Rk4 => 1.0 + z * (1.0 + z / 2.0 * (1.0 + z / 3.0 * (1.0 + z / 4.0))),
-        Integrator::BackwardEuler => 1.0 / (1.0 - z),
-        Integrator::CrankNicolson => (1.0 + z / 2.0) / (1.0 - z / 2.0),
-    }
-}
-
 /// The largest stable dt of `integrator` for L_h: x / λ_max, with [−x, 0] its real stability
 /// interval; None for the unconditionally stable implicit schemes.
 pub fn dt_stable(integrator: Integrator, forward_euler_dt_stable: f64) -> Option<f64> {

@@ -10,9 +10,9 @@
 //! from below, by O(1/steps) through the modes beside the top one; the field is rescaled as it
 //! grows or decays, so no step overflows.
 
+use super::integrator::{applications_per_step, stability_function};
 use super::stepper::{Rhs, Stepper};
 use crate::case::Integrator;
-use crate::discretization::stability::stability_function;
 use crate::discretization::stencil::Stencil;
 use crate::linalg::lanczos::{self, Ends};
 use crate::operator::LinearOperator;
@@ -28,15 +28,10 @@ use std::sync::Mutex;
 pub const SPECTRAL_RTOL: f64 = 1e-10;
 
 /// The applications of L_h a measurement may spend: those of the rough field's `steps` steps
-/// of `integrator` (one per stage of an explicit step, one per implicit step), so that the case's
-/// `amplification_steps` bounds the effort either way; the interval then says what it reached.
+/// of `integrator` (`applications_per_step`), so that the case's `amplification_steps` bounds
+/// the effort either way; the interval then says what it reached.
 pub fn spectral_budget(integrator: Integrator, steps: usize) -> usize {
-    let stages = match integrator {
-        Integrator::Heun => 2,
-        Integrator::Rk4 => 4,
-        Integrator::ForwardEuler | Integrator::BackwardEuler | Integrator::CrankNicolson => 1,
-    };
-    steps.saturating_mul(stages)
+    steps.saturating_mul(applications_per_step(integrator))
 }
 
 /// The ends of the spectra this process measured, by operator (`spectrum_key`), with the
@@ -69,8 +64,8 @@ pub fn spectrum_key<Op>(stencil: &Stencil, budget: usize) -> String {
 /// eigenvalue λ by R(dt·λ) (`stability_function`), whose largest |R| over the spectrum is at
 /// one of its ends, so the spectral radius of the step is max |R(dt·λ)| over λ_min and λ_max,
 /// their intervals found by Lanczos from the rough field to `SPECTRAL_RTOL` in at most `budget`
-/// applications (`spectral_budget`), or remembered
-/// under `key` from an earlier run of this process. Where the radius's interval holds 1 the
+/// applications (`spectral_budget`), or remembered under `key` from an earlier run of this
+/// process. Where the radius's interval holds 1 the
 /// value is its top: never called stable on a guess. None when a value is not finite.
 pub fn spectral<Op: LinearOperator>(
     operator: &Op,
@@ -92,6 +87,16 @@ pub fn spectral<Op: LinearOperator>(
             measured?
         }
     };
+    radius((integrator, dt), &ends, applications)
+}
+
+/// The step's spectral radius, max |R(dt·λ)| over the ends' intervals: the Ritz values' when
+/// the interval of |R| lies on one side of 1, else its top (never called stable on a guess).
+fn radius(
+    (integrator, dt): (Integrator, f64),
+    ends: &Ends,
+    applications: usize,
+) -> Option<Amplification> {
     let [lowest, highest] = ends.intervals();
     let growth = |l: f64| stability_function(integrator, dt * l).abs();
     // Over each (narrow) interval |R| lies between its values at the ends: it turns only where
@@ -269,6 +274,31 @@ mod tests {
             u.iter_mut().for_each(|x| *x *= self.0);
             u.iter().fold(0.0, |m, x| m.max(x.abs()))
         }
+    }
+
+    /// A spectrum whose lowest end is known only to within a bound that holds forward Euler's
+    /// limit z = −2: the radius is the top of its interval (above 1), not the Ritz value's
+    /// |R| (below 1); an interval wholly inside the stable side gives the Ritz value's.
+    #[test]
+    fn a_radius_whose_interval_holds_one_is_its_top() {
+        let end = |ritz, bound| lanczos::End { ritz, bound };
+        let ends = |lowest| Ends {
+            lowest,
+            highest: end(-0.5, 0.0),
+            applications: 0,
+        };
+        let straddling = radius(
+            (Integrator::ForwardEuler, 1.0),
+            &ends(end(-1.9999995, 1e-6)),
+            7,
+        )
+        .unwrap();
+        assert_eq!(straddling.value, straddling.bounds.unwrap().1);
+        assert!(straddling.value > 1.0 && (straddling.value - 1.0000005).abs() < 1e-12);
+        let inside = radius((Integrator::ForwardEuler, 1.0), &ends(end(-1.9, 1e-6)), 7).unwrap();
+        assert!((inside.value - 0.9).abs() < 1e-12, "{inside:?}");
+        assert!(inside.bounds.unwrap().1 < 1.0);
+        assert_eq!(inside.applications, Some(7));
     }
 
     #[test]

@@ -25,6 +25,31 @@ const RK4: [Stage; 4] = [
     (1.0, 1.0, 1.0 / 6.0),
 ];
 
+/// The tableau of `integrator`, `Heun` or `Rk4`.
+fn tableau(integrator: Integrator) -> &'static [Stage] {
+    match integrator {
+        Integrator::Heun => &HEUN,
+        Integrator::Rk4 => &RK4,
+        other => panic!("{other:?} is not an explicit Runge–Kutta method"),
+    }
+}
+
+/// The stages of a step of `integrator` (`Heun` or `Rk4`), each one application of L.
+pub fn stages(integrator: Integrator) -> usize {
+    tableau(integrator).len()
+}
+
+/// R(z) of `integrator` (`Heun` or `Rk4`): `step`'s loop on u' = λu from u = 1, z = dt·λ, with
+/// w = dt·k: w₁ = z, wₛ = z(1 + aₛ wₛ₋₁), R = 1 + Σ bₛ wₛ.
+pub fn stability_function(integrator: Integrator, z: f64) -> f64 {
+    let (mut w, mut sum) = (0.0, 0.0);
+    for &(_, a, b) in tableau(integrator) {
+        w = z * (1.0 + a * w);
+        sum += b * w;
+    }
+    1.0 + sum
+}
+
 pub struct RungeKutta<'a, Op: LinearOperator> {
     rhs: Rhs<'a, Op>,
     stages: &'static [Stage],
@@ -43,14 +68,9 @@ impl<'a, Op: LinearOperator> RungeKutta<'a, Op> {
         ranks: Ranks<'a>,
         len: usize,
     ) -> Self {
-        let stages: &'static [Stage] = match integrator {
-            Integrator::Heun => &HEUN,
-            Integrator::Rk4 => &RK4,
-            other => panic!("{other:?} is not an explicit Runge–Kutta method"),
-        };
         RungeKutta {
             rhs: Rhs::new(operator, source, ranks),
-            stages,
+            stages: tableau(integrator),
             stage: vec![0.0; len],
             rate: vec![0.0; len],
             sum: vec![0.0; len],
