@@ -144,4 +144,22 @@ mod tests {
         assert_eq!(predicted(&record, "cfl", "amplification > 1"), Some(1.5));
         assert_eq!(predicted(&record, "dt", "amplification > 1"), Some(3e-3));
     }
+
+    /// A finding is a boundary below the theory by more than the tolerance with its whole
+    /// bracket below the prediction: a bracket that still holds the prediction is no finding.
+    #[test]
+    fn a_finding_needs_the_whole_bracket_below_the_theory() {
+        let row = |gap: f64, high: Option<f64>| {
+            let mut row = Row::default();
+            row.set("predicted", Value::from(1.0));
+            row.set("gap", Value::from(gap));
+            row.set("boundary_hi", high.map_or(Value::Null, Value::from));
+            row
+        };
+        assert!(below_theory(&row(-0.01, Some(0.995)), 1e-3));
+        assert!(!below_theory(&row(-0.01, Some(1.001)), 1e-3));
+        assert!(!below_theory(&row(-5e-4, Some(0.9996)), 1e-3));
+        assert!(!below_theory(&row(0.01, Some(1.02)), 1e-3));
+        assert!(below_theory(&row(-0.01, None), 1e-3));
+    }
 }

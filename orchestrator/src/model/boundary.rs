@@ -406,6 +406,10 @@ mod tests {
         let found = search(&five, |v| v >= 1.2345);
         assert_eq!(found.ended, Some(Ended::Budget));
         assert_eq!(found.probes, 5);
+        // Stopped short of the tolerance, the answer is its bracket's middle, the truth inside.
+        let (below, above) = (found.below, found.above);
+        assert!(below < 1.2345 && 1.2345 <= above, "[{below}, {above}]");
+        assert_eq!(found.boundary(), Some(0.5 * (below + above)));
         assert_eq!(five.worst_case_probes(), 5);
         let three = BoundarySpec {
             max_probes: Some(3),
