@@ -245,6 +245,9 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     refined_a_round_per_submit(&scratch, &slurm);
     searched_a_round_per_submit(&scratch, &slurm);
     stages.extend(["array with a throttle", "adaptive rounds"]);
+    followed_to_the_answer(&slurm);
+    cancelled_twice_then_given_up(&slurm);
+    stages.push("followed to the answer, whole, and past cancelled jobs");
     requeued_mid_run(&scratch, &slurm);
     stages.push("requeue");
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
@@ -451,6 +454,158 @@ fn a_round_per_submit(
         "{}",
         text(&run)
     );
+}
+
+/// `submit --follow` takes a boundary study of four searches to its answer with one command:
+/// the rounds and boundaries of a local `run`. Killed (SIGKILL) once its first round is in the
+/// ledger and started again, it waits for that round and submits no point twice.
+fn followed_to_the_answer(slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "followed",
+        "base": {"dim": 1, "n": 64, "problem": "bump", "t_end": 1e-6,
+                 "allow_unstable": true, "amplification_steps": 100},
+        "sweep": [{"product": {"integrator": ["forward_euler", "heun"], "m": [1, 2]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 0.01, "per_round": 7}
+    });
+    let local = Scratch::new("followed-local", &study);
+    let run = local.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    // Each search's line: its point, boundary, prediction and probes.
+    let answers = |said: &str| -> Vec<String> {
+        let lines = said
+            .lines()
+            .filter(|l| l.contains("(predicted ") && l.ends_with(" probes"));
+        lines.map(|l| l.trim().to_string()).collect()
+    };
+    assert_eq!(answers(&text(&run)).len(), 4, "{}", text(&run));
+
+    let cluster = Scratch::new("followed", &study);
+    let follow = [
+        "--scheduler",
+        "slurm",
+        "--time",
+        "00:05:00",
+        "--follow",
+        "--poll",
+        "2",
+    ];
+    let mut first = cluster
+        .command("submit", &follow)
+        .env("SLURM_CONF", slurm.conf())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let ledger = cluster.dir.join("results/followed/jobs/ledger");
+    let entries = || -> Vec<Value> {
+        let files = std::fs::read_dir(&ledger).into_iter().flatten().flatten();
+        files
+            .filter_map(|f| serde_json::from_slice(&std::fs::read(f.path()).ok()?).ok())
+            .collect()
+    };
+    wait_until(Duration::from_secs(60), "the first round's job", || {
+        !entries().is_empty()
+    });
+    first.kill().unwrap();
+    first.wait().unwrap();
+    let again = cluster
+        .command("submit", &follow)
+        .env("SLURM_CONF", slurm.conf())
+        .output()
+        .unwrap();
+    let said = text(&again);
+    assert!(
+        again.status.success(),
+        "{said}\n{}",
+        logs(&cluster, "followed")
+    );
+    assert!(
+        said.contains("jobs: ") && said.contains(" of at most 4: "),
+        "{said}"
+    );
+    let mut submitted: Vec<String> = entries()
+        .iter()
+        .flat_map(|e| e["keys"].as_array().unwrap().clone())
+        .map(|k| k.as_str().unwrap().to_string())
+        .collect();
+    let jobs = submitted.len();
+    submitted.sort();
+    submitted.dedup();
+    assert_eq!(submitted.len(), jobs, "a point was submitted twice: {said}");
+    assert_eq!(answers(&said), answers(&text(&run)), "{said}");
+    assert!(said.contains("report: "), "{said}");
+
+    // The whole study in one job: one sbatch, the same answer.
+    let whole = Scratch::new("followed-whole", &study);
+    let out = whole
+        .command("submit", &[&follow[..], &["--whole"]].concat())
+        .env("SLURM_CONF", slurm.conf())
+        .output()
+        .unwrap();
+    let said = text(&out);
+    assert!(out.status.success(), "{said}\n{}", logs(&whole, "followed"));
+    assert_eq!(said.matches("submitted as job ").count(), 1, "{said}");
+    assert_eq!(answers(&said), answers(&text(&run)), "{said}");
+}
+
+/// Followed, a point whose job is cancelled while it runs is submitted once more; cancelled
+/// again, it is stored failed with what accounting says of both jobs, and the driver exits 1.
+fn cancelled_twice_then_given_up(slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "given-up",
+        "base": {"dim": 2, "m": 8, "t_end": 1e-4, "dt": 1e-8, "source": "discrete"},
+        "sweep": [{"product": {"n": [1024]}}]
+    });
+    let scratch = Scratch::new("given-up", &study);
+    let driver = scratch
+        .command(
+            "submit",
+            &[
+                "--scheduler",
+                "slurm",
+                "--time",
+                "00:05:00",
+                "--follow",
+                "--poll",
+                "1",
+            ],
+        )
+        .env("SLURM_CONF", slurm.conf())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut cancelled: Vec<String> = Vec::new();
+    for _ in 0..2 {
+        let mut running = String::new();
+        wait_until(Duration::from_secs(60), "a job running", || {
+            let out = slurm
+                .command("squeue")
+                .args(["-h", "-t", "RUNNING", "-o", "%i"])
+                .output()
+                .unwrap();
+            running = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            !running.is_empty() && !cancelled.contains(&running)
+        });
+        let cancel = slurm.command("scancel").arg(&running).output().unwrap();
+        assert!(cancel.status.success(), "{}", text(&cancel));
+        cancelled.push(running);
+    }
+    let out = driver.wait_with_output().unwrap();
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    let why = format!(
+        "submitted 2 times, and its jobs ended without its record: job {} CANCELLED",
+        cancelled[0]
+    );
+    assert!(said.contains(&why), "{why}: {said}");
+    let stored = records(&scratch.runs("given-up"));
+    assert_eq!(stored.len(), 1, "{said}");
+    assert_eq!(stored[0]["status"], "failed");
+    assert!(stored[0]
+        .to_string()
+        .contains(&format!("job {} CANCELLED", cancelled[1])));
 }
 
 /// A job requeued while it runs (as a preemption would) runs again and takes up only what is

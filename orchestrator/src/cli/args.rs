@@ -99,6 +99,11 @@ pub struct CompareArgs {
     /// (docs/performance.md); an odd count keeps the median a run's own.
     #[arg(long, default_value_t = 11)]
     pub rounds: usize,
+    /// With `--against solver:PATH`: the most rounds a point runs when its CPU time is still
+    /// undecided after --rounds (its interval holds 1 + threshold or 1/(1 + threshold)): such
+    /// points run --rounds more at a time, up to this many; default 3 × --rounds.
+    #[arg(long, value_name = "N")]
+    pub max_rounds: Option<usize>,
     /// With `--against solver:PATH`: also count each point's instructions under Valgrind (one
     /// run per build, 20–50× slower, the same count on any machine), judged to 0.5 %.
     #[arg(long)]
@@ -155,6 +160,34 @@ pub struct SubmitArgs {
     /// Write the scripts into results/<study>/jobs/ without submitting them.
     #[arg(long)]
     pub dry_run: bool,
+    /// One job that runs the whole study inside its allocation, every round of an adaptive one
+    /// (the worker pool on the job's cores: one node's with a site's `cores_per_node`, else
+    /// `--tasks`), and writes its tables, figures and report; a requeued job resumes from the
+    /// store. Its time limit: `--time`, else the stored timings of a fixed study, else the
+    /// site's default.
+    #[arg(long, conflicts_with = "array")]
+    pub whole: bool,
+    /// Stay until the study is answered: submit what is ready (the missing points, or an
+    /// adaptive study's next round), wait while the scheduler holds the jobs, then submit the
+    /// next round, and at the end write the tables, figures and report as `run` does. Stopped
+    /// (Ctrl-C, a lost terminal: run it under nohup or tmux) and started again, it waits for
+    /// the jobs already queued instead of submitting them twice.
+    #[arg(long, conflicts_with = "dry_run")]
+    pub follow: bool,
+    /// With --follow: the longest pause, in seconds, between two questions to the scheduler
+    /// (the first is 1 s, each later one half as long again).
+    #[arg(
+        long,
+        value_name = "SECONDS",
+        default_value_t = 60.0,
+        requires = "follow"
+    )]
+    pub poll: f64,
+    /// With --follow: how many times a point is submitted again after its job ended without
+    /// its record (cancelled, timed out, its node lost); then it is stored failed with what the
+    /// scheduler says of its jobs.
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "follow")]
+    pub resubmit: usize,
     /// Each flag overrides the study's `resources` field of the same name.
     #[command(flatten)]
     pub resources: Resources,

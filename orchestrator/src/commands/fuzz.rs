@@ -287,6 +287,7 @@ fn fuzz_the_ledger_and_the_owner_file() {
         keys: vec!["ab".repeat(16), "cd".repeat(16)],
         elements: vec![vec!["ab".repeat(16)], vec!["cd".repeat(16)]],
         submitted: 1_764_000_000,
+        whole: false,
     };
     ledger::add(&store, &entry).unwrap();
     let ledger_file = store.table("jobs/ledger/4242.json");

@@ -7,12 +7,14 @@ use super::open::{
     say_what_refinement_cannot_show,
 };
 use crate::cli::args::RunArgs;
+use crate::model::study::Study;
 use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
 use crate::run::search::{self, Answered};
 use crate::run::signals;
+use crate::store::Store;
 use schema::exit;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -133,42 +135,74 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             stop.exit_code().unwrap_or(exit::INTERRUPTED),
         ));
     }
-    if let Some(answered) = &answered {
+    let ending = Ending {
+        quiet: args.quiet,
+        collect: !args.no_collect,
+        allow_mixed: args.allow_mixed,
+    };
+    if let Some(code) = conclude(&study, &store, &planned, answered.as_ref(), ending)? {
+        return Ok(code);
+    }
+    Ok(match tally.failed {
+        0 => ExitCode::SUCCESS,
+        _ => ExitCode::from(exit::CASE_FAILED),
+    })
+}
+
+/// How a study's end is said and made (`conclude`).
+#[derive(Clone, Copy)]
+pub(super) struct Ending {
+    pub quiet: bool,
+    /// Gather the tables, figures and report (`run --no-collect` does not).
+    pub collect: bool,
+    pub allow_mixed: bool,
+}
+
+/// A study's end, from what is stored: an adaptive study's answers (their table and lines), then
+/// its tables, figures and report. Some(exit code) when a table or figure could not be made.
+pub(super) fn conclude(
+    study: &Study,
+    store: &Store,
+    planned: &[Planned],
+    answered: Option<&Answered>,
+    ending: Ending,
+) -> Result<Option<ExitCode>, Failure> {
+    if let Some(answered) = answered {
         let path = match answered {
             Answered::Boundaries(spec, searched) => {
-                crate::analysis::boundaries::write(&study, &store, spec, searched)?
+                crate::analysis::boundaries::write(study, store, spec, searched)?
             }
             Answered::Refinements(spec, refined) => {
-                crate::analysis::convergence::write(&study, &store, &spec.field, refined)?
+                crate::analysis::convergence::write(study, store, &spec.field, refined)?
             }
             Answered::Targets(spec, aimed) => {
-                crate::analysis::target::write(&study, &store, spec, aimed)?
+                crate::analysis::target::write(study, store, spec, aimed)?
             }
         };
-        if !args.quiet {
+        if !ending.quiet {
             for line in crate::output::answers::lines(answered) {
                 errln!("  {line}");
             }
             if let Some(budget) = &study.budget {
-                let spent = search::spent(&planned, &store);
+                let spent = search::spent(planned, store);
                 errln!("  {}", crate::output::answers::budget_line(budget, &spent));
             }
             errln!("table: {}", path.display());
         }
     }
-    if !args.no_collect {
+    if ending.collect {
         signals::phase("collect");
-        let to_collect = crate::analysis::collect::ToCollect::of(&planned);
+        let to_collect = crate::analysis::collect::ToCollect::of(planned);
         let swept = to_collect.swept().to_vec();
         let collected =
-            crate::analysis::collect::collect(to_collect, &store, &study, args.allow_mixed);
+            crate::analysis::collect::collect(to_collect, store, study, ending.allow_mixed);
         let tables = collected.and_then(|collected| match collected {
             Some(collected) => {
                 signals::phase("figures");
-                let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
+                let figures = crate::output::plot::plot(&study.figures, study.question(), store)?;
                 signals::phase("report");
-                let page = crate::output::report::write(&study, &store, &swept)?;
-                if !args.quiet {
+                let page = crate::output::report::write(study, store, &swept)?;
+                if !ending.quiet {
                     print_tables_written(&collected);
                     print_figures_drawn(&figures);
                     errln!("report: {}", page.display());
@@ -187,13 +221,10 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         };
         if let Some(message) = message {
             errln!("nlstudy: {message}; the runs are stored");
-            return Ok(ExitCode::from(code));
+            return Ok(Some(ExitCode::from(code)));
         }
     }
-    Ok(match tally.failed {
-        0 => ExitCode::SUCCESS,
-        _ => ExitCode::from(exit::CASE_FAILED),
-    })
+    Ok(None)
 }
 
 /// The points of `planned` that run, and those that are the same case as an earlier point.

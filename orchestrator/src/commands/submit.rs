@@ -1,12 +1,23 @@
-//! `nlstudy submit`: Slurm or LSF job scripts for the points not yet stored, submitted.
+//! `nlstudy submit`: Slurm or LSF job scripts for the points not yet stored, submitted; with
+//! `--follow`, round after round until the study is answered.
 
 use super::failure::Failure;
-use super::open::{no_refusals, planned_and_index};
+use super::open::{no_refusals, open_store, planned_and_index, read_study};
+use super::run::{conclude, Ending};
 use crate::cli::args::SubmitArgs;
 use crate::model::site::{Site, SITE_VARIABLE};
-use crate::run::cluster::submit;
-use crate::run::plan::Options;
+use crate::model::study::Study;
+use crate::run::cluster::follow::{self, Waited};
+use crate::run::cluster::submit::{self, Sent};
+use crate::run::cluster::{ledger, scheduler::Scheduler};
+use crate::run::nlsolve::Nlsolve;
+use crate::run::plan::{Options, Planned};
+use crate::run::search;
+use crate::store::{Index, Store};
+use schema::exit;
+use schema::record::Status;
 use std::process::ExitCode;
+use std::time::Duration;
 
 pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let site = match args
@@ -32,15 +43,79 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         }
     };
     site.check_for(scheduler).map_err(Failure::BadInput)?;
-    let (study, solver, store, index, planned) =
-        planned_and_index(&args.common, &Options::default(), true)?;
+    let most = match args.follow {
+        true => Some(poll(args.poll)?),
+        false => None,
+    };
+    let plan = || planned_and_index(&args.common, &Options::default(), true);
+    let Some(most) = most else {
+        submit_ready(args, scheduler, &site, plan()?)?;
+        return Ok(ExitCode::SUCCESS);
+    };
+    let study = read_study(&args.common.study)?;
+    let store = open_store(&args.common, &study, true)?;
+    let (mut rounds, mut waited) = (0, Waited::default());
+    loop {
+        let wait = follow::wait_for_jobs(&store, scheduler, most)?;
+        waited.questions += wait.questions;
+        waited.seconds += wait.seconds;
+        let opened = plan()?;
+        if give_up_on_lost(&opened, scheduler, args.resubmit)? > 0 {
+            continue; // planned again: a failed probe is an answer of its search
+        }
+        let sent = submit_ready(args, scheduler, &site, opened)?;
+        if sent.jobs == 0 && sent.held == 0 {
+            break;
+        }
+        if sent.jobs > 0 && args.whole {
+            outln!("the whole study in one job, {} points so far", sent.points);
+        } else if sent.jobs > 0 {
+            rounds += 1;
+            let most_rounds = study
+                .question()
+                .and_then(|q| q.worst_case_rounds())
+                .map_or(String::new(), |n| format!(" of at most {n}"));
+            outln!(
+                "round {rounds}{most_rounds}: {} jobs, {} points",
+                sent.jobs,
+                sent.points
+            );
+        }
+    }
+    errln!(
+        "nlstudy: {rounds} rounds of jobs; {} questions to {scheduler} in {:.0} s of waiting",
+        waited.questions,
+        waited.seconds
+    );
+    answer(plan()?)
+}
+
+type Opened = (Study, Nlsolve, Store, Index, Vec<Planned>);
+
+/// The longest pause between two questions to the scheduler, from `--poll`.
+fn poll(seconds: f64) -> Result<Duration, Failure> {
+    match seconds.is_finite() && seconds >= 0.01 {
+        true => Ok(Duration::from_secs_f64(seconds)),
+        false => Err(Failure::BadInput(format!(
+            "--poll {seconds}: give the longest pause between two questions to the scheduler in seconds, at least 0.01 (e.g. 60)"
+        ))),
+    }
+}
+
+/// Submits what is ready of the study as planned (see `submit::submit_study`).
+fn submit_ready(
+    args: &SubmitArgs,
+    scheduler: Scheduler,
+    site: &Site,
+    (study, solver, store, index, planned): Opened,
+) -> Result<Sent, Failure> {
     no_refusals(&planned, args.allow_refused)?;
     let explicit = study.resources.overridden_by(&args.resources);
     let target = submit::Target {
         scheduler,
         resources: site.defaults().overridden_by(&explicit),
         time: explicit.time,
-        site,
+        site: site.clone(),
         array: args.array,
         throttle: args.throttle,
         results: args.common.results.clone(),
@@ -48,7 +123,56 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         dry_run: args.dry_run,
         retries: args.retries,
         launcher: args.launcher.clone(),
+        whole: args.whole,
     };
-    submit::submit_study(&study, &solver, &planned, &store, &index, &target)?;
-    Ok(ExitCode::SUCCESS)
+    Ok(submit::submit_study(
+        &study, &solver, &planned, &store, &index, &target,
+    )?)
+}
+
+/// The end of a followed study, everything stored: its answers, tables, figures and report as
+/// `run` makes them; exit 1 when a point is stored failed.
+fn answer((study, solver, store, _, planned): Opened) -> Result<ExitCode, Failure> {
+    let options = Options::default();
+    let (answered, planned) =
+        match search::answer(&study, &solver, &store, &options, |_: &[Planned]| Ok(false))? {
+            Some(answers) => answers,
+            None => (None, planned),
+        };
+    let ending = Ending {
+        quiet: false,
+        collect: true,
+        allow_mixed: false,
+    };
+    if let Some(code) = conclude(&study, &store, &planned, answered.as_ref(), ending)? {
+        return Ok(code);
+    }
+    let failed = planned
+        .iter()
+        .any(|p| store.status(p.key.as_str()) == Some(Status::Failed));
+    Ok(match failed {
+        true => ExitCode::from(exit::CASE_FAILED),
+        false => ExitCode::SUCCESS,
+    })
+}
+
+/// Stores failed the points whose jobs ended without their records more than `resubmit` times,
+/// with what the scheduler says of those jobs; returns how many.
+fn give_up_on_lost(
+    (_, solver, store, _, planned): &Opened,
+    scheduler: Scheduler,
+    resubmit: usize,
+) -> Result<usize, Failure> {
+    let lost = follow::lost(planned, &ledger::entries(store), resubmit);
+    for lost in &lost {
+        let key = lost.point.key.as_str();
+        let Some(_lock) = store.lock(key)? else {
+            continue; // another nlstudy holds it, and stores it
+        };
+        let message = follow::why_lost(scheduler, lost);
+        errln!("nlstudy: {}: {message}", lost.point.point.label());
+        let record = crate::run::pool::failed_record(lost.point, solver, message);
+        store.save(key, &record)?;
+    }
+    Ok(lost.len())
 }

@@ -154,6 +154,11 @@ impl BoundarySpec {
         self.max_probes.map_or(needed, |most| most.min(needed))
     }
 
+    /// The rounds a search takes at most: the bracket's ends, then `per_round` probes a round.
+    pub fn worst_case_rounds(&self) -> usize {
+        1 + (self.worst_case_probes().saturating_sub(2)).div_ceil(self.per_round)
+    }
+
     /// The values the next round probes: the two ends first, then `per_round` values evenly
     /// inside the bracket (fewer when the budget is nearly spent); none once the search ended.
     pub fn round(&self, search: &Search) -> Vec<f64> {

@@ -314,6 +314,17 @@ impl<'a> Question<'a> {
         }
     }
 
+    /// The rounds of probes its questions take at most, where that is known before they run:
+    /// a boundary search's narrowing, a refinement's levels (a target's search is not bounded
+    /// in rounds, only in runs).
+    pub fn worst_case_rounds(self) -> Option<usize> {
+        match self {
+            Question::Boundary(q) => Some(q.worst_case_rounds()),
+            Question::Refine(q) => Some(q.worst_case_probes()),
+            Question::Target(_) => None,
+        }
+    }
+
     /// What its searches are called: `searches`, `refinements`, `candidates`.
     pub fn searches(self) -> &'static str {
         match self {

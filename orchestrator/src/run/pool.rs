@@ -946,7 +946,8 @@ fn run_id() -> &'static str {
     })
 }
 
-fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Stored {
+/// The record of a point that ran to no record of its own (crashed, timed out, lost with its job).
+pub(crate) fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Stored {
     let case = match &planned.case {
         Ok(case) => case.canonical(),
         Err(_) => Value::Object(planned.point.fields()),

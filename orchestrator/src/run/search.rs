@@ -139,22 +139,19 @@ pub fn answer<'a>(
     solver: &Nlsolve,
     store: &Store,
     options: &plan::Options,
-    run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
+    mut run_round: impl FnMut(&[Planned]) -> Result<bool, Fault>,
 ) -> Result<Option<Answers<Answered<'a>>>, Fault> {
     let args = (study, solver, store, options);
     let answers = match study.question() {
         Some(Question::Boundary(q)) => {
-            let mut run_round = run_round;
             let (found, probes) = ask(args, q, &mut run_round)?;
             (found.map(|f| Answered::Boundaries(q, f)), probes)
         }
         Some(Question::Refine(q)) => {
-            let mut run_round = run_round;
             let (found, probes) = ask(args, q, &mut run_round)?;
             (found.map(|f| Answered::Refinements(q, f)), probes)
         }
         Some(Question::Target(q)) => {
-            let mut run_round = run_round;
             let (found, mut probes) = ask(args, q, &mut run_round)?;
             let found = match found {
                 Some(mut searched) => {

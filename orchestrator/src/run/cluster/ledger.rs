@@ -20,6 +20,10 @@ pub struct LedgerEntry {
     pub elements: Vec<Vec<String>>,
     /// Seconds since the Unix epoch.
     pub submitted: u64,
+    /// A job that runs the whole study (`submit --whole`), every round of it: while it is held,
+    /// every point of the study is.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub whole: bool,
 }
 
 impl LedgerEntry {
@@ -67,4 +71,47 @@ pub fn entries(store: &Store) -> Vec<LedgerEntry> {
         .collect();
     entries.sort_by_key(|e: &LedgerEntry| (e.submitted, e.id.parse::<u64>().unwrap_or(0)));
     entries
+}
+
+/// A job (or array element) of the ledger that the scheduler still holds.
+pub struct Held {
+    pub id: String,
+    /// The scheduler's word for it: `PENDING`, `RUNNING`, `PEND`, `RUN`…
+    pub state: String,
+    pub keys: Vec<String>,
+    /// A job of the whole study (see `LedgerEntry::whole`).
+    pub whole: bool,
+}
+
+impl Held {
+    /// Whether it waits in the queue rather than runs (or completes).
+    pub fn pending(&self) -> bool {
+        matches!(
+            self.state.as_str(),
+            "PENDING" | "PEND" | "PSUSP" | "REQUEUED"
+        )
+    }
+}
+
+/// The ledger's jobs of `scheduler` that it still holds, by one question to it; nothing held
+/// (and no question) when the ledger is empty.
+pub fn held(store: &Store, scheduler: Scheduler) -> Result<Vec<Held>, String> {
+    let entries = entries(store);
+    if entries.is_empty() {
+        return Ok(Vec::new());
+    }
+    let live = scheduler::live_jobs(scheduler)?;
+    Ok(entries
+        .iter()
+        .filter(|e| e.scheduler == scheduler)
+        .flat_map(|e| e.parts().into_iter().map(|(id, keys)| (id, keys, e.whole)))
+        .filter_map(|(id, keys, whole)| {
+            Some(Held {
+                state: live.get(&id)?.clone(),
+                keys: keys.to_vec(),
+                id,
+                whole,
+            })
+        })
+        .collect())
 }

@@ -88,6 +88,28 @@ pub fn pack<'a>(
         .collect()
 }
 
+/// One job for the whole study (`submit --whole`): its points so far in one bundle, on the
+/// allocation that fits the largest, widened to a node's cores (`cores_per_node`) when the
+/// resources set no task count, so that the pool inside runs several points at once.
+pub fn whole<'a>(
+    study_name: &str,
+    runnable: &[&'a Planned],
+    resources: &Resources,
+    cores_per_node: Option<NonZeroUsize>,
+) -> Pack<'a> {
+    let mut shape = shape(runnable, resources, cores_per_node);
+    if let (None, Some(cores)) = (resources.tasks, cores_per_node) {
+        let per_node = (cores.get() / shape.threads).max(1);
+        shape.tasks = shape.tasks.max(per_node * shape.nodes);
+    }
+    Pack {
+        name: format!("nlstudy-{study_name}-whole"),
+        bundles: vec![runnable.to_vec()],
+        shape,
+        array: false,
+    }
+}
+
 /// The allocation that fits every point of `pack`: the largest rank and thread counts (tasks
 /// as `resources` sets them), on as many nodes as `resources` asks, or as the cores need.
 fn shape(pack: &[&Planned], resources: &Resources, cores_per_node: Option<NonZeroUsize>) -> Shape {

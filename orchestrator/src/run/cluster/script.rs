@@ -27,6 +27,8 @@ pub struct JobCommand {
     /// The MPI launcher inside the job (`submit --launcher`, else the site's); the scheduler's
     /// own by default.
     pub launcher: Option<Launcher>,
+    /// The job runs the whole study (no `--only`) and, being its only job, writes its tables.
+    pub whole: bool,
 }
 
 /// What every script of one submit asks of the scheduler besides its points' allocation.
@@ -328,7 +330,7 @@ fn lsf_directives(
 /// The command of a job: run its keys of the study inside the allocation, every argument a
 /// quoted shell word (`keys` is one already: a bundle, or the array's element of them). Jobs of
 /// one study may run at once, so none writes the study's tables: `nlstudy collect` does, once
-/// they are done.
+/// they are done. A job of the whole study runs all of it, every round, and writes them.
 fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Result<String, String> {
     let mut words = vec![
         "exec".to_string(),
@@ -341,17 +343,17 @@ fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Resul
         path_word(&command.nlsolve)?,
         "--launcher".into(),
         shell_word(launcher)?,
-        "--no-collect".into(),
     ];
+    if !command.whole {
+        words.push("--no-collect".into());
+    }
     if command.retries > 0 {
         words.extend(["--retries".into(), command.retries.to_string()]);
     }
-    words.extend([
-        "-j".into(),
-        shape.cores().to_string(),
-        "--only".into(),
-        keys.to_string(),
-    ]);
+    words.extend(["-j".into(), shape.cores().to_string()]);
+    if !command.whole {
+        words.extend(["--only".into(), keys.to_string()]);
+    }
     Ok(words.join(" ") + "\n")
 }
 

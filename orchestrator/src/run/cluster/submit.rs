@@ -5,7 +5,7 @@
 
 use super::ledger::{self, LedgerEntry};
 use super::limits::History;
-use super::pack::pack;
+use super::pack::{self, pack};
 use super::scheduler::{self, Scheduler};
 use super::script::{write_jobs, JobCommand, Settings};
 use crate::model::launcher::Launcher;
@@ -39,6 +39,18 @@ pub struct Target {
     pub retries: usize,
     /// The MPI launcher inside each job (the site's, else the scheduler's own, when `None`).
     pub launcher: Option<Launcher>,
+    /// One job that runs the whole study, every round of an adaptive one, and writes its
+    /// tables, figures and report (`submit --whole`).
+    pub whole: bool,
+}
+
+/// What one `submit_study` did: the jobs it wrote (and submitted, unless a dry run), the points
+/// in them, and the points left to jobs the scheduler still holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sent {
+    pub jobs: usize,
+    pub points: usize,
+    pub held: usize,
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
@@ -51,12 +63,16 @@ pub fn submit_study(
     store: &Store,
     index: &Index,
     target: &Target,
-) -> Result<(), Fault> {
-    let in_flight = in_flight(store, target.scheduler);
+) -> Result<Sent, Fault> {
+    let in_flight = in_flight(store, target.scheduler, planned);
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
         .iter()
         .filter(|p| p.runs() && !in_flight.contains_key(p.key.as_str()))
         .partition(|p| p.case.is_ok());
+    let held = planned
+        .iter()
+        .filter(|p| p.runs() && in_flight.contains_key(p.key.as_str()))
+        .count();
     let mut holding: Vec<&str> = in_flight.values().map(String::as_str).collect();
     holding.sort_unstable();
     holding.dedup();
@@ -66,13 +82,7 @@ pub fn submit_study(
             n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
             _ => holding.join(", "),
         };
-        errln!(
-            "nlstudy: {} points are in jobs still queued or running ({named}); not submitted again",
-            planned
-                .iter()
-                .filter(|p| p.runs() && in_flight.contains_key(p.key.as_str()))
-                .count(),
-        );
+        errln!("nlstudy: {held} points are in jobs still queued or running ({named}); not submitted again");
     }
     for p in &refused {
         errln!(
@@ -87,7 +97,10 @@ pub fn submit_study(
             false => "every point is stored or in a job still queued or running",
         };
         outln!("study {}: nothing to submit, {why}", study.name);
-        return Ok(());
+        return Ok(Sent {
+            held,
+            ..Sent::default()
+        });
     }
     crate::store::fs::create_dir(&target.results)?;
     let absolute =
@@ -105,20 +118,35 @@ pub fn submit_study(
             .launcher
             .clone()
             .or_else(|| target.site.launcher.clone()),
+        whole: target.whole,
     };
-    let packs = pack(
-        &study.name,
-        &runnable,
-        &target.resources,
-        target.site.cores_per_node,
-        target.array,
-    );
+    let packs = match target.whole {
+        true => vec![pack::whole(
+            &study.name,
+            &runnable,
+            &target.resources,
+            target.site.cores_per_node,
+        )],
+        false => pack(
+            &study.name,
+            &runnable,
+            &target.resources,
+            target.site.cores_per_node,
+            target.array,
+        ),
+    };
     let history =
         History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {
-            let (time, from) = time_limit(&pack.bundles, &history, target);
+            let (time, from) = match (target.whole, study.question()) {
+                (true, Some(_)) if target.time.is_none() => fallback(
+                    target,
+                    "the rounds of an adaptive study are not known before they run".into(),
+                ),
+                _ => time_limit(&pack.bundles, &history, target),
+            };
             (pack, time, from)
         })
         .collect();
@@ -165,11 +193,16 @@ pub fn submit_study(
                         false => Vec::new(),
                     },
                     submitted,
+                    whole: target.whole,
                 },
             )?;
         }
     }
-    Ok(())
+    Ok(Sent {
+        jobs: jobs.len(),
+        points: runnable.len(),
+        held,
+    })
 }
 
 /// A job's time limit and where it came from: `--time` or the study's; else its points'
@@ -184,42 +217,41 @@ fn time_limit(
     }
     let limits: Result<Vec<(WallTime, String)>, String> =
         bundles.iter().map(|b| history.limit(b)).collect();
-    let fallback = |why: String| match target.site.time {
-        Some(time) => (Some(time), format!("the site's default ({why})")),
-        None => (None, format!("the scheduler's default ({why})")),
-    };
     match limits {
         Ok(limits) => match limits.into_iter().max_by_key(|(t, _)| t.seconds()) {
             Some((time, from)) => (Some(time), format!("from {from}")),
-            None => fallback("no points".into()),
+            None => fallback(target, "no points".into()),
         },
-        Err(why) => fallback(why),
+        Err(why) => fallback(target, why),
     }
 }
 
-/// The keys of the ledger's jobs that the scheduler still holds, each with its job's id. Where
-/// the scheduler cannot be asked (a workstation writing scripts), nothing is held.
-fn in_flight(store: &Store, scheduler: Scheduler) -> HashMap<String, String> {
-    let entries = ledger::entries(store);
-    if entries.is_empty() {
-        return HashMap::new();
+/// The site's default time limit, else the scheduler's, saying why stored timings gave none.
+fn fallback(target: &Target, why: String) -> (Option<WallTime>, String) {
+    match target.site.time {
+        Some(time) => (Some(time), format!("the site's default ({why})")),
+        None => (None, format!("the scheduler's default ({why})")),
     }
-    let live = match scheduler::live_jobs(scheduler) {
-        Ok(live) => live,
+}
+
+/// The keys of the ledger's jobs that the scheduler still holds, each with its job's id (every
+/// point of `planned` while a job of the whole study is held). Where the scheduler cannot be
+/// asked (a workstation writing scripts), nothing is held.
+fn in_flight(store: &Store, scheduler: Scheduler, planned: &[Planned]) -> HashMap<String, String> {
+    match ledger::held(store, scheduler) {
+        Ok(held) => match held.iter().find(|h| h.whole) {
+            Some(whole) => planned
+                .iter()
+                .map(|p| (p.key.to_string(), whole.id.clone()))
+                .collect(),
+            None => held
+                .into_iter()
+                .flat_map(|h| h.keys.into_iter().map(move |k| (k, h.id.clone())))
+                .collect(),
+        },
         Err(message) => {
             errln!("nlstudy: warning: cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
-            return HashMap::new();
+            HashMap::new()
         }
-    };
-    entries
-        .into_iter()
-        .filter(|e| e.scheduler == scheduler)
-        .flat_map(|e| {
-            e.parts()
-                .into_iter()
-                .filter(|(id, _)| live.contains_key(id))
-                .flat_map(|(id, keys)| keys.iter().map(move |k| (k.clone(), id.clone())))
-                .collect::<Vec<_>>()
-        })
-        .collect()
+    }
 }

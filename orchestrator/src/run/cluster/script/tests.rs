@@ -120,6 +120,7 @@ fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
                 nlsolve: dirs[3].join("nlsolve"),
                 retries: 1,
                 launcher: None,
+                whole: false,
             };
             for scheduler in SCHEDULERS {
                 let job = Spec {
@@ -201,6 +202,7 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
         nlsolve: root.join("bin/nlsolve"),
         retries: 0,
         launcher: Some(launcher),
+        whole: false,
     };
     let job = Spec {
         name: "j",
@@ -284,6 +286,7 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
         nlsolve: root.join("bin/nlsolve"),
         retries: 0,
         launcher: site.launcher.clone(),
+        whole: false,
     };
     let job = Spec {
         name: "nlstudy-s-0",
@@ -405,6 +408,7 @@ fn each_array_element_runs_its_own_bundle() {
         nlsolve: root.join("bin/nlsolve"),
         retries: 0,
         launcher: None,
+        whole: false,
     };
     let bundles = [
         vec!["aa".to_string(), "bb".to_string()],
