@@ -144,6 +144,9 @@ fn interleaved_pairs_call_a_quarter_more_work_worse_and_an_a_a_nothing_loaded_or
     }
 }
 
+/// Eleven rounds and no more: the runs a resumed rerun has to go are then known.
+const ELEVEN: &[&str] = &["--rounds", "11", "--max-rounds", "11"];
+
 /// Killed (SIGKILL) half-way, an interleaved rerun started again runs only the runs it lacks:
 /// the pairs that finished stay, and the second start runs the rest.
 #[test]
@@ -152,7 +155,7 @@ fn an_interleaved_rerun_killed_half_way_resumes_without_rerunning_finished_pairs
     let scratch = Scratch::new("resume", &study("resume", 3));
     let against = format!("solver:{}", binary("nlsolve").display());
     let mut first = scratch
-        .command("compare", &["--against", &against, "--rounds", "11"])
+        .command("compare", &[&["--against", &against][..], ELEVEN].concat())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -177,7 +180,7 @@ fn an_interleaved_rerun_killed_half_way_resumes_without_rerunning_finished_pairs
         before.0 + before.1 >= 30 && before.0 + before.1 < 66,
         "{before:?}"
     );
-    let again = scratch.nlstudy("compare", &["--against", &against, "--rounds", "11"]);
+    let again = scratch.nlstudy("compare", &[&["--against", &against][..], ELEVEN].concat());
     assert!(again.status.success(), "{}", text(&again));
     let said = text(&again);
     let to_go = 66 - before.0 - before.1;

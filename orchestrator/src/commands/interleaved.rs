@@ -31,7 +31,7 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
     let dir =
         (store.table("interleaved")).join(format!("{}-{}", build(&solver_a), build(&solver_b)));
     claim(&args.common, &study, &store, true)?;
-    let counted = args
+    let mut counted = args
         .instructions
         .then(|| [(solver_a.clone(), "a-count"), (solver_b.clone(), "b-count")]);
     let mut sides = [
@@ -49,6 +49,13 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         checkpoint_every: None,
         keep_checkpoints: false,
     };
+    let most = args.max_rounds.unwrap_or(3 * args.rounds);
+    if most < args.rounds {
+        return Err(Failure::BadInput(format!(
+            "--max-rounds {most}: give at least --rounds ({})",
+            args.rounds
+        )));
+    }
     let missing = interleave::missing(&points, args.rounds, &sides);
     let total = 2 * args.rounds * points.len();
     errln!(
@@ -58,51 +65,79 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         total - missing,
         dir.display()
     );
-    let mut progress = Progress::new(Mode::detect(false), missing, total - missing);
-    let (_, finished) = interleave::run(
-        &points,
-        args.rounds,
-        &mut sides,
-        &options,
-        &stop,
-        &mut progress,
-    )?;
-    progress.close();
-    if !finished {
-        let signal = stop.signal().unwrap_or(libc::SIGTERM);
+    let mut counts = None;
+    // Each point's rounds: --rounds, then more for those whose CPU time is still undecided.
+    let mut reach = vec![args.rounds; points.len()];
+    let mut chosen: Vec<usize> = (0..points.len()).collect();
+    let comparison = loop {
+        let subset: Vec<Planned> = chosen.iter().map(|&k| points[k].clone()).collect();
+        let rounds = chosen.iter().map(|&k| reach[k]).max().unwrap_or(0);
+        let missing = interleave::missing(&subset, rounds, &sides);
+        let stored = 2 * rounds * subset.len() - missing;
+        let mut progress = Progress::new(Mode::detect(false), missing, stored);
+        let (_, finished) =
+            interleave::run(&subset, rounds, &mut sides, &options, &stop, &mut progress)?;
+        progress.close();
+        if !finished {
+            let signal = stop.signal().unwrap_or(libc::SIGTERM);
+            errln!(
+                "nlstudy: stopped by {}; the pairs that finished are stored, run again to resume",
+                signals::name(signal)
+            );
+            return Ok(ExitCode::from(
+                stop.exit_code().unwrap_or(schema::exit::INTERRUPTED),
+            ));
+        }
+        if let Some(solvers) = counted.take() {
+            counts = Some(count(&points, solvers, &dir, &study.name)?);
+        }
+        let rounds: Vec<Rounds> = points
+            .iter()
+            .enumerate()
+            .map(|(k, point)| Rounds {
+                point: point.point.label(),
+                pairs: (0..reach[k])
+                    .map(|r| (sides[0].stored(point, r), sides[1].stored(point, r)))
+                    .collect(),
+                counted: counts.as_ref().and_then(|c| c[k].clone()),
+            })
+            .collect();
+        let comparison = paired::judge(&rounds, args.threshold);
+        chosen = (0..points.len())
+            .filter(|&k| reach[k] < most)
+            .filter(|&k| {
+                let label = points[k].point.label();
+                (comparison.changes.iter())
+                    .any(|c| c.point == label && paired::undecided(c, args.threshold))
+            })
+            .collect();
+        if chosen.is_empty() {
+            break comparison;
+        }
+        for &k in &chosen {
+            reach[k] = (reach[k] + args.rounds).min(most);
+        }
         errln!(
-            "nlstudy: stopped by {}; the pairs that finished are stored, run again to resume",
-            signals::name(signal)
+            "interleaved: {} points whose CPU time is undecided run to {} rounds",
+            chosen.len(),
+            chosen.iter().map(|&k| reach[k]).max().unwrap_or(0)
         );
-        return Ok(ExitCode::from(
-            stop.exit_code().unwrap_or(schema::exit::INTERRUPTED),
-        ));
-    }
-    let counts = match counted {
-        Some(solvers) => Some(count(&points, solvers, &dir, &study.name)?),
-        None => None,
     };
-    let rounds: Vec<Rounds> = points
-        .iter()
-        .enumerate()
-        .map(|(k, point)| Rounds {
-            point: point.point.label(),
-            pairs: (0..args.rounds)
-                .map(|r| (sides[0].stored(point, r), sides[1].stored(point, r)))
-                .collect(),
-            counted: counts.as_ref().and_then(|c| c[k].clone()),
-        })
-        .collect();
-    let comparison = paired::judge(&rounds, args.threshold);
+    let extended = reach.iter().filter(|&&r| r > args.rounds).count();
+    let rounds = match reach.iter().max() {
+        Some(&most) if extended > 0 => format!(
+            "{} rounds, {most} for the {extended} points whose CPU time they left undecided",
+            args.rounds
+        ),
+        _ => format!("{} rounds", args.rounds),
+    };
     let title = format!(
-        "study {}: B = this build against A = {} (interleaved, {} rounds)",
+        "study {}: B = this build against A = {} (interleaved, {rounds})",
         study.name,
         baseline.display(),
-        args.rounds
     );
     errln!(
-        "noise: each point's pairs of runs, one right after the other ({} rounds, A B then B A): their spread is the interval; no history needed",
-        args.rounds
+        "noise: each point's pairs of runs, one right after the other ({rounds}, A B then B A): their spread is the interval; no history needed"
     );
     report(
         &comparison,

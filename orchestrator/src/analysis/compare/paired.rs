@@ -134,6 +134,19 @@ pub fn judge(points: &[Rounds], threshold: f64) -> Comparison {
     comparison
 }
 
+/// Whether `change`, a point's CPU time, is undecided at `threshold`: its interval holds one
+/// of the edges 1 + threshold and 1/(1 + threshold), so more pairs could still call it changed
+/// or the same. (Its wall time is not asked: on a busy machine more rounds rarely settle it.)
+pub fn undecided(change: &Change, threshold: f64) -> bool {
+    let Some((low, high)) = change.interval else {
+        return false;
+    };
+    let holds = |edge: f64| low <= edge && edge <= high;
+    change.metric == columns::SOLVE_CPU_S
+        && change.point != WHOLE_RUN
+        && (holds(1.0 + threshold) || holds(1.0 / (1.0 + threshold)))
+}
+
 /// A timing's setting: its threshold, no floor (the pairs' spread is their noise), judged as it
 /// is (no common factor taken out).
 fn setting(threshold: f64) -> Setting {
@@ -217,6 +230,39 @@ mod tests {
                 assert_eq!(change.verdict, expected, "{name}: {}", change.ratio);
             }
         }
+    }
+
+    /// A CPU time is undecided while its interval holds an edge of the threshold band, decided
+    /// once it lies inside the band or beyond an edge; wall time and the common factor never
+    /// ask for more rounds.
+    #[test]
+    fn a_cpu_time_is_undecided_while_its_interval_holds_an_edge() {
+        let change = |metric, point: &str, interval| Change {
+            point: point.into(),
+            metric,
+            a: 1.0,
+            b: 1.0,
+            ratio: 1.0,
+            interval,
+            relative: None,
+            floor: None,
+            verdict: Verdict::Same,
+        };
+        let cpu = |interval| change(columns::SOLVE_CPU_S, "p", Some(interval));
+        assert!(undecided(&cpu((1.03, 1.26)), 0.1));
+        assert!(undecided(&cpu((0.85, 1.02)), 0.1));
+        assert!(!undecided(&cpu((1.15, 1.32)), 0.1));
+        assert!(!undecided(&cpu((0.95, 1.05)), 0.1));
+        assert!(!undecided(&cpu((0.7, 0.85)), 0.1));
+        assert!(!undecided(
+            &change(columns::SOLVE_S, "p", Some((1.03, 1.26))),
+            0.1
+        ));
+        assert!(!undecided(
+            &change(columns::SOLVE_CPU_S, WHOLE_RUN, Some((1.03, 1.26))),
+            0.1
+        ));
+        assert!(!undecided(&change(columns::SOLVE_CPU_S, "p", None), 0.1));
     }
 
     #[test]
