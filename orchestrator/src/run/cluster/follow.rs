@@ -136,15 +136,9 @@ pub fn why_lost(scheduler: Scheduler, lost: &Lost) -> String {
 }
 
 /// Slurm's accounting of the ended jobs `ids`, asked again (up to five times, a second apart)
-/// while it has not yet recorded how one ended: the controller tells slurmdbd a moment after the
+/// while it still names one held (`scheduler::phase`), not how it ended: the controller tells slurmdbd a moment after the
 /// job leaves the queue. Empty where the cluster keeps no accounting.
 fn final_states(ids: &[&str]) -> std::collections::HashMap<String, String> {
-    let live = |state: &str| {
-        matches!(
-            state,
-            "PENDING" | "RUNNING" | "REQUEUED" | "RESIZING" | "SUSPENDED" | "COMPLETING"
-        )
-    };
     let mut states = Default::default();
     for ask in 0..5 {
         if ask > 0 {
@@ -154,10 +148,11 @@ fn final_states(ids: &[&str]) -> std::collections::HashMap<String, String> {
             return states;
         };
         states = now;
-        if ids
-            .iter()
-            .all(|id| states.get(*id).is_some_and(|s| !live(s)))
-        {
+        if ids.iter().all(|id| {
+            states
+                .get(*id)
+                .is_some_and(|s| scheduler::phase(s).is_none())
+        }) {
             break;
         }
     }

@@ -84,12 +84,9 @@ pub struct Held {
 }
 
 impl Held {
-    /// Whether it waits in the queue rather than runs (or completes).
+    /// Whether it waits for its allocation rather than runs (see `scheduler::phase`).
     pub fn pending(&self) -> bool {
-        matches!(
-            self.state.as_str(),
-            "PENDING" | "PEND" | "PSUSP" | "REQUEUED"
-        )
+        scheduler::phase(&self.state) == Some(scheduler::Phase::Waiting)
     }
 }
 

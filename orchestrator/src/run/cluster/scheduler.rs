@@ -51,6 +51,29 @@ pub fn accounted_states(ids: &[&str]) -> Result<HashMap<String, String>, String>
     Ok(parse_slurm_states(&printed, '|'))
 }
 
+/// What a job the scheduler still holds is doing (`phase`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    Waiting,
+    Running,
+    Suspended,
+    Requeued,
+}
+
+/// Whether the scheduler still holds a job in `state` (Slurm's or LSF's word), and doing what;
+/// None once it has ended (or in a state nlstudy does not know).
+pub fn phase(state: &str) -> Option<Phase> {
+    Some(match state.to_ascii_uppercase().trim_end_matches('+') {
+        "PENDING" | "PEND" | "CONFIGURING" | "REQUEUE_HOLD" | "REQUEUE_FED" | "RESV_DEL_HOLD" => {
+            Phase::Waiting
+        }
+        "RUNNING" | "RUN" | "COMPLETING" | "RESIZING" | "SIGNALING" | "STAGE_OUT" => Phase::Running,
+        "SUSPENDED" | "STOPPED" | "PSUSP" | "USUSP" | "SSUSP" => Phase::Suspended,
+        "REQUEUED" => Phase::Requeued,
+        _ => return None,
+    })
+}
+
 /// Not a Slurm state: a job that ended FAILED with exit status 143, nlstudy's for SIGTERM
 /// (which Slurm 22.05 accounts as `15:0`).
 pub const STOPPED_BY_SIGTERM: &str = "STOPPED_BY_SIGTERM";
@@ -139,13 +162,16 @@ pub fn element_id(scheduler: Scheduler, array: &str, index: usize) -> String {
 /// phrase for `status`. Preempted and requeued jobs are not failures: the points they finished
 /// are stored, and what is missing runs again (by the requeued job, or the next `submit`).
 pub fn state_meaning(state: &str) -> &'static str {
-    match state.to_ascii_uppercase().trim_end_matches('+') {
-        "PENDING" | "PEND" | "CONFIGURING" | "REQUEUE_HOLD" | "REQUEUE_FED" | "RESV_DEL_HOLD" => {
-            "waiting for its allocation"
+    match phase(state) {
+        Some(Phase::Waiting) => return "waiting for its allocation",
+        Some(Phase::Running) => return "running",
+        Some(Phase::Suspended) => return "suspended, will resume",
+        Some(Phase::Requeued) => {
+            return "requeued, not a failure: it runs again and takes up what is missing"
         }
-        "RUNNING" | "RUN" | "COMPLETING" | "RESIZING" | "SIGNALING" | "STAGE_OUT" => "running",
-        "SUSPENDED" | "STOPPED" | "PSUSP" | "USUSP" | "SSUSP" => "suspended, will resume",
-        "REQUEUED" => "requeued, not a failure: it runs again and takes up what is missing",
+        None => {}
+    }
+    match state.to_ascii_uppercase().trim_end_matches('+') {
         "PREEMPTED" => {
             "preempted, not a failure: its finished points are stored; `submit` again for the rest"
         }
