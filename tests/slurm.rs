@@ -87,6 +87,23 @@ fn nlstudy(scratch: &Scratch, slurm: &LocalSlurm, verb: &str, extra: &[&str]) ->
         .unwrap()
 }
 
+/// `nlstudy submit --follow …` against the local Slurm, asking its queue at most every `poll`
+/// seconds; not started yet.
+fn follow(scratch: &Scratch, slurm: &LocalSlurm, poll: &str, extra: &[&str]) -> Command {
+    let args = [
+        "--scheduler",
+        "slurm",
+        "--time",
+        "00:05:00",
+        "--follow",
+        "--poll",
+        poll,
+    ];
+    let mut command = scratch.command("submit", &[&args[..], extra].concat());
+    command.env("SLURM_CONF", slurm.conf());
+    command
+}
+
 /// `nlstudy submit --scheduler slurm …` against the local Slurm.
 fn submit(scratch: &Scratch, slurm: &LocalSlurm, extra: &[&str]) -> Output {
     let mut args = vec!["--scheduler", "slurm"];
@@ -481,18 +498,7 @@ fn followed_to_the_answer(slurm: &LocalSlurm) {
     assert_eq!(answers(&text(&run)).len(), 4, "{}", text(&run));
 
     let cluster = Scratch::new("followed", &study);
-    let follow = [
-        "--scheduler",
-        "slurm",
-        "--time",
-        "00:05:00",
-        "--follow",
-        "--poll",
-        "2",
-    ];
-    let mut first = cluster
-        .command("submit", &follow)
-        .env("SLURM_CONF", slurm.conf())
+    let mut first = follow(&cluster, slurm, "2", &[])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -509,11 +515,7 @@ fn followed_to_the_answer(slurm: &LocalSlurm) {
     });
     first.kill().unwrap();
     first.wait().unwrap();
-    let again = cluster
-        .command("submit", &follow)
-        .env("SLURM_CONF", slurm.conf())
-        .output()
-        .unwrap();
+    let again = follow(&cluster, slurm, "2", &[]).output().unwrap();
     let said = text(&again);
     assert!(
         again.status.success(),
@@ -538,11 +540,7 @@ fn followed_to_the_answer(slurm: &LocalSlurm) {
 
     // The whole study in one job: one sbatch, the same answer.
     let whole = Scratch::new("followed-whole", &study);
-    let out = whole
-        .command("submit", &[&follow[..], &["--whole"]].concat())
-        .env("SLURM_CONF", slurm.conf())
-        .output()
-        .unwrap();
+    let out = follow(&whole, slurm, "2", &["--whole"]).output().unwrap();
     let said = text(&out);
     assert!(out.status.success(), "{said}\n{}", logs(&whole, "followed"));
     assert_eq!(said.matches("submitted as job ").count(), 1, "{said}");
@@ -558,20 +556,7 @@ fn cancelled_twice_then_given_up(slurm: &LocalSlurm) {
         "sweep": [{"product": {"n": [1024]}}]
     });
     let scratch = Scratch::new("given-up", &study);
-    let driver = scratch
-        .command(
-            "submit",
-            &[
-                "--scheduler",
-                "slurm",
-                "--time",
-                "00:05:00",
-                "--follow",
-                "--poll",
-                "1",
-            ],
-        )
-        .env("SLURM_CONF", slurm.conf())
+    let driver = follow(&scratch, slurm, "1", &[])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()

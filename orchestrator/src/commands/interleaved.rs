@@ -56,24 +56,26 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
             args.rounds
         )));
     }
-    let missing = interleave::missing(&points, args.rounds, &sides);
-    let total = 2 * args.rounds * points.len();
-    errln!(
-        "interleaved: {} points × {} rounds × 2 builds, {missing} runs to go ({} stored in {})",
-        points.len(),
-        args.rounds,
-        total - missing,
-        dir.display()
-    );
     let mut counts = None;
     // Each point's rounds: --rounds, then more for those whose CPU time is still undecided.
     let mut reach = vec![args.rounds; points.len()];
     let mut chosen: Vec<usize> = (0..points.len()).collect();
     let comparison = loop {
         let subset: Vec<Planned> = chosen.iter().map(|&k| points[k].clone()).collect();
-        let rounds = chosen.iter().map(|&k| reach[k]).max().unwrap_or(0);
+        let rounds = chosen
+            .iter()
+            .map(|&k| reach[k])
+            .max()
+            .unwrap_or(args.rounds);
         let missing = interleave::missing(&subset, rounds, &sides);
         let stored = 2 * rounds * subset.len() - missing;
+        if rounds == args.rounds {
+            errln!(
+                "interleaved: {} points × {rounds} rounds × 2 builds, {missing} runs to go ({stored} stored in {})",
+                points.len(),
+                dir.display()
+            );
+        }
         let mut progress = Progress::new(Mode::detect(false), missing, stored);
         let (_, finished) =
             interleave::run(&subset, rounds, &mut sides, &options, &stop, &mut progress)?;
