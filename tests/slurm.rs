@@ -4,8 +4,11 @@
 //! jobs that `sbatch` queues, the jobs run `nlstudy run --only …` (an MPI case through `srun
 //! --mpi=pmix`) into the record store, and `nlstudy collect` builds the tables. Then, on the same
 //! cluster: a job past its time limit (TIMEOUT, its unfinished point packed again), a job array
-//! of 20 points with a throttle, a job requeued mid-run, a job sent its warning signal, a
-//! cancelled job, and an MPI case with one rank on each node.
+//! of 20 points with a throttle, adaptive rounds a `submit` each and driven by `submit --follow`
+//! (a boundary search killed and restarted, a refinement, an error target, a whole study in one
+//! job), a job requeued mid-run, a job sent its warning signal, a cancelled job, and an MPI case
+//! with one rank on each node. Last, the cluster restarts with each node its share of the cores
+//! (`--share-cores`) and a whole study of 20 points runs on one node, then on both.
 //!
 //! One test, one Slurm: the daemons listen on fixed ports. A system test (`make test` runs it):
 //! where the packages cannot be installed or a daemon cannot start, it fails saying why. The
@@ -263,8 +266,11 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     searched_a_round_per_submit(&scratch, &slurm);
     stages.extend(["array with a throttle", "adaptive rounds"]);
     followed_to_the_answer(&slurm);
+    refined_and_targeted_by_the_driver(&slurm);
     cancelled_twice_then_given_up(&slurm);
-    stages.push("followed to the answer, whole, and past cancelled jobs");
+    stages.push(
+        "followed to the answer (search, refinement, target), whole, and past cancelled jobs",
+    );
     requeued_mid_run(&scratch, &slurm);
     stages.push("requeue");
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
@@ -273,6 +279,21 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         one_rank_on_each_node(&scratch, &slurm);
         two_cores_for_each_of_two_ranks(&scratch, &slurm);
         stages.push("two nodes");
+        // The same two nodes, each with its share of the machine's cores.
+        let stopped = Command::new(script("slurm-local"))
+            .arg("stop")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(stopped.status.success(), "{}", text(&stopped));
+        let shared = start(&["--nodes", "2", "--share-cores"]);
+        assert!(
+            shared.status.success(),
+            "slurm-local start: {}",
+            text(&shared)
+        );
+        every_node_of_an_allocation(&slurm);
+        stages.push("every node of an allocation");
     } else {
         stages.push("two nodes: not run (NLSTUDY_SLURM_TEST=single-node)");
     }
@@ -547,6 +568,55 @@ fn followed_to_the_answer(slurm: &LocalSlurm) {
     assert_eq!(answers(&said), answers(&text(&run)), "{said}");
 }
 
+/// The answer lines `run` and the driver print: the indented lines just above `table: `, but
+/// the note on noisy timings.
+fn answer_lines(said: &str) -> Vec<String> {
+    let lines: Vec<&str> = said.lines().collect();
+    let Some(table) = lines.iter().position(|l| l.starts_with("table: ")) else {
+        return Vec::new();
+    };
+    let above = lines[..table].iter().rev();
+    let answers = above.take_while(|l| l.starts_with("  ") && !l.contains(" noisy"));
+    let mut answers: Vec<String> = answers.map(|l| l.trim().to_string()).collect();
+    answers.reverse();
+    answers
+}
+
+/// A refinement and an error target through the driver: each reaches, with one command, the
+/// answer a local `run` gives (the target's without its timings, which are the runs' own).
+fn refined_and_targeted_by_the_driver(slurm: &LocalSlurm) {
+    let refine = json!({
+        "name": "refined",
+        "base": {"method": "fd_explicit", "dim": 1, "problem": "eigenmode", "t_end": 0.01,
+                 "cfl": 0.4},
+        "refine": {"field": "n", "start": 16, "max_levels": 3, "agree": 1e-9}
+    });
+    let target = json!({
+        "name": "targeted",
+        "base": {"dim": 1, "m": 4, "quadrature": "ac", "t_end": 0.05, "integrator": "rk4"},
+        "target": {"field": "n", "start": 32, "time": {"field": "dt", "start": 0.002},
+                   "below": 3e-4, "cost": "solve_cpu_s"}
+    });
+    let untimed = |line: String| match line.split_once(", solve_cpu_s") {
+        Some((answer, _)) => answer.to_string(),
+        None => line,
+    };
+    for study in [refine, target] {
+        let name = study["name"].as_str().unwrap();
+        let local = Scratch::new(&format!("{name}-local"), &study);
+        let run = local.nlstudy("run", &[]);
+        let expected: Vec<String> = answer_lines(&text(&run)).into_iter().map(untimed).collect();
+        assert!(!expected.is_empty(), "{}", text(&run));
+        let cluster = Scratch::new(name, &study);
+        let out = follow(&cluster, slurm, "1", &[]).output().unwrap();
+        let said = text(&out);
+        assert!(out.status.success(), "{said}\n{}", logs(&cluster, name));
+        assert!(said.contains("\nround 2"), "{said}");
+        let answers: Vec<String> = answer_lines(&said).into_iter().map(untimed).collect();
+        assert_eq!(answers, expected, "{name}: {said}");
+    }
+}
+
 /// Followed, a point whose job is cancelled while it runs is submitted once more; cancelled
 /// again, it is stored failed with what accounting says of both jobs, and the driver exits 1.
 fn cancelled_twice_then_given_up(slurm: &LocalSlurm) {
@@ -787,6 +857,53 @@ fn warned_before_the_limit_and_cancelled(scratch: &Scratch, slurm: &LocalSlurm) 
         scratch,
         slurm,
         &format!("job {id} nlstudy-warned-0: cancelled (cancelled: `submit` again"),
+    );
+}
+
+/// A whole study of 20 single-rank points in one allocation of two nodes of one core each
+/// (`slurm-local --share-cores`): the pool inside runs a job step per point on both nodes, so
+/// the records name both hosts; the same study on one node is timed beside it, and the ratio of
+/// the two jobs' times is reported (not asserted: it is a timing).
+fn every_node_of_an_allocation(slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "spread",
+        "base": {"dim": 1, "m": 4, "t_end": 0.3, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"product": {"n": (1000..1020).collect::<Vec<_>>()}}]
+    });
+    let mut seconds = Vec::new();
+    for nodes in ["1", "2"] {
+        let scratch = Scratch::new(&format!("spread-{nodes}"), &study);
+        let started = Instant::now();
+        let out = follow(&scratch, slurm, "0.5", &["--whole", "--nodes", nodes])
+            .output()
+            .unwrap();
+        seconds.push(started.elapsed().as_secs_f64());
+        let said = text(&out);
+        assert!(out.status.success(), "{said}\n{}", logs(&scratch, "spread"));
+        let stored = records(&scratch.runs("spread"));
+        assert_eq!(stored.len(), 20, "{said}\n{}", logs(&scratch, "spread"));
+        let hosts: std::collections::BTreeSet<&str> = stored
+            .iter()
+            .map(|r| r["provenance"]["host"].as_str().unwrap())
+            .collect();
+        let expected = match nodes {
+            "1" => vec!["nlnode1"],
+            _ => vec!["nlnode1", "nlnode2"],
+        };
+        assert_eq!(hosts.into_iter().collect::<Vec<_>>(), expected, "{said}");
+        if nodes == "2" {
+            let log = logs(&scratch, "spread");
+            assert!(
+                log.contains("2 nodes of the allocation, a job step per case"),
+                "{log}"
+            );
+        }
+    }
+    eprintln!(
+        "every node of an allocation: 20 points, 1 node {:.1} s, 2 nodes {:.1} s: ratio {:.2}",
+        seconds[0],
+        seconds[1],
+        seconds[1] / seconds[0]
     );
 }
 

@@ -167,6 +167,12 @@ pub struct SubmitArgs {
     /// site's default.
     #[arg(long, conflicts_with = "array")]
     pub whole: bool,
+    /// With --follow or --whole: tabulate the runs of several hosts (the nodes of the cluster
+    /// that ran them) or solver builds together at the end (see `collect --allow-mixed`). A
+    /// whole study on more than one node (`--whole --nodes N`) tabulates its nodes' runs
+    /// together without it.
+    #[arg(long)]
+    pub allow_mixed: bool,
     /// Stay until the study is answered: submit what is ready (the missing points, or an
     /// adaptive study's next round), wait while the scheduler holds the jobs, then submit the
     /// next round, and at the end write the tables, figures and report as `run` does. Stopped

@@ -38,8 +38,10 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         Side::open(solver_a, &dir, "a", &study.name),
         Side::open(solver_b, &dir, "b", &study.name),
     ];
+    let cores = crate::run::pool::machine_cores();
     let options = PoolOptions {
-        cores: crate::run::pool::machine_cores(),
+        cores,
+        nodes: crate::run::allocation::this_machine(cores),
         exclusive: true,
         timeout: None,
         launcher: (crate::model::launcher::DEFAULT_LAUNCHER.parse())

@@ -26,7 +26,12 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     no_refusals(&planned, args.plan.allow_refused)?;
     say_what_does_not_fit(&planned);
     say_what_refinement_cannot_show(&planned);
-    let cores = crate::run::pool::machine_cores();
+    // Inside a Slurm job of several nodes, every node of it; else this machine.
+    let nodes =
+        crate::run::allocation::nodes(args.jobs.unwrap_or(crate::run::pool::machine_cores()));
+    if nodes.len() > 1 && !args.quiet {
+        errln!("nlstudy: {}", crate::run::allocation::describe(&nodes));
+    }
     let timeout = match args.timeout {
         Some(seconds) => Some(period(seconds, "--timeout")?),
         None => study
@@ -42,7 +47,10 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             .transpose()?,
     };
     let options = PoolOptions {
-        cores: args.jobs.unwrap_or(cores),
+        cores: args
+            .jobs
+            .unwrap_or_else(|| nodes.iter().map(|n| n.cores).sum()),
+        nodes,
         exclusive: !study.share_machine,
         timeout,
         launcher: args.launcher.clone(),

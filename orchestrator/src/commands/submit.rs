@@ -55,6 +55,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, true)?;
     let (mut rounds, mut waited) = (0, Waited::default());
+    let started = std::time::Instant::now();
     loop {
         let wait = follow::wait_for_jobs(&store, scheduler, most)?;
         waited.questions += wait.questions;
@@ -71,12 +72,11 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
             outln!("the whole study in one job, {} points so far", sent.points);
         } else if sent.jobs > 0 {
             rounds += 1;
-            let most_rounds = study
-                .question()
-                .and_then(|q| q.worst_case_rounds())
-                .map_or(String::new(), |n| format!(" of at most {n}"));
+            let most = study.question().and_then(|q| q.worst_case_rounds());
+            let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
+            let eta = eta(rounds, most, started.elapsed());
             outln!(
-                "round {rounds}{most_rounds}: {} jobs, {} points",
+                "round {rounds}{most_rounds}: {} jobs, {} points{eta}",
                 sent.jobs,
                 sent.points
             );
@@ -87,7 +87,21 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         waited.questions,
         waited.seconds
     );
-    answer(plan()?)
+    // A whole study on several nodes has tabulated its nodes' runs together (its job script).
+    let spanned = args.whole && args.resources.nodes.is_some_and(|n| n.get() > 1);
+    answer(plan()?, args.allow_mixed || spanned)
+}
+
+/// How long the rounds left may take, from the rounds done (`elapsed` since the first was
+/// submitted, queue waits included): `; at most about …` once a round has ended and the
+/// question bounds its rounds.
+fn eta(round: usize, most: Option<usize>, elapsed: Duration) -> String {
+    let (Some(most), true) = (most, round > 1) else {
+        return String::new();
+    };
+    let per_round = elapsed.as_secs_f64() / (round - 1) as f64;
+    let left = per_round * (most.saturating_sub(round) + 1) as f64;
+    format!("; rounds so far took {per_round:.0} s each, so at most about {left:.0} s to go")
 }
 
 type Opened = (Study, Nlsolve, Store, Index, Vec<Planned>);
@@ -124,6 +138,7 @@ fn submit_ready(
         retries: args.retries,
         launcher: args.launcher.clone(),
         whole: args.whole,
+        allow_mixed: args.allow_mixed,
     };
     Ok(submit::submit_study(
         &study, &solver, &planned, &store, &index, &target,
@@ -132,7 +147,10 @@ fn submit_ready(
 
 /// The end of a followed study, everything stored: its answers, tables, figures and report as
 /// `run` makes them; exit 1 when a point is stored failed.
-fn answer((study, solver, store, _, planned): Opened) -> Result<ExitCode, Failure> {
+fn answer(
+    (study, solver, store, _, planned): Opened,
+    allow_mixed: bool,
+) -> Result<ExitCode, Failure> {
     let options = Options::default();
     let (answered, planned) =
         match search::answer(&study, &solver, &store, &options, |_: &[Planned]| Ok(false))? {
@@ -142,7 +160,7 @@ fn answer((study, solver, store, _, planned): Opened) -> Result<ExitCode, Failur
     let ending = Ending {
         quiet: false,
         collect: true,
-        allow_mixed: false,
+        allow_mixed,
     };
     if let Some(code) = conclude(&study, &store, &planned, answered.as_ref(), ending)? {
         return Ok(code);
@@ -175,4 +193,27 @@ fn give_up_on_lost(
         store.save(key, &record)?;
     }
     Ok(lost.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The time left is the rounds done's mean times the rounds left, this one included; none
+    /// before a round has ended or without a bound on the rounds.
+    #[test]
+    fn the_time_left_is_the_rounds_left_at_the_mean_round() {
+        let ten = Duration::from_secs(20);
+        assert_eq!(eta(1, Some(5), Duration::ZERO), "");
+        assert_eq!(eta(3, None, ten), "");
+        assert_eq!(
+            eta(3, Some(5), ten),
+            "; rounds so far took 10 s each, so at most about 30 s to go"
+        );
+        assert!(
+            eta(6, Some(5), ten).ends_with("about 4 s to go"),
+            "{}",
+            eta(6, Some(5), ten)
+        );
+    }
 }

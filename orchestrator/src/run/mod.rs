@@ -1,6 +1,7 @@
 //! Running a study: the `nlsolve` process, the plan of which points run (make-style), the local
 //! worker pool and its progress output, and clusters (job scripts, schedulers, the jobs ledger).
 
+pub mod allocation;
 pub mod cluster;
 pub mod instructions;
 pub mod interleave;

@@ -10,11 +10,12 @@
 //! no case running unowned.
 
 use crate::model::launcher::Launcher;
+use crate::run::allocation::Node;
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
-use crate::run::worker::{die_with_parent, Served, Worker, Workers};
+use crate::run::worker::{die_with_parent, Place, Served, Worker, Workers};
 use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
 use crate::store::{FileError, Store, CHECKPOINT, PROGRESS, SCRATCH};
 use schema::exit;
@@ -72,7 +73,10 @@ const RANK_CHECK_EVERY: Duration = Duration::from_secs(1);
 pub struct PoolOptions {
     /// Cores the running cases may use together (threads × ranks each).
     pub cores: usize,
-    /// One case at a time, so that timings are not disturbed.
+    /// Where cases run, each within its cores: this machine, or the nodes of the allocation
+    /// this process runs in (`allocation::nodes`).
+    pub nodes: Vec<Node>,
+    /// One case at a time on a node, so that timings are not disturbed.
     pub exclusive: bool,
     pub timeout: Option<Duration>,
     /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
@@ -122,6 +126,8 @@ struct Running {
     attempt: usize,
     started: Instant,
     cores: usize,
+    /// Its node, an index into the pool's nodes.
+    node: usize,
     /// The key's lock in the store, held until the record is stored.
     _lock: File,
     how: How,
@@ -354,15 +360,17 @@ impl Pool<'_> {
         while let Some(&next) = self.queue.last() {
             let planned = &self.planned[next.index];
             let cores = cores_of(planned);
-            let used: usize = running.iter().map(|r| r.cores).sum();
-            let fits = if self.options.exclusive {
-                running.is_empty()
-            } else {
-                running.is_empty() || used + cores <= self.options.cores
+            let busy: Vec<(usize, usize)> = running.iter().map(|r| (r.node, r.cores)).collect();
+            // Over the nodes of an allocation, an MPI case's launcher spreads its ranks over
+            // the allocation as it does for a job of its own: such a case runs alone.
+            let spread = self.options.nodes.len() > 1 && count_of(planned, "ranks") > 1;
+            let node = match spread {
+                true => busy.is_empty().then_some(0),
+                false => place(&self.options.nodes, self.options, &busy, cores),
             };
-            if !fits {
+            let Some(node) = node else {
                 return Ok(());
-            }
+            };
             self.queue.pop();
             let Some(lock) = self.store.lock(&planned.key)? else {
                 self.progress
@@ -395,8 +403,10 @@ impl Pool<'_> {
                 }
                 Ok(case) => case,
             };
+            let on = &self.options.nodes[node];
             let how = if self.serves(case, next.alone) {
-                let mut worker = self.workers.take(self.solver)?;
+                let place = Place { node, cores };
+                let mut worker = self.workers.take(self.solver, place, on)?;
                 let line = served_line(case, &planned.key, self.store, self.options);
                 // A worker that is gone already says so when its output closes.
                 worker.send(&line);
@@ -405,12 +415,17 @@ impl Pool<'_> {
                     heard: None,
                 }
             } else {
+                if on.name.is_some() {
+                    // Idle steps on the node hold cores the scheduler would wait for.
+                    self.workers.close_on(node);
+                }
                 How::Process(start(
                     &case.canonical(),
                     planned,
                     self.solver,
                     self.store,
                     self.options,
+                    on,
                 )?)
             };
             running.push(Running {
@@ -418,6 +433,7 @@ impl Pool<'_> {
                 attempt: next.attempt,
                 started: Instant::now(),
                 cores,
+                node,
                 _lock: lock,
                 how,
             });
@@ -685,17 +701,43 @@ pub fn machine_cores() -> usize {
     *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }
 
+/// The node a case of `cores` cores starts on now, if one has room (`busy`: the node and cores
+/// of each running case): within the pool's budget and the node's cores, or alone on a node of
+/// its own when the study times its runs (`exclusive`). A case larger than any room runs alone,
+/// on the first node, once nothing runs.
+fn place(
+    nodes: &[Node],
+    options: &PoolOptions,
+    busy: &[(usize, usize)],
+    cores: usize,
+) -> Option<usize> {
+    if busy.is_empty() {
+        return Some(0);
+    }
+    let used = |node: usize| -> usize { busy.iter().filter(|b| b.0 == node).map(|b| b.1).sum() };
+    let total: usize = busy.iter().map(|b| b.1).sum();
+    if !options.exclusive && total + cores > options.cores {
+        return None;
+    }
+    (0..nodes.len()).find(|&node| {
+        let used = used(node);
+        (!options.exclusive || used == 0) && used + cores <= nodes[node].cores
+    })
+}
+
 /// threads × ranks of a case (1 for a refused one).
 fn cores_of(planned: &Planned) -> usize {
-    let field = |name: &str| {
-        planned
-            .case
-            .as_ref()
-            .ok()
-            .and_then(|c| c.resolved_count(name))
-            .unwrap_or(1) as usize
-    };
-    field("threads").max(1) * field("ranks").max(1)
+    count_of(planned, "threads") * count_of(planned, "ranks")
+}
+
+/// A case's `threads` or `ranks`, at least 1 (1 for a refused case).
+fn count_of(planned: &Planned, field: &str) -> usize {
+    let count = planned
+        .case
+        .as_ref()
+        .ok()
+        .and_then(|c| c.resolved_count(field));
+    count.unwrap_or(1).max(1) as usize
 }
 
 /// The line a worker reads for `case` (`schema::protocol::ServeLine`): the case, the file its
@@ -724,6 +766,7 @@ fn start(
     solver: &Nlsolve,
     store: &Store,
     options: &PoolOptions,
+    node: &Node,
 ) -> Result<Process, FileError> {
     let [case_file, stdout, stderr, progress] =
         SCRATCH.map(|name| store.scratch(&planned.key, name));
@@ -742,7 +785,7 @@ fn start(
         command.arg(&solver.binary);
         command
     } else {
-        Command::new(&solver.binary)
+        node.command(threads as usize, &solver.binary)
     };
     command
         .arg("run")
@@ -978,5 +1021,54 @@ mod tests {
         let args: Vec<_> = command.get_args().map(|a| a.to_str().unwrap()).collect();
         assert_eq!(command.get_program(), "env");
         assert_eq!(args, ["A=b c", "mpirun", "-n", "3", "--bind-to", "core"]);
+    }
+
+    /// Cases go where their cores fit: several on a node within its cores and the budget, one
+    /// a node when the study times its runs, and one larger than any room alone.
+    #[test]
+    fn a_case_is_placed_on_a_node_with_room_for_its_cores() {
+        let node = |name: &str, cores| Node {
+            name: Some(name.into()),
+            cores,
+            scheduler: crate::run::cluster::scheduler::Scheduler::Slurm,
+        };
+        let nodes = [node("a", 2), node("b", 1)];
+        let options = |cores, exclusive| PoolOptions {
+            cores,
+            nodes: nodes.to_vec(),
+            exclusive,
+            timeout: None,
+            launcher: crate::model::launcher::DEFAULT_LAUNCHER.parse().unwrap(),
+            retries: 0,
+            isolate: false,
+            checkpoint_every: None,
+            keep_checkpoints: false,
+        };
+        let shared = options(3, false);
+        assert_eq!(place(&nodes, &shared, &[], 8), Some(0), "alone, too large");
+        assert_eq!(place(&nodes, &shared, &[(0, 1)], 1), Some(0));
+        assert_eq!(place(&nodes, &shared, &[(0, 2)], 1), Some(1));
+        assert_eq!(
+            place(&nodes, &shared, &[(0, 1), (1, 1)], 2),
+            None,
+            "over the budget"
+        );
+        assert_eq!(
+            place(&nodes, &shared, &[(0, 1)], 2),
+            None,
+            "no node has 2 free"
+        );
+        assert_eq!(
+            place(&nodes, &options(2, false), &[(0, 1), (0, 1)], 1),
+            None
+        );
+        let timed = options(3, true);
+        assert_eq!(
+            place(&nodes, &timed, &[(0, 1)], 1),
+            Some(1),
+            "a node of its own"
+        );
+        assert_eq!(place(&nodes, &timed, &[(0, 1)], 2), None, "b has 1 core");
+        assert_eq!(place(&nodes, &timed, &[(0, 1), (1, 1)], 1), None);
     }
 }

@@ -6,6 +6,7 @@
 //! worker reads its answers into one channel, which the pool waits on: an answer wakes it at
 //! once. What a worker writes to standard error is kept, its last lines, for a failed record.
 
+use crate::run::allocation::Node;
 use crate::run::nlsolve::Nlsolve;
 use crate::store::FileError;
 use std::collections::VecDeque;
@@ -52,6 +53,8 @@ const HEARING: std::time::Duration = std::time::Duration::from_secs(1);
 
 pub struct Worker {
     id: u64,
+    /// Where it runs: the pool's node and the cores its step holds there.
+    place: Place,
     child: Child,
     stdin: ChildStdin,
     stderr: Arc<Mutex<VecDeque<String>>>,
@@ -59,6 +62,13 @@ pub struct Worker {
     stderr_reader: std::thread::JoinHandle<()>,
     /// Cases it has answered.
     pub answered: usize,
+}
+
+/// A worker's node (an index into the pool's nodes) and cores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Place {
+    pub node: usize,
+    pub cores: usize,
 }
 
 /// How a case sent to a worker ended.
@@ -84,16 +94,39 @@ impl Workers {
         }
     }
 
-    /// A worker to run a case: an idle one still alive, or a new one.
-    pub fn take(&mut self, solver: &Nlsolve) -> Result<Worker, FileError> {
-        while let Some(mut worker) = self.idle.pop() {
+    /// A worker to run a case at `place` (on `node`): an idle one there still alive, or a new
+    /// one (a job step on an allocation's node).
+    pub fn take(
+        &mut self,
+        solver: &Nlsolve,
+        place: Place,
+        node: &Node,
+    ) -> Result<Worker, FileError> {
+        while let Some(at) = self.idle.iter().rposition(|w| w.place == place) {
+            let mut worker = self.idle.swap_remove(at);
             if matches!(worker.child.try_wait(), Ok(None)) {
                 return Ok(worker);
             }
             worker.end();
         }
+        if node.name.is_some() {
+            // Idle steps on the node hold cores the scheduler would wait for.
+            self.close_on(place.node);
+        }
         self.started += 1;
-        Worker::start(self.started, solver, &self.dir, self.said.clone())
+        let command = node.command(place.cores, &solver.binary);
+        Worker::start(self.started, place, command, &self.dir, self.said.clone())
+    }
+
+    /// Ends the idle workers on `node`, whose job steps hold cores a new step there needs.
+    pub fn close_on(&mut self, node: usize) {
+        let (there, elsewhere) = std::mem::take(&mut self.idle)
+            .into_iter()
+            .partition(|w| w.place.node == node);
+        self.idle = elsewhere;
+        for worker in there {
+            worker.close();
+        }
     }
 
     /// Takes back a worker that answered: kept for the next case unless it holds too much.
@@ -128,13 +161,14 @@ impl Drop for Workers {
 }
 
 impl Worker {
+    /// Starts `command` (the solver, or a job step of it) as a worker.
     fn start(
         id: u64,
-        solver: &Nlsolve,
+        place: Place,
+        mut command: Command,
         dir: &Path,
         said: Sender<Said>,
     ) -> Result<Worker, FileError> {
-        let mut command = Command::new(&solver.binary);
         command
             .arg("serve")
             .current_dir(dir)
@@ -142,9 +176,8 @@ impl Worker {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         die_with_parent(&mut command);
-        let mut child = command
-            .spawn()
-            .map_err(FileError::on("start", &solver.binary))?;
+        let program = PathBuf::from(command.get_program());
+        let mut child = command.spawn().map_err(FileError::on("start", &program))?;
         let stdin = child.stdin.take().expect("piped");
         let stdout = child.stdout.take().expect("piped");
         let stderr_pipe = child.stderr.take().expect("piped");
@@ -180,6 +213,7 @@ impl Worker {
         });
         Ok(Worker {
             id,
+            place,
             child,
             stdin,
             stderr,

@@ -102,6 +102,8 @@ pub fn whole<'a>(
         let per_node = (cores.get() / shape.threads).max(1);
         shape.tasks = shape.tasks.max(per_node * shape.nodes);
     }
+    // A task on every node at least: Slurm refuses more nodes than tasks.
+    shape.tasks = shape.tasks.max(shape.nodes);
     Pack {
         name: format!("nlstudy-{study_name}-whole"),
         bundles: vec![runnable.to_vec()],

@@ -29,6 +29,8 @@ pub struct JobCommand {
     pub launcher: Option<Launcher>,
     /// The job runs the whole study (no `--only`) and, being its only job, writes its tables.
     pub whole: bool,
+    /// The whole study's tables take runs of several hosts or builds (`run --allow-mixed`).
+    pub allow_mixed: bool,
 }
 
 /// What every script of one submit asks of the scheduler besides its points' allocation.
@@ -350,7 +352,14 @@ fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Resul
     if command.retries > 0 {
         words.extend(["--retries".into(), command.retries.to_string()]);
     }
-    words.extend(["-j".into(), shape.cores().to_string()]);
+    // A whole study on several nodes uses every core the allocation gives each node, which
+    // `run` reads from the job (a step per case on every node).
+    if !(command.whole && shape.nodes > 1) {
+        words.extend(["-j".into(), shape.cores().to_string()]);
+    }
+    if command.whole && (command.allow_mixed || shape.nodes > 1) {
+        words.push("--allow-mixed".into());
+    }
     if !command.whole {
         words.extend(["--only".into(), keys.to_string()]);
     }

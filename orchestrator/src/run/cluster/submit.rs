@@ -42,6 +42,8 @@ pub struct Target {
     /// One job that runs the whole study, every round of an adaptive one, and writes its
     /// tables, figures and report (`submit --whole`).
     pub whole: bool,
+    /// The whole study's job tabulates runs of several hosts or builds (`--allow-mixed`).
+    pub allow_mixed: bool,
 }
 
 /// What one `submit_study` did: the jobs it wrote (and submitted, unless a dry run), the points
@@ -119,6 +121,7 @@ pub fn submit_study(
             .clone()
             .or_else(|| target.site.launcher.clone()),
         whole: target.whole,
+        allow_mixed: target.allow_mixed,
     };
     let packs = match target.whole {
         true => vec![pack::whole(

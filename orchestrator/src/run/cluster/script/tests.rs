@@ -121,6 +121,7 @@ fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
                 retries: 1,
                 launcher: None,
                 whole: false,
+                allow_mixed: false,
             };
             for scheduler in SCHEDULERS {
                 let job = Spec {
@@ -203,6 +204,7 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
         retries: 0,
         launcher: Some(launcher),
         whole: false,
+        allow_mixed: false,
     };
     let job = Spec {
         name: "j",
@@ -255,6 +257,59 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
 /// Every field of a site profile lands in both schedulers' scripts in its place: checked
 /// values as directives, modules as quoted words, the prologue as its own lines before the
 /// command; and the script still runs only the stub with the job's arguments.
+/// A whole study on several nodes leaves the cores to the allocation (no `-j`: `run` places a
+/// step per case on every node) and tabulates its nodes' runs together; on one node it keeps
+/// to its cores and refuses a mix unless asked.
+#[test]
+fn a_whole_study_on_several_nodes_uses_them_all_and_tabulates_their_runs() {
+    let (_sandbox, root) = sandbox();
+    let command = |allow_mixed| JobCommand {
+        nlstudy: root.join("bin/nlstudy"),
+        study: root.join("s.json"),
+        results: root.join("results"),
+        jobs: root.join("results/s/jobs"),
+        nlsolve: root.join("bin/nlsolve"),
+        retries: 0,
+        launcher: None,
+        whole: true,
+        allow_mixed,
+    };
+    let settings = Settings {
+        scheduler: Scheduler::Slurm,
+        resources: &Resources::default(),
+        site: &Site::default(),
+        exclusive: true,
+        throttle: None,
+    };
+    let on = |nodes, allow_mixed| {
+        let job = Spec {
+            name: "j",
+            bundles: &[vec!["00ff".to_string()]],
+            array: false,
+            shape: Shape {
+                nodes,
+                tasks: nodes,
+                threads: 1,
+            },
+            time: None,
+        };
+        let text = script(&job, &settings, &command(allow_mixed)).unwrap();
+        let run = text.lines().last().unwrap().to_string();
+        run
+    };
+    let two = on(2, false);
+    assert!(
+        !two.contains(" -j ") && two.ends_with(" --allow-mixed"),
+        "{two}"
+    );
+    let one = on(1, false);
+    assert!(
+        one.ends_with(" -j 1") && !one.contains("--allow-mixed"),
+        "{one}"
+    );
+    assert!(on(1, true).ends_with(" -j 1 --allow-mixed"));
+}
+
 #[test]
 fn every_site_profile_field_lands_in_both_schedulers_scripts() {
     let (_sandbox, root) = sandbox();
@@ -287,6 +342,7 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
         retries: 0,
         launcher: site.launcher.clone(),
         whole: false,
+        allow_mixed: false,
     };
     let job = Spec {
         name: "nlstudy-s-0",
@@ -409,6 +465,7 @@ fn each_array_element_runs_its_own_bundle() {
         retries: 0,
         launcher: None,
         whole: false,
+        allow_mixed: false,
     };
     let bundles = [
         vec!["aa".to_string(), "bb".to_string()],
