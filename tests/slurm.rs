@@ -267,6 +267,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
     stages.extend(["array with a throttle", "adaptive rounds"]);
     followed_to_the_answer(&slurm);
     refined_and_targeted_by_the_driver(&slurm);
+    killed_between_sbatch_and_its_entry(&slurm);
     cancelled_twice_then_given_up(&slurm);
     stages.push(
         "followed to the answer (search, refinement, target), whole, and past cancelled jobs",
@@ -615,6 +616,57 @@ fn refined_and_targeted_by_the_driver(slurm: &LocalSlurm) {
         let answers: Vec<String> = answer_lines(&said).into_iter().map(untimed).collect();
         assert_eq!(answers, expected, "{name}: {said}");
     }
+}
+
+/// A submit killed after `sbatch` took its job and before the ledger had the job's id leaves
+/// the entry it wrote first, under the job's mark: the driver finds the job by that mark, waits
+/// for it, and submits nothing again.
+fn killed_between_sbatch_and_its_entry(slurm: &LocalSlurm) {
+    let study = json!({
+        "name": "window",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5, "source": "discrete"},
+        "sweep": [{"product": {"n": [16, 32]}}]
+    });
+    let scratch = Scratch::new("window", &study);
+    let dry = nlstudy(
+        &scratch,
+        slurm,
+        "submit",
+        &["--scheduler", "slurm", "--dry-run"],
+    );
+    assert!(dry.status.success(), "{}", text(&dry));
+    let jobs = scratch.dir.join("results/window/jobs");
+    let token = "nlstudy-1-2";
+    let entry = json!({
+        "scheduler": "slurm", "id": format!("submitting-{token}"), "name": "nlstudy-window-0",
+        "keys": planned_keys(&scratch), "submitted": 1_764_000_000u64
+    });
+    std::fs::create_dir_all(jobs.join("ledger")).unwrap();
+    std::fs::write(
+        jobs.join(format!("ledger/submitting-{token}.json")),
+        entry.to_string(),
+    )
+    .unwrap();
+    let sbatch = slurm
+        .command("sbatch")
+        .args(["--parsable", &format!("--comment={token}")])
+        .arg(jobs.join("nlstudy-window-0.sbatch"))
+        .output()
+        .unwrap();
+    assert!(sbatch.status.success(), "{}", text(&sbatch));
+    let id = String::from_utf8_lossy(&sbatch.stdout).trim().to_string();
+    let out = follow(&scratch, slurm, "1", &[]).output().unwrap();
+    let said = text(&out);
+    assert!(out.status.success(), "{said}\n{}", logs(&scratch, "window"));
+    assert!(
+        !said.contains("submitted as job"),
+        "submitted twice: {said}"
+    );
+    assert!(jobs.join(format!("ledger/{id}.json")).exists(), "{said}");
+    assert!(!jobs
+        .join(format!("ledger/submitting-{token}.json"))
+        .exists());
+    assert_eq!(records(&scratch.runs("window")).len(), 2, "{said}");
 }
 
 /// Followed, a point whose job is cancelled while it runs is submitted once more; cancelled

@@ -32,7 +32,7 @@ pub struct Ranked {
 /// The candidates are ordered by their median cost; one whose interval overlaps the interval of
 /// the first of a group ties with it.
 pub fn ranked(spec: &TargetSpec, searched: &[Searched<Aimed>]) -> Vec<Option<Ranked>> {
-    let answers: Vec<Option<Ranked>> = searched
+    let mut answers: Vec<Option<Ranked>> = searched
         .iter()
         .map(|s| {
             let answer = s.outcome.answer(spec)?;
@@ -57,7 +57,6 @@ pub fn ranked(spec: &TargetSpec, searched: &[Searched<Aimed>]) -> Vec<Option<Ran
         .collect();
     let cost = |k: usize| answers[k].as_ref().map_or(f64::INFINITY, |r| r.cost);
     order.sort_by(|&a, &b| cost(a).total_cmp(&cost(b)));
-    let mut answers = answers;
     let mut place = 0;
     while place < order.len() {
         let leader = answers[order[place]].clone().expect("ranked");

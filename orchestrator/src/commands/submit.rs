@@ -69,6 +69,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
             break;
         }
         if sent.jobs > 0 && args.whole {
+            rounds += 1;
             outln!("the whole study in one job, {} points so far", sent.points);
         } else if sent.jobs > 0 {
             rounds += 1;
@@ -82,8 +83,13 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
             );
         }
     }
+    let submitted = match args.whole {
+        true if rounds == 1 => "1 job of the whole study".to_string(),
+        true => format!("{rounds} jobs of the whole study (resubmitted)"),
+        false => format!("{rounds} rounds of jobs"),
+    };
     errln!(
-        "nlstudy: {rounds} rounds of jobs; {} questions to {scheduler} in {:.0} s of waiting",
+        "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting",
         waited.questions,
         waited.seconds
     );

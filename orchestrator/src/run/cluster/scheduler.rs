@@ -92,6 +92,23 @@ fn run(program: &str, args: &[&str]) -> Result<String, String> {
     Ok(String::from_utf8_lossy(&output.stdout).into_owned())
 }
 
+/// The id of the job the scheduler holds that `submit` marked with `token`, if it holds one.
+pub fn job_marked(scheduler: Scheduler, token: &str) -> Result<Option<String>, String> {
+    let (program, args): (&str, &[&str]) = match scheduler {
+        Scheduler::Slurm => ("squeue", &["-h", "-o", "%i %k"]),
+        Scheduler::Lsf => ("bjobs", &["-noheader", "-o", "jobid job_description"]),
+    };
+    Ok(marked(&run(program, args)?, token))
+}
+
+/// The id on the `ID MARK` line whose mark is `token`.
+fn marked(printed: &str, token: &str) -> Option<String> {
+    printed.lines().find_map(|line| {
+        let (id, mark) = line.trim().split_once(char::is_whitespace)?;
+        (mark.trim() == token).then(|| id.to_string())
+    })
+}
+
 /// `ID STATE` lines of squeue, or `ID|STATE|EXIT` of sacct (`CANCELLED by 0` keeps its first
 /// word; a job that failed with nlstudy's status for SIGTERM, 143, is `STOPPED_BY_SIGTERM`: it stopped
 /// cleanly at its warning or a signal); an array's pending elements folded as `42_[4-19%2]` or
@@ -201,20 +218,28 @@ pub fn submitted_id(scheduler: Scheduler, printed: &str) -> Option<String> {
     (!id.is_empty() && id.chars().all(|c| c.is_ascii_digit())).then(|| id.to_string())
 }
 
-/// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`) and returns the job's
-/// id. Every failure is the scheduler's or the system's (the script was checked when written).
-pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, Fault> {
+/// Hands a script to the scheduler (`sbatch SCRIPT` or `bsub < SCRIPT`), the job marked with
+/// `token` (its comment, `sbatch --comment`, or description, `bsub -Jd`: `job_marked` finds it
+/// by it), and returns the job's id. Every failure is the scheduler's or the system's (the
+/// script was checked when written).
+pub fn submit(scheduler: Scheduler, script: &Path, token: &str) -> Result<String, Fault> {
     let (program, output) = match scheduler {
         Scheduler::Slurm => (
             "sbatch",
             Command::new("sbatch")
                 .arg("--parsable")
+                .arg(format!("--comment={token}"))
                 .arg(script)
                 .output(),
         ),
         Scheduler::Lsf => (
             "bsub",
-            std::fs::File::open(script).and_then(|file| Command::new("bsub").stdin(file).output()),
+            std::fs::File::open(script).and_then(|file| {
+                Command::new("bsub")
+                    .args(["-Jd", token])
+                    .stdin(file)
+                    .output()
+            }),
         ),
     };
     let output = output.map_err(|e| {
@@ -239,6 +264,15 @@ pub fn submit(scheduler: Scheduler, script: &Path) -> Result<String, Fault> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_job_is_found_by_its_mark_and_only_by_all_of_it() {
+        let printed = "41 (null)\n42 nlstudy-17-3\n 43 nlstudy-17-31\n";
+        assert_eq!(marked(printed, "nlstudy-17-3"), Some("42".into()));
+        assert_eq!(marked(printed, "nlstudy-17-31"), Some("43".into()));
+        assert_eq!(marked(printed, "nlstudy-17"), None);
+        assert_eq!(marked("", "nlstudy-17-3"), None);
+    }
 
     #[test]
     fn every_scheduler_state_has_its_meaning_and_preemption_is_no_failure() {

@@ -181,24 +181,29 @@ pub fn submit_study(
             ),
         }
         if !target.dry_run {
-            let id = scheduler::submit(target.scheduler, &job.script)?;
-            outln!("  submitted as job {id}");
-            let submitted = super::unix_seconds();
-            ledger::add(
-                store,
-                &LedgerEntry {
-                    scheduler: target.scheduler,
-                    id,
-                    name: job.name.clone(),
-                    keys: job.bundles.concat(),
-                    elements: match job.array {
-                        true => job.bundles.clone(),
-                        false => Vec::new(),
-                    },
-                    submitted,
-                    whole: target.whole,
+            let mut entry = LedgerEntry {
+                scheduler: target.scheduler,
+                id: String::new(),
+                name: job.name.clone(),
+                keys: job.bundles.concat(),
+                elements: match job.array {
+                    true => job.bundles.clone(),
+                    false => Vec::new(),
                 },
-            )?;
+                submitted: super::unix_seconds(),
+                whole: target.whole,
+            };
+            let token = ledger::token();
+            ledger::intend(store, &entry, &token)?;
+            entry.id = match scheduler::submit(target.scheduler, &job.script, &token) {
+                Ok(id) => id,
+                Err(refused) => {
+                    let _ = ledger::forget(store, &token);
+                    return Err(refused);
+                }
+            };
+            outln!("  submitted as job {}", entry.id);
+            ledger::settle(store, &entry, &token)?;
         }
     }
     Ok(Sent {
