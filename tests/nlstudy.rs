@@ -1382,6 +1382,38 @@ fn time_limits_come_from_stored_timings_unless_given() {
     assert!(text(&out).contains("ambiguous"), "{}", text(&out));
 }
 
+/// `submit` of an adaptive study says what comes next by the way it goes to the cluster: its
+/// round and the rounds at most, or the whole study in one job, on every node of it.
+#[test]
+fn submitting_an_adaptive_study_says_its_rounds_and_how_they_run() {
+    let study = json!({
+        "name": "ways",
+        "base": {"dim": 1, "n": 64, "m": 2, "problem": "bump", "t_end": 1e-6,
+                 "allow_unstable": true, "amplification_steps": 100},
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 0.01, "per_round": 7}
+    });
+    let scratch = Scratch::new("ways", &study);
+    let dry = |extra: &[&str]| {
+        let out = scratch.nlstudy(
+            "submit",
+            &[&["--scheduler", "slurm", "--dry-run"], extra].concat(),
+        );
+        assert!(out.status.success(), "{}", text(&out));
+        text(&out)
+    };
+    let rounds = dry(&[]);
+    assert!(
+        rounds.contains("this round: 1 jobs, 2 points, of at most 4 rounds; submit again"),
+        "{rounds}"
+    );
+    let whole = dry(&["--whole", "--nodes", "2"]);
+    assert!(
+        whole.contains("its rounds, 4 at most, run inside the allocation, a job step per case on each of its 2 nodes"),
+        "{whole}"
+    );
+}
+
 /// A boundary search finds each explicit integrator's stability limit where the operator's
 /// symbol puts it (cfl = 1), finds none for Crank–Nicolson, spends every probe once (the table's
 /// probes are the stored records), and a second run runs nothing and gives the same table.

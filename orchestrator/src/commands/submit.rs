@@ -49,7 +49,12 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     };
     let plan = || planned_and_index(&args.common, &Options::default(), true);
     let Some(most) = most else {
-        submit_ready(args, scheduler, &site, plan()?)?;
+        let opened = plan()?;
+        let rounds = opened.0.question().and_then(|q| q.worst_case_rounds());
+        let sent = submit_ready(args, scheduler, &site, opened)?;
+        if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
+            outln!("{}", what_happens_next(args, rounds, sent));
+        }
         return Ok(ExitCode::SUCCESS);
     };
     let study = read_study(&args.common.study)?;
@@ -108,6 +113,24 @@ fn eta(round: usize, most: Option<usize>, elapsed: Duration) -> String {
     let per_round = elapsed.as_secs_f64() / (round - 1) as f64;
     let left = per_round * (most.saturating_sub(round) + 1) as f64;
     format!("; rounds so far took {per_round:.0} s each, so at most about {left:.0} s to go")
+}
+
+/// What a submit of an adaptive study of at most `rounds` rounds leads to, by the way it goes
+/// to the cluster: a round per submit, or the whole study in one job (on every node of it).
+fn what_happens_next(args: &SubmitArgs, rounds: usize, sent: Sent) -> String {
+    let nodes = args.resources.nodes.map_or(1, |n| n.get());
+    match (args.whole, nodes) {
+        (true, 1) => format!(
+            "the whole study in one job: its rounds, {rounds} at most, run inside the allocation"
+        ),
+        (true, nodes) => format!(
+            "the whole study in one job: its rounds, {rounds} at most, run inside the allocation, a job step per case on each of its {nodes} nodes"
+        ),
+        (false, _) => format!(
+            "this round: {} jobs, {} points, of at most {rounds} rounds; submit again when its jobs are done (`status` says), or give --follow to have them all submitted",
+            sent.jobs, sent.points
+        ),
+    }
 }
 
 type Opened = (Study, Nlsolve, Store, Index, Vec<Planned>);

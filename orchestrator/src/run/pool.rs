@@ -405,7 +405,10 @@ impl Pool<'_> {
             };
             let on = &self.options.nodes[node];
             let how = if self.serves(case, next.alone) {
-                let place = Place { node, cores };
+                // A worker on this machine serves any thread count; a step keeps the cores it
+                // was started with.
+                let held = if on.name.is_some() { cores } else { 0 };
+                let place = Place { node, cores: held };
                 let mut worker = self.workers.take(self.solver, place, on)?;
                 let line = served_line(case, &planned.key, self.store, self.options);
                 // A worker that is gone already says so when its output closes.

@@ -176,7 +176,8 @@ const NOISY_RERUNS: usize = 2;
 /// Each candidate's answer timed after the searches, where its cost is a timing or the study
 /// asks for repeats: the study's `repeat` runs of its probe (as repeats 1, 2, …: the probe
 /// itself, repeat 0, ran beside the search's other probes), each alone on the machine (a round
-/// of one); a run timed on a busy machine (`noisy`) runs again, `NOISY_RERUNS` times at most.
+/// of one); a run timed on a busy machine (`noisy`) runs again, `NOISY_RERUNS` times at most,
+/// where `run_round` runs it.
 /// The answer's cost over them goes to the ranking; a count asked once is the probe's own.
 /// Returns whether every run finished (false: interrupted) and the runs planned.
 fn time_answers(
@@ -243,7 +244,10 @@ fn time_answers(
         };
         let again = plan::plan_points(noisy, solver, &store.index(), &forced)?;
         if !alone(&again, run_round)? {
-            return Ok((false, planned));
+            // Not run again: a plan, or the cluster's driver, which runs nothing (its jobs' own
+            // `run` retimes them), or a stop, after which `run` writes no answer. The noisy
+            // timings stand, marked noisy in the tables.
+            break;
         }
     }
     for ((k, _), p) in points.iter().zip(&planned) {

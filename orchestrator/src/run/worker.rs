@@ -64,7 +64,8 @@ pub struct Worker {
     pub answered: usize,
 }
 
-/// A worker's node (an index into the pool's nodes) and cores.
+/// A worker's node (an index into the pool's nodes) and the cores its job step holds there (0
+/// on this machine, where a worker serves cases of any thread count).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Place {
     pub node: usize,
