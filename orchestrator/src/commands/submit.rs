@@ -73,11 +73,12 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         if sent.jobs == 0 && sent.held == 0 {
             break;
         }
-        if sent.jobs > 0 && args.whole {
+        if sent.jobs > 0 {
             rounds += 1;
+        }
+        if sent.jobs > 0 && args.whole {
             outln!("the whole study in one job, {} points so far", sent.points);
         } else if sent.jobs > 0 {
-            rounds += 1;
             let most = study.question().and_then(|q| q.worst_case_rounds());
             let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
             let eta = eta(rounds, most, started.elapsed());

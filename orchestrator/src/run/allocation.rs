@@ -86,20 +86,8 @@ fn slurm_nodes(list: Option<String>, cpus: Option<String>) -> Result<Vec<Node>, 
     let list = list.ok_or("SLURM_JOB_NODELIST is not set")?;
     let cpus = cpus_per_node(&cpus.ok_or("SLURM_JOB_CPUS_PER_NODE is not set")?)?;
     // Slurm's own expansion of its host list syntax (`node[1-3,7]`), not a copy of it.
-    let out = Command::new("scontrol")
-        .args(["show", "hostnames", &list])
-        .output()
-        .map_err(|e| format!("scontrol could not start: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "scontrol show hostnames {list}: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
-    }
-    let names: Vec<String> = String::from_utf8_lossy(&out.stdout)
-        .split_whitespace()
-        .map(str::to_string)
-        .collect();
+    let hostnames = crate::run::cluster::scheduler::run("scontrol", &["show", "hostnames", &list]);
+    let names: Vec<String> = hostnames?.split_whitespace().map(str::to_string).collect();
     if names.len() != cpus.len() {
         return Err(format!(
             "{} nodes in {list} but {} counts of CPUs",

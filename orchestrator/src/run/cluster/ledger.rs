@@ -109,7 +109,12 @@ pub fn forget(store: &Store, token: &str) -> Result<(), FileError> {
 /// Every job submitted for the study, oldest first; unreadable entries, and those of jobs not
 /// yet submitted (`intend`), are skipped.
 pub fn entries(store: &Store) -> Vec<LedgerEntry> {
-    let mut entries: Vec<LedgerEntry> = all_entries(store)
+    submitted(all_entries(store))
+}
+
+/// The entries of submitted jobs among `all`, oldest first.
+fn submitted(all: Vec<LedgerEntry>) -> Vec<LedgerEntry> {
+    let mut entries: Vec<LedgerEntry> = all
         .into_iter()
         .filter(|e| !e.id.starts_with(SUBMITTING))
         .collect();
@@ -127,31 +132,29 @@ fn all_entries(store: &Store) -> Vec<LedgerEntry> {
         .collect()
 }
 
-/// Settles the entries of a submit stopped between writing one and learning its job's id: the
-/// job the scheduler holds with that mark gets its entry; with none held (never submitted, or
-/// ended already, its records then stored), the entry goes.
-pub fn settle_interrupted(store: &Store, scheduler: Scheduler) -> Result<(), String> {
-    for entry in all_entries(store) {
-        let Some(token) = entry.id.strip_prefix(SUBMITTING) else {
+/// The entries of submitted jobs, the ledger read once, after settling those of a submit
+/// stopped between writing one and learning its job's id: the job of `scheduler` held with
+/// that mark gets its entry; with none held (never submitted, or ended already, its records
+/// then stored), the entry goes.
+fn settled_entries(store: &Store, scheduler: Scheduler) -> Result<Vec<LedgerEntry>, String> {
+    let mut all = all_entries(store);
+    for entry in &mut all {
+        let Some(token) = entry.id.strip_prefix(SUBMITTING).map(str::to_string) else {
             continue;
         };
         if entry.scheduler != scheduler {
             continue;
         }
-        let settled = match scheduler::job_marked(scheduler, token)? {
-            Some(id) => settle(
-                store,
-                &LedgerEntry {
-                    id,
-                    ..entry.clone()
-                },
-                token,
-            ),
-            None => forget(store, token),
+        let settled = match scheduler::job_marked(scheduler, &token)? {
+            Some(id) => {
+                entry.id = id;
+                settle(store, entry, &token)
+            }
+            None => forget(store, &token),
         };
         settled.map_err(|e| e.to_string())?;
     }
-    Ok(())
+    Ok(submitted(all))
 }
 
 /// A job (or array element) of the ledger that the scheduler still holds.
@@ -174,8 +177,7 @@ impl Held {
 /// The ledger's jobs of `scheduler` that it still holds, by one question to it; nothing held
 /// (and no question) when the ledger is empty.
 pub fn held(store: &Store, scheduler: Scheduler) -> Result<Vec<Held>, String> {
-    settle_interrupted(store, scheduler)?;
-    let entries = entries(store);
+    let entries = settled_entries(store, scheduler)?;
     if entries.is_empty() {
         return Ok(Vec::new());
     }

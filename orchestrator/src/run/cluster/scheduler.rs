@@ -78,7 +78,8 @@ pub fn phase(state: &str) -> Option<Phase> {
 /// (which Slurm 22.05 accounts as `15:0`).
 pub const STOPPED_BY_SIGTERM: &str = "STOPPED_BY_SIGTERM";
 
-fn run(program: &str, args: &[&str]) -> Result<String, String> {
+/// What `program args` printed, or why it could not run or failed.
+pub(crate) fn run(program: &str, args: &[&str]) -> Result<String, String> {
     let output = Command::new(program)
         .args(args)
         .output()

@@ -28,6 +28,22 @@ fn sandbox() -> (tempfile::TempDir, PathBuf) {
     (dir, path)
 }
 
+/// The command of a job in `root`'s usual places: `bin/`, `s.json`, `results/`; no retries,
+/// the scheduler's launcher, points of its own.
+fn job_command(root: &Path) -> JobCommand {
+    JobCommand {
+        nlstudy: root.join("bin/nlstudy"),
+        study: root.join("s.json"),
+        results: root.join("results"),
+        jobs: root.join("results/s/jobs"),
+        nlsolve: root.join("bin/nlsolve"),
+        retries: 0,
+        launcher: None,
+        whole: false,
+        allow_mixed: false,
+    }
+}
+
 /// Runs the script at `path` with bash in `dir` (and `env`), asserting it succeeds.
 fn run_script(path: &Path, dir: &Path, env: &[(&str, String)]) {
     let run = Command::new("bash")
@@ -196,15 +212,8 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
     let given = "env \"A=$(touch MARK) b\" srun --mpi=pmi2 -n {ranks}";
     let launcher: Launcher = given.parse().unwrap();
     let command = JobCommand {
-        nlstudy: root.join("bin/nlstudy"),
-        study: root.join("s.json"),
-        results: root.join("results"),
-        jobs: root.join("results/s/jobs"),
-        nlsolve: root.join("bin/nlsolve"),
-        retries: 0,
         launcher: Some(launcher),
-        whole: false,
-        allow_mixed: false,
+        ..job_command(&root)
     };
     let job = Spec {
         name: "j",
@@ -254,9 +263,6 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
     }
 }
 
-/// Every field of a site profile lands in both schedulers' scripts in its place: checked
-/// values as directives, modules as quoted words, the prologue as its own lines before the
-/// command; and the script still runs only the stub with the job's arguments.
 /// A whole study on several nodes leaves the cores to the allocation (no `-j`: `run` places a
 /// step per case on every node) and tabulates its nodes' runs together; on one node it keeps
 /// to its cores and refuses a mix unless asked.
@@ -264,15 +270,9 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
 fn a_whole_study_on_several_nodes_uses_them_all_and_tabulates_their_runs() {
     let (_sandbox, root) = sandbox();
     let command = |allow_mixed| JobCommand {
-        nlstudy: root.join("bin/nlstudy"),
-        study: root.join("s.json"),
-        results: root.join("results"),
-        jobs: root.join("results/s/jobs"),
-        nlsolve: root.join("bin/nlsolve"),
-        retries: 0,
-        launcher: None,
         whole: true,
         allow_mixed,
+        ..job_command(&root)
     };
     let settings = Settings {
         scheduler: Scheduler::Slurm,
@@ -310,6 +310,9 @@ fn a_whole_study_on_several_nodes_uses_them_all_and_tabulates_their_runs() {
     assert!(on(1, true).ends_with(" -j 1 --allow-mixed"));
 }
 
+/// Every field of a site profile lands in both schedulers' scripts in its place: checked
+/// values as directives, modules as quoted words, the prologue as its own lines before the
+/// command; and the script still runs only the stub with the job's arguments.
 #[test]
 fn every_site_profile_field_lands_in_both_schedulers_scripts() {
     let (_sandbox, root) = sandbox();
@@ -334,15 +337,8 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
         )
     };
     let command = |site: &Site| JobCommand {
-        nlstudy: root.join("bin/nlstudy"),
-        study: root.join("s.json"),
-        results: root.join("results"),
-        jobs: root.join("results/s/jobs"),
-        nlsolve: root.join("bin/nlsolve"),
-        retries: 0,
         launcher: site.launcher.clone(),
-        whole: false,
-        allow_mixed: false,
+        ..job_command(&root)
     };
     let job = Spec {
         name: "nlstudy-s-0",
@@ -456,17 +452,7 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
 #[test]
 fn each_array_element_runs_its_own_bundle() {
     let (_sandbox, root) = sandbox();
-    let command = JobCommand {
-        nlstudy: root.join("bin/nlstudy"),
-        study: root.join("s.json"),
-        results: root.join("results"),
-        jobs: root.join("results/s/jobs"),
-        nlsolve: root.join("bin/nlsolve"),
-        retries: 0,
-        launcher: None,
-        whole: false,
-        allow_mixed: false,
-    };
+    let command = job_command(&root);
     let bundles = [
         vec!["aa".to_string(), "bb".to_string()],
         vec!["cc".to_string()],
