@@ -471,7 +471,7 @@ fn every_method_reports_the_grid_spacing_and_the_columns_of_the_schema() {
     }
 }
 
-/// `nlsolve machine` and the `needs_bytes` of `nlsolve check` are all `check`'s sentence on
+/// `nlsolve machine` and the `needs` of `nlsolve check` are all `check`'s sentence on
 /// whether a case fits this machine depends on: a case within `most_threads` and
 /// `available_bytes` has none, one beyond either has one (a plan that keeps verdicts decides on
 /// these numbers whether a kept verdict still stands).
@@ -502,7 +502,7 @@ fn check_says_a_case_does_not_fit_exactly_where_its_needs_exceed_the_machine() {
     assert_eq!(verdicts.len(), 4);
     for verdict in &verdicts {
         let threads = verdict["resolved"]["threads"].as_u64().unwrap();
-        let needs = verdict["needs_bytes"].as_u64().unwrap();
+        let needs = verdict["needs"]["bytes"].as_u64().unwrap();
         let fits = threads <= most && needs <= available;
         assert_eq!(
             verdict.get("machine").is_none(),
@@ -520,7 +520,7 @@ fn check_says_a_case_does_not_fit_exactly_where_its_needs_exceed_the_machine() {
         said(1).contains("`threads`") && said(3).contains("`n`"),
         "{verdicts:?}"
     );
-    assert!(verdicts[3]["needs_bytes"].as_u64().unwrap() > available);
+    assert!(verdicts[3]["needs"]["bytes"].as_u64().unwrap() > available);
 }
 
 /// A busy process at the machine's normal priority, ended when dropped.

@@ -1186,13 +1186,9 @@ awk -v factor="$RUN_FACTOR" -v seed="$RUN_SEED" -v key="$key" -v slow="$SLOW_N" 
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(&wrapper, std::fs::Permissions::from_mode(0o755)).unwrap();
     // The run factors: exp(0.03 z), z standard normal (Box–Muller over a fixed sequence).
-    let mut state: u64 = 0x5eed;
-    let mut uniform = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
+    let mut rng = fastrand::Rng::with_seed(0x5eed);
+    // In (0, 1]: the logarithm below is finite.
+    let mut uniform = || 1.0 - rng.f64();
     let mut factor = || {
         let z = (-2.0 * uniform().ln()).sqrt() * (2.0 * std::f64::consts::PI * uniform()).cos();
         (0.03 * z).exp().to_string()

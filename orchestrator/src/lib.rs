@@ -4,12 +4,15 @@
 //!
 //! - `allocator`: how the allocator gives freed memory back;
 //! - `console`: printing that never panics on a closed or full stream;
-//! - `statistics`: order statistics (quantiles, the median) of measured values;
-//! - `model`: the study file, its sweeps and expressions, its figure specs — pure data;
+//! - `statistics`: order statistics (quantiles, the median) of measured values, and the log–log
+//!   slope observed orders are fitted by;
+//! - `model`: the study file, its sweeps and expressions, its figure specs, its adaptive
+//!   question — pure data;
 //! - `store`: the record store (keys, locks, atomic writes) and records as table rows;
 //! - `run`: the `nlsolve` process, the plan (make-style), the worker pool, progress, and
 //!   `run::cluster` for job scripts, schedulers and the jobs ledger;
-//! - `analysis`: records → run and summary tables (speedups, orders), pivots;
+//! - `analysis`: records → run and summary tables (speedups, orders), pivots, the adaptive
+//!   questions' tables, `compare`;
 //! - `output`: SVG drawing and figures, the HTML report, the status of a study;
 //! - `cli`: the command line, every command and flag in one table (`cli::args`);
 //! - `commands`: each command given its flags, one module each, and the exit status it ends with

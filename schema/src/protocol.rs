@@ -3,7 +3,7 @@
 //! breaking at run time.
 
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
+use serde_json::{Map, Value};
 
 /// A line `nlsolve serve` reads: a case, or a case with what the worker does beside it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -59,6 +59,51 @@ pub struct Refusal {
     pub error: String,
 }
 
+/// What `nlsolve machine` prints: what this machine offers a run, which a plan weighs each
+/// case's needs against.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    /// Cores the process may use.
+    pub cores: u64,
+    /// The most threads a case may ask here.
+    pub most_threads: u64,
+    /// Memory available to a run, where the system says.
+    pub available_bytes: Option<u64>,
+}
+
+/// `nlsolve check`'s answer to one line: the case checked, or why it is refused.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Verdict {
+    Checked(Checked),
+    Refused(Refusal),
+}
+
+/// What a checked case asks of a machine: its threads, and the memory it needs available.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Needs {
+    pub threads: u64,
+    pub bytes: u64,
+}
+
+/// A case whose fields and time step `nlsolve check` accepted.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Checked {
+    /// The canonical case (keys sorted, some defaults left out): what a run's key is taken from.
+    pub case: Map<String, Value>,
+    /// The same case with every default filled in, as people read it.
+    pub resolved: Map<String, Value>,
+    /// What the case asks of a machine.
+    pub needs: Needs,
+    /// Why this machine could not run it, when it could not: reported, not refused (the case
+    /// may run elsewhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine: Option<String>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -81,5 +126,41 @@ mod tests {
         );
         let unknown = serde_json::from_str::<ServeLine>(r#"{"case": {}, "progres": "x"}"#);
         assert!(unknown.unwrap_err().to_string().contains("progres"));
+    }
+
+    #[test]
+    fn a_verdict_reads_back_as_the_variant_written() {
+        let object = |value: Value| value.as_object().unwrap().clone();
+        let checked = Verdict::Checked(Checked {
+            case: object(serde_json::json!({"dim": 1, "n": 16})),
+            resolved: object(serde_json::json!({"dim": 1, "n": 16, "threads": 1})),
+            needs: Needs {
+                threads: 1,
+                bytes: 4096,
+            },
+            machine: Some("needs 2 threads, this machine has 1".into()),
+        });
+        let refused = Verdict::Refused(Refusal {
+            error: "n: must be at least 2".into(),
+        });
+        for verdict in [checked, refused] {
+            let text = serde_json::to_string(&verdict).unwrap();
+            assert_eq!(serde_json::from_str::<Verdict>(&text).unwrap(), verdict);
+        }
+        // Neither a case nor an error is no verdict.
+        assert!(serde_json::from_str::<Verdict>(r#"{"cases": {}}"#).is_err());
+    }
+
+    #[test]
+    fn a_machine_line_reads_back_and_refuses_a_misspelt_field() {
+        let machine = Machine {
+            cores: 2,
+            most_threads: 2,
+            available_bytes: None,
+        };
+        let text = serde_json::to_string(&machine).unwrap();
+        assert_eq!(serde_json::from_str::<Machine>(&text).unwrap(), machine);
+        let misspelt = r#"{"cores": 2, "most_thread": 2, "available_bytes": null}"#;
+        assert!(serde_json::from_str::<Machine>(misspelt).is_err());
     }
 }

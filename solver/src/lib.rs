@@ -5,7 +5,8 @@
 //! The modules are layers; each imports only those above it in this list (a test checks it):
 //!
 //! - `case`: the input, plain data read by everyone, and the rules every case obeys;
-//! - `threads`, `linalg`: the pool and fixed-order reductions; CG and sparse Cholesky (faer);
+//! - `threads`, `linalg`: the pool and fixed-order reductions; CG, BiCGStab, sparse Cholesky
+//!   (faer) and the ends of an operator's spectrum (faer's Krylov–Schur, Lanczos over ranks);
 //! - `discretization`: grid, horizon, influence function, quadrature weights, stencil, stability;
 //! - `problem`: manufactured solutions, initial values and sources;
 //! - `operator`: L_h behind one trait, with interchangeable backends;

@@ -398,7 +398,7 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
         .unwrap()
         .as_nanos() as u64;
     eprintln!("kill delays from seed {seed}");
-    let mut state = seed | 1;
+    let mut rng = fastrand::Rng::with_seed(seed);
     let mut last_step = 0;
     for _ in 0..8 {
         let mut child = start(
@@ -406,11 +406,8 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
             &["--checkpoint", path, "--checkpoint-every-steps", "1"],
             Stdio::null(),
         );
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
         // A fault's moment, not a timing: 0–60 ms into the run.
-        std::thread::sleep(Duration::from_micros(state % 60_000));
+        std::thread::sleep(Duration::from_micros(rng.u64(..60_000)));
         let _ = child.kill();
         let out = child.wait_with_output().unwrap();
         let said = String::from_utf8_lossy(&out.stderr);

@@ -9,7 +9,9 @@ use crate::model::study::Study;
 use crate::run::search::Searched;
 use crate::store::table::Row;
 use crate::store::{Fault, Store};
+use schema::choices::Method;
 use schema::record::Stored;
+use serde::Deserialize as _;
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -94,10 +96,10 @@ pub fn prediction(spec: &BoundarySpec, stored: &Stored) -> Option<f64> {
         (true, false) => resolved.dt_positive?,
         (true, true) => return None,
         (false, _) => {
-            let method = record.case.get("method").and_then(|m| m.as_str());
-            let explicit = match method {
-                None | Some("nonlocal") => resolved.integrator.is_none_or(|i| !i.is_implicit()),
-                Some("fd_explicit" | "pse") => true,
+            let case = schema::case::Case::deserialize(&record.case).ok()?;
+            let explicit = match case.method {
+                Method::Nonlocal => resolved.integrator.is_none_or(|i| !i.is_implicit()),
+                Method::FdExplicit | Method::Pse => true,
                 _ => false,
             };
             // Where no symbol exists (a varying horizon), the computed spectrum's.

@@ -45,7 +45,7 @@ fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
     let mut unanswered = Vec::new();
     for (ranked, s) in ranked.iter().zip(aimed) {
         let runs = s.outcome.runs();
-        let label = s.origin.label();
+        let label = s.origin.shown();
         let Some(r) = ranked else {
             let why = (s.outcome.reached.as_ref()).map_or_else(String::new, ToString::to_string);
             unanswered.push(format!("–. {label}: no answer: {why} ({runs} runs)"));
@@ -130,7 +130,7 @@ fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Str
                     number(search.above)
                 );
             }
-            format!("{}: {answer}, {} probes", s.origin.label(), search.probes)
+            format!("{}: {answer}, {} probes", s.origin.shown(), search.probes)
         })
         .collect()
 }
@@ -153,7 +153,7 @@ fn refinement_lines(field: &str, refined: &[Searched<Refinement>]) -> Vec<String
             let finest = r.levels.last().map_or(String::new(), |l| number(l.0));
             format!(
                 "{}: order {} (fitted {}){from}; {stopped} at {field} = {finest}, {} levels",
-                s.origin.label(),
+                s.origin.shown(),
                 order(r.finest_order()),
                 order(r.fitted_order()),
                 r.levels.len()

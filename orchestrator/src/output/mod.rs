@@ -1,5 +1,10 @@
 //! What a person reads: SVG drawing, the figure kinds drawn from the summary table, the HTML
 //! report, and the status of a study's records and jobs.
+//!
+//! `draw` renders any chart and `figure` decides what each kind shows (one module per kind);
+//! `plot` draws a study's figures, each only when its inputs changed. Besides: `answers` (the
+//! lines `run` prints of an adaptive study), `compare_figure` (`compare.svg`) and `history`
+//! (`history.svg`).
 
 pub mod answers;
 pub mod compare_figure;

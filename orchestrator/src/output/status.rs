@@ -81,8 +81,7 @@ pub fn render(
 
 /// The simulated time a point's case runs to; `None` for a steady case.
 fn t_end(point: &Planned) -> Option<f64> {
-    let case = point.case.as_ref().ok()?.canonical();
-    case.get("t_end")?.as_f64()
+    point.case.as_ref().ok()?.case()?.t_end
 }
 
 /// One line per point running now (its key locked by a run) whose time loop says how far it is
@@ -102,7 +101,7 @@ fn running_report(out: &mut String, store: &Store, planned: &[Planned]) {
         let _ = writeln!(
             out,
             "running {}: {}{time}, {}",
-            point.point.label(),
+            point.point.shown(),
             progress.steps_done(),
             progress.left()
         );
@@ -134,7 +133,7 @@ fn checkpoints_report(
 ) {
     for (point, path) in with_scratch(store, planned, CHECKPOINT) {
         let Ok(case) = &point.case else { continue };
-        let ranks = case.resolved_count("ranks").unwrap_or(1) as usize;
+        let ranks = case.ranks();
         let line = match crate::store::checkpoint_of(&path, &case.canonical(), ranks, fingerprint) {
             None => continue,
             Some(Ok((step, steps))) => {
@@ -148,7 +147,7 @@ fn checkpoints_report(
             }
             Some(Err(why)) => format!("not resumed, {why}; the next run starts it afresh"),
         };
-        let _ = writeln!(out, "checkpoint {}: {line}", point.point.label());
+        let _ = writeln!(out, "checkpoint {}: {line}", point.point.shown());
     }
 }
 

@@ -6,6 +6,8 @@ mod kept;
 use crate::model::study::Point;
 use crate::store::{Fault, Shared};
 use rayon::prelude::*;
+use schema::case::Case;
+use schema::protocol::{self, Machine, Needs};
 use serde_json::{Map, Value};
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -110,13 +112,26 @@ impl Checked {
         serde_json::from_str(&self.canonical).expect("nlstudy printed it")
     }
 
+    #[cfg(test)]
     pub fn resolved(&self) -> Value {
         self.resolved.resolve(self.canonical())
     }
 
-    /// A whole-number field of the resolved case (`threads`, `ranks`).
-    pub fn resolved_count(&self, field: &str) -> Option<u64> {
-        self.resolved().get(field)?.as_u64()
+    /// The case typed, as the schema both binaries share reads it: what the orchestrator reads of
+    /// a checked case, so that a renamed field fails to compile. `None` for a case of fields
+    /// this build does not know (a solver given with `--solver` of another version).
+    pub fn case(&self) -> Option<Case> {
+        serde_json::from_str(&self.canonical).ok()
+    }
+
+    /// Threads on each rank (1 where `case` cannot read it).
+    pub fn threads(&self) -> usize {
+        self.case().map_or(1, |case| case.threads).max(1)
+    }
+
+    /// Ranks (1 where `case` cannot read it).
+    pub fn ranks(&self) -> usize {
+        self.case().map_or(1, |case| case.ranks).max(1)
     }
 }
 
@@ -168,7 +183,7 @@ impl Nlsolve {
 
     /// What this machine offers a run, as the solver finds it (`nlsolve machine`); `None` from
     /// a solver that cannot say.
-    fn offer(&self) -> Option<kept::Offer> {
+    fn offer(&self) -> Option<Machine> {
         let output = Command::new(&self.binary).arg("machine").output().ok()?;
         match output.status.success() {
             true => serde_json::from_slice(&output.stdout).ok(),
@@ -284,73 +299,51 @@ impl Nlsolve {
     }
 }
 
-/// One line of `nlsolve check`: the case in its two forms and what it needs, or the refusal.
-#[derive(serde::Deserialize)]
-struct CheckLine {
-    case: Option<Map<String, Value>>,
-    resolved: Option<Map<String, Value>>,
-    needs_bytes: Option<u64>,
-    error: Option<String>,
-    machine: Option<String>,
-}
-
-/// A verdict, and what its case needs of a machine where the solver says.
-type Answer = (Result<Checked, String>, Option<kept::Needs>);
+/// A verdict, and what its case needs of a machine.
+type Answer = (Result<Checked, String>, Option<Needs>);
 
 /// The verdict on one line; `shared` holds the distinct sets of filled-in defaults seen so far.
 fn verdict(line: &str, shared: &mut HashMap<String, Arc<str>>) -> Answer {
-    let verdict: CheckLine = match serde_json::from_str(line) {
+    let verdict: protocol::Verdict = match serde_json::from_str(line) {
         Ok(verdict) => verdict,
         Err(e) => {
             return (
-                Err(format!("nlsolve check printed an unreadable line: {e}")),
+                Err(format!(
+                    "nlsolve check printed a line that is neither a checked case nor a refusal: {e}"
+                )),
                 None,
             )
         }
     };
-    match verdict {
-        CheckLine {
-            case: Some(canonical),
-            resolved,
-            needs_bytes,
-            machine,
-            ..
-        } => {
-            // A solver from before `resolved` was printed: its case as it is.
-            let resolved = resolved.unwrap_or_else(|| canonical.clone());
-            let threads = resolved.get("threads").and_then(Value::as_u64);
-            let needs = threads
-                .zip(needs_bytes)
-                .map(|(threads, bytes)| kept::Needs { threads, bytes });
-            let resolved = match canonical.keys().all(|k| resolved.contains_key(k)) {
-                true => {
-                    let adds: Map<String, Value> = resolved
-                        .into_iter()
-                        .filter(|(k, v)| canonical.get(k) != Some(v))
-                        .collect();
-                    let adds = Value::Object(adds).to_string();
-                    let shared = shared
-                        .entry(adds)
-                        .or_insert_with_key(|adds| adds.as_str().into());
-                    Resolved::Adds(shared.clone())
-                }
-                false => Resolved::Whole(Value::Object(resolved).to_string().into()),
-            };
-            let checked = Checked {
-                canonical: Value::Object(canonical).to_string().into(),
-                resolved,
-                machine: machine.as_deref().map(crate::store::shared),
-            };
-            (Ok(checked), needs)
+    let protocol::Checked {
+        case: canonical,
+        resolved,
+        needs,
+        machine,
+    } = match verdict {
+        protocol::Verdict::Checked(checked) => checked,
+        protocol::Verdict::Refused(refusal) => return (Err(refusal.error), None),
+    };
+    let resolved = match canonical.keys().all(|k| resolved.contains_key(k)) {
+        true => {
+            let adds: Map<String, Value> = resolved
+                .into_iter()
+                .filter(|(k, v)| canonical.get(k) != Some(v))
+                .collect();
+            let adds = Value::Object(adds).to_string();
+            let shared = shared
+                .entry(adds)
+                .or_insert_with_key(|adds| adds.as_str().into());
+            Resolved::Adds(shared.clone())
         }
-        CheckLine {
-            error: Some(error), ..
-        } => (Err(error), None),
-        _ => (
-            Err("nlsolve check printed neither a case nor an error".to_string()),
-            None,
-        ),
-    }
+        false => Resolved::Whole(Value::Object(resolved).to_string().into()),
+    };
+    let checked = Checked {
+        canonical: Value::Object(canonical).to_string().into(),
+        resolved,
+        machine: machine.as_deref().map(crate::store::shared),
+    };
+    (Ok(checked), Some(needs))
 }
 
 #[cfg(test)]
@@ -372,7 +365,9 @@ mod tests {
         let checked: Vec<Checked> = lines
             .iter()
             .map(|resolved| {
-                let line = json!({"case": canonical, "resolved": resolved}).to_string();
+                let needs = json!({"threads": 1, "bytes": 4096});
+                let line = json!({"case": canonical, "resolved": resolved, "needs": needs});
+                let line = line.to_string();
                 verdict(&line, &mut shared).0.unwrap()
             })
             .collect();
@@ -381,12 +376,14 @@ mod tests {
             assert_eq!(checked.canonical_text(), canonical.to_string());
             assert_eq!(&checked.resolved(), resolved);
         }
-        assert_eq!(checked[0].resolved_count("threads"), Some(2));
+        assert_eq!((checked[0].threads(), checked[0].ranks()), (1, 1));
         assert_eq!(shared.len(), 1, "the two alike share one text");
+        // A line of neither form (here: a solver from before `resolved` and `needs`) is said so.
         let old_solver = json!({"case": canonical}).to_string();
-        assert_eq!(
-            verdict(&old_solver, &mut shared).0.unwrap().resolved(),
-            canonical
+        let said = verdict(&old_solver, &mut shared).0.unwrap_err();
+        assert!(
+            said.contains("neither a checked case nor a refusal"),
+            "{said}"
         );
         let refused = json!({"error": "case field `m`: too big"}).to_string();
         assert_eq!(

@@ -336,7 +336,7 @@ impl Pool<'_> {
                         let progress = self.store.scratch(&planned.key, PROGRESS);
                         Some(format!(
                             "{}: {}",
-                            planned.point.label(),
+                            planned.point.shown(),
                             how_far(&progress)?
                         ))
                     })
@@ -363,7 +363,8 @@ impl Pool<'_> {
             let busy: Vec<(usize, usize)> = running.iter().map(|r| (r.node, r.cores)).collect();
             // Over the nodes of an allocation, an MPI case's launcher spreads its ranks over
             // the allocation as it does for a job of its own: such a case runs alone.
-            let spread = self.options.nodes.len() > 1 && count_of(planned, "ranks") > 1;
+            let spread = self.options.nodes.len() > 1
+                && planned.case.as_ref().is_ok_and(|case| case.ranks() > 1);
             let node = match spread {
                 true => busy.is_empty().then_some(0),
                 false => place(&self.options.nodes, self.options, &busy, cores),
@@ -374,7 +375,7 @@ impl Pool<'_> {
             self.queue.pop();
             let Some(lock) = self.store.lock(&planned.key)? else {
                 self.progress
-                    .passed(&planned.point.label(), "another nlstudy is running it");
+                    .passed(&planned.point.shown(), "another nlstudy is running it");
                 self.tally.passed += 1;
                 continue;
             };
@@ -391,7 +392,7 @@ impl Pool<'_> {
                 .filter(|s| *s != Status::Failed);
             if let Some(status) = stored.filter(|_| !forced) {
                 let why = format!("another nlstudy has stored it meanwhile ({status})");
-                self.progress.passed(&planned.point.label(), &why);
+                self.progress.passed(&planned.point.shown(), &why);
                 self.tally.passed += 1;
                 continue;
             }
@@ -423,7 +424,7 @@ impl Pool<'_> {
                     self.workers.close_on(node);
                 }
                 How::Process(start(
-                    &case.canonical(),
+                    case,
                     planned,
                     self.solver,
                     self.store,
@@ -446,18 +447,18 @@ impl Pool<'_> {
 
     /// Does a worker run this case? Cases of one process that write no VTK files.
     fn serves(&self, case: &Checked, alone: bool) -> bool {
-        let asks = |field: &str| case.resolved_count(field).is_some_and(|value| value > 1);
-        let writes_vtk = case
-            .canonical()
-            .get("vtk_every")
-            .is_some_and(|every| !every.is_null());
-        !(alone || self.options.isolate || self.workers.unsupported || asks("ranks") || writes_vtk)
+        let writes_vtk = case.case().is_some_and(|case| case.vtk_every.is_some());
+        !(alone
+            || self.options.isolate
+            || self.workers.unsupported
+            || case.ranks() > 1
+            || writes_vtk)
     }
 
     /// Stores the record of a case that ended, or queues it again.
     fn ended(&mut self, job: Running, ended: Ended) -> Result<(), FileError> {
         let planned = &self.planned[job.index];
-        let label = planned.point.label();
+        let label = planned.point.shown();
         let again = |alone| Queued {
             index: job.index,
             attempt: job.attempt,
@@ -601,7 +602,7 @@ impl Pool<'_> {
         }
         self.tally.noisy += usize::from(record.noisy());
         self.progress
-            .finished(&planned.point.label(), status, &message);
+            .finished(&planned.point.shown(), status, &message);
         Ok(())
     }
 }
@@ -730,17 +731,8 @@ fn place(
 
 /// threads × ranks of a case (1 for a refused one).
 fn cores_of(planned: &Planned) -> usize {
-    count_of(planned, "threads") * count_of(planned, "ranks")
-}
-
-/// A case's `threads` or `ranks`, at least 1 (1 for a refused case).
-fn count_of(planned: &Planned, field: &str) -> usize {
-    let count = planned
-        .case
-        .as_ref()
-        .ok()
-        .and_then(|c| c.resolved_count(field));
-    count.unwrap_or(1).max(1) as usize
+    let case = planned.case.as_ref().ok();
+    case.map_or(1, |case| case.threads() * case.ranks())
 }
 
 /// The line a worker reads for `case` (`schema::protocol::ServeLine`): the case, the file its
@@ -764,7 +756,7 @@ fn served_line(case: &Checked, key: &str, store: &Store, options: &PoolOptions) 
 
 /// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
 fn start(
-    case: &Value,
+    case: &Checked,
     planned: &Planned,
     solver: &Nlsolve,
     store: &Store,
@@ -774,12 +766,11 @@ fn start(
     let [case_file, stdout, stderr, progress] =
         SCRATCH.map(|name| store.scratch(&planned.key, name));
     create_fresh(&case_file)
-        .and_then(|mut file| std::io::Write::write_all(&mut file, case.to_string().as_bytes()))
+        .and_then(|mut file| std::io::Write::write_all(&mut file, case.canonical_text().as_bytes()))
         .map_err(FileError::on("write", &case_file))?;
-    let ranks = case.get("ranks").and_then(Value::as_u64).unwrap_or(1);
-    let threads = case.get("threads").and_then(Value::as_u64).unwrap_or(1);
+    let (ranks, threads) = (case.ranks(), case.threads());
     let mut command = if ranks > 1 {
-        let mut command = launcher_command(&options.launcher, ranks, threads);
+        let mut command = launcher_command(&options.launcher, ranks as u64, threads as u64);
         if is_root() {
             // Open MPI refuses root (containers, CI) unless told.
             command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
@@ -788,7 +779,7 @@ fn start(
         command.arg(&solver.binary);
         command
     } else {
-        node.command(threads as usize, &solver.binary)
+        node.command(threads, &solver.binary)
     };
     command
         .arg("run")
@@ -796,7 +787,7 @@ fn start(
         .arg(&case_file)
         .arg("--progress")
         .arg(&progress);
-    if case.get("vtk_every").is_some_and(|every| !every.is_null()) {
+    if case.case().is_some_and(|case| case.vtk_every.is_some()) {
         command.arg("--write-vtk").arg(store.fields(&planned.key));
     }
     // Every case may be stopped (Ctrl-C, a scheduler's warning): its time loop then writes a
@@ -1001,15 +992,10 @@ pub(crate) fn failed_record(planned: &Planned, solver: &Nlsolve, message: String
     stored(planned, solver, Outcome::Failed(Failure { case, message }))
 }
 
-/// Is this process root (uid 0)? Read from /proc, to need no libc binding.
+/// Is this process root (effective uid 0)?
 fn is_root() -> bool {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            let line = s.lines().find(|l| l.starts_with("Uid:"))?;
-            Some(line.split_whitespace().nth(1)? == "0")
-        })
-        .unwrap_or(false)
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    unsafe { libc::geteuid() == 0 }
 }
 
 #[cfg(test)]

@@ -20,6 +20,8 @@ pub struct Progress {
     skipped: usize,
     /// How far the long cases running now are, shown after the counts.
     running: String,
+    /// The round of an adaptive study these cases are.
+    round: Option<usize>,
 }
 
 impl Mode {
@@ -38,8 +40,10 @@ impl Progress {
         let bar = matches!(mode, Mode::Bar).then(|| {
             let bar = ProgressBar::new(total as u64);
             bar.set_style(
-                ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]")
-                    .expect("a valid template"),
+                ProgressStyle::with_template(
+                    "{prefix}{bar:30} {pos}/{len} {msg} [{elapsed} < {eta}]",
+                )
+                .expect("a valid template"),
             );
             bar
         });
@@ -51,9 +55,27 @@ impl Progress {
             failed: 0,
             skipped,
             running: String::new(),
+            round: None,
         };
         progress.update_message();
         progress
+    }
+
+    /// The cases of round `round` of an adaptive study, which each line then names.
+    pub fn in_round(mut self, round: Option<usize>) -> Progress {
+        self.round = round;
+        if let (Some(bar), Some(round)) = (&self.bar, round) {
+            bar.set_prefix(format!("round {round} "));
+        }
+        self
+    }
+
+    /// `[k/N]`, or `[round r: k/N]` in an adaptive study.
+    fn counter(&self) -> String {
+        match self.round {
+            Some(round) => format!("[round {round}: {}/{}]", self.done, self.total),
+            None => format!("[{}/{}]", self.done, self.total),
+        }
     }
 
     /// A case finished with `status`.
@@ -76,7 +98,7 @@ impl Progress {
                     Status::Failed => format!(": {}", first_line(message)),
                     Status::Ok | Status::Diverged => String::new(),
                 };
-                let line = format!("[{}/{}] {status} {label}{detail}", self.done, self.total);
+                let line = format!("{} {status} {label}{detail}", self.counter());
                 errln!("{}", shown(line));
             }
             Mode::Quiet => {}
@@ -122,10 +144,7 @@ impl Progress {
             }
             Mode::Lines => errln!(
                 "{}",
-                shown(format!(
-                    "[{}/{}] skipped {label}: {why}",
-                    self.done, self.total
-                ))
+                shown(format!("{} skipped {label}: {why}", self.counter()))
             ),
             Mode::Quiet => {}
         }

@@ -1,8 +1,13 @@
 //! An adaptive study (`model::adaptive`): from each point of its sweep a question (a boundary
-//! search, a refinement) runs round by round on the worker pool, every probe an ordinary point
-//! (planned, keyed, stored, skipped when stored). Each round replays every question from its
-//! first with the records known, so a study interrupted at any moment resumes from the store
-//! without running a probe twice, and ends where it would have.
+//! search, a refinement, an error target) runs round by round on the worker pool, every probe an
+//! ordinary point (planned, keyed, stored, skipped when stored). Each round replays every
+//! question from its first with the records known, so a study interrupted at any moment resumes
+//! from the store without running a probe twice, and ends where it would have.
+//!
+//! `answer` picks the study's question (`Answered`, one variant per kind). An error target's
+//! answers are then timed, each run alone (`time_answers`). `probes_so_far` is what `plan`,
+//! `submit` and a job's `run --only` see of an adaptive study: the probes stored and the next
+//! round.
 
 use crate::model::adaptive::{Adaptive, Spent};
 use crate::model::boundary::{BoundarySpec, Search};

@@ -846,10 +846,9 @@ const KEY_LOCKS: &str = "keys.lock";
 /// The byte of `KEY_LOCKS` that locks `key`: its 64-bit FNV-1a hash within 62 bits (a lock's
 /// offset is a signed 64-bit number); two keys share a byte once in 10¹⁸ pairs, when one waits.
 fn key_byte(key: &str) -> i64 {
-    let hash = key.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |hash, byte| {
-        (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3)
-    });
-    (hash >> 2) as i64
+    let mut hash = fnv::FnvHasher::default();
+    std::hash::Hasher::write(&mut hash, key.as_bytes());
+    (std::hash::Hasher::finish(&hash) >> 2) as i64
 }
 
 /// The checkpoint of a point run as a process (`<key>.checkpoint` in the work directory): kept

@@ -9,6 +9,12 @@
 //! steps is that of the step's most amplified modes. It approaches the step's spectral radius
 //! from below, by O(1/steps) through the modes beside the top one; the field is rescaled as it
 //! grows or decays, so no step overflows.
+//!
+//! Where L_h is symmetric (the constant horizon; checked by ⟨v, Lw⟩ = ⟨Lv, w⟩), `spectral`
+//! measures the step exactly instead: max |R(dt·λ)| over the ends of L_h's spectrum (Lanczos,
+//! `linalg::lanczos`), R the integrator's stability function, with an interval that holds it.
+//! The rough field stays for the rest (the local methods, PSE, a varying horizon). `positivity`
+//! takes one step of a unit spike; every time-dependent method measures both.
 
 use super::integrator::{applications_per_step, stability_function};
 use super::stepper::{Rhs, Stepper};

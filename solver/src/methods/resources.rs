@@ -61,7 +61,7 @@ pub fn fit_machine(case: &ValidCase) -> Result<(), CaseError> {
 /// `fit_machine` against a machine read before, with the bytes of available memory the case
 /// needs, of one estimate. With its threads that is all `fit` asks of a machine: a case fits
 /// one that offers both (`Machine::most_threads`, `Machine::available`), which lets a plan that
-/// keeps the solver's verdicts (`nlsolve check`'s `needs_bytes`) tell that a case still fits
+/// keeps the solver's verdicts (`nlsolve check`'s `needs`) tell that a case still fits
 /// without asking again.
 pub fn fit(case: &ValidCase, machine: Machine) -> (f64, Result<(), CaseError>) {
     let (needed, estimate) = needed_on_this_node(case);

@@ -338,13 +338,8 @@ mod tests {
             Quadrature::Ac,
             0.7,
         );
-        let mut state = 12345u64;
-        let mut random = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = fastrand::Rng::with_seed(12345);
+        let mut random = move || rng.f64() - 0.5;
         for isa in InstructionSet::available() {
             let kernel = WindowKernel::with_instruction_set(&stencil, Window::whole(&grid), isa);
             let layout = kernel.layout();

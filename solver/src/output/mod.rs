@@ -1,5 +1,7 @@
 //! What a run produces: diagnostics of a field, field snapshots and frames, VTK files, the
-//! record (the contract with the orchestrator) and the outcome that carries it.
+//! record's constructors for this process (the record's data, the contract with the
+//! orchestrator, is `schema::record`), the threads' CPU time (`usage`) and the outcome that
+//! carries the record.
 
 pub mod diagnostics;
 pub mod field;

@@ -31,11 +31,9 @@ pub(super) fn bootstrap(
 
 /// A seed from the point and metric (FNV-1a), so that intervals do not depend on the order.
 pub(super) fn seed_of(point: &str, metric: &str) -> u64 {
-    point
-        .bytes()
-        .chain([0])
-        .chain(metric.bytes())
-        .fold(0xcbf2_9ce4_8422_2325, |h, byte| {
-            (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3)
-        })
+    let mut hash = fnv::FnvHasher::default();
+    for bytes in [point.as_bytes(), &[0], metric.as_bytes()] {
+        std::hash::Hasher::write(&mut hash, bytes);
+    }
+    std::hash::Hasher::finish(&hash)
 }

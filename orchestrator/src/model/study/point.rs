@@ -146,6 +146,16 @@ impl Point {
         label
     }
 
+    /// The label as a message shows it: `the base case` where nothing is swept, rather than an
+    /// empty name (`running :`).
+    pub fn shown(&self) -> String {
+        let label = self.label();
+        match label.is_empty() {
+            true => "the base case".to_string(),
+            false => label,
+        }
+    }
+
     /// The label shared by the point's repeats.
     pub fn label_without_repeat(&self) -> String {
         self.label_without(&[])

@@ -84,7 +84,7 @@ impl History {
         {
             let path = store.scratch(&p.key, CHECKPOINT);
             let Ok(case) = &p.case else { continue };
-            let ranks = case.resolved_count("ranks").unwrap_or(1) as usize;
+            let ranks = case.ranks();
             let resumed =
                 checkpoint_of(&path, &case.canonical(), ranks, fingerprint).and_then(Result::ok);
             if let Some((step, Some(steps))) = resumed.filter(|(_, n)| *n > Some(0)) {

@@ -5,6 +5,7 @@
 //! that hundreds of small jobs meet.
 
 use crate::model::resources::Resources;
+use crate::run::nlsolve::Checked;
 use crate::run::plan::Planned;
 use std::num::NonZeroUsize;
 
@@ -115,15 +116,16 @@ pub fn whole<'a>(
 /// The allocation that fits every point of `pack`: the largest rank and thread counts (tasks
 /// as `resources` sets them), on as many nodes as `resources` asks, or as the cores need.
 fn shape(pack: &[&Planned], resources: &Resources, cores_per_node: Option<NonZeroUsize>) -> Shape {
-    let largest = |field: &str| {
+    let largest = |count: fn(&Checked) -> usize| {
         pack.iter()
-            .filter_map(|p| p.case.as_ref().ok()?.resolved_count(field))
+            .filter_map(|p| p.case.as_ref().ok().map(count))
             .max()
             .unwrap_or(1)
-            .max(1) as usize
     };
-    let tasks = resources.tasks.map_or(largest("ranks"), NonZeroUsize::get);
-    let threads = largest("threads");
+    let tasks = resources
+        .tasks
+        .map_or(largest(Checked::ranks), NonZeroUsize::get);
+    let threads = largest(Checked::threads);
     let nodes = match (resources.nodes, cores_per_node) {
         (Some(nodes), _) => nodes.get(),
         (None, Some(cores)) => (tasks * threads).div_ceil(cores.get()).min(tasks),

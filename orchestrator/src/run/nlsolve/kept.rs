@@ -18,6 +18,7 @@
 
 use super::{Checked, Resolved};
 use crate::store::{shared, Shared};
+use schema::protocol::{Machine, Needs};
 use sha2::{Digest, Sha256};
 use std::collections::HashMap;
 use std::io::{BufRead as _, Write as _};
@@ -42,33 +43,17 @@ pub(super) fn fields_key(fields_line: &[u8]) -> FieldsKey {
     digest[..16].try_into().expect("16 of 32 bytes")
 }
 
-/// What this machine offers a run (`nlsolve machine`).
-#[derive(Clone, Copy, Debug, serde::Deserialize)]
-pub(super) struct Offer {
-    pub most_threads: u64,
-    pub available_bytes: Option<u64>,
-}
-
-/// What `nlsolve check` asks of a machine for a case: its threads and the memory it needs.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Needs {
-    pub threads: u64,
-    pub bytes: u64,
-}
-
-impl Needs {
-    /// `resources::fit` in the solver, on its numbers: the threads are checked first.
-    fn fit(&self, offer: &Offer) -> Fit {
-        if self.threads > offer.most_threads {
-            Fit::TooManyThreads
-        } else if offer
-            .available_bytes
-            .is_some_and(|available| self.bytes > available)
-        {
-            Fit::TooLittleMemory
-        } else {
-            Fit::Fits
-        }
+/// `resources::fit` in the solver, on its numbers: the threads are checked first.
+fn fit(needs: &Needs, offer: &Machine) -> Fit {
+    if needs.threads > offer.most_threads {
+        Fit::TooManyThreads
+    } else if offer
+        .available_bytes
+        .is_some_and(|available| needs.bytes > available)
+    {
+        Fit::TooLittleMemory
+    } else {
+        Fit::Fits
     }
 }
 
@@ -234,7 +219,7 @@ impl Kept {
     pub fn take(
         &mut self,
         key: &FieldsKey,
-        offer: Option<&Offer>,
+        offer: Option<&Machine>,
     ) -> Option<Result<Checked, String>> {
         match self.verdicts.get_mut(key)? {
             Verdict::Refused(message) => Some(Err(message.clone())),
@@ -245,7 +230,7 @@ impl Kept {
                 canonical,
             } => {
                 let offer = offer?;
-                let machine = match (needs.fit(offer), crowded) {
+                let machine = match (fit(&needs, offer), crowded) {
                     _ if canonical.is_empty() => return None,
                     (Fit::Fits, _) => None,
                     (Fit::TooManyThreads, Some((most, sentence)))
@@ -265,14 +250,13 @@ impl Kept {
     }
 
     /// Keeps the solver's verdict on the case of `key`, said on a machine that offered
-    /// `offer` (a case only with what it needs: a solver from before `needs_bytes` says too
-    /// little to keep it).
+    /// `offer` (a case only with what it needs, as `check` says it).
     pub fn keep(
         &mut self,
         key: &FieldsKey,
         verdict: &Result<Checked, String>,
         needs: Option<Needs>,
-        offer: Option<&Offer>,
+        offer: Option<&Machine>,
     ) {
         if self.verdicts.contains_key(key) {
             return;
@@ -283,7 +267,7 @@ impl Kept {
                 // The sentence on too many threads is the machine's cores' alone; on memory,
                 // of the moment.
                 let crowded = match (&checked.machine, offer) {
-                    (Some(sentence), Some(offer)) if needs.fit(offer) == Fit::TooManyThreads => {
+                    (Some(sentence), Some(offer)) if fit(&needs, offer) == Fit::TooManyThreads => {
                         Some((offer.most_threads, sentence.clone()))
                     }
                     _ => None,
@@ -407,7 +391,8 @@ fn parse_key(hex: &str) -> Option<FieldsKey> {
 mod tests {
     use super::*;
 
-    const OFFER: Offer = Offer {
+    const OFFER: Machine = Machine {
+        cores: 8,
         most_threads: 8,
         available_bytes: Some(1000),
     };
@@ -460,7 +445,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(".verdicts");
         let verdicts = kept_five(&path);
-        let take = |k: usize, offer: &Offer| {
+        let take = |k: usize, offer: &Machine| {
             Kept::load(path.clone(), "nlsolve 1", "ab12").take(&verdicts[k].0, Some(offer))
         };
         // As said, on the machine they were said on (the memory sentence is of its moment).
@@ -474,26 +459,26 @@ mod tests {
         assert_eq!(take(2, &OFFER), None);
         assert_eq!(take(4, &OFFER), None, "what a case needs was not said");
         // A machine with more memory: the memory-hungry case fits, the rest stand.
-        let roomy = Offer {
+        let roomy = Machine {
             available_bytes: Some(10_000),
             ..OFFER
         };
         assert_eq!(take(2, &roomy), case(r#"{"n":64}"#, None).ok().map(Ok));
         assert_eq!(take(1, &roomy).as_ref(), Some(&verdicts[1].1));
         // More cores: the crowded case fits; fewer: its sentence would name other numbers.
-        let more = Offer {
+        let more = Machine {
             most_threads: 16,
             ..OFFER
         };
         assert_eq!(take(1, &more), case(r#"{"n":32}"#, None).ok().map(Ok));
-        let fewer = Offer {
+        let fewer = Machine {
             most_threads: 4,
             ..OFFER
         };
         assert_eq!(take(0, &fewer).as_ref(), Some(&verdicts[0].1));
         assert_eq!(take(1, &fewer), None);
         // Memory unknown: only threads count.
-        let unknown = Offer {
+        let unknown = Machine {
             available_bytes: None,
             ..OFFER
         };

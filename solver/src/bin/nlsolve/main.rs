@@ -17,6 +17,7 @@ use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use files::{write_atomically, write_vtk};
 use flags::CaseArgs;
 use schema::exit;
+use schema::protocol::{self, Verdict};
 use serde_json::Value;
 use solver::case::Case;
 use solver::ValidCase;
@@ -48,7 +49,7 @@ enum Command {
     /// Check cases without running them: reads one JSON case per line on standard input and
     /// prints one line for each: `{"case": …, "resolved": …}` (`case` in canonical form, keys
     /// sorted, what a run's key is taken from; `resolved` the same case with every default the
-    /// method uses filled in; `needs_bytes` the memory it needs available, and `machine` why
+    /// method uses filled in; `needs` its threads and the memory it needs available, and `machine` why
     /// this machine could not run it, where it could not) or `{"error": "…"}` naming the field
     /// at fault.
     Check,
@@ -60,7 +61,8 @@ enum Command {
     Serve,
     /// Print what this machine offers a run, as `{"cores", "most_threads", "available_bytes"}`
     /// (`available_bytes` null where it cannot be read): a case whose `threads` and whose
-    /// `needs_bytes` (from `check`) are within them fits here.
+    /// `needs.bytes` (from `check`) are within them fits here. (Both lines are the types of
+    /// `schema::protocol`.)
     Machine,
     /// Print the build's fingerprint: the hash of everything that decides a record's numbers
     /// (the solver's and schema's sources, Cargo.lock, the compiler, target, flags, profile and
@@ -370,37 +372,48 @@ fn partition_report(args: &CaseArgs) -> Result<(), ErrorExit> {
 /// `nlsolve check`: validates each case of standard input and prints its canonical form.
 /// `nlsolve check`'s answer on a case whose fields are valid: its time step checked as `run`
 /// would check it (`methods::preflight`), then `case` (which keys the run), `resolved` (the same
-/// case as people read it), `needs_bytes` (the memory it needs available, from `resources::fit`)
+/// case as people read it), `needs` (its threads and the memory it needs, from `resources::fit`)
 /// and, when this machine could not run it, `machine`: why, which a plan reports without
 /// refusing (the case may run elsewhere).
 fn verdict(
     case: &ValidCase,
     memo: &mut std::collections::HashMap<String, Result<f64, solver::case::CaseError>>,
     machine: solver::methods::resources::Machine,
-) -> Value {
+) -> Verdict {
     if let Err(e) = solver::methods::preflight(case, memo) {
-        return serde_json::json!({ "error": e.to_string() });
+        return refused(e.to_string());
     }
+    let object = |value: Value| match value {
+        Value::Object(fields) => fields,
+        _ => unreachable!("a case serializes as an object"),
+    };
     let (needs_bytes, fits) = solver::methods::resources::fit(case, machine);
-    let mut verdict = serde_json::json!({
-        "case": **case,
-        "resolved": case.resolved(),
-        "needs_bytes": needs_bytes.ceil() as u64,
-    });
-    if let Err(e) = fits {
-        verdict["machine"] = Value::from(e.to_string());
-    }
-    verdict
+    Verdict::Checked(protocol::Checked {
+        case: object(serde_json::to_value(&**case).expect("a case serializes")),
+        resolved: object(case.resolved()),
+        needs: protocol::Needs {
+            threads: case.threads as u64,
+            bytes: needs_bytes.ceil() as u64,
+        },
+        machine: fits.err().map(|e| e.to_string()),
+    })
+}
+
+fn refused(error: String) -> Verdict {
+    Verdict::Refused(protocol::Refusal { error })
 }
 
 fn print_machine() -> Result<(), ErrorExit> {
     let machine = solver::methods::resources::Machine::now();
-    let line = serde_json::json!({
-        "cores": machine.cores,
-        "most_threads": machine.most_threads(),
-        "available_bytes": machine.available.map(|bytes| bytes.floor() as u64),
-    });
-    print_line(&line.to_string(), "the machine")
+    let line = protocol::Machine {
+        cores: machine.cores as u64,
+        most_threads: machine.most_threads() as u64,
+        available_bytes: machine.available.map(|bytes| bytes.floor() as u64),
+    };
+    print_line(
+        &serde_json::to_string(&line).expect("the machine serializes"),
+        "the machine",
+    )
 }
 
 fn check_cases() -> Result<(), ErrorExit> {
@@ -413,11 +426,11 @@ fn check_cases() -> Result<(), ErrorExit> {
             let verdict = match schema::json::parse(line) {
                 Ok(fields) => match ValidCase::from_json(fields) {
                     Ok(case) => verdict(&case, &mut memo, machine),
-                    Err(e) => serde_json::json!({ "error": e.to_string() }),
+                    Err(e) => refused(e.to_string()),
                 },
-                Err(e) => serde_json::json!({ "error": format!("not valid JSON: {e}") }),
+                Err(e) => refused(format!("not valid JSON: {e}")),
             };
-            verdict.to_string()
+            serde_json::to_string(&verdict).expect("a verdict serializes")
         },
         || {},
     )
@@ -465,14 +478,13 @@ fn answer_each_line(
 }
 
 /// `nlsolve serve`'s answer to one line of input: the record's JSON, or `{"error": …}`. A line
-/// is a case, or a `schema::protocol::ServeLine`: the case with the file its time loop keeps
+/// is a case, or a `protocol::ServeLine`: the case with the file its time loop keeps
 /// up to date with how far it is (as `run --progress`) and the checkpoint it writes on a
 /// stopping signal and resumes from (as `run --checkpoint`).
 /// Returns the answer and the checkpoint to remove once it is out.
 fn served(line: &str) -> (String, Option<PathBuf>) {
     let refusal = |message: String| {
-        serde_json::to_string(&schema::protocol::Refusal { error: message })
-            .expect("a refusal serializes")
+        serde_json::to_string(&protocol::Refusal { error: message }).expect("a refusal serializes")
     };
     let error = |message: String| (refusal(message), None);
     let fields = match schema::json::parse(line) {
@@ -481,7 +493,7 @@ fn served(line: &str) -> (String, Option<PathBuf>) {
         Err(e) => return error(format!("not valid JSON: {e}")),
     };
     let line = match fields.get("case") {
-        Some(_) => match serde_json::from_value::<schema::protocol::ServeLine>(fields) {
+        Some(_) => match serde_json::from_value::<protocol::ServeLine>(fields) {
             Ok(line) => line,
             Err(e) => {
                 return error(format!(
@@ -489,7 +501,7 @@ fn served(line: &str) -> (String, Option<PathBuf>) {
                 ))
             }
         },
-        None => schema::protocol::ServeLine {
+        None => protocol::ServeLine {
             case: fields,
             progress: None,
             checkpoint: None,
