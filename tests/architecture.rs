@@ -404,3 +404,171 @@ fn the_readme_prints_the_exit_status_table() {
         "README.md's exit statuses differ from schema::exit: paste schema::exit::markdown()"
     );
 }
+
+/// Every path and file name the docs name in backticks or link to exists: from the repository's
+/// root, the doc's own folder or a crate's `src` (`run/pool.rs`), or, for a bare file name, in
+/// the tree. A `file.rs::item` names its file. Left out: outputs (`results/…`, `target/…`, a file
+/// name starting with a dot), placeholders (`<…>`, `*`, `{…}`, an upper-case stem) and the guide's
+/// own example files.
+#[test]
+fn every_path_the_docs_name_exists() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut docs = vec![root.join("README.md")];
+    let mut names = BTreeSet::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if path.is_dir() {
+                if !["target", "results", ".git"].contains(&name.as_str()) {
+                    stack.push(path);
+                }
+            } else {
+                if path.starts_with(root.join("docs")) && name.ends_with(".md") {
+                    docs.push(path.clone());
+                }
+                names.insert(name);
+            }
+        }
+    }
+    let missing: Vec<String> = docs
+        .iter()
+        .flat_map(|doc| {
+            let text = std::fs::read_to_string(doc).unwrap();
+            named_paths(&text)
+                .into_iter()
+                .filter(|path| !exists(root, doc.parent().unwrap(), &names, path))
+                .map(|path| format!("{}: {path}", doc.strip_prefix(root).unwrap().display()))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "the docs name paths that do not exist: {missing:#?}"
+    );
+}
+
+/// The paths a doc names: backticked spans and link targets that look like a file of the
+/// repository (under one of its folders, or with a source or doc extension).
+fn named_paths(text: &str) -> Vec<String> {
+    const FOLDERS: [&str; 11] = [
+        "orchestrator/",
+        "solver/",
+        "schema/",
+        "scripts/",
+        "studies/",
+        "docs/",
+        "tests/",
+        "cases/",
+        "sites/",
+        "workspace-hack/",
+        ".ci/",
+    ];
+    const EXTENSIONS: [&str; 6] = [".rs", ".md", ".toml", ".sh", ".py", ".json"];
+    let spans = text
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|s| !s.contains('\n'));
+    let links = text.split("](").skip(1).filter_map(|s| s.split(')').next());
+    spans
+        .chain(links)
+        .filter_map(|span| {
+            let path = span.split('#').next()?.trim().split("::").next()?;
+            let plain = !path.is_empty()
+                && path
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "_.-/".contains(c));
+            let file = path.rsplit('/').next()?;
+            let stem = file.split('.').next()?;
+            let placeholder = stem.chars().any(|c| c.is_ascii_uppercase())
+                && stem.chars().all(|c| c.is_ascii_uppercase() || c == '_');
+            let output = file.starts_with('.')
+                || path.starts_with("results/")
+                || path.starts_with("target/")
+                || ["hello.json", "notes.json"].contains(&path);
+            let looks = FOLDERS.iter().any(|f| path.starts_with(f))
+                || EXTENSIONS.iter().any(|e| path.ends_with(e));
+            (plain && looks && !placeholder && !output).then(|| path.to_string())
+        })
+        .collect()
+}
+
+fn exists(root: &Path, doc_dir: &Path, names: &BTreeSet<String>, path: &str) -> bool {
+    let bases = [
+        root.to_path_buf(),
+        doc_dir.to_path_buf(),
+        root.join("solver/src"),
+        root.join("orchestrator/src"),
+        root.join("schema/src"),
+        root.join("solver/src/bin"),
+    ];
+    bases.iter().any(|base| base.join(path).exists())
+        || (!path.contains('/') && names.contains(path))
+}
+
+#[test]
+fn the_path_check_sees_a_missing_file_and_passes_placeholders() {
+    let text = "see `run/pool.rs`, `run/gone.rs::f`, [x](../nowhere.md#a), `NAME.toml`, `results/q/x.json`, `--flag`";
+    assert_eq!(
+        named_paths(text),
+        ["run/pool.rs", "run/gone.rs", "../nowhere.md"]
+    );
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let names = BTreeSet::new();
+    assert!(exists(root, &root.join("docs"), &names, "run/pool.rs"));
+    assert!(!exists(root, &root.join("docs"), &names, "run/gone.rs"));
+}
+
+/// Below `commands/`, only the reporters print: `console` (the never-panicking `outln!` and
+/// `errln!`) and `run/progress.rs` (the bar and its lines). The modules listed in
+/// `STILL_PRINTING` print a line of their own mid-run (a submission's job ids, a warning) and are
+/// the next to hand theirs up as values; the list may only shrink.
+#[test]
+fn only_the_reporters_print_below_the_commands() {
+    const REPORTERS: [&str; 3] = ["console.rs", "lib.rs", "run/progress.rs"];
+    const STILL_PRINTING: [&str; 7] = [
+        "analysis/collect.rs",
+        "analysis/collect/from_scratch.rs",
+        "run/allocation.rs",
+        "run/cluster/follow.rs",
+        "run/cluster/submit.rs",
+        "run/signals.rs",
+        "store/mod.rs",
+    ];
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("orchestrator/src");
+    let mut files = BTreeMap::new();
+    collect_files(&src, &src, &mut files);
+    let printing: BTreeSet<String> = files
+        .values()
+        .filter_map(|path| {
+            let relative = path
+                .strip_prefix(&src)
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
+            let code = code_of(&std::fs::read_to_string(path).unwrap());
+            let prints = [
+                "println!", "print!(", "eprint", "errln!", "outln!", "stdout()", "stderr()",
+            ]
+            .iter()
+            .any(|p| code.contains(p));
+            let allowed = relative.starts_with("commands/")
+                || relative == "main.rs"
+                || REPORTERS.contains(&relative.as_str());
+            (prints && !allowed).then_some(relative)
+        })
+        .collect();
+    let listed: BTreeSet<String> = STILL_PRINTING.iter().map(|s| s.to_string()).collect();
+    let new: Vec<_> = printing.difference(&listed).collect();
+    assert!(
+        new.is_empty(),
+        "these modules print below commands/; return what they say to the command instead: {new:?}"
+    );
+    let quiet: Vec<_> = listed.difference(&printing).collect();
+    assert!(
+        quiet.is_empty(),
+        "these modules no longer print; take them off STILL_PRINTING: {quiet:?}"
+    );
+}
