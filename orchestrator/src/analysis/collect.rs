@@ -261,7 +261,7 @@ pub fn collect(
     }
     // Superseded records go, and the segments of finished writers become one.
     if let Err(e) = store.compact(&HashSet::new()) {
-        errln!("nlstudy: warning: the store was not compacted: {e}");
+        log::warn!("the store was not compacted: {e}");
     }
     // From here until the tables and what they are made of are in place, no other collect
     // writes them (nor reads them, as figures do).

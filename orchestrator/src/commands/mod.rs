@@ -30,6 +30,7 @@ pub use failure::Failure;
 
 /// Runs one `nlstudy` command and says how it ended.
 pub fn main(cli: Cli) -> ExitCode {
+    crate::console::report_through_log();
     let code = match execute(cli) {
         Ok(code) => code,
         Err(failure) => {

@@ -9,6 +9,11 @@ use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::Study;
 use crate::run::cluster::follow::{self, Waited};
 use crate::run::cluster::submit::{self, Sent};
+
+/// A line of what a submission did, on stdout.
+fn say(line: String) {
+    outln!("{line}");
+}
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Options, Planned};
@@ -62,7 +67,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let (mut rounds, mut waited) = (0, Waited::default());
     let started = std::time::Instant::now();
     loop {
-        let wait = follow::wait_for_jobs(&store, scheduler, most)?;
+        let wait = follow::wait_for_jobs(&store, scheduler, most, &mut say)?;
         waited.questions += wait.questions;
         waited.seconds += wait.seconds;
         let opened = plan()?;
@@ -171,7 +176,7 @@ fn submit_ready(
         allow_mixed: args.allow_mixed,
     };
     Ok(submit::submit_study(
-        &study, &solver, &planned, &store, &index, &target,
+        &study, &solver, &planned, &store, &index, &target, &mut say,
     )?)
 }
 

@@ -91,7 +91,7 @@ fn stopped_line(signal: i32) -> &'static str {
 /// <phase>` on stderr and waits there a minute, so that a test can send a signal in that phase.
 pub fn phase(phase: &str) {
     if std::env::var("NLSTUDY_PAUSE_IN").is_ok_and(|p| p == phase) {
-        errln!("nlstudy: paused in {phase}");
+        log::info!("paused in {phase}");
         std::thread::sleep(std::time::Duration::from_secs(60));
     }
 }

@@ -113,8 +113,8 @@ impl Store {
                 .collect();
             let opened = Appender::open(&dir, &candidates)?;
             if let Some(cut) = &opened.cut {
-                errln!(
-                    "nlstudy: warning: segment runs/{}/{} ended in {} bytes of a frame cut short (a write torn by a crash, or a frame's length changed): cut off; a record they held counts as not run",
+                log::warn!(
+                    "segment runs/{}/{} ended in {} bytes of a frame cut short (a write torn by a crash, or a frame's length changed): cut off; a record they held counts as not run",
                     segment::DIR,
                     opened.name,
                     cut.end - cut.start

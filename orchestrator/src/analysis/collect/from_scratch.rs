@@ -172,7 +172,7 @@ pub(super) fn from_scratch(
             run_row(&points[i], &identities[i], &stored)
         });
         for unreadable in &unreadable {
-            errln!("nlstudy: warning: {unreadable}");
+            log::warn!("{unreadable}");
         }
         (rows.into_iter().enumerate())
             .filter_map(|(j, row)| Some((slice.start + j, row?)))

@@ -48,7 +48,12 @@ pub struct Waited {
 
 /// Sleeps until the scheduler holds none of the study's ledger jobs, asking it after pauses that
 /// grow to `most`, and says how many are pending and running whenever that changes.
-pub fn wait_for_jobs(store: &Store, scheduler: Scheduler, most: Duration) -> Result<Waited, Fault> {
+pub fn wait_for_jobs(
+    store: &Store,
+    scheduler: Scheduler,
+    most: Duration,
+    say: &mut dyn FnMut(String),
+) -> Result<Waited, Fault> {
     let started = Instant::now();
     let mut backoff = Backoff::new(most);
     let (mut questions, mut failed, mut said) = (0, 0, String::new());
@@ -69,8 +74,8 @@ pub fn wait_for_jobs(store: &Store, scheduler: Scheduler, most: Duration) -> Res
                     held.len() - pending
                 );
                 if line != said {
-                    outln!("{line}");
-                    said = line;
+                    said = line.clone();
+                    say(line);
                 }
             }
             Err(message) => {
@@ -80,7 +85,9 @@ pub fn wait_for_jobs(store: &Store, scheduler: Scheduler, most: Duration) -> Res
                         "cannot ask {scheduler} which jobs are queued ({failed} times in a row: {message}); its jobs stay queued, and `nlstudy submit --follow` started again waits for them"
                     )));
                 }
-                errln!("nlstudy: warning: cannot ask {scheduler} which jobs are queued ({message}); asking again");
+                log::warn!(
+                    "cannot ask {scheduler} which jobs are queued ({message}); asking again"
+                );
             }
         }
         std::thread::sleep(backoff.pause());

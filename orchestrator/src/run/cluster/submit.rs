@@ -56,7 +56,7 @@ pub struct Sent {
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
-/// and left out, and so are those of jobs the scheduler still holds), prints one line per job,
+/// and left out, and so are those of jobs the scheduler still holds), says one line per job,
 /// and submits them unless `dry_run`, recording each job in the study's ledger.
 pub fn submit_study(
     study: &Study,
@@ -65,6 +65,7 @@ pub fn submit_study(
     store: &Store,
     index: &Index,
     target: &Target,
+    say: &mut dyn FnMut(String),
 ) -> Result<Sent, Fault> {
     let in_flight = in_flight(store, target.scheduler, planned);
     let (runnable, refused): (Vec<&Planned>, Vec<&Planned>) = planned
@@ -84,11 +85,13 @@ pub fn submit_study(
             n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
             _ => holding.join(", "),
         };
-        errln!("nlstudy: {held} points are in jobs still queued or running ({named}); not submitted again");
+        log::info!(
+            "{held} points are in jobs still queued or running ({named}); not submitted again"
+        );
     }
     for p in &refused {
-        errln!(
-            "nlstudy: not submitted, the solver refuses {}: {}",
+        log::info!(
+            "not submitted, the solver refuses {}: {}",
             p.point.label(),
             p.case.as_ref().err().map_or("", String::as_str)
         );
@@ -98,7 +101,7 @@ pub fn submit_study(
             true => "every point is stored",
             false => "every point is stored or in a job still queued or running",
         };
-        outln!("study {}: nothing to submit, {why}", study.name);
+        say(format!("study {}: nothing to submit, {why}", study.name));
         return Ok(Sent {
             held,
             ..Sent::default()
@@ -166,19 +169,19 @@ pub fn submit_study(
     for (job, (_, time, from)) in jobs.iter().zip(&packs) {
         let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
         match job.array {
-            false => outln!(
+            false => say(format!(
                 "{} ({} cases, {limit}: {from}): {}",
                 job.name,
                 job.bundles[0].len(),
                 job.script.display()
-            ),
-            true => outln!(
+            )),
+            true => say(format!(
                 "{} (array of {} elements, {} cases, {limit}: {from}): {}",
                 job.name,
                 job.bundles.len(),
                 job.bundles.iter().map(Vec::len).sum::<usize>(),
                 job.script.display()
-            ),
+            )),
         }
         if !target.dry_run {
             let mut entry = LedgerEntry {
@@ -202,7 +205,7 @@ pub fn submit_study(
                     return Err(refused);
                 }
             };
-            outln!("  submitted as job {}", entry.id);
+            say(format!("  submitted as job {}", entry.id));
             ledger::settle(store, &entry, &token)?;
         }
     }
@@ -258,7 +261,7 @@ fn in_flight(store: &Store, scheduler: Scheduler, planned: &[Planned]) -> HashMa
                 .collect(),
         },
         Err(message) => {
-            errln!("nlstudy: warning: cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
+            log::warn!("cannot ask the scheduler which jobs are queued ({message}); points of earlier jobs may be submitted again");
             HashMap::new()
         }
     }
