@@ -55,7 +55,10 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let plan = || planned_and_index(&args.common, &Options::default(), true);
     let Some(most) = most else {
         let opened = plan()?;
-        let rounds = opened.0.question().and_then(|q| q.worst_case_rounds());
+        let rounds = opened
+            .0
+            .question()
+            .and_then(|q| q.kind().worst_case_rounds());
         let sent = submit_ready(args, scheduler, &site, opened)?;
         if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
             outln!("{}", what_happens_next(args, rounds, sent));
@@ -84,7 +87,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         if sent.jobs > 0 && args.whole {
             outln!("the whole study in one job, {} points so far", sent.points);
         } else if sent.jobs > 0 {
-            let most = study.question().and_then(|q| q.worst_case_rounds());
+            let most = study.question().and_then(|q| q.kind().worst_case_rounds());
             let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
             let eta = eta(rounds, most, started.elapsed());
             outln!(

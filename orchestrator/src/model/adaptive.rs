@@ -25,6 +25,15 @@ pub trait Adaptive {
     /// The study file's name for the question (`boundary`, `refine`), for messages.
     const SECTION: &'static str;
 
+    /// What its questions from the sweep's points are called: `searches`, `candidates`.
+    const SEARCHES: &'static str;
+
+    /// The table of its answers: `<study>-<table>.parquet`.
+    const TABLE: &'static str;
+
+    /// The title of its answers in the report.
+    const TITLE: &'static str;
+
     /// Whether a point's repeats are one question, searched once (an error target, whose
     /// answer is timed over the repeats), rather than a question each.
     const ONE_SEARCH_PER_POINT: bool = false;
@@ -40,6 +49,11 @@ pub trait Adaptive {
     /// The most probes one point's question can take.
     fn worst_case_probes(&self) -> usize;
 
+    /// The rounds of probes its questions take at most, where that is known before they run.
+    fn worst_case_rounds(&self) -> Option<usize> {
+        None
+    }
+
     /// Whether the solver's refusal of a probe (`nlsolve check`'s sentence) is an answer the
     /// question reads, such as a step above the stable one, rather than a fault of the study:
     /// such a probe is not run, and not counted among the study's refusals.
@@ -53,6 +67,48 @@ pub trait Adaptive {
     /// The question as far as `record` knows it, and the probes of the first round not run yet
     /// (none once it is answered).
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<Probe>);
+}
+
+/// What is said of an adaptive question whatever its kind: the object-safe face of `Adaptive`,
+/// which every kind has (`Question::kind`).
+pub trait Kind {
+    fn section(&self) -> &'static str;
+    fn searches(&self) -> &'static str;
+    fn table(&self) -> &'static str;
+    fn title(&self) -> &'static str;
+    fn field(&self) -> &str;
+    fn worst_case_probes(&self) -> usize;
+    fn worst_case_rounds(&self) -> Option<usize>;
+}
+
+impl<A: Adaptive> Kind for A {
+    fn section(&self) -> &'static str {
+        A::SECTION
+    }
+
+    fn searches(&self) -> &'static str {
+        A::SEARCHES
+    }
+
+    fn table(&self) -> &'static str {
+        A::TABLE
+    }
+
+    fn title(&self) -> &'static str {
+        A::TITLE
+    }
+
+    fn field(&self) -> &str {
+        Adaptive::field(self)
+    }
+
+    fn worst_case_probes(&self) -> usize {
+        Adaptive::worst_case_probes(self)
+    }
+
+    fn worst_case_rounds(&self) -> Option<usize> {
+        Adaptive::worst_case_rounds(self)
+    }
 }
 
 /// A probe's value of `field` as its case holds it: a whole number for a field that takes only

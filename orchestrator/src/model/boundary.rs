@@ -267,6 +267,9 @@ impl BoundarySpec {
 impl Adaptive for BoundarySpec {
     type Outcome = Search;
     const SECTION: &'static str = "boundary";
+    const SEARCHES: &'static str = "searches";
+    const TABLE: &'static str = "boundaries";
+    const TITLE: &'static str = "Boundaries";
 
     fn fields(&self) -> Vec<&str> {
         vec![&self.field]
@@ -274,6 +277,10 @@ impl Adaptive for BoundarySpec {
 
     fn worst_case_probes(&self) -> usize {
         BoundarySpec::worst_case_probes(self)
+    }
+
+    fn worst_case_rounds(&self) -> Option<usize> {
+        Some(BoundarySpec::worst_case_rounds(self))
     }
 
     fn out_of_budget(&self, search: &mut Search) {

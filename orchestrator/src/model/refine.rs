@@ -245,6 +245,9 @@ impl Refinement {
 impl Adaptive for RefineSpec {
     type Outcome = Refinement;
     const SECTION: &'static str = "refine";
+    const SEARCHES: &'static str = "refinements";
+    const TABLE: &'static str = "convergence";
+    const TITLE: &'static str = "Refinements";
 
     fn fields(&self) -> Vec<&str> {
         vec![&self.field]
@@ -252,6 +255,11 @@ impl Adaptive for RefineSpec {
 
     fn worst_case_probes(&self) -> usize {
         self.max_levels
+    }
+
+    /// A level a round.
+    fn worst_case_rounds(&self) -> Option<usize> {
+        Some(self.max_levels)
     }
 
     fn out_of_budget(&self, refinement: &mut Refinement) {

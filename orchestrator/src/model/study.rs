@@ -1,7 +1,7 @@
 //! Study files and their expansion into points: a `base` case, sweep groups (`product`, `zip`,
 //! paths in the (ε, h) plane) whose points multiply, derived fields, a `where` filter, repeats.
 
-use crate::model::adaptive::{Adaptive, Budget};
+use crate::model::adaptive::{Budget, Kind};
 use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self, Expression, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
@@ -287,60 +287,19 @@ pub enum Question<'a> {
 }
 
 impl<'a> Question<'a> {
+    /// What every kind says of itself (its section, field, bounds, table and title): the one
+    /// place that matches on the kind for it.
+    pub fn kind(self) -> &'a dyn Kind {
+        match self {
+            Question::Boundary(q) => q,
+            Question::Refine(q) => q,
+            Question::Target(q) => q,
+        }
+    }
+
     /// The case field it searches along.
     pub fn field(self) -> &'a str {
-        match self {
-            Question::Boundary(q) => q.field(),
-            Question::Refine(q) => q.field(),
-            Question::Target(q) => q.field(),
-        }
-    }
-
-    /// The study file's name for it.
-    pub fn section(self) -> &'static str {
-        match self {
-            Question::Boundary(_) => BoundarySpec::SECTION,
-            Question::Refine(_) => RefineSpec::SECTION,
-            Question::Target(_) => TargetSpec::SECTION,
-        }
-    }
-
-    /// The most probes one point's question can take.
-    pub fn worst_case_probes(self) -> usize {
-        match self {
-            Question::Boundary(q) => q.worst_case_probes(),
-            Question::Refine(q) => q.worst_case_probes(),
-            Question::Target(q) => q.worst_case_probes(),
-        }
-    }
-
-    /// The rounds of probes its questions take at most, where that is known before they run:
-    /// a boundary search's narrowing, a refinement's levels (a target's search is not bounded
-    /// in rounds, only in runs).
-    pub fn worst_case_rounds(self) -> Option<usize> {
-        match self {
-            Question::Boundary(q) => Some(q.worst_case_rounds()),
-            Question::Refine(q) => Some(q.worst_case_probes()),
-            Question::Target(_) => None,
-        }
-    }
-
-    /// What its searches are called: `searches`, `refinements`, `candidates`.
-    pub fn searches(self) -> &'static str {
-        match self {
-            Question::Boundary(_) => "searches",
-            Question::Refine(_) => "refinements",
-            Question::Target(_) => "candidates",
-        }
-    }
-
-    /// The table of its answers: `<study>-<table>.parquet`.
-    pub fn table(self) -> &'static str {
-        match self {
-            Question::Boundary(_) => "boundaries",
-            Question::Refine(_) => "convergence",
-            Question::Target(_) => "target",
-        }
+        self.kind().field()
     }
 }
 

@@ -745,6 +745,10 @@ impl TargetSpec {
 impl Adaptive for TargetSpec {
     type Outcome = Aimed;
     const SECTION: &'static str = "target";
+    const SEARCHES: &'static str = "candidates";
+    const TABLE: &'static str = "target";
+    const TITLE: &'static str = "The cheapest configuration for the error target";
+    // A target's search is bounded in runs, not in rounds: `worst_case_rounds` is unknown.
     const ONE_SEARCH_PER_POINT: bool = true;
 
     fn fields(&self) -> Vec<&str> {

@@ -49,7 +49,7 @@ pub fn plot(
     // has written it.
     let answer_table = match question {
         Some(question) => {
-            let path = crate::analysis::answer_table::path(store, question.table());
+            let path = crate::analysis::answer_table::path(store, question.kind().table());
             match path.exists() {
                 true => Some((question, table::read_parquet_hashed(&path)?)),
                 false => None,

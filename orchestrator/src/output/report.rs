@@ -6,7 +6,7 @@
 
 use crate::analysis::boundaries;
 use crate::analysis::collect::headline;
-use crate::model::study::{Question, Study};
+use crate::model::study::Study;
 use crate::output::status::counts_by_status;
 use crate::store::fs::{read_regular, Fault, RECORD_CAP};
 use crate::store::table::{self, Row};
@@ -220,12 +220,8 @@ fn adaptive_section(study: &Study, store: &Store) -> Result<Markup, Fault> {
     let Some(question) = study.question() else {
         return Ok(html! {});
     };
-    let title = match question {
-        Question::Boundary(_) => "Boundaries",
-        Question::Refine(_) => "Refinements",
-        Question::Target(_) => "The cheapest configuration for the error target",
-    };
-    let path = crate::analysis::answer_table::path(store, question.table());
+    let title = question.kind().title();
+    let path = crate::analysis::answer_table::path(store, question.kind().table());
     if !path.exists() {
         return Ok(html! {});
     }

@@ -230,7 +230,7 @@ impl Kept {
                 canonical,
             } => {
                 let offer = offer?;
-                let machine = match (fit(&needs, offer), crowded) {
+                let machine = match (fit(needs, offer), crowded) {
                     _ if canonical.is_empty() => return None,
                     (Fit::Fits, _) => None,
                     (Fit::TooManyThreads, Some((most, sentence)))
