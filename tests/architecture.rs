@@ -406,7 +406,7 @@ fn the_readme_prints_the_exit_status_table() {
 }
 
 /// Every path and file name the docs name in backticks or link to exists: from the repository's
-/// root, the doc's own folder or a crate's `src` (`run/pool.rs`), or, for a bare file name, in
+/// root, the doc's own folder or a crate's `src` (`run/worker.rs`), or, for a bare file name, in
 /// the tree. A `file.rs::item` names its file. Left out: outputs (`results/…`, `target/…`, a file
 /// name starting with a dot), placeholders (`<…>`, `*`, `{…}`, an upper-case stem) and the guide's
 /// own example files.
@@ -510,14 +510,14 @@ fn exists(root: &Path, doc_dir: &Path, names: &BTreeSet<String>, path: &str) -> 
 
 #[test]
 fn the_path_check_sees_a_missing_file_and_passes_placeholders() {
-    let text = "see `run/pool.rs`, `run/gone.rs::f`, [x](../nowhere.md#a), `NAME.toml`, `results/q/x.json`, `--flag`";
+    let text = "see `run/worker.rs`, `run/gone.rs::f`, [x](../nowhere.md#a), `NAME.toml`, `results/q/x.json`, `--flag`";
     assert_eq!(
         named_paths(text),
-        ["run/pool.rs", "run/gone.rs", "../nowhere.md"]
+        ["run/worker.rs", "run/gone.rs", "../nowhere.md"]
     );
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let names = BTreeSet::new();
-    assert!(exists(root, &root.join("docs"), &names, "run/pool.rs"));
+    assert!(exists(root, &root.join("docs"), &names, "run/worker.rs"));
     assert!(!exists(root, &root.join("docs"), &names, "run/gone.rs"));
 }
 

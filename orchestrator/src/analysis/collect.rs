@@ -155,7 +155,7 @@ pub struct ToCollect {
 }
 
 impl ToCollect {
-    pub fn of(planned: &[Planned]) -> ToCollect {
+    pub fn from_planned(planned: &[Planned]) -> ToCollect {
         let points = (planned.iter())
             .map(|p| Tabulated {
                 key: p.key,
@@ -363,7 +363,7 @@ pub fn summary_of(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec
 /// The run rows of the points whose records `records` holds. Points of different branches may
 /// be one case: each gets its row from the one record.
 pub fn run_rows(planned: &[Planned], records: &HashMap<String, Stored>) -> Vec<Row> {
-    let to_collect = ToCollect::of(planned);
+    let to_collect = ToCollect::from_planned(planned);
     (to_collect.points.par_iter().zip(&to_collect.identities))
         .filter_map(|(p, id)| Some(run_row(p, id, records.get(p.key.as_str())?)))
         .collect()

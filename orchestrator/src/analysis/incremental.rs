@@ -122,7 +122,7 @@ pub fn spliced(
         runs: runs_frame,
         summary,
         read: runs.read.len(),
-        rows: Rows::of(
+        rows: Rows::from_points(
             prior.header,
             identities,
             seqs,
@@ -333,7 +333,7 @@ fn lent_rows(old_summary: &DataFrame, rows: &[usize]) -> Option<Vec<Row>> {
 impl Rows {
     /// What tables are made of: the run rows of `points` (planned indices, in row order) and
     /// the rows' shapes (their sums are said once they are written).
-    pub fn of(
+    pub fn from_points(
         header: String,
         identities: &[Identity],
         seqs: &[u64],

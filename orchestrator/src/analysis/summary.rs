@@ -142,7 +142,7 @@ pub fn reduce_points(runs: Vec<Row>) -> Vec<Row> {
 pub fn derive(summary: &mut [Row]) {
     let mut labels = Labels::default();
     let mut points: Vec<SeriesPoint> = (summary.iter())
-        .map(|row| SeriesPoint::of(row, &mut labels))
+        .map(|row| SeriesPoint::from_row(row, &mut labels))
         .collect();
     derive_series(&mut points);
     for (row, point) in summary.iter_mut().zip(points) {
@@ -193,8 +193,8 @@ pub struct SeriesPoint {
 
 impl SeriesPoint {
     /// What `derive` reads of `row`, its series' labels kept in `labels`.
-    pub fn of(row: &Row, labels: &mut Labels) -> SeriesPoint {
-        let mut label = |name| row.text(name).map(|text| labels.of(text));
+    pub fn from_row(row: &Row, labels: &mut Labels) -> SeriesPoint {
+        let mut label = |name| row.text(name).map(|text| labels.shared(text));
         SeriesPoint {
             scaling: label("scaling_series"),
             refinement: label("refinement_series"),
@@ -221,7 +221,7 @@ impl SeriesPoint {
 pub struct Labels(HashSet<Shared>);
 
 impl Labels {
-    fn of(&mut self, text: &str) -> Shared {
+    fn shared(&mut self, text: &str) -> Shared {
         match self.0.get(text) {
             Some(kept) => kept.clone(),
             None => {
@@ -484,7 +484,7 @@ mod tests {
             .collect();
         let mut labels = Labels::default();
         let mut series: Vec<SeriesPoint> = (read.iter())
-            .map(|row| SeriesPoint::of(row, &mut labels))
+            .map(|row| SeriesPoint::from_row(row, &mut labels))
             .collect();
         derive_series(&mut series);
         derive(&mut read);

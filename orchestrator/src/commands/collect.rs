@@ -12,7 +12,7 @@ pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
     let args = &args.common;
     let (study, _, store, planned) = planned(args, &Options::default(), true)?;
     // (The plan let go before the records are read: the tables need little of it.)
-    let to_collect = ToCollect::of(&planned);
+    let to_collect = ToCollect::from_planned(&planned);
     drop(planned);
     let collected = crate::analysis::collect::collect(to_collect, &store, &study, allow_mixed)?
         .ok_or_else(|| {

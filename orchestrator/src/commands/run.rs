@@ -203,7 +203,7 @@ pub(super) fn conclude(
     }
     if ending.collect {
         signals::phase("collect");
-        let to_collect = crate::analysis::collect::ToCollect::of(planned);
+        let to_collect = crate::analysis::collect::ToCollect::from_planned(planned);
         let swept = to_collect.swept().to_vec();
         let collected =
             crate::analysis::collect::collect(to_collect, store, study, ending.allow_mixed);

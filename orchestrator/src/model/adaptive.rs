@@ -215,7 +215,7 @@ impl Budget {
 
 impl Spent {
     /// What `records` spent, each key once (two questions may share a probe).
-    pub fn of<'a>(records: impl IntoIterator<Item = &'a Stored>) -> Spent {
+    pub fn spent_by<'a>(records: impl IntoIterator<Item = &'a Stored>) -> Spent {
         let mut spent = Spent::default();
         let mut seen = std::collections::HashSet::new();
         for stored in records.into_iter().filter(|s| seen.insert(s.key.as_str())) {

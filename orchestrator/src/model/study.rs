@@ -489,7 +489,7 @@ impl Study {
         // The fields that move along each branch's series, worked out once per branch.
         let mut moving: HashMap<Option<Arc<str>>, Arc<Moving>> = HashMap::new();
         let mut names = SharedNames::default();
-        let formulas = Expressions::of([("derive".to_string(), self.derive.values())]);
+        let formulas = Expressions::parse_lists([("derive".to_string(), self.derive.values())]);
         for point in &mut points {
             self.derive_fields(point, &formulas, &mut names)?;
         }
@@ -629,9 +629,12 @@ impl Study {
         let study = || std::iter::once(("where".to_string(), self.filter.iter()));
         let of_branch = branches.iter().map(|(name, (place, branch))| {
             let own = (format!("{place}.where"), branch.filter.iter());
-            (name.as_str(), Expressions::of(study().chain([own])))
+            (
+                name.as_str(),
+                Expressions::parse_lists(study().chain([own])),
+            )
         });
-        (Expressions::of(study()), of_branch.collect())
+        (Expressions::parse_lists(study()), of_branch.collect())
     }
 }
 
@@ -644,7 +647,9 @@ struct Expressions {
 }
 
 impl Expressions {
-    fn of<'a>(lists: impl IntoIterator<Item = (String, impl Iterator<Item = &'a String>)>) -> Self {
+    fn parse_lists<'a>(
+        lists: impl IntoIterator<Item = (String, impl Iterator<Item = &'a String>)>,
+    ) -> Self {
         let mut expressions: Vec<(String, Result<Expression, String>)> = Vec::new();
         for (place, list) in lists {
             for (k, text) in list.enumerate() {

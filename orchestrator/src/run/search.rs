@@ -71,7 +71,7 @@ pub fn searches<A: Adaptive>(
         // runs left, and none starts once it is spent.
         if let Some(budget) = &study.budget {
             let records = probed.iter().flat_map(|known| known.values());
-            let spent = Spent::of(records.filter_map(|r| r.as_ref().ok()));
+            let spent = Spent::spent_by(records.filter_map(|r| r.as_ref().ok()));
             if budget.is_spent(&spent) {
                 // Questions that ended keep their end.
                 for outcome in &mut outcomes {
@@ -127,7 +127,7 @@ pub fn spent(probes: &[Planned], store: &Store) -> Spent {
         .iter()
         .filter_map(|p| store.stored(p.key.as_str()))
         .collect();
-    Spent::of(&records)
+    Spent::spent_by(&records)
 }
 
 /// What an adaptive study found from each point of its sweep, beside the question it asked.

@@ -54,7 +54,7 @@ pub struct Entry {
 }
 
 impl Entry {
-    fn of(indexed: Indexed, at: Location, seq: u64) -> (String, Entry) {
+    fn new(indexed: Indexed, at: Location, seq: u64) -> (String, Entry) {
         let entry = Entry {
             at,
             seq,
@@ -142,7 +142,7 @@ impl Catalog {
         if !dir.is_dir() {
             return;
         }
-        if let Ok(text) = Persisted::of(self).text() {
+        if let Ok(text) = Persisted::from_catalog(self).text() {
             self.unsaved &= super::fs::write_atomically(&dir.join(FILE), &text).is_err();
         }
     }
@@ -212,7 +212,7 @@ impl Catalog {
                 name: shared(name),
                 span: frame.span.clone(),
             };
-            let (key, entry) = Entry::of(indexed, at, frame.seq);
+            let (key, entry) = Entry::new(indexed, at, frame.seq);
             match self.entries.get(&key) {
                 Some(old) if old.seq > entry.seq => superseded.push(entry),
                 _ => {
@@ -252,7 +252,7 @@ impl Catalog {
             name: shared(name),
             span: frame.span.clone(),
         };
-        let (key, entry) = Entry::of(indexed, at, frame.seq);
+        let (key, entry) = Entry::new(indexed, at, frame.seq);
         if let Some(old) = self.entries.insert(key, entry) {
             self.count_superseded(&old);
         }
@@ -283,7 +283,7 @@ impl Catalog {
                             .and_then(|text| read_indexed(Some(&path), &text))
                             .map(|indexed| {
                                 let seq = stamp.map_or(0, |(_, ns)| ns.max(0) as u64);
-                                Entry::of(indexed, Location::File(path.clone()), seq)
+                                Entry::new(indexed, Location::File(path.clone()), seq)
                             });
                         (path, Some((stamp.unwrap_or_default(), entry)))
                     }
@@ -433,7 +433,7 @@ struct PersistedEntry(
 );
 
 impl Persisted {
-    fn of(catalog: &Catalog) -> Persisted {
+    fn from_catalog(catalog: &Catalog) -> Persisted {
         let names: HashMap<&str, usize> = catalog
             .segments
             .keys()

@@ -124,11 +124,11 @@ pub(crate) struct Indexed {
 pub(crate) fn read_indexed(path: Option<&Path>, text: &str) -> Result<Indexed, String> {
     let file_key = path.map(record_key).transpose()?;
     let stored = check_identity_as(file_key.as_deref(), text)?;
-    Ok(Indexed::of(stored))
+    Ok(Indexed::from_stored(stored))
 }
 
 impl Indexed {
-    fn of(stored: Stored) -> Indexed {
+    fn from_stored(stored: Stored) -> Indexed {
         let status = stored.status();
         let wall_s = stored
             .record()

@@ -122,7 +122,8 @@ impl Slices {
         let reduced = summary::reduce_points(rows);
         for row in &reduced {
             self.reduced_shapes.push_cells(row.typed_cells());
-            self.series.push(SeriesPoint::of(row, &mut self.labels));
+            self.series
+                .push(SeriesPoint::from_row(row, &mut self.labels));
         }
         let frame = table::data_frame(&reduced).map_err(unwritable(&paths.1))?;
         self.reduced_parts.push((slice, frame));
@@ -232,7 +233,7 @@ pub(super) fn from_scratch(
         summary_frame(reduced_parts, &reduced_shapes, series, &remake, &paths.1)?;
     staged.stage_frame(&paths.1, &summary, ROW_GROUP)?;
     Ok(Some(Written {
-        rows: incremental::Rows::of(
+        rows: incremental::Rows::from_points(
             header,
             identities,
             seqs,

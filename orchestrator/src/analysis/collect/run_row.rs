@@ -131,7 +131,7 @@ impl Shapes {
                 if known.len() == KEPT_SHAPES {
                     known.remove(0);
                 }
-                known.push(Shape::of(names.clone(), ends.clone()));
+                known.push(Shape::new(names.clone(), ends.clone()));
                 known.len() - 1
             }
         };
@@ -153,17 +153,17 @@ impl Shapes {
 }
 
 impl Shape {
-    fn of(names: String, ends: Vec<usize>) -> Shape {
+    fn new(names: String, ends: Vec<usize>) -> Shape {
         let starts = std::iter::once(0).chain(ends.iter().copied());
         let parts: Vec<&str> = starts.zip(&ends).map(|(a, &b)| &names[a..b]).collect();
-        let cells = Cells::of(&parts);
+        let cells = Cells::parse(&parts);
         Shape { names, ends, cells }
     }
 }
 
 impl Cells {
     /// Where the leaves named `parts` (as `each_leaf` spells them) go.
-    fn of(parts: &[&str]) -> Option<Cells> {
+    fn parse(parts: &[&str]) -> Option<Cells> {
         let mut cells = Cells {
             leading: [None; LEADING.len()],
             case: false,

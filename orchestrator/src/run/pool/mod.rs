@@ -9,22 +9,27 @@
 //! A solver process or worker dies with this one (its parent-death signal), so a killed `nlstudy` leaves
 //! no case running unowned.
 
-use crate::model::launcher::Launcher;
+mod options;
+mod process;
+mod record;
+
+pub use options::{machine_cores, PoolOptions};
+use process::{children_of, start, Process, UNREAPED_RANK_GRACE};
+use record::answer_record;
+pub(crate) use record::failed_record;
+
 use crate::run::allocation::Node;
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
-use crate::run::worker::{die_with_parent, Place, Served, Worker, Workers};
-use crate::store::fs::{create_dir, create_fresh, open_regular, read_regular, RECORD_CAP};
-use crate::store::{FileError, Store, CHECKPOINT, PROGRESS, SCRATCH};
+use crate::run::worker::{Place, Served, Worker, Workers};
+use crate::store::fs::create_dir;
+use crate::store::{FileError, Store, CHECKPOINT, PROGRESS};
 use schema::exit;
-use schema::record::{Failure, Outcome, Record, Status, Stored};
-use serde_json::Value;
+use schema::record::{Status, Stored};
 use std::fs::File;
 use std::os::unix::process::ExitStatusExt;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// How long a solver ended by a stopping signal waits for that signal to reach nlstudy too: a
@@ -51,48 +56,6 @@ fn stopped_with_it(stop: &Stop, exit: std::process::ExitStatus) -> bool {
         }
     }
     false
-}
-
-/// The command that starts a case of `ranks` ranks of `threads` threads through `launcher`.
-fn launcher_command(launcher: &Launcher, ranks: u64, threads: u64) -> Command {
-    let mut words = launcher.argv(ranks, threads).into_iter();
-    let mut command = Command::new(words.next().expect("a launcher has a program"));
-    command.args(words);
-    command
-}
-
-/// Lines of stderr kept in a failed record.
-const STDERR_TAIL: usize = 20;
-/// How long an MPI launcher may leave an exited rank unreaped before its job is ended: Open MPI
-/// 4.1's `mpirun` can hang for good, ignoring SIGTERM, when a rank dies early (the dead rank
-/// stays a zombie, the launcher waits on a futex), which would stall the study.
-const UNREAPED_RANK_GRACE: Duration = Duration::from_secs(10);
-/// How often a running MPI job's ranks are looked at.
-const RANK_CHECK_EVERY: Duration = Duration::from_secs(1);
-
-pub struct PoolOptions {
-    /// Cores the running cases may use together (threads × ranks each).
-    pub cores: usize,
-    /// Where cases run, each within its cores: this machine, or the nodes of the allocation
-    /// this process runs in (`allocation::nodes`).
-    pub nodes: Vec<Node>,
-    /// One case at a time on a node, so that timings are not disturbed.
-    pub exclusive: bool,
-    pub timeout: Option<Duration>,
-    /// Command prefix of MPI cases, e.g. `srun --mpi=pmix -n {ranks}`.
-    pub launcher: Launcher,
-    /// Further attempts at a case that failed for a reason outside it: past its timeout, killed
-    /// by a signal, or its MPI launcher hung or failed after the record was printed. A case
-    /// that diverges or is refused is a result and never runs again.
-    pub retries: usize,
-    /// A process per case (`--isolate`), never a worker.
-    pub isolate: bool,
-    /// Cases checkpoint this often (a time loop, or a steady solve's CG), besides on a stopping
-    /// signal, in `runs/.work/<key>.checkpoint` (and `.rank<r>` beside it over ranks), and
-    /// resume from it.
-    pub checkpoint_every: Option<Duration>,
-    /// Keep each checkpoint after its record is stored.
-    pub keep_checkpoints: bool,
 }
 
 /// Counts of a pool's work.
@@ -144,16 +107,6 @@ enum How {
     },
 }
 
-struct Process {
-    child: Child,
-    stdout: PathBuf,
-    stderr: PathBuf,
-    case_file: PathBuf,
-    progress: PathBuf,
-    /// MPI jobs: when a rank was first seen exited and not reaped by the launcher.
-    launcher_watch: Option<LauncherWatch>,
-}
-
 /// A point waiting to run.
 #[derive(Clone, Copy)]
 struct Queued {
@@ -176,59 +129,6 @@ enum Ended {
         exit: std::process::ExitStatus,
         timed_out: bool,
     },
-}
-
-/// What is known of an MPI launcher's ranks.
-struct LauncherWatch {
-    checked: Instant,
-    unreaped_since: Option<Instant>,
-}
-
-impl LauncherWatch {
-    /// Has a rank of `launcher` been dead and unreaped for longer than the grace period?
-    fn hung(&mut self, launcher: u32) -> bool {
-        if self.checked.elapsed() < RANK_CHECK_EVERY {
-            return false;
-        }
-        self.checked = Instant::now();
-        if !has_zombie_child(launcher) {
-            self.unreaped_since = None;
-            return false;
-        }
-        let since = *self.unreaped_since.get_or_insert_with(Instant::now);
-        since.elapsed() > UNREAPED_RANK_GRACE
-    }
-}
-
-/// Does process `parent` have a child that has exited and not been reaped (state Z)?
-fn has_zombie_child(parent: u32) -> bool {
-    processes().any(|(_, ppid, state)| state == 'Z' && ppid == parent)
-}
-
-/// The running children of process `parent` (an MPI launcher's ranks on this machine).
-fn children_of(parent: u32) -> Vec<u32> {
-    processes()
-        .filter(|&(_, ppid, state)| ppid == parent && state != 'Z')
-        .map(|(pid, _, _)| pid)
-        .collect()
-}
-
-/// Every process's pid, parent's pid and state, from /proc.
-fn processes() -> impl Iterator<Item = (u32, u32, char)> {
-    std::fs::read_dir("/proc")
-        .into_iter()
-        .flatten()
-        .flatten()
-        .filter_map(|entry| {
-            let pid = entry.file_name().to_str()?.parse::<u32>().ok()?;
-            let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
-            // After the command name's closing parenthesis: state, then the parent's pid.
-            let (_, rest) = stat.rsplit_once(')')?;
-            let mut fields = rest.split_whitespace();
-            let state = fields.next()?.chars().next()?;
-            let ppid = fields.next()?.parse::<u32>().ok()?;
-            Some((pid, ppid, state))
-        })
 }
 
 /// Runs the planned points that run; stores each record as it finishes. A failure of the file
@@ -698,13 +598,6 @@ impl Running {
     }
 }
 
-/// The cores this process may use (its affinity mask and cgroup quota respected), read once: it
-/// reads the cgroup's files, and every record asks.
-pub fn machine_cores() -> usize {
-    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-}
-
 /// The node a case of `cores` cores starts on now, if one has room (`busy`: the node and cores
 /// of each running case): within the pool's budget and the node's cores, or alone on a node of
 /// its own when the study times its runs (`exclusive`). A case larger than any room runs alone,
@@ -754,263 +647,9 @@ fn served_line(case: &Checked, key: &str, store: &Store, options: &PoolOptions) 
     serde_json::to_string(&line).expect("a line serializes")
 }
 
-/// Starts `case` as a process of its own: `nlsolve run`, through the launcher over ranks.
-fn start(
-    case: &Checked,
-    planned: &Planned,
-    solver: &Nlsolve,
-    store: &Store,
-    options: &PoolOptions,
-    node: &Node,
-) -> Result<Process, FileError> {
-    let [case_file, stdout, stderr, progress] =
-        SCRATCH.map(|name| store.scratch(&planned.key, name));
-    create_fresh(&case_file)
-        .and_then(|mut file| std::io::Write::write_all(&mut file, case.canonical_text().as_bytes()))
-        .map_err(FileError::on("write", &case_file))?;
-    let (ranks, threads) = (case.ranks(), case.threads());
-    let mut command = if ranks > 1 {
-        let mut command = launcher_command(&options.launcher, ranks as u64, threads as u64);
-        if is_root() {
-            // Open MPI refuses root (containers, CI) unless told.
-            command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
-            command.env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
-        }
-        command.arg(&solver.binary);
-        command
-    } else {
-        node.command(threads, &solver.binary)
-    };
-    command
-        .arg("run")
-        .arg("--case")
-        .arg(&case_file)
-        .arg("--progress")
-        .arg(&progress);
-    if case.case().is_some_and(|case| case.vtk_every.is_some()) {
-        command.arg("--write-vtk").arg(store.fields(&planned.key));
-    }
-    // Every case may be stopped (Ctrl-C, a scheduler's warning): its time loop then writes a
-    // checkpoint, which the next run resumes from.
-    command
-        .arg("--checkpoint")
-        .arg(store.scratch(&planned.key, CHECKPOINT));
-    if let Some(every) = options.checkpoint_every {
-        command
-            .arg("--checkpoint-every-seconds")
-            .arg(every.as_secs_f64().to_string());
-    }
-    if options.keep_checkpoints {
-        command.arg("--keep-checkpoint");
-    }
-    command
-        .stdin(Stdio::null())
-        .stdout(create_fresh(&stdout).map_err(FileError::on("create", &stdout))?)
-        .stderr(create_fresh(&stderr).map_err(FileError::on("create", &stderr))?);
-    die_with_parent(&mut command);
-    let program = PathBuf::from(command.get_program());
-    let child = command.spawn().map_err(FileError::on("start", &program))?;
-    Ok(Process {
-        child,
-        stdout,
-        stderr,
-        case_file,
-        progress,
-        launcher_watch: (ranks > 1).then(|| LauncherWatch {
-            checked: Instant::now(),
-            unreaped_since: None,
-        }),
-    })
-}
-
-impl Process {
-    /// The record a finished process printed, or a failed record with its stderr; an error
-    /// when nlsolve could not write the record it computed.
-    fn record(
-        &self,
-        planned: &Planned,
-        solver: &Nlsolve,
-        cores: usize,
-        ended: std::process::ExitStatus,
-    ) -> Result<Stored, FileError> {
-        if ended.code() == Some(i32::from(exit::IO)) {
-            let said = std::io::Error::other(self.stderr_tail());
-            return Err(FileError::new("write", &self.stdout, said));
-        }
-        // A record the store could not read back is not stored as a result.
-        let printed = match read_regular(&self.stdout, RECORD_CAP) {
-            Ok(printed) => printed,
-            Err(why) if ended.success() => {
-                let why = format!("its record cannot be stored: {why}");
-                return Ok(failed_record(planned, solver, why));
-            }
-            Err(_) => String::new(),
-        };
-        if !ended.success() {
-            let message = format!("nlsolve exited with {ended}: {}", self.stderr_tail());
-            return Ok(failed_record(planned, solver, message));
-        }
-        Ok(match last_object(&printed) {
-            Some(object) => printed_record(planned, solver, cores, object),
-            None => failed_record(
-                planned,
-                solver,
-                format!("nlsolve exited with {ended}: {}", self.stderr_tail()),
-            ),
-        })
-    }
-
-    /// Whether the solver printed its record before its process ended.
-    fn printed_a_record(&self) -> bool {
-        read_regular(&self.stdout, RECORD_CAP).is_ok_and(|printed| last_object(&printed).is_some())
-    }
-
-    /// The last lines of its stderr, as stored in a failed record: what a terminal would act on
-    /// (an escape sequence) escaped, since the record's message is printed.
-    fn stderr_tail(&self) -> String {
-        let text = tail_of(&self.stderr);
-        let lines: Vec<&str> = text.lines().collect();
-        let tail = lines[lines.len().saturating_sub(STDERR_TAIL)..].join("\n");
-        schema::text::printable(&tail).into_owned()
-    }
-
-    fn remove_files(&self) {
-        for path in [&self.stdout, &self.stderr, &self.case_file, &self.progress] {
-            let _ = std::fs::remove_file(path);
-        }
-    }
-}
-
-/// The record in what nlsolve printed: its last line that is a JSON object.
-fn last_object(printed: &str) -> Option<Value> {
-    (printed.lines().rev()).find_map(|line| {
-        serde_json::from_str::<Value>(line)
-            .ok()
-            .filter(Value::is_object)
-    })
-}
-
-/// The stored record of a worker's answer: the record, or its error as the failed record of
-/// the same case run as a process says it (`nlsolve run` exits 2 with the error on stderr).
-fn answer_record(planned: &Planned, solver: &Nlsolve, cores: usize, line: &str) -> Stored {
-    use std::os::unix::process::ExitStatusExt;
-    let answer = serde_json::from_str::<Value>(line)
-        .ok()
-        .filter(Value::is_object);
-    let Some(mut answer) = answer else {
-        let message =
-            format!("nlsolve serve answered with a line that is no JSON object: {line:.200}");
-        return failed_record(planned, solver, message);
-    };
-    match answer.get_mut("error").map(Value::take) {
-        Some(Value::String(error)) => {
-            let as_a_process = std::process::ExitStatus::from_raw(i32::from(exit::BAD_INPUT) << 8);
-            failed_record(
-                planned,
-                solver,
-                format!("nlsolve exited with {as_a_process}: nlsolve: {error}"),
-            )
-        }
-        _ => printed_record(planned, solver, cores, answer),
-    }
-}
-
-/// The stored record of the JSON object nlsolve printed for `planned`; it must keep to the
-/// schema.
-fn printed_record(planned: &Planned, solver: &Nlsolve, cores: usize, object: Value) -> Stored {
-    match serde_path_to_error::deserialize::<_, Record<Value>>(object) {
-        Ok(mut record) => {
-            // Its timings measure contention, not scaling; figures and tables say so. Over
-            // ranks, the solver judges it from each rank's affinity; here, from the cores.
-            let oversubscribed = cores > machine_cores();
-            record
-                .distribution
-                .oversubscribed
-                .get_or_insert(oversubscribed);
-            stored(planned, solver, Outcome::Ran(Box::new(record)))
-        }
-        Err(e) => failed_record(
-            planned,
-            solver,
-            format!(
-                "nlsolve printed a record that does not keep to the schema (field `{}`: {}); is the solver of another version?",
-                e.path(),
-                e.inner()
-            ),
-        ),
-    }
-}
-
-/// The last 64 KiB of the regular file `path` as text ("" when it cannot be read).
-fn tail_of(path: &std::path::Path) -> String {
-    use std::io::{Read, Seek, SeekFrom};
-    const TAIL: u64 = 64 << 10;
-    let Ok((mut file, len)) = open_regular(path) else {
-        return String::new();
-    };
-    let mut bytes = Vec::new();
-    let _ = file.seek(SeekFrom::Start(len.saturating_sub(TAIL)));
-    let _ = file.take(TAIL).read_to_end(&mut bytes);
-    String::from_utf8_lossy(&bytes).into_owned()
-}
-
-/// The record of `outcome` with the fields the orchestrator adds: its key, case id, repeat and
-/// version, and the `nlstudy` process that ran it (`run_id`: the runs of one invocation share
-/// the machine's state, which is what `compare`'s noise model tells apart from each point's own
-/// noise).
-fn stored(planned: &Planned, solver: &Nlsolve, outcome: Outcome) -> Stored {
-    Stored {
-        key: planned.key.to_string(),
-        case_id: Some(planned.case_id.to_string()),
-        repeat: planned.point.repeat,
-        solver_version: solver.version.clone(),
-        run_id: Some(run_id().to_string()),
-        attempt: None,
-        outcome,
-    }
-}
-
-/// This `nlstudy` process: its host, its start in nanoseconds since the epoch and its process
-/// id (the jobs of a cluster start processes of the same id on many hosts, in namespaces).
-fn run_id() -> &'static str {
-    static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    ID.get_or_init(|| {
-        let start = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos());
-        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-        format!("{}-{start}-{}", host.trim(), std::process::id())
-    })
-}
-
-/// The record of a point that ran to no record of its own (crashed, timed out, lost with its job).
-pub(crate) fn failed_record(planned: &Planned, solver: &Nlsolve, message: String) -> Stored {
-    let case = match &planned.case {
-        Ok(case) => case.canonical(),
-        Err(_) => Value::Object(planned.point.fields()),
-    };
-    stored(planned, solver, Outcome::Failed(Failure { case, message }))
-}
-
-/// Is this process root (effective uid 0)?
-fn is_root() -> bool {
-    // SAFETY: geteuid has no preconditions and cannot fail.
-    unsafe { libc::geteuid() == 0 }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_launcher_starts_the_case_as_its_words_say() {
-        let launcher: Launcher =
-            r#"env "A=b c" mpirun -n {ranks} --bind-to 'core'"#.parse().unwrap();
-        let command = launcher_command(&launcher, 3, 1);
-        let args: Vec<_> = command.get_args().map(|a| a.to_str().unwrap()).collect();
-        assert_eq!(command.get_program(), "env");
-        assert_eq!(args, ["A=b c", "mpirun", "-n", "3", "--bind-to", "core"]);
-    }
 
     /// Cases go where their cores fit: several on a node within its cores and the budget, one
     /// a node when the study times its runs, and one larger than any room alone.
