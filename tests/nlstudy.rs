@@ -1429,6 +1429,12 @@ fn a_boundary_search_finds_the_symbols_stability_limit_and_resumes_from_the_stor
     assert!(plan.contains("boundary along `cfl`: 6 searches"), "{plan}");
     let run = scratch.nlstudy("run", &[]);
     assert!(run.status.success(), "{}", text(&run));
+    // Each round counts its own cases, so each line says its round.
+    let said = text(&run);
+    assert!(
+        said.contains("[round 1: 1/") && said.contains("[round 2: 1/"),
+        "{said}"
+    );
     let path = scratch
         .dir
         .join("results/boundary/boundary-boundaries.parquet");
@@ -1600,6 +1606,30 @@ fn a_refinement_stops_once_its_order_is_established() {
     assert_eq!(levels as usize, records(&scratch.runs("refined")).len());
     let again = scratch.nlstudy("run", &[]);
     assert!(text(&again).contains("0 ran"), "{}", text(&again));
+}
+
+/// A study that sweeps nothing names its one point `the base case` in what it prints (each
+/// case's line, the answer), never an empty label (`ok `, `: order 2`).
+#[test]
+fn a_study_that_sweeps_nothing_names_its_point_the_base_case() {
+    let base = json!({"dim": 1, "n": 16, "method": "fd_explicit", "problem": "eigenmode",
+                      "t_end": 0.05, "cfl": 0.4});
+    let fixed = Scratch::new("single", &json!({"name": "single", "base": base}));
+    let run = fixed.nlstudy("run", &[]);
+    let said = text(&run);
+    assert!(
+        run.status.success() && said.contains("[1/1] ok the base case"),
+        "{said}"
+    );
+    // A refinement's probes are labelled by the field it refines; its answer by the point.
+    let refined = json!({"name": "single", "base": base,
+                         "refine": {"field": "n", "start": 16, "order": 2}});
+    let refined = Scratch::new("single", &refined);
+    let run = refined.nlstudy("run", &[]);
+    let said = text(&run);
+    assert!(run.status.success(), "{said}");
+    assert!(said.contains("  the base case: order "), "{said}");
+    assert!(!said.contains("\n  : order"), "{said}");
 }
 
 /// A boundary search killed with SIGKILL mid-round (no chance to clean up) and run again ends

@@ -62,9 +62,9 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     store.clear_abandoned_outputs()?;
     let mut tally = Tally::default();
     let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
-    // Runs the planned points not stored, counting what happened into `tally`.
     // An adaptive study's rounds are numbered on each line, since each counts its own cases.
     let mut round = study.question().map(|_| 0);
+    // Runs the planned points not stored, counting what happened into `tally`.
     let mut run_on_pool = |planned: &[Planned]| -> Result<bool, crate::store::Fault> {
         let (to_run, copies) = counts(planned);
         let stored = planned.len() - to_run - copies;
