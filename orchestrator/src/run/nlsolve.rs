@@ -124,14 +124,20 @@ impl Checked {
         serde_json::from_str(&self.canonical).ok()
     }
 
+    /// Threads on each rank and ranks, read at once (1 each where `case` cannot read it).
+    pub fn threads_and_ranks(&self) -> (usize, usize) {
+        self.case()
+            .map_or((1, 1), |case| (case.threads.max(1), case.ranks.max(1)))
+    }
+
     /// Threads on each rank (1 where `case` cannot read it).
     pub fn threads(&self) -> usize {
-        self.case().map_or(1, |case| case.threads).max(1)
+        self.threads_and_ranks().0
     }
 
     /// Ranks (1 where `case` cannot read it).
     pub fn ranks(&self) -> usize {
-        self.case().map_or(1, |case| case.ranks).max(1)
+        self.threads_and_ranks().1
     }
 }
 

@@ -625,7 +625,10 @@ fn place(
 /// threads × ranks of a case (1 for a refused one).
 fn cores_of(planned: &Planned) -> usize {
     let case = planned.case.as_ref().ok();
-    case.map_or(1, |case| case.threads() * case.ranks())
+    case.map_or(1, |case| {
+        let (threads, ranks) = case.threads_and_ranks();
+        threads * ranks
+    })
 }
 
 /// The line a worker reads for `case` (`schema::protocol::ServeLine`): the case, the file its

@@ -113,7 +113,7 @@ pub(super) fn start(
     create_fresh(&case_file)
         .and_then(|mut file| std::io::Write::write_all(&mut file, case.canonical_text().as_bytes()))
         .map_err(FileError::on("write", &case_file))?;
-    let (ranks, threads) = (case.ranks(), case.threads());
+    let (threads, ranks) = case.threads_and_ranks();
     let mut command = if ranks > 1 {
         let mut command = launcher_command(&options.launcher, ranks as u64, threads as u64);
         if is_root() {
