@@ -24,7 +24,7 @@ const SOLVER_LAYERS: [&str; 10] = [
 ];
 
 /// The orchestrator's top-level modules (its folders), lowest first.
-const ORCHESTRATOR_LAYERS: [&str; 10] = [
+const ORCHESTRATOR_LAYERS: [&str; 11] = [
     "allocator",
     "console",
     "statistics",
@@ -33,6 +33,7 @@ const ORCHESTRATOR_LAYERS: [&str; 10] = [
     "run",
     "analysis",
     "output",
+    "kinds",
     "cli",
     "commands",
 ];
@@ -216,6 +217,19 @@ fn collect_files(root: &Path, dir: &Path, files: &mut BTreeMap<String, std::path
         if stem == "main" {
             continue;
         }
+        // A `tests.rs` is test code: its parent's `#[cfg(test)] mod tests;`, as `code_of` leaves
+        // out a `#[cfg(test)] mod tests { … }` written inline.
+        if let Some(parent) = stem.strip_suffix("/tests") {
+            let declared = [format!("{parent}.rs"), format!("{parent}/mod.rs")]
+                .iter()
+                .filter_map(|p| std::fs::read_to_string(root.join(p)).ok())
+                .any(|code| code.contains("#[cfg(test)]\nmod tests;"));
+            assert!(
+                declared,
+                "{relative} is not declared `#[cfg(test)] mod tests;`"
+            );
+            continue;
+        }
         let mut parts: Vec<&str> = stem.split('/').collect();
         if matches!(parts.last(), Some(&"mod") | Some(&"lib")) {
             parts.pop();
@@ -226,7 +240,7 @@ fn collect_files(root: &Path, dir: &Path, files: &mut BTreeMap<String, std::path
 
 /// The source without comments and without its `#[cfg(test)]` module.
 fn code_of(source: &str) -> String {
-    let code = match source.find("#[cfg(test)]\nmod tests") {
+    let code = match source.find("#[cfg(test)]\nmod tests {") {
         Some(at) => &source[..at],
         None => source,
     };

@@ -14,6 +14,7 @@
 //! - `analysis`: records → run and summary tables (speedups, orders), pivots, the adaptive
 //!   questions' tables, `compare`;
 //! - `output`: SVG drawing and figures, the HTML report, the status of a study;
+//! - `kinds`: the kinds of adaptive question behind one trait, and their registry;
 //! - `cli`: the command line, every command and flag in one table (`cli::args`);
 //! - `commands`: each command given its flags, one module each, and the exit status it ends with
 //!   (`schema::exit`, the table both binaries share).
@@ -41,6 +42,7 @@ pub(crate) mod analysis;
 pub mod cli;
 pub mod commands;
 pub(crate) mod console;
+pub(crate) mod kinds;
 pub(crate) mod model;
 pub(crate) mod output;
 pub(crate) mod run;

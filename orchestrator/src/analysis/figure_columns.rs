@@ -9,10 +9,8 @@ use crate::model::study::{Study, StudyError};
 use schema::case::Case;
 use schema::record::columns;
 
-/// Refuses the first figure that names a column no summary table has, with a guess, and an
-/// adaptive question that reads what no probe's record has (`questions`).
+/// Refuses the first figure that names a column no summary table has, with a guess.
 pub fn check(study: &Study) -> Result<(), StudyError> {
-    questions(study)?;
     for (k, figure) in study.figures.iter().enumerate() {
         let place = |what: &str| format!("figures[{k}] ({}).{what}", figure.name);
         let named = figure_names(figure).map_err(|e| StudyError::new(place("where"), e))?;
@@ -37,65 +35,8 @@ pub fn check(study: &Study) -> Result<(), StudyError> {
     Ok(())
 }
 
-/// An adaptive question checked against the record every probe will have: a boundary's
-/// `flips` reads only case fields and record columns and is a condition (true or false), and
-/// the columns a refinement or a target reads as errors and costs are numbers of the record.
-fn questions(study: &Study) -> Result<(), StudyError> {
-    use crate::model::study::Question;
-    use crate::model::target;
-    match study.question() {
-        Some(Question::Boundary(spec)) => {
-            let place = "boundary.flips";
-            let names = expression::names(&spec.flips).map_err(|e| StudyError::new(place, e))?;
-            for name in &names {
-                let field = name.split('.').next().unwrap_or(name);
-                if !(Case::field_names().contains(&field) || columns::is_column(name)) {
-                    let guess =
-                        guess(name).map_or(String::new(), |g| format!("; did you mean `{g}`?"));
-                    return Err(StudyError::new(
-                        place,
-                        format!("no field `{name}` in a probe's record{guess}"),
-                    ));
-                }
-            }
-            // With a value for every name it reads (a probe's record of every field, the
-            // study's first point's case), it must be true or false.
-            let mut probe = columns::every_field();
-            if let (Some(record), Ok(points)) = (probe.record_mut(), study.expand()) {
-                if let Some(point) = points.first() {
-                    record.case = serde_json::Value::Object(point.fields());
-                }
-            }
-            let mut cells = Vec::new();
-            columns::flatten("", probe.to_value(), &mut |name, value| {
-                cells.push((name.to_string(), value))
-            });
-            let fields = expression::fields_of_columns(&cells);
-            if names.iter().all(|n| fields.contains_key(n)) {
-                let scope = expression::Scope::from_fields(&fields);
-                expression::condition(&spec.flips, &scope).map_err(|e| {
-                    StudyError::new(
-                        place,
-                        format!("{e}; write a condition such as `amplification > 1`"),
-                    )
-                })?;
-            }
-            Ok(())
-        }
-        Some(Question::Refine(spec)) => measured("refine.error", &spec.error),
-        Some(Question::Target(spec)) => {
-            measured("target.error", &spec.error)?;
-            match spec.cost.as_str() {
-                target::CORE_SECONDS | target::BOND_EVALUATIONS => Ok(()),
-                cost => measured("target.cost", cost),
-            }
-        }
-        None => Ok(()),
-    }
-}
-
 /// `column`, read as a measurement at `place`: a number of the record.
-fn measured(place: &str, column: &str) -> Result<(), StudyError> {
+pub fn measured(place: &str, column: &str) -> Result<(), StudyError> {
     match columns::column(&columns::every_field(), column) {
         Some(value) if value.is_number() => Ok(()),
         Some(value) => Err(StudyError::new(
@@ -148,7 +89,8 @@ fn is_boundary_column(name: &str) -> bool {
         || boundaries::NOTES.iter().any(|(column, _)| *column == name)
 }
 
-fn guess(name: &str) -> Option<String> {
+/// The case field or summary column nearest to `name`, for a refusal's "did you mean".
+pub fn guess(name: &str) -> Option<String> {
     let columns = summary::column_names();
     let candidates = Case::field_names().iter().copied().chain(
         columns
@@ -165,7 +107,8 @@ mod tests {
     use serde_json::json;
 
     fn study(figures: serde_json::Value) -> Study {
-        Study::parse(&json!({"name": "s", "base": {}, "figures": figures}).to_string()).unwrap()
+        crate::kinds::parse(&json!({"name": "s", "base": {}, "figures": figures}).to_string())
+            .unwrap()
     }
 
     /// What an adaptive question reads of a probe's record is checked at plan: a misspelt name
@@ -178,7 +121,7 @@ mod tests {
             for (k, v) in question.as_object().unwrap() {
                 study[k] = v.clone();
             }
-            check(&Study::parse(&study.to_string()).unwrap())
+            crate::kinds::check(&crate::kinds::parse(&study.to_string()).unwrap())
         };
         let boundary = |flips: &str| {
             with(
@@ -264,7 +207,7 @@ mod tests {
         let boundary = json!({"field": "cfl", "bracket": [0.5, 2], "flips": "amplification > 1", "rtol": 1e-3});
         let study = |figure: serde_json::Value| {
             let text = json!({"name": "s", "base": {}, "boundary": boundary, "figures": [figure]});
-            Study::parse(&text.to_string()).unwrap()
+            crate::kinds::parse(&text.to_string()).unwrap()
         };
         let good = json!({"name": "b", "kind": "boundaries", "x": "m", "series": ["integrator"],
                           "where": ["branch == 'x' && gap > -0.01 && probes < 20"]});

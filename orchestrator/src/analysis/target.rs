@@ -194,7 +194,7 @@ mod tests {
             "field": "n", "start": 16, "below": 1e-3, "cost": "steps_done"
         }))
         .unwrap();
-        let study = crate::model::study::Study::parse(
+        let study = crate::kinds::parse(
             &json!({"name": "t", "base": {"dim": 1}, "sweep": [{"product": {"kernel": ["constant", "linear", "gaussian"]}}]})
                 .to_string(),
         )

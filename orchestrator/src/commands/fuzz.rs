@@ -245,10 +245,10 @@ fn fuzz_study_files() {
         toml.len()
     );
     fuzz("study-json", &json, |bytes| {
-        take_study(Study::parse(&String::from_utf8_lossy(bytes)))
+        take_study(crate::kinds::parse(&String::from_utf8_lossy(bytes)))
     });
     fuzz("study-toml", &toml, |bytes| {
-        take_study(Study::parse_toml(&String::from_utf8_lossy(bytes)))
+        take_study(crate::kinds::parse_toml(&String::from_utf8_lossy(bytes)))
     });
 }
 
@@ -312,7 +312,7 @@ fn fuzz_the_ledger_and_the_owner_file() {
 /// `plot` and `report` read them: the rows, a pivot, and the study's figures drawn from them.
 #[test]
 fn fuzz_parquet_tables() {
-    let study = Study::read(Path::new(&format!("{WORKSPACE}/studies/first.jsonc"))).unwrap();
+    let study = crate::kinds::read(Path::new(&format!("{WORKSPACE}/studies/first.jsonc"))).unwrap();
     let (_scratch, root) = scratch();
     let table = root.join("t.parquet");
     for name in ["first-summary", "first"] {

@@ -13,9 +13,11 @@ use crate::store::{Index, Store};
 /// The file beside a study's store that keeps the solver's verdicts on its cases.
 const VERDICTS: &str = ".verdicts";
 
-/// The study file, its figures checked against the columns its tables will have.
+/// The study file, its adaptive question and its figures checked against the columns its
+/// records and tables will have.
 pub(super) fn read_study(path: &std::path::Path) -> Result<Study, Failure> {
-    let study = Study::read(path)?;
+    let study = crate::kinds::read(path)?;
+    crate::kinds::check(&study)?;
     crate::analysis::figure_columns::check(&study)?;
     Ok(study)
 }
@@ -77,7 +79,13 @@ pub(super) fn planned_and_index(
     for unreadable in &index.unreadable {
         errln!("nlstudy: warning: {unreadable}");
     }
-    let planned = match crate::run::search::probes_so_far(&study, &solver, &store, options)? {
+    let asked = crate::kinds::Asked {
+        study: &study,
+        solver: &solver,
+        store: &store,
+        options,
+    };
+    let planned = match crate::kinds::probes_so_far(asked)? {
         Some(probes) => probes,
         None => crate::run::plan::plan(&study, &solver, &index, options)?,
     };

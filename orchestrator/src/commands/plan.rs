@@ -55,16 +55,15 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
     // runs its questions can take.
     if let Some(question) = study.question() {
         let questions = study.expand().map_or(0, |points| points.len());
-        let most = question.kind().worst_case_probes();
+        let most = question.worst_case_probes();
         let rounds = question
-            .kind()
             .worst_case_rounds()
             .map_or(String::new(), |n| format!(" in at most {n} rounds"));
         outln!(
             "{} along `{}`: {questions} {}; the points above are the probes stored and the next round, {most} runs each at most ({} in all){rounds}",
-            question.kind().section(),
+            question.section(),
             question.field(),
-            question.kind().searches(),
+            question.searches(),
             questions * most
         );
     }

@@ -7,12 +7,13 @@ use super::open::{
     say_what_refinement_cannot_show,
 };
 use crate::cli::args::RunArgs;
+use crate::kinds::{Asked, Found};
 use crate::model::study::Study;
 use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
-use crate::run::search::{self, Answered};
+use crate::run::search;
 use crate::run::signals;
 use crate::store::Store;
 use schema::exit;
@@ -97,13 +98,15 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     let options_of_probes = args.plan.options();
     let adaptive = match options_of_probes.only {
         Some(_) => None,
-        None => search::answer(
-            &study,
-            &solver,
-            &store,
-            &options_of_probes,
-            &mut run_on_pool,
-        )?,
+        None => {
+            let asked = Asked {
+                study: &study,
+                solver: &solver,
+                store: &store,
+                options: &options_of_probes,
+            };
+            crate::kinds::answer(asked, &mut run_on_pool)?
+        }
     };
     let (answered, planned) = match adaptive {
         Some(answers) => answers,
@@ -151,7 +154,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         collect: !args.no_collect,
         allow_mixed: args.allow_mixed,
     };
-    if let Some(code) = conclude(&study, &store, &planned, answered.as_ref(), ending)? {
+    if let Some(code) = conclude(&study, &store, &planned, answered.as_deref(), ending)? {
         return Ok(code);
     }
     Ok(match tally.failed {
@@ -175,23 +178,13 @@ pub(super) fn conclude(
     study: &Study,
     store: &Store,
     planned: &[Planned],
-    answered: Option<&Answered>,
+    answered: Option<&dyn Found>,
     ending: Ending,
 ) -> Result<Option<ExitCode>, Failure> {
     if let Some(answered) = answered {
-        let path = match answered {
-            Answered::Boundaries(spec, searched) => {
-                crate::analysis::boundaries::write(study, store, spec, searched)?
-            }
-            Answered::Refinements(spec, refined) => {
-                crate::analysis::convergence::write(study, store, &spec.field, refined)?
-            }
-            Answered::Targets(spec, aimed) => {
-                crate::analysis::target::write(study, store, spec, aimed)?
-            }
-        };
+        let path = answered.write(study, store)?;
         if !ending.quiet {
-            for line in crate::output::answers::lines(answered) {
+            for line in answered.lines() {
                 errln!("  {line}");
             }
             if let Some(budget) = &study.budget {

@@ -17,7 +17,6 @@ fn say(line: String) {
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Options, Planned};
-use crate::run::search;
 use crate::store::{Index, Store};
 use schema::exit;
 use schema::record::Status;
@@ -55,10 +54,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
     let plan = || planned_and_index(&args.common, &Options::default(), true);
     let Some(most) = most else {
         let opened = plan()?;
-        let rounds = opened
-            .0
-            .question()
-            .and_then(|q| q.kind().worst_case_rounds());
+        let rounds = opened.0.question().and_then(|q| q.worst_case_rounds());
         let sent = submit_ready(args, scheduler, &site, opened)?;
         if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
             outln!("{}", what_happens_next(args, rounds, sent));
@@ -87,7 +83,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         if sent.jobs > 0 && args.whole {
             outln!("the whole study in one job, {} points so far", sent.points);
         } else if sent.jobs > 0 {
-            let most = study.question().and_then(|q| q.kind().worst_case_rounds());
+            let most = study.question().and_then(|q| q.worst_case_rounds());
             let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
             let eta = eta(rounds, most, started.elapsed());
             outln!(
@@ -190,17 +186,22 @@ fn answer(
     allow_mixed: bool,
 ) -> Result<ExitCode, Failure> {
     let options = Options::default();
-    let (answered, planned) =
-        match search::answer(&study, &solver, &store, &options, |_: &[Planned]| Ok(false))? {
-            Some(answers) => answers,
-            None => (None, planned),
-        };
+    let asked = crate::kinds::Asked {
+        study: &study,
+        solver: &solver,
+        store: &store,
+        options: &options,
+    };
+    let (answered, planned) = match crate::kinds::answer(asked, &mut |_| Ok(false))? {
+        Some(answers) => answers,
+        None => (None, planned),
+    };
     let ending = Ending {
         quiet: false,
         collect: true,
         allow_mixed,
     };
-    if let Some(code) = conclude(&study, &store, &planned, answered.as_ref(), ending)? {
+    if let Some(code) = conclude(&study, &store, &planned, answered.as_deref(), ending)? {
         return Ok(code);
     }
     let failed = planned

@@ -69,9 +69,10 @@ pub trait Adaptive {
     fn replay(&self, record: &mut Lookup) -> (Self::Outcome, Vec<Probe>);
 }
 
-/// What is said of an adaptive question whatever its kind: the object-safe face of `Adaptive`,
-/// which every kind has (`Question::kind`).
-pub trait Kind {
+/// An adaptive question whatever its kind, as a study holds it (`Study::question`): the
+/// object-safe face of `Adaptive`, which every kind's spec has. `as_any` gives the spec back to
+/// the code of its own kind (`kinds`), and to a figure that draws one kind's answers.
+pub trait Kind: std::fmt::Debug + Send + Sync {
     fn section(&self) -> &'static str;
     fn searches(&self) -> &'static str;
     fn table(&self) -> &'static str;
@@ -79,9 +80,10 @@ pub trait Kind {
     fn field(&self) -> &str;
     fn worst_case_probes(&self) -> usize;
     fn worst_case_rounds(&self) -> Option<usize>;
+    fn as_any(&self) -> &dyn std::any::Any;
 }
 
-impl<A: Adaptive> Kind for A {
+impl<A: Adaptive + std::fmt::Debug + Send + Sync + 'static> Kind for A {
     fn section(&self) -> &'static str {
         A::SECTION
     }
@@ -108,6 +110,10 @@ impl<A: Adaptive> Kind for A {
 
     fn worst_case_rounds(&self) -> Option<usize> {
         Adaptive::worst_case_rounds(self)
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 }
 

@@ -4,7 +4,8 @@
 //!
 //! The adaptive questions are here too: the `Adaptive` trait (`adaptive`) and its kinds,
 //! `boundary`, `refine` and `target`, each a spec (the study file's section) and the rules that
-//! choose the next probes from the records so far; `run::search` runs them. A cluster's profile
+//! choose the next probes from the records so far; `run::search` runs them, and `kinds` (a layer
+//! above) registers them, reads their sections into a study's question and writes their answers. A cluster's profile
 //! is `site`, the MPI launcher `launcher`, and TOML files are read strictly by `toml_file`.
 
 pub mod adaptive;

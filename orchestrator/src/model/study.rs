@@ -5,9 +5,7 @@ use crate::model::adaptive::{Budget, Kind};
 use crate::model::boundary::BoundarySpec;
 use crate::model::expression::{self, Expression, Scope};
 use crate::model::figure_spec::{FigureKind, FigureSpec};
-use crate::model::refine::RefineSpec;
 use crate::model::resources::Resources;
-use crate::model::target::TargetSpec;
 use schema::error::{FieldError, Subject};
 use serde::Deserialize;
 use serde_json::{Map, Value};
@@ -67,21 +65,66 @@ pub struct Study {
     /// The figures `nlstudy plot` draws from the study's summary table.
     #[serde(default)]
     pub figures: Vec<FigureSpec>,
-    /// A boundary search from each point of the sweep: where `flips` starts to hold along one
-    /// numeric field (`model::boundary`).
-    #[serde(default)]
-    pub boundary: Option<BoundarySpec>,
-    /// A refinement from each point of the sweep that stops once its order is established
-    /// (`model::refine`).
-    #[serde(default)]
-    pub refine: Option<RefineSpec>,
-    /// From each point of the sweep (a candidate configuration), the coarsest resolution that
-    /// meets an error target (`model::target`); the candidates ranked by cost.
-    #[serde(default)]
-    pub target: Option<TargetSpec>,
+    /// The study's adaptive question, if it asks one: read from its section (`boundary`,
+    /// `refine`, `target`, or any kind `kinds` registers) by `Study::from_value`.
+    #[serde(skip)]
+    question: Option<Box<dyn Kind>>,
     /// What the adaptive question may spend over all the points: runs and core-seconds.
     #[serde(default)]
     pub budget: Option<Budget>,
+}
+
+/// The adaptive sections a study file may hold, each read into its question: the registry of
+/// kinds (`kinds::SHIPPED`) as the study file's reader sees it.
+pub trait Sections {
+    /// The question of section `name` (its value as the file gives it), None for a name that
+    /// is no kind's section.
+    fn read(&self, name: &str, value: Value) -> Option<Result<Box<dyn Kind>, StudyError>>;
+
+    /// The sections' names, for messages.
+    fn names(&self) -> Vec<&'static str>;
+}
+
+/// Takes the top-level keys of `value` that are not the study's own fields out of it: each the
+/// section of an adaptive question, in the file's key order, or an unknown field refused with
+/// the names a study takes.
+fn adaptive_sections(
+    value: &mut Value,
+    sections: &dyn Sections,
+) -> Result<Vec<(String, Value)>, StudyError> {
+    let Some(object) = value.as_object_mut() else {
+        return Ok(Vec::new());
+    };
+    let own = serde_aux::serde_introspection::serde_introspect::<Study>();
+    let others: Vec<String> = (object.keys())
+        .filter(|k| !own.contains(&k.as_str()))
+        .cloned()
+        .collect();
+    let mut asked = Vec::new();
+    for key in others {
+        if !sections.names().contains(&key.as_str()) {
+            let expected = own.iter().copied().chain(sections.names());
+            let expected: Vec<String> = expected.map(|n| format!("`{n}`")).collect();
+            let message = format!(
+                "unknown field `{key}`, expected one of {}",
+                expected.join(", ")
+            );
+            return Err(StudyError::from_serde(String::new(), message));
+        }
+        let section = object.remove(&key).expect("a key of the object");
+        asked.push((key, section));
+    }
+    Ok(asked)
+}
+
+/// Names as a sentence lists them: `a`, `b` and `c` (with `and`; or `or`).
+fn listed(names: &[&str], and: &str) -> String {
+    let quoted: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+    match quoted.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} {and} {last}", rest.join(", ")),
+        None => String::new(),
+    }
 }
 
 fn one() -> usize {
@@ -278,47 +321,25 @@ impl Subject for StudyPlace {
 /// Bad study file: where and what, in one sentence.
 pub type StudyError = FieldError<StudyPlace>;
 
-/// The adaptive question a study asks, if any (`Study::question`).
-#[derive(Clone, Copy)]
-pub enum Question<'a> {
-    Boundary(&'a BoundarySpec),
-    Refine(&'a RefineSpec),
-    Target(&'a TargetSpec),
-}
-
-impl<'a> Question<'a> {
-    /// What every kind says of itself (its section, field, bounds, table and title): the one
-    /// place that matches on the kind for it.
-    pub fn kind(self) -> &'a dyn Kind {
-        match self {
-            Question::Boundary(q) => q,
-            Question::Refine(q) => q,
-            Question::Target(q) => q,
-        }
-    }
-
-    /// The case field it searches along.
-    pub fn field(self) -> &'a str {
-        self.kind().field()
-    }
-}
-
 impl Study {
     /// The adaptive question the study asks (it asks at most one), or None for a fixed sweep.
-    pub fn question(&self) -> Option<Question<'_>> {
-        let boundary = self.boundary.as_ref().map(Question::Boundary);
-        let refine = || self.refine.as_ref().map(Question::Refine);
-        let target = || self.target.as_ref().map(Question::Target);
-        boundary.or_else(refine).or_else(target)
+    pub fn question(&self) -> Option<&dyn Kind> {
+        self.question.as_deref()
+    }
+
+    /// Whether the study asks a question of kind `S` (its spec's type), which a figure that
+    /// draws that kind's answers needs.
+    pub fn asks<S: 'static>(&self) -> bool {
+        self.question().is_some_and(|q| q.as_any().is::<S>())
     }
 
     /// Reads and parses a study file, naming the field at fault: TOML when its name ends in
     /// `.toml`, else JSON in which comments are allowed (JSONC).
-    pub fn read(path: &Path) -> Result<Study, StudyError> {
+    pub fn read(path: &Path, sections: &dyn Sections) -> Result<Study, StudyError> {
         let text = Study::text_of(path)?;
         match path.extension().and_then(|x| x.to_str()) {
-            Some("toml") => Study::parse_toml(&text),
-            _ => Study::parse(&text),
+            Some("toml") => Study::parse_toml(&text, sections),
+            _ => Study::parse(&text, sections),
         }
     }
 
@@ -337,7 +358,7 @@ impl Study {
 
     /// A study from JSON with comments (`//`, `/* */`, `#`): they become spaces, so the lines
     /// and columns of errors stay those of the file.
-    pub fn parse(text: &str) -> Result<Study, StudyError> {
+    pub fn parse(text: &str, sections: &dyn Sections) -> Result<Study, StudyError> {
         let mut plain = String::with_capacity(text.len());
         std::io::Read::read_to_string(
             &mut json_comments::StripComments::new(text.as_bytes()),
@@ -347,27 +368,41 @@ impl Study {
         // Typed fields refuse a repeated key themselves; maps such as `base` would keep the last.
         let value =
             schema::json::parse(&plain).map_err(|e| StudyError::new("file", e.to_string()))?;
-        Study::from_value(value)
+        Study::from_value(value, sections)
     }
 
     /// A study from TOML (which refuses a key given twice itself).
-    pub fn parse_toml(text: &str) -> Result<Study, StudyError> {
+    pub fn parse_toml(text: &str, sections: &dyn Sections) -> Result<Study, StudyError> {
         let value = super::toml_file::parse(text)
             .map_err(|e| StudyError::new("file", format!("not valid TOML: {e}")))?;
-        Study::from_value(value)
+        Study::from_value(value, sections)
     }
 
-    fn from_value(value: Value) -> Result<Study, StudyError> {
+    /// A study from its file's value: its own fields typed by serde, and each other top-level
+    /// key the section of an adaptive question, which `sections` reads (a key that is neither is
+    /// refused as an unknown field).
+    fn from_value(mut value: Value, sections: &dyn Sections) -> Result<Study, StudyError> {
         if let Some((place, c)) = schema::json::control_character(&value, &["description"]) {
             return Err(StudyError::new(
                 place,
                 format!("holds {}; names and values are printable text (only `description` may hold newlines and tabs)", schema::json::describe_char(c)),
             ));
         }
-        let study: Study = serde_path_to_error::deserialize(value).map_err(|e| {
+        let asked = adaptive_sections(&mut value, sections)?;
+        let mut study: Study = serde_path_to_error::deserialize(value).map_err(|e| {
             let path = e.path().to_string();
             StudyError::from_serde(path, e.into_inner().to_string())
         })?;
+        if let [_, (second, _), ..] = &asked[..] {
+            return Err(StudyError::new(
+                second,
+                format!("a study asks one adaptive question: give one of {}, and the others in studies of their own", listed(&sections.names(), "and")),
+            ));
+        }
+        for (name, section) in asked {
+            let read = sections.read(&name, section);
+            study.question = Some(read.expect("a section adaptive_sections kept")?);
+        }
         if !is_file_stem(&study.name) {
             return Err(StudyError::new(
                 "name",
@@ -396,7 +431,7 @@ impl Study {
                     too_long(figure.name.len()),
                 ));
             }
-            if figure.kind == FigureKind::Boundaries && study.boundary.is_none() {
+            if figure.kind == FigureKind::Boundaries && !study.asks::<BoundarySpec>() {
                 return Err(StudyError::new(
                     format!("figures[{k}].kind"),
                     "`boundaries` draws the table of a boundary search; give the study a `boundary` question, or choose another kind",
@@ -415,20 +450,6 @@ impl Study {
         if study.repeat == 0 {
             return Err(StudyError::new("repeat", "must be at least 1 (got 0)"));
         }
-        if let Some(spec) = &study.boundary {
-            spec.check()
-                .map_err(|(field, why)| StudyError::new(field, why))?;
-            expression::check_syntax(&spec.flips)
-                .map_err(|why| StudyError::new("boundary.flips", why))?;
-        }
-        if let Some(spec) = &study.refine {
-            spec.check()
-                .map_err(|(field, why)| StudyError::new(field, why))?;
-        }
-        if let Some(spec) = &study.target {
-            spec.check()
-                .map_err(|(field, why)| StudyError::new(field, why))?;
-        }
         if let Some(budget) = &study.budget {
             budget
                 .check()
@@ -436,20 +457,12 @@ impl Study {
             if study.question().is_none() {
                 return Err(StudyError::new(
                     "budget",
-                    "bounds an adaptive question; give `boundary`, `refine` or `target`, or leave `budget` out",
+                    format!(
+                        "bounds an adaptive question; give {}, or leave `budget` out",
+                        listed(&sections.names(), "or")
+                    ),
                 ));
             }
-        }
-        let questions = [
-            ("boundary", study.boundary.is_some()),
-            ("refine", study.refine.is_some()),
-            ("target", study.target.is_some()),
-        ];
-        if let [_, (second, _), ..] = questions.iter().filter(|q| q.1).collect::<Vec<_>>()[..] {
-            return Err(StudyError::new(
-                *second,
-                "a study asks one adaptive question: give one of `boundary`, `refine` and `target`, and the others in studies of their own",
-            ));
         }
         Ok(study)
     }

@@ -8,7 +8,7 @@ use crate::model::adaptive::{Budget, Spent};
 use crate::model::boundary::{BoundarySpec, Ended, Search};
 use crate::model::refine::Refinement;
 use crate::model::target::{Aimed, Reached, TargetSpec};
-use crate::run::search::{Answered, Searched};
+use crate::run::search::Searched;
 
 /// What the study's budget allowed and what its probes spent: `budget: 312 of 400 runs, 18.2 of
 /// 60 core-seconds`.
@@ -27,19 +27,10 @@ pub fn budget_line(budget: &Budget, spent: &Spent) -> String {
     format!("budget: {}", parts.join(", "))
 }
 
-/// The lines of `answered`, the answers to a study's question.
-pub fn lines(answered: &Answered) -> Vec<String> {
-    match answered {
-        Answered::Boundaries(spec, searched) => boundary_lines(spec, searched),
-        Answered::Refinements(spec, refined) => refinement_lines(&spec.field, refined),
-        Answered::Targets(spec, aimed) => target_lines(spec, aimed),
-    }
-}
-
 /// The candidates by cost: `1. method=adi: n = 384, error 9.1e-07, solve_s 0.41 [0.39, 0.44]
 /// over 3 repeats (5 runs)`, candidates that tie within noise as one place (`1–2 (tie within
 /// noise): …`), and those that found no answer after them, with why.
-fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
+pub fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
     let ranked = crate::analysis::target::ranked(spec, aimed);
     let mut places: Vec<(usize, usize, Vec<String>)> = Vec::new();
     let mut unanswered = Vec::new();
@@ -96,7 +87,7 @@ fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String> {
 }
 
 /// Each search's answer: `m=4 integrator=rk4: cfl = 1.0004 (predicted 1, +0.04 %), 12 probes`.
-fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<String> {
+pub fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<String> {
     let field = spec.field.as_str();
     searched
         .iter()
@@ -137,7 +128,7 @@ fn boundary_lines(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Str
 
 /// Each refinement's answer: `method=adi: order 2.001 (fitted 2.000) from n = 64, order
 /// established at n = 512, 5 levels`.
-fn refinement_lines(field: &str, refined: &[Searched<Refinement>]) -> Vec<String> {
+pub fn refinement_lines(field: &str, refined: &[Searched<Refinement>]) -> Vec<String> {
     refined
         .iter()
         .map(|s| {

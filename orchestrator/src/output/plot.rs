@@ -2,8 +2,10 @@
 //! only when its table, its spec or the program drawing it changed since it was drawn: a stamp
 //! beside the SVG holds the hashes of the three.
 
+use crate::model::adaptive::Kind;
+use crate::model::boundary::BoundarySpec;
 use crate::model::figure_spec::{FigureKind, FigureSpec};
-use crate::model::study::Question;
+use crate::model::target::TargetSpec;
 use crate::output::draw;
 use crate::output::figure;
 use crate::store::fs::{create_dir, read_regular, Fault, SMALL_FILE_CAP};
@@ -38,7 +40,7 @@ pub fn files(name: &str) -> [String; 2] {
 /// too).
 pub fn plot(
     figures: &[FigureSpec],
-    question: Option<Question>,
+    question: Option<&dyn Kind>,
     store: &Store,
 ) -> Result<Vec<Figure>, Fault> {
     let _outputs = store.lock_outputs()?;
@@ -49,7 +51,7 @@ pub fn plot(
     // has written it.
     let answer_table = match question {
         Some(question) => {
-            let path = crate::analysis::answer_table::path(store, question.kind().table());
+            let path = crate::analysis::answer_table::path(store, question.table());
             match path.exists() {
                 true => Some((question, table::read_parquet_hashed(&path)?)),
                 false => None,
@@ -117,12 +119,13 @@ pub fn plot(
 
 /// Whether a figure of `kind` draws the answers of `question`: the boundaries figure those of
 /// a boundary search, a work–precision figure the answers of an error target.
-fn draws_answers(kind: FigureKind, question: Question) -> bool {
-    matches!(
-        (kind, question),
-        (FigureKind::Boundaries, Question::Boundary(_))
-            | (FigureKind::WorkPrecision, Question::Target(_))
-    )
+fn draws_answers(kind: FigureKind, question: &dyn Kind) -> bool {
+    let asks = question.as_any();
+    match kind {
+        FigureKind::Boundaries => asks.is::<BoundarySpec>(),
+        FigureKind::WorkPrecision => asks.is::<TargetSpec>(),
+        _ => false,
+    }
 }
 
 /// Ok when every figure is drawn or up to date, else the messages of those that failed.

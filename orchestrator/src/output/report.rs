@@ -6,6 +6,7 @@
 
 use crate::analysis::boundaries;
 use crate::analysis::collect::headline;
+use crate::model::boundary::BoundarySpec;
 use crate::model::study::Study;
 use crate::output::status::counts_by_status;
 use crate::store::fs::{read_regular, Fault, RECORD_CAP};
@@ -220,13 +221,14 @@ fn adaptive_section(study: &Study, store: &Store) -> Result<Markup, Fault> {
     let Some(question) = study.question() else {
         return Ok(html! {});
     };
-    let title = question.kind().title();
-    let path = crate::analysis::answer_table::path(store, question.kind().table());
+    let title = question.title();
+    let path = crate::analysis::answer_table::path(store, question.table());
     if !path.exists() {
         return Ok(html! {});
     }
     let rows = table::read_parquet(&path)?;
-    let rtol = study.boundary.as_ref().map(|b| b.rtol);
+    let boundary = question.as_any().downcast_ref::<BoundarySpec>();
+    let rtol = boundary.map(|b| b.rtol);
     Ok(html! {
         h2 { (title) }
         (adaptive_table(&rows, rtol))

@@ -2,7 +2,7 @@ use super::*;
 use serde_json::json;
 
 fn points(study: Value) -> Result<Vec<Map<String, Value>>, StudyError> {
-    let study = Study::parse(&study.to_string())?;
+    let study = crate::kinds::parse(&study.to_string())?;
     Ok(study.expand()?.into_iter().map(|p| p.fields()).collect())
 }
 
@@ -12,7 +12,7 @@ fn fields(value: Value) -> Map<String, Value> {
 
 #[test]
 fn a_point_writes_its_fields_as_their_map_prints_and_a_swept_value_beats_the_base() {
-    let study = Study::parse(
+    let study = crate::kinds::parse(
         &json!({
             "name": "t",
             "base": {"z": null, "a": 1.5e-300, "n": 8, "s": "é \"q\"", "o": {"k": [1, 0.1]}},
@@ -66,7 +66,7 @@ fn a_control_character_anywhere_is_refused_naming_its_place() {
     let study = |extra: Value| {
         let mut s = json!({"name": "s", "base": {"dim": 1}, "description": "line one\nline two"});
         s.as_object_mut().unwrap().extend(fields(extra));
-        Study::parse(&s.to_string())
+        crate::kinds::parse(&s.to_string())
     };
     assert!(study(json!({})).is_ok(), "prose may hold newlines");
     let cases = [
@@ -93,7 +93,7 @@ fn a_control_character_anywhere_is_refused_naming_its_place() {
 
 #[test]
 fn branches_are_alternatives_named_in_the_tables_but_not_the_case() {
-    let study = Study::parse(
+    let study = crate::kinds::parse(
         &json!({
             "name": "s", "base": {"dim": 1},
             "sweep": [
@@ -147,7 +147,7 @@ fn branches_are_alternatives_named_in_the_tables_but_not_the_case() {
         m_series.as_deref(),
         Some("branch=fixed_m m=2 source=local kernel=constant")
     );
-    let bad = Study::parse(
+    let bad = crate::kinds::parse(
         &json!({"name": "s", "base": {}, "sweep": [{"branches": {"a": [{"product": {"n": []}}]}}]})
             .to_string(),
     )
@@ -159,7 +159,7 @@ fn branches_are_alternatives_named_in_the_tables_but_not_the_case() {
 
 #[test]
 fn a_branch_may_have_its_own_where_and_repeat() {
-    let study = Study::parse(
+    let study = crate::kinds::parse(
         &json!({
             "name": "s", "base": {"dim": 1, "n": 16},
             "sweep": [{"branches": {
@@ -191,7 +191,7 @@ fn a_branch_may_have_its_own_where_and_repeat() {
     assert_eq!(points[0].get("dt"), Some(&Value::Null));
 
     let refused = |branches: Value| {
-        Study::parse(
+        crate::kinds::parse(
             &json!({"name": "s", "base": {}, "sweep": [{"branches": branches}]}).to_string(),
         )
         .and_then(|s| s.expand())
@@ -225,14 +225,14 @@ fn study_files_may_carry_comments_or_be_toml() {
         [[sweep]]
         product = { n = [8, 16] }
     "#;
-    let json = Study::parse(commented).unwrap().expand().unwrap();
-    let from_toml = Study::parse_toml(toml).unwrap().expand().unwrap();
+    let json = crate::kinds::parse(commented).unwrap().expand().unwrap();
+    let from_toml = crate::kinds::parse_toml(toml).unwrap().expand().unwrap();
     assert_eq!(json, from_toml);
     assert_eq!(json[1].fields()["note"], "a // in a string stays");
     // Comments become spaces: an error still names its line in the file.
-    let error = Study::parse("// one\n// two\n{\"name\": }").unwrap_err();
+    let error = crate::kinds::parse("// one\n// two\n{\"name\": }").unwrap_err();
     assert!(error.message.contains("line 3"), "{error}");
-    let error = Study::parse_toml("name = \"s\"\nname = \"t\"").unwrap_err();
+    let error = crate::kinds::parse_toml("name = \"s\"\nname = \"t\"").unwrap_err();
     assert!(error.message.contains("not valid TOML"), "{error}");
     // nan and inf are no values (a `Value` would hold them as null: "not given"), and a
     // date is no number.
@@ -244,17 +244,17 @@ fn study_files_may_carry_comments_or_be_toml() {
         ),
         ("timeout_s = inf", "timeout_s"),
     ] {
-        let error = Study::parse_toml(&format!("name = \"s\"\n{text}")).unwrap_err();
+        let error = crate::kinds::parse_toml(&format!("name = \"s\"\n{text}")).unwrap_err();
         assert!(
             error.message.contains(place) && error.message.contains("not a finite number"),
             "{text}: {error}"
         );
     }
-    let error = Study::parse_toml("name = \"s\"\n[base]\nt_end = 1979-05-27").unwrap_err();
+    let error = crate::kinds::parse_toml("name = \"s\"\n[base]\nt_end = 1979-05-27").unwrap_err();
     assert!(error.message.contains("quote it"), "{error}");
-    let error = Study::parse("\u{feff}{\"name\": \"s\", \"base\": {}}").unwrap_err();
+    let error = crate::kinds::parse("\u{feff}{\"name\": \"s\", \"base\": {}}").unwrap_err();
     assert!(error.message.contains("byte-order mark"), "{error}");
-    let error = Study::parse_toml("name = \"s\"\n[base]\n[[sweep]]\nproduct = { n = [] }")
+    let error = crate::kinds::parse_toml("name = \"s\"\n[base]\n[[sweep]]\nproduct = { n = [] }")
         .unwrap()
         .expand()
         .unwrap_err();
@@ -289,7 +289,7 @@ fn product_and_zip_groups_multiply() {
 
 #[test]
 fn derived_fields_paths_filters_and_repeats() {
-    let study = Study::parse(
+    let study = crate::kinds::parse(
         &json!({
             "name": "s", "base": {"dim": 2},
             "sweep": [
@@ -325,7 +325,7 @@ fn derived_fields_paths_filters_and_repeats() {
 #[test]
 fn series_hold_all_but_the_grid_or_the_workers_fixed() {
     let series = |study: Value| -> Vec<(String, String)> {
-        let study = Study::parse(&study.to_string()).unwrap();
+        let study = crate::kinds::parse(&study.to_string()).unwrap();
         let points = study.expand().unwrap();
         points
             .into_iter()
@@ -458,7 +458,7 @@ fn malformed_studies_name_the_place() {
         "sweep[0].path"
     );
     // JSON text, not a Value: a key given twice in a map (`base`) would keep the last.
-    let twice = Study::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);
+    let twice = crate::kinds::parse(r#"{"name": "s", "base": {"dim": 2, "n": 8, "dim": 1}}"#);
     let error = twice.map(|_| ()).unwrap_err();
     assert_eq!(error.field, "file");
     assert!(
@@ -475,7 +475,7 @@ fn a_boundaries_figure_needs_a_boundary_question() {
             "figures": [{"name": "limits", "kind": "boundaries"}]
         });
         s.as_object_mut().unwrap().extend(fields(extra));
-        Study::parse(&s.to_string())
+        crate::kinds::parse(&s.to_string())
     };
     let e = study(json!({})).unwrap_err();
     assert_eq!(e.field, "figures[0].kind");

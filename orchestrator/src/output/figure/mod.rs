@@ -1,8 +1,10 @@
 //! The charts each figure kind makes of a study's summary table (one row per point).
 
+use crate::model::adaptive::Kind;
+use crate::model::boundary::BoundarySpec;
 use crate::model::expression::Filter;
 use crate::model::figure_spec::{FigureKind, FigureSpec};
-use crate::model::study::Question;
+use crate::model::target::TargetSpec;
 use crate::output::draw::{Chart, Glyph, Panel};
 use crate::store::table::Row;
 use schema::record::Status;
@@ -51,8 +53,15 @@ pub fn selected<'a>(spec: &FigureSpec, k: usize, rows: &'a [Row]) -> Result<Vec<
 /// (`<study>-<question.table()>.parquet`), for the figures that draw them.
 #[derive(Clone, Copy)]
 pub struct Answers<'a> {
-    pub question: Question<'a>,
+    pub question: &'a dyn Kind,
     pub rows: &'a [Row],
+}
+
+impl<'a> Answers<'a> {
+    /// The question's spec, if it is of kind `S` (the figure draws that kind's answers).
+    fn spec<S: 'static>(&self) -> Option<&'a S> {
+        self.question.as_any().downcast_ref()
+    }
 }
 
 /// The figure's title: as the spec gives it, else its name.
@@ -181,11 +190,8 @@ pub fn chart(
                 FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
                 FigureKind::WorkPrecision => {
                     let mut panel = work_precision::work_precision(&groups, &x, &y);
-                    if let Some(Answers {
-                        question: Question::Target(target),
-                        rows,
-                    }) = answers
-                    {
+                    let target = answers.and_then(|a| Some((a.spec::<TargetSpec>()?, a.rows)));
+                    if let Some((target, rows)) = target {
                         work_precision::mark_target(&mut panel, &groups, (&x, &y), target, rows);
                     }
                     vec![panel]
@@ -255,10 +261,7 @@ fn boundaries_chart(
     k: usize,
     answers: Option<Answers>,
 ) -> Result<Chart, String> {
-    let Some(Answers {
-        question: Question::Boundary(question),
-        rows,
-    }) = answers
+    let Some((question, rows)) = answers.and_then(|a| Some((a.spec::<BoundarySpec>()?, a.rows)))
     else {
         return Err(fault(k, spec, "draws the table of the study's boundary searches, which is not written yet; `nlstudy run` writes it"));
     };

@@ -169,14 +169,16 @@ fn final_states(ids: &[&str]) -> std::collections::HashMap<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::study::Study;
     use crate::run::plan::{Decision, Reason, Skipped};
     use serde_json::json;
 
     /// Points n = 8, 16, 32 to run.
     fn points() -> Vec<Planned> {
         let study = json!({"name": "lost", "base": {}, "sweep": [{"product": {"n": [8, 16, 32]}}]});
-        let points = Study::parse(&study.to_string()).unwrap().expand().unwrap();
+        let points = crate::kinds::parse(&study.to_string())
+            .unwrap()
+            .expand()
+            .unwrap();
         points
             .into_iter()
             .map(|point| Planned {

@@ -197,7 +197,6 @@ fn grid(point: &Planned) -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::study::Study;
     use crate::run::nlsolve::Checked;
     use crate::run::plan::{Decision, Reason};
     use serde_json::json;
@@ -209,7 +208,10 @@ mod tests {
             "base": {"dim": dim},
             "sweep": [{"product": {"family": [series], "n": [n]}}],
         });
-        let point = Study::parse(&study.to_string()).unwrap().expand().unwrap();
+        let point = crate::kinds::parse(&study.to_string())
+            .unwrap()
+            .expand()
+            .unwrap();
         Planned {
             point: point.into_iter().next().unwrap(),
             case: Err("not checked".into()),

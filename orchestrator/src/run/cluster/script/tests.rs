@@ -78,7 +78,7 @@ fn hostile_resource_values_are_refused_naming_the_field_and_the_flag() {
                 r#"{{"name": "s", "base": {{}}, "resources": {{"{field}": {}}}}}"#,
                 serde_json::Value::from(*value)
             );
-            let accepted = crate::model::study::Study::parse(&study);
+            let accepted = crate::kinds::parse(&study);
             let safe_anyway = field != "time" && SchedulerName::from_str(value).is_ok();
             match accepted {
                 Ok(_) => assert!(safe_anyway, "resources.{field} = {value:?} accepted"),
