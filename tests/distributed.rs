@@ -815,12 +815,11 @@ fn a_steady_solve_over_two_ranks_stops_at_one_iteration_and_resumes_with_the_sam
 /// Runs `case` over two ranks whole, then checkpointing every `every` steps until SIGTERM
 /// stops it, then with one rank's file missing, then resumed, as the tests above say.
 fn stops_over_two_ranks_and_resumes(name: &str, case: &str, every: u64) {
-    let dir = std::env::temp_dir().join(format!(
-        "nlsolve-ranks-checkpoint-{name}-{}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new()
+        .prefix(&format!("nlsolve-ranks-checkpoint-{name}-"))
+        .tempdir()
+        .unwrap();
+    let dir = scratch.path();
     let case_file = dir.join("case.json");
     std::fs::write(&case_file, case).unwrap();
     let nlsolve = binary("nlsolve");
@@ -917,5 +916,4 @@ fn stops_over_two_ranks_and_resumes(name: &str, case: &str, every: u64) {
         !file.exists() && !rank1.exists(),
         "the files stay after the record"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -53,8 +53,8 @@ mod tests {
 
     #[test]
     fn a_write_replaces_the_file_whole_and_never_follows_a_planted_link() {
-        let dir = std::env::temp_dir().join(format!("schema-atomic-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let target = dir.join("record.json");
         let precious = dir.join("precious");
         std::fs::write(&precious, b"keep").unwrap();
@@ -66,6 +66,5 @@ mod tests {
         // A destination that cannot be made: the error names it, and no partial stays.
         let (failed, _) = write_atomically(&dir.join("no/such/dir/x"), b"x").unwrap_err();
         assert_eq!(failed, partial_path(&dir.join("no/such/dir/x")));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -8,7 +8,7 @@
 mod common;
 
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -83,13 +83,12 @@ fn length(record: &Value) -> u64 {
         .unwrap()
 }
 
-/// A scratch directory for one test's checkpoints.
-fn scratch(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("nlsolve-checkpoint-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch directory for one test's checkpoints, removed however the test ends.
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("nlsolve-checkpoint-{name}-"))
+        .tempdir()
+        .unwrap()
 }
 
 /// Waits, polling, for `path` to exist; false after a minute.
@@ -117,7 +116,8 @@ fn stopped_and_resumed(
     // A directory of its own: tests stop and resume cases at once.
     static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let run_number = RUNS.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-    let dir = scratch(&format!("stopped-{run_number}"));
+    let scratch = scratch(&format!("stopped-{run_number}"));
+    let dir = scratch.path();
     let file = dir.join("run.checkpoint");
     let path = file.to_str().unwrap();
     let with_threads = |threads: u64| {
@@ -180,7 +180,6 @@ fn stopped_and_resumed(
         numbers_of(whole.clone()),
         "{case}: the resumed run's record differs from the whole run's"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
     step
 }
 
@@ -263,7 +262,8 @@ fn a_steady_solve_stopped_by_sigterm_resumes_at_its_iteration_with_the_same_bits
 /// solve is over.
 #[test]
 fn a_steady_solve_says_how_far_it_is_in_iterations() {
-    let dir = scratch("progress");
+    let scratch = scratch("progress");
+    let dir = scratch.path();
     let file = dir.join("run.progress");
     let case = json!({"method": "steady_cg", "dim": 2, "n": 512, "m": 4, "rtol": 1e-12});
     // At the lowest priority, so that this thread reads the file before the solve is over.
@@ -283,12 +283,12 @@ fn a_steady_solve_says_how_far_it_is_in_iterations() {
     );
     assert!(step < length(&whole), "{progress}");
     assert!(!file.exists(), "the progress file stays after the solve");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run_starts_afresh() {
-    let dir = scratch("refused");
+    let scratch = scratch("refused");
+    let dir = scratch.path();
     let file = dir.join("run.checkpoint");
     let path = file.to_str().unwrap();
     let case = json!({"dim": 1, "n": 256, "m": 3, "problem": "manufactured", "t_end": 0.02,
@@ -379,7 +379,6 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
     let big = std::fs::File::create(&file).unwrap();
     big.set_len(1 << 40).unwrap();
     not_read("bytes a checkpoint of this case may hold");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// SIGKILL at random moments of a run that checkpoints every step (so that most kills land in
@@ -387,7 +386,8 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
 /// from it, never refuses it), and the run resumed last has the whole run's record.
 #[test]
 fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
-    let dir = scratch("killed");
+    let scratch = scratch("killed");
+    let dir = scratch.path();
     let file = dir.join("run.checkpoint");
     let path = file.to_str().unwrap();
     let case = json!({"dim": 2, "n": 64, "m": 3, "problem": "manufactured", "t_end": 0.02,
@@ -443,5 +443,4 @@ fn a_run_killed_at_random_moments_always_leaves_a_checkpoint_that_resumes() {
     let said_steps = resumed["resumed_from_step"].as_u64().unwrap_or(0);
     assert_eq!(said_steps, last_step, "{resumed}");
     assert_eq!(numbers_of(resumed), numbers_of(whole));
-    std::fs::remove_dir_all(&dir).unwrap();
 }

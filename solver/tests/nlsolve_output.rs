@@ -142,7 +142,8 @@ fn a_partition_report_that_cannot_be_written_exits_74() {
 
 #[test]
 fn an_output_file_that_cannot_be_written_exits_74_naming_its_path() {
-    let missing = std::env::temp_dir().join(format!("nlsolve-missing-{}", std::process::id()));
+    let scratch = tempfile::tempdir().unwrap();
+    let missing = scratch.path().join("missing");
     let path = missing.join("field.bin");
     let path_text = path.to_str().expect("a UTF-8 path");
     let mut args = TINY.to_vec();

@@ -74,9 +74,8 @@ fn a_served_case_has_the_record_of_its_own_process_and_bad_input_is_an_answer() 
 /// beside `case` is an error naming it.
 #[test]
 fn a_served_case_may_name_its_progress_file() {
-    let dir = std::env::temp_dir().join(format!("nlsolve-serve-progress-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let progress = dir.join("case.progress");
+    let dir = tempfile::tempdir().unwrap();
+    let progress = dir.path().join("case.progress");
     let case = json!({"dim": 1, "n": 64, "m": 3, "problem": "bump", "t_end": 1e-3, "cfl": 0.5});
     let wrapped = json!({"case": case, "progress": progress.to_str().unwrap()});
     let input = format!("{wrapped}\n{case}\n{}\n", json!({"case": case, "every": 1}));
@@ -97,5 +96,4 @@ fn a_served_case_may_name_its_progress_file() {
         error.contains("unknown field `every`") && error.contains("a line is a case, or"),
         "{error}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -428,9 +428,8 @@ mod tests {
 
     #[test]
     fn a_checkpoint_reads_back_bit_for_bit_and_a_damaged_or_foreign_one_is_refused() {
-        let dir = std::env::temp_dir().join(format!("nlsolve-checkpoint-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("run.checkpoint");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.checkpoint");
         assert_eq!(read(&path, &identity(), 1 << 20), Ok(None), "none yet");
         let mut carried = Carried::at(17);
         carried.put(
@@ -487,6 +486,5 @@ mod tests {
         assert!(refused(identity()).contains("checksum"));
         std::fs::write(&path, b"garbage").unwrap();
         assert!(refused(identity()).contains("not a checkpoint"));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
