@@ -570,3 +570,96 @@ fn only_the_reporters_print_below_the_commands() {
         "these modules print below commands/; return what they say to the command, or tell log: {printing:?}"
     );
 }
+
+/// The most lines a function of the crates' own code takes without saying why.
+const LONGEST_FUNCTION: usize = 100;
+
+/// No function of `schema`, `solver` or `orchestrator` (test code aside) is over
+/// `LONGEST_FUNCTION` lines unless the comment above it says why (`Long because …`): a long
+/// function is split, or its reason is read where it is.
+#[test]
+fn no_function_is_over_a_hundred_lines_without_saying_why() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut unexplained = Vec::new();
+    for krate in ["schema/src", "solver/src", "orchestrator/src"] {
+        let src = root.join(krate);
+        let mut files = BTreeMap::new();
+        collect_files(&src, &src, &mut files);
+        for path in files.values() {
+            let source = std::fs::read_to_string(path).unwrap();
+            let code = match source.find("#[cfg(test)]\nmod tests {") {
+                Some(at) => &source[..at],
+                None => &source[..],
+            };
+            for (name, lines, why) in long_functions(code) {
+                if !why {
+                    let file = path.strip_prefix(root).unwrap().display();
+                    unexplained.push(format!("{file}: {name} ({lines} lines)"));
+                }
+            }
+        }
+    }
+    assert!(
+        unexplained.is_empty(),
+        "functions over {LONGEST_FUNCTION} lines with no `Long because` in the comment above them; split them or say why: {unexplained:#?}"
+    );
+}
+
+/// The functions of `code` over `LONGEST_FUNCTION` lines (from `fn` to the brace that closes
+/// it at the same indent), with whether the comment above says why.
+fn long_functions(code: &str) -> Vec<(String, usize, bool)> {
+    let lines: Vec<&str> = code.lines().collect();
+    let mut long = Vec::new();
+    for (at, line) in lines.iter().enumerate() {
+        let trimmed = line.trim_start();
+        let indent = &line[..line.len() - trimmed.len()];
+        let signature = [
+            "pub fn ",
+            "pub(crate) fn ",
+            "pub(super) fn ",
+            "fn ",
+            "const fn ",
+        ];
+        let Some(rest) = signature.iter().find_map(|s| trimmed.strip_prefix(s)) else {
+            continue;
+        };
+        let name: String = rest
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let close = format!("{indent}}}");
+        let Some(end) = lines[at..].iter().position(|l| *l == close) else {
+            continue;
+        };
+        // A declaration without a body (a trait's) ends at its `;` before any brace.
+        let body = lines[at..].iter().position(|l| l.trim_end().ends_with('{'));
+        let declared = lines[at..].iter().position(|l| l.trim_end().ends_with(';'));
+        if declared.is_some_and(|d| body.is_none_or(|b| d < b)) {
+            continue;
+        }
+        if end + 1 > LONGEST_FUNCTION {
+            let comment = lines[..at]
+                .iter()
+                .rev()
+                .take_while(|l| {
+                    let l = l.trim_start();
+                    l.starts_with("//") || l.starts_with("#[")
+                })
+                .any(|l| l.contains("Long because"));
+            long.push((name, end + 1, comment));
+        }
+    }
+    long
+}
+
+#[test]
+fn the_length_check_sees_a_long_function_and_its_reason() {
+    let body = "    x += 1;\n".repeat(LONGEST_FUNCTION);
+    let code = format!("/// Adds.\nfn long(x: &mut u32) {{\n{body}}}\n\nfn short() {{}}\n");
+    assert_eq!(
+        long_functions(&code),
+        [("long".to_string(), LONGEST_FUNCTION + 2, false)]
+    );
+    let explained = code.replace("/// Adds.", "/// Adds. Long because it is a test.");
+    assert!(long_functions(&explained)[0].2);
+}

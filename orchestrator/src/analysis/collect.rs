@@ -227,6 +227,10 @@ pub fn records_of_run_table(path: &std::path::Path) -> Result<Vec<Stored>, Fault
 /// spliced (`incremental`), else made from scratch.
 /// With `allow_mixed`, runs of several solver builds, hosts or instruction sets are tabulated
 /// together; without it they are refused (see `mixed_provenance`).
+///
+/// Long because it is one pass under the outputs' lock: what changed since the last read, the
+/// splice or the full build, the provenance check and both tables written, so that no figure reads
+/// half of it.
 pub fn collect(
     to_collect: ToCollect,
     store: &Store,

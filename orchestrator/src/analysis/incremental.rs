@@ -199,6 +199,9 @@ fn run_rows(
 }
 
 /// The summary rows of a spliced summary table: where each comes from, and those made again.
+///
+/// Long because each summary row's source (kept, made again, gone) is decided in one walk over the
+/// old and the new identities side by side.
 fn summary_rows(
     identities: &[Identity],
     runs: &RunRows,

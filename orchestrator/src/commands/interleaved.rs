@@ -13,16 +13,12 @@ use crate::run::plan::{short, Decision, Options, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::progress::{Mode, Progress};
 use crate::run::signals;
+use schema::record::Stored;
 use std::path::Path;
 use std::process::ExitCode;
 
 pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, Failure> {
-    if args.rounds < 2 {
-        return Err(Failure::BadInput(format!(
-            "--rounds {}: give at least 2, so that each point has an interval",
-            args.rounds
-        )));
-    }
+    let most = rounds_asked(args)?;
     let stop = signals::Stop::on_signals().map_err(Failure::Io)?;
     let (study, solver_b, store, planned) = planned(&args.common, &Options::default(), false)?;
     let solver_a = Nlsolve::locate(Some(baseline))?;
@@ -38,26 +34,7 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         Side::open(solver_a, &dir, "a", &study.name),
         Side::open(solver_b, &dir, "b", &study.name),
     ];
-    let cores = crate::run::pool::machine_cores();
-    let options = PoolOptions {
-        cores,
-        nodes: crate::run::allocation::this_machine(cores),
-        exclusive: true,
-        timeout: None,
-        launcher: (crate::model::launcher::DEFAULT_LAUNCHER.parse())
-            .expect("the default launcher parses"),
-        retries: 0,
-        isolate: false,
-        checkpoint_every: None,
-        keep_checkpoints: false,
-    };
-    let most = args.max_rounds.unwrap_or(3 * args.rounds);
-    if most < args.rounds {
-        return Err(Failure::BadInput(format!(
-            "--max-rounds {most}: give at least --rounds ({})",
-            args.rounds
-        )));
-    }
+    let options = alone_on_this_machine();
     let mut counts = None;
     // Each point's rounds: --rounds, then more for those whose CPU time is still undecided.
     let mut reach = vec![args.rounds; points.len()];
@@ -95,17 +72,7 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         if let Some(solvers) = counted.take() {
             counts = Some(count(&points, solvers, &dir, &study.name)?);
         }
-        let rounds: Vec<Rounds> = points
-            .iter()
-            .enumerate()
-            .map(|(k, point)| Rounds {
-                point: point.point.label(),
-                pairs: (0..reach[k])
-                    .map(|r| (sides[0].stored(point, r), sides[1].stored(point, r)))
-                    .collect(),
-                counted: counts.as_ref().and_then(|c| c[k].clone()),
-            })
-            .collect();
+        let rounds = stored_rounds(&points, &reach, &sides, counts.as_ref());
         let comparison = paired::judge(&rounds, args.threshold);
         chosen = (0..points.len())
             .filter(|&k| reach[k] < most)
@@ -127,14 +94,7 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
             chosen.iter().map(|&k| reach[k]).max().unwrap_or(0)
         );
     };
-    let extended = reach.iter().filter(|&&r| r > args.rounds).count();
-    let rounds = match reach.iter().max() {
-        Some(&most) if extended > 0 => format!(
-            "{} rounds, {most} for the {extended} points whose CPU time they left undecided",
-            args.rounds
-        ),
-        _ => format!("{} rounds", args.rounds),
-    };
+    let rounds = rounds_run(args.rounds, &reach);
     let title = format!(
         "study {}: B = this build against A = {} (interleaved, {rounds})",
         study.name,
@@ -152,6 +112,74 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         args.threshold,
         points.len(),
     )
+}
+
+/// The rounds run: `--rounds`, and the most for the points whose CPU time they left undecided.
+fn rounds_run(asked: usize, reach: &[usize]) -> String {
+    let extended = reach.iter().filter(|&&r| r > asked).count();
+    match reach.iter().max() {
+        Some(&most) if extended > 0 => format!(
+            "{asked} rounds, {most} for the {extended} points whose CPU time they left undecided"
+        ),
+        _ => format!("{asked} rounds"),
+    }
+}
+
+/// The rounds asked for (`--rounds`, at least 2), and the most a point may run
+/// (`--max-rounds`, at least `--rounds`; three times it by default).
+fn rounds_asked(args: &CompareArgs) -> Result<usize, Failure> {
+    if args.rounds < 2 {
+        return Err(Failure::BadInput(format!(
+            "--rounds {}: give at least 2, so that each point has an interval",
+            args.rounds
+        )));
+    }
+    let most = args.max_rounds.unwrap_or(3 * args.rounds);
+    if most < args.rounds {
+        return Err(Failure::BadInput(format!(
+            "--max-rounds {most}: give at least --rounds ({})",
+            args.rounds
+        )));
+    }
+    Ok(most)
+}
+
+/// Each run alone on this machine, as timings want, with no timeout, retry or checkpoint.
+fn alone_on_this_machine() -> PoolOptions {
+    let cores = crate::run::pool::machine_cores();
+    PoolOptions {
+        cores,
+        nodes: crate::run::allocation::this_machine(cores),
+        exclusive: true,
+        timeout: None,
+        launcher: (crate::model::launcher::DEFAULT_LAUNCHER.parse())
+            .expect("the default launcher parses"),
+        retries: 0,
+        isolate: false,
+        checkpoint_every: None,
+        keep_checkpoints: false,
+    }
+}
+
+/// Each point's pairs stored so far, its first `reach` rounds, with its instruction counts.
+fn stored_rounds(
+    points: &[Planned],
+    reach: &[usize],
+    sides: &[Side; 2],
+    counts: Option<&Vec<Option<(Stored, Stored)>>>,
+) -> Vec<Rounds> {
+    let pairs = |k: usize, point: &Planned| -> Vec<_> {
+        (0..reach[k])
+            .map(|r| (sides[0].stored(point, r), sides[1].stored(point, r)))
+            .collect()
+    };
+    (points.iter().enumerate())
+        .map(|(k, point)| Rounds {
+            point: point.point.label(),
+            pairs: pairs(k, point),
+            counted: counts.and_then(|c| c[k].clone()),
+        })
+        .collect()
 }
 
 /// The study's points to rerun: one per case (repeats and the same case on another branch run
@@ -179,7 +207,7 @@ fn count(
     solvers: [(Nlsolve, &str); 2],
     dir: &Path,
     study: &str,
-) -> Result<Vec<Option<(schema::record::Stored, schema::record::Stored)>>, Failure> {
+) -> Result<Vec<Option<(Stored, Stored)>>, Failure> {
     let sides: Vec<Side> = solvers
         .into_iter()
         .map(|(solver, name)| Side::open(solver, dir, name, study))

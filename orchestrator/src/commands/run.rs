@@ -27,39 +27,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
     no_refusals(&planned, args.plan.allow_refused)?;
     say_what_does_not_fit(&planned);
     say_what_refinement_cannot_show(&planned);
-    // Inside a Slurm job of several nodes, every node of it; else this machine.
-    let nodes =
-        crate::run::allocation::nodes(args.jobs.unwrap_or(crate::run::pool::machine_cores()));
-    if nodes.len() > 1 && !args.quiet {
-        errln!("nlstudy: {}", crate::run::allocation::describe(&nodes));
-    }
-    let timeout = match args.timeout {
-        Some(seconds) => Some(period(seconds, "--timeout")?),
-        None => study
-            .timeout_s
-            .map(|s| period(s, "timeout_s"))
-            .transpose()?,
-    };
-    let checkpoint_every = match args.checkpoint_every {
-        Some(seconds) => Some(period(seconds, "--checkpoint-every")?),
-        None => study
-            .checkpoint_every_s
-            .map(|s| period(s, "checkpoint_every_s"))
-            .transpose()?,
-    };
-    let options = PoolOptions {
-        cores: args
-            .jobs
-            .unwrap_or_else(|| nodes.iter().map(|n| n.cores).sum()),
-        nodes,
-        exclusive: !study.share_machine,
-        timeout,
-        launcher: args.launcher.clone(),
-        retries: args.retries,
-        isolate: args.isolate,
-        checkpoint_every,
-        keep_checkpoints: args.keep_checkpoints,
-    };
+    let options = pool_options(args, &study)?;
     store.clear_abandoned_outputs()?;
     let mut tally = Tally::default();
     let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
@@ -72,7 +40,8 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         round = round.map(|r| r + 1);
         let mut progress = Progress::new(Mode::detect(args.quiet), to_run, stored).in_round(round);
         let ran = stop.asking(|| {
-            crate::run::pool::run(
+            let pool = crate::run::pool::run;
+            pool(
                 planned,
                 &solver,
                 &store,
@@ -115,29 +84,10 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             (None, planned)
         }
     };
-    let (ran, duplicates) = counts(&planned);
-    let skipped = planned.len() - ran - duplicates;
+    let ran = Ran::new(&study.name, &planned, &tally);
     if !args.quiet {
-        let passed = match tally.passed {
-            0 => String::new(),
-            n => format!(", {n} run by another nlstudy"),
-        } + &match duplicates {
-            0 => String::new(),
-            n => format!(", {n} the same case as an earlier point"),
-        };
-        errln!(
-            "study {}: {} ran ({} ok, {} diverged, {} failed), {skipped} already stored{passed}",
-            study.name,
-            tally.ok + tally.diverged + tally.failed,
-            tally.ok,
-            tally.diverged,
-            tally.failed,
-        );
-        if tally.noisy > 0 {
-            errln!(
-                "  {} of them noisy: timed while other tasks wanted the cores they left free; their timings measure contention too (`nlstudy run --force` them on a quiet machine)",
-                tally.noisy
-            );
+        for line in ran.lines() {
+            errln!("{line}");
         }
     }
     if let Some(signal) = stop.signal().filter(|_| tally.interrupted) {
@@ -161,6 +111,92 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         0 => ExitCode::SUCCESS,
         _ => ExitCode::from(exit::CASE_FAILED),
     })
+}
+
+/// What a pool is given from the flags and the study: the nodes (inside a Slurm job of several
+/// nodes, every node of it; else this machine), the cores, the timeout and checkpoint period.
+fn pool_options(args: &RunArgs, study: &Study) -> Result<PoolOptions, Failure> {
+    let nodes =
+        crate::run::allocation::nodes(args.jobs.unwrap_or(crate::run::pool::machine_cores()));
+    if nodes.len() > 1 && !args.quiet {
+        errln!("nlstudy: {}", crate::run::allocation::describe(&nodes));
+    }
+    let given =
+        |flag: Option<f64>, flag_name: &str, field: Option<f64>, field_name: &str| match flag {
+            Some(seconds) => Some(period(seconds, flag_name)).transpose(),
+            None => field.map(|s| period(s, field_name)).transpose(),
+        };
+    let timeout = given(args.timeout, "--timeout", study.timeout_s, "timeout_s")?;
+    let checkpoint_every = given(
+        args.checkpoint_every,
+        "--checkpoint-every",
+        study.checkpoint_every_s,
+        "checkpoint_every_s",
+    )?;
+    Ok(PoolOptions {
+        cores: args
+            .jobs
+            .unwrap_or_else(|| nodes.iter().map(|n| n.cores).sum()),
+        nodes,
+        exclusive: !study.share_machine,
+        timeout,
+        launcher: args.launcher.clone(),
+        retries: args.retries,
+        isolate: args.isolate,
+        checkpoint_every,
+        keep_checkpoints: args.keep_checkpoints,
+    })
+}
+
+/// What a study's `run` did, as its summary says it.
+struct Ran<'a> {
+    study: &'a str,
+    tally: &'a Tally,
+    skipped: usize,
+    duplicates: usize,
+}
+
+impl<'a> Ran<'a> {
+    fn new(study: &'a str, planned: &[Planned], tally: &'a Tally) -> Ran<'a> {
+        let (runs, duplicates) = counts(planned);
+        Ran {
+            study,
+            tally,
+            skipped: planned.len() - runs - duplicates,
+            duplicates,
+        }
+    }
+
+    /// `study quick: 12 ran (12 ok, 0 diverged, 0 failed), 3 already stored`, and how many of
+    /// them were timed noisy.
+    fn lines(&self) -> Vec<String> {
+        let Ran {
+            study,
+            tally,
+            skipped,
+            duplicates,
+        } = self;
+        let also = |n: usize, what: &str| match n {
+            0 => String::new(),
+            n => format!(", {n} {what}"),
+        };
+        let ran = tally.ok + tally.diverged + tally.failed;
+        let mut lines = vec![format!(
+            "study {study}: {ran} ran ({} ok, {} diverged, {} failed), {skipped} already stored{}{}",
+            tally.ok,
+            tally.diverged,
+            tally.failed,
+            also(tally.passed, "run by another nlstudy"),
+            also(*duplicates, "the same case as an earlier point"),
+        )];
+        if tally.noisy > 0 {
+            lines.push(format!(
+                "  {} of them noisy: timed while other tasks wanted the cores they left free; their timings measure contention too (`nlstudy run --force` them on a quiet machine)",
+                tally.noisy
+            ));
+        }
+        lines
+    }
 }
 
 /// How a study's end is said and made (`conclude`).

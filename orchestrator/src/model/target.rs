@@ -343,6 +343,9 @@ impl TargetSpec {
     }
 
     /// The next value along one field, or why the search ends.
+    ///
+    /// Long because its stopping rules and its next value are one decision over the same levels, as
+    /// in `next_in_space_and_time`.
     fn next_along_one(&self, aimed: &Aimed) -> Result<Probe, Reached> {
         let levels = &aimed.levels;
         if levels.len() + aimed.unstable.len() >= self.most_probes() {
@@ -475,6 +478,10 @@ impl TargetSpec {
     /// finer level along each field (an exploration the model is fitted from), then the model's
     /// cheapest configuration, verified by a run and fitted again, until it is no cheaper than
     /// a run that met the target or lies within the tolerance of a run in both fields.
+    ///
+    /// Long because its stopping rules and its next probe are one decision over the same levels and
+    /// model, each rule reading what the ones before it established; split, they would pass that
+    /// state between them.
     fn next_in_space_and_time(&self, aimed: &mut Aimed) -> Result<Probe, Reached> {
         let time = self.time.as_ref().expect("a search in space and time");
         if aimed.levels.len() + aimed.unstable.len() >= self.most_probes() {

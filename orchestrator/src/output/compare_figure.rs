@@ -31,6 +31,8 @@ fn height(change: &Change) -> Option<f64> {
     (y.is_finite() && (is_order(change.metric) || y > 0.0)).then_some(y)
 }
 
+/// Long because its panel, its verdicts' glyphs and the notes on what is not drawn are declared
+/// side by side as the figure shows them.
 pub fn chart(comparison: &Comparison, title: &str, threshold: f64) -> Chart {
     let (drawn, undrawn): (Vec<&Change>, Vec<&Change>) =
         comparison.changes.iter().partition(|c| height(c).is_some());

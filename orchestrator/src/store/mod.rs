@@ -186,6 +186,10 @@ impl Store {
     /// opened the store. Forgetting a key whose record lies in a segment another process is
     /// writing is refused. One compaction at a time: another one running means this one is
     /// not needed.
+    ///
+    /// Long because it is one transaction under the compaction lock and the appender's: which
+    /// segments to rewrite, their records rewritten, the catalog replaced, the old segments
+    /// removed, in that order.
     pub fn compact(&self, forget: &std::collections::HashSet<String>) -> Result<(), Fault> {
         let dir = self.segments();
         let compacting = lock_file(&dir, ".compact.lock")?;

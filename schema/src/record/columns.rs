@@ -256,6 +256,9 @@ pub fn unflatten_row<'a>(cells: impl IntoIterator<Item = (&'a str, &'a Value)>) 
 /// A stored record with every field given (each optional one, each group, each list not
 /// empty): what `columns` is read off. A field added to the record fails to compile here until
 /// it has a value.
+///
+/// Long because it is one literal setting every field of a record: a field added to the record must
+/// be added here (the compiler asks), and the columns are read off it.
 pub fn every_field() -> Stored {
     let record = Record {
         case: json!({"method": "nonlocal", "dim": 1, "n": 16}),

@@ -65,6 +65,9 @@ const SETUP_RATE: f64 = 3e9;
 const MIN_EPS: f64 = 1e-5;
 
 /// The rules of a coupled case.
+///
+/// Long because it is the coupled problem's rules in a row, each a refusal naming its field, read
+/// top to bottom as the guide lists them.
 pub fn validate(case: &Case) -> Result<(), CaseError> {
     if case.dim != 1 {
         return Err(CaseError::new(

@@ -63,6 +63,9 @@ fn profile(eps: f64, h: f64, a: f64, b: f64) -> HorizonProfile {
 }
 
 /// Solves the seamless model and measures it against the exact solution.
+///
+/// Long because it is the model's one sequence (mesh, assembly, solve, measurement against the
+/// exact solution), each step using the ones before.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let started = Instant::now();
     let field = case.patch();

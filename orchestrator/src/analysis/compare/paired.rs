@@ -31,6 +31,9 @@ pub const INSTRUCTIONS: f64 = 0.005;
 
 /// The verdicts on `points`' pairs, a timing's change counting from `threshold` (0.1: the
 /// interval of B/A above 1.1 or below 1/1.1).
+///
+/// Long because each kind of verdict (the paired timings, the bit-for-bit errors, the instruction
+/// counts) is a loop over the same points and their pairs, filling one comparison.
 pub fn judge(points: &[Rounds], threshold: f64) -> Comparison {
     let mut comparison = Comparison {
         changes: Vec::new(),

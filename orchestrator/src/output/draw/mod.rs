@@ -30,6 +30,9 @@ use style::*;
 
 /// The chart as SVG text: the title and subtitle, the panels (wrapped two to a row), and one
 /// legend, in the grid's spare cell when it has one the legend fits in, else under the panels.
+///
+/// Long because plotters lays out a drawing area once: the title, the panels' grid and the legend's
+/// cell are split from it in turn.
 pub fn render(chart: &Chart) -> Result<String, String> {
     if let Some(defect) = lint(chart).first() {
         return Err(format!("cannot draw `{}`: {defect}", chart.title));

@@ -8,6 +8,8 @@ use super::style::*;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
+/// Long because plotters draws a panel through one chart context, which its parts (mesh, bands,
+/// series, guides, notes) borrow in turn, in the order they overlap.
 pub(super) fn draw_panel(panel: &Panel, area: &Area, caption: bool) -> DrawResult {
     if let Some(heat) = &panel.heat {
         return draw_heat_map(panel, heat, area, caption);

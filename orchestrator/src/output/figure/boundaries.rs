@@ -17,6 +17,9 @@ pub(super) fn swept(rows: &[&Row]) -> Vec<String> {
 /// prediction zooms in around it to the search's tolerance. A boundary below the theory by more
 /// than the tolerance is crossed. Returns the panels and the subtitle (what the series share,
 /// and which searches found no boundary).
+///
+/// Long because its two panels (boundaries, and measured over predicted) share the series, their
+/// predictions and the zoomed axis.
 pub(super) fn boundaries(
     rows: &[&Row],
     series_columns: &[String],

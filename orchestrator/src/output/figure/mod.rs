@@ -92,29 +92,18 @@ pub fn chart(
         .y
         .as_deref()
         .and_then(|y| y.strip_prefix("abs(")?.strip_suffix(')'));
-    let with_magnitude: Vec<Row>;
-    let rows = match magnitude {
-        Some(name) => {
-            let source = column(rows, name).ok_or_else(|| {
+    let with_magnitude = magnitude
+        .map(|name| {
+            with_magnitude(rows, name).ok_or_else(|| {
                 fault(
                     k,
                     spec,
                     format!("y takes abs() of `{name}`, which is no column of the summary table"),
                 )
-            })?;
-            with_magnitude = rows
-                .iter()
-                .map(|row| {
-                    let mut row = row.clone();
-                    let value = row.number(&source).map(f64::abs);
-                    row.set(&format!("|{name}|"), serde_json::json!(value));
-                    row
-                })
-                .collect();
-            &with_magnitude[..]
-        }
-        None => rows,
-    };
+            })
+        })
+        .transpose()?;
+    let rows = with_magnitude.as_deref().unwrap_or(rows);
     let resolve = |field: &str, name: &str| {
         column(rows, name).ok_or_else(|| {
             fault(k, spec, format!("{field} names no column `{name}` of the summary table; name one of its columns (`nlstudy collect` writes it to results/<study>/<study>-summary.parquet)"))
@@ -152,60 +141,9 @@ pub fn chart(
             ),
         ));
     }
-    // Points of several solver builds (a table collected with --allow-mixed) are never joined
-    // into one line: the build splits the series and names them.
-    let mut series_columns = series_columns;
-    let mut builds: Vec<&str> = kept.iter().filter_map(|r| r.text("build")).collect();
-    builds.sort_unstable();
-    builds.dedup();
-    if builds.len() > 1 && !series_columns.iter().any(|c| c == "build") {
-        series_columns.push("build".to_string());
-    }
+    let series_columns = split_by_build(series_columns, &kept);
     let title = title(spec);
-    let mut subtitle_text = String::new();
-    let panels = match spec.kind {
-        FigureKind::SolverComparison => {
-            solver_comparison::solver_comparison(&kept, &series_columns, &x, &y)
-        }
-        FigureKind::Throughput => throughput::throughput(&kept, &series_columns, &x, &y),
-        FigureKind::ScalingModel => {
-            let (panels, text) =
-                scaling_model::scaling_model(&kept).map_err(|e| fault(k, spec, e))?;
-            subtitle_text = text;
-            panels
-        }
-        FigureKind::Field => {
-            field::field(&kept, &x, &y).map_err(|e| fault(k, spec, format!("where {e}")))?
-        }
-        kind => {
-            let mut groups = group(&kept, &series_columns);
-            let scaling = matches!(kind, FigureKind::StrongScaling | FigureKind::WeakScaling);
-            if scaling && spec.series.is_none() {
-                groups = scaling::by_parallelism(groups);
-            }
-            subtitle_text = subtitle(&shared_by_all(&mut groups));
-            match kind {
-                FigureKind::StrongScaling => scaling::strong_scaling(&groups, &x, &y),
-                FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, &x, &y)],
-                FigureKind::Convergence => vec![convergence::convergence(&groups, &x, &y)],
-                FigureKind::WorkPrecision => {
-                    let mut panel = work_precision::work_precision(&groups, &x, &y);
-                    let target = answers.and_then(|a| Some((a.spec::<TargetSpec>()?, a.rows)));
-                    if let Some((target, rows)) = target {
-                        work_precision::mark_target(&mut panel, &groups, (&x, &y), target, rows);
-                    }
-                    vec![panel]
-                }
-                FigureKind::Stability => vec![stability::stability(&groups, &x, &y)],
-                FigureKind::TimeSeries => vec![time_series::time_series(&groups, &x, &y)],
-                FigureKind::SolverComparison
-                | FigureKind::Throughput
-                | FigureKind::Field
-                | FigureKind::ScalingModel
-                | FigureKind::Boundaries => unreachable!("drawn from the rows above"),
-            }
-        }
-    };
+    let (panels, subtitle_text) = panels(spec, k, &kept, &series_columns, (&x, &y), answers)?;
     let drawn = |p: &Panel| {
         p.heat.is_some()
             || p.series
@@ -226,15 +164,108 @@ pub fn chart(
         spec.kind,
         FigureKind::StrongScaling | FigureKind::WeakScaling
     ) {
-        let mut workers: Vec<f64> = kept.iter().filter_map(|r| r.number(&x)).collect();
-        workers.sort_by(f64::total_cmp);
-        workers.dedup();
-        if workers.len() < 2 {
-            return Err(fault(k, spec, format!("the points `where` selects ran on one worker count ({}); a scaling figure needs two or more", workers.first().map_or("none".to_string(), |w| crate::console::number(*w)))));
-        }
+        two_worker_counts(&kept, &x).map_err(|e| fault(k, spec, e))?;
     }
-    // Each glyph's meaning, given only where some series draws it.
     let mut chart = Chart::new(title, subtitle_text, panels);
+    explain_glyphs(&mut chart, spec.kind);
+    Ok(chart)
+}
+
+/// `rows` with the magnitude of column `name` beside it, as `|name|`; None when no column is
+/// `name`.
+fn with_magnitude(rows: &[Row], name: &str) -> Option<Vec<Row>> {
+    let source = column(rows, name)?;
+    let with = |row: &Row| {
+        let mut row = row.clone();
+        let value = row.number(&source).map(f64::abs);
+        row.set(&format!("|{name}|"), serde_json::json!(value));
+        row
+    };
+    Some(rows.iter().map(with).collect())
+}
+
+/// Points of several solver builds (a table collected with --allow-mixed) are never joined into
+/// one line: the build splits the series and names them.
+fn split_by_build(mut series_columns: Vec<String>, kept: &[&Row]) -> Vec<String> {
+    let mut builds: Vec<&str> = kept.iter().filter_map(|r| r.text("build")).collect();
+    builds.sort_unstable();
+    builds.dedup();
+    if builds.len() > 1 && !series_columns.iter().any(|c| c == "build") {
+        series_columns.push("build".to_string());
+    }
+    series_columns
+}
+
+/// A scaling figure's rows ran on two worker counts or more (its x).
+fn two_worker_counts(kept: &[&Row], x: &str) -> Result<(), String> {
+    let mut workers: Vec<f64> = kept.iter().filter_map(|r| r.number(x)).collect();
+    workers.sort_by(f64::total_cmp);
+    workers.dedup();
+    match workers.len() {
+        0 | 1 => Err(format!("the points `where` selects ran on one worker count ({}); a scaling figure needs two or more", workers.first().map_or("none".to_string(), |w| crate::console::number(*w)))),
+        _ => Ok(()),
+    }
+}
+
+/// The panels of a figure of the summary table (every kind but `boundaries`), from its `kept`
+/// rows, and its subtitle: what every series shares.
+fn panels(
+    spec: &FigureSpec,
+    k: usize,
+    kept: &[&Row],
+    series_columns: &[String],
+    (x, y): (&str, &str),
+    answers: Option<Answers>,
+) -> Result<(Vec<Panel>, String), String> {
+    let mut subtitle_text = String::new();
+    let panels = match spec.kind {
+        FigureKind::SolverComparison => {
+            solver_comparison::solver_comparison(kept, series_columns, x, y)
+        }
+        FigureKind::Throughput => throughput::throughput(kept, series_columns, x, y),
+        FigureKind::ScalingModel => {
+            let (panels, text) =
+                scaling_model::scaling_model(kept).map_err(|e| fault(k, spec, e))?;
+            subtitle_text = text;
+            panels
+        }
+        FigureKind::Field => {
+            field::field(kept, x, y).map_err(|e| fault(k, spec, format!("where {e}")))?
+        }
+        kind => {
+            let mut groups = group(kept, series_columns);
+            let scaling = matches!(kind, FigureKind::StrongScaling | FigureKind::WeakScaling);
+            if scaling && spec.series.is_none() {
+                groups = scaling::by_parallelism(groups);
+            }
+            subtitle_text = subtitle(&shared_by_all(&mut groups));
+            match kind {
+                FigureKind::StrongScaling => scaling::strong_scaling(&groups, x, y),
+                FigureKind::WeakScaling => vec![scaling::weak_scaling(&groups, x, y)],
+                FigureKind::Convergence => vec![convergence::convergence(&groups, x, y)],
+                FigureKind::WorkPrecision => {
+                    let mut panel = work_precision::work_precision(&groups, x, y);
+                    let target = answers.and_then(|a| Some((a.spec::<TargetSpec>()?, a.rows)));
+                    if let Some((target, rows)) = target {
+                        work_precision::mark_target(&mut panel, &groups, (x, y), target, rows);
+                    }
+                    vec![panel]
+                }
+                FigureKind::Stability => vec![stability::stability(&groups, x, y)],
+                FigureKind::TimeSeries => vec![time_series::time_series(&groups, x, y)],
+                FigureKind::SolverComparison
+                | FigureKind::Throughput
+                | FigureKind::Field
+                | FigureKind::ScalingModel
+                | FigureKind::Boundaries => unreachable!("drawn from the rows above"),
+            }
+        }
+    };
+    Ok((panels, subtitle_text))
+}
+
+/// Each glyph's meaning, given only where some series draws it.
+fn explain_glyphs(chart: &mut Chart, kind: FigureKind) {
     chart.explain(
         Glyph::Ring,
         "noisy: timed while other tasks wanted the cores",
@@ -245,14 +276,13 @@ pub fn chart(
     );
     chart.explain(
         Glyph::Cross,
-        match spec.kind {
+        match kind {
             FigureKind::Stability => {
                 "diverged (|u| passed the bound) or grew ten times past the problem's scale"
             }
             _ => "more workers than cores: contention, not scaling",
         },
     );
-    Ok(chart)
 }
 
 /// The boundaries figure: drawn from the boundary table of the study's `boundary` question.

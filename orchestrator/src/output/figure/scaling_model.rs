@@ -20,6 +20,8 @@ fn ranks() -> Vec<usize> {
     (0..=6).map(|k| 1 << (2 * k)).collect()
 }
 
+/// Long because its two panels share the fitted rates, the rank counts and their axes, declared
+/// side by side as the figure shows them.
 pub(super) fn scaling_model(rows: &[&Row]) -> Result<(Vec<Panel>, String), String> {
     let fitted = fit(rows);
     if fitted.is_empty() {

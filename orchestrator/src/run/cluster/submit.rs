@@ -7,7 +7,7 @@ use super::ledger::{self, LedgerEntry};
 use super::limits::History;
 use super::pack::{self, pack};
 use super::scheduler::{self, Scheduler};
-use super::script::{write_jobs, JobCommand, Settings};
+use super::script::{write_jobs, Job, JobCommand, Settings};
 use crate::model::launcher::Launcher;
 use crate::model::resources::{Resources, WallTime};
 use crate::model::site::Site;
@@ -76,19 +76,7 @@ pub fn submit_study(
         .iter()
         .filter(|p| p.runs() && in_flight.contains_key(p.key.as_str()))
         .count();
-    let mut holding: Vec<&str> = in_flight.values().map(String::as_str).collect();
-    holding.sort_unstable();
-    holding.dedup();
-    if !holding.is_empty() {
-        // An array's elements each have an id: a few name the rest.
-        let named = match holding.len() {
-            n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
-            _ => holding.join(", "),
-        };
-        log::info!(
-            "{held} points are in jobs still queued or running ({named}); not submitted again"
-        );
-    }
+    let holding = say_held(&in_flight, held);
     for p in &refused {
         log::info!(
             "not submitted, the solver refuses {}: {}",
@@ -108,24 +96,7 @@ pub fn submit_study(
         });
     }
     crate::store::fs::create_dir(&target.results)?;
-    let absolute =
-        |path: &Path| std::fs::canonicalize(path).map_err(FileError::on("resolve", path));
-    let results = absolute(&target.results)?;
-    let command = JobCommand {
-        nlstudy: std::env::current_exe()
-            .map_err(|e| Fault::Io(format!("cannot find nlstudy: {e}")))?,
-        nlsolve: absolute(&solver.binary)?,
-        study: absolute(&target.study_file)?,
-        jobs: results.join(&study.name).join("jobs"),
-        results,
-        retries: target.retries,
-        launcher: target
-            .launcher
-            .clone()
-            .or_else(|| target.site.launcher.clone()),
-        whole: target.whole,
-        allow_mixed: target.allow_mixed,
-    };
+    let command = job_command(study, solver, target)?;
     let packs = match target.whole {
         true => vec![pack::whole(
             &study.name,
@@ -167,46 +138,10 @@ pub fn submit_study(
     let jobs = write_jobs(&timed, &settings, &command)
         .map_err(|e| e.within("cannot write the job scripts"))?;
     for (job, (_, time, from)) in jobs.iter().zip(&packs) {
-        let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
-        match job.array {
-            false => say(format!(
-                "{} ({} cases, {limit}: {from}): {}",
-                job.name,
-                job.bundles[0].len(),
-                job.script.display()
-            )),
-            true => say(format!(
-                "{} (array of {} elements, {} cases, {limit}: {from}): {}",
-                job.name,
-                job.bundles.len(),
-                job.bundles.iter().map(Vec::len).sum::<usize>(),
-                job.script.display()
-            )),
-        }
+        say(job_line(job, *time, from));
         if !target.dry_run {
-            let mut entry = LedgerEntry {
-                scheduler: target.scheduler,
-                id: String::new(),
-                name: job.name.clone(),
-                keys: job.bundles.concat(),
-                elements: match job.array {
-                    true => job.bundles.clone(),
-                    false => Vec::new(),
-                },
-                submitted: super::unix_seconds(),
-                whole: target.whole,
-            };
-            let token = ledger::token();
-            ledger::intend(store, &entry, &token)?;
-            entry.id = match scheduler::submit(target.scheduler, &job.script, &token) {
-                Ok(id) => id,
-                Err(refused) => {
-                    let _ = ledger::forget(store, &token);
-                    return Err(refused);
-                }
-            };
-            say(format!("  submitted as job {}", entry.id));
-            ledger::settle(store, &entry, &token)?;
+            let id = submit_job(job, target, store)?;
+            say(format!("  submitted as job {id}"));
         }
     }
     Ok(Sent {
@@ -214,6 +149,96 @@ pub fn submit_study(
         points: runnable.len(),
         held,
     })
+}
+
+/// Says which jobs still hold `held` planned points (they are not submitted again); returns
+/// their ids.
+fn say_held(in_flight: &HashMap<String, String>, held: usize) -> Vec<&str> {
+    let mut holding: Vec<&str> = in_flight.values().map(String::as_str).collect();
+    holding.sort_unstable();
+    holding.dedup();
+    if !holding.is_empty() {
+        // An array's elements each have an id: a few name the rest.
+        let named = match holding.len() {
+            n if n > 5 => format!("{} and {} more", holding[..5].join(", "), n - 5),
+            _ => holding.join(", "),
+        };
+        log::info!(
+            "{held} points are in jobs still queued or running ({named}); not submitted again"
+        );
+    }
+    holding
+}
+
+/// What each job runs: this nlstudy, the study's solver and file, the results, by absolute path.
+fn job_command(study: &Study, solver: &Nlsolve, target: &Target) -> Result<JobCommand, Fault> {
+    let absolute =
+        |path: &Path| std::fs::canonicalize(path).map_err(FileError::on("resolve", path));
+    let results = absolute(&target.results)?;
+    Ok(JobCommand {
+        nlstudy: std::env::current_exe()
+            .map_err(|e| Fault::Io(format!("cannot find nlstudy: {e}")))?,
+        nlsolve: absolute(&solver.binary)?,
+        study: absolute(&target.study_file)?,
+        jobs: results.join(&study.name).join("jobs"),
+        results,
+        retries: target.retries,
+        launcher: target
+            .launcher
+            .clone()
+            .or_else(|| target.site.launcher.clone()),
+        whole: target.whole,
+        allow_mixed: target.allow_mixed,
+    })
+}
+
+/// The line that says a job: its name, cases, time limit and where that came from, its script.
+fn job_line(job: &Job, time: Option<WallTime>, from: &str) -> String {
+    let limit = time.map_or("time".to_string(), |t| format!("time {}", t.slurm()));
+    match job.array {
+        false => format!(
+            "{} ({} cases, {limit}: {from}): {}",
+            job.name,
+            job.bundles[0].len(),
+            job.script.display()
+        ),
+        true => format!(
+            "{} (array of {} elements, {} cases, {limit}: {from}): {}",
+            job.name,
+            job.bundles.len(),
+            job.bundles.iter().map(Vec::len).sum::<usize>(),
+            job.script.display()
+        ),
+    }
+}
+
+/// Submits `job`, entered in the ledger before the scheduler has it and settled under its id
+/// after (a submission killed in between is settled by the next look at the ledger); returns
+/// the id.
+fn submit_job(job: &Job, target: &Target, store: &Store) -> Result<String, Fault> {
+    let mut entry = LedgerEntry {
+        scheduler: target.scheduler,
+        id: String::new(),
+        name: job.name.clone(),
+        keys: job.bundles.concat(),
+        elements: match job.array {
+            true => job.bundles.clone(),
+            false => Vec::new(),
+        },
+        submitted: super::unix_seconds(),
+        whole: target.whole,
+    };
+    let token = ledger::token();
+    ledger::intend(store, &entry, &token)?;
+    entry.id = match scheduler::submit(target.scheduler, &job.script, &token) {
+        Ok(id) => id,
+        Err(refused) => {
+            let _ = ledger::forget(store, &token);
+            return Err(refused);
+        }
+    };
+    ledger::settle(store, &entry, &token)?;
+    Ok(entry.id)
 }
 
 /// A job's time limit and where it came from: `--time` or the study's; else its points'

@@ -356,6 +356,10 @@ impl Pool<'_> {
     }
 
     /// Stores the record of a case that ended, or queues it again.
+    ///
+    /// Long because each way a case can end (an exit, with or without its record, a launcher that
+    /// hung, serve's answer, a worker lost) is an arm of one match over the same running job and
+    /// its attempts.
     fn ended(&mut self, job: Running, ended: Ended) -> Result<(), FileError> {
         let planned = &self.planned[job.index];
         let label = planned.point.shown();

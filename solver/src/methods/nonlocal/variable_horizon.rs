@@ -83,6 +83,9 @@ pub fn validate(case: &Case) -> Result<(), CaseError> {
 }
 
 /// Plans, integrates and measures a nonlocal case with a `horizon_profile`.
+///
+/// Long because the untimed measurements after the run (amplification, positivity) reuse the
+/// stepper the closure `with_stepper` builds over this function's operator and preconditioner.
 pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
     let setup_started = Instant::now();
     let profile = case.horizon_profile();
@@ -96,19 +99,10 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         case.formulation(),
     );
     let operator = RowOperator::new(variable.rows_with_zero_collar());
-    // L_h's diagonal, and whether its other entries are all ≥ 0, for the positivity theory.
-    let (mut diagonal, mut off_diagonal_nonnegative) = (Vec::new(), true);
-    if case.amplification_steps.is_some() {
-        for (i, row) in variable.rows_with_zero_collar().enumerate() {
-            diagonal.push(
-                row.iter()
-                    .filter(|(j, _)| *j == i)
-                    .map(|(_, a)| a)
-                    .sum::<f64>(),
-            );
-            off_diagonal_nonnegative &= row.iter().all(|&(j, a)| j == i || a >= 0.0);
-        }
-    }
+    let (diagonal, off_diagonal_nonnegative) = match case.amplification_steps {
+        Some(_) => diagonal_and_sign(&variable),
+        None => (Vec::new(), true),
+    };
     let eps_max = variable.eps.iter().copied().fold(0.0, f64::max);
     let eps_min = variable.eps.iter().copied().fold(f64::INFINITY, f64::min);
     // Gershgorin's bound: the exact step of the symmetric standard form is about twice this.
@@ -119,30 +113,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
 
     let grid = Grid::new(case.dim, case.n);
     let nodes = grid.nodes();
-    let x = |i: usize| grid.position(i);
-    let (u0, source) = match case.problem {
-        Problem::Bump => (
-            (0..nodes).map(|i| problem::bump(case.dim, x(i))).collect(),
-            None,
-        ),
-        _ => {
-            let phi: Vec<f64> = (0..nodes)
-                .map(|i| problem::profile(case.dim, x(i)))
-                .collect();
-            let psi = match case.source() {
-                SourceMode::Discrete => {
-                    let mut psi = vec![0.0; nodes];
-                    operator.apply_once(&phi, &mut psi);
-                    psi
-                }
-                _ => {
-                    let factor = problem::local_laplacian_factor(case.dim, case.diffusivity);
-                    phi.iter().map(|p| factor * p).collect()
-                }
-            };
-            (phi.clone(), Some(Source { phi, psi }))
-        }
-    };
+    let (u0, source) = initial_and_source(case, &grid, &operator);
     let ranks = Ranks::single();
     let mass0 = crate::output::diagnostics::total_mass(&u0, grid.volume());
     let source_max = source
@@ -193,13 +164,7 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         };
         // The spike sits where |L_ii| is largest (the smallest horizon): the column whose
         // positivity a step loses first.
-        let (spike, largest) = diagonal.iter().enumerate().fold((0, 0.0), |best, (i, a)| {
-            if a.abs() > best.1 {
-                (i, a.abs())
-            } else {
-                best
-            }
-        });
+        let (spike, largest) = largest_on_the_diagonal(&diagonal);
         dt_positive = positive_step(case.integrator, largest, off_diagonal_nonnegative);
         with_stepper(&tight, &asked, None, &mut |stepper| {
             trajectory.positivity = positivity(stepper, ranks, None, nodes, asked.dt, spike);
@@ -244,4 +209,67 @@ pub fn run(case: &ValidCase) -> Result<Outcome, CaseError> {
         .map(|mass| (mass - mass0) / mass0)
         .filter(|drift| drift.is_finite());
     Ok(outcome)
+}
+
+/// L_h's diagonal, and whether its other entries are all ≥ 0, for the positivity theory.
+fn diagonal_and_sign(variable: &VariableHorizonOperator) -> (Vec<f64>, bool) {
+    let (mut diagonal, mut off_diagonal_nonnegative) = (Vec::new(), true);
+    for (i, row) in variable.rows_with_zero_collar().enumerate() {
+        diagonal.push(
+            row.iter()
+                .filter(|(j, _)| *j == i)
+                .map(|(_, a)| a)
+                .sum::<f64>(),
+        );
+        off_diagonal_nonnegative &= row.iter().all(|&(j, a)| j == i || a >= 0.0);
+    }
+    (diagonal, off_diagonal_nonnegative)
+}
+
+/// The node of the largest |L_ii| and its size.
+fn largest_on_the_diagonal(diagonal: &[f64]) -> (usize, f64) {
+    diagonal.iter().enumerate().fold(
+        (0, 0.0),
+        |best, (i, a)| {
+            if a.abs() > best.1 {
+                (i, a.abs())
+            } else {
+                best
+            }
+        },
+    )
+}
+
+/// The initial field, and the manufactured problem's source (None for the bump): its profile φ
+/// and ψ = L_h φ (discrete) or the local Laplacian's multiple of φ.
+fn initial_and_source(
+    case: &ValidCase,
+    grid: &Grid,
+    operator: &RowOperator,
+) -> (Vec<f64>, Option<Source>) {
+    let nodes = grid.nodes();
+    let x = |i: usize| grid.position(i);
+    match case.problem {
+        Problem::Bump => (
+            (0..nodes).map(|i| problem::bump(case.dim, x(i))).collect(),
+            None,
+        ),
+        _ => {
+            let phi: Vec<f64> = (0..nodes)
+                .map(|i| problem::profile(case.dim, x(i)))
+                .collect();
+            let psi = match case.source() {
+                SourceMode::Discrete => {
+                    let mut psi = vec![0.0; nodes];
+                    operator.apply_once(&phi, &mut psi);
+                    psi
+                }
+                _ => {
+                    let factor = problem::local_laplacian_factor(case.dim, case.diffusivity);
+                    phi.iter().map(|p| factor * p).collect()
+                }
+            };
+            (phi.clone(), Some(Source { phi, psi }))
+        }
+    }
 }

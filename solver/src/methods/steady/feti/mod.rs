@@ -66,58 +66,9 @@ pub fn run_on(
     let grid = problem.grid();
     let decomposition = Decomposition::new(grid.n, p, problem.stencil.horizon.m);
     let (rank, ranks) = (exchange.rank(), exchange.ranks());
-    let owned: Vec<usize> = (0..p * p)
-        .filter(|&n| decomposition.owner(n, ranks) == rank)
-        .collect();
-    let preconditioner = case.preconditioner();
-    let locals: Vec<Local> = pool
-        .install(|| {
-            owned
-                .par_iter()
-                .map(|&n| {
-                    Local::new(
-                        problem,
-                        &decomposition,
-                        &decomposition.subdomains[n],
-                        preconditioner,
-                    )
-                })
-                .collect::<Result<_, _>>()
-        })
-        .map_err(|e| {
-            CaseError::new(
-                "subdomains",
-                format!("a subdomain factorisation failed ({e}); report this case"),
-            )
-        })?;
+    let mut feti = set_up(case, problem, &decomposition, exchange, pool)?;
     let nf = decomposition.floating.len();
-    let coarse = decomposition.coarse_factor().transpose().map_err(|e| {
-        CaseError::new(
-            "subdomains",
-            format!("the coarse problem GᵀG is singular ({e:?}); report this case"),
-        )
-    })?;
-    let layout = DualLayout::new(&decomposition, &owned, rank, ranks);
-    let mut feti = Feti {
-        decomposition: &decomposition,
-        owned,
-        locals,
-        layout,
-        coarse,
-        preconditioner,
-        pool,
-        phases: PhaseSeconds::default(),
-    };
-    // e = M A^† f and g = Zᵀ f.
-    let mut e = vec![0.0; feti.layout.len()];
-    feti.interface_assembled(exchange, &mut e, |local, _, out| local.dual_load(out));
-    let mut g = vec![0.0; nf];
-    for local in &feti.locals {
-        if let Some(a) = local.geometry.coarse {
-            g[a] = local.load.iter().sum();
-        }
-    }
-    exchange.all_sum(&mut g);
+    let (e, g) = loads(&mut feti, exchange);
     let setup_s = exchange.max(started.elapsed().as_secs_f64());
     let comm_before = exchange.seconds();
 
@@ -132,77 +83,20 @@ pub fn run_on(
         case.max_iterations(),
         &mut checkpoints,
     );
-    // α from Gα = Kλ − e, then u_n = A_n^†(f_n − M_nᵀλ_n) + Z_n α_n.
-    let mut w = vec![0.0; feti.layout.len()];
-    feti.apply_k(exchange, &dual.lambda, &mut w);
-    w.iter_mut().zip(&e).for_each(|(w, e)| *w -= e);
-    let mut alpha = feti.g_transpose(exchange, &w);
-    feti.coarse_solve(&mut alpha);
-    let offsets = &feti.layout.offsets;
-    let locals = &mut feti.locals;
-    let pieces: Vec<(usize, Vec<f64>)> = pool.install(|| {
-        locals
-            .par_iter_mut()
-            .enumerate()
-            .map(|(k, local)| {
-                let a = local.geometry.coarse.map_or(0.0, |c| alpha[c]);
-                (
-                    local.geometry.index,
-                    local.solution(&dual.lambda[offsets[k]..offsets[k + 1]], a),
-                )
-            })
-            .collect()
-    });
+    let pieces = primal(&mut feti, exchange, &dual.lambda, &e);
     let solve_s = checkpoints.resumed(exchange.max(solving.ends()));
     let comm_s = exchange.max(exchange.seconds() - comm_before + checkpoints.earlier_comm_s());
     drop(checkpoints);
 
-    // Node x's value comes from the subdomain whose block Ω̃_n holds it (None: another rank's).
-    let mut piece_of: Vec<Option<&[f64]>> = vec![None; p * p];
-    for (n, u) in &pieces {
-        piece_of[*n] = Some(u);
-    }
-    let value_at = |i: usize| -> Option<f64> {
-        let (x, y) = (i % grid.n, i / grid.n);
-        let index = decomposition.block_of(y) * p + decomposition.block_of(x);
-        Some(piece_of[index]?[decomposition.subdomains[index].local(x as i64, y as i64)])
-    };
-    // One process holds the field; over ranks it is measured where it lies, and assembled (on
-    // every rank) only when asked for.
-    let (summary, field, peak_memory_bytes) = if ranks == 1 {
-        let field: Vec<f64> = (0..grid.nodes())
-            .map(|i| value_at(i).expect("one process holds every subdomain"))
-            .collect();
-        let summary = problem.summarize(&field);
-        (summary, field, crate::output::record::peak_memory_bytes())
-    } else {
-        let summary = measured_over_ranks(problem, &decomposition, exchange, pool, &value_at);
-        let peak = crate::parallel::exchange::peak_memory_over_ranks(exchange);
-        let field = gather_field.then(|| {
-            let mut field: Vec<f64> = (0..grid.nodes())
-                .map(|i| value_at(i).unwrap_or(0.0))
-                .collect();
-            exchange.all_sum(&mut field);
-            field
-        });
-        (summary, field.unwrap_or_default(), peak)
-    };
-    // Multiplier values each exchange brings in, over all ranks.
-    let mut received = [feti
-        .layout
-        .peer_blocks
-        .iter()
-        .flatten()
-        .map(|&(_, len)| len)
-        .sum::<usize>() as f64];
-    exchange.all_sum(&mut received);
-    let factor_nonzeros = exchange.max(
-        feti.locals
-            .iter()
-            .map(|l| l.factor.nonzeros())
-            .max()
-            .unwrap_or(0) as f64,
+    let (summary, field, peak_memory_bytes) = solution(
+        problem,
+        &decomposition,
+        exchange,
+        pool,
+        &pieces,
+        gather_field,
     );
+    let (received, factor_nonzeros) = exchanged_and_factored(&feti, exchange);
     if rank != 0 {
         return Ok(None);
     }
@@ -221,8 +115,8 @@ pub fn run_on(
     distribution.px = None;
     distribution.py = None;
     distribution.comm_s = comm_s;
-    distribution.halo_nodes = received[0] as usize;
-    distribution.halo_bytes = received[0] as usize * std::mem::size_of::<f64>();
+    distribution.halo_nodes = received as usize;
+    distribution.halo_bytes = received as usize * std::mem::size_of::<f64>();
     let mut outcome = outcome(
         case,
         problem,
@@ -242,6 +136,169 @@ pub fn run_on(
     );
     outcome.record.peak_memory_bytes = peak_memory_bytes;
     Ok(Some(outcome))
+}
+
+/// The right-hand sides of the dual problem: e = M A^† f and g = Zᵀ f.
+fn loads(feti: &mut Feti, exchange: &dyn Exchange) -> (Vec<f64>, Vec<f64>) {
+    let mut e = vec![0.0; feti.layout.len()];
+    feti.interface_assembled(exchange, &mut e, |local, _, out| local.dual_load(out));
+    let mut g = vec![0.0; feti.decomposition.floating.len()];
+    for local in &feti.locals {
+        if let Some(a) = local.geometry.coarse {
+            g[a] = local.load.iter().sum();
+        }
+    }
+    exchange.all_sum(&mut g);
+    (e, g)
+}
+
+/// The multiplier values each exchange brings in, over all ranks, and the most nonzeros of a
+/// subdomain's factor.
+fn exchanged_and_factored(feti: &Feti, exchange: &dyn Exchange) -> (f64, f64) {
+    let mut received = [feti
+        .layout
+        .peer_blocks
+        .iter()
+        .flatten()
+        .map(|&(_, len)| len)
+        .sum::<usize>() as f64];
+    exchange.all_sum(&mut received);
+    let factor_nonzeros = exchange.max(
+        feti.locals
+            .iter()
+            .map(|l| l.factor.nonzeros())
+            .max()
+            .unwrap_or(0) as f64,
+    );
+    (received[0], factor_nonzeros)
+}
+
+/// This rank's part of the FETI system: its subdomains factorised, the coarse problem GᵀG's
+/// factor and the layout of the multipliers.
+fn set_up<'d>(
+    case: &ValidCase,
+    problem: &'d SteadyProblem,
+    decomposition: &'d Decomposition,
+    exchange: &dyn Exchange,
+    pool: &'d ThreadPool,
+) -> Result<Feti<'d>, CaseError> {
+    let p = case.subdomains.expect("validated: feti gives p");
+    let (rank, ranks) = (exchange.rank(), exchange.ranks());
+    let owned: Vec<usize> = (0..p * p)
+        .filter(|&n| decomposition.owner(n, ranks) == rank)
+        .collect();
+    let preconditioner = case.preconditioner();
+    let locals: Vec<Local> = pool
+        .install(|| {
+            owned
+                .par_iter()
+                .map(|&n| {
+                    Local::new(
+                        problem,
+                        decomposition,
+                        &decomposition.subdomains[n],
+                        preconditioner,
+                    )
+                })
+                .collect::<Result<_, _>>()
+        })
+        .map_err(|e| {
+            CaseError::new(
+                "subdomains",
+                format!("a subdomain factorisation failed ({e}); report this case"),
+            )
+        })?;
+    let coarse = decomposition.coarse_factor().transpose().map_err(|e| {
+        CaseError::new(
+            "subdomains",
+            format!("the coarse problem GᵀG is singular ({e:?}); report this case"),
+        )
+    })?;
+    let layout = DualLayout::new(decomposition, &owned, rank, ranks);
+    Ok(Feti {
+        decomposition,
+        owned,
+        locals,
+        layout,
+        coarse,
+        preconditioner,
+        pool,
+        phases: PhaseSeconds::default(),
+    })
+}
+
+/// The primal solution from the multipliers λ: α from Gα = Kλ − e, then
+/// u_n = A_n^†(f_n − M_nᵀλ_n) + Z_n α_n on each of this rank's subdomains, by its index.
+fn primal(
+    feti: &mut Feti,
+    exchange: &dyn Exchange,
+    lambda: &[f64],
+    e: &[f64],
+) -> Vec<(usize, Vec<f64>)> {
+    let pool = feti.pool;
+    let mut w = vec![0.0; feti.layout.len()];
+    feti.apply_k(exchange, lambda, &mut w);
+    w.iter_mut().zip(e).for_each(|(w, e)| *w -= e);
+    let mut alpha = feti.g_transpose(exchange, &w);
+    feti.coarse_solve(&mut alpha);
+    let offsets = &feti.layout.offsets;
+    let locals = &mut feti.locals;
+    pool.install(|| {
+        locals
+            .par_iter_mut()
+            .enumerate()
+            .map(|(k, local)| {
+                let a = local.geometry.coarse.map_or(0.0, |c| alpha[c]);
+                (
+                    local.geometry.index,
+                    local.solution(&lambda[offsets[k]..offsets[k + 1]], a),
+                )
+            })
+            .collect()
+    })
+}
+
+/// The solution's numbers for the record, its field (one process; over ranks only when
+/// `gather_field`) and the peak memory, from this rank's `pieces`.
+fn solution(
+    problem: &SteadyProblem,
+    decomposition: &Decomposition,
+    exchange: &dyn Exchange,
+    pool: &ThreadPool,
+    pieces: &[(usize, Vec<f64>)],
+    gather_field: bool,
+) -> (Summary, Vec<f64>, Option<u64>) {
+    let (grid, p, ranks) = (problem.grid(), decomposition.p, exchange.ranks());
+    // Node x's value comes from the subdomain whose block Ω̃_n holds it (None: another rank's).
+    let mut piece_of: Vec<Option<&[f64]>> = vec![None; p * p];
+    for (n, u) in pieces {
+        piece_of[*n] = Some(u);
+    }
+    let value_at = |i: usize| -> Option<f64> {
+        let (x, y) = (i % grid.n, i / grid.n);
+        let index = decomposition.block_of(y) * p + decomposition.block_of(x);
+        Some(piece_of[index]?[decomposition.subdomains[index].local(x as i64, y as i64)])
+    };
+    // One process holds the field; over ranks it is measured where it lies, and assembled (on
+    // every rank) only when asked for.
+    if ranks == 1 {
+        let field: Vec<f64> = (0..grid.nodes())
+            .map(|i| value_at(i).expect("one process holds every subdomain"))
+            .collect();
+        let summary = problem.summarize(&field);
+        (summary, field, crate::output::record::peak_memory_bytes())
+    } else {
+        let summary = measured_over_ranks(problem, decomposition, exchange, pool, &value_at);
+        let peak = crate::parallel::exchange::peak_memory_over_ranks(exchange);
+        let field = gather_field.then(|| {
+            let mut field: Vec<f64> = (0..grid.nodes())
+                .map(|i| value_at(i).unwrap_or(0.0))
+                .collect();
+            exchange.all_sum(&mut field);
+            field
+        });
+        (summary, field.unwrap_or_default(), peak)
+    }
 }
 
 /// The solution's numbers for the record, over ranks: each rank measures the nodes of its
