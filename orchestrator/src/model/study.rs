@@ -85,9 +85,9 @@ pub trait Sections {
     fn names(&self) -> Vec<&'static str>;
 }
 
-/// Takes the top-level keys of `value` that are not the study's own fields out of it: each the
-/// section of an adaptive question, in the file's key order, or an unknown field refused with
-/// the names a study takes.
+/// Takes the top-level keys of `value` that are not the study's own fields out of it, by name:
+/// each the section of an adaptive question, or an unknown field refused with the names a study
+/// takes.
 fn adaptive_sections(
     value: &mut Value,
     sections: &dyn Sections,
