@@ -100,10 +100,11 @@ fn adaptive_sections(
         .filter(|k| !own.contains(&k.as_str()))
         .cloned()
         .collect();
+    let names = sections.names();
     let mut asked = Vec::new();
     for key in others {
-        if !sections.names().contains(&key.as_str()) {
-            let expected = own.iter().copied().chain(sections.names());
+        if !names.contains(&key.as_str()) {
+            let expected = own.iter().copied().chain(names.iter().copied());
             let expected: Vec<String> = expected.map(|n| format!("`{n}`")).collect();
             let message = format!(
                 "unknown field `{key}`, expected one of {}",
