@@ -535,40 +535,61 @@ fn the_path_check_sees_a_missing_file_and_passes_placeholders() {
     assert!(!exists(root, &root.join("docs"), &names, "run/gone.rs"));
 }
 
-/// Below `commands/`, only the reporters print: `console` (the never-panicking `outln!` and
-/// `errln!`, and `Reporter`, which prints what the layers below say through `log`) and
-/// `run/progress.rs` (the bar and its lines). Everything else returns what it has to say, hands
-/// it to a `say` the command gives, or tells `log`.
+/// Only the reporters print: `console` (`Reporter`, which prints what is said through `log`, and
+/// `print`, which prints the `Reply` each command returns), `lib.rs`'s never-panicking `errln!`
+/// and `run/progress.rs` (the bar and its lines). Everything else, the commands included,
+/// returns what it has to say or tells `log`. Test modules (`#[cfg(test)] mod …;`) may print.
 #[test]
-fn only_the_reporters_print_below_the_commands() {
-    const REPORTERS: [&str; 3] = ["console.rs", "lib.rs", "run/progress.rs"];
+fn only_the_reporters_print() {
+    const REPORTERS: [&str; 4] = ["console.rs", "lib.rs", "main.rs", "run/progress.rs"];
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("orchestrator/src");
     let mut files = BTreeMap::new();
     collect_files(&src, &src, &mut files);
-    let printing: BTreeSet<String> = files
-        .values()
-        .filter_map(|path| {
-            let relative = path
-                .strip_prefix(&src)
-                .unwrap()
-                .to_string_lossy()
-                .into_owned();
-            let code = code_of(&std::fs::read_to_string(path).unwrap());
+    let sources: BTreeMap<String, String> = (files.values())
+        .map(|path| {
+            let relative = path.strip_prefix(&src).unwrap().to_string_lossy();
+            (
+                relative.into_owned(),
+                std::fs::read_to_string(path).unwrap(),
+            )
+        })
+        .collect();
+    let printing: BTreeSet<&String> = sources
+        .iter()
+        .filter(|(relative, source)| {
+            let code = code_of(source);
             let prints = [
                 "println!", "print!(", "eprint", "errln!", "outln!", "stdout()", "stderr()",
             ]
             .iter()
             .any(|p| code.contains(p));
-            let allowed = relative.starts_with("commands/")
-                || relative == "main.rs"
-                || REPORTERS.contains(&relative.as_str());
-            (prints && !allowed).then_some(relative)
+            prints
+                && !REPORTERS.contains(&relative.as_str())
+                && !declared_for_tests(relative, &sources)
         })
+        .map(|(relative, _)| relative)
         .collect();
     assert!(
         printing.is_empty(),
-        "these modules print below commands/; return what they say to the command, or tell log: {printing:?}"
+        "these modules print; return what they say (a command's `console::Reply`), or tell log: {printing:?}"
     );
+}
+
+/// Whether the module of file `relative` is test code: its parent declares it
+/// `#[cfg(test)] mod NAME;`.
+fn declared_for_tests(relative: &str, sources: &BTreeMap<String, String>) -> bool {
+    let path = Path::new(relative);
+    let name = path.file_stem().unwrap().to_string_lossy();
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let parents = [
+        dir.join("mod.rs"),
+        dir.with_extension("rs"),
+        "lib.rs".into(),
+    ];
+    parents
+        .iter()
+        .filter_map(|parent| sources.get(parent.to_str()?))
+        .any(|source| source.contains(&format!("#[cfg(test)]\nmod {name};")))
 }
 
 /// The most lines a function of the crates' own code takes without saying why.

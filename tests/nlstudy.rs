@@ -365,6 +365,63 @@ fn an_interrupted_run_resumes_with_every_record_once() {
     }
 }
 
+/// `--quiet`, on any command, leaves out the notes of what was made and keeps the results, the
+/// warnings and why a command failed: the one reporter (`console`) decides, for every command.
+#[test]
+fn quiet_keeps_results_warnings_and_failures_and_drops_the_notes() {
+    let study = json!({
+        "name": "hush",
+        "base": {"dim": 1, "m": 2, "t_end": 0.001, "cfl": 0.5},
+        "sweep": [{"product": {"n": [16, 32]}}]
+    });
+    let scratch = Scratch::new("quiet", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        said.contains("study hush: 2 ran") && said.contains("tables: "),
+        "{said}"
+    );
+    let (loud, quiet) = (
+        scratch.nlstudy("collect", &[]),
+        scratch.nlstudy("collect", &["--quiet"]),
+    );
+    assert!(quiet.status.success(), "{}", text(&quiet));
+    assert!(String::from_utf8_lossy(&loud.stderr).contains("tables: "));
+    assert_eq!(
+        String::from_utf8_lossy(&quiet.stderr),
+        "",
+        "notes under --quiet"
+    );
+    assert!(!quiet.stdout.is_empty(), "the overview is the result");
+    assert_eq!(quiet.stdout, loud.stdout);
+    // Before the command's name too, and the failure is said.
+    let failed = Command::new(binary("nlstudy"))
+        .args(["-q", "plot"])
+        .arg(scratch.study())
+        .arg("--results")
+        .arg(scratch.dir.join("results"))
+        .output()
+        .unwrap();
+    assert_eq!(failed.status.code(), Some(2), "{}", text(&failed));
+    let why = String::from_utf8_lossy(&failed.stderr);
+    assert!(
+        why.starts_with("nlstudy: study hush lists no figures"),
+        "{why}"
+    );
+    // A warning is said under --quiet: a point the solver refuses (n = 2 cannot hold m = 2),
+    // after the plan's listing, which is the result.
+    let refused = Scratch::new("quiet-refused", &small_study(&[2, 16]));
+    let planned = refused.nlstudy("plan", &["-q", "--allow-refused"]);
+    assert!(planned.status.success(), "{}", text(&planned));
+    assert!(String::from_utf8_lossy(&planned.stdout).contains("refused (stored as failed"));
+    let warned = String::from_utf8_lossy(&planned.stderr);
+    assert!(
+        warned.starts_with("nlstudy: warning: the solver refuses 2 points"),
+        "{warned}"
+    );
+}
+
 fn interrupted_by(signal: &str, status: i32) {
     let study = json!({
         "name": "long",

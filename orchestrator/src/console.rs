@@ -1,16 +1,24 @@
-//! Printing that never panics. `println!` and `eprintln!` panic when their stream is closed or
-//! full, which would end a study after its first case under `| head` or a `tee` that died. Here
-//! a message to stderr that cannot be written is dropped and the work goes on; on stdout a
-//! closed pipe ends the output quietly (as Unix tools do under `| head`), and any other failure
-//! (a full disk) is kept for `nlstudy` to report with its exit status.
+//! The one reporter: everything `nlstudy` tells its user is printed here, and nowhere else.
 //!
-//! It is also the one reporter of what the layers below the commands have to say while they
-//! work: they say it through the `log` facade (`log::warn!` for a warning, `log::info!` for a
-//! note), never by printing, and `Reporter` prints it to stderr as `nlstudy: warning: …` or
-//! `nlstudy: …`.
+//! - A command returns a `Reply`, the value of what it has to say (its results for stdout, what
+//!   it made and what it warns of for stderr); `commands::main` prints it with `print`.
+//! - What a command or the layers below it have to say *while* they work (a warning, a note, a
+//!   job submitted) goes through the `log` facade, never by printing: `log::warn!` prints as
+//!   `nlstudy: warning: …`, `log::info!` as `nlstudy: …` (with `target: NOTE`, as it is), and
+//!   `log::info!(target: OUT, …)` as a line of stdout.
+//! - `--quiet` (`set_quiet`) drops the notes, here and in `run`'s progress (`run/progress.rs`,
+//!   the bar on a terminal, lines elsewhere); results and warnings are printed still.
+//!
+//! Printing never panics. `println!` and `eprintln!` panic when their stream is closed or full,
+//! which would end a study after its first case under `| head` or a `tee` that died. Here a
+//! message to stderr that cannot be written is dropped and the work goes on; on stdout a closed
+//! pipe ends the output quietly (as Unix tools do under `| head`), and any other failure (a full
+//! disk) is kept for `nlstudy` to report with its exit status.
 
 use std::fmt;
 use std::io::{self, Write};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
 /// The first failure to write stdout other than a closed pipe.
@@ -32,7 +40,112 @@ pub fn err(args: fmt::Arguments) {
     let _ = io::stderr().lock().write_fmt(args);
 }
 
-/// Prints what the layers below the commands say through `log` (see the module's doc).
+/// The `log` target of a line for stdout, said while working (a job submitted, a round sent).
+pub const OUT: &str = "nlstudy::out";
+
+/// The `log` target of a note said as it is, without `nlstudy: ` (`interleaved: …`).
+pub const NOTE: &str = "nlstudy::note";
+
+/// Whether `--quiet` was given: notes are not printed.
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// `--quiet`: from now on, notes are dropped (results and warnings are printed still).
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+/// Whether notes are dropped (`--quiet`).
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
+/// One thing a command says, by where it goes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Said {
+    /// The command's result, a line of stdout (`plan`'s listing, `status`, a record).
+    Result(String),
+    /// What was made or done, a line of stderr (a table written, a figure drawn); not under
+    /// `--quiet`.
+    Note(String),
+    /// What the user must hear even under `--quiet`, a line of stderr as `nlstudy: warning: …`.
+    Warning(String),
+    /// Why the command failed, a line of stderr as `nlstudy: …`, always.
+    Failure(String),
+}
+
+/// What a command has to say once it is done, and how it ends: the value `commands::main`
+/// prints (`print`) and exits with.
+#[derive(Debug)]
+pub struct Reply {
+    pub said: Vec<Said>,
+    pub code: ExitCode,
+}
+
+impl Default for Reply {
+    fn default() -> Reply {
+        Reply {
+            said: Vec::new(),
+            code: ExitCode::SUCCESS,
+        }
+    }
+}
+
+impl Reply {
+    /// Text of the command's result (stdout), as given: its lines end as `text` does.
+    pub fn result(&mut self, text: impl Into<String>) -> &mut Reply {
+        self.said.push(Said::Result(text.into()));
+        self
+    }
+
+    /// A line of the command's result (stdout).
+    pub fn line(&mut self, line: impl Into<String>) -> &mut Reply {
+        self.result(line.into() + "\n")
+    }
+
+    /// A line saying what was made or done (stderr, not under `--quiet`).
+    pub fn note(&mut self, line: impl Into<String>) -> &mut Reply {
+        self.said.push(Said::Note(line.into()));
+        self
+    }
+
+    /// A warning (stderr, always).
+    pub fn warn(&mut self, line: impl Into<String>) -> &mut Reply {
+        self.said.push(Said::Warning(line.into()));
+        self
+    }
+
+    /// The reply, ending with `code`.
+    pub fn ending(mut self, code: ExitCode) -> Reply {
+        self.code = code;
+        self
+    }
+
+    /// The reply, ending in a failure: `why` said last (`nlstudy: …`), and `code`.
+    pub fn failed(mut self, why: String, code: ExitCode) -> Reply {
+        self.said.push(Said::Failure(why));
+        self.ending(code)
+    }
+}
+
+/// Prints `said`, each part where it goes (see `Said`).
+pub fn print(said: &[Said]) {
+    for part in said {
+        say(part);
+    }
+}
+
+/// Prints one thing said.
+fn say(part: &Said) {
+    match part {
+        Said::Result(text) => out(format_args!("{text}")),
+        Said::Note(_) if quiet() => {}
+        Said::Note(line) => err(format_args!("{line}\n")),
+        Said::Warning(line) => err(format_args!("nlstudy: warning: {line}\n")),
+        Said::Failure(line) => err(format_args!("nlstudy: {line}\n")),
+    }
+}
+
+/// Prints what is said through `log` while working (see the module's doc).
 struct Reporter;
 
 impl log::Log for Reporter {
@@ -41,11 +154,12 @@ impl log::Log for Reporter {
     }
 
     fn log(&self, record: &log::Record) {
+        let text = record.args().to_string();
         match record.level() {
-            log::Level::Error | log::Level::Warn => {
-                err(format_args!("nlstudy: warning: {}\n", record.args()))
-            }
-            log::Level::Info => err(format_args!("nlstudy: {}\n", record.args())),
+            log::Level::Error | log::Level::Warn => say(&Said::Warning(text)),
+            log::Level::Info if record.target() == OUT => say(&Said::Result(text + "\n")),
+            log::Level::Info if record.target() == NOTE => say(&Said::Note(text)),
+            log::Level::Info => say(&Said::Note(format!("nlstudy: {text}"))),
             log::Level::Debug | log::Level::Trace => {}
         }
     }

@@ -22,17 +22,7 @@
 //! The record's status and timings and the case's fields come from the `schema` crate, which
 //! `nlsolve` writes from.
 
-/// `println!` that never panics (see `console`).
-macro_rules! outln {
-    ($($arg:tt)*) => { $crate::console::out(format_args!("{}\n", format_args!($($arg)*))) };
-}
-
-/// `print!` that never panics.
-macro_rules! out {
-    ($($arg:tt)*) => { $crate::console::out(format_args!($($arg)*)) };
-}
-
-/// `eprintln!` that never panics.
+/// `eprintln!` that never panics (see `console`), for the progress of a run (`run/progress.rs`).
 macro_rules! errln {
     ($($arg:tt)*) => { $crate::console::err(format_args!("{}\n", format_args!($($arg)*))) };
 }

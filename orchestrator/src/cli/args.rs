@@ -18,6 +18,9 @@ use std::path::PathBuf;
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// Say only results and warnings: no progress, no notes of what was made.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
 }
 
 #[derive(Subcommand)]
@@ -315,9 +318,6 @@ pub struct RunArgs {
     /// that memory a case left behind neither counts in the next case's peak nor accumulates.
     #[arg(long, value_name = "MIB", default_value_t = crate::run::worker::MEMORY_BOUND_MIB)]
     pub worker_memory: u64,
-    /// No progress output.
-    #[arg(long, short)]
-    pub quiet: bool,
     /// Do not gather the records into the study's tables, nor draw its figures, at the end.
     #[arg(long)]
     pub no_collect: bool,

@@ -17,8 +17,8 @@ pub(super) type Side = HashMap<String, Stored>;
 pub(super) fn superseded(store: &Store) -> Vec<Stored> {
     let history = store.history();
     for unreadable in &history.unreadable {
-        errln!(
-            "nlstudy: warning: {} is not a whole superseded record ({}); it is left out",
+        log::warn!(
+            "{} is not a whole superseded record ({}); it is left out",
             unreadable.path.display(),
             unreadable.problem
         );

@@ -6,6 +6,7 @@
 use super::failure::Failure;
 use super::open::planned;
 use crate::cli::args::CleanArgs;
+use crate::console::Reply;
 use crate::model::study::Study;
 use crate::run::plan::{Options, Planned};
 use crate::store::fs::remove_where;
@@ -13,40 +14,44 @@ use crate::store::{Fault, Store, CHECKPOINT};
 use schema::record::Stored;
 use serde_json::Value;
 use std::collections::HashSet;
-use std::process::ExitCode;
 
-pub(super) fn clean(args: &CleanArgs) -> Result<ExitCode, Failure> {
+pub(super) fn clean(args: &CleanArgs) -> Result<Reply, Failure> {
     let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
     let cleaned = clean_results(&study, &store, &planned, args.yes)?;
+    let mut reply = Reply::default();
     for figure in &cleaned.figures {
-        outln!("removed figures/{figure}: no figure of the study draws it");
+        reply.line(format!(
+            "removed figures/{figure}: no figure of the study draws it"
+        ));
     }
     for key in &cleaned.checkpoints {
-        outln!(
+        reply.line(format!(
             "removed runs/.work/{key}.{CHECKPOINT}: its point is stored or no point of the study"
-        );
+        ));
     }
     if cleaned.orphans.is_empty() {
-        outln!("every stored record is a point of study {}", study.name);
-        return Ok(ExitCode::SUCCESS);
+        reply.line(format!(
+            "every stored record is a point of study {}",
+            study.name
+        ));
+        return Ok(reply);
     }
     for (key, case) in &cleaned.orphans {
         // A record on disk may hold anything: escaped for the terminal.
-        outln!("{key}  {}", case.escape_debug());
+        reply.line(format!("{key}  {}", case.escape_debug()));
     }
     let count = cleaned.orphans.len();
-    if cleaned.deleted {
-        outln!(
+    reply.line(match cleaned.deleted {
+        true => format!(
             "deleted {count} records that are no point of study {}",
             study.name
-        );
-    } else {
-        outln!(
+        ),
+        false => format!(
             "{count} stored records are no point of study {} (removed from its sweep, or run by another solver version); `nlstudy clean --yes` deletes them",
             study.name
-        );
-    }
-    Ok(ExitCode::SUCCESS)
+        ),
+    });
+    Ok(reply)
 }
 
 /// What `clean` removed and found.

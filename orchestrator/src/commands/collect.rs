@@ -1,13 +1,13 @@
 //! `nlstudy collect`: the stored records gathered into the study's run and summary tables.
 
 use super::failure::Failure;
-use super::open::{planned, print_tables_written};
+use super::open::{planned, tables_written};
 use crate::analysis::collect::ToCollect;
 use crate::cli::args::CollectArgs;
+use crate::console::Reply;
 use crate::run::plan::Options;
-use std::process::ExitCode;
 
-pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
+pub(super) fn collect(args: &CollectArgs) -> Result<Reply, Failure> {
     let allow_mixed = args.allow_mixed;
     let args = &args.common;
     let (study, _, store, planned) = planned(args, &Options::default(), true)?;
@@ -21,7 +21,8 @@ pub(super) fn collect(args: &CollectArgs) -> Result<ExitCode, Failure> {
                 store.study
             ))
         })?;
-    print_tables_written(&collected);
-    out!("{}", collected.overview);
-    Ok(ExitCode::SUCCESS)
+    let mut reply = Reply::default();
+    tables_written(&mut reply, &collected);
+    reply.result(collected.overview);
+    Ok(reply)
 }

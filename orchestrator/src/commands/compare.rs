@@ -6,15 +6,15 @@ use super::failure::Failure;
 use super::open::{claim, planned};
 use crate::analysis::compare::{self, NoiseModel};
 use crate::cli::args::{CommonArgs, CompareArgs};
+use crate::console::Reply;
 use crate::model::study::Study;
 use crate::run::plan::Options;
 use crate::store::{by_key, Store};
 use schema::record::Stored;
 use sha2::Digest;
 use std::collections::HashSet;
-use std::process::ExitCode;
 
-pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
+pub(super) fn compare(args: &CompareArgs) -> Result<Reply, Failure> {
     if !(args.threshold > 0.0 && args.threshold < 10.0) {
         let what = match args.threshold.is_finite() {
             true => "a fraction of change",
@@ -101,8 +101,10 @@ pub(super) fn compare(args: &CompareArgs) -> Result<ExitCode, Failure> {
         args.of.as_deref().unwrap_or("the current runs"),
         args.against
     );
-    errln!("{}", noise.describe());
+    let mut reply = Reply::default();
+    reply.note(noise.describe());
     super::verdicts::report(
+        reply,
         &comparison,
         &study,
         &store,

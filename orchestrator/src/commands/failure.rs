@@ -2,6 +2,7 @@
 //! says which kind each failure is where it happens; nothing is classified by its type alone
 //! (a `String` was once taken for bad input wherever it came from).
 
+use crate::console::Reply;
 use crate::model::study::StudyError;
 use crate::store::{Fault, FileError};
 use schema::exit;
@@ -28,6 +29,12 @@ impl Failure {
             Failure::CaseFailed(_) => exit::CASE_FAILED,
             Failure::Io(_) => exit::IO,
         }
+    }
+
+    /// `reply`, ending in this failure: said last (`nlstudy: …`), and its exit status.
+    pub fn after(self, reply: Reply) -> Reply {
+        let code = std::process::ExitCode::from(self.code());
+        reply.failed(self.to_string(), code)
     }
 }
 

@@ -4,10 +4,10 @@ use super::builds::{repeats_by_point, superseded};
 use super::failure::Failure;
 use super::open::planned;
 use crate::cli::args::HistoryArgs;
+use crate::console::Reply;
 use crate::run::plan::Options;
-use std::process::ExitCode;
 
-pub(super) fn history(args: &HistoryArgs) -> Result<ExitCode, Failure> {
+pub(super) fn history(args: &HistoryArgs) -> Result<Reply, Failure> {
     let (study, _, store, planned) = planned(&args.common, &Options::default(), true)?;
     let mut records = store.records();
     records.extend(superseded(&store));
@@ -21,6 +21,7 @@ pub(super) fn history(args: &HistoryArgs) -> Result<ExitCode, Failure> {
     let path = store.table("history.svg");
     let svg = crate::output::draw::render(&chart).map_err(Failure::CaseFailed)?;
     crate::store::write_atomically(&path, svg.as_bytes())?;
-    outln!("history: {}", path.display());
-    Ok(ExitCode::SUCCESS)
+    let mut reply = Reply::default();
+    reply.line(format!("history: {}", path.display()));
+    Ok(reply)
 }

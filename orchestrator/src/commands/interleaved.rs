@@ -7,6 +7,7 @@ use super::open::{claim, planned};
 use super::verdicts::report;
 use crate::analysis::compare::paired::{self, Rounds};
 use crate::cli::args::CompareArgs;
+use crate::console::{Reply, NOTE};
 use crate::run::interleave::{self, Side};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{short, Decision, Options, Planned};
@@ -17,7 +18,7 @@ use schema::record::Stored;
 use std::path::Path;
 use std::process::ExitCode;
 
-pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, Failure> {
+pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<Reply, Failure> {
     let most = rounds_asked(args)?;
     let stop = signals::Stop::on_signals().map_err(Failure::Io)?;
     let (study, solver_b, store, planned) = planned(&args.common, &Options::default(), false)?;
@@ -49,25 +50,25 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         let missing = interleave::missing(&subset, rounds, &sides);
         let stored = 2 * rounds * subset.len() - missing;
         if rounds == args.rounds {
-            errln!(
+            log::info!(
+                target: NOTE,
                 "interleaved: {} points × {rounds} rounds × 2 builds, {missing} runs to go ({stored} stored in {})",
                 points.len(),
                 dir.display()
             );
         }
-        let mut progress = Progress::new(Mode::detect(false), missing, stored);
+        let mut progress = Progress::new(Mode::detect(), missing, stored);
         let (_, finished) =
             interleave::run(&subset, rounds, &mut sides, &options, &stop, &mut progress)?;
         progress.close();
         if !finished {
             let signal = stop.signal().unwrap_or(libc::SIGTERM);
-            errln!(
-                "nlstudy: stopped by {}; the pairs that finished are stored, run again to resume",
+            let why = format!(
+                "stopped by {}; the pairs that finished are stored, run again to resume",
                 signals::name(signal)
             );
-            return Ok(ExitCode::from(
-                stop.exit_code().unwrap_or(schema::exit::INTERRUPTED),
-            ));
+            let code = stop.exit_code().unwrap_or(schema::exit::INTERRUPTED);
+            return Ok(Reply::default().failed(why, ExitCode::from(code)));
         }
         if let Some(solvers) = counted.take() {
             counts = Some(count(&points, solvers, &dir, &study.name)?);
@@ -88,7 +89,8 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         for &k in &chosen {
             reach[k] = (reach[k] + args.rounds).min(most);
         }
-        errln!(
+        log::info!(
+            target: NOTE,
             "interleaved: {} points whose CPU time is undecided run to {} rounds",
             chosen.len(),
             chosen.iter().map(|&k| reach[k]).max().unwrap_or(0)
@@ -100,10 +102,12 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<ExitCode, F
         study.name,
         baseline.display(),
     );
-    errln!(
+    let mut reply = Reply::default();
+    reply.note(format!(
         "noise: each point's pairs of runs, one right after the other ({rounds}, A B then B A): their spread is the interval; no history needed"
-    );
+    ));
     report(
+        reply,
         &comparison,
         &study,
         &store,
@@ -223,7 +227,8 @@ fn count(
             let scratch = side.store.work_dir();
             crate::store::fs::create_dir(&scratch)?;
             let planned = side.planned(point, 0).expect("a chosen point has its case");
-            errln!(
+            log::info!(
+                target: NOTE,
                 "counting the instructions of {} ({})",
                 point.point.label(),
                 side.solver.binary.display()

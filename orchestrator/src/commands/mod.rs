@@ -1,6 +1,8 @@
 //! Each `nlstudy` command, one module each, given its parsed flags (`cli::args`); what they
-//! share in opening a study is in `open`. A command returns its exit status, or a `Failure`
-//! whose kind decides it (the table is `schema::exit`, shared with `nlsolve`).
+//! share in opening a study is in `open`. A command prints nothing: it returns a
+//! `console::Reply` (what it has to say and its exit status), or a `Failure` whose kind decides
+//! the status (the table is `schema::exit`, shared with `nlsolve`), and `main` prints either
+//! through the one reporter, `console`.
 
 mod builds;
 mod clean;
@@ -23,32 +25,30 @@ mod table;
 mod verdicts;
 
 use crate::cli::args::{Cli, Command};
-use schema::exit;
+use crate::console::{self, Reply};
 use std::process::ExitCode;
 
 pub use failure::Failure;
 
 /// Runs one `nlstudy` command and says how it ended.
 pub fn main(cli: Cli) -> ExitCode {
-    crate::console::report_through_log();
-    let code = match execute(cli) {
-        Ok(code) => code,
-        Err(failure) => {
-            errln!("nlstudy: {failure}");
-            ExitCode::from(failure.code())
-        }
-    };
-    match crate::console::stdout_failure() {
+    console::report_through_log();
+    console::set_quiet(cli.quiet);
+    let reply = execute(cli).unwrap_or_else(|failure| failure.after(Reply::default()));
+    console::print(&reply.said);
+    match console::stdout_failure() {
         Some(why) => {
-            errln!("nlstudy: cannot write to standard output: {why}");
-            ExitCode::from(exit::IO)
+            let why = Failure::Io(format!("cannot write to standard output: {why}"));
+            let reply = why.after(Reply::default());
+            console::print(&reply.said);
+            reply.code
         }
-        None => code,
+        None => reply.code,
     }
 }
 
 /// Runs one `nlstudy` command.
-pub fn execute(cli: Cli) -> Result<ExitCode, Failure> {
+pub fn execute(cli: Cli) -> Result<Reply, Failure> {
     match cli.command {
         Command::Plan(args) => plan::plan(&args),
         Command::Run(args) => run::run(&args),

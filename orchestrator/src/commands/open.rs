@@ -4,6 +4,7 @@
 
 use super::failure::Failure;
 use crate::cli::args::CommonArgs;
+use crate::console::Reply;
 use crate::model::study::Study;
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Options, Planned};
@@ -77,7 +78,7 @@ pub(super) fn planned_and_index(
     solver.keep_verdicts_in(store.table(VERDICTS));
     let index = store.index();
     for unreadable in &index.unreadable {
-        errln!("nlstudy: warning: {unreadable}");
+        log::warn!("{unreadable}");
     }
     let asked = crate::kinds::Asked {
         study: &study,
@@ -93,27 +94,26 @@ pub(super) fn planned_and_index(
 }
 
 /// Names the points to run that this machine could not (memory, cores): `run` would store them
-/// failed here, a cluster may run them (`submit`), so they are said, not refused.
-pub(super) fn say_what_does_not_fit(planned: &[Planned]) {
+/// failed here, a cluster may run them (`submit`), so they are said (a note), not refused.
+pub(super) fn what_does_not_fit(planned: &[Planned]) -> Option<String> {
     let crowded: Vec<(&Planned, &str)> = planned
         .iter()
         .filter(|p| p.runs())
         .filter_map(|p| Some((p, p.case.as_ref().ok()?.machine.as_deref()?)))
         .collect();
-    if let Some((first, why)) = crowded.first() {
-        errln!(
-            "nlstudy: {} points to run do not fit this machine, and would fail if run here (the first, {}: {why}); `nlstudy submit` them to a cluster, or make them smaller",
-            crowded.len(),
-            first.point.label()
-        );
-    }
+    let (first, why) = crowded.first()?;
+    Some(format!(
+        "{} points to run do not fit this machine, and would fail if run here (the first, {}: {why}); `nlstudy submit` them to a cluster, or make them smaller",
+        crowded.len(),
+        first.point.label()
+    ))
 }
 
 /// Notes refinement series whose observed orders may come to measure the time error, not the
 /// grid's: `eps` held fixed while `cfl` sets the step. At fixed ε the nonlocal operator's largest
 /// eigenvalue goes as 1/ε², not 1/h², so dt_stable, and with it the time error, stays as h
-/// shrinks while the spatial error falls below it.
-pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
+/// shrinks while the spatial error falls below it. The note, if any series is so.
+pub(super) fn what_refinement_cannot_show(planned: &[Planned]) -> Option<String> {
     use std::collections::{BTreeSet, HashMap};
     let given = |p: &Planned, field: &str| p.point.get(field).filter(|v| !v.is_null()).cloned();
     let fixed_eps_cfl = |p: &Planned| {
@@ -125,7 +125,7 @@ pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
             && given(p, "cfl").is_some()
     };
     if !planned.iter().any(fixed_eps_cfl) {
-        return; // (the common case, said without naming each point's series)
+        return None; // (the common case, said without naming each point's series)
     }
     // Per series (by its label, which names the branch too): whether every point holds ε
     // fixed with `cfl`, its grids, its horizons.
@@ -152,37 +152,37 @@ pub(super) fn say_what_refinement_cannot_show(planned: &[Planned]) {
             *all && grids.len() > 1 && horizons.len() == 1
         })
         .collect();
-    if let Some(first) = hidden.first() {
-        let first = match first.as_str() {
-            "" => String::new(),
-            label => format!(" (first: {label})"),
-        };
-        errln!(
-            "nlstudy: note: {} refinement series hold `eps` fixed and take the time step from `cfl`{first}: at fixed ε the stable step, and with it the time error, does not shrink with h, so their observed orders are the grid's only while its error stays well above the time error (a run at a smaller `cfl` tells); to refine both, give `\"cfl\": null` and `dt` zipped with `n` or derived (`\"derive\": {{\"dt\": \"h^2/4\"}}`)",
-            hidden.len()
-        );
-    }
+    let first = match hidden.first()?.as_str() {
+        "" => String::new(),
+        label => format!(" (first: {label})"),
+    };
+    Some(format!(
+        "note: {} refinement series hold `eps` fixed and take the time step from `cfl`{first}: at fixed ε the stable step, and with it the time error, does not shrink with h, so their observed orders are the grid's only while its error stays well above the time error (a run at a smaller `cfl` tells); to refine both, give `\"cfl\": null` and `dt` zipped with `n` or derived (`\"derive\": {{\"dt\": \"h^2/4\"}}`)",
+        hidden.len()
+    ))
 }
 
-/// Stops a command when the solver refused points (unless `allowed`): each distinct refusal
-/// once, with the number of points it refused.
-pub(super) fn no_refusals(planned: &[Planned], allowed: bool) -> Result<(), Failure> {
+/// Stops a command when the solver refused points (unless `allowed`, when they are the warning
+/// returned): each distinct refusal once, with the number of points it refused.
+pub(super) fn no_refusals(planned: &[Planned], allowed: bool) -> Result<Option<String>, Failure> {
     let refusals = crate::run::plan::refusals(planned);
     if refusals.is_empty() {
-        return Ok(());
+        return Ok(None);
     }
     let points: usize = refusals.iter().map(|r| r.points).sum();
     let text = crate::run::plan::describe_refusals(&refusals);
     if allowed {
-        errln!("nlstudy: warning: the solver refuses {points} points; they are stored as failed:\n{text}");
-        return Ok(());
+        return Ok(Some(format!(
+            "the solver refuses {points} points; they are stored as failed:\n{text}"
+        )));
     }
     Err(Failure::BadInput(format!(
         "the solver refuses {points} of the study's points, so nothing runs:\n{text}\nfix the study file, or give --allow-refused to run the other points and store these as failed"
     )))
 }
 
-pub(super) fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {
+/// Notes each figure: drawn, up to date or not drawn.
+pub(super) fn figures_drawn(reply: &mut Reply, figures: &[crate::output::plot::Figure]) {
     use crate::output::plot::Outcome;
     for figure in figures {
         let what = match figure.outcome {
@@ -190,12 +190,13 @@ pub(super) fn print_figures_drawn(figures: &[crate::output::plot::Figure]) {
             Outcome::UpToDate => "up to date",
             Outcome::Failed(_) => "not drawn",
         };
-        errln!("figure {what}: {}", figure.path.display());
+        reply.note(format!("figure {what}: {}", figure.path.display()));
     }
 }
 
-pub(super) fn print_tables_written(collected: &crate::analysis::collect::Collected) {
-    errln!(
+/// Notes the tables written, and the runs they lack or leave out.
+pub(super) fn tables_written(reply: &mut Reply, collected: &crate::analysis::collect::Collected) {
+    reply.note(format!(
         "tables: {} ({} runs), {} ({} points){}",
         collected.runs.display(),
         collected.rows,
@@ -207,17 +208,17 @@ pub(super) fn print_tables_written(collected: &crate::analysis::collect::Collect
                 format!(": {read} runs read anew, the rest kept from the tables"),
             (false, None) => String::new(),
         }
-    );
+    ));
     if collected.missing > 0 {
-        errln!(
+        reply.note(format!(
             "  {} runs of the study are not stored yet",
             collected.missing
-        );
+        ));
     }
     if collected.left_out > 0 {
-        errln!(
+        reply.note(format!(
             "  {} stored records are left out: their points are no longer in the study or were run by another solver version",
             collected.left_out
-        );
+        ));
     }
 }

@@ -1,31 +1,27 @@
 //! `nlstudy plan`: every point of the study, whether it would run and why; nothing runs.
 
 use super::failure::Failure;
-use super::open::{no_refusals, planned, say_what_does_not_fit, say_what_refinement_cannot_show};
+use super::open::{no_refusals, planned, what_does_not_fit, what_refinement_cannot_show};
 use crate::cli::args::PlanArgs;
+use crate::console::{Reply, Said};
 use crate::run::plan::{Decision, Planned};
 use std::fmt::Write as _;
-use std::process::ExitCode;
 
-pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
+pub(super) fn plan(args: &PlanArgs) -> Result<Reply, Failure> {
     let (study, solver, _, planned) = planned(&args.common, &args.options(), false)?;
-    outln!(
+    let mut reply = Reply::default();
+    reply.line(format!(
         "study {}: {} points, solver {}",
         study.name,
         planned.len(),
         solver.version
-    );
+    ));
     if !study.description.is_empty() {
-        outln!("{}", study.description);
+        reply.line(study.description.clone());
     }
-    // Written 64 kB at a time: a line at a time is a system call each at 10⁵ points, and all
-    // at once a hundred megabytes at 10⁶.
+    // One part of the reply a point each would be an allocation and a system call each.
     let mut listing = String::new();
     for p in &planned {
-        if listing.len() >= 1 << 16 {
-            out!("{listing}");
-            listing.clear();
-        }
         // A refused point never starts: `run --allow-refused` stores it failed with the
         // solver's sentence (said once per distinct sentence below).
         let what = match (&p.decision, &p.case) {
@@ -36,7 +32,7 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         };
         let _ = writeln!(listing, "{}  {what:<40} {}", p.key, p.point.label());
     }
-    out!("{listing}");
+    reply.result(listing);
     let count = |which: &dyn Fn(&Planned) -> bool| planned.iter().filter(|p| which(p)).count();
     let refused = count(&|p| p.runs() && p.case.is_err());
     let runs = count(&|p| p.runs()) - refused;
@@ -45,12 +41,12 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         0 => String::new(),
         n => format!(", {n} {what}"),
     };
-    outln!(
+    reply.line(format!(
         "{runs} to run{}, {} stored{}",
         also(refused, "refused"),
         planned.len() - runs - refused - duplicates,
         also(duplicates, "the same case as an earlier point")
-    );
+    ));
     // What an adaptive study's plan shows: the probes so far and the next round, and the most
     // runs its questions can take.
     if let Some(question) = study.question() {
@@ -59,16 +55,27 @@ pub(super) fn plan(args: &PlanArgs) -> Result<ExitCode, Failure> {
         let rounds = question
             .worst_case_rounds()
             .map_or(String::new(), |n| format!(" in at most {n} rounds"));
-        outln!(
+        reply.line(format!(
             "{} along `{}`: {questions} {}; the points above are the probes stored and the next round, {most} runs each at most ({} in all){rounds}",
             question.section(),
             question.field(),
             question.searches(),
             questions * most
-        );
+        ));
     }
-    say_what_does_not_fit(&planned);
-    say_what_refinement_cannot_show(&planned);
-    no_refusals(&planned, args.allow_refused)?;
-    Ok(ExitCode::SUCCESS)
+    let notes = [
+        what_does_not_fit(&planned),
+        what_refinement_cannot_show(&planned),
+    ];
+    for note in notes.into_iter().flatten() {
+        reply.note(format!("nlstudy: {note}"));
+    }
+    // Refused points fail the plan after its listing, which names them.
+    match no_refusals(&planned, args.allow_refused) {
+        Ok(warning) => {
+            reply.said.extend(warning.map(Said::Warning));
+            Ok(reply)
+        }
+        Err(failure) => Ok(failure.after(reply)),
+    }
 }

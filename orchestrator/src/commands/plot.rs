@@ -1,11 +1,11 @@
 //! `nlstudy plot`: the study's figures drawn from its summary table.
 
 use super::failure::Failure;
-use super::open::{open_store, print_figures_drawn, read_study};
+use super::open::{figures_drawn, open_store, read_study};
 use crate::cli::args::CommonArgs;
-use std::process::ExitCode;
+use crate::console::Reply;
 
-pub(super) fn plot(args: &CommonArgs) -> Result<ExitCode, Failure> {
+pub(super) fn plot(args: &CommonArgs) -> Result<Reply, Failure> {
     let study = read_study(&args.study)?;
     if study.figures.is_empty() {
         return Err(Failure::BadInput(format!(
@@ -16,7 +16,10 @@ pub(super) fn plot(args: &CommonArgs) -> Result<ExitCode, Failure> {
     }
     let store = open_store(args, &study, true)?;
     let figures = crate::output::plot::plot(&study.figures, study.question(), &store)?;
-    print_figures_drawn(&figures);
-    crate::output::plot::all_drawn(&figures).map_err(Failure::CaseFailed)?;
-    Ok(ExitCode::SUCCESS)
+    let mut reply = Reply::default();
+    figures_drawn(&mut reply, &figures);
+    match crate::output::plot::all_drawn(&figures) {
+        Ok(()) => Ok(reply),
+        Err(why) => Ok(Failure::CaseFailed(why).after(reply)),
+    }
 }

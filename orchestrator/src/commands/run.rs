@@ -3,10 +3,11 @@
 
 use super::failure::Failure;
 use super::open::{
-    no_refusals, planned, print_figures_drawn, print_tables_written, say_what_does_not_fit,
-    say_what_refinement_cannot_show,
+    figures_drawn, no_refusals, planned, tables_written, what_does_not_fit,
+    what_refinement_cannot_show,
 };
 use crate::cli::args::RunArgs;
+use crate::console::Reply;
 use crate::kinds::{Asked, Found};
 use crate::model::study::Study;
 use crate::run::plan::{Decision, Planned};
@@ -20,13 +21,20 @@ use schema::exit;
 use std::process::ExitCode;
 use std::time::Duration;
 
-pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
+pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
     let stop = signals::Stop::on_signals().map_err(Failure::Io)?;
     signals::phase("plan");
     let (study, solver, store, planned) = planned(&args.plan.common, &args.plan.options(), true)?;
-    no_refusals(&planned, args.plan.allow_refused)?;
-    say_what_does_not_fit(&planned);
-    say_what_refinement_cannot_show(&planned);
+    // Said before the runs start, as they may take hours.
+    if let Some(warning) = no_refusals(&planned, args.plan.allow_refused)? {
+        log::warn!("{warning}");
+    }
+    for note in [
+        what_does_not_fit(&planned),
+        what_refinement_cannot_show(&planned),
+    ] {
+        note.inspect(|note| log::info!("{note}"));
+    }
     let options = pool_options(args, &study)?;
     store.clear_abandoned_outputs()?;
     let mut tally = Tally::default();
@@ -38,7 +46,7 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
         let (to_run, copies) = counts(planned);
         let stored = planned.len() - to_run - copies;
         round = round.map(|r| r + 1);
-        let mut progress = Progress::new(Mode::detect(args.quiet), to_run, stored).in_round(round);
+        let mut progress = Progress::new(Mode::detect(), to_run, stored).in_round(round);
         let ran = stop.asking(|| {
             let pool = crate::run::pool::run;
             pool(
@@ -84,33 +92,29 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
             (None, planned)
         }
     };
-    let ran = Ran::new(&study.name, &planned, &tally);
-    if !args.quiet {
-        for line in ran.lines() {
-            errln!("{line}");
-        }
+    let mut reply = Reply::default();
+    for line in Ran::new(&study.name, &planned, &tally).lines() {
+        reply.note(line);
     }
     if let Some(signal) = stop.signal().filter(|_| tally.interrupted) {
-        errln!(
-            "nlstudy: stopped by {}; what finished is stored, run again to resume",
+        let why = format!(
+            "stopped by {}; what finished is stored, run again to resume",
             crate::run::signals::name(signal)
         );
-        return Ok(ExitCode::from(
-            stop.exit_code().unwrap_or(exit::INTERRUPTED),
-        ));
+        let code = stop.exit_code().unwrap_or(exit::INTERRUPTED);
+        return Ok(reply.failed(why, ExitCode::from(code)));
     }
     let ending = Ending {
-        quiet: args.quiet,
         collect: !args.no_collect,
         allow_mixed: args.allow_mixed,
     };
-    if let Some(code) = conclude(&study, &store, &planned, answered.as_deref(), ending)? {
-        return Ok(code);
+    let answered = answered.as_deref();
+    match conclude(&mut reply, &study, &store, &planned, answered, ending) {
+        Err(failure) => Ok(failure.after(reply)),
+        Ok(Some(code)) => Ok(reply.ending(code)),
+        Ok(None) if tally.failed > 0 => Ok(reply.ending(ExitCode::from(exit::CASE_FAILED))),
+        Ok(None) => Ok(reply),
     }
-    Ok(match tally.failed {
-        0 => ExitCode::SUCCESS,
-        _ => ExitCode::from(exit::CASE_FAILED),
-    })
 }
 
 /// What a pool is given from the flags and the study: the nodes (inside a Slurm job of several
@@ -118,8 +122,8 @@ pub(super) fn run(args: &RunArgs) -> Result<ExitCode, Failure> {
 fn pool_options(args: &RunArgs, study: &Study) -> Result<PoolOptions, Failure> {
     let nodes =
         crate::run::allocation::nodes(args.jobs.unwrap_or(crate::run::pool::machine_cores()));
-    if nodes.len() > 1 && !args.quiet {
-        errln!("nlstudy: {}", crate::run::allocation::describe(&nodes));
+    if nodes.len() > 1 {
+        log::info!("{}", crate::run::allocation::describe(&nodes));
     }
     let given =
         |flag: Option<f64>, flag_name: &str, field: Option<f64>, field_name: &str| match flag {
@@ -199,18 +203,19 @@ impl<'a> Ran<'a> {
     }
 }
 
-/// How a study's end is said and made (`conclude`).
+/// How a study's end is made (`conclude`).
 #[derive(Clone, Copy)]
 pub(super) struct Ending {
-    pub quiet: bool,
     /// Gather the tables, figures and report (`run --no-collect` does not).
     pub collect: bool,
     pub allow_mixed: bool,
 }
 
 /// A study's end, from what is stored: an adaptive study's answers (their table and lines), then
-/// its tables, figures and report. Some(exit code) when a table or figure could not be made.
+/// its tables, figures and report, each said in `reply`. Some(exit code) when a table or figure
+/// could not be made (said last in `reply`).
 pub(super) fn conclude(
+    reply: &mut Reply,
     study: &Study,
     store: &Store,
     planned: &[Planned],
@@ -219,16 +224,15 @@ pub(super) fn conclude(
 ) -> Result<Option<ExitCode>, Failure> {
     if let Some(answered) = answered {
         let path = answered.write(study, store)?;
-        if !ending.quiet {
-            for line in answered.lines() {
-                errln!("  {line}");
-            }
-            if let Some(budget) = &study.budget {
-                let spent = search::spent(planned, store);
-                errln!("  {}", crate::output::answers::budget_line(budget, &spent));
-            }
-            errln!("table: {}", path.display());
+        for line in answered.lines() {
+            reply.note(format!("  {line}"));
         }
+        if let Some(budget) = &study.budget {
+            let spent = search::spent(planned, store);
+            let line = crate::output::answers::budget_line(budget, &spent);
+            reply.note(format!("  {line}"));
+        }
+        reply.note(format!("table: {}", path.display()));
     }
     if ending.collect {
         signals::phase("collect");
@@ -242,11 +246,9 @@ pub(super) fn conclude(
                 let figures = crate::output::plot::plot(&study.figures, study.question(), store)?;
                 signals::phase("report");
                 let page = crate::output::report::write(study, store, &swept)?;
-                if !ending.quiet {
-                    print_tables_written(&collected);
-                    print_figures_drawn(&figures);
-                    errln!("report: {}", page.display());
-                }
+                tables_written(reply, &collected);
+                figures_drawn(reply, &figures);
+                reply.note(format!("report: {}", page.display()));
                 Ok(crate::output::plot::all_drawn(&figures).err())
             }
             None => Ok(None),
@@ -260,7 +262,8 @@ pub(super) fn conclude(
             Err(crate::store::Fault::Io(m)) => (Some(m), exit::IO),
         };
         if let Some(message) = message {
-            errln!("nlstudy: {message}; the runs are stored");
+            let why = format!("{message}; the runs are stored");
+            reply.said.push(crate::console::Said::Failure(why));
             return Ok(Some(ExitCode::from(code)));
         }
     }

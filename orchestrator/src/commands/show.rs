@@ -4,12 +4,13 @@
 use super::failure::Failure;
 use super::open::{open_store, read_study};
 use crate::cli::args::ShowArgs;
-use std::process::ExitCode;
+use crate::console::Reply;
 
 /// Needs no solver. A key asked for that has no record is bad input: nothing is printed.
-pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
+pub(super) fn show(args: &ShowArgs) -> Result<Reply, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, false)?;
+    let mut reply = Reply::default();
     let mut records = match args.from_table {
         true => crate::analysis::collect::records_of_run_table(
             &store.table(&format!("{}.parquet", study.name)),
@@ -17,7 +18,7 @@ pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
         false => {
             let scan = store.scan();
             for unreadable in &scan.unreadable {
-                errln!("nlstudy: warning: {unreadable}");
+                reply.warn(unreadable.to_string());
             }
             scan.records
         }
@@ -32,7 +33,7 @@ pub(super) fn show(args: &ShowArgs) -> Result<ExitCode, Failure> {
         records.retain(|r| keys.contains(&r.key));
     }
     for record in &records {
-        outln!("{}", record.to_value());
+        reply.line(record.to_value().to_string());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(reply)
 }

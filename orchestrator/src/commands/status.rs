@@ -3,17 +3,21 @@
 use super::failure::Failure;
 use super::open::planned_and_index;
 use crate::cli::args::CommonArgs;
+use crate::console::Reply;
 use crate::output::status;
 use crate::run::plan::Options;
-use std::process::ExitCode;
 
-pub(super) fn status(args: &CommonArgs) -> Result<ExitCode, Failure> {
+pub(super) fn status(args: &CommonArgs) -> Result<Reply, Failure> {
     let (study, solver, store, index, planned) =
         planned_and_index(args, &Options::default(), false)?;
     let fingerprint = solver.fingerprint.as_deref();
-    out!(
-        "{}",
-        status::render(&study.name, &store, &index, &planned, fingerprint)
-    );
-    Ok(ExitCode::SUCCESS)
+    let mut reply = Reply::default();
+    reply.result(status::render(
+        &study.name,
+        &store,
+        &index,
+        &planned,
+        fingerprint,
+    ));
+    Ok(reply)
 }

@@ -5,14 +5,15 @@ use super::failure::Failure;
 use super::open::{no_refusals, open_store, planned_and_index, read_study};
 use super::run::{conclude, Ending};
 use crate::cli::args::SubmitArgs;
+use crate::console::{Reply, OUT};
 use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::Study;
 use crate::run::cluster::follow::{self, Waited};
 use crate::run::cluster::submit::{self, Sent};
 
-/// A line of what a submission did, on stdout.
+/// A line of what a submission did, on stdout as it happens (`--follow` may go on for hours).
 fn say(line: String) {
-    outln!("{line}");
+    log::info!(target: OUT, "{line}");
 }
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
@@ -23,7 +24,7 @@ use schema::record::Status;
 use std::process::ExitCode;
 use std::time::Duration;
 
-pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
+pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
     let site = match args
         .site
         .clone()
@@ -56,10 +57,11 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         let opened = plan()?;
         let rounds = opened.0.question().and_then(|q| q.worst_case_rounds());
         let sent = submit_ready(args, scheduler, &site, opened)?;
+        let mut reply = Reply::default();
         if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
-            outln!("{}", what_happens_next(args, rounds, sent));
+            reply.line(what_happens_next(args, rounds, sent));
         }
-        return Ok(ExitCode::SUCCESS);
+        return Ok(reply);
     };
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, true)?;
@@ -81,16 +83,18 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
             rounds += 1;
         }
         if sent.jobs > 0 && args.whole {
-            outln!("the whole study in one job, {} points so far", sent.points);
+            say(format!(
+                "the whole study in one job, {} points so far",
+                sent.points
+            ));
         } else if sent.jobs > 0 {
             let most = study.question().and_then(|q| q.worst_case_rounds());
             let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
             let eta = eta(rounds, most, started.elapsed());
-            outln!(
+            say(format!(
                 "round {rounds}{most_rounds}: {} jobs, {} points{eta}",
-                sent.jobs,
-                sent.points
-            );
+                sent.jobs, sent.points
+            ));
         }
     }
     let submitted = match args.whole {
@@ -98,14 +102,14 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<ExitCode, Failure> {
         true => format!("{rounds} jobs of the whole study (resubmitted)"),
         false => format!("{rounds} rounds of jobs"),
     };
-    errln!(
+    let mut reply = Reply::default();
+    reply.note(format!(
         "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting",
-        waited.questions,
-        waited.seconds
-    );
+        waited.questions, waited.seconds
+    ));
     // A whole study on several nodes has tabulated its nodes' runs together (its job script).
     let spanned = args.whole && args.resources.nodes.is_some_and(|n| n.get() > 1);
-    answer(plan()?, args.allow_mixed || spanned)
+    answer(reply, plan()?, args.allow_mixed || spanned)
 }
 
 /// How long the rounds left may take, from the rounds done (`elapsed` since the first was
@@ -157,7 +161,9 @@ fn submit_ready(
     site: &Site,
     (study, solver, store, index, planned): Opened,
 ) -> Result<Sent, Failure> {
-    no_refusals(&planned, args.allow_refused)?;
+    if let Some(warning) = no_refusals(&planned, args.allow_refused)? {
+        log::warn!("{warning}");
+    }
     let explicit = study.resources.overridden_by(&args.resources);
     let target = submit::Target {
         scheduler,
@@ -180,11 +186,12 @@ fn submit_ready(
 }
 
 /// The end of a followed study, everything stored: its answers, tables, figures and report as
-/// `run` makes them; exit 1 when a point is stored failed.
+/// `run` makes them, said after `reply`; exit 1 when a point is stored failed.
 fn answer(
+    mut reply: Reply,
     (study, solver, store, _, planned): Opened,
     allow_mixed: bool,
-) -> Result<ExitCode, Failure> {
+) -> Result<Reply, Failure> {
     let options = Options::default();
     let asked = crate::kinds::Asked {
         study: &study,
@@ -197,19 +204,19 @@ fn answer(
         None => (None, planned),
     };
     let ending = Ending {
-        quiet: false,
         collect: true,
         allow_mixed,
     };
-    if let Some(code) = conclude(&study, &store, &planned, answered.as_deref(), ending)? {
-        return Ok(code);
+    let answered = answered.as_deref();
+    if let Some(code) = conclude(&mut reply, &study, &store, &planned, answered, ending)? {
+        return Ok(reply.ending(code));
     }
     let failed = planned
         .iter()
         .any(|p| store.status(p.key.as_str()) == Some(Status::Failed));
     Ok(match failed {
-        true => ExitCode::from(exit::CASE_FAILED),
-        false => ExitCode::SUCCESS,
+        true => reply.ending(ExitCode::from(exit::CASE_FAILED)),
+        false => reply,
     })
 }
 
@@ -227,7 +234,7 @@ fn give_up_on_lost(
             continue; // another nlstudy holds it, and stores it
         };
         let message = follow::why_lost(scheduler, lost);
-        errln!("nlstudy: {}: {message}", lost.point.point.label());
+        log::info!("{}: {message}", lost.point.point.label());
         let record = crate::run::pool::failed_record(lost.point, solver, message);
         store.save(key, &record)?;
     }

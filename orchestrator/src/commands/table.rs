@@ -3,9 +3,9 @@
 use super::failure::Failure;
 use super::open::{open_store, read_study};
 use crate::cli::args::TableArgs;
-use std::process::ExitCode;
+use crate::console::Reply;
 
-pub(super) fn table(args: &TableArgs) -> Result<ExitCode, Failure> {
+pub(super) fn table(args: &TableArgs) -> Result<Reply, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, false)?;
     let path = store.table(&format!("{}-summary.parquet", study.name));
@@ -24,10 +24,8 @@ pub(super) fn table(args: &TableArgs) -> Result<ExitCode, Failure> {
         values: args.value.clone(),
         filter: args.filter.clone(),
     };
-    out!(
-        "{}",
-        crate::analysis::pivot::markdown(&spec, &crate::store::table::read_parquet(&path)?)
-            .map_err(Failure::BadInput)?
-    );
-    Ok(ExitCode::SUCCESS)
+    let table = crate::store::table::read_parquet(&path)?;
+    let mut reply = Reply::default();
+    reply.result(crate::analysis::pivot::markdown(&spec, &table).map_err(Failure::BadInput)?);
+    Ok(reply)
 }

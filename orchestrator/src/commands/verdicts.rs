@@ -4,14 +4,17 @@
 
 use super::failure::Failure;
 use crate::analysis::compare;
+use crate::console::Reply;
 use crate::model::study::Study;
 use crate::store::Store;
 use schema::exit;
 use std::process::ExitCode;
 
-/// Prints a comparison's verdicts, writes `compare.parquet` and `compare.svg` beside the study's
-/// tables, says where, and exits 1 when something got worse.
+/// `reply` with a comparison's verdicts: writes `compare.parquet` and `compare.svg` beside the
+/// study's tables, says where, and exits 1 when something got worse.
+#[allow(clippy::too_many_arguments)] // (what a comparison is reported with, each once)
 pub(super) fn report(
+    mut reply: Reply,
     comparison: &compare::Comparison,
     study: &Study,
     store: &Store,
@@ -19,11 +22,11 @@ pub(super) fn report(
     title: &str,
     threshold: f64,
     points: usize,
-) -> Result<ExitCode, Failure> {
-    out!("{}", compare::markdown(comparison));
+) -> Result<Reply, Failure> {
+    reply.result(compare::markdown(comparison));
     for (side, points) in [("A", &comparison.only_a), ("B", &comparison.only_b)] {
         for point in points {
-            outln!("only in {side}: {point}");
+            reply.line(format!("only in {side}: {point}"));
         }
     }
     let table = store.table("compare.parquet");
@@ -39,17 +42,19 @@ pub(super) fn report(
     // A figure that cannot be drawn stops nothing: the table holds every verdict.
     match crate::output::draw::render(&chart) {
         Ok(svg) => crate::store::write_atomically(&figure, svg.as_bytes())?,
-        Err(why) => errln!("nlstudy: the comparison's figure is not drawn: {why}"),
+        Err(why) => {
+            reply.warn(format!("the comparison's figure is not drawn: {why}"));
+        }
     }
     let regressions = comparison.regressions();
-    errln!(
+    reply.note(format!(
         "compare: {} metrics of {points} points, {regressions} worse; table: {}, figure: {}",
         comparison.changes.len(),
         table.display(),
         figure.display()
-    );
+    ));
     Ok(match regressions {
-        0 => ExitCode::SUCCESS,
-        _ => ExitCode::from(exit::CASE_FAILED),
+        0 => reply,
+        _ => reply.ending(ExitCode::from(exit::CASE_FAILED)),
     })
 }

@@ -25,9 +25,9 @@ pub struct Progress {
 }
 
 impl Mode {
-    /// A bar on a terminal, lines elsewhere.
-    pub fn detect(quiet: bool) -> Mode {
-        match (quiet, std::io::stderr().is_terminal()) {
+    /// A bar on a terminal, lines elsewhere, nothing under `--quiet`.
+    pub fn detect() -> Mode {
+        match (crate::console::quiet(), std::io::stderr().is_terminal()) {
             (true, _) => Mode::Quiet,
             (false, true) => Mode::Bar,
             (false, false) => Mode::Lines,
