@@ -3,6 +3,7 @@
 //! probes and rounds spent, and why the search ended.
 
 use crate::analysis::answer_table::{self, measured, origin_rows, text};
+use crate::model::adaptive::Adaptive as _;
 use crate::model::boundary::{BoundarySpec, Ended, Search};
 use crate::model::expression;
 use crate::model::study::Study;
@@ -77,7 +78,13 @@ pub fn write(
     spec: &BoundarySpec,
     searched: &[Searched<Search>],
 ) -> Result<PathBuf, Fault> {
-    answer_table::write(study, store, "boundaries", &rows(spec, searched), NOTES)
+    answer_table::write(
+        study,
+        store,
+        BoundarySpec::TABLE,
+        &rows(spec, searched),
+        NOTES,
+    )
 }
 
 /// The boundary the solver's theory gives for what `spec`'s condition reads, from a probe's

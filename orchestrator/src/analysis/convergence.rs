@@ -4,7 +4,8 @@
 //! and why the refinement stopped.
 
 use crate::analysis::answer_table::{self, measured, origin_rows, text};
-use crate::model::refine::Refinement;
+use crate::model::adaptive::Adaptive as _;
+use crate::model::refine::{RefineSpec, Refinement};
 use crate::model::study::Study;
 use crate::run::search::Searched;
 use crate::store::table::Row;
@@ -64,5 +65,11 @@ pub fn write(
     field: &str,
     searched: &[Searched<Refinement>],
 ) -> Result<PathBuf, Fault> {
-    answer_table::write(study, store, "convergence", &rows(field, searched), NOTES)
+    answer_table::write(
+        study,
+        store,
+        RefineSpec::TABLE,
+        &rows(field, searched),
+        NOTES,
+    )
 }

@@ -6,6 +6,7 @@
 //! orders, the runs spent and how each search ended.
 
 use crate::analysis::answer_table::{self, measured, origin_rows, text};
+use crate::model::adaptive::Adaptive as _;
 use crate::model::study::Study;
 use crate::model::target::{Aimed, Level, TargetSpec};
 use crate::run::search::Searched;
@@ -177,7 +178,13 @@ pub fn write(
     spec: &TargetSpec,
     searched: &[Searched<Aimed>],
 ) -> Result<PathBuf, Fault> {
-    answer_table::write(study, store, "target", &rows(spec, searched), NOTES)
+    answer_table::write(
+        study,
+        store,
+        TargetSpec::TABLE,
+        &rows(spec, searched),
+        NOTES,
+    )
 }
 
 #[cfg(test)]

@@ -130,7 +130,7 @@ impl AdaptiveKind for FirstBelow {
         answer_table::write(
             study,
             store,
-            "first_below",
+            FirstBelowSpec::TABLE,
             &rows,
             &[("first", "the value")],
         )
