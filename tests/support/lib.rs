@@ -9,17 +9,27 @@ use std::process::{Command, Output, Stdio};
 /// The record's fields that describe the result (timings and provenance left out).
 pub use schema::record::RESULTS as RESULT_FIELDS;
 
-/// Path of a workspace binary built in the same profile as this test (target/<profile>/<name>).
+/// The variable naming the directory of the workspace's binaries, which `scripts/run-tests` sets
+/// (`target/release`): needed when cargo's build directory is apart from its target directory
+/// (`.ci/run` keeps the dependencies' builds in one across clones), as the test executables
+/// are then in the build directory and the binaries in the target directory.
+pub const BINARIES: &str = "NLSTUDY_BINARIES";
+
+/// Path of a workspace binary built in the same profile as this test: in `$NLSTUDY_BINARIES`,
+/// else beside the test executable's directory (target/<profile>/<name>).
 pub fn binary(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    let profile_dir = exe
-        .parent()
-        .and_then(|deps| deps.parent())
-        .expect("target/<profile>/deps");
+    let profile_dir = match std::env::var_os(BINARIES) {
+        Some(dir) => PathBuf::from(dir),
+        None => {
+            let exe = std::env::current_exe().expect("test executable path");
+            let deps = exe.parent().expect("target/<profile>/deps");
+            deps.parent().expect("target/<profile>").to_path_buf()
+        }
+    };
     let path = profile_dir.join(name);
     assert!(
         path.exists(),
-        "{} is not built; run the tests with `make test` (it builds the binaries first)",
+        "{} is not built; run the tests with `make test` (it builds the binaries first; with cargo's build directory apart from its target directory, set {BINARIES} to the binaries' directory)",
         path.display()
     );
     path
