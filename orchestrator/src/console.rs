@@ -25,7 +25,7 @@ use std::sync::Mutex;
 static STDOUT_FAILURE: Mutex<Option<String>> = Mutex::new(None);
 
 /// Writes to stdout; see the module's doc.
-pub fn out(args: fmt::Arguments) {
+fn out(args: fmt::Arguments) {
     let written = io::stdout().lock().write_fmt(args);
     if let Err(e) = written {
         if e.kind() != io::ErrorKind::BrokenPipe {
@@ -185,3 +185,28 @@ pub fn stdout_failure() -> Option<String> {
 }
 
 pub use schema::text::{number, numbers_alike};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A reply keeps what was said in the order it was said; a failure is said last and
+    /// decides the exit status.
+    #[test]
+    fn a_reply_keeps_its_order_and_a_failure_ends_it() {
+        let mut reply = Reply::default();
+        reply.line("result").note("made").warn("careful");
+        assert_eq!(reply.code, ExitCode::SUCCESS);
+        let reply = reply.failed("stopped".into(), ExitCode::from(130));
+        assert_eq!(
+            reply.said,
+            [
+                Said::Result("result\n".into()),
+                Said::Note("made".into()),
+                Said::Warning("careful".into()),
+                Said::Failure("stopped".into()),
+            ]
+        );
+        assert_eq!(reply.code, ExitCode::from(130));
+    }
+}
