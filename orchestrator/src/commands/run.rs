@@ -111,9 +111,8 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
     let answered = answered.as_deref();
     match conclude(&mut reply, &study, &store, &planned, answered, ending) {
         Err(failure) => Ok(failure.after(reply)),
-        Ok(Some(code)) => Ok(reply.ending(code)),
-        Ok(None) if tally.failed > 0 => Ok(reply.ending(ExitCode::from(exit::CASE_FAILED))),
-        Ok(None) => Ok(reply),
+        Ok(()) if tally.failed > 0 => Ok(reply.ending(ExitCode::from(exit::CASE_FAILED))),
+        Ok(()) => Ok(reply),
     }
 }
 
@@ -212,8 +211,8 @@ pub(super) struct Ending {
 }
 
 /// A study's end, from what is stored: an adaptive study's answers (their table and lines), then
-/// its tables, figures and report, each said in `reply`. Some(exit code) when a table or figure
-/// could not be made (said last in `reply`).
+/// its tables, figures and report, each said in `reply`; a failure when a table or figure could
+/// not be made.
 pub(super) fn conclude(
     reply: &mut Reply,
     study: &Study,
@@ -221,7 +220,7 @@ pub(super) fn conclude(
     planned: &[Planned],
     answered: Option<&dyn Found>,
     ending: Ending,
-) -> Result<Option<ExitCode>, Failure> {
+) -> Result<(), Failure> {
     if let Some(answered) = answered {
         let path = answered.write(study, store)?;
         for line in answered.lines() {
@@ -255,19 +254,15 @@ pub(super) fn conclude(
         });
         // A table or figure that cannot be made of these runs exits 1; a file that cannot be
         // read or written, 3.
-        let (message, code) = match tables {
-            Ok(None) => (None, exit::OK),
-            Ok(Some(figures)) => (Some(figures), exit::CASE_FAILED),
-            Err(crate::store::Fault::Input(m)) => (Some(m), exit::CASE_FAILED),
-            Err(crate::store::Fault::Io(m)) => (Some(m), exit::IO),
+        let stored = |message| format!("{message}; the runs are stored");
+        return match tables {
+            Ok(None) => Ok(()),
+            Ok(Some(figures)) => Err(Failure::CaseFailed(stored(figures))),
+            Err(crate::store::Fault::Input(m)) => Err(Failure::CaseFailed(stored(m))),
+            Err(crate::store::Fault::Io(m)) => Err(Failure::Io(stored(m))),
         };
-        if let Some(message) = message {
-            let why = format!("{message}; the runs are stored");
-            reply.said.push(crate::console::Said::Failure(why));
-            return Ok(Some(ExitCode::from(code)));
-        }
     }
-    Ok(None)
+    Ok(())
 }
 
 /// The points of `planned` that run, and those that are the same case as an earlier point.

@@ -208,8 +208,8 @@ fn answer(
         allow_mixed,
     };
     let answered = answered.as_deref();
-    if let Some(code) = conclude(&mut reply, &study, &store, &planned, answered, ending)? {
-        return Ok(reply.ending(code));
+    if let Err(failure) = conclude(&mut reply, &study, &store, &planned, answered, ending) {
+        return Ok(failure.after(reply));
     }
     let failed = planned
         .iter()
