@@ -1315,9 +1315,10 @@ fn points_stopped_at_random_moments_resume_with_the_bits_of_a_run_never_stopped(
     let mut rng = random();
     let _load = Busy::start();
     let (mut stops, mut round) = (0, 0);
-    // Records resumed from a checkpoint, in rounds without a checkpoint period and with one.
-    let mut resumed = [0, 0];
-    while stops < 200 {
+    // Records stored, and those resumed from a checkpoint, in rounds without a checkpoint period
+    // and with one (at least a round of each).
+    let (mut stored_in, mut resumed) = ([0, 0], [0, 0]);
+    while stops < 200 || round < 2 {
         round += 1;
         let period = round % 2 == 0;
         scratch.write_study(&study(period));
@@ -1360,6 +1361,7 @@ fn points_stopped_at_random_moments_resume_with_the_bits_of_a_run_never_stopped(
         assert_eq!(stored.len(), 4, "round {round}");
         for record in &stored {
             let key = record["key"].as_str().unwrap();
+            stored_in[usize::from(period)] += 1;
             resumed[usize::from(period)] += usize::from(record.get("resumed_from_step").is_some());
             assert_eq!(
                 numbers_of(record),
@@ -1370,12 +1372,15 @@ fn points_stopped_at_random_moments_resume_with_the_bits_of_a_run_never_stopped(
         std::fs::remove_dir_all(&results).unwrap();
     }
     eprintln!(
-        "{stops} stops over {round} rounds; records resumed from a checkpoint: {} without a period, {} with one",
-        resumed[0], resumed[1]
+        "{stops} stops over {round} rounds; records resumed from a checkpoint: {} of {} without a period, {} of {} with one",
+        resumed[0], stored_in[0], resumed[1], stored_in[1]
     );
+    // Most points were stopped in their loop and came back from a checkpoint, in both kinds of
+    // round. (A share, not a count: a slow machine takes more stops to end a round, so 200 stops
+    // may be as few as four rounds, 16 records.)
     assert!(
-        resumed.iter().all(|&r| r >= 10),
-        "too few resumed: {resumed:?}"
+        (0..2).all(|k| 2 * resumed[k] >= stored_in[k]),
+        "too few resumed: {resumed:?} of {stored_in:?}"
     );
 }
 

@@ -10,11 +10,6 @@ use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::Study;
 use crate::run::cluster::follow::{self, Waited};
 use crate::run::cluster::submit::{self, Sent};
-
-/// A line of what a submission did, on stdout as it happens (`--follow` may go on for hours).
-fn say(line: String) {
-    log::info!(target: OUT, "{line}");
-}
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{Options, Planned};
@@ -23,6 +18,11 @@ use schema::exit;
 use schema::record::Status;
 use std::process::ExitCode;
 use std::time::Duration;
+
+/// A line of what a submission did, on stdout as it happens (`--follow` may go on for hours).
+fn say(line: String) {
+    log::info!(target: OUT, "{line}");
+}
 
 pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
     let site = match args
