@@ -4,9 +4,8 @@
 //! binary with the solver's test hook `NLSOLVE_TEST_REPEAT_EVERY=k`, which does every k-th step's
 //! work twice (1/k more work, the same numbers).
 //!
-//! These run in the second lane of `make test` (scripts/run-tests), beside the Slurm test, whose
-//! daemons and jobs load the machine too; "quiet" here is `nice -n -20`, which the other lane's
-//! work cannot take the cores from.
+//! These run last in `make test` (scripts/run-tests), one at a time and alone on the machine, so
+//! that the load is the one each test makes; "quiet" here is also `nice -n -20`.
 
 use nonlocal_study::{binary, text, Scratch};
 use serde_json::{json, Value};
