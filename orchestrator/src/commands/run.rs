@@ -257,8 +257,7 @@ pub(super) fn conclude(
         let stored = |message| format!("{message}; the runs are stored");
         return match tables {
             Ok(None) => Ok(()),
-            Ok(Some(figures)) => Err(Failure::CaseFailed(stored(figures))),
-            Err(crate::store::Fault::Input(m)) => Err(Failure::CaseFailed(stored(m))),
+            Ok(Some(m)) | Err(crate::store::Fault::Input(m)) => Err(Failure::CaseFailed(stored(m))),
             Err(crate::store::Fault::Io(m)) => Err(Failure::Io(stored(m))),
         };
     }
