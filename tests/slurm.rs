@@ -3,8 +3,9 @@
 //! slurmd, each in its own network namespace, on this machine. `nlstudy submit` packs a study into
 //! jobs that `sbatch` queues, the jobs run `nlstudy run --only …` (an MPI case through `srun
 //! --mpi=pmix`) into the record store, and `nlstudy collect` builds the tables. Then, on the same
-//! cluster: a job past its time limit (TIMEOUT, its unfinished point packed again), a job array
-//! of 20 points with a throttle, adaptive rounds a `submit` each and driven by `submit --follow`
+//! cluster: a job past its time limit (TIMEOUT, its unfinished point packed again; its minute
+//! passes while the stages up to the warning signal run beside it), a job array of 20 points
+//! with a throttle, adaptive rounds a `submit` each and driven by `submit --follow`
 //! (a boundary search killed and restarted, a refinement, an error target, a whole study in one
 //! job), a job requeued mid-run, a job sent its warning signal, a cancelled job, and an MPI case
 //! with one rank on each node. Last, the cluster restarts with each node its share of the cores
@@ -13,7 +14,7 @@
 //! One test, one Slurm: the daemons listen on fixed ports. A system test (`make test` runs it):
 //! where the packages cannot be installed or a daemon cannot start, it fails saying why. The
 //! two-node stage is left out only when `NLSTUDY_SLURM_TEST=single-node` asks it, and the test
-//! prints the stages it ran (`--nocapture` shows them).
+//! prints the stages it ran and the seconds of each (`--nocapture` shows them).
 
 use nonlocal_study::{numbers_of, planned_keys, records, stored_keys, text, Scratch};
 use serde_json::{json, Value};
@@ -44,25 +45,33 @@ impl LocalSlurm {
         command
     }
 
-    /// Waits until no job is queued or running.
-    fn wait_for_jobs(&self, limit: Duration) {
-        let started = Instant::now();
-        loop {
-            let out = self
-                .command("squeue")
-                .args(["-h", "-o", "%i %T"])
-                .output()
-                .unwrap();
-            let queue = String::from_utf8_lossy(&out.stdout).trim().to_string();
-            if out.status.success() && queue.is_empty() {
-                return;
-            }
-            assert!(
-                started.elapsed() < limit,
-                "jobs still queued after {limit:?}: {queue}"
-            );
-            std::thread::sleep(Duration::from_millis(500));
+    /// The ids of `study`'s jobs in the queue (`submit` names them `nlstudy-<study>-…`): in
+    /// `state` (squeue's `-t`, such as RUNNING), or else in any state but ended; None when squeue
+    /// fails.
+    fn jobs_of(&self, study: &str, state: Option<&str>) -> Option<Vec<String>> {
+        let mut squeue = self.command("squeue");
+        squeue.args(["-h", "-o", "%i %j"]);
+        if let Some(state) = state {
+            squeue.args(["-t", state]);
         }
+        let out = squeue.output().unwrap();
+        let prefix = format!("nlstudy-{study}-");
+        out.status.success().then(|| {
+            String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .filter_map(|l| l.split_once(' '))
+                .filter(|(_, name)| name.starts_with(&prefix))
+                .map(|(id, _)| id.to_string())
+                .collect()
+        })
+    }
+
+    /// Waits until no job of `study` is queued or running (other studies' jobs may run on).
+    fn wait_for_jobs(&self, study: &str, limit: Duration) {
+        wait_until(limit, &format!("{study}'s jobs ended"), || {
+            self.jobs_of(study, None)
+                .is_some_and(|jobs| jobs.is_empty())
+        });
     }
 }
 
@@ -127,6 +136,13 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         "Debian's Slurm packages could not be installed: {}",
         text(&setup).trim()
     );
+    // Each stage's seconds, printed with its name: where the test's minutes go.
+    let mut stages = Vec::new();
+    let mut lap = Instant::now();
+    let mut ran = |stages: &mut Vec<String>, stage: &str| {
+        stages.push(format!("{stage} ({} s)", lap.elapsed().as_secs()));
+        lap = Instant::now();
+    };
     let dir = std::env::temp_dir().join(format!("nlstudy-slurm-test-{}", std::process::id()));
     let slurm = LocalSlurm { dir: dir.clone() };
     let start = |extra: &[&str]| {
@@ -151,6 +167,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         "slurm-local start: {}",
         text(&started)
     );
+    ran(&mut stages, "set-up and start");
 
     // Four points in two jobs; the second job holds a 2-rank case, launched by srun.
     let study = json!({
@@ -171,7 +188,7 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         "{}",
         text(&out)
     );
-    slurm.wait_for_jobs(Duration::from_secs(300));
+    slurm.wait_for_jobs("cluster", Duration::from_secs(300));
     let stored = records(&scratch.runs("cluster"));
     assert_eq!(stored.len(), 4, "job output: {}", logs(&scratch, "cluster"));
     assert!(stored.iter().all(|r| r["status"] == "ok"), "{stored:?}");
@@ -199,87 +216,34 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
         text(&again)
     );
 
-    // A job past its one-minute limit: its quick points are stored, the slow one (about
-    // 10 000 steps at n = 1024) is killed and left missing, and only it is packed again.
-    let study = quick_and_slow("limit");
-    scratch.write_study(&study);
-    let out = submit(&scratch, &slurm, &["--time", "00:01:00"]);
-    assert!(out.status.success(), "{}", text(&out));
-    // While the slow point runs: the job is running, and a second submit packs nothing.
-    let waiting = Instant::now();
-    while records(&scratch.runs("limit")).len() < 2 {
-        assert!(
-            waiting.elapsed() < Duration::from_secs(60),
-            "the quick points never ran: {}",
-            logs(&scratch, "limit")
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
-    let status = |scratch: &Scratch| text(&nlstudy(scratch, &slurm, "status", &[]));
-    let running = status(&scratch);
-    assert!(
-        running.contains("nlstudy-limit-0: running, 2 of 3 points stored"),
-        "{running}"
-    );
-    let twice = submit(&scratch, &slurm, &["--time", "00:01:00"]);
-    assert!(twice.status.success(), "{}", text(&twice));
-    assert!(
-        text(&twice).contains("1 points are in jobs still queued or running")
-            && text(&twice).contains("nothing to submit"),
-        "{}",
-        text(&twice)
-    );
-    slurm.wait_for_jobs(Duration::from_secs(300));
-    status_says(
-        &scratch,
-        &slurm,
-        "nlstudy-limit-0: timeout (ended at its time limit",
-    );
-    let ended = status(&scratch);
-    assert!(
-        ended.contains("nlstudy-limit-0: timeout (ended at its time limit")
-            && ended.contains("2 of 3 points stored")
-            && ended.contains("1 of 3 points to run"),
-        "accounting tells a timeout: {ended}"
-    );
-    let runs = scratch.runs("limit");
-    let stored = records(&runs);
-    assert_eq!(
-        stored.len(),
-        2,
-        "the two quick points: {stored:?}\n{}",
-        logs(&scratch, "limit")
-    );
-    let stray = stray_files(&runs);
-    assert!(stray.is_empty(), "half-written files: {stray:?}");
-    let again = submit(&scratch, &slurm, &["--dry-run"]);
-    assert!(again.status.success(), "{}", text(&again));
-    assert!(
-        text(&again).contains("nlstudy-limit-0 (1 cases, "),
-        "{}",
-        text(&again)
-    );
+    ran(&mut stages, "jobs and srun");
 
-    let mut stages = vec!["jobs and srun", "time limit and accounting"];
+    // The time-limit job waits out its minute while the stages after it run beside it: each of
+    // them waits for its own study's jobs only.
+    let limit = past_its_time_limit_started(&slurm, two_nodes);
+    ran(&mut stages, "time limit started");
     array_with_a_throttle(&scratch, &slurm);
+    ran(&mut stages, "array with a throttle");
     refined_a_round_per_submit(&scratch, &slurm);
     searched_a_round_per_submit(&scratch, &slurm);
-    stages.extend(["array with a throttle", "adaptive rounds"]);
+    ran(&mut stages, "adaptive rounds");
     followed_to_the_answer(&slurm);
+    ran(&mut stages, "followed to the answer (search)");
     refined_and_targeted_by_the_driver(&slurm);
+    ran(&mut stages, "refinement, target, whole");
     killed_between_sbatch_and_its_entry(&slurm);
     cancelled_twice_then_given_up(&slurm);
-    stages.push(
-        "followed to the answer (search, refinement, target), whole, and past cancelled jobs",
-    );
+    ran(&mut stages, "past cancelled jobs");
     requeued_mid_run(&scratch, &slurm);
-    stages.push("requeue");
+    ran(&mut stages, "requeue");
     warned_before_the_limit_and_cancelled(&scratch, &slurm);
-    stages.push("warning signal and cancel");
+    ran(&mut stages, "warning signal and cancel");
+    past_its_time_limit_ended(&limit, &slurm);
+    ran(&mut stages, "time limit and accounting ended");
     if two_nodes {
         one_rank_on_each_node(&scratch, &slurm);
         two_cores_for_each_of_two_ranks(&scratch, &slurm);
-        stages.push("two nodes");
+        ran(&mut stages, "two nodes");
         // The same two nodes, each with its share of the machine's cores.
         let stopped = Command::new(script("slurm-local"))
             .arg("stop")
@@ -294,12 +258,80 @@ fn studies_submitted_to_a_local_slurm_run_store_and_collect() {
             text(&shared)
         );
         every_node_of_an_allocation(&slurm);
-        stages.push("every node of an allocation");
+        ran(&mut stages, "every node of an allocation");
     } else {
-        stages.push("two nodes: not run (NLSTUDY_SLURM_TEST=single-node)");
+        stages.push("two nodes: not run (NLSTUDY_SLURM_TEST=single-node)".to_string());
     }
     // Each stage asserts what it shows, so reaching here means all ran; this says which.
     eprintln!("slurm stages run: {}", stages.join(", "));
+}
+
+/// A job past its one-minute limit: its quick points are stored, the slow one (about 10 000
+/// steps at n = 1024) is killed and left missing, and only it is packed again. Started: the
+/// quick points are stored while the slow one runs, the job is running, and a second submit
+/// packs nothing.
+fn past_its_time_limit_started(slurm: &LocalSlurm, two_nodes: bool) -> Scratch {
+    let scratch = Scratch::new("limit", &quick_and_slow("limit"));
+    // On the last node, off the first one where the stages beside it run (one host for the
+    // runs of each of their tables, as when the job ran alone).
+    let mut limit = vec!["--time", "00:01:00"];
+    if two_nodes {
+        limit.extend(["--queue", "last"]);
+    }
+    let out = submit(&scratch, slurm, &limit);
+    assert!(out.status.success(), "{}", text(&out));
+    wait_until(Duration::from_secs(60), "the quick points", || {
+        records(&scratch.runs("limit")).len() >= 2
+    });
+    let running = text(&nlstudy(&scratch, slurm, "status", &[]));
+    assert!(
+        running.contains("nlstudy-limit-0: running, 2 of 3 points stored"),
+        "{running}"
+    );
+    let twice = submit(&scratch, slurm, &limit);
+    assert!(twice.status.success(), "{}", text(&twice));
+    assert!(
+        text(&twice).contains("1 points are in jobs still queued or running")
+            && text(&twice).contains("nothing to submit"),
+        "{}",
+        text(&twice)
+    );
+    scratch
+}
+
+/// The time-limit job ended: accounting says timeout, the two quick points are stored whole,
+/// and only the slow point is packed again.
+fn past_its_time_limit_ended(scratch: &Scratch, slurm: &LocalSlurm) {
+    slurm.wait_for_jobs("limit", Duration::from_secs(300));
+    status_says(
+        scratch,
+        slurm,
+        "nlstudy-limit-0: timeout (ended at its time limit",
+    );
+    let ended = text(&nlstudy(scratch, slurm, "status", &[]));
+    assert!(
+        ended.contains("nlstudy-limit-0: timeout (ended at its time limit")
+            && ended.contains("2 of 3 points stored")
+            && ended.contains("1 of 3 points to run"),
+        "accounting tells a timeout: {ended}"
+    );
+    let runs = scratch.runs("limit");
+    let stored = records(&runs);
+    assert_eq!(
+        stored.len(),
+        2,
+        "the two quick points: {stored:?}\n{}",
+        logs(scratch, "limit")
+    );
+    let stray = stray_files(&runs);
+    assert!(stray.is_empty(), "half-written files: {stray:?}");
+    let again = submit(scratch, slurm, &["--dry-run"]);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(
+        text(&again).contains("nlstudy-limit-0 (1 cases, "),
+        "{}",
+        text(&again)
+    );
 }
 
 /// Waits for `status` to say `expected`: accounting learns of a job's end a moment after the
@@ -412,7 +444,7 @@ fn array_with_a_throttle(scratch: &Scratch, slurm: &LocalSlurm) {
     )
     .unwrap();
     assert!(script.contains("#SBATCH --array=0-19%2\n"), "{script}");
-    slurm.wait_for_jobs(Duration::from_secs(300));
+    slurm.wait_for_jobs("array", Duration::from_secs(300));
     let stored = records(&scratch.runs("array"));
     assert_eq!(stored.len(), 20, "{}", logs(scratch, "array"));
     assert_eq!(stored_keys(&stored), planned_keys(scratch));
@@ -481,7 +513,7 @@ fn a_round_per_submit(
             round + 1,
             text(&out)
         );
-        slurm.wait_for_jobs(Duration::from_secs(120));
+        slurm.wait_for_jobs(name, Duration::from_secs(120));
         let records = records(&scratch.runs(name));
         assert_eq!(records.len(), stored, "{}", logs(scratch, name));
     }
@@ -687,12 +719,10 @@ fn cancelled_twice_then_given_up(slurm: &LocalSlurm) {
     for _ in 0..2 {
         let mut running = String::new();
         wait_until(Duration::from_secs(60), "a job running", || {
-            let out = slurm
-                .command("squeue")
-                .args(["-h", "-t", "RUNNING", "-o", "%i"])
-                .output()
-                .unwrap();
-            running = String::from_utf8_lossy(&out.stdout).trim().to_string();
+            let jobs = slurm
+                .jobs_of("given-up", Some("RUNNING"))
+                .unwrap_or_default();
+            running = jobs.into_iter().next().unwrap_or_default();
             !running.is_empty() && !cancelled.contains(&running)
         });
         let cancel = slurm.command("scancel").arg(&running).output().unwrap();
@@ -784,7 +814,7 @@ fn requeued_mid_run(scratch: &Scratch, slurm: &LocalSlurm) {
         "scontrol update StartTime: {}",
         text(&now)
     );
-    slurm.wait_for_jobs(Duration::from_secs(600));
+    slurm.wait_for_jobs("requeue", Duration::from_secs(600));
     let stored = records(&runs);
     let log = logs(scratch, "requeue");
     assert_eq!(stored.len(), 6, "{log}");
@@ -879,7 +909,7 @@ fn warned_before_the_limit_and_cancelled(scratch: &Scratch, slurm: &LocalSlurm) 
         .output()
         .unwrap();
     assert!(warn.status.success(), "{}", text(&warn));
-    slurm.wait_for_jobs(Duration::from_secs(120));
+    slurm.wait_for_jobs("warned", Duration::from_secs(120));
     assert_eq!(records(&runs).len(), 2, "{}", logs(scratch, "warned"));
     assert!(stray_files(&runs).is_empty(), "{:?}", stray_files(&runs));
     assert!(logs(scratch, "warned").contains("stopped by SIGTERM"));
@@ -904,7 +934,7 @@ fn warned_before_the_limit_and_cancelled(scratch: &Scratch, slurm: &LocalSlurm) 
     });
     let cancel = slurm.command("scancel").arg(&id).output().unwrap();
     assert!(cancel.status.success(), "{}", text(&cancel));
-    slurm.wait_for_jobs(Duration::from_secs(120));
+    slurm.wait_for_jobs("warned", Duration::from_secs(120));
     status_says(
         scratch,
         slurm,
@@ -968,7 +998,7 @@ fn one_rank_on_each_node(scratch: &Scratch, slurm: &LocalSlurm) {
     scratch.write_study(&study);
     let out = submit(scratch, slurm, &["--nodes", "2"]);
     assert!(out.status.success(), "{}", text(&out));
-    slurm.wait_for_jobs(Duration::from_secs(180));
+    slurm.wait_for_jobs("twonode", Duration::from_secs(180));
     let stored = records(&scratch.runs("twonode"));
     assert_eq!(stored.len(), 1, "{}", logs(scratch, "twonode"));
     assert_eq!(stored[0]["status"], "ok", "{:?}", stored[0]);
@@ -1007,7 +1037,7 @@ fn two_cores_for_each_of_two_ranks(scratch: &Scratch, slurm: &LocalSlurm) {
         script.contains("--cpus-per-task=2") && script.contains("SRUN_CPUS_PER_TASK"),
         "{script}"
     );
-    slurm.wait_for_jobs(Duration::from_secs(180));
+    slurm.wait_for_jobs("twobytwo", Duration::from_secs(180));
     let stored = records(&scratch.runs("twobytwo"));
     assert_eq!(stored.len(), 1, "{}", logs(scratch, "twobytwo"));
     let record = &stored[0];
