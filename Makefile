@@ -24,11 +24,12 @@ run: setup
 
 # Tests and runs share the release profile and the features of every dependency (see
 # workspace-hack/Cargo.toml), so after `make run` the tests compile only the project's crates, and
-# the reverse. scripts/run-tests builds the binaries and the tests and is `cargo test --release
-# --workspace -- --include-ignored` with the Slurm test in a lane of its own, started while the
-# other tests compile: it runs the system tests too (Slurm, Chromium, Python's vtk, a tmpfs,
-# mpirun), which a bare `cargo test` leaves out, saying "system tests: off"; here a missing
-# component fails them.
+# the reverse. scripts/run-tests builds the binaries and the tests and runs every test (`cargo
+# test --release --workspace -- --include-ignored` does the same, one binary after another): the
+# Slurm test in a lane of its own, started while the other tests compile, the others under
+# cargo-nextest beside it, and the timing tests alone at the end. It runs the system tests too
+# (Slurm, Chromium, Python's vtk, a tmpfs, mpirun), which a bare `cargo test` leaves out, saying
+# "system tests: off"; here a missing component fails them.
 test:
 	@scripts/setup.sh --tests
 	scripts/run-tests

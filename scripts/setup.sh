@@ -2,10 +2,12 @@
 # One-time set-up of a fresh Debian machine with the Rust toolchain: installs the system packages
 # the project builds against when they are missing (Open MPI for rsmpi, libclang for bindgen).
 # With --tests, also what only the tests use: Debian's Chromium, which loads the study report as
-# a person would, Valgrind, whose cachegrind counts instructions (`compare --instructions`), Python's vtk, whose readers open the solver's VTK files, and pyarrow, which
-# reads the Parquet tables as the guide's results chapter does. With --slurm, the
-# packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its accounting
-# (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs (iproute2).
+# a person would, Valgrind, whose cachegrind counts instructions (`compare --instructions`),
+# Python's vtk, whose readers open the solver's VTK files, pyarrow, which reads the Parquet
+# tables as the guide's results chapter does, and cargo-nextest, which runs the tests. With
+# --slurm, the packages of a single-node Slurm (scripts/slurm-local); --slurm-accounting adds its
+# accounting (slurmdbd and MariaDB), --slurm-nodes what a cluster of network namespaces needs
+# (iproute2).
 # Cheap when everything is there, so `make run` and `make test` call it every time.
 set -euo pipefail
 
@@ -62,3 +64,10 @@ if $for_tests && ! python3 -c "import vtkmodules.vtkIOXML, pyarrow.parquet" 2>/d
 fi
 
 command -v cargo >/dev/null || { echo "setup: cargo not found; install the Rust toolchain (rustup)" >&2; exit 1; }
+
+# cargo-nextest runs the tests of every test binary in one pool (scripts/run-tests); machines of
+# this kind have it, and elsewhere it is built from crates.io once.
+if $for_tests && ! cargo nextest --version >/dev/null 2>&1; then
+  echo "setup: installing cargo-nextest (cargo install)" >&2
+  cargo install --locked --quiet cargo-nextest
+fi
