@@ -535,8 +535,8 @@ fn flags_of(tool: &str) -> Help {
     all
 }
 
-/// The flags of other tools that the pages name (Slurm's, LSF's, cargo's, rustc's), which no
-/// `--help` of ours lists.
+/// The flags of other tools that the pages name (Slurm's, cargo's, the test harness's and
+/// cargo-nextest's), which no `--help` of ours lists.
 const OTHER_TOOLS_FLAGS: &[&str] = &[
     "--signal",              // sbatch
     "--open-mode",           // sbatch
@@ -547,6 +547,7 @@ const OTHER_TOOLS_FLAGS: &[&str] = &[
     "--no-default-features", // cargo
     "--nocapture",           // the test harness
     "--include-ignored",     // the test harness
+    "--run-ignored",         // cargo-nextest
 ];
 
 /// What is wrong in the code spans of `page` (named `name`) that name a command or a flag of
