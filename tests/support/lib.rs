@@ -85,9 +85,9 @@ pub fn open_mpi_teardown_fault(said: &str) -> bool {
 /// `mpirun` with extra environment variables (Open MPI reads `OMPI_MCA_*` as its settings). One
 /// job at a time: ranks beyond the cores already oversubscribe this machine (a lock within a test
 /// binary under `cargo test`; under cargo-nextest, a process per test, the test group `mpi` of
-/// .config/nextest.toml). A job that meets
-/// Open MPI's teardown fault (`open_mpi_teardown_fault`) runs once more, saying so: the fault
-/// is the runtime's, and a run of the tests should not fail by it.
+/// .config/nextest.toml). A job that meets Open MPI's teardown fault (`open_mpi_teardown_fault`)
+/// runs once more, saying so: the fault is the runtime's, and a run of the tests should not fail
+/// by it.
 pub fn mpirun_with(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
     static ONE_JOB_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _turn = ONE_JOB_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
