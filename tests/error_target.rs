@@ -2,7 +2,8 @@
 //! answer against a dense grid over the same fields, along one field and in space and time; the
 //! stable step met and narrowed below without a failed run; an error floor said after the runs
 //! that show it; repeats of a candidate ranked as one, and candidates whose cost intervals
-//! overlap printed as a tie; bad input refused at `plan`, naming the field.
+//! overlap printed as a tie; a noisy timing of an answer run again; bad input refused at `plan`,
+//! naming the field.
 
 #[path = "support/parquet.rs"]
 mod parquet;
@@ -308,21 +309,18 @@ fn a_step_search_meeting_the_stable_step_narrows_below_it_without_a_failed_run()
     assert!(!text(&plan).contains("refused"), "{}", text(&plan));
 }
 
-/// Repeats of a candidate are one candidate: with `repeat: 3` one row each, its cost the median
-/// of its answer's three timed runs (alone on the machine, after the searches) with their
-/// interval. Under a solver whose timings are drawn from one distribution for every case
-/// (`tests/scripts/timing-nlsolve`), two candidates tie and are printed as one place, "1–2
-/// (tie within noise)"; the one timed ten times slower is third.
-#[test]
-fn repeats_are_one_candidate_and_overlapping_costs_are_a_tie() {
+/// The tie study (`repeat: 3`, three candidates, the third timed ten times slower) run on the
+/// timing stub (`tests/scripts/timing-nlsolve`), its k-th runs of each case listed in `noisy`
+/// marked noisy: what `run` said, the target table, the stored records and each case's run count.
+fn run_the_tie(name: &str, noisy: &str) -> (String, DataFrame, Vec<Value>, Vec<usize>) {
     let study = json!({
-        "name": "tie",
+        "name": name,
         "base": {"dim": 1, "n": 64, "m": 4, "t_end": 0.05, "source": "discrete"},
         "sweep": [{"zip": {"integrator": ["heun", "rk4", "rk4"], "threads": [1, 1, 2]}}],
         "repeat": 3,
         "target": {"field": "dt", "start": 0.0005, "below": 1e-5, "cost": "solve_cpu_s"}
     });
-    let scratch = Scratch::new("tie", &study);
+    let scratch = Scratch::new(name, &study);
     let stub = python_stub(&scratch.dir, "timing-nlsolve");
     let counts = scratch.dir.join("counts");
     std::fs::create_dir(&counts).unwrap();
@@ -330,11 +328,28 @@ fn repeats_are_one_candidate_and_overlapping_costs_are_a_tie() {
         .command("run", &["--solver", stub.to_str().unwrap()])
         .env("NLSOLVE_REAL", binary("nlsolve"))
         .env("TIMING_COUNTS", &counts)
+        .env("TIMING_NOISY", noisy)
         .output()
         .unwrap();
     let said = text(&run);
     assert!(run.status.success(), "{said}");
-    let table = target_table(&scratch, "tie");
+    let mut runs: Vec<usize> = std::fs::read_dir(&counts)
+        .unwrap()
+        .map(|f| std::fs::read(f.unwrap().path()).unwrap().len())
+        .collect();
+    runs.sort_unstable();
+    let table = target_table(&scratch, name);
+    (said, table, records(&scratch.runs(name)), runs)
+}
+
+/// Repeats of a candidate are one candidate: with `repeat: 3` one row each, its cost the median
+/// of its answer's three timed runs (alone on the machine, after the searches) with their
+/// interval. Under a solver whose timings are drawn from one distribution for every case
+/// (`tests/scripts/timing-nlsolve`), two candidates tie and are printed as one place, "1–2
+/// (tie within noise)"; the one timed ten times slower is third.
+#[test]
+fn repeats_are_one_candidate_and_overlapping_costs_are_a_tie() {
+    let (said, table, stored, _) = run_the_tie("tie", "");
     assert_eq!(table.height(), 3, "one row per configuration");
     assert_eq!(floats(&table, "repeats"), [3.0; 3]);
     assert_eq!(floats(&table, "rank"), [1.0, 1.0, 3.0]);
@@ -346,7 +361,6 @@ fn repeats_are_one_candidate_and_overlapping_costs_are_a_tie() {
     assert!(said.contains("1–2 (tie within noise):"), "{said}");
     assert!(said.contains("3. integrator=rk4 threads=2:"), "{said}");
     // The answers' repeats are stored, each the answer's case.
-    let stored = records(&scratch.runs("tie"));
     for r in 1..=3 {
         assert_eq!(
             stored.iter().filter(|x| x["repeat"] == r).count(),
@@ -354,6 +368,31 @@ fn repeats_are_one_candidate_and_overlapping_costs_are_a_tie() {
             "repeat {r} of each answer"
         );
     }
+}
+
+/// An answer's timing run marked noisy runs again, alone, at most twice; the last run stands
+/// (still marked noisy) and its timing is the one ranked. Here each answer's first repeat (its
+/// case's run 1) is noisy, and so are its two reruns (runs 4 and 5): its cost is the median of
+/// runs 5, 2 and 3 (0.08, 0.09, 0.11), where a rerun that did not replace the noisy timing would
+/// give 0.11 (runs 1 to 3) and a third rerun 0.10 (runs 6, 2, 3).
+#[test]
+fn a_noisy_timing_of_an_answer_runs_again_at_most_twice_and_the_last_stands() {
+    let (_, table, stored, runs) = run_the_tie("noisy-tie", "1,4,5");
+    assert_eq!(floats(&table, "repeats"), [3.0; 3]);
+    assert_eq!(floats(&table, "cost")[..2], [0.09, 0.09]);
+    assert_eq!(floats(&table, "cost_low")[..2], [0.08, 0.08]);
+    assert_eq!(floats(&table, "cost_high")[..2], [0.11, 0.11]);
+    // Each answer's case: its probe, three repeats and two reruns of the first.
+    assert_eq!(runs.iter().filter(|&&n| n == 6).count(), 3, "{runs:?}");
+    let noisy: Vec<&Value> = (stored.iter())
+        .filter(|x| x["provenance"]["noisy"] == true)
+        .collect();
+    assert_eq!(
+        noisy.len(),
+        3,
+        "the first repeat of each answer stands noisy"
+    );
+    assert!(noisy.iter().all(|x| x["repeat"] == 1), "{noisy:?}");
 }
 
 /// A target study's bad input is refused at `plan`, naming the field and what to give.
