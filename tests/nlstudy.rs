@@ -1397,7 +1397,9 @@ fn ten_thousand_points_are_submitted_as_one_array_in_a_few_scheduler_calls() {
 }
 
 /// A job's time limit from stored timings: two grids run here, the next ones scaled from them,
-/// and `submit` says where the limit came from; `--time` wins.
+/// and `submit` says where the limit came from; `--time` wins. (The runs' timings are the
+/// wrapper's 0.2 s: the real ones, tens of microseconds, scale by any power a delay of a few
+/// milliseconds on a busy machine makes of them.)
 #[test]
 fn time_limits_come_from_stored_timings_unless_given() {
     let study = small_study(&[16, 32]);
@@ -1408,7 +1410,11 @@ fn time_limits_come_from_stored_timings_unless_given() {
         "{}",
         text(&first)
     );
-    let ran = scratch.nlstudy("run", &["--no-collect"]);
+    let wrapper = timing_wrapper(&scratch);
+    let ran = scratch.nlstudy(
+        "run",
+        &["--no-collect", "--solver", wrapper.to_str().unwrap()],
+    );
     assert!(ran.status.success(), "{}", text(&ran));
     scratch.write_study(&small_study(&[16, 32, 64, 128]));
     let out = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
@@ -2002,7 +2008,9 @@ fn every_kind_of_record() -> Value {
 #[test]
 fn every_kind_of_record_reads_back_from_the_run_table_and_a_copied_folder_collects() {
     let scratch = Scratch::new("kinds", &every_kind_of_record());
-    let run = scratch.nlstudy("run", &["--allow-refused"]);
+    // (`--retries 1`: Open MPI 4.1's fault at the teardown of a job, more frequent on a busy
+    // machine, is a failure outside the case: docs/guide/contributing.md.)
+    let run = scratch.nlstudy("run", &["--allow-refused", "--retries", "1"]);
     assert_eq!(
         run.status.code(),
         Some(1),

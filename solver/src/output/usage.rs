@@ -147,7 +147,7 @@ mod tests {
 
     /// A busy thread's CPU time grows with its work, and what it spent between two readings is
     /// never negative. (The test harness runs other tests in this process at the same time, so
-    /// the wall time is checked against a process of its own: `tests/nlsolve_cli.rs`.)
+    /// the wall time is checked against a process of its own: `tests/timing.rs`.)
     #[test]
     fn cpu_time_grows_with_work() {
         let before = Usage::now();
