@@ -6,7 +6,7 @@
 //! column.
 
 use crate::console::numbers_alike;
-use crate::model::expression::Filter;
+use crate::model::expression::{Filter, GRID_SPACING_READS};
 use crate::store::table::Row;
 use schema::record::columns;
 use serde_json::{Map, Value};
@@ -18,6 +18,45 @@ pub struct PivotSpec {
     /// The summary columns in the cells, side by side under each column heading.
     pub values: Vec<String>,
     pub filter: Vec<String>,
+}
+
+impl PivotSpec {
+    /// The columns the pivot reads of a table with the columns `names`, so that a table of
+    /// 10⁵ rows and a hundred columns is read for the few it shows: its fields' and values'
+    /// columns (by their own names and as case fields), the columns its `--where` names (and
+    /// those `h` is computed from), and the points' labels its errors name. A field or value
+    /// the table lacks is refused here, naming the columns close to it.
+    pub fn columns(&self, names: &[&str]) -> Result<Vec<String>, String> {
+        let fields: Vec<&String> = self.rows.iter().chain(&self.column).collect();
+        for name in fields.iter().copied().chain(&self.values) {
+            if !names.iter().any(|column| is_column(column, name)) {
+                return Err(no_column(name, names.iter().copied()));
+            }
+        }
+        let filter = Filter::parse(&self.filter).map_err(at_where)?;
+        let mut read: Vec<&str> = (fields.into_iter().chain(&self.values))
+            .chain(filter.names())
+            .map(String::as_str)
+            .chain(["point", columns::CASE_ID])
+            .collect();
+        if read.contains(&"h") {
+            read.extend(GRID_SPACING_READS);
+        }
+        Ok((names.iter())
+            .filter(|column| read.iter().any(|name| is_column(column, name)))
+            .map(|column| column.to_string())
+            .collect())
+    }
+}
+
+/// Whether the table column `column` holds the field `name`: by its name, or as a case field.
+fn is_column(column: &str, name: &str) -> bool {
+    column == name || column.strip_prefix("case.") == Some(name)
+}
+
+/// A `--where` condition that cannot be read: which, and why.
+fn at_where((k, e): (usize, String)) -> String {
+    format!("--where {k}: {e}")
 }
 
 /// A line of the pivot: its row fields' values, and its cells by column index.
@@ -32,8 +71,11 @@ pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
     let kept = kept_rows(spec, table)?;
     let fields: Vec<&String> = spec.rows.iter().chain(&spec.column).collect();
     for name in fields.iter().copied().chain(&spec.values) {
-        if !table.iter().any(|row| has_column(row, name)) {
-            return Err(no_column(name, table));
+        if !(table.iter()).any(|row| row.cells().any(|(column, _)| is_column(column, name))) {
+            return Err(no_column(
+                name,
+                table.iter().flat_map(Row::cells).map(|(c, _)| c),
+            ));
         }
     }
     for name in &fields {
@@ -126,26 +168,20 @@ type Kept<'a> = (&'a Row, Map<String, Value>);
 
 /// The table's rows the filter keeps.
 fn kept_rows<'a>(spec: &PivotSpec, table: &'a [Row]) -> Result<Vec<Kept<'a>>, String> {
-    let at = |(k, e)| format!("--where {k}: {e}");
-    let filter = Filter::parse(&spec.filter).map_err(at)?;
+    let filter = Filter::parse(&spec.filter).map_err(at_where)?;
     let mut kept = Vec::new();
     for row in table {
-        if row.meets(&filter).map_err(at)? {
+        if row.meets(&filter).map_err(at_where)? {
             kept.push((row, row.expression_fields()));
         }
     }
     Ok(kept)
 }
 
-/// Whether `row` has the column `name`, by its own name or as a case field (even a null one).
-fn has_column(row: &Row, name: &str) -> bool {
-    row.get(name).is_some() || row.get(&format!("case.{name}")).is_some()
-}
-
-/// "No such column", with the columns whose names are close to it.
-fn no_column(name: &str, table: &[Row]) -> String {
+/// "No such column", with those of `columns` whose names are close to it.
+fn no_column<'a>(name: &str, columns: impl IntoIterator<Item = &'a str>) -> String {
     let mut names: Vec<&str> = Vec::new();
-    for (column, _) in table.iter().flat_map(Row::cells) {
+    for column in columns {
         for known in [column, column.strip_prefix("case.").unwrap_or(column)] {
             if !names.contains(&known) {
                 names.push(known);
@@ -367,6 +403,100 @@ mod tests {
             markdown(&spec, &table).unwrap(),
             "| dt | cfl=0.03125 | cfl=0.5 |\n| --- | --- | --- |\n| 0.001 | 0.25 | 3e-6 |\n| 0.00025 | 0.5 | 9.451e-9 |\n"
         );
+    }
+
+    /// `nlstudy table` reads only the columns `PivotSpec::columns` names: the pivot of those is
+    /// the pivot of the whole table, with `h` computed from the case's grid fields.
+    #[test]
+    fn the_pivot_reads_only_the_columns_it_shows_filters_or_labels_by() {
+        let full = |n: u32, method: &str, threads: u32| {
+            json!({"point": format!("method={method} n={n} threads={threads}"),
+                "case_id": format!("{method}{n}{threads}"), "case.n": n, "n": n,
+                "case.method": method, "case.length": null, "case.threads": threads,
+                "threads": threads, "error_l2_norm": 1.0 / f64::from(n * threads),
+                "solve_s_median": 0.5 * f64::from(n), "memory": 1e6})
+        };
+        let table: Vec<Value> = [(16, "nonlocal"), (64, "nonlocal"), (64, "adi")]
+            .into_iter()
+            .flat_map(|(n, method)| [1, 2].map(|t| full(n, method, t)))
+            .collect();
+        let names: Vec<&str> = table[0]
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let spec = PivotSpec {
+            rows: vec!["threads".into()],
+            column: Some("method".into()),
+            values: vec!["error_l2_norm".into()],
+            filter: vec!["h < 0.05".into()],
+        };
+        let mut read = spec.columns(&names).unwrap();
+        read.sort();
+        assert_eq!(
+            read,
+            [
+                "case.length",
+                "case.method",
+                "case.n",
+                "case.threads",
+                "case_id",
+                "error_l2_norm",
+                "n",
+                "point",
+                "threads"
+            ]
+        );
+        let pick = |cells: &Value| {
+            let mut cells = cells.clone();
+            cells
+                .as_object_mut()
+                .unwrap()
+                .retain(|name, _| read.contains(name));
+            row(cells)
+        };
+        let whole: Vec<Row> = table.iter().cloned().map(row).collect();
+        let picked: Vec<Row> = table.iter().map(pick).collect();
+        let pivot = markdown(&spec, &picked).unwrap();
+        assert_eq!(pivot, markdown(&spec, &whole).unwrap());
+        assert_eq!(pivot.lines().count(), 4, "n = 64 only: {pivot}");
+        // Without a filter naming h, nor the grid fields; a value the table lacks is refused
+        // naming the table's close columns, a condition that cannot be read naming itself.
+        let plain = PivotSpec {
+            filter: vec![],
+            ..spec
+        };
+        let mut read = plain.columns(&names).unwrap();
+        read.sort();
+        assert_eq!(
+            read,
+            [
+                "case.method",
+                "case.threads",
+                "case_id",
+                "error_l2_norm",
+                "point",
+                "threads"
+            ]
+        );
+        let typo = PivotSpec {
+            values: vec!["solve_s".into()],
+            ..plain
+        };
+        assert_eq!(
+            typo.columns(&names).unwrap_err(),
+            "the summary table has no column `solve_s`; close: `solve_s_median`"
+        );
+        let unread = PivotSpec {
+            values: vec!["memory".into()],
+            filter: vec!["method == 'adi".into()],
+            ..typo
+        };
+        assert!(unread
+            .columns(&names)
+            .unwrap_err()
+            .starts_with("--where 0: "));
     }
 
     #[test]

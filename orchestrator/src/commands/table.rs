@@ -24,7 +24,7 @@ pub(super) fn table(args: &TableArgs) -> Result<Reply, Failure> {
         values: args.value.clone(),
         filter: args.filter.clone(),
     };
-    let table = crate::store::table::read_parquet(&path)?;
+    let table = crate::store::table::read_parquet_columns(&path, |names| spec.columns(names))?;
     let mut reply = Reply::default();
     reply.result(crate::analysis::pivot::markdown(&spec, &table).map_err(Failure::BadInput)?);
     Ok(reply)

@@ -88,6 +88,9 @@ pub fn fields_of_columns<N: AsRef<str>>(cells: &[(N, Value)]) -> Map<String, Val
     fields
 }
 
+/// The fields `h` is computed from (`grid_spacing`).
+pub const GRID_SPACING_READS: [&str; 3] = ["n", "method", "length"];
+
 /// h as the solver defines it (`schema`'s `Method::grid_spacing`); none while the method is
 /// not one the solver knows (its check will say so).
 fn grid_spacing<'v>(get: impl Fn(&str) -> Option<&'v Value>) -> Option<f64> {
@@ -134,6 +137,11 @@ impl Filter {
             .collect::<Result<Vec<_>, _>>()?;
         let names = names_read(&conditions);
         Ok(Filter { conditions, names })
+    }
+
+    /// The names the conditions read, each once.
+    pub fn names(&self) -> &[String] {
+        &self.names
     }
 
     /// Whether a row, its fields by `get`, meets every condition; the first condition that

@@ -476,8 +476,30 @@ pub fn read_parquet_hashed(path: &Path) -> Result<(Vec<Row>, String), Fault> {
     }
 }
 
+/// The rows of a Parquet file (as `read_parquet`), of the columns `pick` chooses from the
+/// table's column names: only they are parsed and made into rows. `pick` refuses with an input
+/// fault (e.g. a column the table lacks).
+pub fn read_parquet_columns(
+    path: &Path,
+    pick: impl FnOnce(&[&str]) -> Result<Vec<String>, String>,
+) -> Result<Vec<Row>, Fault> {
+    let (frame, _) = read_frame_picking(path, |names| pick(names).map(Some))?;
+    match crate::store::fs::without_panicking(|| rows_of(&frame)) {
+        Ok(Ok(rows)) => Ok(rows),
+        Ok(Err(e)) | Err(e) => Err(not_whole(path, &e)),
+    }
+}
+
 /// The data frame of a Parquet file as `read_parquet` reads it, and the SHA-256 of its bytes.
 pub fn read_frame(path: &Path) -> Result<(DataFrame, String), Fault> {
+    read_frame_picking(path, |_| Ok(None))
+}
+
+/// `read_frame` of the columns `pick` chooses from the table's column names (all on `None`).
+fn read_frame_picking(
+    path: &Path,
+    pick: impl FnOnce(&[&str]) -> Result<Option<Vec<String>>, String>,
+) -> Result<(DataFrame, String), Fault> {
     if std::fs::symlink_metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
         return Err(Fault::Input(format!(
             "{} does not exist; `nlstudy collect` writes it from the stored runs",
@@ -489,7 +511,12 @@ pub fn read_frame(path: &Path) -> Result<(DataFrame, String), Fault> {
     let sum = crate::store::hex(&sha2::Sha256::digest(&bytes));
     check_sum(path, &sum).map_err(|e| corrupt(&e))?;
     check_frame(&bytes).map_err(|e| corrupt(&e))?;
-    let parse = || ParquetReader::new(std::io::Cursor::new(bytes)).finish();
+    let mut reader = ParquetReader::new(std::io::Cursor::new(bytes));
+    let schema = crate::store::fs::without_panicking(|| reader.schema().map_err(|e| e.to_string()));
+    let schema = schema.and_then(|read| read).map_err(|e| corrupt(&e))?;
+    let names: Vec<&str> = schema.iter_names().map(|name| name.as_str()).collect();
+    let columns = pick(&names).map_err(Fault::Input)?;
+    let parse = || reader.with_columns(columns).finish();
     match crate::store::fs::without_panicking(|| parse().map_err(|e| e.to_string())) {
         Ok(Ok(frame)) => Ok((frame, sum)),
         Ok(Err(e)) | Err(e) => Err(corrupt(&e)),
