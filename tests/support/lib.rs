@@ -5,6 +5,7 @@ use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// The record's fields that describe the result (timings and provenance left out).
 pub use schema::record::RESULTS as RESULT_FIELDS;
@@ -67,11 +68,16 @@ pub fn record(output: &Output) -> serde_json::Value {
 /// Longest an MPI run of the tests may take before it counts as hung: far beyond the longest's
 /// 20-odd seconds on a quiet machine, since its ranks oversubscribe the cores beside the other
 /// tests, and a slower machine of this kind took up to three times as long.
-const MPI_DEADLINE: std::time::Duration = std::time::Duration::from_secs(300);
+const MPI_DEADLINE: Duration = Duration::from_secs(180);
+
+/// How long mpirun may leave an exited rank unreaped before the job counts as Open MPI 4.1's
+/// hang, as `nlstudy run` judges it (its `UNREAPED_RANK_GRACE`): the launcher then waits for
+/// good.
+const UNREAPED_RANK_GRACE: Duration = Duration::from_secs(10);
 
 /// `scripts/mpirun -n ranks <program> <args>`: mpirun set up to run as root and with more ranks
-/// than cores. Panics if the job is still running after five minutes: a hang is a failure, not a
-/// stuck test suite.
+/// than cores. Panics if the job is still running after `MPI_DEADLINE`: a hang is a failure, not
+/// a stuck test suite.
 pub fn mpirun(ranks: usize, program: &[&str]) -> Output {
     mpirun_with(ranks, program, &[])
 }
@@ -84,27 +90,44 @@ pub fn open_mpi_teardown_fault(said: &str) -> bool {
     said.contains("with PID 0 on") && said.contains("exiting improperly")
 }
 
+/// How an MPI job ended: its output, or the runtime's hang with an exited rank unreaped (the
+/// job killed).
+enum Ended {
+    Output(Output),
+    LeftARankUnreaped,
+}
+
 /// `mpirun` with extra environment variables (Open MPI reads `OMPI_MCA_*` as its settings). One
 /// job at a time: ranks beyond the cores already oversubscribe this machine (a lock within a test
 /// binary under `cargo test`; under cargo-nextest, a process per test, the test group `mpi` of
 /// .config/nextest.toml). A job that meets Open MPI's teardown fault (`open_mpi_teardown_fault`)
-/// runs once more, saying so: the fault is the runtime's, and a run of the tests should not fail
-/// by it.
+/// or its hang (`UNREAPED_RANK_GRACE`) runs once more, saying so: the fault is the runtime's,
+/// and a run of the tests should not fail by it.
 pub fn mpirun_with(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
     static ONE_JOB_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _turn = ONE_JOB_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let output = mpirun_once(ranks, program, env);
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    if output.status.success() || !open_mpi_teardown_fault(&stderr) {
-        return output;
+    let fault = match mpirun_once(ranks, program, env) {
+        Ended::Output(output) => {
+            let stderr = String::from_utf8_lossy(&output.stderr);
+            if output.status.success() || !open_mpi_teardown_fault(&stderr) {
+                return output;
+            }
+            format!("met Open MPI's teardown fault:\n{stderr}")
+        }
+        Ended::LeftARankUnreaped => {
+            format!("left an exited rank unreaped for {UNREAPED_RANK_GRACE:?}, Open MPI 4.1's hang")
+        }
+    };
+    eprintln!("mpirun -n {ranks} {program:?} {fault}; run once more");
+    match mpirun_once(ranks, program, env) {
+        Ended::Output(output) => output,
+        Ended::LeftARankUnreaped => {
+            panic!("mpirun -n {ranks} {program:?} left an exited rank unreaped twice")
+        }
     }
-    eprintln!(
-        "mpirun -n {ranks} {program:?} met Open MPI's teardown fault; run once more:\n{stderr}"
-    );
-    mpirun_once(ranks, program, env)
 }
 
-fn mpirun_once(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
+fn mpirun_once(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Ended {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/mpirun");
     let child = Command::new(script)
         .args(["-n", &ranks.to_string()])
@@ -115,18 +138,78 @@ fn mpirun_once(ranks: usize, program: &[&str], env: &[(&str, &str)]) -> Output {
         .stderr(Stdio::piped())
         .spawn()
         .expect("scripts/mpirun starts");
-    let id = child.id();
+    // (The script execs mpirun: the child is the launcher, the ranks its children.)
+    watched(child, &format!("mpirun -n {ranks} {program:?}"))
+}
+
+/// The end of the MPI job whose launcher is `child`, watched: killed once it left an exited rank
+/// unreaped for `UNREAPED_RANK_GRACE`, or (a panic) once past `MPI_DEADLINE`.
+fn watched(child: std::process::Child, job: &str) -> Ended {
+    let launcher = child.id();
     let (done, finished) = std::sync::mpsc::channel();
     let waiter = std::thread::spawn(move || {
         let output = child.wait_with_output().expect("mpirun finishes");
         let _ = done.send(());
         output
     });
-    if finished.recv_timeout(MPI_DEADLINE).is_err() {
-        let _ = Command::new("kill").args(["-9", &id.to_string()]).status();
-        panic!("mpirun -n {ranks} {program:?} did not finish in {MPI_DEADLINE:?}: a hang");
+    let started = Instant::now();
+    let mut unreaped_since: Option<Instant> = None;
+    while finished.recv_timeout(Duration::from_secs(1)).is_err() {
+        let ranks_states = children_of(launcher);
+        if ranks_states.iter().any(|&(_, state)| state == 'Z') {
+            let since = *unreaped_since.get_or_insert_with(Instant::now);
+            if since.elapsed() > UNREAPED_RANK_GRACE {
+                kill_job(launcher, &ranks_states);
+                let _ = waiter.join();
+                return Ended::LeftARankUnreaped;
+            }
+        } else {
+            unreaped_since = None;
+        }
+        if started.elapsed() > MPI_DEADLINE {
+            kill_job(launcher, &ranks_states);
+            panic!(
+                "{job} did not finish in {MPI_DEADLINE:?}: a hang (its ranks' pids and states: {ranks_states:?})"
+            );
+        }
     }
-    waiter.join().expect("waiter thread")
+    Ended::Output(waiter.join().expect("waiter thread"))
+}
+
+/// The children of process `parent` (an MPI launcher's ranks) and their states (`Z`: exited,
+/// not reaped), from /proc.
+fn children_of(parent: u32) -> Vec<(u32, char)> {
+    let mut children = Vec::new();
+    for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // After the command name's closing parenthesis: the state, then the parent's pid.
+        let mut fields = stat
+            .rsplit_once(')')
+            .map_or("", |(_, r)| r)
+            .split_whitespace();
+        let state = fields.next().and_then(|s| s.chars().next());
+        let ppid = fields.next().and_then(|p| p.parse::<u32>().ok());
+        if let (Some(state), Some(ppid)) = (state, ppid) {
+            if ppid == parent {
+                children.push((pid, state));
+            }
+        }
+    }
+    children
+}
+
+/// Kills an MPI job: its launcher and its ranks (left alone, they would spin in MPI for good).
+fn kill_job(launcher: u32, ranks: &[(u32, char)]) {
+    let pids = std::iter::once(launcher).chain(ranks.iter().map(|&(pid, _)| pid));
+    let _ = Command::new("kill")
+        .arg("-9")
+        .args(pids.map(|pid| pid.to_string()))
+        .status();
 }
 
 /// A field written by `nlsolve run --write-field`: little-endian f64 in node order.
@@ -435,4 +518,31 @@ pub fn numbers_of(record: &Value) -> Value {
         }
     }
     record
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A launcher that leaves an exited "rank" unreaped and waits on, as Open MPI 4.1's mpirun
+    /// sometimes does, is ended (both killed) instead of waited for until the deadline.
+    #[test]
+    fn a_launcher_leaving_an_exited_rank_unreaped_is_ended() {
+        // The subshell exits at once; `exec` keeps the pid, and sleep never waits for children.
+        let launcher = Command::new("sh")
+            .args(["-c", "(exit 1) & exec sleep 600"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let pid = launcher.id();
+        assert!(matches!(
+            watched(launcher, "a hanging launcher"),
+            Ended::LeftARankUnreaped
+        ));
+        assert!(
+            !Path::new(&format!("/proc/{pid}")).exists(),
+            "the launcher still runs"
+        );
+    }
 }
