@@ -470,10 +470,7 @@ pub fn read_parquet(path: &Path) -> Result<Vec<Row>, Fault> {
 /// `read_parquet`, and the SHA-256 of the bytes it parsed (what a figure's stamp records).
 pub fn read_parquet_hashed(path: &Path) -> Result<(Vec<Row>, String), Fault> {
     let (frame, sum) = read_frame(path)?;
-    match crate::store::fs::without_panicking(|| rows_of(&frame)) {
-        Ok(Ok(rows)) => Ok((rows, sum)),
-        Ok(Err(e)) | Err(e) => Err(not_whole(path, &e)),
-    }
+    Ok((rows_of_table(path, &frame)?, sum))
 }
 
 /// The rows of a Parquet file (as `read_parquet`), of the columns `pick` chooses from the
@@ -484,7 +481,12 @@ pub fn read_parquet_columns(
     pick: impl FnOnce(&[&str]) -> Result<Vec<String>, String>,
 ) -> Result<Vec<Row>, Fault> {
     let (frame, _) = read_frame_picking(path, |names| pick(names).map(Some))?;
-    match crate::store::fs::without_panicking(|| rows_of(&frame)) {
+    rows_of_table(path, &frame)
+}
+
+/// The rows of the frame read from `path` (`rows_of`); one it cannot make is not whole.
+fn rows_of_table(path: &Path, frame: &DataFrame) -> Result<Vec<Row>, Fault> {
+    match crate::store::fs::without_panicking(|| rows_of(frame)) {
         Ok(Ok(rows)) => Ok(rows),
         Ok(Err(e)) | Err(e) => Err(not_whole(path, &e)),
     }
