@@ -91,11 +91,8 @@ fn assert_whole(scratch: &Scratch, study: &str, points: usize, context: &str) {
 fn solvers_of(scratch: &Scratch) -> Vec<u32> {
     let marker = scratch.dir.to_string_lossy().into_owned();
     let mut pids = Vec::new();
-    for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
-        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) else {
+    for (pid, _, state) in nonlocal_study::processes() {
+        let Ok(cmdline) = std::fs::read(format!("/proc/{pid}/cmdline")) else {
             continue;
         };
         let args: Vec<String> = cmdline
@@ -103,16 +100,11 @@ fn solvers_of(scratch: &Scratch) -> Vec<u32> {
             .map(|a| String::from_utf8_lossy(a).into_owned())
             .collect();
         let is_solver = args.first().is_some_and(|a| a.ends_with("/nlsolve"));
-        let zombie = std::fs::read_to_string(entry.path().join("stat")).is_ok_and(|s| {
-            s.rsplit(')')
-                .next()
-                .is_some_and(|r| r.trim_start().starts_with('Z'))
-        });
         // A process of its own names its case file; a worker runs in the store's work directory.
         let ours = args.iter().any(|a| a.contains(&marker))
-            || std::fs::read_link(entry.path().join("cwd"))
+            || std::fs::read_link(format!("/proc/{pid}/cwd"))
                 .is_ok_and(|cwd| cwd.starts_with(&scratch.dir));
-        if is_solver && !zombie && ours {
+        if is_solver && state != 'Z' && ours {
             pids.push(pid);
         }
     }

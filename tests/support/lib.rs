@@ -177,30 +177,30 @@ fn watched(child: std::process::Child, job: &str) -> Ended {
 }
 
 /// The children of process `parent` (an MPI launcher's ranks) and their states (`Z`: exited,
-/// not reaped), from /proc.
+/// not reaped).
 fn children_of(parent: u32) -> Vec<(u32, char)> {
-    let mut children = Vec::new();
-    for entry in std::fs::read_dir("/proc").into_iter().flatten().flatten() {
-        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
-            continue;
-        };
-        // After the command name's closing parenthesis: the state, then the parent's pid.
-        let mut fields = stat
-            .rsplit_once(')')
-            .map_or("", |(_, r)| r)
-            .split_whitespace();
-        let state = fields.next().and_then(|s| s.chars().next());
-        let ppid = fields.next().and_then(|p| p.parse::<u32>().ok());
-        if let (Some(state), Some(ppid)) = (state, ppid) {
-            if ppid == parent {
-                children.push((pid, state));
-            }
-        }
-    }
-    children
+    processes()
+        .filter(|&(_, ppid, _)| ppid == parent)
+        .map(|(pid, _, state)| (pid, state))
+        .collect()
+}
+
+/// Every process's pid, parent's pid and state (`Z`: exited, not reaped), from /proc.
+pub fn processes() -> impl Iterator<Item = (u32, u32, char)> {
+    std::fs::read_dir("/proc")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|entry| {
+            let pid = entry.file_name().to_str()?.parse::<u32>().ok()?;
+            let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
+            // After the command name's closing parenthesis: the state, then the parent's pid.
+            let (_, rest) = stat.rsplit_once(')')?;
+            let mut fields = rest.split_whitespace();
+            let state = fields.next()?.chars().next()?;
+            let ppid = fields.next()?.parse::<u32>().ok()?;
+            Some((pid, ppid, state))
+        })
 }
 
 /// Kills an MPI job: its launcher and its ranks (left alone, they would spin in MPI for good).
