@@ -27,14 +27,9 @@ impl PivotSpec {
     /// those `h` is computed from), and the points' labels its errors name. A field or value
     /// the table lacks is refused here, naming the columns close to it.
     pub fn columns(&self, names: &[&str]) -> Result<Vec<String>, String> {
-        let fields: Vec<&String> = self.rows.iter().chain(&self.column).collect();
-        for name in fields.iter().copied().chain(&self.values) {
-            if !names.iter().any(|column| is_column(column, name)) {
-                return Err(no_column(name, names.iter().copied()));
-            }
-        }
+        self.refuse_missing(|| names.iter().copied())?;
         let filter = Filter::parse(&self.filter).map_err(at_where)?;
-        let mut read: Vec<&str> = (fields.into_iter().chain(&self.values))
+        let mut read: Vec<&str> = (self.rows.iter().chain(&self.column).chain(&self.values))
             .chain(filter.names())
             .map(String::as_str)
             .chain(["point", columns::CASE_ID])
@@ -46,6 +41,20 @@ impl PivotSpec {
             .filter(|column| read.iter().any(|name| is_column(column, name)))
             .map(|column| column.to_string())
             .collect())
+    }
+
+    /// Refuses the first of the pivot's fields and values that none of `columns` holds, naming
+    /// the columns close to it.
+    fn refuse_missing<'a, I: Iterator<Item = &'a str>>(
+        &self,
+        columns: impl Fn() -> I,
+    ) -> Result<(), String> {
+        for name in self.rows.iter().chain(&self.column).chain(&self.values) {
+            if !columns().any(|column| is_column(column, name)) {
+                return Err(no_column(name, columns()));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -69,15 +78,8 @@ pub fn markdown(spec: &PivotSpec, table: &[Row]) -> Result<String, String> {
         return Err("give at least one --value".into());
     }
     let kept = kept_rows(spec, table)?;
+    spec.refuse_missing(|| table.iter().flat_map(Row::cells).map(|(column, _)| column))?;
     let fields: Vec<&String> = spec.rows.iter().chain(&spec.column).collect();
-    for name in fields.iter().copied().chain(&spec.values) {
-        if !(table.iter()).any(|row| row.cells().any(|(column, _)| is_column(column, name))) {
-            return Err(no_column(
-                name,
-                table.iter().flat_map(Row::cells).map(|(c, _)| c),
-            ));
-        }
-    }
     for name in &fields {
         let null: Vec<&Row> = kept
             .iter()
