@@ -17,6 +17,18 @@ use std::path::Path;
 /// The first line of every checkpoint file (its format's version: 1 had the values alone under
 /// an FNV-1a written in the header).
 pub const MAGIC: &[u8] = b"nlsolve checkpoint 2\n";
+/// The format `MAGIC` names.
+const FORMAT: u32 = 2;
+/// What the first line of a checkpoint of any format starts with: a file that starts otherwise
+/// is not nlsolve's, and nlsolve never writes over it or removes it.
+pub const PREFIX: &[u8] = b"nlsolve checkpoint ";
+
+/// The format a checkpoint's first line names (`nlsolve checkpoint N`), if it names one.
+fn format_of(bytes: &[u8]) -> Option<u32> {
+    let rest = bytes.strip_prefix(PREFIX)?;
+    let digits = &rest[..rest.iter().position(|&b| b == b'\n')?];
+    std::str::from_utf8(digits).ok()?.parse().ok()
+}
 
 /// Whose run a checkpoint is: a checkpoint of another build, case, rank count or rank is
 /// refused.
@@ -44,7 +56,7 @@ impl Identity {
 
     /// Why a checkpoint that `theirs` wrote is not one this run resumes from, if it is not.
     pub fn refuses(&self, theirs: &Identity) -> Option<String> {
-        let short = |f: &str| f[..f.len().min(8)].to_string();
+        let short = |f: &str| crate::text::first_chars(f, 8).to_string();
         if theirs.fingerprint != self.fingerprint {
             return Some(format!(
                 "another solver build wrote it (fingerprint {} here {})",
@@ -183,20 +195,56 @@ impl Checkpoint {
 /// not a whole checkpoint (not a regular file, larger than `cap`, cut short, damaged, or a
 /// header past its own steps). Whose run it is, the caller checks (`Identity`).
 pub fn read(path: &Path, cap: u64) -> Result<Option<Checkpoint>, String> {
-    let bytes = match crate::regular::read(path, cap, "a checkpoint of this case") {
-        Ok(bytes) => bytes,
+    Ok(read_identified(path, cap)?.map(|(checkpoint, _)| checkpoint))
+}
+
+/// `read`, with the identity of the file it read (`regular::FileId`): what the run that resumes
+/// from it may remove once it is over, and nothing else that stands at the path by then.
+pub fn read_identified(
+    path: &Path,
+    cap: u64,
+) -> Result<Option<(Checkpoint, crate::regular::FileId)>, String> {
+    let (bytes, id) = match crate::regular::read_identified(path, cap, "a checkpoint of this case")
+    {
+        Ok(read) => read,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(format!("it cannot be read ({e})")),
     };
-    parse(bytes).map(Some)
+    parse(bytes).map(|checkpoint| Some((checkpoint, id)))
+}
+
+/// Why what stands at `path` is not nlsolve's to write over or remove: not a regular file (a
+/// link, a FIFO, a device, a folder), or a file that does not start as a checkpoint of any
+/// format does. `None` when nothing stands there or it is a checkpoint (whole or not, of
+/// whichever run). Only the first bytes are read, and a FIFO or device is not opened.
+pub fn foreign(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let (file, _) = match crate::regular::open(path) {
+        Ok(opened) => opened,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return None,
+        Err(e) if e.kind() == std::io::ErrorKind::Other => return Some(format!("it is {e}")),
+        Err(e) => return Some(format!("it cannot be opened ({e})")),
+    };
+    let mut first = Vec::with_capacity(PREFIX.len());
+    match file.take(PREFIX.len() as u64).read_to_end(&mut first) {
+        Ok(_) if first == PREFIX => None,
+        Ok(_) => Some("it is a file that is not a checkpoint of nlsolve".into()),
+        Err(e) => Some(format!("it cannot be read ({e})")),
+    }
 }
 
 /// A checkpoint from its file's bytes.
 pub fn parse(mut bytes: Vec<u8>) -> Result<Checkpoint, String> {
     if !bytes.starts_with(MAGIC) {
-        return Err(match bytes.starts_with(b"nlsolve checkpoint ") {
-            true => "it is a checkpoint of another format (an older nlsolve wrote it)".into(),
-            false => "it is not a checkpoint of nlsolve".into(),
+        return Err(match format_of(&bytes) {
+            Some(v) if v > FORMAT => format!(
+                "it is a checkpoint of format {v}, newer than this nlsolve's {FORMAT} (a newer nlsolve wrote it)"
+            ),
+            Some(v) => format!(
+                "it is a checkpoint of format {v}, older than this nlsolve's {FORMAT} (an older nlsolve wrote it)"
+            ),
+            None if bytes.starts_with(PREFIX) => "it is a checkpoint of an unknown format".into(),
+            None => "it is not a checkpoint of nlsolve".into(),
         });
     }
     let Some(summed) = bytes.len().checked_sub(4) else {
@@ -304,6 +352,42 @@ mod tests {
         assert!(parse(bytes(40)).is_ok());
         let past = parse(bytes(41)).unwrap_err();
         assert!(past.contains("step 41 of a run of 40 steps"), "{past}");
+    }
+
+    /// A file of another format says which nlsolve wrote it, older or newer.
+    #[test]
+    fn another_format_is_named_older_or_newer() {
+        let of = |first: &[u8]| {
+            let mut file = first.to_vec();
+            file.extend_from_slice(&bytes(3)[MAGIC.len()..]);
+            parse(file).unwrap_err()
+        };
+        assert!(of(b"nlsolve checkpoint 1\n").contains("an older nlsolve"));
+        let newer = of(b"nlsolve checkpoint 13\n");
+        assert!(
+            newer.contains("format 13, newer than this nlsolve's 2"),
+            "{newer}"
+        );
+        assert!(of(b"nlsolve checkpoint x\n").contains("unknown format"));
+        assert!(of(b"checkpoint 2\n").contains("not a checkpoint of nlsolve"));
+    }
+
+    /// What nlsolve may write over or remove: nothing but a checkpoint, of any format or run.
+    #[test]
+    fn only_a_checkpoint_is_nlsolves_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cp");
+        assert_eq!(foreign(&path), None, "nothing there");
+        std::fs::write(&path, b"nlsolve checkpoint 1\nold").unwrap();
+        assert_eq!(foreign(&path), None, "an older checkpoint");
+        std::fs::write(&path, b"thesis draft").unwrap();
+        assert!(foreign(&path).unwrap().contains("not a checkpoint"));
+        std::fs::write(&path, b"").unwrap();
+        assert!(foreign(&path).is_some(), "an empty file");
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(dir.path().join("missing"), &link).unwrap();
+        assert!(foreign(&link).unwrap().contains("symbolic link"));
+        assert!(foreign(dir.path()).unwrap().contains("a directory"));
     }
 
     #[test]

@@ -40,10 +40,22 @@ pub fn open(path: &Path) -> std::io::Result<(File, u64)> {
     Ok((file, meta.len()))
 }
 
+/// A file by its device and inode number: the one a process opened, told apart from whatever
+/// stands at its path later.
+pub type FileId = (u64, u64);
+
 /// The bytes of the regular file `path`, refused (not read to its end) when it holds more than
 /// `cap` bytes; `what` names the kind of file in that refusal ("a checkpoint").
 pub fn read(path: &Path, cap: u64, what: &str) -> std::io::Result<Vec<u8>> {
+    read_identified(path, cap, what).map(|(bytes, _)| bytes)
+}
+
+/// `read`, with the identity of the file the bytes came from (its descriptor's own `fstat`).
+pub fn read_identified(path: &Path, cap: u64, what: &str) -> std::io::Result<(Vec<u8>, FileId)> {
+    use std::os::unix::fs::MetadataExt;
     let (file, len) = open(path)?;
+    let meta = file.metadata()?;
+    let id = (meta.dev(), meta.ino());
     let too_large = |size: u64| {
         std::io::Error::other(format!(
             "{size} bytes or more, more than the {cap} bytes {what} may hold"
@@ -58,7 +70,7 @@ pub fn read(path: &Path, cap: u64, what: &str) -> std::io::Result<Vec<u8>> {
     if bytes.len() as u64 > cap {
         return Err(too_large(bytes.len() as u64));
     }
-    Ok(bytes)
+    Ok((bytes, id))
 }
 
 /// The bytes of `path`, whatever kind of file it is (a study given as `<(…)` is a FIFO), refused

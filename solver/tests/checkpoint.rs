@@ -358,27 +358,116 @@ fn a_checkpoint_of_another_build_or_case_or_a_damaged_one_is_refused_and_the_run
     let last = flipped.len() - 1;
     flipped[last] ^= 0x10;
     refused_with(&flipped, &case, "checksum");
-    refused_with(b"{\"step\": 3}", &case, "not a checkpoint");
-    // A FIFO is not waited on, a link to /dev/zero not followed (nor read past the case's cap).
-    let not_read = |why: &str| {
-        let out = run(&case, &["--checkpoint", path]);
-        let said = String::from_utf8_lossy(&out.stderr).into_owned();
-        assert!(
-            said.contains(why) && said.contains("starts at step 0"),
-            "{why}: {said}"
-        );
-        assert_eq!(numbers_of(record(&out)), numbers_of(whole.clone()), "{why}");
-    };
-    // (Each run removes what stands at the path once its record is written.)
-    let made = Command::new("mkfifo").arg(&file).status().unwrap();
-    assert!(made.success());
-    not_read("a FIFO");
-    std::os::unix::fs::symlink("/dev/zero", &file).unwrap();
-    not_read("symbolic link");
-    // A regular file larger than any checkpoint of the case can be is not read.
+    // A checkpoint larger than any of the case can be is not read; since the run neither wrote
+    // it nor resumed from it, it is left in place.
     let big = std::fs::File::create(&file).unwrap();
+    std::io::Write::write_all(&mut &big, schema::checkpoint::MAGIC).unwrap();
     big.set_len(1 << 40).unwrap();
-    not_read("bytes a checkpoint of this case may hold");
+    let out = run(&case, &["--checkpoint", path]);
+    let said = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        said.contains("bytes a checkpoint of this case may hold") && said.contains("step 0"),
+        "{said}"
+    );
+    assert_eq!(numbers_of(record(&out)), numbers_of(whole.clone()));
+    assert_eq!(
+        std::fs::metadata(&file).unwrap().len(),
+        1 << 40,
+        "refused, yet removed"
+    );
+}
+
+/// What stands at `--checkpoint`'s path and is not a checkpoint of nlsolve (a file of the user's,
+/// a FIFO, a link, a device node, a folder) is refused before the run, named, and left exactly as
+/// it was: nlsolve writes no checkpoint over it and removes nothing at the end (a run as root
+/// once removed `/dev/zero` this way). The device is one this test makes, never a system one.
+#[test]
+fn what_is_not_a_checkpoint_of_nlsolve_is_refused_and_left_in_place() {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    let scratch = scratch("foreign");
+    let dir = scratch.path();
+    let case = json!({"dim": 1, "n": 64, "m": 3, "problem": "manufactured", "t_end": 0.01,
+                      "cfl": 0.5});
+    let thesis = dir.join("thesis.tex");
+    std::fs::write(&thesis, "years of work").unwrap();
+    let fifo = dir.join("fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    // A character device like /dev/null (1, 3), made here (root only, as CI runs).
+    let device = dir.join("null");
+    let made = Command::new("mknod")
+        .arg(&device)
+        .args(["c", "1", "3"])
+        .status();
+    assert!(
+        made.is_ok_and(|s| s.success()),
+        "mknod failed: this test makes a device node of its own, which needs root"
+    );
+    let link = dir.join("link");
+    std::os::unix::fs::symlink(&thesis, &link).unwrap();
+    let folder = dir.join("folder");
+    std::fs::create_dir(&folder).unwrap();
+    let what = |path: &Path| {
+        let meta = std::fs::symlink_metadata(path).unwrap();
+        let kind = meta.file_type();
+        let contents = kind.is_file().then(|| std::fs::read(path).unwrap());
+        (
+            meta.ino(),
+            kind.is_fifo(),
+            kind.is_char_device(),
+            kind.is_symlink(),
+            contents,
+        )
+    };
+    for (path, named) in [
+        (&thesis, "not a checkpoint of nlsolve"),
+        (&fifo, "a FIFO"),
+        (&device, "a device"),
+        (&link, "a symbolic link"),
+        (&folder, "a directory"),
+    ] {
+        let before = what(path);
+        let flag = path.to_str().unwrap();
+        for extra in [
+            &["--checkpoint", flag][..],
+            &["--checkpoint", flag, "--checkpoint-every-steps", "1"],
+        ] {
+            let out = run(&case, extra);
+            let said = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{named}: {said}");
+            assert!(
+                said.contains(named) && said.contains("writes no checkpoint over it"),
+                "{named}: {said}"
+            );
+            assert_eq!(what(path), before, "{named} changed");
+        }
+        // The same through `serve`: the case is refused, the path left as it was.
+        let line = json!({"case": case, "checkpoint": flag}).to_string();
+        let out = serve(&line);
+        assert!(
+            out.contains("\"error\"") && out.contains(named),
+            "{named}: {out}"
+        );
+        assert_eq!(what(path), before, "{named} changed by serve");
+    }
+    assert_eq!(std::fs::read(&thesis).unwrap(), b"years of work");
+}
+
+/// `nlsolve serve`'s answer to the one line `line`.
+fn serve(line: &str) -> String {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_nlsolve"))
+        .arg("serve")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    writeln!(child.stdin.take().unwrap(), "{line}").unwrap();
+    String::from_utf8(child.wait_with_output().unwrap().stdout).unwrap()
 }
 
 /// SIGKILL at random moments of a run that checkpoints every step (so that most kills land in

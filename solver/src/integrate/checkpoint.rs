@@ -102,6 +102,7 @@ impl Carried {
 
 use schema::checkpoint::Header;
 pub use schema::checkpoint::Identity;
+use schema::regular::FileId;
 
 /// The checkpoint file of `rank`: `path` itself for rank 0 (so a run of one process and the
 /// first rank of many read the same name), `<path>.rank<r>` for the others.
@@ -143,12 +144,48 @@ static CONFIGURED: Mutex<Option<Checkpointer>> = Mutex::new(None);
 /// with the shell's status for it, 128 + its number (143 for SIGTERM).
 static STOP: AtomicI32 = AtomicI32::new(0);
 
+/// The checkpoint file this process may remove once its record is out: the one it wrote last or
+/// resumed from, by its path and identity. Whatever else stands at that path by then (a file
+/// put there since, a link, a device) is left as it is.
+static OWN: Mutex<Option<(PathBuf, FileId)>> = Mutex::new(None);
+
+fn own(path: &Path, id: FileId) {
+    *OWN.lock().unwrap_or_else(|e| e.into_inner()) = Some((path.to_path_buf(), id));
+}
+
+/// Removes the checkpoint this process wrote or resumed from, if the same regular file still
+/// stands at its path; anything else is left in place. Nothing is removed twice.
+pub fn remove_own() {
+    if let Some((path, id)) = OWN.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        remove_if_still(&path, id);
+    }
+}
+
+/// Removes `path` if the regular file `id` stands there (not a link to it, nor another file).
+fn remove_if_still(path: &Path, id: FileId) {
+    use std::os::unix::fs::MetadataExt;
+    let still = std::fs::symlink_metadata(path)
+        .is_ok_and(|meta| meta.file_type().is_file() && (meta.dev(), meta.ino()) == id);
+    if still {
+        let _ = std::fs::remove_file(path);
+    }
+}
+
 /// Sets up this process's run to checkpoint by `policy`, resuming from the file there when it
 /// holds a whole checkpoint of the same `identity` no larger than `cap` bytes
-/// (`schema::checkpoint::most_bytes` of the case). Returns why a file that is there was
-/// refused (the run then starts at step 0). A process that runs case after case (`serve`)
-/// configures each.
-pub fn configure(policy: Policy, identity: Identity, cap: u64) -> Option<String> {
+/// (`schema::checkpoint::most_bytes` of the case). Returns why a checkpoint that is there was
+/// refused (the run then starts at step 0, and writes over it). A path that holds something
+/// that is no checkpoint of nlsolve (`schema::checkpoint::foreign`: a file of the user's, a
+/// link, a FIFO, a device) is an error: nlsolve never writes over it or removes it. A process
+/// that runs case after case (`serve`) configures each.
+pub fn configure(policy: Policy, identity: Identity, cap: u64) -> Result<Option<String>, String> {
+    *OWN.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    if let Some(why) = schema::checkpoint::foreign(&policy.path) {
+        return Err(format!(
+            "checkpoint {}: {why}; nlsolve writes no checkpoint over it: give a new path, or one where nlsolve wrote a checkpoint",
+            policy.path.display()
+        ));
+    }
     let (resume, refused) = match read(&policy.path, &identity, cap) {
         Ok(resume) => (resume, None),
         Err(why) => (None, Some(why)),
@@ -161,13 +198,17 @@ pub fn configure(policy: Policy, identity: Identity, cap: u64) -> Option<String>
         last: Instant::now(),
         written: 0,
     });
-    refused
+    Ok(refused)
 }
 
 /// `configure` for the run of `case` on `rank`: its identity (this build, the case without its
 /// thread count, which changes no bit of a run, so a run may resume on another) and the most a
 /// checkpoint of it can hold.
-pub fn configure_for(case: &crate::ValidCase, policy: Policy, rank: usize) -> Option<String> {
+pub fn configure_for(
+    case: &crate::ValidCase,
+    policy: Policy,
+    rank: usize,
+) -> Result<Option<String>, String> {
     let canonical = serde_json::to_value(&**case).expect("a case serializes");
     let identity = Identity {
         fingerprint: crate::output::record::FINGERPRINT.to_string(),
@@ -317,7 +358,10 @@ impl Checkpointer {
     /// valid).
     pub fn save(&mut self, carried: &Carried, borrowed: &[(&str, &[f64])]) {
         match write(&self.policy.path, &self.identity, carried, borrowed) {
-            Ok(()) => self.written += 1,
+            Ok(id) => {
+                own(&self.policy.path, id);
+                self.written += 1
+            }
             Err(e) => eprintln!(
                 "nlsolve: cannot write the checkpoint {}: {e}; the run goes on",
                 self.policy.path.display()
@@ -352,13 +396,13 @@ impl Checkpointer {
 
 /// Writes `carried` and the parts `borrowed` (large vectors of the run's own, not copied) as one
 /// checkpoint (`schema::checkpoint`: the header and the values under one checksum), beside its
-/// place, synced, then renamed over it.
+/// place, synced, then renamed over it. Returns the identity of the file written.
 fn write(
     path: &Path,
     identity: &Identity,
     carried: &Carried,
     borrowed: &[(&str, &[f64])],
-) -> std::io::Result<()> {
+) -> std::io::Result<FileId> {
     let parts = || {
         let owned = carried
             .parts
@@ -372,6 +416,7 @@ fn write(
         steps: carried.count("steps"),
         parts: parts().map(|(n, v)| (n.to_string(), v.len())).collect(),
     };
+    use std::os::unix::fs::MetadataExt;
     let partial = schema::atomic::partial_path(path);
     let written = (|| {
         // The values go out as they are, in large writes: no copy of the field is made.
@@ -381,7 +426,9 @@ fn write(
         let file = out.into_inner().map_err(|e| e.into_error())?;
         // Whole on disk before it replaces the previous one (a node may fail, not only a process).
         file.sync_data()?;
-        std::fs::rename(&partial, path)
+        let meta = file.metadata()?;
+        std::fs::rename(&partial, path)?;
+        Ok((meta.dev(), meta.ino()))
     })();
     if written.is_err() {
         let _ = std::fs::remove_file(&partial);
@@ -392,7 +439,7 @@ fn write(
 /// The checkpoint at `path` of the run `identity`, read no further than `cap` bytes: `None`
 /// when there is none, an error saying why when the file is not a whole checkpoint of that run.
 fn read(path: &Path, identity: &Identity, cap: u64) -> Result<Option<Carried>, String> {
-    let Some(checkpoint) = schema::checkpoint::read(path, cap)? else {
+    let Some((checkpoint, id)) = schema::checkpoint::read_identified(path, cap)? else {
         return Ok(None);
     };
     if let Some(why) = identity.refuses(&checkpoint.header.identity) {
@@ -410,6 +457,7 @@ fn read(path: &Path, identity: &Identity, cap: u64) -> Result<Option<Carried>, S
             carried.count("steps")
         ));
     }
+    own(path, id);
     Ok(Some(carried))
 }
 
@@ -424,6 +472,32 @@ mod tests {
             ranks: 1,
             rank: 0,
         }
+    }
+
+    /// At its end a run removes the checkpoint it wrote only if that very file still stands at
+    /// its path: not a file put there since, nor a link to it.
+    #[test]
+    fn only_the_file_written_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.checkpoint");
+        let id = write(&path, &identity(), &Carried::at(1), &[]).unwrap();
+        remove_if_still(&path, id);
+        assert!(!path.exists(), "the file written is removed");
+
+        let id = write(&path, &identity(), &Carried::at(1), &[]).unwrap();
+        let moved = dir.path().join("moved");
+        std::fs::rename(&path, &moved).unwrap();
+        std::fs::write(&path, "the user's").unwrap();
+        remove_if_still(&path, id);
+        assert_eq!(std::fs::read(&path).unwrap(), b"the user's");
+
+        std::fs::remove_file(&path).unwrap();
+        std::os::unix::fs::symlink(&moved, &path).unwrap();
+        remove_if_still(&path, id);
+        assert!(
+            path.is_symlink() && moved.exists(),
+            "a link to it stays, and so does it"
+        );
     }
 
     #[test]

@@ -277,7 +277,7 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
             "--write-diagnostics needs the series: set case field `diagnostics_every` (e.g. --diagnostics-every 0.01)".into(),
         ));
     }
-    let (rank, ranks) = ranks::rank_of(world);
+    let (rank, _) = ranks::rank_of(world);
     if let Some(path) = &args.checkpoint {
         start_checkpoints(args, path, &case, rank)?;
     }
@@ -294,7 +294,11 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     }
     .map_err(|e| BadInput(e.to_string()))?;
     let Some(outcome) = outcome else {
-        return Ok(()); // not rank 0
+        // Not rank 0: its share of the run is over.
+        if !args.keep_checkpoint {
+            solver::integrate::checkpoint::remove_own();
+        }
+        return Ok(());
     };
     if let Some(path) = &args.write_field {
         let bytes: Vec<u8> = outcome.field.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -309,10 +313,8 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     let line = serde_json::to_string(&outcome.record)
         .map_err(|e| ErrorExit::Output(format!("cannot write the record: {e}")))?;
     print_line(&line, "the record")?;
-    if let (Some(path), false) = (&args.checkpoint, args.keep_checkpoint) {
-        for rank in 0..ranks {
-            let _ = std::fs::remove_file(solver::integrate::checkpoint::rank_path(path, rank));
-        }
+    if !args.keep_checkpoint {
+        solver::integrate::checkpoint::remove_own();
     }
     note(&summary(&outcome.record));
     Ok(())
@@ -343,7 +345,8 @@ fn start_checkpoints(
         every_steps: args.checkpoint_every_steps.filter(|&n| n > 0),
         every,
     };
-    if let Some(why) = checkpoint::configure_for(case, policy, rank) {
+    let refused = checkpoint::configure_for(case, policy, rank).map_err(BadInput)?;
+    if let Some(why) = refused {
         note(&format!(
             "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
             path.display()
@@ -481,12 +484,13 @@ fn answer_each_line(
 /// is a case, or a `protocol::ServeLine`: the case with the file its time loop keeps
 /// up to date with how far it is (as `run --progress`) and the checkpoint it writes on a
 /// stopping signal and resumes from (as `run --checkpoint`).
-/// Returns the answer and the checkpoint to remove once it is out.
-fn served(line: &str) -> (String, Option<PathBuf>) {
+/// Returns the answer and whether to remove the checkpoint it wrote or resumed from once the
+/// answer is out.
+fn served(line: &str) -> (String, bool) {
     let refusal = |message: String| {
         serde_json::to_string(&protocol::Refusal { error: message }).expect("a refusal serializes")
     };
-    let error = |message: String| (refusal(message), None);
+    let error = |message: String| (refusal(message), false);
     let fields = match schema::json::parse(line) {
         Ok(fields @ Value::Object(_)) => fields,
         Ok(_) => return error("a case is one JSON object of case fields".into()),
@@ -535,11 +539,13 @@ fn served(line: &str) -> (String, Option<PathBuf>) {
             every_steps: None,
             every,
         };
-        if let Some(why) = solver::integrate::checkpoint::configure_for(&case, policy, 0) {
-            note(&format!(
+        match solver::integrate::checkpoint::configure_for(&case, policy, 0) {
+            Err(why) => return error(why),
+            Ok(Some(why)) => note(&format!(
                 "nlsolve: checkpoint {} refused: {why}; the run starts at step 0",
                 path.display()
-            ));
+            )),
+            Ok(None) => {}
         }
     }
     // Each case's provenance and peak memory are its own, as if it ran in a process of its own.
@@ -550,7 +556,7 @@ fn served(line: &str) -> (String, Option<PathBuf>) {
             .unwrap_or_else(|e| refusal(format!("cannot write the record: {e}"))),
         Err(e) => refusal(e.to_string()),
     };
-    (answer, checkpoint.filter(|_| !line.keep_checkpoint))
+    (answer, checkpoint.is_some() && !line.keep_checkpoint)
 }
 
 /// `nlsolve serve`: runs each case of standard input and prints its answer line at once.
@@ -559,19 +565,19 @@ fn served(line: &str) -> (String, Option<PathBuf>) {
 /// when it came once the loop was over.
 fn serve_cases() -> Result<(), ErrorExit> {
     solver::integrate::checkpoint::stop_on_signals();
-    // The checkpoint of the case answered last, removed once its answer is out.
-    let written = std::cell::Cell::new(None);
+    // Whether the checkpoint of the case answered last goes once its answer is out.
+    let remove = std::cell::Cell::new(false);
     answer_each_line(
         "the records",
         true,
         |line| {
-            let (answer, checkpoint) = served(line);
-            written.set(checkpoint);
+            let (answer, remove_checkpoint) = served(line);
+            remove.set(remove_checkpoint);
             answer
         },
         || {
-            if let Some(path) = written.take() {
-                let _ = std::fs::remove_file(path);
+            if remove.take() {
+                solver::integrate::checkpoint::remove_own();
             }
             solver::integrate::checkpoint::between_cases();
         },
