@@ -68,6 +68,59 @@ fn a_fingerprint_that_is_a_path_moves_nothing_outside_the_results() {
     assert!(kept.iter().all(|n| n.contains(".unknown")), "{kept:?}");
 }
 
+/// The reproduction: a folder of the study's results that is a link to elsewhere,
+/// planted at `history`, `runs/.work`, `runs/segments`, `figures` or `jobs`, is named and refused
+/// (exit 3) by the commands that write there, and nothing is written through it. A link for the
+/// whole study folder stays allowed.
+#[test]
+fn a_folder_link_planted_inside_the_results_is_refused_and_nothing_goes_through_it() {
+    let scratch = Scratch::new("planted", &tiny("planted"));
+    ran(&scratch, "planted");
+    assert!(scratch.nlstudy("report", &[]).status.success());
+    let study = scratch.dir.join("results/planted");
+    let elsewhere = scratch.dir.join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let aside = scratch.dir.join("aside");
+    for folder in ["history", "runs/.work", "runs/segments", "figures", "jobs"] {
+        let at = study.join(folder);
+        let existed = at.exists();
+        if existed {
+            std::fs::rename(&at, &aside).unwrap();
+        }
+        std::os::unix::fs::symlink(&elsewhere, &at).unwrap();
+        for (verb, extra) in [
+            ("run", &["--force"][..]),
+            ("collect", &[]),
+            ("report", &[]),
+            ("plot", &[]),
+        ] {
+            let out = scratch.nlstudy(verb, extra);
+            let said = text(&out);
+            assert_eq!(out.status.code(), Some(3), "{folder}, {verb}: {said}");
+            assert!(
+                said.contains(&format!("{} is a symbolic link", at.display())),
+                "{folder}, {verb}: {said}"
+            );
+            assert_no_panic(&out);
+            let written: Vec<_> = std::fs::read_dir(&elsewhere).unwrap().collect();
+            assert!(
+                written.is_empty(),
+                "{folder}, {verb} wrote through the link"
+            );
+        }
+        std::fs::remove_file(&at).unwrap();
+        if existed {
+            std::fs::rename(&aside, &at).unwrap();
+        }
+    }
+    // The whole study folder a link of the user's: allowed, and its records are found.
+    let real = scratch.dir.join("real-planted");
+    std::fs::rename(&study, &real).unwrap();
+    std::os::unix::fs::symlink(&real, &study).unwrap();
+    let out = scratch.nlstudy("run", &[]);
+    assert!(text(&out).contains("2 already stored"), "{}", text(&out));
+}
+
 /// Runs `nlstudy verb` and waits at most a minute: `None` when it is still running then (it
 /// hangs), and it is killed.
 fn within_a_minute(scratch: &Scratch, verb: &str, extra: &[&str]) -> Option<(Output, Duration)> {
@@ -599,4 +652,110 @@ fn a_last_frame_cut_short_is_cut_off_with_a_warning_and_its_point_runs_again() {
         "{said}"
     );
     assert_eq!(records(&scratch.runs("torn")).len(), 2);
+}
+
+/// A solver for `compare --against`'s B side: a shell script that answers `--version` with
+/// `version` and `fingerprint` with nothing (a solver from before fingerprints), and runs cases
+/// as `runs` says (`exec <real nlsolve> "$@"` for the real runs).
+fn solver_script(scratch: &Scratch, name: &str, version: &str, runs: &str) -> String {
+    use std::os::unix::fs::PermissionsExt;
+    let path = scratch.dir.join(name);
+    let real = nonlocal_study::binary("nlsolve");
+    let script = format!(
+        "#!/bin/sh\ncase \"$1\" in\n  --version) printf '%s\\n' '{version}' ;;\n  fingerprint) exit 1 ;;\n  run|serve) {runs} ;;\n  *) exec {} \"$@\" ;;\nesac\n",
+        real.display()
+    );
+    std::fs::write(&path, script).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// `nlstudy compare --against solver:<this build> --solver B --rounds 2`, at most two minutes
+/// (a hang fails the test rather than the suite).
+fn interleaved(scratch: &Scratch, b: &str, extra: &[&str]) -> Output {
+    let against = format!("solver:{}", nonlocal_study::binary("nlsolve").display());
+    let mut args = vec!["--against", &against, "--solver", b, "--rounds", "2"];
+    args.extend_from_slice(extra);
+    let mut child = scratch
+        .command("compare", &args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed() > Duration::from_secs(120) {
+            let _ = child.kill();
+            panic!("compare against {b} still ran after two minutes");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// The reproductions: the interleaved store of a B side that prints no fingerprint is
+/// named by the hash of its binary, never by its `--version` (`/tmp/x`, `../..` and a multi-byte
+/// string each once named a folder outside the study or panicked), so its runs are stored under
+/// the study; a B that crashes on every case, or hangs past `--timeout`, fails the gate (exit 1)
+/// naming its points, where it once passed as "0 worse".
+#[test]
+fn interleaved_compare_stores_under_the_study_and_fails_a_crashing_or_hanging_build() {
+    let scratch = Scratch::new("gate", &tiny("gate"));
+    let interleaved_dir = scratch.dir.join("results/gate/interleaved");
+    let outside = scratch.dir.join("x");
+    for (name, version) in [
+        ("slash", outside.to_str().unwrap()),
+        ("up", "../.."),
+        ("wide", "ééééééé€"),
+    ] {
+        let b = solver_script(
+            &scratch,
+            name,
+            version,
+            &format!(
+                "exec {} \"$@\"",
+                nonlocal_study::binary("nlsolve").display()
+            ),
+        );
+        let out = interleaved(&scratch, &b, &[]);
+        assert!(out.status.success(), "{version}: {}", text(&out));
+        assert_no_panic(&out);
+        assert!(!outside.exists(), "{version}: stored outside the study");
+        let names: Vec<String> = std::fs::read_dir(&interleaved_dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            names
+                .iter()
+                .all(|n| n.contains("-binary-") && n.is_ascii() && !n.contains('.')),
+            "{version}: {names:?}"
+        );
+        std::fs::remove_dir_all(&interleaved_dir).unwrap();
+    }
+    assert!(!scratch.dir.join("results/x").exists() && !scratch.dir.join("x").exists());
+
+    let crashing = solver_script(&scratch, "crashing", "crashing 1", "kill -SEGV $$");
+    let out = interleaved(&scratch, &crashing, &[]);
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("runs failed, so the builds cannot be compared")
+            && said.contains("by B in round 1"),
+        "{said}"
+    );
+    assert!(
+        said.contains("n=16") && said.contains("n=24"),
+        "both points named: {said}"
+    );
+
+    let hanging = solver_script(&scratch, "hanging", "hanging 1", "exec sleep 600");
+    let out = interleaved(&scratch, &hanging, &["--timeout", "2"]);
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("by B in round 1") && said.contains("timed out"),
+        "{said}"
+    );
 }

@@ -2,6 +2,14 @@
 //! to four significant digits (`%.4g`), whole numbers in full; and text from elsewhere (a
 //! solver's stderr, a study's strings) made safe for a terminal (`printable`).
 
+/// The first `n` characters of `text` (all of it when shorter): a prefix cut at a character's
+/// boundary, never inside one, as a byte slice of text from elsewhere could.
+pub fn first_chars(text: &str, n: usize) -> &str {
+    text.char_indices()
+        .nth(n)
+        .map_or(text, |(at, _)| &text[..at])
+}
+
 /// Significant digits of every number people read: tables, summaries, axes, messages.
 pub const SIGNIFICANT: usize = 4;
 
@@ -99,6 +107,15 @@ pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_prefix_is_cut_between_characters() {
+        assert_eq!(first_chars("0123456789", 8), "01234567");
+        assert_eq!(first_chars("abc", 8), "abc");
+        assert_eq!(first_chars("ééééééééé", 8), "éééééééé");
+        assert_eq!(first_chars("a€€€€€€€€", 2), "a€");
+        assert_eq!(first_chars("", 8), "");
+    }
 
     #[test]
     fn numbers_read_with_four_significant_digits() {

@@ -111,6 +111,10 @@ pub struct CompareArgs {
     /// run per build, 20–50× slower, the same count on any machine), judged to 0.5 %.
     #[arg(long)]
     pub instructions: bool,
+    /// With `--against solver:PATH`: seconds after which a run is stopped and counted failed
+    /// (overrides the study's `timeout_s`); a failed run on either side fails the comparison.
+    #[arg(long, value_name = "SECONDS")]
+    pub timeout: Option<f64>,
     /// With `--against solver:PATH`: only the points with these keys (comma-separated, as
     /// `plan` prints them); default: every point of the study.
     #[arg(long, value_delimiter = ',')]

@@ -84,7 +84,7 @@ pub(super) fn of_build(
         1 => Ok(latest_superseded(records).unwrap_or_default()),
         n => Err(Failure::BadInput(format!(
             "{flag} fingerprint:{prefix}: {n} builds start so ({}); give more of the fingerprint",
-            builds.iter().map(|b| &b[..12]).collect::<Vec<_>>().join(", ")
+            builds.iter().map(|b| schema::text::first_chars(b, 12)).collect::<Vec<_>>().join(", ")
         ))),
     }
 }

@@ -10,7 +10,7 @@ use crate::cli::args::CompareArgs;
 use crate::console::{Reply, NOTE};
 use crate::run::interleave::{self, Side};
 use crate::run::nlsolve::Nlsolve;
-use crate::run::plan::{short, Decision, Options, Planned};
+use crate::run::plan::{Decision, Options, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::progress::{Mode, Progress};
 use crate::run::signals;
@@ -24,9 +24,8 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<Reply, Fail
     let (study, solver_b, store, planned) = planned(&args.common, &Options::default(), false)?;
     let solver_a = Nlsolve::locate(Some(baseline))?;
     let points = chosen(&planned, args.only.as_deref())?;
-    let build = |s: &Nlsolve| short(s.fingerprint.as_deref().unwrap_or(&s.version)).to_string();
-    let dir =
-        (store.table("interleaved")).join(format!("{}-{}", build(&solver_a), build(&solver_b)));
+    let names = format!("{}-{}", solver_a.build_name()?, solver_b.build_name()?);
+    let dir = store.table("interleaved").join(names);
     claim(&args.common, &study, &store, true)?;
     let mut counted = args
         .instructions
@@ -35,7 +34,8 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<Reply, Fail
         Side::open(solver_a, &dir, "a", &study.name),
         Side::open(solver_b, &dir, "b", &study.name),
     ];
-    let options = alone_on_this_machine();
+    let timeout = super::run::timeout(args.timeout, study.timeout_s)?;
+    let options = alone_on_this_machine(timeout);
     let mut counts = None;
     // Each point's rounds: --rounds, then more for those whose CPU time is still undecided.
     let mut reach = vec![args.rounds; points.len()];
@@ -70,6 +70,7 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<Reply, Fail
             let code = stop.exit_code().unwrap_or(schema::exit::INTERRUPTED);
             return Ok(Reply::default().failed(why, ExitCode::from(code)));
         }
+        failed_runs(&subset, rounds, &sides)?;
         if let Some(solvers) = counted.take() {
             counts = Some(count(&points, solvers, &dir, &study.name)?);
         }
@@ -118,6 +119,40 @@ pub(super) fn compare(args: &CompareArgs, baseline: &Path) -> Result<Reply, Fail
     )
 }
 
+/// A gate fails when a build cannot run the study: the runs of `points` over `rounds` rounds
+/// that failed (crashed, timed out, refused) on either side, named, as a `CaseFailed`. Without
+/// this a build that crashed on every case was "0 worse" and passed.
+fn failed_runs(points: &[Planned], rounds: usize, sides: &[Side; 2]) -> Result<(), Failure> {
+    const SHOWN: usize = 5;
+    let mut failed = Vec::new();
+    for point in points {
+        for round in 0..rounds {
+            for (side, name) in sides.iter().zip(["A", "B"]) {
+                if let Some(why) = side.failure(point, round) {
+                    failed.push(format!(
+                        "{} by {name} in round {}: {}",
+                        point.point.label(),
+                        round + 1,
+                        schema::text::printable(&why)
+                    ));
+                }
+            }
+        }
+    }
+    if failed.is_empty() {
+        return Ok(());
+    }
+    let more = match failed.len() {
+        n if n > SHOWN => format!("; and {} more", n - SHOWN),
+        _ => String::new(),
+    };
+    Err(Failure::CaseFailed(format!(
+        "{} runs failed, so the builds cannot be compared: {}{more}",
+        failed.len(),
+        failed[..failed.len().min(SHOWN)].join("; ")
+    )))
+}
+
 /// The rounds run: `--rounds`, and the most for the points whose CPU time they left undecided.
 fn rounds_run(asked: usize, reach: &[usize]) -> String {
     let extended = reach.iter().filter(|&&r| r > asked).count();
@@ -148,14 +183,15 @@ fn rounds_asked(args: &CompareArgs) -> Result<usize, Failure> {
     Ok(most)
 }
 
-/// Each run alone on this machine, as timings want, with no timeout, retry or checkpoint.
-fn alone_on_this_machine() -> PoolOptions {
+/// Each run alone on this machine, as timings want, stopped past `timeout`, with no retry or
+/// checkpoint.
+fn alone_on_this_machine(timeout: Option<std::time::Duration>) -> PoolOptions {
     let cores = crate::run::pool::machine_cores();
     PoolOptions {
         cores,
         nodes: crate::run::allocation::this_machine(cores),
         exclusive: true,
-        timeout: None,
+        timeout,
         launcher: (crate::model::launcher::DEFAULT_LAUNCHER.parse())
             .expect("the default launcher parses"),
         retries: 0,

@@ -42,6 +42,14 @@ pub(super) fn claim(
     store: &Store,
     writes: bool,
 ) -> Result<(), Failure> {
+    let folder = store.table("");
+    if let Some(link) = crate::store::fs::planted_link(&folder) {
+        return Err(Failure::Io(format!(
+            "{} is a symbolic link inside the study's results folder {}: nlstudy follows no link there, so its writes cannot be carried elsewhere; remove the link (a link for the whole folder is allowed)",
+            link.display(),
+            folder.display()
+        )));
+    }
     let text = Study::text_of(&args.study).unwrap_or_default();
     match store.claim(&args.study, &text, args.adopt, writes) {
         Ok(()) => Ok(()),

@@ -124,12 +124,7 @@ fn pool_options(args: &RunArgs, study: &Study) -> Result<PoolOptions, Failure> {
     if nodes.len() > 1 {
         log::info!("{}", crate::run::allocation::describe(&nodes));
     }
-    let given =
-        |flag: Option<f64>, flag_name: &str, field: Option<f64>, field_name: &str| match flag {
-            Some(seconds) => Some(period(seconds, flag_name)).transpose(),
-            None => field.map(|s| period(s, field_name)).transpose(),
-        };
-    let timeout = given(args.timeout, "--timeout", study.timeout_s, "timeout_s")?;
+    let timeout = timeout(args.timeout, study.timeout_s)?;
     let checkpoint_every = given(
         args.checkpoint_every,
         "--checkpoint-every",
@@ -149,6 +144,24 @@ fn pool_options(args: &RunArgs, study: &Study) -> Result<PoolOptions, Failure> {
         checkpoint_every,
         keep_checkpoints: args.keep_checkpoints,
     })
+}
+
+/// A period from its flag, else from the study's field (each named when it is not one).
+fn given(
+    flag: Option<f64>,
+    flag_name: &str,
+    field: Option<f64>,
+    field_name: &str,
+) -> Result<Option<Duration>, Failure> {
+    match flag {
+        Some(seconds) => Some(period(seconds, flag_name)).transpose(),
+        None => field.map(|s| period(s, field_name)).transpose(),
+    }
+}
+
+/// A case's timeout: `--timeout`, else the study's `timeout_s`.
+pub(super) fn timeout(flag: Option<f64>, field: Option<f64>) -> Result<Option<Duration>, Failure> {
+    given(flag, "--timeout", field, "timeout_s")
 }
 
 /// What a study's `run` did, as its summary says it.

@@ -59,10 +59,22 @@ impl Side {
 
     /// The record this side stored of `point` in round `round`, if a result.
     pub fn stored(&self, point: &Planned, round: usize) -> Option<Stored> {
-        let planned = self.planned(point, round)?;
-        self.store
-            .stored(planned.key.as_str())
+        self.record(point, round)
             .filter(|s| s.status() != Status::Failed)
+    }
+
+    /// Why this side's run of `point` in round `round` failed (timed out, crashed, refused),
+    /// the first line of its message, if it failed.
+    pub fn failure(&self, point: &Planned, round: usize) -> Option<String> {
+        let failed = self
+            .record(point, round)
+            .filter(|s| s.status() == Status::Failed)?;
+        Some(failed.message().lines().next().unwrap_or("").to_string())
+    }
+
+    fn record(&self, point: &Planned, round: usize) -> Option<Stored> {
+        let planned = self.planned(point, round)?;
+        self.store.stored(planned.key.as_str())
     }
 }
 

@@ -181,6 +181,33 @@ impl Nlsolve {
         })
     }
 
+    /// A name for this build that is safe as one folder's name: the first 8 digits of its
+    /// fingerprint (hex, checked when read), or, for a solver that prints none, of the SHA-256 of
+    /// its binary's bytes, never of text it prints (a `--version` of `../..` or `/tmp/x` named a
+    /// folder outside the study's once).
+    pub fn build_name(&self) -> Result<String, Fault> {
+        use sha2::{Digest, Sha256};
+        if let Some(fingerprint) = &self.fingerprint {
+            return Ok(schema::text::first_chars(fingerprint, 8).to_string());
+        }
+        let cannot = |e: std::io::Error| {
+            Fault::Io(format!(
+                "cannot read the solver {}: {e}",
+                self.binary.display()
+            ))
+        };
+        let mut binary = std::fs::File::open(&self.binary).map_err(cannot)?;
+        let (mut hasher, mut chunk) = (Sha256::new(), vec![0; 1 << 20]);
+        loop {
+            match std::io::Read::read(&mut binary, &mut chunk).map_err(cannot)? {
+                0 => break,
+                read => hasher.update(&chunk[..read]),
+            }
+        }
+        let digest = crate::store::hex(&hasher.finalize());
+        Ok(format!("binary-{}", &digest[..8]))
+    }
+
     /// Keeps the solver's verdicts on cases in `path` (beside a study's store), so that a
     /// later `check` of the same cases by this solver build need not ask it (`kept`).
     pub fn keep_verdicts_in(&mut self, path: PathBuf) {

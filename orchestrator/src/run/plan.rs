@@ -116,7 +116,7 @@ impl fmt::Display for Skipped {
 pub fn short(fingerprint: &str) -> &str {
     match fingerprint {
         "" => "unknown",
-        f => &f[..f.len().min(8)],
+        f => schema::text::first_chars(f, 8),
     }
 }
 

@@ -247,9 +247,64 @@ pub fn remove_where(dir: &Path, stale: impl Fn(&str) -> bool) {
     }
 }
 
+/// The first symbolic link to a folder beneath a study's folder `study_dir`, walking its folders
+/// without following any link. nlstudy writes only its own files there (records, history,
+/// figures, job scripts), so a folder that is a link, planted at `history/` or `runs/segments`
+/// say, would carry those writes anywhere: it is refused, never followed. (A link in a file's
+/// place is never followed by a read or a write, `open_regular` and `create_fresh`, and is named
+/// where it is read.) A link for the whole study folder (or above it) is the user's choice, and
+/// allowed.
+pub fn planted_link(study_dir: &Path) -> Option<PathBuf> {
+    let mut folders = vec![study_dir.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        let Ok(entries) = std::fs::read_dir(&folder) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            // The entry's own type (d_type, or lstat): a link is seen, not followed.
+            match entry.file_type() {
+                Ok(kind) if kind.is_symlink() && entry.path().is_dir() => {
+                    return Some(entry.path())
+                }
+                Ok(kind) if kind.is_dir() => folders.push(entry.path()),
+                _ => {}
+            }
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_link_inside_a_study_folder_is_found_and_one_for_the_whole_folder_is_not() {
+        let scratch = tempfile::tempdir().unwrap();
+        let (outside, results) = (
+            scratch.path().join("outside"),
+            scratch.path().join("results"),
+        );
+        let study = results.join("s");
+        std::fs::create_dir_all(study.join("runs/segments")).unwrap();
+        std::fs::create_dir_all(&outside).unwrap();
+        assert_eq!(planted_link(&study), None);
+        // The whole study folder a link: allowed.
+        let linked = results.join("linked");
+        std::os::unix::fs::symlink(&study, &linked).unwrap();
+        assert_eq!(planted_link(&linked), None);
+        for inside in ["history", "runs/.work", "figures/made.svg"] {
+            let at = study.join(inside);
+            std::fs::create_dir_all(at.parent().unwrap()).unwrap();
+            std::os::unix::fs::symlink(&outside, &at).unwrap();
+            assert_eq!(planted_link(&study), Some(at.clone()), "{inside}");
+            std::fs::remove_file(&at).unwrap();
+        }
+        // A link in a file's place is for the readers and writers to refuse.
+        std::fs::write(outside.join("file"), "").unwrap();
+        std::os::unix::fs::symlink(outside.join("file"), study.join("runs/x.json")).unwrap();
+        assert_eq!(planted_link(&study), None);
+    }
 
     #[test]
     fn removal_never_reaches_through_a_symbolic_link() {
