@@ -153,9 +153,15 @@ impl Catalog {
         let dir = runs.join(segment::DIR);
         let (listed, foreign) = listed(&dir);
         self.foreign = foreign;
+        // A segment shorter than what was read, changed at the same size, or grown where no
+        // frame starts at the old end, was written over, not appended to: read everything anew.
         let stale = self.segments.iter().any(|(name, state)| {
             listed.get(name).is_none_or(|&(size, modified)| {
-                size < state.end || (size == state.end && modified != state.modified)
+                size < state.end
+                    || (size == state.end && modified != state.modified)
+                    || (size > state.end
+                        && state.end > 0
+                        && !segment::frame_starts_at(&dir.join(name), state.end))
             })
         });
         if stale || self.format != FORMAT {

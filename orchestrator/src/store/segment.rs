@@ -175,6 +175,17 @@ pub fn read_from(path: &Path, from: u64) -> io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Whether a frame's header starts at `offset` of the segment `path`: what an append leaves at
+/// the end a reader last saw. Anything else there means the segment was written over in place,
+/// and what was read of it before is no longer to be trusted.
+pub fn frame_starts_at(path: &Path, offset: u64) -> bool {
+    let Ok((file, _)) = super::fs::open_regular(path) else {
+        return false;
+    };
+    let mut head = [0u8; MAGIC.len()];
+    read_at_most(&file, &mut head, offset).is_ok_and(|n| n == head.len()) && head == MAGIC
+}
+
 fn read_at_most(file: &File, buffer: &mut [u8], offset: u64) -> io::Result<usize> {
     let mut done = 0;
     while done < buffer.len() {

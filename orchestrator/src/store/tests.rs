@@ -447,6 +447,43 @@ fn a_frame_that_is_not_where_the_catalog_says_is_looked_for_in_the_segments() {
     assert_eq!(Store::open(dir.path(), "s").records().len(), 20);
 }
 
+/// A segment written over in place and grown (a record edited, its checksum made to match,
+/// the edit longer than the text it replaced): no frame starts where the catalog's reading
+/// ended, so the catalog reads it anew rather than trust what it read before, and the edited
+/// record, whose fields do not parse, counts as not run (its point runs again) at once.
+#[test]
+fn a_segment_grown_in_place_is_read_anew_and_an_edited_record_counts_as_not_run() {
+    let (dir, store, _) = twenty_with_their_catalog();
+    drop(store);
+    let reader = Store::open(dir.path(), "s");
+    let path = reader.segments().join(&segment_names(&reader)[0]);
+    let bytes = std::fs::read(&path).unwrap();
+    let frames = segment::read(&bytes, 0).frames;
+    let first = &frames[0];
+    let body = &bytes[first.body.start as usize..first.body.end as usize];
+    let mut record: Value = serde_json::from_slice(body).unwrap();
+    let key = record["key"].as_str().unwrap().to_string();
+    record["error_l2_norm"] = json!("not a number, and longer than one");
+    let mut edited = segment::encode(first.seq, record.to_string().as_bytes());
+    edited.extend_from_slice(&bytes[first.span.end as usize..]);
+    assert!(edited.len() > bytes.len());
+    std::fs::write(&path, &edited).unwrap();
+    let again = Store::open(dir.path(), "s");
+    let index = again.index();
+    assert!(
+        !index.stored.contains_key(key.as_str()),
+        "the edited record is trusted"
+    );
+    assert_eq!(index.stored.len(), 19);
+    assert!(
+        index
+            .unreadable
+            .iter()
+            .any(|u| u.problem.contains("error_l2_norm")),
+        "the edit is named"
+    );
+}
+
 /// A catalog that is gone (or not whole) is made again from the segments by whoever reads
 /// the store first, and stored by the first that may: a migrating command reads without
 /// storing, and what it read is not lost to the next reader (which would read every record
