@@ -132,12 +132,22 @@ pub fn counts_nodes(field: &str) -> bool {
     field == "n"
 }
 
-/// A question's first resolution `start` along `field`: a positive number, whole for `n`; a
-/// refusal names `<section>.start`.
+/// The largest first value of a searched field: no grid has more nodes along a side, and no
+/// time step is longer (in the problems' units, where t_end is O(1)).
+pub const LARGEST_START: f64 = 1e9;
+
+/// A question's first resolution `start` along `field`: a positive number up to
+/// `LARGEST_START`, whole for `n`; a refusal names `<section>.start`.
 pub fn check_start(section: &str, field: &str, start: f64) -> Result<(), (String, String)> {
     let place = format!("{section}.start");
     if !(start.is_finite() && start > 0.0) {
         return Err((place, format!("must be a positive number (got {start})")));
+    }
+    if start > LARGEST_START {
+        return Err((
+            place,
+            format!("{start} is past any run (at most {LARGEST_START:e}); give the first value a run can have"),
+        ));
     }
     if counts_nodes(field) && start.fract() != 0.0 {
         return Err((

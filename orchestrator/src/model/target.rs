@@ -23,12 +23,16 @@ mod fit;
 
 use crate::model::adaptive::{
     check_start, core_seconds, counts_nodes, positive, ran, refused_for_its_step, Adaptive, Lookup,
-    Probe,
+    Probe, LARGEST_START,
 };
 use schema::record::{Status, Stored};
 use serde::Deserialize;
 
 pub use fit::ErrorModel;
+
+/// The smallest error a target may ask for: a few hundred ulps of an O(1) solution, the
+/// round-off of a norm over a grid. Below it the search would refine without end.
+const ROUND_OFF: f64 = 1e-13;
 
 /// An error-target search as a study writes it.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -181,6 +185,15 @@ impl TargetSpec {
                 format!("must be a positive, finite error (got {})", self.below),
             );
         }
+        if self.below < ROUND_OFF {
+            return fail(
+                "below",
+                format!(
+                    "{} is below round-off: no run in double precision measures an error under {ROUND_OFF:e}; give a larger target",
+                    self.below
+                ),
+            );
+        }
         if !(self.rtol > 0.0 && self.rtol < 1.0) {
             return fail("rtol", format!("must lie in (0, 1) (got {})", self.rtol));
         }
@@ -200,10 +213,13 @@ impl TargetSpec {
                     ),
                 );
             }
-            if !(time.start.is_finite() && time.start > 0.0) {
+            if !(time.start.is_finite() && time.start > 0.0 && time.start <= LARGEST_START) {
                 return fail(
                     "time.start",
-                    format!("must be a positive number (got {})", time.start),
+                    format!(
+                        "must be a positive number at most {LARGEST_START:e} (got {})",
+                        time.start
+                    ),
                 );
             }
         }

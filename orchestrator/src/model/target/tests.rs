@@ -337,7 +337,17 @@ fn bad_specs_are_refused_naming_the_field() {
     assert_eq!(refused(|s| s.below = 0.0), "target.below");
     assert_eq!(refused(|s| s.below = f64::INFINITY), "target.below");
     assert_eq!(refused(|s| s.below = f64::NAN), "target.below");
+    assert_eq!(
+        refused(|s| s.below = 1e-16),
+        "target.below",
+        "below round-off"
+    );
     assert_eq!(refused(|s| s.start = 8.5), "target.start");
+    assert_eq!(refused(|s| s.start = 1e300), "target.start");
+    assert_eq!(
+        refused(|s| s.time.as_mut().unwrap().start = 1e300),
+        "target.time.start"
+    );
     assert_eq!(refused(|s| s.rtol = 0.0), "target.rtol");
     assert_eq!(refused(|s| s.max_probes = Some(0)), "target.max_probes");
     assert_eq!(
