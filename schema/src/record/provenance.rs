@@ -52,6 +52,11 @@ pub struct Load {
 /// timings are noisy: its wait over its CPU and wait together.
 pub const NOISY_WAIT_SHARE: f64 = 0.1;
 
+/// The share of its wall time a solve may spend on no core before its timings are noisy.
+pub const OFF_CPU_SHARE: f64 = 0.5;
+/// The shortest solve judged by its time off the cores.
+pub const OFF_CPU_SHORTEST_S: f64 = 0.02;
+
 impl Provenance {
     /// Noisy too when a solve that computed `cpu_s` waited `wait_s` for cores other tasks held
     /// beyond `NOISY_WAIT_SHARE` of its time: it lost that share of its cores, whatever the
@@ -59,6 +64,19 @@ impl Provenance {
     pub fn with_wait(mut self, cpu_s: f64, wait_s: f64) -> Self {
         let runnable = cpu_s + wait_s;
         self.noisy |= runnable > 0.0 && wait_s / runnable > NOISY_WAIT_SHARE;
+        self
+    }
+
+    /// Noisy too when a solve of `wall_s` over `ranks` processes was on no core for more than
+    /// `OFF_CPU_SHARE` of it: neither computing (`cpu_s`, every thread's) nor waiting for a core
+    /// (`wait_s`), since at least each rank's main thread works the whole solve. A stopped
+    /// process (SIGSTOP, a suspended job) or one swapped out is so; a run of any thread count is
+    /// judged. Solves under `OFF_CPU_SHORTEST_S` are left alone (a clock's tick).
+    pub fn with_time_off_cpu(mut self, wall_s: f64, cpu_s: f64, wait_s: f64) -> Self {
+        let on = cpu_s + if wait_s.is_finite() { wait_s } else { 0.0 };
+        let budget = wall_s * self.ranks.max(1) as f64;
+        self.noisy |=
+            wall_s >= OFF_CPU_SHORTEST_S && on.is_finite() && on < (1.0 - OFF_CPU_SHARE) * budget;
         self
     }
 

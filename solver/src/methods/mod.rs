@@ -175,8 +175,9 @@ fn used_by_this_process() -> [f64; 3] {
 
 /// The record with what each rank's process used (`used_by_this_process` of each, in rank
 /// order): the CPU times and the wait summed over ranks, each rank's solve CPU beside them over
-/// ranks, and the run noisy if its solve waited for cores beyond its share. Only a run of one
-/// thread per rank is judged by its wait: the threads of a pool wait too each time a step wakes
+/// ranks, and the run noisy if its solve waited for cores beyond its share, or was on no core
+/// for half of it (stopped, swapped out; any thread count). Only a run of one thread per rank is
+/// judged by its wait: the threads of a pool wait too each time a step wakes
 /// them (tens of microseconds a step on a virtual machine's idle cores), which is the run's own
 /// cost, not a neighbour's.
 fn with_usage(mut outcome: Outcome, ranks: &[[f64; 3]]) -> Outcome {
@@ -192,6 +193,11 @@ fn with_usage(mut outcome: Outcome, ranks: &[[f64; 3]]) -> Outcome {
     let one_thread = record.provenance.threads == 1;
     if let (Some(cpu), Some(wait), true) = (record.solve_cpu_s, record.solve_wait_s, one_thread) {
         record.provenance = record.provenance.clone().with_wait(cpu, wait);
+    }
+    if let Some(cpu) = record.solve_cpu_s {
+        let wait = record.solve_wait_s.unwrap_or(f64::NAN);
+        record.provenance =
+            (record.provenance.clone()).with_time_off_cpu(record.solve_s, cpu, wait);
     }
     outcome
 }
