@@ -7,7 +7,9 @@
 //! And the CPU and wait times a record carries, quiet and under load.
 //!
 //! These run last in `make test` (scripts/run-tests), one at a time and alone on the machine, so
-//! that the load is the one each test makes; "quiet" here is also `nice -n -20`.
+//! that the load is the one each test makes; "quiet" here is also `nice -n -20`. A claim about a
+//! quiet machine (or one of a load of its own) is tried up to `TRIES` times and fails only when
+//! false in every try, with the load seen at each: a neighbour's burst is no defect of the tool.
 
 use nonlocal_study::{binary, text, Scratch};
 use serde_json::{json, Value};
@@ -35,6 +37,29 @@ impl Drop for Load {
             let _ = child.wait();
         }
     }
+}
+
+/// How many times a claim about a quiet machine is tried before it fails: a neighbour's burst
+/// (another user, a build) can make one try false; a false claim is false in every try.
+const TRIES: usize = 3;
+
+/// Runs `claim` until it holds, at most `TRIES` times; panics only when it failed in every try,
+/// with each try's failure and the load seen then (`/proc/loadavg`).
+fn in_some_try(what: &str, mut claim: impl FnMut() -> Result<(), String>) {
+    let mut failures = Vec::new();
+    for _ in 0..TRIES {
+        match claim() {
+            Ok(()) => return,
+            Err(why) => {
+                let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+                failures.push(format!("{why} (load: {})", load.trim()));
+            }
+        }
+    }
+    panic!(
+        "{what}: false in each of {TRIES} tries:\n{}",
+        failures.join("\n")
+    );
 }
 
 /// `points` one-thread 2D points of about 50 ms each (each its own case: a distinct `t_end`).
@@ -107,41 +132,40 @@ fn called(rows: &[(String, String, String)], metric: &str, verdict: &str) -> usi
 #[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn interleaved_pairs_call_a_quarter_more_work_worse_and_an_a_a_nothing_loaded_or_quiet() {
     for (condition, nice) in [("loaded", "0"), ("quiet", "-20")] {
-        let _load = (condition == "loaded").then(Load::two);
-        let same = Scratch::new("aa", &study("aa", 20));
-        let out = interleaved(&same, binary("nlsolve").to_str().unwrap(), nice, &[]);
-        assert!(out.status.success(), "{condition} A/A: {}", text(&out));
-        let rows = verdicts(&out);
-        assert!(rows.len() >= 20 * 4, "{condition}: {}", text(&out));
-        let changed: Vec<_> = rows
-            .iter()
-            .filter(|(_, _, v)| v == "worse" || v == "better")
-            .collect();
-        assert!(changed.is_empty(), "{condition} A/A called {changed:?}");
+        in_some_try(condition, || {
+            let _load = (condition == "loaded").then(Load::two);
+            let same = Scratch::new("aa", &study("aa", 20));
+            let out = interleaved(&same, binary("nlsolve").to_str().unwrap(), nice, &[]);
+            assert!(out.status.success(), "{condition} A/A: {}", text(&out));
+            let rows = verdicts(&out);
+            assert!(rows.len() >= 20 * 4, "{condition}: {}", text(&out));
+            let changed: Vec<_> = rows
+                .iter()
+                .filter(|(_, _, v)| v == "worse" || v == "better")
+                .collect();
+            if !changed.is_empty() {
+                return Err(format!("{condition} A/A called {changed:?}"));
+            }
 
-        let slow = Scratch::new("ab", &study("ab", 10));
-        let out = interleaved(&slow, &slower(&slow, 4), nice, &[]);
-        assert_eq!(out.status.code(), Some(1), "{condition}: {}", text(&out));
-        let rows = verdicts(&out);
-        let cpu = called(&rows, "solve_cpu_s", "worse");
-        let wall = called(&rows, "solve_s", "worse");
-        eprintln!(
-            "{condition}: 1.25x the work called worse by CPU time {cpu}/10, by wall time {wall}/10; an A/A of 20 points: no change"
-        );
-        assert!(
-            cpu >= 9,
-            "{condition}: CPU time called {cpu} of 10: {}",
-            text(&out)
-        );
-        if condition == "quiet" {
-            assert!(
-                wall >= 9,
-                "quiet: wall time called {wall} of 10: {}",
-                text(&out)
+            let slow = Scratch::new("ab", &study("ab", 10));
+            let out = interleaved(&slow, &slower(&slow, 4), nice, &[]);
+            assert_eq!(out.status.code(), Some(1), "{condition}: {}", text(&out));
+            let rows = verdicts(&out);
+            // Errors are the same bits: the slower build computes the same numbers.
+            assert_eq!(called(&rows, "error_l2_norm", "same"), 10);
+            let cpu = called(&rows, "solve_cpu_s", "worse");
+            let wall = called(&rows, "solve_s", "worse");
+            eprintln!(
+                "{condition}: 1.25x the work called worse by CPU time {cpu}/10, by wall time {wall}/10; an A/A of 20 points: no change"
             );
-        }
-        // Errors are the same bits: the slower build computes the same numbers.
-        assert_eq!(called(&rows, "error_l2_norm", "same"), 10);
+            if cpu < 9 {
+                return Err(format!("{condition}: CPU time called {cpu} of 10"));
+            }
+            if condition == "quiet" && wall < 9 {
+                return Err(format!("quiet: wall time called {wall} of 10"));
+            }
+            Ok(())
+        });
     }
 }
 
@@ -287,18 +311,22 @@ fn cpu_time_is_the_solve_on_a_core_of_its_own_and_clearly_less_under_load() {
         );
         nonlocal_study::record(&out)
     };
-    let quiet = timed("-20");
-    let (wall, cpu) = (
-        quiet["solve_s"].as_f64().unwrap(),
-        quiet["solve_cpu_s"].as_f64().unwrap(),
-    );
-    let waited = quiet["solve_wait_s"].as_f64().unwrap();
-    assert!(
-        (cpu / wall - 1.0).abs() < 0.1,
-        "quiet: {cpu} s of CPU in {wall} s"
-    );
-    assert!(waited < 0.1 * wall, "quiet: waited {waited} s of {wall} s");
-    assert!(quiet["setup_cpu_s"].as_f64().unwrap() > 0.0);
+    in_some_try("quiet", || {
+        let quiet = timed("-20");
+        let (wall, cpu) = (
+            quiet["solve_s"].as_f64().unwrap(),
+            quiet["solve_cpu_s"].as_f64().unwrap(),
+        );
+        let waited = quiet["solve_wait_s"].as_f64().unwrap();
+        assert!(quiet["setup_cpu_s"].as_f64().unwrap() > 0.0);
+        if (cpu / wall - 1.0).abs() >= 0.1 {
+            return Err(format!("quiet: {cpu} s of CPU in {wall} s"));
+        }
+        match waited < 0.1 * wall {
+            true => Ok(()),
+            false => Err(format!("quiet: waited {waited} s of {wall} s")),
+        }
+    });
     let load = Load::two();
     // Running before the solve starts: each has spent 50 ms of CPU (5 ticks of /proc's clock).
     let spent = |busy: &Child| -> u64 {
