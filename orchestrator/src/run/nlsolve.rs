@@ -190,21 +190,14 @@ impl Nlsolve {
         if let Some(fingerprint) = &self.fingerprint {
             return Ok(schema::text::first_chars(fingerprint, 8).to_string());
         }
-        let cannot = |e: std::io::Error| {
+        // Read whole and digested, as a table's sum is: one binary, once per comparison.
+        let binary = std::fs::read(&self.binary).map_err(|e| {
             Fault::Io(format!(
                 "cannot read the solver {}: {e}",
                 self.binary.display()
             ))
-        };
-        let mut binary = std::fs::File::open(&self.binary).map_err(cannot)?;
-        let (mut hasher, mut chunk) = (Sha256::new(), vec![0; 1 << 20]);
-        loop {
-            match std::io::Read::read(&mut binary, &mut chunk).map_err(cannot)? {
-                0 => break,
-                read => hasher.update(&chunk[..read]),
-            }
-        }
-        let digest = crate::store::hex(&hasher.finalize());
+        })?;
+        let digest = crate::store::hex(&Sha256::digest(&binary));
         Ok(format!("binary-{}", &digest[..8]))
     }
 

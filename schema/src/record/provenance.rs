@@ -72,8 +72,8 @@ impl Provenance {
     /// (`wait_s`), since at least each rank's main thread works the whole solve. A stopped
     /// process (SIGSTOP, a suspended job) or one swapped out is so; a run of any thread count is
     /// judged. Solves under `OFF_CPU_SHORTEST_S` are left alone (a clock's tick).
-    pub fn with_time_off_cpu(mut self, wall_s: f64, cpu_s: f64, wait_s: f64) -> Self {
-        let on = cpu_s + if wait_s.is_finite() { wait_s } else { 0.0 };
+    pub fn with_time_off_cpu(mut self, wall_s: f64, cpu_s: f64, wait_s: Option<f64>) -> Self {
+        let on = cpu_s + wait_s.filter(|w| w.is_finite()).unwrap_or(0.0);
         let budget = wall_s * self.ranks.max(1) as f64;
         self.noisy |=
             wall_s >= OFF_CPU_SHORTEST_S && on.is_finite() && on < (1.0 - OFF_CPU_SHARE) * budget;

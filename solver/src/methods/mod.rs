@@ -195,9 +195,8 @@ fn with_usage(mut outcome: Outcome, ranks: &[[f64; 3]]) -> Outcome {
         record.provenance = record.provenance.clone().with_wait(cpu, wait);
     }
     if let Some(cpu) = record.solve_cpu_s {
-        let wait = record.solve_wait_s.unwrap_or(f64::NAN);
         record.provenance =
-            (record.provenance.clone()).with_time_off_cpu(record.solve_s, cpu, wait);
+            (record.provenance.clone()).with_time_off_cpu(record.solve_s, cpu, record.solve_wait_s);
     }
     outcome
 }

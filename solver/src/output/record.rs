@@ -172,24 +172,24 @@ mod tests {
     /// one thread or several, on one rank or several; one that computed its wall time is not.
     #[test]
     fn a_run_on_no_core_for_half_its_solve_is_noisy() {
-        let judged = |threads: usize, ranks: usize, wall: f64, cpu: f64, wait: f64| {
+        let judged = |threads: usize, ranks: usize, wall: f64, cpu: f64, wait: Option<f64>| {
             let mut provenance = provenance_of_this_run(threads, ranks);
             provenance.noisy = false;
             provenance.with_time_off_cpu(wall, cpu, wait).noisy
         };
-        assert!(judged(1, 1, 1.0, 0.1, 0.0), "stopped for 9/10 of it");
-        assert!(judged(4, 1, 1.0, 0.3, f64::NAN), "four threads, stopped");
+        assert!(judged(1, 1, 1.0, 0.1, Some(0.0)), "stopped for 9/10 of it");
+        assert!(judged(4, 1, 1.0, 0.3, None), "four threads, stopped");
         assert!(
-            judged(1, 2, 1.0, 0.9, 0.0),
+            judged(1, 2, 1.0, 0.9, Some(0.0)),
             "two ranks computed one rank's time"
         );
-        assert!(!judged(1, 1, 1.0, 0.97, 0.0));
+        assert!(!judged(1, 1, 1.0, 0.97, Some(0.0)));
         assert!(
-            !judged(1, 1, 1.0, 0.4, 0.5),
+            !judged(1, 1, 1.0, 0.4, Some(0.5)),
             "waited for a core: with_wait's to judge"
         );
-        assert!(!judged(4, 1, 1.0, 3.8, f64::NAN));
-        assert!(!judged(1, 1, 0.01, 0.0, 0.0), "too short to judge");
+        assert!(!judged(4, 1, 1.0, 3.8, None));
+        assert!(!judged(1, 1, 0.01, 0.0, Some(0.0)), "too short to judge");
     }
 
     fn record() -> Record {
