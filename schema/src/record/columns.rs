@@ -16,13 +16,14 @@ use std::sync::OnceLock;
 mod leaves;
 pub use leaves::{dotted, each_leaf, tree_order};
 
-/// The record's timings in seconds (setup, time loop, median step, communication per step, the
-/// set-up's and the solve's CPU, the solve's wait for a core): the fields whose repeats the
-/// orchestrator's summary reduces to min, median and max.
-pub const TIMINGS: [&str; 7] = [
+/// The record's timings in seconds (setup, time loop, median step, the whole run, communication
+/// per step, the set-up's and the solve's CPU, the solve's wait for a core): the fields whose
+/// repeats the orchestrator's summary reduces to min, median and max.
+pub const TIMINGS: [&str; 8] = [
     "setup_s",
     "solve_s",
     "step_s",
+    "wall_s",
     "comm_s",
     "setup_cpu_s",
     "solve_cpu_s",
@@ -288,6 +289,7 @@ pub fn every_field() -> Stored {
         setup_s: 1e-3,
         solve_s: 1e-2,
         step_s: 1e-3,
+        wall_s: Some(2e-2),
         setup_cpu_s: Some(1e-3),
         solve_cpu_s: Some(2e-2),
         solve_wait_s: Some(1e-4),

@@ -32,6 +32,11 @@ pub struct Record<C = Case> {
     pub setup_s: f64,
     pub solve_s: f64,
     pub step_s: f64,
+    /// The run's whole wall time, from its start to its record: the set-up, the solve and what
+    /// was measured after it (a step's amplification from L_h's spectrum, errors). Rank 0's over
+    /// ranks; absent in records of builds before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_s: Option<f64>,
     /// CPU seconds (user and system, every thread; over ranks, their sum) of the set-up, from
     /// the run's start to its solve, and of the solve (the time loop with its bookkeeping, or a
     /// steady solve): the work itself, whatever else the machine runs. Absent where the system
@@ -163,6 +168,7 @@ impl Record {
             setup_s: 0.0,
             solve_s: 0.0,
             step_s: 0.0,
+            wall_s: None,
             setup_cpu_s: None,
             solve_cpu_s: None,
             solve_wait_s: None,

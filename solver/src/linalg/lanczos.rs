@@ -1,7 +1,7 @@
 //! The two ends of a symmetric operator's spectrum by Lanczos, on one process or over ranks:
-//! the three-term recurrence (three vectors of a rank's share, no basis kept), the Ritz values
-//! of the tridiagonal T_j by faer's dense symmetric eigensolver, and for each end a bound on
-//! how far the operator's extreme eigenvalue lies beyond its Ritz value.
+//! the three-term recurrence (three vectors of a rank's share, no basis kept), the extreme Ritz
+//! values of the tridiagonal T_j (`tridiagonal`: bisection and inverse iteration, O(j)), and
+//! for each end a bound on how far the operator's extreme eigenvalue lies beyond its Ritz value.
 //!
 //! A Ritz value never lies outside the spectrum (Cauchy interlacing), so the lowest Ritz value
 //! bounds λ_min from above and the highest bounds λ_max from below. The other side: some
@@ -12,7 +12,7 @@
 //! orthogonality once a Ritz value converges, which copies converged values (Paige) but does not
 //! move the extreme ones.
 
-use faer::{Mat, Side};
+use super::tridiagonal::Tridiagonal;
 
 /// One end of the spectrum: its Ritz value and how far beyond it the eigenvalue may lie.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,9 +41,9 @@ impl Ends {
     }
 }
 
-/// Ritz values are looked at after this many iterations, then each time the recurrence has grown
-/// by an eighth (a dense eigensolve of T_j, O(j³), each time: a fixed stride would cost O(j⁴)).
-const FIRST_CHECK: usize = 8;
+/// Ritz values are looked at every this many iterations: the extreme ones of T_j cost O(j),
+/// far less than the operator's applications between two looks.
+const CHECK_EVERY: usize = 8;
 
 /// The ends of the spectrum of the symmetric operator `apply` (out = L u), from `start`, with
 /// `dot` the inner product over every rank. Iterates until `settled` says the ends are known
@@ -66,7 +66,6 @@ pub fn ends(
     let mut w = vec![0.0; q.len()];
     let (mut alphas, mut betas) = (Vec::new(), Vec::new());
     let mut beta_previous = 0.0;
-    let mut check = FIRST_CHECK;
     for j in 1..=max_iterations.max(1) {
         apply(&q, &mut w);
         let alpha = dot(&w, &q);
@@ -82,8 +81,7 @@ pub fn ends(
         let scale = alphas.iter().fold(0.0_f64, |m, a| m.max(a.abs())).max(beta);
         // β ≈ 0: the Krylov space is invariant and its Ritz values are eigenvalues.
         let invariant = beta <= 1e-14 * scale;
-        if invariant || j == check || j == max_iterations {
-            check = j + (j / 8).max(FIRST_CHECK);
+        if invariant || j % CHECK_EVERY == 0 || j == max_iterations {
             let ends = ritz_ends(&alphas, &betas, invariant, j)?;
             if invariant || settled(&ends) || j >= max_iterations {
                 return Some(ends);
@@ -103,30 +101,33 @@ pub fn ends(
 /// least the round-off of the values.
 fn ritz_ends(alphas: &[f64], betas: &[f64], invariant: bool, applications: usize) -> Option<Ends> {
     let j = alphas.len();
-    let t = Mat::from_fn(j, j, |r, c| match r.abs_diff(c) {
-        0 => alphas[r],
-        1 => betas[r.min(c)],
-        _ => 0.0,
-    });
-    let eigen = t.self_adjoint_eigen(Side::Lower).ok()?;
-    let (values, vectors) = (eigen.S().column_vector(), eigen.U());
+    let t = Tridiagonal {
+        diagonal: alphas,
+        off: &betas[..j - 1],
+    };
+    let value = |k: usize| t.eigenvalue(k);
     let beta = if invariant { 0.0 } else { betas[j - 1] };
+    let (lowest, highest) = (value(0), value(j - 1));
     // The Ritz values themselves are known to a few ulps of T's norm, whatever the residual.
-    let round_off = 16.0 * f64::EPSILON * values[0].abs().max(values[j - 1].abs());
-    let end = |i: usize, next: Option<usize>| {
-        let residual = (beta * vectors[(j - 1, i)]).abs();
-        let gap = next.map_or(f64::INFINITY, |k| (values[k] - values[i]).abs());
+    let round_off = 16.0 * f64::EPSILON * lowest.abs().max(highest.abs());
+    let end = |ritz: f64, next: Option<f64>| {
+        let residual = (beta * t.last_component(ritz)).abs();
+        let gap = next.map_or(f64::INFINITY, |next| (next - ritz).abs());
         End {
-            ritz: values[i],
+            ritz,
             bound: residual.min(residual * residual / gap).max(round_off),
         }
     };
-    let second = |k: usize| (j > 1).then_some(k);
-    Some(Ends {
-        lowest: end(0, second(1)),
-        highest: end(j - 1, second(j.saturating_sub(2))),
+    let second = |k: usize| (j > 1).then(|| value(k));
+    let ends = Ends {
+        lowest: end(lowest, second(1)),
+        highest: end(highest, second(j.saturating_sub(2))),
         applications,
-    })
+    };
+    let finite = [ends.lowest, ends.highest]
+        .iter()
+        .all(|e| e.ritz.is_finite() && e.bound.is_finite());
+    finite.then_some(ends)
 }
 
 #[cfg(test)]

@@ -7,3 +7,4 @@ pub mod cg;
 pub mod cholesky;
 pub mod lanczos;
 pub mod spectrum;
+pub mod tridiagonal;

@@ -77,6 +77,8 @@ fn threads_wait_s() -> Option<f64> {
 /// A run's phases as this process saw them.
 #[derive(Clone, Copy, Debug, Default)]
 struct Phases {
+    /// When the run started, for its whole wall time (`run_wall_s`).
+    began: Option<Instant>,
     started: Option<Usage>,
     solve_started: Option<Usage>,
     setup: Option<Usage>,
@@ -84,6 +86,7 @@ struct Phases {
 }
 
 static PHASES: Mutex<Phases> = Mutex::new(Phases {
+    began: None,
     started: None,
     solve_started: None,
     setup: None,
@@ -98,9 +101,16 @@ fn phases() -> std::sync::MutexGuard<'static, Phases> {
 /// here.
 pub fn run_starts() {
     *phases() = Phases {
+        began: Some(Instant::now()),
         started: Some(Usage::now()),
         ..Phases::default()
     };
+}
+
+/// Seconds since the run started (`run_starts`): its set-up, its solve and what it measured
+/// after the solve (a step's amplification, errors), up to its record.
+pub fn run_wall_s() -> Option<f64> {
+    Some(phases().began?.elapsed().as_secs_f64())
 }
 
 /// A solve being timed: its wall time, and its usage once it ends.

@@ -310,13 +310,15 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     if let Some(dir) = &args.write_vtk {
         write_vtk(dir, &outcome)?;
     }
-    let line = serde_json::to_string(&outcome.record)
+    let mut record = outcome.record;
+    record.wall_s = solver::output::usage::run_wall_s();
+    let line = serde_json::to_string(&record)
         .map_err(|e| ErrorExit::Output(format!("cannot write the record: {e}")))?;
     print_line(&line, "the record")?;
     if !args.keep_checkpoint {
         solver::integrate::checkpoint::remove_own();
     }
-    note(&summary(&outcome.record));
+    note(&summary(&record));
     Ok(())
 }
 
@@ -552,8 +554,11 @@ fn served(line: &str) -> (String, bool) {
     solver::output::record::note_start();
     solver::output::record::reset_peak_memory();
     let answer = match solver::run(&case) {
-        Ok(outcome) => serde_json::to_string(&outcome.record)
-            .unwrap_or_else(|e| refusal(format!("cannot write the record: {e}"))),
+        Ok(outcome) => serde_json::to_string(&schema::record::Record {
+            wall_s: solver::output::usage::run_wall_s(),
+            ..outcome.record
+        })
+        .unwrap_or_else(|e| refusal(format!("cannot write the record: {e}"))),
         Err(e) => refusal(e.to_string()),
     };
     (answer, checkpoint.is_some() && !line.keep_checkpoint)
