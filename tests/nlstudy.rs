@@ -1468,7 +1468,7 @@ fn submitting_an_adaptive_study_says_its_rounds_and_how_they_run() {
     );
     let whole = dry(&["--whole", "--nodes", "2"]);
     assert!(
-        whole.contains("its rounds, 4 at most, run inside the allocation, a job step per case on each of its 2 nodes"),
+        whole.contains("its rounds, 4 at most, run inside the allocation by a worker step on each of its 2 nodes"),
         "{whole}"
     );
 }

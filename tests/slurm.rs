@@ -976,7 +976,14 @@ fn every_node_of_an_allocation(slurm: &LocalSlurm) {
         if nodes == "2" {
             let log = logs(&scratch, "spread");
             assert!(
-                log.contains("2 nodes of the allocation, a job step per case"),
+                log.contains("2 nodes of the allocation, a worker step on each node's cores"),
+                "{log}"
+            );
+            // Workers answer over connections of their own, not the steps' standard streams
+            // (whose forwarding held each answer of over 1 kB for 40 ms).
+            assert!(
+                log.contains("give their answers over connections to 10.213.57.")
+                    && log.contains("a worker on nlnode2 connected"),
                 "{log}"
             );
         }

@@ -97,3 +97,53 @@ fn a_served_case_may_name_its_progress_file() {
         "{error}"
     );
 }
+
+/// `serve --connect HOST:PORT` (how a worker on another node of an allocation answers): it
+/// dials the pool, says the token of `$NLSOLVE_SERVE_TOKEN` first, then answers each case
+/// line of the connection with the record it prints on standard output, and exits at the
+/// connection's end. Without the token it refuses to start, naming the variable.
+#[test]
+fn a_worker_may_serve_over_a_connection_it_opens_with_its_token() {
+    use std::io::{BufRead, BufReader, Write};
+    let pool = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = pool.local_addr().unwrap().to_string();
+    let case = json!({"dim": 1, "n": 64, "m": 3, "problem": "bump", "t_end": 1e-4, "cfl": 0.5});
+    let worker = std::process::Command::new(env!("CARGO_BIN_EXE_nlsolve"))
+        .args(["serve", "--connect", &address])
+        .env("NLSOLVE_SERVE_TOKEN", "a1b2")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (mut stream, _) = pool.accept().unwrap();
+    let mut lines = BufReader::new(stream.try_clone().unwrap()).lines();
+    assert_eq!(lines.next().unwrap().unwrap(), "a1b2");
+    stream.write_all(format!("{case}\n").as_bytes()).unwrap();
+    let answer: Value = serde_json::from_str(&lines.next().unwrap().unwrap()).unwrap();
+    stream.shutdown(std::net::Shutdown::Write).unwrap();
+    let ended = worker.wait_with_output().unwrap();
+    assert!(
+        ended.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ended.stderr)
+    );
+    assert!(ended.stdout.is_empty(), "it printed on standard output too");
+    let alone = nlsolve(
+        &["run", "--case", "-"],
+        Some(&case.to_string()),
+        Stdio::piped(),
+    );
+    let alone: Value = serde_json::from_slice(&alone.stdout).unwrap();
+    assert_eq!(numbers_of(answer.clone()), numbers_of(alone));
+    assert!(answer["wall_s"].as_f64().unwrap() >= answer["solve_s"].as_f64().unwrap());
+
+    let untokened = std::process::Command::new(env!("CARGO_BIN_EXE_nlsolve"))
+        .args(["serve", "--connect", &address])
+        .env_remove("NLSOLVE_SERVE_TOKEN")
+        .output()
+        .unwrap();
+    assert_eq!(untokened.status.code(), Some(2));
+    let said = String::from_utf8_lossy(&untokened.stderr);
+    assert!(said.contains("NLSOLVE_SERVE_TOKEN"), "{said}");
+}

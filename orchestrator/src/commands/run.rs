@@ -39,6 +39,7 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
     store.clear_abandoned_outputs()?;
     let mut tally = Tally::default();
     let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
+    workers.dial_back_to(crate::run::allocation::this_nodes_address(&options.nodes));
     // An adaptive study's rounds are numbered on each line, since each counts its own cases.
     let mut round = study.question().map(|_| 0);
     // Runs the planned points not stored, counting what happened into `tally`.

@@ -133,7 +133,7 @@ fn what_happens_next(args: &SubmitArgs, rounds: usize, sent: Sent) -> String {
             "the whole study in one job: its rounds, {rounds} at most, run inside the allocation"
         ),
         (true, nodes) => format!(
-            "the whole study in one job: its rounds, {rounds} at most, run inside the allocation, a job step per case on each of its {nodes} nodes"
+            "the whole study in one job: its rounds, {rounds} at most, run inside the allocation by a worker step on each of its {nodes} nodes"
         ),
         (false, _) => format!(
             "this round: {} jobs, {} points, of at most {rounds} rounds; submit again when its jobs are done (`status` says), or give --follow to have them all submitted",

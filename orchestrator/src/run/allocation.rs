@@ -61,6 +61,45 @@ pub fn this_machine(cores: usize) -> Vec<Node> {
     }]
 }
 
+/// The address workers on the allocation's other nodes reach this node at: the one the
+/// scheduler's own daemons use (Slurm's `NodeAddr` of this node, `SLURMD_NODENAME`), resolved.
+/// `None` on this machine alone, under LSF, or where it cannot be read (said on the log): the
+/// workers then answer through their job steps' standard streams.
+pub fn this_nodes_address(nodes: &[Node]) -> Option<std::net::IpAddr> {
+    let slurm = nodes.len() > 1 && nodes.iter().all(|n| n.scheduler == Scheduler::Slurm);
+    if !slurm {
+        return None;
+    }
+    let found = std::env::var("SLURMD_NODENAME")
+        .map_err(|_| "SLURMD_NODENAME is not set".to_string())
+        .and_then(|name| {
+            let shown =
+                crate::run::cluster::scheduler::run("scontrol", &["show", "node", &name, "-o"])?;
+            node_address(&shown).ok_or_else(|| format!("scontrol shows no NodeAddr of {name}"))
+        })
+        .and_then(|address| {
+            use std::net::ToSocketAddrs;
+            let resolved = (address.as_str(), 0).to_socket_addrs();
+            let first = resolved.map_err(|e| format!("{address}: {e}"))?.next();
+            first
+                .map(|a| a.ip())
+                .ok_or_else(|| format!("{address} resolves to no address"))
+        });
+    found
+        .inspect_err(|why| {
+            log::info!("this node's address is unknown ({why}): workers answer through their job steps' standard streams")
+        })
+        .ok()
+}
+
+/// `NodeAddr=…` of `scontrol show node NAME -o`.
+fn node_address(shown: &str) -> Option<String> {
+    let value = shown
+        .split_whitespace()
+        .find_map(|word| word.strip_prefix("NodeAddr="))?;
+    (!value.is_empty()).then(|| value.to_string())
+}
+
 /// What `nodes` says of an allocation's nodes, for the run's first lines.
 pub fn describe(nodes: &[Node]) -> String {
     let each: Vec<String> = nodes
@@ -74,7 +113,7 @@ pub fn describe(nodes: &[Node]) -> String {
         })
         .collect();
     format!(
-        "{} nodes of the allocation, a job step per case: {}",
+        "{} nodes of the allocation, a worker step on each node's cores (a job step of its own only for a case over ranks or writing VTK files): {}",
         nodes.len(),
         each.join(", ")
     )
@@ -204,6 +243,15 @@ impl Node {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_nodes_address_is_read_off_scontrol() {
+        let shown = "NodeName=nlnode1 Arch=x86_64 CoresPerSocket=1 NodeAddr=10.213.57.11 NodeHostName=nlnode1 Version=22.05.8";
+        assert_eq!(node_address(shown).as_deref(), Some("10.213.57.11"));
+        assert_eq!(node_address("NodeName=a NodeAddr= State=IDLE"), None);
+        assert_eq!(node_address("NodeName=a"), None);
+        assert_eq!(this_nodes_address(&this_machine(2)), None);
+    }
 
     #[test]
     fn cpus_per_node_expands_slurms_repeats() {

@@ -8,6 +8,7 @@
 
 pub mod allocation;
 pub mod cluster;
+pub mod dial_back;
 pub mod instructions;
 pub mod interleave;
 pub mod nlsolve;

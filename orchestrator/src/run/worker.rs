@@ -7,14 +7,16 @@
 //! once. What a worker writes to standard error is kept, its last lines, for a failed record.
 
 use crate::run::allocation::Node;
+use crate::run::dial_back::{Dial, Heard, Listener};
 use crate::run::nlsolve::Nlsolve;
 use crate::store::FileError;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Write};
+use std::net::IpAddr;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
-use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -26,17 +28,15 @@ const STDERR_LINES: usize = 20;
 /// without bound.
 pub const MEMORY_BOUND_MIB: u64 = 64;
 
-/// A line a worker printed (`None`: its standard output closed).
-struct Said {
-    worker: u64,
-    line: Option<String>,
-}
-
 /// The pool's workers: the idle ones and the channel every worker's answers come through.
 pub struct Workers {
-    said: Sender<Said>,
-    heard: Receiver<Said>,
+    said: Sender<Heard>,
+    heard: Receiver<Heard>,
     idle: Vec<Worker>,
+    /// This node's address, where workers on the allocation's other nodes connect
+    /// (`dial_back`); `None`: they answer through their job step's standard streams.
+    dial_back: Option<IpAddr>,
+    listener: Option<Listener>,
     started: u64,
     /// Where workers run: the store's work directory, which tells whose workers they are
     /// (`/proc/<pid>/cwd`); a worker reads and writes no file.
@@ -56,12 +56,24 @@ pub struct Worker {
     /// Where it runs: the pool's node and the cores its step holds there.
     place: Place,
     child: Child,
-    stdin: ChildStdin,
+    input: Input,
+    /// When it was started: with its connection's time, its start.
+    started_at: std::time::Instant,
     stderr: Arc<Mutex<VecDeque<String>>>,
     /// The thread that keeps `stderr`: done once the worker's standard error closed.
     stderr_reader: std::thread::JoinHandle<()>,
     /// Cases it has answered.
     pub answered: usize,
+}
+
+/// Where a worker reads its cases: its standard input, or its connection to the pool.
+enum Input {
+    Pipe(ChildStdin),
+    Dialed {
+        dial: Arc<Mutex<Dial>>,
+        /// Held open and unused: a scheduler may end a step whose input closes.
+        _stdin: ChildStdin,
+    },
 }
 
 /// A worker's node (an index into the pool's nodes) and the cores its job step holds there (0
@@ -88,10 +100,28 @@ impl Workers {
             said,
             heard,
             idle: Vec::new(),
+            dial_back: None,
+            listener: None,
             started: 0,
             dir,
             memory_bound: memory_bound_mib << 20,
             unsupported: false,
+        }
+    }
+
+    /// Workers started as job steps connect to `address`, this node's, to take their cases and
+    /// give their answers.
+    pub fn dial_back_to(&mut self, address: Option<IpAddr>) {
+        self.dial_back = address;
+    }
+
+    /// Workers answer through their job steps' standard streams from now on: one could not
+    /// connect (`why`).
+    pub fn stop_dialing_back(&mut self, why: &str) {
+        if let Some(address) = self.dial_back.take() {
+            log::info!(
+                "a worker could not answer over a connection to {address} ({why}): cases and answers go through the job steps' standard streams"
+            );
         }
     }
 
@@ -116,7 +146,38 @@ impl Workers {
         }
         self.started += 1;
         let command = node.command(place.cores, &solver.binary);
-        Worker::start(self.started, place, command, &self.dir, self.said.clone())
+        if let (Some(_), Some(ip)) = (&node.name, self.dial_back) {
+            self.bind_listener(ip);
+        }
+        let listener = match node.name {
+            Some(_) => self.listener.as_ref().filter(|_| self.dial_back.is_some()),
+            None => None,
+        };
+        Worker::start(
+            self.started,
+            place,
+            command,
+            &self.dir,
+            self.said.clone(),
+            listener,
+        )
+    }
+
+    /// Binds the listener workers connect to, on first use; where it cannot be bound, workers
+    /// answer through their standard streams.
+    fn bind_listener(&mut self, ip: IpAddr) {
+        if self.listener.is_none() {
+            match Listener::bind(ip) {
+                Ok(listener) => {
+                    log::info!(
+                        "workers on other nodes take their cases and give their answers over connections to {}",
+                        listener.address
+                    );
+                    self.listener = Some(listener);
+                }
+                Err(e) => self.stop_dialing_back(&format!("cannot listen on {ip}: {e}")),
+            }
+        }
     }
 
     /// Ends the idle workers on `node`, whose job steps hold cores a new step there needs.
@@ -130,9 +191,13 @@ impl Workers {
         }
     }
 
-    /// Takes back a worker that answered: kept for the next case unless it holds too much.
+    /// Takes back a worker that answered: kept for the next case unless it holds too much (on
+    /// this machine; a job step's process here is the scheduler's launcher, not the worker).
     pub fn give_back(&mut self, mut worker: Worker) {
-        if resident_memory(worker.child.id()).is_some_and(|bytes| bytes > self.memory_bound) {
+        let local = worker.place.cores == 0;
+        if local
+            && resident_memory(worker.child.id()).is_some_and(|bytes| bytes > self.memory_bound)
+        {
             worker.end();
         } else {
             self.idle.push(worker);
@@ -141,10 +206,7 @@ impl Workers {
 
     /// Waits up to `limit` for a worker's line; `Some` with the worker's id and the line.
     pub fn listen(&self, limit: Duration) -> Option<(u64, Option<String>)> {
-        match self.heard.recv_timeout(limit) {
-            Ok(said) => Some((said.worker, said.line)),
-            Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => None,
-        }
+        self.heard.recv_timeout(limit).ok()
     }
 
     /// Ends the idle workers (their input closes; each exits after its last answer).
@@ -162,13 +224,15 @@ impl Drop for Workers {
 }
 
 impl Worker {
-    /// Starts `command` (the solver, or a job step of it) as a worker.
+    /// Starts `command` (the solver, or a job step of it) as a worker: over its standard
+    /// streams, or connecting to `listener`.
     fn start(
         id: u64,
         place: Place,
         mut command: Command,
         dir: &Path,
-        said: Sender<Said>,
+        said: Sender<Heard>,
+        listener: Option<&Listener>,
     ) -> Result<Worker, FileError> {
         command
             .arg("serve")
@@ -176,29 +240,42 @@ impl Worker {
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
+        let dialed = listener.map(|listener| {
+            let (token, dial) = listener.expect(id, said.clone());
+            command
+                .arg("--connect")
+                .arg(listener.address.to_string())
+                .env(schema::protocol::SERVE_TOKEN_ENV, token);
+            dial
+        });
         die_with_parent(&mut command);
         let program = PathBuf::from(command.get_program());
+        let started_at = std::time::Instant::now();
         let mut child = command.spawn().map_err(FileError::on("start", &program))?;
         let stdin = child.stdin.take().expect("piped");
         let stdout = child.stdout.take().expect("piped");
         let stderr_pipe = child.stderr.take().expect("piped");
+        let dial = dialed.as_ref().map(Arc::clone);
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
                 let Ok(line) = line else { break };
-                if said
-                    .send(Said {
-                        worker: id,
-                        line: Some(line),
-                    })
-                    .is_err()
-                {
+                // A worker that connected answers over its connection.
+                if dial.is_none() && said.send((id, Some(line))).is_err() {
                     return;
                 }
             }
-            let _ = said.send(Said {
-                worker: id,
-                line: None,
-            });
+            // Its standard output closed: the end of its answers, unless they come over its
+            // connection (which says when they end).
+            let ended = match &dial {
+                None => true,
+                Some(dial) => dial
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .ended_unconnected(),
+            };
+            if ended {
+                let _ = said.send((id, None));
+            }
         });
         let stderr = Arc::new(Mutex::new(VecDeque::new()));
         let kept = Arc::clone(&stderr);
@@ -212,15 +289,41 @@ impl Worker {
                 kept.push_back(line);
             }
         });
+        let input = match dialed {
+            None => Input::Pipe(stdin),
+            Some(dial) => Input::Dialed {
+                dial,
+                _stdin: stdin,
+            },
+        };
         Ok(Worker {
             id,
             place,
             child,
-            stdin,
+            input,
+            started_at,
             stderr,
             stderr_reader,
             answered: 0,
         })
+    }
+
+    /// Whether it answers over a connection, and if so whether it has connected.
+    pub fn dialed(&self) -> Option<bool> {
+        match &self.input {
+            Input::Pipe(_) => None,
+            Input::Dialed { dial, .. } => Some(lock(dial).connected_at.is_some()),
+        }
+    }
+
+    /// Seconds from its start to its connection: a job step's start, the solver's and its
+    /// dial (`None` where it answers through its standard streams or has not connected).
+    pub fn start_s(&self) -> Option<f64> {
+        let connected = match &self.input {
+            Input::Pipe(_) => None,
+            Input::Dialed { dial, .. } => lock(dial).connected_at,
+        };
+        Some(connected?.duration_since(self.started_at).as_secs_f64())
     }
 
     pub fn id(&self) -> u64 {
@@ -240,7 +343,10 @@ impl Worker {
         let mut line = String::with_capacity(case.len() + 1);
         line.push_str(case);
         line.push('\n');
-        self.stdin.write_all(line.as_bytes()).is_ok() && self.stdin.flush().is_ok()
+        match &mut self.input {
+            Input::Pipe(stdin) => stdin.write_all(line.as_bytes()).is_ok() && stdin.flush().is_ok(),
+            Input::Dialed { dial, .. } => lock(dial).send(line.as_bytes()),
+        }
     }
 
     /// How the case in hand ended, given the worker's line (`None`: its output closed).
@@ -304,7 +410,10 @@ impl Worker {
 
     /// Lets an idle worker finish: its input closes and it exits.
     fn close(mut self) {
-        drop(self.stdin);
+        match self.input {
+            Input::Pipe(stdin) => drop(stdin),
+            Input::Dialed { ref dial, .. } => lock(dial).close(),
+        }
         let _ = self.child.wait();
     }
 
@@ -312,6 +421,10 @@ impl Worker {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// The status of a process whose end could not be waited for: killed.

@@ -415,6 +415,16 @@ impl Pool<'_> {
                 let How::Served { worker, .. } = job.how else {
                     unreachable!("only workers answer")
                 };
+                if let (1, Some(start)) = (worker.answered, worker.start_s()) {
+                    let node = self.options.nodes[job.node]
+                        .name
+                        .as_deref()
+                        .unwrap_or("this node");
+                    log::info!(
+                        "a worker on {node} connected {:.0} ms after its job step was started",
+                        start * 1e3
+                    );
+                }
                 self.workers.give_back(worker);
                 let record = answer_record(planned, self.solver, job.cores, &line);
                 self.finish_attempt(planned, record, job.attempt)?;
@@ -426,6 +436,14 @@ impl Pool<'_> {
                 };
                 if !timed_out && stopped_with_it(self.stop, exit) {
                     job.abandon();
+                    return Ok(());
+                }
+                if worker.dialed() == Some(false) {
+                    // It never reached this node (an unreachable address, a solver without
+                    // `serve --connect`): workers answer through their standard streams.
+                    let why = format!("it ended with {exit}: {}", worker.stderr_tail());
+                    self.workers.stop_dialing_back(&why);
+                    self.queue.push(again(false));
                     return Ok(());
                 }
                 if worker.answered == 0 && exit.code() == Some(i32::from(exit::BAD_INPUT)) {

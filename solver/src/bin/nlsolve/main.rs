@@ -7,6 +7,7 @@
 //! one line saying what and why. A failed write to stderr (the summary, a message) is ignored:
 //! there is nowhere left to report it, and it says nothing about the result.
 
+mod connect;
 mod files;
 mod flags;
 mod stdout;
@@ -14,6 +15,7 @@ mod summary;
 
 use clap::error::ErrorKind;
 use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use connect::ServeArgs;
 use files::{write_atomically, write_vtk};
 use flags::CaseArgs;
 use schema::exit;
@@ -58,7 +60,7 @@ enum Command {
     /// timings, load and peak memory its own), or `{"error": "…"}` naming the field at fault.
     /// What a study's worker pool keeps up, so that a point costs no process start. One
     /// process: a case on more than one rank is refused (start it with a launcher).
-    Serve,
+    Serve(ServeArgs),
     /// Print what this machine offers a run, as `{"cores", "most_threads", "available_bytes"}`
     /// (`available_bytes` null where it cannot be read): a case whose `threads` and whose
     /// `needs.bytes` (from `check`) are within them fits here. (Both lines are the types of
@@ -248,7 +250,7 @@ fn main() -> ExitCode {
             Command::Run(args) => run(&args, world.as_ref()),
             Command::Partition(args) => partition_report(&args),
             Command::Check => check_cases(),
-            Command::Serve => serve_cases(),
+            Command::Serve(args) => serve_cases(&args),
             Command::Machine => print_machine(),
             Command::Fingerprint => {
                 print_line(solver::output::record::FINGERPRINT, "the fingerprint")
@@ -450,20 +452,47 @@ fn check_cases() -> Result<(), ErrorExit> {
 fn answer_each_line(
     what: &str,
     flush_each: bool,
+    answer: impl FnMut(&str) -> String,
+    answered: impl FnMut(),
+) -> Result<(), ErrorExit> {
+    let out = standard_output()
+        .map_err(|e| ErrorExit::Output(format!("cannot write {what} to standard output: {e}")))?;
+    let lines = Lines {
+        input: std::io::stdin().lock(),
+        out,
+        from: "standard input",
+        to: "standard output",
+    };
+    answer_lines(lines, what, flush_each, answer, answered)
+}
+
+/// Where answers are read from and written to, named for errors.
+struct Lines<R, W> {
+    input: R,
+    out: W,
+    from: &'static str,
+    to: &'static str,
+}
+
+/// `answer_each_line` over any `Lines`: standard input and output, or `serve --connect`'s
+/// connection.
+fn answer_lines(
+    lines: Lines<impl std::io::Read, impl Write>,
+    what: &str,
+    flush_each: bool,
     mut answer: impl FnMut(&str) -> String,
     mut answered: impl FnMut(),
 ) -> Result<(), ErrorExit> {
-    let failed = |e: std::io::Error| {
-        ErrorExit::Output(format!("cannot write {what} to standard output: {e}"))
-    };
-    let mut out = std::io::BufWriter::with_capacity(1 << 16, standard_output().map_err(failed)?);
-    let mut input = std::io::BufReader::with_capacity(1 << 16, std::io::stdin().lock());
+    let failed =
+        |e: std::io::Error| ErrorExit::Output(format!("cannot write {what} to {}: {e}", lines.to));
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, lines.out);
+    let mut input = std::io::BufReader::with_capacity(1 << 16, lines.input);
     let mut line = String::new();
     loop {
         line.clear();
         let read = input
             .read_line(&mut line)
-            .map_err(|e| BadInput(format!("cannot read standard input: {e}")))?;
+            .map_err(|e| BadInput(format!("cannot read {}: {e}", lines.from)))?;
         if read == 0 {
             break;
         }
@@ -564,27 +593,40 @@ fn served(line: &str) -> (String, bool) {
     (answer, checkpoint.is_some() && !line.keep_checkpoint)
 }
 
-/// `nlsolve serve`: runs each case of standard input and prints its answer line at once.
+/// `nlsolve serve`: runs each case of standard input and prints its answer line at once; with
+/// `--connect`, of a connection to the pool that started it instead.
 /// A stopping signal (SIGTERM, SIGINT, SIGHUP) ends it: at once between cases and in a case's
 /// set-up, with a checkpoint from a case's time loop when the case has one, and after its answer
 /// when it came once the loop was over.
-fn serve_cases() -> Result<(), ErrorExit> {
+fn serve_cases(args: &ServeArgs) -> Result<(), ErrorExit> {
     solver::integrate::checkpoint::stop_on_signals();
     // Whether the checkpoint of the case answered last goes once its answer is out.
     let remove = std::cell::Cell::new(false);
-    answer_each_line(
-        "the records",
-        true,
-        |line| {
-            let (answer, remove_checkpoint) = served(line);
-            remove.set(remove_checkpoint);
-            answer
-        },
-        || {
-            if remove.take() {
-                solver::integrate::checkpoint::remove_own();
-            }
-            solver::integrate::checkpoint::between_cases();
-        },
-    )
+    let answer = |line: &str| {
+        let (answer, remove_checkpoint) = served(line);
+        remove.set(remove_checkpoint);
+        answer
+    };
+    let answered = || {
+        if remove.take() {
+            solver::integrate::checkpoint::remove_own();
+        }
+        solver::integrate::checkpoint::between_cases();
+    };
+    match &args.connect {
+        None => answer_each_line("the records", true, answer, answered),
+        Some(address) => {
+            let stream = connect::dial(address)?;
+            let input = stream
+                .try_clone()
+                .map_err(|e| ErrorExit::Output(format!("cannot read {address}: {e}")))?;
+            let lines = Lines {
+                input,
+                out: stream,
+                from: "the pool's connection",
+                to: "the pool's connection",
+            };
+            answer_lines(lines, "the records", true, answer, answered)
+        }
+    }
 }
