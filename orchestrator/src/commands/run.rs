@@ -35,6 +35,8 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
     ] {
         note.inspect(|note| log::info!("{note}"));
     }
+    // Inside a job, the mark its driver waits for, left however this run ends.
+    let _ended = crate::run::cluster::ended::on_end(&store);
     let options = pool_options(args, &study)?;
     store.clear_abandoned_outputs()?;
     let mut tally = Tally::default();

@@ -34,6 +34,47 @@ pub struct BoundarySpec {
     /// `rtol` needs).
     #[serde(default)]
     pub max_probes: Option<usize>,
+    /// What `flips` said of each probe's record so far, by key: a round replays every search
+    /// from its first probe, and reading a record as columns costs far more than the lookup.
+    #[serde(skip)]
+    pub verdicts: Verdicts,
+}
+
+/// `flips`'s verdicts by record (key and run), remembered for the searches' replays. A spec's
+/// copy starts empty, and two specs are equal whatever they remember.
+#[derive(Default)]
+pub struct Verdicts(std::sync::Mutex<std::collections::HashMap<RecordAt, Result<bool, String>>>);
+
+/// A record's key and the run that made it.
+type RecordAt = (String, Option<String>);
+
+impl Verdicts {
+    fn of(&self, condition: &str, stored: &Stored) -> Result<bool, String> {
+        let at = (stored.key.clone(), stored.run_id.clone());
+        let mut known = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        known
+            .entry(at)
+            .or_insert_with(|| flips(condition, stored))
+            .clone()
+    }
+}
+
+impl Clone for Verdicts {
+    fn clone(&self) -> Self {
+        Verdicts::default()
+    }
+}
+
+impl PartialEq for Verdicts {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Verdicts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Verdicts")
+    }
 }
 
 fn one() -> usize {
@@ -289,7 +330,7 @@ impl Adaptive for BoundarySpec {
 
     fn replay(&self, record: &mut Lookup) -> (Search, Vec<Probe>) {
         let (search, pending) = BoundarySpec::replay(self, |v| {
-            record(&[v]).map(|stored| stored.and_then(|s| flips(&self.flips, &s)))
+            record(&[v]).map(|stored| stored.and_then(|s| self.verdicts.of(&self.flips, &s)))
         });
         (search, pending.into_iter().map(|v| vec![v]).collect())
     }
@@ -352,6 +393,7 @@ mod tests {
             rtol: 1e-3,
             per_round,
             max_probes: None,
+            verdicts: Verdicts::default(),
         }
     }
 
@@ -413,6 +455,7 @@ mod tests {
     fn the_budget_is_honoured() {
         let five = BoundarySpec {
             max_probes: Some(5),
+            verdicts: Verdicts::default(),
             ..spec(2)
         };
         let found = search(&five, |v| v >= 1.2345);
@@ -425,6 +468,7 @@ mod tests {
         assert_eq!(five.worst_case_probes(), 5);
         let three = BoundarySpec {
             max_probes: Some(3),
+            verdicts: Verdicts::default(),
             ..spec(1)
         };
         assert_eq!(search(&three, |v| v >= 1.2345).probes, 3);
@@ -459,6 +503,7 @@ mod tests {
             let spec = BoundarySpec {
                 rtol,
                 max_probes: Some(usize::MAX),
+                verdicts: Verdicts::default(),
                 ..spec(per_round)
             };
             let found = search(&spec, |v| v >= 1.2345);

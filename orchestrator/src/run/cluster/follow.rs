@@ -77,8 +77,14 @@ pub fn wait_for_jobs(
                     said = line.clone();
                     say(line);
                 }
+                let ids: Vec<&str> = held.iter().map(|h| h.id.as_str()).collect();
+                if pause_unless_ended(store, &ids, backoff.pause()) {
+                    // Their `nlstudy run` ended: they leave the queue within moments.
+                    backoff = Backoff::new(most);
+                }
             }
             Err(message) => {
+                std::thread::sleep(backoff.pause());
                 failed += 1;
                 if failed == FAILED_QUESTIONS {
                     return Err(Fault::Io(format!(
@@ -90,7 +96,27 @@ pub fn wait_for_jobs(
                 );
             }
         }
-        std::thread::sleep(backoff.pause());
+    }
+}
+
+/// How often a pause looks for the jobs' marks (a `stat` each).
+const MARKS_EVERY: Duration = Duration::from_millis(250);
+
+/// Sleeps `pause`, or less if every job of `ids` leaves its mark (`ended`) meanwhile: true
+/// then. Marks there from the start do not shorten it (a job still leaving the queue).
+fn pause_unless_ended(store: &Store, ids: &[&str], pause: Duration) -> bool {
+    let until = Instant::now() + pause;
+    let all_ended = || ids.iter().all(|id| super::ended::ended(store, id));
+    let already = all_ended();
+    loop {
+        if !already && all_ended() {
+            return true;
+        }
+        let now = Instant::now();
+        if now >= until {
+            return false;
+        }
+        std::thread::sleep(MARKS_EVERY.min(until - now));
     }
 }
 
