@@ -104,6 +104,15 @@ pub struct Checked {
     pub machine: Option<String>,
 }
 
+/// The environment variable that gives `nlsolve serve --connect` the token it opens its
+/// connection with: the pool it dials accepts only the workers it started (a token in the
+/// environment, which only its own user reads, rather than on the command line, which anyone
+/// on the node sees).
+pub const SERVE_TOKEN_ENV: &str = "NLSOLVE_SERVE_TOKEN";
+
+/// The longest token a pool accepts as a connection's first line, its newline included.
+pub const SERVE_TOKEN_MOST_BYTES: usize = 128;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,12 +173,3 @@ mod tests {
         assert!(serde_json::from_str::<Machine>(misspelt).is_err());
     }
 }
-
-/// The environment variable that gives `nlsolve serve --connect` the token it opens its
-/// connection with: the pool it dials accepts only the workers it started (a token in the
-/// environment, which only its own user reads, rather than on the command line, which anyone
-/// on the node sees).
-pub const SERVE_TOKEN_ENV: &str = "NLSOLVE_SERVE_TOKEN";
-
-/// The longest token a pool accepts as a connection's first line, its newline included.
-pub const SERVE_TOKEN_MOST_BYTES: usize = 128;
