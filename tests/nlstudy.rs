@@ -502,8 +502,10 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     std::fs::create_dir_all(scratch.dir.join("results")).unwrap();
     let absolute = |p: PathBuf| std::fs::canonicalize(p).unwrap().display().to_string();
     let results = || absolute(scratch.dir.join("results"));
-    // Each word as the scripts quote it (shlex: a path of plain characters stays bare).
+    // Each word as the scripts quote it (shlex: a path of plain characters stays bare). A job
+    // names its points costliest first: n = 32 before n = 16.
     let word = |w: String| shlex::try_quote(&w).unwrap().into_owned();
+    let costliest_first = [keys[1], keys[0]];
     let command = |launcher: &str, export: &str| {
         format!(
             "set -eo pipefail\nset -u\n{export}exec {} run {} --results {} --solver {} --launcher '{launcher}' --no-collect -j 4 --only '{}'\n",
@@ -511,7 +513,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
             word(absolute(scratch.study())),
             word(results()),
             word(absolute(binary("nlsolve"))),
-            keys.join(",")
+            costliest_first.join(",")
         )
     };
     let jobs = format!("{}/two/jobs", results());
@@ -533,7 +535,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     assert_eq!(script, expected);
     // The structure both schedulers' scripts share (Slurm's also runs under a real sbatch in
     // tests/slurm.rs; LSF's can only be read here).
-    check_job_structure(&script, "#SBATCH", &keys);
+    check_job_structure(&script, "#SBATCH", &costliest_first);
 
     let lsf = scratch.nlstudy(
         "submit",
@@ -559,7 +561,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
         )
     );
     assert_eq!(script, expected);
-    check_job_structure(&script, "#BSUB", &keys);
+    check_job_structure(&script, "#BSUB", &costliest_first);
     // The Slurm script of the first submit is archived, not left beside the LSF one.
     assert!(!Path::new(&format!("{jobs}/nlstudy-two-0.sbatch")).exists());
     let archived = std::fs::read_dir(format!("{jobs}/archive"))
@@ -576,7 +578,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     let script = std::fs::read_to_string(format!("{jobs}/nlstudy-two-0.sbatch")).unwrap();
     assert!(script.contains("--no-collect --retries 2 -j 4"), "{script}");
 
-    // One case per job: two scripts, one key each.
+    // One case per job: two scripts, one key each, the costlier point (n = 32) first.
     let packed = scratch.nlstudy(
         "submit",
         &["--scheduler", "slurm", "--dry-run", "--cases-per-job", "1"],
@@ -588,7 +590,7 @@ fn slurm_and_lsf_scripts_hold_the_directives_and_the_keys() {
     );
     let second = std::fs::read_to_string(format!("{jobs}/nlstudy-two-1.sbatch")).unwrap();
     assert!(
-        second.ends_with(&format!("--only {}\n", shlex::try_quote(keys[1]).unwrap())),
+        second.ends_with(&format!("--only {}\n", shlex::try_quote(keys[0]).unwrap())),
         "{second}"
     );
 }
@@ -1406,7 +1408,7 @@ fn time_limits_come_from_stored_timings_unless_given() {
     let scratch = Scratch::new("limits", &study);
     let first = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
     assert!(
-        text(&first).contains("time: the scheduler's default (n=16 threads=1 has no stored timing"),
+        text(&first).contains("time: the scheduler's default (n=32 threads=1 has no stored timing"),
         "{}",
         text(&first)
     );

@@ -10,6 +10,7 @@ use crate::cli::args::RunArgs;
 use crate::console::Reply;
 use crate::kinds::{Asked, Found};
 use crate::model::study::Study;
+use crate::run::cluster::limits::History;
 use crate::run::plan::{Decision, Planned};
 use crate::run::pool::PoolOptions;
 use crate::run::pool::Tally;
@@ -50,10 +51,11 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
         let stored = planned.len() - to_run - copies;
         round = round.map(|r| r + 1);
         let mut progress = Progress::new(Mode::detect(), to_run, stored).in_round(round);
+        let costs = predicted_costs(planned, &store);
         let ran = stop.asking(|| {
             let pool = crate::run::pool::run;
             pool(
-                planned,
+                (planned, Some(&costs)),
                 &solver,
                 &store,
                 &options,
@@ -117,6 +119,14 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
         Ok(()) if tally.failed > 0 => Ok(reply.ending(ExitCode::from(exit::CASE_FAILED))),
         Ok(()) => Ok(reply),
     }
+}
+
+/// The predicted cost of each planned point (`balance::predicted_costs`), from the timings
+/// stored so far, for the pool to start the costliest first.
+fn predicted_costs(planned: &[Planned], store: &Store) -> Vec<f64> {
+    let history = History::from_index(planned, &store.index());
+    let points: Vec<&Planned> = planned.iter().collect();
+    crate::run::cluster::balance::predicted_costs(&points, &history)
 }
 
 /// What a pool is given from the flags and the study: the nodes (inside a Slurm job of several

@@ -111,7 +111,7 @@ pub fn run(
                 };
                 let ran = stop.asking(|| {
                     crate::run::pool::run(
-                        std::slice::from_ref(&planned),
+                        (std::slice::from_ref(&planned), None),
                         &side.solver,
                         &side.store,
                         options,

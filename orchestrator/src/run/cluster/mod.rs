@@ -1,6 +1,7 @@
 //! Clusters: the schedulers, the job scripts written for them, the ledger of submitted jobs, and
 //! `nlstudy submit`, which ties them together.
 
+pub mod balance;
 pub mod ended;
 pub mod follow;
 pub mod ledger;

@@ -1,9 +1,11 @@
-//! Packing a study's points into scheduler submissions: jobs of `cases_per_job` points each
-//! (all of them in one job by default), or, with `--array`, one job array per allocation shape
-//! whose elements each run a bundle of points. One array is one `sbatch` or `bsub` call however
+//! Packing a study's points into scheduler submissions: as many jobs as `cases_per_job` points
+//! each make (one job by default), or, with `--array`, one job array per allocation shape
+//! whose elements each run a bundle of points; the points balanced by predicted cost over the
+//! jobs or bundles (`balance`), so that they end together. One array is one `sbatch` or `bsub` call however
 //! many points it holds, which spares the scheduler the per-job overhead (Slurm's RPC limits)
 //! that hundreds of small jobs meet.
 
+use super::balance::balance;
 use crate::model::resources::Resources;
 use crate::run::nlsolve::Checked;
 use crate::run::plan::Planned;
@@ -36,12 +38,15 @@ pub struct Pack<'a> {
     pub array: bool,
 }
 
-/// The submissions for `runnable`, in plan order: jobs of `cases_per_job` points, or with
-/// `array` one array per shape whose bundles hold `cases_per_job` points (one by default, more
-/// when the shape has over `MOST_ELEMENTS` of them).
+/// The submissions for `runnable` (whose predicted costs are `costs`): ⌈points /
+/// `cases_per_job`⌉ jobs, or with `array` one array per shape with ⌈its points /
+/// `cases_per_job`⌉ bundles (one point each by default, more when the shape has over
+/// `MOST_ELEMENTS` of them); each job or bundle holds points of about equal total cost (their
+/// counts may differ), longest first.
 pub fn pack<'a>(
     study_name: &str,
     runnable: &[&'a Planned],
+    costs: &[f64],
     resources: &Resources,
     cores_per_node: Option<NonZeroUsize>,
     array: bool,
@@ -52,40 +57,52 @@ pub fn pack<'a>(
             .cases_per_job
             .map_or(runnable.len(), NonZeroUsize::get)
             .max(1);
-        return runnable
-            .chunks(per_job)
+        return balanced(runnable, costs, runnable.len().div_ceil(per_job))
+            .into_iter()
             .enumerate()
             .map(|(k, pack)| Pack {
                 name: name(k),
-                bundles: vec![pack.to_vec()],
-                shape: shape(pack, resources, cores_per_node),
+                shape: shape(&pack, resources, cores_per_node),
+                bundles: vec![pack],
                 array: false,
             })
             .collect();
     }
-    let mut by_shape: Vec<(Shape, Vec<&'a Planned>)> = Vec::new();
-    for &p in runnable {
+    let mut by_shape: Vec<(Shape, Vec<&'a Planned>, Vec<f64>)> = Vec::new();
+    for (&p, &cost) in runnable.iter().zip(costs) {
         let own = shape(&[p], resources, cores_per_node);
-        match by_shape.iter_mut().find(|(s, _)| *s == own) {
-            Some((_, points)) => points.push(p),
-            None => by_shape.push((own, vec![p])),
+        match by_shape.iter_mut().find(|(s, _, _)| *s == own) {
+            Some((_, points, costs)) => {
+                points.push(p);
+                costs.push(cost);
+            }
+            None => by_shape.push((own, vec![p], vec![cost])),
         }
     }
     by_shape
         .into_iter()
         .enumerate()
-        .map(|(k, (shape, points))| {
+        .map(|(k, (shape, points, costs))| {
             let per_bundle = resources
                 .cases_per_job
                 .map_or(1, NonZeroUsize::get)
                 .max(points.len().div_ceil(MOST_ELEMENTS));
             Pack {
                 name: name(k),
-                bundles: points.chunks(per_bundle).map(<[_]>::to_vec).collect(),
+                bundles: balanced(&points, &costs, points.len().div_ceil(per_bundle)),
                 shape,
                 array: true,
             }
         })
+        .collect()
+}
+
+/// `points` in `groups` groups of about equal predicted cost, each longest first.
+fn balanced<'a>(points: &[&'a Planned], costs: &[f64], groups: usize) -> Vec<Vec<&'a Planned>> {
+    debug_assert_eq!(points.len(), costs.len());
+    balance(costs, groups)
+        .into_iter()
+        .map(|group| group.into_iter().map(|i| points[i]).collect())
         .collect()
 }
 

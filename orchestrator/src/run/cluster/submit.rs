@@ -3,6 +3,7 @@
 //! inside it, so the same record store and the same make-style skipping serve the cluster and
 //! the workstation, and a requeued job runs only what is missing.
 
+use super::balance::predicted_costs;
 use super::ledger::{self, LedgerEntry};
 use super::limits::History;
 use super::pack::{self, pack};
@@ -97,6 +98,8 @@ pub fn submit_study(
     }
     crate::store::fs::create_dir(&target.results)?;
     let command = job_command(study, solver, target)?;
+    let history =
+        History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
     let packs = match target.whole {
         true => vec![pack::whole(
             &study.name,
@@ -107,13 +110,12 @@ pub fn submit_study(
         false => pack(
             &study.name,
             &runnable,
+            &predicted_costs(&runnable, &history),
             &target.resources,
             target.site.cores_per_node,
             target.array,
         ),
     };
-    let history =
-        History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {

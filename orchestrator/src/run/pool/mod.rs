@@ -131,12 +131,13 @@ enum Ended {
     },
 }
 
-/// Runs the planned points that run; stores each record as it finishes. A failure of the file
-/// system (the store, the scratch files, a record nlsolve could not write) is not a property of
+/// Runs the planned points that run, the costliest first where `costs` predicts theirs (so
+/// that no long case starts last while the other workers idle), else in plan order; stores
+/// each record as it finishes. A failure of the file system (the store, the scratch files, a record nlsolve could not write) is not a property of
 /// a case: it stops the run, the running cases are ended and nothing is stored for them, so
 /// the next run takes them up again. `workers` stay up for the next call (a search's rounds).
 pub fn run(
-    planned: &[Planned],
+    (planned, costs): (&[Planned], Option<&[f64]>),
     solver: &Nlsolve,
     store: &Store,
     options: &PoolOptions,
@@ -154,17 +155,23 @@ pub fn run(
         stop,
         progress,
         tally: Tally::default(),
-        // Popped from the back in plan order.
-        queue: (0..planned.len())
-            .rev()
-            .filter(|&i| planned[i].runs())
-            .map(|index| Queued {
-                index,
-                attempt: 1,
-                alone: false,
-            })
-            .collect(),
+        queue: Vec::new(),
     };
+    let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
+    if let Some(costs) = costs.filter(|c| c.len() == planned.len()) {
+        // Stable: equal costs keep plan order.
+        order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
+    }
+    // Popped from the back.
+    pool.queue = order
+        .into_iter()
+        .rev()
+        .map(|index| Queued {
+            index,
+            attempt: 1,
+            alone: false,
+        })
+        .collect();
     let outcome = pool.run_cases(&mut running);
     for job in running {
         job.abandon();

@@ -1,0 +1,184 @@
+//! Points packed by their predicted cost: the jobs of one round (and the elements of an array)
+//! should end together, or the round waits for its slowest job while the others' nodes idle.
+//!
+//! A point's cost is its estimated wall time from the store (`limits::History`: its own runs,
+//! else its series' smaller grids scaled); a point never timed gets the cost model's work,
+//! nodes × bonds per node × steps, in seconds at the median rate of the timed points (or in
+//! work units when none was timed: only the ratios between points matter here). Points go
+//! longest first onto the least loaded job (LPT scheduling, within 4/3 of the best makespan),
+//! and each job lists its points longest first, so its workers take the long ones first too.
+
+use super::limits::History;
+use crate::run::plan::Planned;
+use crate::statistics::median;
+use schema::case::Case;
+use schema::choices::Method;
+
+/// The predicted cost of each of `points`, in seconds where the store timed them or their
+/// neighbours (the untimed scaled by the timed ones' rate), else in the cost model's work.
+pub fn predicted_costs(points: &[&Planned], history: &History) -> Vec<f64> {
+    let work: Vec<Option<f64>> = points
+        .iter()
+        .map(|p| p.case.as_ref().ok()?.case().map(|c| work(&c)))
+        .collect();
+    let timed: Vec<Option<f64>> = points
+        .iter()
+        .map(|p| history.estimate(p).map(|e| e.seconds))
+        .collect();
+    let rates: Vec<f64> = timed
+        .iter()
+        .zip(&work)
+        .filter_map(|(t, w)| Some(t.as_ref()? / w.filter(|w| *w > 0.0)?))
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .collect();
+    let rate = match rates.is_empty() {
+        true => 1.0,
+        false => median(&rates),
+    };
+    let costs: Vec<Option<f64>> = timed
+        .iter()
+        .zip(&work)
+        .map(|(t, w)| t.or(w.map(|w| w * rate)))
+        .map(|c| c.filter(|c| c.is_finite() && *c >= 0.0))
+        .collect();
+    // A point neither timed nor modelled (a case this build cannot read) counts as a typical one.
+    let known: Vec<f64> = costs.iter().flatten().copied().collect();
+    let typical = match known.is_empty() {
+        true => 1.0,
+        false => median(&known),
+    };
+    costs.into_iter().map(|c| c.unwrap_or(typical)).collect()
+}
+
+/// The cost model's work of a case: its nodes, the bonds (stencil points) of each, and its
+/// steps (those to `t_end`, from `dt` or, at a CFL number, from a step ∝ h², plus the steps of
+/// its amplification measurement). A relative measure, not a time.
+pub fn work(case: &Case) -> f64 {
+    let (n, dim) = (case.n as f64, case.dim as i32);
+    let nodes = n.powi(dim);
+    let reach = case
+        .m
+        .map(|m| m as f64)
+        .or(case.eps.map(|eps| (eps * n).ceil()))
+        .unwrap_or(1.0);
+    let bonds = match case.method {
+        Method::FdExplicit | Method::Adi | Method::Pse => 2.0 * dim as f64 + 1.0,
+        _ => (2.0 * reach + 1.0).powi(dim),
+    };
+    let steps = match (case.t_end, case.dt, case.cfl) {
+        (Some(t), Some(dt), _) if dt > 0.0 => (t / dt).ceil(),
+        (Some(t), None, Some(cfl)) if cfl > 0.0 => (t * n * n * 2.0 * dim as f64 / cfl).ceil(),
+        _ => 1.0,
+    };
+    let measuring = case.amplification_steps.unwrap_or(0) as f64;
+    nodes * bonds * (steps.max(1.0) + measuring)
+}
+
+/// `costs` split into `bins` groups whose sums are as even as LPT makes them: indices, each
+/// group's longest first. Fewer groups when there are fewer costs than bins.
+pub fn balance(costs: &[f64], bins: usize) -> Vec<Vec<usize>> {
+    let mut order: Vec<usize> = (0..costs.len()).collect();
+    // Longest first; equal costs in plan order.
+    order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]).then(a.cmp(&b)));
+    let bins = bins.clamp(1, costs.len().max(1));
+    let mut groups: Vec<(f64, Vec<usize>)> = vec![(0.0, Vec::new()); bins];
+    for i in order {
+        let least = (0..bins)
+            .min_by(|&a, &b| groups[a].0.total_cmp(&groups[b].0).then(a.cmp(&b)))
+            .expect("at least one bin");
+        groups[least].0 += costs[i];
+        groups[least].1.push(i);
+    }
+    groups
+        .into_iter()
+        .map(|(_, group)| group)
+        .filter(|g| !g.is_empty())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 100 points whose costs span 100× (a geometric ladder, shuffled by a fixed stride), in 4
+    /// jobs: the predicted job costs end within 1.3× of each other (here within 1 %), where
+    /// chunks in plan order of the sorted ladder differ by about 20×.
+    #[test]
+    fn a_hundred_points_spread_a_hundredfold_pack_into_four_jobs_within_1_3x() {
+        let ladder: Vec<f64> = (0..100).map(|k| 100f64.powf(k as f64 / 99.0)).collect();
+        let costs: Vec<f64> = (0..100).map(|k| ladder[(k * 37) % 100]).collect();
+        let jobs = balance(&costs, 4);
+        assert_eq!(jobs.len(), 4);
+        let mut all: Vec<usize> = jobs.concat();
+        all.sort_unstable();
+        assert_eq!(all, (0..100).collect::<Vec<_>>(), "every point once");
+        let sums: Vec<f64> = jobs
+            .iter()
+            .map(|j| j.iter().map(|&i| costs[i]).sum())
+            .collect();
+        let (low, high) = sums
+            .iter()
+            .fold((f64::MAX, 0f64), |(l, h), &s| (l.min(s), h.max(s)));
+        assert!(high / low <= 1.3, "job costs {sums:?}");
+        assert!(high / low <= 1.01, "LPT does far better here: {sums:?}");
+        for job in &jobs {
+            let own: Vec<f64> = job.iter().map(|&i| costs[i]).collect();
+            assert!(
+                own.windows(2).all(|w| w[0] >= w[1]),
+                "longest first: {own:?}"
+            );
+        }
+        // Chunks of 25 in cost order, what packing in a sorted plan's order gave: far apart.
+        let sorted_chunks: Vec<f64> = ladder.chunks(25).map(|c| c.iter().sum()).collect();
+        assert!(
+            sorted_chunks[3] / sorted_chunks[0] > 10.0,
+            "{sorted_chunks:?}"
+        );
+    }
+
+    #[test]
+    fn fewer_points_than_jobs_give_one_job_each_and_none_empty() {
+        assert_eq!(balance(&[3.0, 1.0], 4), vec![vec![0], vec![1]]);
+        assert_eq!(balance(&[], 3), Vec::<Vec<usize>>::new());
+        assert_eq!(balance(&[1.0, 1.0, 1.0], 1), vec![vec![0, 1, 2]]);
+    }
+
+    /// A timed point costs its time; an untimed one its work at the timed points' rate; one
+    /// this build cannot read, the median of the others.
+    #[test]
+    fn untimed_points_cost_their_work_at_the_rate_of_the_timed_ones() {
+        use super::super::limits::fixtures::{history, point};
+        use crate::run::nlsolve::Checked;
+        let with_case = |series: &str, n: u64| {
+            let mut p = point(series, 1, n);
+            let case = serde_json::json!({"dim": 1, "n": n, "m": 2, "t_end": 0.1, "dt": 0.01});
+            p.case = Ok(Checked::unresolved(&case));
+            p
+        };
+        let (timed, untimed, unread) = (with_case("a", 64), with_case("b", 128), point("c", 1, 8));
+        let costs = predicted_costs(&[&timed, &untimed, &unread], &history("a", &[(64, &[2.0])]));
+        // Twice the nodes, the same bonds and steps: twice the time.
+        assert_eq!(costs, vec![2.0, 4.0, 3.0]);
+        let none = predicted_costs(&[&timed, &untimed], &Default::default());
+        assert_eq!(
+            none[1] / none[0],
+            2.0,
+            "work units when nothing is timed: {none:?}"
+        );
+    }
+
+    #[test]
+    fn the_cost_model_counts_nodes_bonds_and_steps() {
+        let case = |json: serde_json::Value| serde_json::from_value::<Case>(json).unwrap();
+        let base = serde_json::json!({"dim": 2, "n": 10, "m": 3, "t_end": 0.1, "dt": 0.01});
+        // 100 nodes × 7² bonds × 10 steps.
+        assert_eq!(work(&case(base.clone())), 100.0 * 49.0 * 10.0);
+        let mut measured = base.clone();
+        measured["amplification_steps"] = 400.into();
+        assert_eq!(work(&case(measured)), 100.0 * 49.0 * 410.0);
+        let mut local = base;
+        local["method"] = "fd_explicit".into();
+        local.as_object_mut().unwrap().remove("m");
+        assert_eq!(work(&case(local)), 100.0 * 5.0 * 10.0);
+    }
+}
