@@ -23,6 +23,9 @@ pub struct ServeLine {
     /// Keep the checkpoint after the record is written.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub keep_checkpoint: bool,
+    /// The study's directory of spectra, shared by its workers (as `nlsolve run --spectra`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectra: Option<String>,
 }
 
 /// How far a running case is: the file `nlsolve run --progress` (and a served case's
@@ -125,6 +128,7 @@ mod tests {
             checkpoint: Some("/w/k.checkpoint".into()),
             checkpoint_every_s: Some(0.5),
             keep_checkpoint: true,
+            spectra: Some("/r/study/spectra".into()),
         };
         let text = serde_json::to_string(&line).unwrap();
         assert_eq!(serde_json::from_str::<ServeLine>(&text).unwrap(), line);

@@ -25,6 +25,9 @@ pub struct Nlsolve {
     pub fingerprint: Option<String>,
     /// Where the solver's verdicts on the study's cases are kept (`keep_verdicts_in`).
     verdicts: Option<PathBuf>,
+    /// Whether the solver takes a directory of shared spectra (`nlsolve run --spectra`, the
+    /// serve line's `spectra`): a solver from before them would refuse the flag.
+    pub shares_spectra: bool,
 }
 
 /// A case the solver accepted, in its two forms. The canonical one is kept as its compact JSON
@@ -173,11 +176,16 @@ impl Nlsolve {
             .filter(|out| out.status.success())
             .map(|out| String::from_utf8_lossy(&out.stdout).trim().to_string())
             .filter(|f| !f.is_empty() && f.chars().all(|c| c.is_ascii_hexdigit()));
+        let shares_spectra = Command::new(&binary)
+            .args(["run", "--help"])
+            .output()
+            .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).contains("--spectra"));
         Ok(Nlsolve {
             binary,
             version,
             fingerprint,
             verdicts: None,
+            shares_spectra,
         })
     }
 

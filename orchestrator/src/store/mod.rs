@@ -357,6 +357,12 @@ impl Store {
         self.table("fields").join(key)
     }
 
+    /// The ends of L_h's spectra the study's runs share (`nlsolve run --spectra`): one entry
+    /// per operator, `results/<study>/spectra/`.
+    pub fn spectra(&self) -> PathBuf {
+        self.table("spectra")
+    }
+
     /// Scratch space of runs in progress (case files, captured output).
     pub fn work_dir(&self) -> PathBuf {
         self.runs.join(".work")

@@ -17,6 +17,7 @@
 //! takes one step of a unit spike; every time-dependent method measures both.
 
 use super::integrator::{applications_per_step, stability_function};
+use super::spectra;
 use super::stepper::{Rhs, Stepper};
 use crate::case::Integrator;
 use crate::discretization::stencil::Stencil;
@@ -24,9 +25,7 @@ use crate::linalg::lanczos::{self, Ends};
 use crate::operator::LinearOperator;
 use crate::output::diagnostics::Amplification;
 use crate::parallel::exchange::Ranks;
-use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
-use std::sync::Mutex;
 
 /// The ends of L_h's spectrum are sought to this relative tolerance (of its largest |λ|),
 /// whatever the step: a boundary then lies within about this of the exact one, far below any
@@ -40,16 +39,12 @@ pub fn spectral_budget(integrator: Integrator, steps: usize) -> usize {
     steps.saturating_mul(applications_per_step(integrator))
 }
 
-/// The ends of the spectra this process measured, by operator (`spectrum_key`), with the
-/// applications that took; None for an operator found not symmetric. A served worker runs a
-/// search's probes one after another, and they differ in the step alone. The ends do not depend
-/// on the step, so a remembered operator gives the record a measured one would, bit for bit.
-type Measured = Option<(Ends, usize)>;
-static MEASURED: Mutex<BTreeMap<String, Measured>> = Mutex::new(BTreeMap::new());
-
-/// What tells one measurement on one process from another for `MEASURED`: the operator's
-/// implementation, grid and weights (bit for bit), and the applications it may spend.
-pub fn spectrum_key<Op>(stencil: &Stencil, budget: usize) -> String {
+/// What tells one operator from another for the spectra a study shares (`spectra`): the
+/// operator's implementation, grid and weights (bit for bit). A served worker runs a search's
+/// probes one after another, and they differ in the step alone; the ends do not depend on the
+/// step or the integrator, so a remembered operator gives the record a measured one would, bit
+/// for bit.
+pub fn spectrum_key<Op>(stencil: &Stencil) -> String {
     let mut weights = std::hash::DefaultHasher::new();
     for row in &stencil.rows {
         (row.dy, row.dx_min).hash(&mut weights);
@@ -58,7 +53,7 @@ pub fn spectrum_key<Op>(stencil: &Stencil, budget: usize) -> String {
             .for_each(|w| w.to_bits().hash(&mut weights));
     }
     format!(
-        "{} {:?} {:x} {budget}",
+        "{} {:?} {:x}",
         std::any::type_name::<Op>(),
         stencil.grid,
         weights.finish()
@@ -70,9 +65,9 @@ pub fn spectrum_key<Op>(stencil: &Stencil, budget: usize) -> String {
 /// eigenvalue λ by R(dt·λ) (`stability_function`), whose largest |R| over the spectrum is at
 /// one of its ends, so the spectral radius of the step is max |R(dt·λ)| over λ_min and λ_max,
 /// their intervals found by Lanczos from the rough field to `SPECTRAL_RTOL` in at most `budget`
-/// applications (`spectral_budget`), or remembered under `key` from an earlier run of this
-/// process. Where the radius's interval holds 1 the
-/// value is its top: never called stable on a guess. None when a value is not finite.
+/// applications (`spectral_budget`), or taken under `key` from an earlier measurement of this
+/// process or of the study (`spectra`). Where the radius's interval holds 1 the value is its
+/// top: never called stable on a guess. None when a value is not finite.
 pub fn spectral<Op: LinearOperator>(
     operator: &Op,
     ranks: Ranks,
@@ -82,16 +77,10 @@ pub fn spectral<Op: LinearOperator>(
     budget: usize,
     key: Option<&str>,
 ) -> Option<Amplification> {
-    let remembered = key.and_then(|key| MEASURED.lock().ok()?.get(key).copied());
-    let (ends, applications) = match remembered {
-        Some(measured) => measured?,
-        None => {
-            let measured = spectrum_ends(operator, ranks, (nodes, len), budget);
-            if let (Some(key), Ok(mut remembered)) = (key, MEASURED.lock()) {
-                remembered.insert(key.to_string(), measured);
-            }
-            measured?
-        }
+    let measure = || spectrum_ends(operator, ranks, (nodes, len), budget);
+    let (ends, applications) = match key {
+        Some(key) => spectra::measured_once(key, iterations(budget), &settled, measure)?,
+        None => measure()?,
     };
     radius((integrator, dt), &ends, applications)
 }
@@ -135,20 +124,27 @@ fn spectrum_ends<Op: LinearOperator>(
     if !symmetric(&mut rhs, &dot, nodes, len) {
         return None;
     }
-    let mut settled = |ends: &Ends| {
-        let scale = ends.lowest.ritz.abs().max(ends.highest.ritz.abs());
-        ends.lowest.bound.max(ends.highest.bound) <= SPECTRAL_RTOL * scale
-    };
     let start = on_nodes(nodes, len, rough);
     let mut apply = |u: &[f64], out: &mut [f64]| rhs.apply(u, out);
     let ends = lanczos::ends(
         &mut apply,
         &dot,
         start,
-        &mut settled,
-        budget.saturating_sub(2).max(1),
+        &mut |ends| settled(ends),
+        iterations(budget),
     )?;
     Some((ends, ends.applications + 2))
+}
+
+/// Whether the ends are known to `SPECTRAL_RTOL` of the largest |λ|: Lanczos stops there.
+fn settled(ends: &Ends) -> bool {
+    let scale = ends.lowest.ritz.abs().max(ends.highest.ritz.abs());
+    ends.lowest.bound.max(ends.highest.bound) <= SPECTRAL_RTOL * scale
+}
+
+/// The Lanczos iterations `budget` applications allow, the symmetry check's two spent.
+fn iterations(budget: usize) -> usize {
+    budget.saturating_sub(2).max(1)
 }
 
 /// Whether L_h is symmetric: ⟨v, L w⟩ = ⟨L v, w⟩ for two rough fields, to round-off (two

@@ -11,6 +11,7 @@ pub mod integrator;
 pub mod measure;
 pub mod progress;
 pub mod runge_kutta;
+pub mod spectra;
 pub mod stepper;
 pub mod theta;
 pub mod time_step;

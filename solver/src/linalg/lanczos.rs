@@ -43,7 +43,7 @@ impl Ends {
 
 /// Ritz values are looked at every this many iterations: the extreme ones of T_j cost O(j),
 /// far less than the operator's applications between two looks.
-const CHECK_EVERY: usize = 8;
+pub const CHECK_EVERY: usize = 8;
 
 /// The ends of the spectrum of the symmetric operator `apply` (out = L u), from `start`, with
 /// `dot` the inner product over every rank. Iterates until `settled` says the ends are known

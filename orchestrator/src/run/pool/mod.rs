@@ -145,6 +145,9 @@ pub fn run(
     stop: &Stop,
     progress: &mut Progress,
 ) -> Result<Tally, FileError> {
+    if solver.shares_spectra {
+        create_dir(&store.spectra())?;
+    }
     let mut running: Vec<Running> = Vec::new();
     let mut pool = Pool {
         planned,
@@ -318,7 +321,7 @@ impl Pool<'_> {
                 let held = if on.name.is_some() { cores } else { 0 };
                 let place = Place { node, cores: held };
                 let mut worker = self.workers.take(self.solver, place, on)?;
-                let line = served_line(case, &planned.key, self.store, self.options);
+                let line = served_line(case, &planned.key, self.solver, self.store, self.options);
                 // A worker that is gone already says so when its output closes.
                 worker.send(&line);
                 How::Served {
@@ -664,17 +667,28 @@ fn cores_of(planned: &Planned) -> usize {
 /// time loop says how far it is in, and its checkpoint, written on a stopping signal (and
 /// every `checkpoint_every`) and resumed from. Paths are absolute (a worker runs in the work
 /// directory), and given only when they are text, as JSON needs.
-fn served_line(case: &Checked, key: &str, store: &Store, options: &PoolOptions) -> String {
-    let text = |name: &str| {
-        let path = std::path::absolute(store.scratch(key, name)).ok()?;
+fn served_line(
+    case: &Checked,
+    key: &str,
+    solver: &Nlsolve,
+    store: &Store,
+    options: &PoolOptions,
+) -> String {
+    let absolute = |path: std::path::PathBuf| {
+        let path = std::path::absolute(path).ok()?;
         path.to_str().filter(|p| !p.is_empty()).map(str::to_string)
     };
+    let text = |name: &str| absolute(store.scratch(key, name));
     let line = schema::protocol::ServeLine {
         case: case.canonical(),
         progress: text(PROGRESS),
         checkpoint: text(CHECKPOINT),
         checkpoint_every_s: options.checkpoint_every.map(|every| every.as_secs_f64()),
         keep_checkpoint: options.keep_checkpoints,
+        spectra: solver
+            .shares_spectra
+            .then(|| absolute(store.spectra()))
+            .flatten(),
     };
     serde_json::to_string(&line).expect("a line serializes")
 }

@@ -148,6 +148,9 @@ pub(super) fn start(
     if options.keep_checkpoints {
         command.arg("--keep-checkpoint");
     }
+    if solver.shares_spectra {
+        command.arg("--spectra").arg(store.spectra());
+    }
     command
         .stdin(Stdio::null())
         .stdout(create_fresh(&stdout).map_err(FileError::on("create", &stdout))?)

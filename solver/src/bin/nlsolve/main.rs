@@ -110,6 +110,11 @@ struct RunArgs {
     /// With --checkpoint: keep FILE after the record is written.
     #[arg(long, requires = "checkpoint")]
     keep_checkpoint: bool,
+    /// Take the ends of L_h's spectrum from DIR, where the study's other runs left them, and
+    /// leave them there when measured (one checksummed entry per operator; a damaged or
+    /// foreign entry is measured again and replaced).
+    #[arg(long, value_name = "DIR")]
+    spectra: Option<PathBuf>,
 }
 
 /// Bad input: a message for the user, exit code 2.
@@ -286,6 +291,7 @@ fn run(args: &RunArgs, world: Option<&ranks::World>) -> Result<(), ErrorExit> {
     if ranks::is_rank0(world) {
         solver::integrate::progress::configure(args.progress.clone());
     }
+    solver::integrate::spectra::configure(args.spectra.clone());
     let outcome = match world {
         Some(world) => ranks::run(
             world,
@@ -542,9 +548,11 @@ fn served(line: &str) -> (String, bool) {
             checkpoint: None,
             checkpoint_every_s: None,
             keep_checkpoint: false,
+            spectra: None,
         },
     };
     solver::integrate::progress::configure(line.progress.as_ref().map(PathBuf::from));
+    solver::integrate::spectra::configure(line.spectra.as_ref().map(PathBuf::from));
     let case = match ValidCase::from_json(line.case) {
         Ok(case) if case.ranks > 1 => {
             return error(format!(

@@ -288,7 +288,7 @@ pub(crate) fn solve<Op: LinearOperator>(
         // Over ranks each run measures afresh: every rank then takes the same path.
         let single = ranks.exchange.ranks() == 1;
         let budget = spectral_budget(case.integrator, steps);
-        let key = single.then(|| spectrum_key::<Op>(&plan.stencil, budget));
+        let key = single.then(|| spectrum_key::<Op>(&plan.stencil));
         let step = (case.integrator, asked.dt);
         trajectory.amplification =
             spectral(operator, ranks, nodes, len, step, budget, key.as_deref()).or_else(|| {
