@@ -16,7 +16,8 @@
 //!
 //! A measurement allowed k Lanczos iterations serves another allowed k' when they give the
 //! same bits: k = k', or ends that settled at one of the regular looks (every `CHECK_EVERY`
-//! iterations) before both caps, which the other cap reaches through the same looks.
+//! iterations) before both caps, which the other cap reaches through the same looks. Those are
+//! kept under the operator; ends a cap cut short under the operator and the cap.
 
 use crate::linalg::lanczos::{End, Ends, CHECK_EVERY};
 use std::collections::BTreeMap;
@@ -38,13 +39,15 @@ impl Measurement {
     /// Whether a measurement allowed `iterations` gives these bits (`settled`: the stop test
     /// it ran with).
     pub fn serves(&self, iterations: usize, settled: &dyn Fn(&Ends) -> bool) -> bool {
-        if self.iterations == iterations {
-            return true;
-        }
-        self.found.is_some_and(|(ends, _)| {
-            let j = ends.applications;
-            settled(&ends) && j % CHECK_EVERY == 0 && j < self.iterations && j < iterations
-        })
+        self.iterations == iterations || self.settled_early(settled).is_some_and(|j| j < iterations)
+    }
+
+    /// The iteration the ends settled at, where that was one of the regular looks before the
+    /// cap: the ends then serve any cap beyond it.
+    fn settled_early(&self, settled: &dyn Fn(&Ends) -> bool) -> Option<usize> {
+        let (ends, _) = self.found?;
+        let j = ends.applications;
+        (settled(&ends) && j % CHECK_EVERY == 0 && j < self.iterations).then_some(j)
     }
 }
 
@@ -67,40 +70,52 @@ pub fn configure(dir: Option<PathBuf>) {
 
 /// The ends of operator `key` as a measurement allowed `iterations` gives them: remembered by
 /// this process, read from the study's entry, or measured by `measure` (and kept in both).
+/// Ends that settled early are kept under the operator, for every cap; ends a cap cut short,
+/// under the operator and that cap (a search's integrators ask for several caps in turn).
 pub fn measured_once(
     key: &str,
     iterations: usize,
     settled: &dyn Fn(&Ends) -> bool,
     measure: impl FnOnce() -> Option<(Ends, usize)>,
 ) -> Option<(Ends, usize)> {
-    let remembered = |m: &Measurement| m.serves(iterations, settled);
-    let known = REMEMBERED
-        .lock()
-        .ok()
-        .and_then(|r| r.get(key).copied())
-        .filter(remembered);
-    if let Some(known) = known {
+    let capped = format!("{key} cap {iterations}");
+    let serving = |m: &Measurement| m.serves(iterations, settled);
+    let remembered = |k: &str| {
+        let remembered = REMEMBERED.lock().ok()?;
+        remembered.get(k).copied().filter(serving)
+    };
+    if let Some(known) = remembered(key).or_else(|| remembered(&capped)) {
         return known.found;
     }
     let dir = DIRECTORY.lock().unwrap_or_else(|e| e.into_inner()).clone();
-    let entry = dir.as_deref().map(|dir| Entry::of(dir, key));
+    let entries = dir
+        .as_deref()
+        .map(|dir| (Entry::of(dir, key), Entry::of(dir, &capped)));
     // Held until the entry is written: another process waits, then reads it.
-    let _lock = entry.as_ref().and_then(Entry::lock);
-    let read = entry.as_ref().and_then(|e| e.read(key)).filter(remembered);
-    let measurement = match read {
+    let _lock = entries.as_ref().and_then(|(entry, _)| entry.lock());
+    let read = entries.as_ref().and_then(|(entry, capped_entry)| {
+        (entry.read(key).filter(serving).map(|m| (key, m)))
+            .or_else(|| Some((capped.as_str(), capped_entry.read(&capped).filter(serving)?)))
+    });
+    let (under, measurement) = match read {
         Some(read) => read,
         None => {
             let measurement = Measurement {
                 found: measure(),
                 iterations,
             };
+            let early = measurement.settled_early(settled).is_some();
+            let under = if early { key } else { capped.as_str() };
+            let entry = entries
+                .as_ref()
+                .map(|(general, cut)| if early { general } else { cut });
             // Not written, not shared: the next process measures it again.
-            let _ = entry.as_ref().map(|e| e.write(key, &measurement));
-            measurement
+            let _ = entry.map(|e| e.write(under, &measurement));
+            (under, measurement)
         }
     };
     if let Ok(mut remembered) = REMEMBERED.lock() {
-        remembered.insert(key.to_string(), measurement);
+        remembered.insert(under.to_string(), measurement);
     }
     measurement.found
 }
