@@ -107,8 +107,13 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
         "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting",
         waited.questions, waited.seconds
     ));
-    // A whole study on several nodes has tabulated its nodes' runs together (its job script).
-    let spanned = args.whole && args.resources.nodes.is_some_and(|n| n.get() > 1);
+    // The driver's jobs ran one build on the cluster's nodes: a whole study on several nodes
+    // has tabulated its nodes' runs together (its job script), and rounds of jobs run wherever
+    // the scheduler puts each job.
+    let spanned = match args.whole {
+        true => args.resources.nodes.is_some_and(|n| n.get() > 1),
+        false => rounds > 0,
+    };
     answer(reply, plan()?, args.allow_mixed || spanned)
 }
 
