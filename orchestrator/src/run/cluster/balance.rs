@@ -143,23 +143,37 @@ mod tests {
         assert_eq!(balance(&[1.0, 1.0, 1.0], 1), vec![vec![0, 1, 2]]);
     }
 
+    /// A planned point of `fields` on the series `family`, its case checked (a case of this
+    /// build) unless `readable` is false.
+    fn planned(family: &str, fields: serde_json::Value, readable: bool) -> Planned {
+        use crate::run::nlsolve::Checked;
+        use crate::run::plan::{Decision, Reason};
+        let map = fields.as_object().unwrap().clone();
+        Planned {
+            point: crate::model::study::Point::from_fields(map).with("family", family.into()),
+            case: match readable {
+                true => Ok(Checked::unresolved(&fields)),
+                false => Err("not checked".into()),
+            },
+            key: crate::store::case_id_and_key(&fields.to_string(), "", 0).1,
+            case_id: Default::default(),
+            decision: Decision::Run(Reason::Missing),
+        }
+    }
+
     /// A timed point costs its time; an untimed one its work at the timed points' rate; one
     /// this build cannot read, the median of the others.
     #[test]
     fn untimed_points_cost_their_work_at_the_rate_of_the_timed_ones() {
-        use super::super::limits::fixtures::{history, point};
-        use crate::run::nlsolve::Checked;
-        let with_case = |series: &str, n: u64| {
-            let mut p = point(series, 1, n);
-            let case = serde_json::json!({"dim": 1, "n": n, "m": 2, "t_end": 0.1, "dt": 0.01});
-            p.case = Ok(Checked::unresolved(&case));
-            p
-        };
-        let (timed, untimed, unread) = (with_case("a", 64), with_case("b", 128), point("c", 1, 8));
-        let costs = predicted_costs(&[&timed, &untimed, &unread], &history("a", &[(64, &[2.0])]));
+        let case = |n: u64| serde_json::json!({"dim": 1, "n": n, "m": 2, "t_end": 0.1, "dt": 0.01});
+        let (timed, untimed) = (planned("a", case(64), true), planned("b", case(128), true));
+        let unread = planned("c", case(8), false);
+        let series = timed.point.series().refinement;
+        let history = History::of_series(series, &[(64, &[2.0])]);
+        let costs = predicted_costs(&[&timed, &untimed, &unread], &history);
         // Twice the nodes, the same bonds and steps: twice the time.
         assert_eq!(costs, vec![2.0, 4.0, 3.0]);
-        let none = predicted_costs(&[&timed, &untimed], &Default::default());
+        let none = predicted_costs(&[&timed, &untimed], &History::default());
         assert_eq!(
             none[1] / none[0],
             2.0,

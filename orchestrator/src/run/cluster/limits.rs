@@ -194,15 +194,27 @@ fn grid(point: &Planned) -> Option<u64> {
     point.point.get("n")?.as_u64()
 }
 
-/// Planned points and histories for the tests of packing and limits.
 #[cfg(test)]
-pub(crate) mod fixtures {
+impl History {
+    /// The wall times `runs` (grid, times) of the refinement series named `series`.
+    pub(crate) fn of_series(series: String, runs: &[(u64, &[f64])]) -> History {
+        let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
+        History {
+            times: HashMap::from([(series, times)]),
+            left: HashMap::new(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
     use super::*;
+    use crate::run::nlsolve::Checked;
     use crate::run::plan::{Decision, Reason};
     use serde_json::json;
 
     /// A point of grid `n` on the refinement series `family=<series>`.
-    pub(crate) fn point(series: &str, dim: u64, n: u64) -> Planned {
+    fn point(series: &str, dim: u64, n: u64) -> Planned {
         let study = json!({
             "name": "limits",
             "base": {"dim": dim},
@@ -221,21 +233,9 @@ pub(crate) mod fixtures {
         }
     }
 
-    pub(crate) fn history(series: &str, runs: &[(u64, &[f64])]) -> History {
-        let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
-        History {
-            times: HashMap::from([(format!("family={series}"), times)]),
-            left: HashMap::new(),
-        }
+    fn history(series: &str, runs: &[(u64, &[f64])]) -> History {
+        History::of_series(format!("family={series}"), runs)
     }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::fixtures::{history, point};
-    use super::*;
-    use crate::run::nlsolve::Checked;
-    use serde_json::json;
 
     #[test]
     fn a_point_is_timed_by_its_own_runs_else_scaled_from_its_series_smaller_grids() {
