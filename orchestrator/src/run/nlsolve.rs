@@ -176,8 +176,9 @@ impl Nlsolve {
             .filter(|out| out.status.success())
             .map(|out| String::from_utf8_lossy(&out.stdout).trim().to_string())
             .filter(|f| !f.is_empty() && f.chars().all(|c| c.is_ascii_hexdigit()));
+        // Asked as `help run`: a solver's `run` is what a wrapper may hold up or fake.
         let shares_spectra = Command::new(&binary)
-            .args(["run", "--help"])
+            .args(["help", "run"])
             .output()
             .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).contains("--spectra"));
         Ok(Nlsolve {

@@ -121,14 +121,14 @@ pub fn measured_once(
 }
 
 /// An operator's entry in the study's directory: its file and the file its writer locks.
-pub struct Entry {
+struct Entry {
     path: PathBuf,
     lock: PathBuf,
 }
 
 impl Entry {
     /// The entry of `key` in `dir`, named by a hash of this build's fingerprint and the key.
-    pub fn of(dir: &Path, key: &str) -> Entry {
+    fn of(dir: &Path, key: &str) -> Entry {
         let name = format!(
             "{:016x}",
             fnv1a(&[fingerprint().as_bytes(), b"\n", key.as_bytes()])
@@ -137,10 +137,6 @@ impl Entry {
             path: dir.join(format!("{name}.spectrum")),
             lock: dir.join(format!("{name}.lock")),
         }
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
     }
 
     /// The lock of the entry, held (None where it cannot be taken: then processes may measure
@@ -160,13 +156,13 @@ impl Entry {
     }
 
     /// The measurement the entry holds for `key`, if it is whole, this build's, and `key`'s.
-    pub fn read(&self, key: &str) -> Option<Measurement> {
+    fn read(&self, key: &str) -> Option<Measurement> {
         let bytes = schema::regular::read(&self.path, MOST_BYTES, "a spectrum entry").ok()?;
         parse(&bytes, key)
     }
 
     /// Writes `measurement` of `key` whole, in place of whatever stood there.
-    pub fn write(&self, key: &str, measurement: &Measurement) -> std::io::Result<()> {
+    fn write(&self, key: &str, measurement: &Measurement) -> std::io::Result<()> {
         let name = self.path.file_name().and_then(|n| n.to_str()).unwrap_or("");
         // The writer's own name, on any node of a shared file system.
         let partial =

@@ -133,8 +133,8 @@ enum Ended {
 
 /// Runs the planned points that run, the costliest first where `costs` predicts theirs (so
 /// that no long case starts last while the other workers idle), else in plan order; stores
-/// each record as it finishes. A failure of the file system (the store, the scratch files, a record nlsolve could not write) is not a property of
-/// a case: it stops the run, the running cases are ended and nothing is stored for them, so
+/// each record as it finishes. A failure of the file system (the store, the scratch files, a
+/// record nlsolve could not write) is not a property of a case: it stops the run, the running cases are ended and nothing is stored for them, so
 /// the next run takes them up again. `workers` stay up for the next call (a search's rounds).
 pub fn run(
     (planned, costs): (&[Planned], Option<&[f64]>),
@@ -148,6 +148,11 @@ pub fn run(
     if solver.shares_spectra {
         create_dir(&store.spectra())?;
     }
+    let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
+    if let Some(costs) = costs.filter(|c| c.len() == planned.len()) {
+        // Stable: equal costs keep plan order.
+        order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
+    }
     let mut running: Vec<Running> = Vec::new();
     let mut pool = Pool {
         planned,
@@ -158,23 +163,17 @@ pub fn run(
         stop,
         progress,
         tally: Tally::default(),
-        queue: Vec::new(),
+        // Popped from the back.
+        queue: order
+            .into_iter()
+            .rev()
+            .map(|index| Queued {
+                index,
+                attempt: 1,
+                alone: false,
+            })
+            .collect(),
     };
-    let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
-    if let Some(costs) = costs.filter(|c| c.len() == planned.len()) {
-        // Stable: equal costs keep plan order.
-        order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
-    }
-    // Popped from the back.
-    pool.queue = order
-        .into_iter()
-        .rev()
-        .map(|index| Queued {
-            index,
-            attempt: 1,
-            alone: false,
-        })
-        .collect();
     let outcome = pool.run_cases(&mut running);
     for job in running {
         job.abandon();
@@ -665,8 +664,9 @@ fn cores_of(planned: &Planned) -> usize {
 
 /// The line a worker reads for `case` (`schema::protocol::ServeLine`): the case, the file its
 /// time loop says how far it is in, and its checkpoint, written on a stopping signal (and
-/// every `checkpoint_every`) and resumed from. Paths are absolute (a worker runs in the work
-/// directory), and given only when they are text, as JSON needs.
+/// every `checkpoint_every`) and resumed from, and the study's shared spectra where the solver
+/// takes them. Paths are absolute (a worker runs in the work directory), and given only when
+/// they are text, as JSON needs.
 fn served_line(
     case: &Checked,
     key: &str,
