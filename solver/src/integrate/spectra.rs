@@ -88,6 +88,11 @@ pub fn measured_once(
         return known.found;
     }
     let dir = DIRECTORY.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    // Made by the first run that measures a spectrum: a study without one has no directory.
+    // One level only: a directory whose parent is gone is not made again.
+    if let Some(dir) = &dir {
+        let _ = std::fs::create_dir(dir);
+    }
     let entries = dir
         .as_deref()
         .map(|dir| (Entry::of(dir, key), Entry::of(dir, &capped)));

@@ -131,8 +131,9 @@ enum Ended {
     },
 }
 
-/// Runs the planned points that run, the costliest first where `costs` predicts theirs (so
-/// that no long case starts last while the other workers idle), else in plan order; stores
+/// Runs the planned points that run, the costliest first where `costs` predicts theirs and
+/// cases run side by side (so that no long case starts last while the other workers idle),
+/// else in plan order; stores
 /// each record as it finishes. A failure of the file system (the store, the scratch files, a
 /// record nlsolve could not write) is not a property of a case: it stops the run, the running cases are ended and nothing is stored for them, so
 /// the next run takes them up again. `workers` stay up for the next call (a search's rounds).
@@ -145,11 +146,14 @@ pub fn run(
     stop: &Stop,
     progress: &mut Progress,
 ) -> Result<Tally, FileError> {
-    if solver.shares_spectra {
-        create_dir(&store.spectra())?;
-    }
     let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
-    if let Some(costs) = costs.filter(|c| c.len() == planned.len()) {
+    // Cases one after another gain nothing from it, and in a job with a time limit the short
+    // ones would wait behind a long one that may not finish.
+    let side_by_side = match options.exclusive {
+        true => options.nodes.len() > 1,
+        false => options.cores > 1,
+    };
+    if let Some(costs) = costs.filter(|c| side_by_side && c.len() == planned.len()) {
         // Stable: equal costs keep plan order.
         order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
     }
