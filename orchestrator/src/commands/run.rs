@@ -51,11 +51,11 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
         let stored = planned.len() - to_run - copies;
         round = round.map(|r| r + 1);
         let mut progress = Progress::new(Mode::detect(), to_run, stored).in_round(round);
-        let costs = predicted_costs(planned, &store);
+        let costs = predicted_costs(planned, &store, &options);
         let ran = stop.asking(|| {
             let pool = crate::run::pool::run;
             pool(
-                (planned, Some(&costs)),
+                (planned, costs.as_deref()),
                 &solver,
                 &store,
                 &options,
@@ -122,11 +122,17 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
 }
 
 /// The predicted cost of each planned point (`balance::predicted_costs`), from the timings
-/// stored so far, for the pool to start the costliest first.
-fn predicted_costs(planned: &[Planned], store: &Store) -> Vec<f64> {
+/// stored so far, for the pool to start the costliest first; none for a pool that runs one case
+/// at a time, which keeps plan order.
+fn predicted_costs(planned: &[Planned], store: &Store, options: &PoolOptions) -> Option<Vec<f64>> {
+    if !options.side_by_side() {
+        return None;
+    }
     let history = History::from_index(planned, &store.index());
     let points: Vec<&Planned> = planned.iter().collect();
-    crate::run::cluster::balance::predicted_costs(&points, &history)
+    Some(crate::run::cluster::balance::predicted_costs(
+        &points, &history,
+    ))
 }
 
 /// What a pool is given from the flags and the study: the nodes (inside a Slurm job of several

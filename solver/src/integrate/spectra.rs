@@ -252,19 +252,13 @@ fn fingerprint() -> &'static str {
     crate::output::record::FINGERPRINT
 }
 
-/// This node's name, for the names of partial files on a file system several nodes share.
+/// This node's name, for the names of partial files on a file system several nodes share
+/// (the record's host, kept to the characters a file name takes anywhere).
 fn host() -> String {
-    let mut name = [0u8; 256];
-    // SAFETY: the buffer is writable for its whole length, which is passed.
-    let done = unsafe { libc::gethostname(name.as_mut_ptr().cast(), name.len()) } == 0;
-    let len = name.iter().position(|&b| b == 0).unwrap_or(0);
-    match done {
-        true => String::from_utf8_lossy(&name[..len])
-            .chars()
-            .filter(char::is_ascii_alphanumeric)
-            .collect(),
-        false => String::new(),
-    }
+    crate::output::record::host()
+        .chars()
+        .filter(char::is_ascii_alphanumeric)
+        .collect()
 }
 
 /// FNV-1a, 64 bits: an entry's name, stable across builds and machines (which std's hasher

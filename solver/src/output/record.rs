@@ -129,6 +129,11 @@ fn this_machine() -> &'static ThisMachine {
     })
 }
 
+/// This machine's host name, as every record of this process names it.
+pub fn host() -> &'static str {
+    &this_machine().host
+}
+
 fn read_trimmed(path: &str) -> Option<String> {
     Some(std::fs::read_to_string(path).ok()?.trim().to_string())
 }

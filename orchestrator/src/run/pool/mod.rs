@@ -149,11 +149,7 @@ pub fn run(
     let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
     // Cases one after another gain nothing from it, and in a job with a time limit the short
     // ones would wait behind a long one that may not finish.
-    let side_by_side = match options.exclusive {
-        true => options.nodes.len() > 1,
-        false => options.cores > 1,
-    };
-    if let Some(costs) = costs.filter(|c| side_by_side && c.len() == planned.len()) {
+    if let Some(costs) = costs.filter(|c| options.side_by_side() && c.len() == planned.len()) {
         // Stable: equal costs keep plan order.
         order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
     }

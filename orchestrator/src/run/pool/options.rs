@@ -29,6 +29,16 @@ pub struct PoolOptions {
     pub keep_checkpoints: bool,
 }
 
+impl PoolOptions {
+    /// Whether cases run side by side: on several nodes, or several cores of a shared one.
+    pub fn side_by_side(&self) -> bool {
+        match self.exclusive {
+            true => self.nodes.len() > 1,
+            false => self.cores > 1,
+        }
+    }
+}
+
 /// The cores this process may use (its affinity mask and cgroup quota respected), read once: it
 /// reads the cgroup's files, and every record asks.
 pub fn machine_cores() -> usize {
