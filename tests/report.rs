@@ -7,6 +7,93 @@ use nonlocal_study::{chromium, measured, screenshot, text, Scratch, CHROMIUM};
 use serde_json::json;
 use std::path::Path;
 
+/// The run's timeline, summed here from its events (not by nlstudy's own analysis): each lane's
+/// cases, idle spans and the gaps between batches cover at least 95 % of the lane's wall time,
+/// without overlapping; each case that ran is on it once with its solver's phases; and `status
+/// --timeline` says the same share.
+fn timeline_accounts_for_the_workers_time(scratch: &Scratch) {
+    let dir = scratch.dir.join("results/report/timeline");
+    let files: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().collect();
+    assert_eq!(files.len(), 1, "one run, one timeline");
+    let text = std::fs::read_to_string(files[0].path()).unwrap();
+    let events: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let of = |kind: &str| -> Vec<&serde_json::Value> {
+        events.iter().filter(|e| e["event"] == kind).collect()
+    };
+    let f = |e: &serde_json::Value, field: &str| e[field].as_f64().unwrap();
+    let (batches, cases, idle) = (of("batch"), of("case"), of("idle"));
+    assert_eq!(cases.len(), 3, "the three grids that ran: {text}");
+    assert!(
+        cases.iter().all(|c| f(&c["phases"], "wall_s") > 0.0),
+        "{text}"
+    );
+    let begin = batches
+        .iter()
+        .map(|b| f(b, "begin"))
+        .fold(f64::INFINITY, f64::min);
+    let end = batches.iter().map(|b| f(b, "end")).fold(0.0, f64::max);
+    let planning: f64 = {
+        let mut spans: Vec<(f64, f64)> = batches
+            .iter()
+            .map(|b| (f(b, "begin"), f(b, "end")))
+            .collect();
+        spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+        spans.windows(2).map(|w| w[1].0 - w[0].1).sum()
+    };
+    let mut lanes: Vec<(String, u64)> = cases
+        .iter()
+        .chain(&idle)
+        .map(|e| {
+            (
+                e["node"].as_str().unwrap().to_string(),
+                e["lane"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    lanes.sort();
+    lanes.dedup();
+    for (node, lane) in &lanes {
+        let on = |e: &&&serde_json::Value| e["node"] == node.as_str() && e["lane"] == *lane;
+        let mut spans: Vec<(f64, f64)> = cases
+            .iter()
+            .filter(on)
+            .map(|c| (f(c, "started"), f(c, "saved")))
+            .chain(idle.iter().filter(on).map(|i| (f(i, "from"), f(i, "to"))))
+            .collect();
+        spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert!(
+            spans.windows(2).all(|w| w[1].0 >= w[0].1 - 1e-6),
+            "lane {node} #{lane} overlaps: {spans:?}"
+        );
+        let covered: f64 = spans.iter().map(|s| s.1 - s.0).sum::<f64>() + planning;
+        let share = covered / (end - begin);
+        assert!(
+            (0.95..=1.0 + 1e-6).contains(&share),
+            "lane {node} #{lane}: {share} of its wall time accounted for"
+        );
+    }
+    let status = scratch.nlstudy("status", &["--timeline"]);
+    let said = nonlocal_study::text(&status);
+    assert!(status.status.success(), "{said}");
+    let shares: Vec<f64> = said
+        .lines()
+        .filter_map(|l| {
+            l.trim_end()
+                .strip_suffix(" %")?
+                .split_whitespace()
+                .last()?
+                .parse()
+                .ok()
+        })
+        .collect();
+    assert_eq!(shares.len(), lanes.len(), "{said}");
+    assert!(shares.iter().all(|s| *s >= 95.0), "{said}");
+    assert!(said.contains("3 cases on 1 lane of 1 node"), "{said}");
+}
+
 #[test]
 #[ignore = "system tests: off (make test runs them, as does cargo test -- --include-ignored)"]
 fn the_report_opens_in_a_browser_with_every_figure_drawn() {
@@ -42,6 +129,7 @@ fn the_report_opens_in_a_browser_with_every_figure_drawn() {
         text(&run)
     );
     let page = std::fs::read_to_string(&report).expect("the run wrote its report");
+    timeline_accounts_for_the_workers_time(&scratch);
     // Each figure names the build and machine of its runs.
     let build = text(
         &std::process::Command::new(nonlocal_study::binary("nlsolve"))
@@ -108,7 +196,8 @@ frame.addEventListener('load', () => {
     eprintln!("measured in chromium: {measured}");
     assert_eq!(measured["title"], "Study report");
     let figures = measured["figures"].as_array().unwrap();
-    assert_eq!(figures.len(), 2, "{measured}");
+    assert_eq!(figures.len(), 3, "{measured}");
+    assert_eq!(figures[2]["id"], "timeline", "{measured}");
     for figure in figures {
         assert!(
             figure["decoded"] == true

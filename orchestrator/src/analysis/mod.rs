@@ -17,3 +17,4 @@ pub mod pivot;
 pub mod scaling_model;
 pub mod summary;
 pub mod target;
+pub mod timeline;

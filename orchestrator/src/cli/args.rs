@@ -35,8 +35,9 @@ pub enum Command {
     /// Draw the study's figures from its summary table into <results>/<study>/figures/, each
     /// only when its table or its spec changed.
     Plot(CommonArgs),
-    /// Count the stored records by status and list the failures.
-    Status(CommonArgs),
+    /// Count the stored records by status and list the failures; with --timeline, where each
+    /// worker's time went in the latest runs.
+    Status(StatusArgs),
     /// Write <results>/<study>/report.html: one self-contained page with the study's description,
     /// its figures, the summary table, the runs by status, the failures and the provenance.
     Report(CommonArgs),
@@ -61,6 +62,18 @@ pub enum Command {
     /// from the current records and the superseded ones in history/, into
     /// <results>/<study>/history.svg.
     History(HistoryArgs),
+}
+
+#[derive(Args)]
+pub struct StatusArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Print the timeline of the study's latest runs instead (one per `nlstudy run`, so one per
+    /// job of a cluster's round): each worker's wall time as starting, set-up, solve, spectrum
+    /// and errors, hand-off and store, idle and between rounds; and draw the latest into
+    /// <results>/<study>/timeline.svg.
+    #[arg(long)]
+    pub timeline: bool,
 }
 
 #[derive(Args)]

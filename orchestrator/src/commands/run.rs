@@ -17,6 +17,7 @@ use crate::run::pool::Tally;
 use crate::run::progress::{Mode, Progress};
 use crate::run::search;
 use crate::run::signals;
+use crate::run::timeline::Timeline;
 use crate::store::Store;
 use schema::exit;
 use std::process::ExitCode;
@@ -43,6 +44,7 @@ pub(super) fn run(args: &RunArgs) -> Result<Reply, Failure> {
     let mut tally = Tally::default();
     let mut workers = crate::run::worker::Workers::new(store.work_dir(), args.worker_memory);
     workers.dial_back_to(crate::run::allocation::this_nodes_address(&options.nodes));
+    workers.timeline = Timeline::recorded(&store, crate::run::pool::run_id());
     // An adaptive study's rounds are numbered on each line, since each counts its own cases.
     let mut round = study.question().map(|_| 0);
     // Runs the planned points not stored, counting what happened into `tally`.

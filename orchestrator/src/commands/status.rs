@@ -1,15 +1,23 @@
-//! `nlstudy status`: the stored records counted by status, the failures and the jobs.
+//! `nlstudy status`: the stored records counted by status, the failures and the jobs; with
+//! `--timeline`, where the workers' time went in the latest runs.
 
 use super::failure::Failure;
-use super::open::planned_and_index;
-use crate::cli::args::CommonArgs;
+use super::open::{open_store, planned_and_index, read_study};
+use crate::analysis::timeline::Timeline;
+use crate::cli::args::StatusArgs;
 use crate::console::Reply;
 use crate::output::status;
 use crate::run::plan::Options;
 
-pub(super) fn status(args: &CommonArgs) -> Result<Reply, Failure> {
+/// The runs whose timelines `--timeline` prints: a round of a cluster's jobs is one run each.
+const RUNS_SHOWN: usize = 8;
+
+pub(super) fn status(args: &StatusArgs) -> Result<Reply, Failure> {
+    if args.timeline {
+        return timeline(args);
+    }
     let (study, solver, store, index, planned) =
-        planned_and_index(args, &Options::default(), false)?;
+        planned_and_index(&args.common, &Options::default(), false)?;
     let fingerprint = solver.fingerprint.as_deref();
     let mut reply = Reply::default();
     reply.result(status::render(
@@ -19,5 +27,34 @@ pub(super) fn status(args: &CommonArgs) -> Result<Reply, Failure> {
         &planned,
         fingerprint,
     ));
+    Ok(reply)
+}
+
+/// Needs no solver, as the timelines are files of the study's folder.
+fn timeline(args: &StatusArgs) -> Result<Reply, Failure> {
+    let study = read_study(&args.common.study)?;
+    let store = open_store(&args.common, &study, false)?;
+    let runs: Vec<Timeline> = crate::store::timeline::runs(&store)
+        .iter()
+        .filter_map(Timeline::of)
+        .collect();
+    let mut reply = Reply::default();
+    if runs.is_empty() {
+        reply.line(format!(
+            "no timeline of study {}: `nlstudy run` records one for each run",
+            study.name
+        ));
+        return Ok(reply);
+    }
+    let skipped = runs.len().saturating_sub(RUNS_SHOWN);
+    if skipped > 0 {
+        reply.line(format!("({skipped} earlier runs not shown)"));
+    }
+    for run in &runs[skipped..] {
+        reply.line(crate::output::timeline::table(run).join("\n"));
+    }
+    if let Some((path, _)) = crate::output::timeline::write_latest(&store)? {
+        reply.note(format!("timeline: {}", path.display()));
+    }
     Ok(reply)
 }

@@ -3,8 +3,8 @@
 //!
 //! `draw` renders any chart and `figure` decides what each kind shows (one module per kind);
 //! `plot` draws a study's figures, each only when its inputs changed. Besides: `answers` (the
-//! lines `run` prints of an adaptive study), `compare_figure` (`compare.svg`) and `history`
-//! (`history.svg`).
+//! lines `run` prints of an adaptive study), `compare_figure` (`compare.svg`), `history`
+//! (`history.svg`) and `timeline` (`timeline.svg`, and the table `status --timeline` prints).
 
 pub mod answers;
 pub mod compare_figure;
@@ -14,3 +14,4 @@ pub mod history;
 pub mod plot;
 pub mod report;
 pub mod status;
+pub mod timeline;

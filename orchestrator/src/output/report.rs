@@ -64,6 +64,7 @@ pub fn write(study: &Study, store: &Store, swept: &[String]) -> Result<PathBuf, 
                 (figures_section(study, store, &summary, &records))
                 (summary_section(&summary, swept))
                 (comparison_section(store))
+                (timeline_section(store)?)
                 (failures_section(&records))
                 (provenance_section(&records))
             }
@@ -112,6 +113,23 @@ fn figures_section(study: &Study, store: &Store, summary: &[Row], records: &[Sto
             }
         }
     }
+}
+
+/// The latest run's timeline: where each worker's time went (`output::timeline`).
+fn timeline_section(store: &Store) -> Result<Markup, Fault> {
+    let Some((_, svg)) = crate::output::timeline::write_latest(store)? else {
+        return Ok(html! {});
+    };
+    Ok(html! {
+        h2 { "Timeline" }
+        figure id="timeline" {
+            (image(&svg, "the latest run's timeline"))
+            figcaption {
+                "The latest run's workers, one row each: what each did when. "
+                code { "nlstudy status --timeline" } " prints the totals."
+            }
+        }
+    })
 }
 
 /// The last `nlstudy compare` of the study, if any: its figure and its verdicts counted.

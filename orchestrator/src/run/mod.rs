@@ -17,4 +17,5 @@ pub mod pool;
 pub mod progress;
 pub mod search;
 pub mod signals;
+pub mod timeline;
 pub mod worker;

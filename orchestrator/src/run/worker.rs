@@ -46,6 +46,8 @@ pub struct Workers {
     /// The solver turned out not to serve (one from before `serve`, or a wrapper script that
     /// knows only `run`): every case runs as a process of its own from then on.
     pub unsupported: bool,
+    /// What each worker did when, kept over the batches (rounds) as the workers are.
+    pub timeline: crate::run::timeline::Timeline,
 }
 
 /// How long an ended worker's last words on standard error are waited for.
@@ -106,6 +108,7 @@ impl Workers {
             dir,
             memory_bound: memory_bound_mib << 20,
             unsupported: false,
+            timeline: Default::default(),
         }
     }
 

@@ -26,6 +26,7 @@ pub mod record;
 pub mod segment;
 pub mod shared;
 pub mod table;
+pub mod timeline;
 pub mod timestamp;
 
 use catalog::{Catalog, KeyMap, Location};

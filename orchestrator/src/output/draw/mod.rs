@@ -10,6 +10,7 @@
 //! so that linear and log axes share one chart type. The labels of one axis share one notation.
 
 mod chart;
+pub mod gantt;
 mod heat_map;
 mod layout;
 mod legend;

@@ -17,14 +17,17 @@ pub use options::{machine_cores, PoolOptions};
 use process::{children_of, start, Process, UNREAPED_RANK_GRACE};
 use record::answer_record;
 pub(crate) use record::failed_record;
+pub(crate) use record::run_id;
 
 use crate::run::allocation::Node;
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::run::plan::{Decision, Planned, Reason};
 use crate::run::progress::Progress;
 use crate::run::signals::Stop;
+use crate::run::timeline::{now_s, OnLane};
 use crate::run::worker::{Place, Served, Worker, Workers};
 use crate::store::fs::create_dir;
+use crate::store::timeline::Phases;
 use crate::store::{FileError, Store, CHECKPOINT, PROGRESS};
 use schema::exit;
 use schema::record::{Status, Stored};
@@ -88,6 +91,8 @@ struct Running {
     /// 1 for the first run of the point, 2 for its first retry, …
     attempt: usize,
     started: Instant,
+    /// Its row and start on the run's timeline.
+    on: OnLane,
     cores: usize,
     /// Its node, an index into the pool's nodes.
     node: usize,
@@ -174,10 +179,18 @@ pub fn run(
             })
             .collect(),
     };
+    let names = options
+        .nodes
+        .iter()
+        .map(|node| node.name.clone().unwrap_or_else(|| "this machine".into()));
+    pool.workers.timeline.begin_batch(names.collect());
     let outcome = pool.run_cases(&mut running);
     for job in running {
+        let (on, key) = (job.on, &planned[job.index].key);
         job.abandon();
+        pool.workers.timeline.give_back(on, key, now_s(), None);
     }
+    pool.workers.timeline.end_batch();
     outcome.map(|()| pool.tally)
 }
 
@@ -259,7 +272,10 @@ impl Pool<'_> {
                     continue;
                 };
                 let job = running.swap_remove(k);
-                self.ended(job, ended)?;
+                let (on, answered) = (job.on, now_s());
+                let key = &self.planned[job.index].key;
+                let phases = self.ended(job, ended)?;
+                self.workers.timeline.give_back(on, key, answered, phases);
             }
         }
     }
@@ -314,12 +330,14 @@ impl Pool<'_> {
                 Ok(case) => case,
             };
             let on = &self.options.nodes[node];
+            let mut fresh = true;
             let how = if self.serves(case, next.alone) {
                 // A worker on this machine serves any thread count; a step keeps the cores it
                 // was started with.
                 let held = if on.name.is_some() { cores } else { 0 };
                 let place = Place { node, cores: held };
                 let mut worker = self.workers.take(self.solver, place, on)?;
+                fresh = worker.answered == 0;
                 let line = served_line(case, &planned.key, self.solver, self.store, self.options);
                 // A worker that is gone already says so when its output closes.
                 worker.send(&line);
@@ -345,6 +363,7 @@ impl Pool<'_> {
                 index: next.index,
                 attempt: next.attempt,
                 started: Instant::now(),
+                on: self.workers.timeline.take(node, fresh),
                 cores,
                 node,
                 _lock: lock,
@@ -369,7 +388,7 @@ impl Pool<'_> {
     /// Long because each way a case can end (an exit, with or without its record, a launcher that
     /// hung, serve's answer, a worker lost) is an arm of one match over the same running job and
     /// its attempts.
-    fn ended(&mut self, job: Running, ended: Ended) -> Result<(), FileError> {
+    fn ended(&mut self, job: Running, ended: Ended) -> Result<Option<Phases>, FileError> {
         let planned = &self.planned[job.index];
         let label = planned.point.shown();
         let again = |alone| Queued {
@@ -396,7 +415,7 @@ impl Pool<'_> {
                         // Ctrl-C reaches the whole process group, scancel the whole job: a
                         // case the stopping signal ended is not a failure.
                         job.abandon();
-                        return Ok(());
+                        return Ok(None);
                     }
                     Some(exit) => process.record(planned, self.solver, job.cores, exit)?,
                 };
@@ -436,8 +455,7 @@ impl Pool<'_> {
                 }
                 self.workers.give_back(worker);
                 let record = answer_record(planned, self.solver, job.cores, &line);
-                self.finish_attempt(planned, record, job.attempt)?;
-                return Ok(());
+                return self.finish_attempt(planned, record, job.attempt);
             }
             Ended::WorkerLost { exit, timed_out } => {
                 let How::Served { worker, .. } = &job.how else {
@@ -445,7 +463,7 @@ impl Pool<'_> {
                 };
                 if !timed_out && stopped_with_it(self.stop, exit) {
                     job.abandon();
-                    return Ok(());
+                    return Ok(None);
                 }
                 if worker.dialed() == Some(false) {
                     // It never reached this node (an unreachable address, a solver without
@@ -453,13 +471,13 @@ impl Pool<'_> {
                     let why = format!("it ended with {exit}: {}", worker.stderr_tail());
                     self.workers.stop_dialing_back(&why);
                     self.queue.push(again(false));
-                    return Ok(());
+                    return Ok(None);
                 }
                 if worker.answered == 0 && exit.code() == Some(i32::from(exit::BAD_INPUT)) {
                     // It does not know `serve`: from now on, a process per case.
                     self.workers.unsupported = true;
                     self.queue.push(again(true));
-                    return Ok(());
+                    return Ok(None);
                 }
                 if exit.code() == Some(i32::from(exit::IO)) {
                     let said = std::io::Error::other(worker.stderr_tail());
@@ -484,7 +502,7 @@ impl Pool<'_> {
                 };
                 self.progress.alone(&label, &why);
                 self.queue.push(again(true));
-                return Ok(());
+                return Ok(None);
             }
         };
         if let How::Process(process) = &job.how {
@@ -499,19 +517,26 @@ impl Pool<'_> {
                 attempt: job.attempt + 1,
                 alone: false,
             });
-            return Ok(());
+            return Ok(None);
         }
         self.finish_attempt(planned, record, job.attempt)
     }
 
+    /// Stores the record of an attempt and returns its solver's phases, for the timeline.
     fn finish_attempt(
         &mut self,
         planned: &Planned,
         mut record: Stored,
         attempt: usize,
-    ) -> Result<(), FileError> {
+    ) -> Result<Option<Phases>, FileError> {
         record.attempt = Some(attempt);
-        self.finish(planned, record)
+        let phases = record.record().map(|ran| Phases {
+            setup_s: ran.setup_s,
+            solve_s: ran.solve_s,
+            wall_s: ran.wall_s.unwrap_or(ran.setup_s + ran.solve_s),
+        });
+        self.finish(planned, record)?;
+        Ok(phases)
     }
 
     fn finish(&mut self, planned: &Planned, record: Stored) -> Result<(), FileError> {

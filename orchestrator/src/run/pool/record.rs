@@ -96,7 +96,7 @@ pub(super) fn stored(planned: &Planned, solver: &Nlsolve, outcome: Outcome) -> S
 
 /// This `nlstudy` process: its host, its start in nanoseconds since the epoch and its process
 /// id (the jobs of a cluster start processes of the same id on many hosts, in namespaces).
-pub(super) fn run_id() -> &'static str {
+pub(crate) fn run_id() -> &'static str {
     static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     ID.get_or_init(|| {
         let start = std::time::SystemTime::now()

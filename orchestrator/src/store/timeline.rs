@@ -1,0 +1,187 @@
+//! The timeline of each `nlstudy run`: `results/<study>/timeline/<run id>.jsonl`, one JSON line
+//! per event, written as the pool runs (so a killed run keeps what it saw) and read by
+//! `status --timeline` and `report`. Times are seconds since the epoch of the host that ran the
+//! pool (one process: one clock, whichever nodes its workers ran on).
+//!
+//! A file is this tool's own: created new (never through a link or over another file), read
+//! only when regular, and a line that does not parse (the last one of a killed run) is skipped.
+
+use super::fs::{create_dir, read_regular, FileError};
+use super::Store;
+use serde::{Deserialize, Serialize};
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+
+/// One event of a run's pool.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A batch of cases the pool was given (a study, a round of a search) and when it ended.
+    Batch { begin: f64, end: f64 },
+    /// A case on a worker's lane: started (sent to a worker or its process spawned), answered
+    /// (its record heard), saved (stored). `fresh`: its worker or process started for it, so
+    /// the time before its solver's own is the start's. The solver's phases where it ran.
+    Case {
+        node: String,
+        lane: usize,
+        key: String,
+        started: f64,
+        answered: f64,
+        saved: f64,
+        fresh: bool,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        phases: Option<Phases>,
+    },
+    /// A lane with nothing to run while its batch went on.
+    Idle {
+        node: String,
+        lane: usize,
+        from: f64,
+        to: f64,
+    },
+}
+
+/// What a run's record says its solver spent: set-up, time loop, and its whole wall time (the
+/// rest of which is the spectrum's ends and the errors measured after the loop).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Phases {
+    pub setup_s: f64,
+    pub solve_s: f64,
+    pub wall_s: f64,
+}
+
+/// The events of one run, and its file's name (the run's id).
+pub struct RunTimeline {
+    pub run: String,
+    pub events: Vec<Event>,
+}
+
+/// Where a study's timelines are.
+fn dir(store: &Store) -> PathBuf {
+    store.table("timeline")
+}
+
+/// A run's timeline being written.
+pub struct Writer {
+    out: BufWriter<std::fs::File>,
+    path: PathBuf,
+}
+
+impl Writer {
+    /// A new timeline file for the run `run_id` (unique: host, start and process id).
+    pub fn create(store: &Store, run_id: &str) -> Result<Writer, FileError> {
+        let dir = dir(store);
+        create_dir(&dir)?;
+        let path = dir.join(format!("{run_id}.jsonl"));
+        // O_CREAT | O_EXCL: never through a link, never over a file already there.
+        let file = std::fs::File::options()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(FileError::on("create", &path))?;
+        Ok(Writer {
+            out: BufWriter::new(file),
+            path,
+        })
+    }
+
+    pub fn write(&mut self, event: &Event) -> Result<(), FileError> {
+        let line = serde_json::to_string(event).expect("an event serializes");
+        writeln!(self.out, "{line}").map_err(FileError::on("write", &self.path))
+    }
+
+    /// Writes what is buffered: at a batch's end, so a run killed later keeps it.
+    pub fn flush(&mut self) -> Result<(), FileError> {
+        self.out.flush().map_err(FileError::on("write", &self.path))
+    }
+}
+
+/// The largest timeline read: about 400 bytes an event, a million events.
+const TIMELINE_CAP: u64 = 512 << 20;
+
+/// The study's run timelines, oldest first (by name: a run id starts with its host, so by
+/// start within a host), each with the events that parse; files that cannot be read are
+/// skipped with a warning.
+pub fn runs(store: &Store) -> Vec<RunTimeline> {
+    let Ok(entries) = std::fs::read_dir(dir(store)) else {
+        return Vec::new();
+    };
+    let mut runs: Vec<RunTimeline> = entries
+        .flatten()
+        .filter_map(|entry| {
+            let name = entry
+                .file_name()
+                .to_str()?
+                .strip_suffix(".jsonl")?
+                .to_string();
+            let text = match read_regular(&entry.path(), TIMELINE_CAP) {
+                Ok(text) => text,
+                Err(e) => {
+                    log::warn!("the timeline {} is not read: {e}", entry.path().display());
+                    return None;
+                }
+            };
+            let events = text
+                .lines()
+                .filter_map(|line| serde_json::from_str(line).ok())
+                .collect();
+            Some(RunTimeline { run: name, events })
+        })
+        .collect();
+    runs.sort_by_key(|run| started_ns(&run.run));
+    runs
+}
+
+/// A run id's start in nanoseconds (`<host>-<start>-<pid>`), for ordering runs of any host.
+fn started_ns(run: &str) -> u128 {
+    let mut parts = run.rsplitn(3, '-');
+    let _pid = parts.next();
+    parts.next().and_then(|s| s.parse().ok()).unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn events_written_are_read_back_and_a_torn_last_line_is_skipped() {
+        let scratch = tempfile::tempdir().unwrap();
+        let store = Store::open(scratch.path(), "s");
+        let mut writer = Writer::create(&store, "host-200-7").unwrap();
+        let case = Event::Case {
+            node: "n1".into(),
+            lane: 0,
+            key: "k".into(),
+            started: 1.0,
+            answered: 2.0,
+            saved: 2.5,
+            fresh: true,
+            phases: Some(Phases {
+                setup_s: 0.1,
+                solve_s: 0.5,
+                wall_s: 0.9,
+            }),
+        };
+        let batch = Event::Batch {
+            begin: 0.5,
+            end: 3.0,
+        };
+        writer.write(&case).unwrap();
+        writer.write(&batch).unwrap();
+        writer.flush().unwrap();
+        drop(writer);
+        let path = dir(&store).join("host-200-7.jsonl");
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        text.push_str("{\"event\":\"idle\",\"node\":");
+        std::fs::write(&path, text).unwrap();
+        Writer::create(&store, "other-100-9").unwrap();
+        let runs = runs(&store);
+        assert_eq!(runs.len(), 2);
+        assert_eq!(runs[0].run, "other-100-9", "the earlier start first");
+        assert_eq!(runs[1].events, vec![case, batch]);
+        assert!(
+            Writer::create(&store, "host-200-7").is_err(),
+            "never over a file already there"
+        );
+    }
+}
