@@ -955,6 +955,7 @@ fn every_node_of_an_allocation(slurm: &LocalSlurm) {
         "sweep": [{"product": {"n": (1000..1020).collect::<Vec<_>>()}}]
     });
     let mut seconds = Vec::new();
+    let mut simulated = Vec::new();
     for nodes in ["1", "2"] {
         let scratch = Scratch::new(&format!("spread-{nodes}"), &study);
         let started = Instant::now();
@@ -975,6 +976,7 @@ fn every_node_of_an_allocation(slurm: &LocalSlurm) {
             _ => vec!["nlnode1", "nlnode2"],
         };
         assert_eq!(hosts.into_iter().collect::<Vec<_>>(), expected, "{said}");
+        simulated.push(simulate(&scratch, slurm));
         if nodes == "2" {
             let log = logs(&scratch, "spread");
             assert!(
@@ -996,6 +998,58 @@ fn every_node_of_an_allocation(slurm: &LocalSlurm) {
         seconds[1],
         seconds[1] / seconds[0]
     );
+    // The simulator replays each run on the other's allocation: within 20 % of what that one
+    // measured (its timeline's length).
+    let [(one, on_two), (two, on_one)] = [simulated[0], simulated[1]];
+    eprintln!("simulated: 1 node {one:.2} s measured, predicted {on_one:.2} s from 2 nodes; 2 nodes {two:.2} s measured, predicted {on_two:.2} s from 1 node");
+    for (predicted, measured) in [(on_one, one), (on_two, two)] {
+        assert!(
+            (predicted / measured - 1.0).abs() <= 0.2,
+            "predicted {predicted:.2} s, measured {measured:.2} s"
+        );
+    }
+}
+
+/// `plan --simulate 1x1,2x1` of a study's latest run: the run's measured length, and its
+/// predicted length on one node and on two (one core each); which one it predicts for the
+/// other shape is the caller's.
+fn simulate(scratch: &Scratch, slurm: &LocalSlurm) -> (f64, f64) {
+    let out = nlstudy(scratch, slurm, "plan", &["--simulate", "1x1,2x1"]);
+    let said = text(&out);
+    assert!(out.status.success(), "{said}");
+    let seconds = |line: &str, after: &str| -> f64 {
+        let rest = &line[line.find(after).unwrap() + after.len()..];
+        rest.trim_start()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let lines: Vec<&str> = said.lines().collect();
+    let find = |start: &str| {
+        *lines
+            .iter()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("{said}"))
+    };
+    let from = find("from run");
+    let measured = seconds(
+        from,
+        if from.contains("on 1 lane,") {
+            "lane,"
+        } else {
+            "lanes,"
+        },
+    );
+    let (on_one, on_two) = (
+        seconds(find("on 1x1 "), "):"),
+        seconds(find("on 2x1 "), "):"),
+    );
+    match from.contains("on 1 lane,") {
+        true => (measured, on_two),
+        false => (measured, on_one),
+    }
 }
 
 /// A 2-rank case on two nodes: one rank on each, and the record names both hosts.

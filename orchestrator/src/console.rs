@@ -186,6 +186,14 @@ pub fn stdout_failure() -> Option<String> {
 
 pub use schema::text::{number, numbers_alike};
 
+/// `3 cases`, `1 case`: a count and its noun, plural where it is not one.
+pub fn counted(n: usize, what: &str) -> String {
+    match n {
+        1 => format!("1 {what}"),
+        _ => format!("{n} {what}s"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,6 +15,7 @@ pub mod figure_columns;
 pub mod incremental;
 pub mod pivot;
 pub mod scaling_model;
+pub mod simulate;
 pub mod summary;
 pub mod target;
 pub mod timeline;

@@ -25,8 +25,9 @@ pub struct Cli {
 
 #[derive(Subcommand)]
 pub enum Command {
-    /// Print every point of the study, whether it will run and why; run nothing.
-    Plan(PlanArgs),
+    /// Print every point of the study, whether it will run and why; run nothing. With
+    /// --simulate, predict what the study's latest run would take on other allocations.
+    Plan(PlanCommandArgs),
     /// Run the points not yet stored (make-style) and store their records.
     Run(RunArgs),
     /// Gather the stored records into <results>/<study>/<study>.parquet (one row per run) and
@@ -296,6 +297,18 @@ pub struct PlanArgs {
     /// refused point stops `plan`, `run` and `submit` before anything runs.
     #[arg(long)]
     pub allow_refused: bool,
+}
+
+#[derive(Args)]
+pub struct PlanCommandArgs {
+    #[command(flatten)]
+    pub plan: PlanArgs,
+    /// Predict instead what the study's latest run (its timeline) would take in one allocation
+    /// of each of these shapes (comma-separated NODES or NODESxCORES, cores by default this
+    /// machine's), from its cases' measured times, the driver's time per case, a worker's start
+    /// and the time between rounds; the assumptions are printed with it.
+    #[arg(long, value_delimiter = ',', value_name = "NODES[xCORES]")]
+    pub simulate: Option<Vec<String>>,
 }
 
 #[derive(Args)]

@@ -2,12 +2,18 @@
 
 use super::failure::Failure;
 use super::open::{no_refusals, planned, what_does_not_fit, what_refinement_cannot_show};
-use crate::cli::args::PlanArgs;
-use crate::console::{Reply, Said};
+use super::open::{open_store, read_study};
+use crate::analysis::simulate::{parse_shape, Measured};
+use crate::cli::args::PlanCommandArgs;
+use crate::console::{counted, Reply, Said};
 use crate::run::plan::{Decision, Planned};
 use std::fmt::Write as _;
 
-pub(super) fn plan(args: &PlanArgs) -> Result<Reply, Failure> {
+pub(super) fn plan(args: &PlanCommandArgs) -> Result<Reply, Failure> {
+    if let Some(shapes) = &args.simulate {
+        return simulate(args, shapes);
+    }
+    let args = &args.plan;
     let (study, solver, _, planned) = planned(&args.common, &args.options(), false)?;
     let mut reply = Reply::default();
     reply.line(format!(
@@ -78,4 +84,57 @@ pub(super) fn plan(args: &PlanArgs) -> Result<Reply, Failure> {
         }
         Err(failure) => Ok(failure.after(reply)),
     }
+}
+
+/// `plan --simulate`: the study's latest run replayed on each shape (`analysis::simulate`).
+fn simulate(args: &PlanCommandArgs, shapes: &[String]) -> Result<Reply, Failure> {
+    let cores = crate::run::pool::machine_cores();
+    let shapes = shapes
+        .iter()
+        .map(|shape| parse_shape(shape, cores))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(Failure::BadInput)?;
+    let study = read_study(&args.plan.common.study)?;
+    let store = open_store(&args.plan.common, &study, false)?;
+    let runs = crate::store::timeline::runs(&store);
+    let Some((run, measured)) = runs
+        .iter()
+        .rev()
+        .find_map(|run| Some((run, Measured::of(run)?)))
+    else {
+        return Err(Failure::BadInput(format!(
+            "--simulate: study {} has no timeline yet; `nlstudy run` it (or a smaller sweep of it) once, and the prediction replays that run",
+            study.name
+        )));
+    };
+    let mut reply = Reply::default();
+    let cases: usize = measured.batches.iter().map(Vec::len).sum();
+    reply.line(format!(
+        "from run {}: {} in {} on {}, {:.2} s (the model replays it: {:.2} s)",
+        run.run,
+        counted(cases, "case"),
+        counted(measured.batches.len(), "round"),
+        counted(measured.lanes, "lane"),
+        measured.length,
+        measured.on(measured.lanes)
+    ));
+    reply.line(format!(
+        "measured: the driver's {:.3} ms per case, a worker's start {:.0} ms, {:.2} s between batches in all",
+        measured.driver_s * 1e3,
+        measured.start_s * 1e3,
+        measured.gaps.iter().sum::<f64>()
+    ));
+    for (nodes, per_node) in shapes {
+        let lanes = nodes * per_node;
+        let predicted = measured.on(lanes);
+        reply.line(format!(
+            "on {nodes}x{per_node} ({}): {predicted:.2} s, {:.2}x the run measured",
+            counted(lanes, "lane"),
+            predicted / measured.length
+        ));
+    }
+    reply.line(
+        "assumed: one case a lane, longest first; one driver storing every answer in turn; the rounds as measured; not counted: the queue, the job's start, the plan before and the tables after, contention between lanes",
+    );
+    Ok(reply)
 }

@@ -3,6 +3,7 @@
 //! coloured by phase.
 
 use crate::analysis::timeline::{Phase, Timeline};
+use crate::console::counted;
 use crate::output::draw::gantt::{self, Bar, Gantt};
 use crate::store::{write_atomically, Fault, Store};
 use plotters::style::RGBColor;
@@ -26,14 +27,6 @@ fn colour(phase: Phase) -> RGBColor {
 /// `this machine #0`: a lane's row label.
 fn lane_label((node, lane): &(String, usize)) -> String {
     format!("{node} #{lane}")
-}
-
-/// `3 cases`, `1 case`.
-fn counted(n: usize, what: &str) -> String {
-    match n {
-        1 => format!("1 {what}"),
-        _ => format!("{n} {what}s"),
-    }
 }
 
 /// What the run was: its cases, lanes, nodes and length.

@@ -155,8 +155,14 @@ pub fn run(
     // Cases one after another gain nothing from it, and in a job with a time limit the short
     // ones would wait behind a long one that may not finish.
     if let Some(costs) = costs.filter(|c| options.side_by_side() && c.len() == planned.len()) {
-        // Stable: equal costs keep plan order.
-        order.sort_by(|&a, &b| costs[b].total_cmp(&costs[a]));
+        // Equal costs in key order, which is no order of the study's: the probes of one
+        // operator (a search's, its integrators') cost the same and stand together in the
+        // plan, and side by side they would wait for one another's spectrum (the first round
+        // of the stability map on two workers took as long as on one).
+        order.sort_by(|&a, &b| {
+            let by_key = || planned[a].key.cmp(&planned[b].key);
+            costs[b].total_cmp(&costs[a]).then_with(by_key)
+        });
     }
     let mut running: Vec<Running> = Vec::new();
     let mut pool = Pool {
