@@ -102,7 +102,12 @@ impl Measured {
             .iter()
             .map(|cases| batch_makespan(cases, lanes, self.driver_s))
             .sum();
-        self.start_s + batches + self.gaps.iter().sum::<f64>()
+        self.start_s + batches + self.between_rounds()
+    }
+
+    /// The time between the batches in all (never -0: an empty sum of floats is).
+    pub fn between_rounds(&self) -> f64 {
+        self.gaps.iter().sum::<f64>().max(0.0)
     }
 }
 

@@ -119,10 +119,10 @@ fn simulate(args: &PlanCommandArgs, shapes: &[String]) -> Result<Reply, Failure>
         measured.on(measured.lanes)
     ));
     reply.line(format!(
-        "measured: the driver's {:.3} ms per case, a worker's start {:.0} ms, {:.2} s between batches in all",
+        "measured: the driver's {:.3} ms per case, a worker's start {:.0} ms, {:.2} s between rounds in all",
         measured.driver_s * 1e3,
         measured.start_s * 1e3,
-        measured.gaps.iter().sum::<f64>()
+        measured.between_rounds()
     ));
     for (nodes, per_node) in shapes {
         let lanes = nodes * per_node;

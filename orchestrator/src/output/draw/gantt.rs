@@ -90,36 +90,8 @@ pub fn render(gantt: &Gantt) -> Result<String, String> {
                 .map_err(failed)?;
             }
         }
-        // The time axis: a line and ticks at round seconds.
         let axis_y = (top + ROW_PX * gantt.rows.len() as u32) as i32 + 4;
-        root.draw(&PathElement::new(
-            [(plot.0 as i32, axis_y), (plot.1 as i32, axis_y)],
-            BLACK,
-        ))
-        .map_err(failed)?;
-        let step = tick_step(gantt.length);
-        let mut t = 0.0;
-        while t <= gantt.length + 1e-9 {
-            let x = plot.0 as i32 + (t / seconds_per_pixel).round() as i32;
-            root.draw(&PathElement::new([(x, axis_y), (x, axis_y + 5)], BLACK))
-                .map_err(failed)?;
-            let style = font(TICK_PX)
-                .into_text_style(&root)
-                .pos(Pos::new(HPos::Center, VPos::Top));
-            root.draw_text(&format!("{t}"), &style, (x, axis_y + 7))
-                .map_err(failed)?;
-            t += step;
-        }
-        let style = font(AXIS_PX)
-            .into_text_style(&root)
-            .pos(Pos::new(HPos::Center, VPos::Top));
-        let middle = ((plot.0 + plot.1) / 2) as i32;
-        root.draw_text(
-            "seconds since the run's first case",
-            &style,
-            (middle, axis_y + 26),
-        )
-        .map_err(failed)?;
+        draw_time_axis(&root, gantt.length, plot, axis_y, seconds_per_pixel).map_err(failed)?;
         for (k, &c) in used.iter().enumerate() {
             let (name, colour) = &gantt.categories[c];
             let x = 16 + (k % per_line) as i32 * entry_px as i32;
@@ -132,6 +104,42 @@ pub fn render(gantt: &Gantt) -> Result<String, String> {
         root.present().map_err(failed)?;
     }
     Ok(svg)
+}
+
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
+
+/// The time axis under the rows at `axis_y`: a line, ticks at round seconds, its label.
+fn draw_time_axis(
+    root: &Area,
+    length: f64,
+    plot: (u32, u32),
+    axis_y: i32,
+    seconds_per_pixel: f64,
+) -> Result<(), DrawingAreaErrorKind<std::io::Error>> {
+    root.draw(&PathElement::new(
+        [(plot.0 as i32, axis_y), (plot.1 as i32, axis_y)],
+        BLACK,
+    ))?;
+    let step = tick_step(length);
+    let mut t = 0.0;
+    while t <= length + 1e-9 {
+        let x = plot.0 as i32 + (t / seconds_per_pixel).round() as i32;
+        root.draw(&PathElement::new([(x, axis_y), (x, axis_y + 5)], BLACK))?;
+        let style = font(TICK_PX)
+            .into_text_style(root)
+            .pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw_text(&format!("{t}"), &style, (x, axis_y + 7))?;
+        t += step;
+    }
+    let style = font(AXIS_PX)
+        .into_text_style(root)
+        .pos(Pos::new(HPos::Center, VPos::Top));
+    let middle = ((plot.0 + plot.1) / 2) as i32;
+    root.draw_text(
+        "seconds since the run's first case",
+        &style,
+        (middle, axis_y + 26),
+    )
 }
 
 /// Each pixel of `row` with the category that took most of its time (`usize::MAX`: none).
