@@ -35,15 +35,7 @@ pub struct Measured {
 impl Measured {
     /// `None` for a run with no batch or no case.
     pub fn of(run: &RunTimeline) -> Option<Measured> {
-        let mut batches: Vec<(f64, f64)> = run
-            .events
-            .iter()
-            .filter_map(|e| match e {
-                Event::Batch { begin, end } => Some((*begin, *end)),
-                _ => None,
-            })
-            .collect();
-        batches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let batches = run.batches();
         let mut times = vec![Vec::new(); batches.len()];
         let (mut driver, mut starts) = (Vec::new(), Vec::new());
         let mut lanes = std::collections::BTreeSet::new();

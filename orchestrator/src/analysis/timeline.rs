@@ -79,15 +79,7 @@ pub struct Timeline {
 impl Timeline {
     /// The spans of `run`'s events; `None` for a run that finished no batch.
     pub fn of(run: &RunTimeline) -> Option<Timeline> {
-        let mut batches: Vec<(f64, f64)> = run
-            .events
-            .iter()
-            .filter_map(|e| match e {
-                Event::Batch { begin, end } => Some((*begin, *end)),
-                _ => None,
-            })
-            .collect();
-        batches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let batches = run.batches();
         let (begin, end) = (batches.first()?.0, batches.last()?.1);
         let mut lanes: Vec<(String, usize)> = Vec::new();
         let mut lane_of = |node: &str, lane: usize| -> usize {

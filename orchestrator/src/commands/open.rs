@@ -80,14 +80,8 @@ pub(super) fn planned_and_index(
     options: &Options,
     writes: bool,
 ) -> Result<(Study, Nlsolve, Store, Index, Vec<Planned>), Failure> {
-    let study = read_study(&args.study)?;
-    let mut solver = Nlsolve::locate(args.solver.as_deref())?;
-    let store = open_store(args, &study, writes)?;
-    solver.keep_verdicts_in(store.table(VERDICTS));
-    let index = store.index();
-    for unreadable in &index.unreadable {
-        log::warn!("{unreadable}");
-    }
+    let (study, solver, store) = opened(args, writes)?;
+    let index = index_of(&store);
     let asked = crate::kinds::Asked {
         study: &study,
         solver: &solver,
@@ -99,6 +93,25 @@ pub(super) fn planned_and_index(
         None => crate::run::plan::plan(&study, &solver, &index, options)?,
     };
     Ok((study, solver, store, index, planned))
+}
+
+/// The study, its solver (keeping its verdicts beside the store) and its store; see
+/// `open_store` for `writes`.
+pub(super) fn opened(args: &CommonArgs, writes: bool) -> Result<(Study, Nlsolve, Store), Failure> {
+    let study = read_study(&args.study)?;
+    let mut solver = Nlsolve::locate(args.solver.as_deref())?;
+    let store = open_store(args, &study, writes)?;
+    solver.keep_verdicts_in(store.table(VERDICTS));
+    Ok((study, solver, store))
+}
+
+/// The store's index, what it could not read warned of.
+pub(super) fn index_of(store: &Store) -> Index {
+    let index = store.index();
+    for unreadable in &index.unreadable {
+        log::warn!("{unreadable}");
+    }
+    index
 }
 
 /// Names the points to run that this machine could not (memory, cores): `run` would store them

@@ -2,7 +2,7 @@
 //! `--follow`, round after round until the study is answered.
 
 use super::failure::Failure;
-use super::open::{no_refusals, open_store, planned_and_index, read_study};
+use super::open::{index_of, no_refusals, opened, planned_and_index};
 use super::run::{conclude, Ending};
 use crate::cli::args::SubmitArgs;
 use crate::console::{Reply, OUT};
@@ -12,7 +12,7 @@ use crate::run::cluster::follow::{self, Waited};
 use crate::run::cluster::submit::{self, Sent};
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
-use crate::run::plan::{Options, Planned};
+use crate::run::plan::{plan, Options, Planned};
 use crate::store::{Index, Store};
 use schema::exit;
 use schema::record::Status;
@@ -52,10 +52,11 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
         true => Some(poll(args.poll)?),
         false => None,
     };
-    let plan = || planned_and_index(&args.common, &Options::default(), true);
     let Some(most) = most else {
-        let opened = plan()?;
-        let rounds = opened.0.question().and_then(|q| q.worst_case_rounds());
+        let (study, solver, store, index, planned) =
+            planned_and_index(&args.common, &Options::default(), true)?;
+        let rounds = study.question().and_then(|q| q.worst_case_rounds());
+        let opened = (&study, &solver, &store, &index, planned.as_slice());
         let sent = submit_ready(args, scheduler, &site, opened)?;
         let mut reply = Reply::default();
         if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
@@ -63,21 +64,45 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
         }
         return Ok(reply);
     };
-    let study = read_study(&args.common.study)?;
-    let store = open_store(&args.common, &study, true)?;
+    follow_to_the_end(args, scheduler, &site, most)
+}
+
+/// `submit --follow`: round after round (or the whole study in one job), waiting for each, until
+/// nothing is left to submit; then the answers, tables, figures and report.
+fn follow_to_the_end(
+    args: &SubmitArgs,
+    scheduler: Scheduler,
+    site: &Site,
+    most: Duration,
+) -> Result<Reply, Failure> {
+    let (study, solver, store) = opened(&args.common, true)?;
+    let options = Options::default();
+    let asked = crate::kinds::Asked {
+        study: &study,
+        solver: &solver,
+        store: &store,
+        options: &options,
+    };
     let (mut rounds, mut waited) = (0, Waited::default());
     let started = std::time::Instant::now();
-    loop {
+    // Each round's plan replays every search from the stored records, and the plan that finds
+    // nothing left to submit holds the answers: they are not replayed again (3 s of the map's).
+    let (answered, planned) = loop {
         let wait = follow::wait_for_jobs(&store, scheduler, most, &mut say)?;
         waited.questions += wait.questions;
         waited.seconds += wait.seconds;
-        let opened = plan()?;
-        if give_up_on_lost(&opened, scheduler, args.resubmit)? > 0 {
+        let index = index_of(&store);
+        let (answered, planned) = match crate::kinds::answer(asked, &mut |_| Ok(false))? {
+            Some(answers) => answers,
+            None => (None, plan(&study, &solver, &index, &options)?),
+        };
+        let opened = (&study, &solver, &store, &index, planned.as_slice());
+        if give_up_on_lost(opened, scheduler, args.resubmit)? > 0 {
             continue; // planned again: a failed probe is an answer of its search
         }
-        let sent = submit_ready(args, scheduler, &site, opened)?;
+        let sent = submit_ready(args, scheduler, site, opened)?;
         if sent.jobs == 0 && sent.held == 0 {
-            break;
+            break (answered, planned);
         }
         if sent.jobs > 0 {
             rounds += 1;
@@ -96,7 +121,7 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
                 sent.jobs, sent.points
             ));
         }
-    }
+    };
     let submitted = match args.whole {
         true if rounds == 1 => "1 job of the whole study".to_string(),
         true => format!("{rounds} jobs of the whole study (resubmitted)"),
@@ -114,7 +139,13 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
         true => args.resources.nodes.is_some_and(|n| n.get() > 1),
         false => rounds > 0,
     };
-    answer(reply, plan()?, args.allow_mixed || spanned)
+    let allow_mixed = args.allow_mixed || spanned;
+    answer(
+        reply,
+        (&study, &store, &planned),
+        answered.as_deref(),
+        allow_mixed,
+    )
 }
 
 /// How long the rounds left may take, from the rounds done (`elapsed` since the first was
@@ -147,7 +178,8 @@ fn what_happens_next(args: &SubmitArgs, rounds: usize, sent: Sent) -> String {
     }
 }
 
-type Opened = (Study, Nlsolve, Store, Index, Vec<Planned>);
+/// A study opened and planned: its solver, store, the store's index and the plan.
+type Opened<'a> = (&'a Study, &'a Nlsolve, &'a Store, &'a Index, &'a [Planned]);
 
 /// The longest pause between two questions to the scheduler, from `--poll`.
 fn poll(seconds: f64) -> Result<Duration, Failure> {
@@ -166,7 +198,7 @@ fn submit_ready(
     site: &Site,
     (study, solver, store, index, planned): Opened,
 ) -> Result<Sent, Failure> {
-    if let Some(warning) = no_refusals(&planned, args.allow_refused)? {
+    if let Some(warning) = no_refusals(planned, args.allow_refused)? {
         log::warn!("{warning}");
     }
     let explicit = study.resources.overridden_by(&args.resources);
@@ -186,7 +218,7 @@ fn submit_ready(
         allow_mixed: args.allow_mixed,
     };
     Ok(submit::submit_study(
-        &study, &solver, &planned, &store, &index, &target, &mut say,
+        study, solver, planned, store, index, &target, &mut say,
     )?)
 }
 
@@ -194,26 +226,15 @@ fn submit_ready(
 /// `run` makes them, said after `reply`; exit 1 when a point is stored failed.
 fn answer(
     mut reply: Reply,
-    (study, solver, store, _, planned): Opened,
+    (study, store, planned): (&Study, &Store, &[Planned]),
+    answered: Option<&dyn crate::kinds::Found>,
     allow_mixed: bool,
 ) -> Result<Reply, Failure> {
-    let options = Options::default();
-    let asked = crate::kinds::Asked {
-        study: &study,
-        solver: &solver,
-        store: &store,
-        options: &options,
-    };
-    let (answered, planned) = match crate::kinds::answer(asked, &mut |_| Ok(false))? {
-        Some(answers) => answers,
-        None => (None, planned),
-    };
     let ending = Ending {
         collect: true,
         allow_mixed,
     };
-    let answered = answered.as_deref();
-    if let Err(failure) = conclude(&mut reply, &study, &store, &planned, answered, ending) {
+    if let Err(failure) = conclude(&mut reply, study, store, planned, answered, ending) {
         return Ok(failure.after(reply));
     }
     let failed = planned
@@ -228,7 +249,7 @@ fn answer(
 /// Stores failed the points whose jobs ended without their records more than `resubmit` times,
 /// with what the scheduler says of those jobs; returns how many.
 fn give_up_on_lost(
-    (_, solver, store, _, planned): &Opened,
+    (_, solver, store, _, planned): Opened,
     scheduler: Scheduler,
     resubmit: usize,
 ) -> Result<usize, Failure> {

@@ -56,6 +56,22 @@ pub struct RunTimeline {
     pub events: Vec<Event>,
 }
 
+impl RunTimeline {
+    /// The run's batches, (begin, end), by their begin.
+    pub fn batches(&self) -> Vec<(f64, f64)> {
+        let mut batches: Vec<(f64, f64)> = self
+            .events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Batch { begin, end } => Some((*begin, *end)),
+                _ => None,
+            })
+            .collect();
+        batches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        batches
+    }
+}
+
 /// Where a study's timelines are.
 fn dir(store: &Store) -> PathBuf {
     store.table("timeline")
