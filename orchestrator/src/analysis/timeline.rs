@@ -77,7 +77,7 @@ pub struct Timeline {
 }
 
 impl Timeline {
-    /// The spans of `run`'s events; `None` for a run that finished no batch.
+    /// The spans of `run`'s events; `None` for a run that finished no batch or ran no case.
     pub fn of(run: &RunTimeline) -> Option<Timeline> {
         let batches = run.batches();
         let (begin, end) = (batches.first()?.0, batches.last()?.1);
@@ -110,6 +110,9 @@ impl Timeline {
                     spans.extend(case_spans(lane_of(node, *lane), event));
                 }
             }
+        }
+        if cases == 0 {
+            return None;
         }
         let mut order: Vec<usize> = (0..lanes.len()).collect();
         order.sort_by(|&a, &b| lanes[a].cmp(&lanes[b]));

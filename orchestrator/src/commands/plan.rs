@@ -96,12 +96,8 @@ fn simulate(args: &PlanCommandArgs, shapes: &[String]) -> Result<Reply, Failure>
         .map_err(Failure::BadInput)?;
     let study = read_study(&args.plan.common.study)?;
     let store = open_store(&args.plan.common, &study, false)?;
-    let runs = crate::store::timeline::runs(&store);
-    let Some((run, measured)) = runs
-        .iter()
-        .rev()
-        .find_map(|run| Some((run, Measured::of(run)?)))
-    else {
+    let (_, runs) = crate::store::timeline::latest(&store, 1);
+    let Some((run, measured)) = runs.iter().find_map(|run| Some((run, Measured::of(run)?))) else {
         return Err(Failure::BadInput(format!(
             "--simulate: study {} has no timeline yet; `nlstudy run` it (or a smaller sweep of it) once, and the prediction replays that run",
             study.name

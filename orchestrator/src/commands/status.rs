@@ -34,23 +34,21 @@ pub(super) fn status(args: &StatusArgs) -> Result<Reply, Failure> {
 fn timeline(args: &StatusArgs) -> Result<Reply, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, false)?;
-    let runs: Vec<Timeline> = crate::store::timeline::runs(&store)
-        .iter()
-        .filter_map(Timeline::of)
-        .collect();
+    let (all, read) = crate::store::timeline::latest(&store, RUNS_SHOWN);
+    let runs: Vec<Timeline> = read.iter().filter_map(Timeline::of).collect();
     let mut reply = Reply::default();
     if runs.is_empty() {
         reply.line(format!(
-            "no timeline of study {}: `nlstudy run` records one for each run",
+            "no timeline of study {}: `nlstudy run` records one for each run that runs a case",
             study.name
         ));
         return Ok(reply);
     }
-    let skipped = runs.len().saturating_sub(RUNS_SHOWN);
+    let skipped = all.saturating_sub(RUNS_SHOWN);
     if skipped > 0 {
         reply.line(format!("({skipped} earlier runs not shown)"));
     }
-    for run in &runs[skipped..] {
+    for run in &runs {
         reply.line(crate::output::timeline::table(run).join("\n"));
     }
     if let Some((path, _)) = crate::output::timeline::write_latest(&store)? {

@@ -116,8 +116,8 @@ pub fn chart(timeline: &Timeline) -> Gantt {
 /// Draws the study's latest run's timeline into `results/<study>/timeline.svg`; `None` when
 /// no run left one.
 pub fn write_latest(store: &Store) -> Result<Option<(PathBuf, String)>, Fault> {
-    let runs = crate::store::timeline::runs(store);
-    let Some(timeline) = runs.iter().rev().find_map(Timeline::of) else {
+    let (_, runs) = crate::store::timeline::latest(store, 1);
+    let Some(timeline) = runs.iter().find_map(Timeline::of) else {
         return Ok(None);
     };
     let svg = gantt::render(&chart(&timeline)).map_err(Fault::Io)?;

@@ -5,7 +5,8 @@
 //! ever ran side by side there.
 //!
 //! The timeline is a diagnosis, not a result: a failure to write it is said once and the run
-//! goes on without it.
+//! goes on without it. Its file is made when the first case starts, so a run that finds
+//! everything stored leaves none (and `status --timeline` still shows the run that worked).
 
 use crate::store::timeline::{Event, Phases, Writer};
 use crate::store::{FileError, Store};
@@ -24,9 +25,12 @@ struct Lane {
     free_since: f64,
 }
 
-/// A run's timeline as its pool goes (`None` writer: not recorded, as for `compare`'s runs).
+/// A run's timeline as its pool goes (neither a file to make nor a writer: not recorded, as for
+/// `compare`'s runs).
 #[derive(Default)]
 pub struct Timeline {
+    /// The folder and run id of the file, until the first case makes it.
+    file: Option<(std::path::PathBuf, String)>,
     writer: Option<Writer>,
     node_names: Vec<String>,
     lanes: Vec<Lane>,
@@ -42,14 +46,11 @@ pub struct OnLane {
 }
 
 impl Timeline {
-    /// Records into `results/<study>/timeline/<run_id>.jsonl`; where it cannot be created the
-    /// run goes on unrecorded, with a warning.
+    /// Records into `results/<study>/timeline/<run_id>.jsonl`, made when the first case starts;
+    /// where it cannot be made the run goes on unrecorded, with a warning.
     pub fn recorded(store: &Store, run_id: &str) -> Timeline {
-        let writer = Writer::create(store, run_id)
-            .inspect_err(|e| log::warn!("no timeline of this run: {e}"))
-            .ok();
         Timeline {
-            writer,
+            file: Some((crate::store::timeline::dir(store), run_id.to_string())),
             ..Timeline::default()
         }
     }
@@ -66,6 +67,11 @@ impl Timeline {
     /// Takes the lowest free lane of `node` for a case starting now (`fresh`: on a worker or
     /// process started for it); its idle span since it was last free is recorded.
     pub fn take(&mut self, node: usize, fresh: bool) -> OnLane {
+        if let Some((dir, run_id)) = self.file.take() {
+            self.writer = Writer::create(&dir, &run_id)
+                .inspect_err(|e| log::warn!("no timeline of this run: {e}"))
+                .ok();
+        }
         let started = now_s();
         let free = self.lanes.iter().position(|l| l.node == node && !l.busy);
         let lane = free.unwrap_or_else(|| {

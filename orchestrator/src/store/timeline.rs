@@ -73,7 +73,7 @@ impl RunTimeline {
 }
 
 /// Where a study's timelines are.
-fn dir(store: &Store) -> PathBuf {
+pub fn dir(store: &Store) -> PathBuf {
     store.table("timeline")
 }
 
@@ -84,10 +84,10 @@ pub struct Writer {
 }
 
 impl Writer {
-    /// A new timeline file for the run `run_id` (unique: host, start and process id).
-    pub fn create(store: &Store, run_id: &str) -> Result<Writer, FileError> {
-        let dir = dir(store);
-        create_dir(&dir)?;
+    /// A new timeline file in `dir` (a study's, `dir`) for the run `run_id` (unique: host,
+    /// start and process id).
+    pub fn create(dir: &std::path::Path, run_id: &str) -> Result<Writer, FileError> {
+        create_dir(dir)?;
         let path = dir.join(format!("{run_id}.jsonl"));
         // O_CREAT | O_EXCL: never through a link, never over a file already there.
         let file = std::fs::File::options()
@@ -115,14 +115,14 @@ impl Writer {
 /// The largest timeline read: about 400 bytes an event, a million events.
 const TIMELINE_CAP: u64 = 512 << 20;
 
-/// The study's run timelines, oldest first (by name: a run id starts with its host, so by
-/// start within a host), each with the events that parse; files that cannot be read are
-/// skipped with a warning.
-pub fn runs(store: &Store) -> Vec<RunTimeline> {
+/// The study's latest `last` run timelines, oldest first (by the start in their names, so across
+/// hosts), each with the events that parse, and how many runs left timelines in all. Only those
+/// are read: each run of a study adds one. Files that cannot be read are skipped with a warning.
+pub fn latest(store: &Store, last: usize) -> (usize, Vec<RunTimeline>) {
     let Ok(entries) = std::fs::read_dir(dir(store)) else {
-        return Vec::new();
+        return (0, Vec::new());
     };
-    let mut runs: Vec<RunTimeline> = entries
+    let mut names: Vec<(std::path::PathBuf, String)> = entries
         .flatten()
         .filter_map(|entry| {
             let name = entry
@@ -130,22 +130,28 @@ pub fn runs(store: &Store) -> Vec<RunTimeline> {
                 .to_str()?
                 .strip_suffix(".jsonl")?
                 .to_string();
-            let text = match read_regular(&entry.path(), TIMELINE_CAP) {
-                Ok(text) => text,
-                Err(e) => {
-                    log::warn!("the timeline {} is not read: {e}", entry.path().display());
-                    return None;
-                }
-            };
+            Some((entry.path(), name))
+        })
+        .collect();
+    names.sort_by_key(|(_, name)| started_ns(name));
+    let all = names.len();
+    let runs = names[all.saturating_sub(last)..]
+        .iter()
+        .filter_map(|(path, name)| {
+            let text = read_regular(path, TIMELINE_CAP)
+                .inspect_err(|e| log::warn!("the timeline {} is not read: {e}", path.display()))
+                .ok()?;
             let events = text
                 .lines()
                 .filter_map(|line| serde_json::from_str(line).ok())
                 .collect();
-            Some(RunTimeline { run: name, events })
+            Some(RunTimeline {
+                run: name.clone(),
+                events,
+            })
         })
         .collect();
-    runs.sort_by_key(|run| started_ns(&run.run));
-    runs
+    (all, runs)
 }
 
 /// A run id's start in nanoseconds (`<host>-<start>-<pid>`), for ordering runs of any host.
@@ -163,7 +169,7 @@ mod tests {
     fn events_written_are_read_back_and_a_torn_last_line_is_skipped() {
         let scratch = tempfile::tempdir().unwrap();
         let store = Store::open(scratch.path(), "s");
-        let mut writer = Writer::create(&store, "host-200-7").unwrap();
+        let mut writer = Writer::create(&dir(&store), "host-200-7").unwrap();
         let case = Event::Case {
             node: "n1".into(),
             lane: 0,
@@ -190,13 +196,18 @@ mod tests {
         let mut text = std::fs::read_to_string(&path).unwrap();
         text.push_str("{\"event\":\"idle\",\"node\":");
         std::fs::write(&path, text).unwrap();
-        Writer::create(&store, "other-100-9").unwrap();
-        let runs = runs(&store);
-        assert_eq!(runs.len(), 2);
+        Writer::create(&dir(&store), "other-100-9").unwrap();
+        let (all, runs) = latest(&store, 2);
+        assert_eq!((all, runs.len()), (2, 2));
+        assert_eq!(
+            latest(&store, 1).1[0].run,
+            "host-200-7",
+            "only the latest read"
+        );
         assert_eq!(runs[0].run, "other-100-9", "the earlier start first");
         assert_eq!(runs[1].events, vec![case, batch]);
         assert!(
-            Writer::create(&store, "host-200-7").is_err(),
+            Writer::create(&dir(&store), "host-200-7").is_err(),
             "never over a file already there"
         );
     }
