@@ -174,11 +174,6 @@ impl Timeline {
         }
         totals
     }
-
-    /// The share of `lane`'s wall time its spans account for.
-    pub fn accounted(&self, lane: usize) -> f64 {
-        self.totals(lane).iter().sum::<f64>() / self.walls[lane]
-    }
 }
 
 /// A case's span split into its phases, in the order they happened.
@@ -233,6 +228,11 @@ mod tests {
     use super::*;
     use crate::store::timeline::Phases;
 
+    /// The share of `lane`'s wall time its spans account for.
+    fn accounted(timeline: &Timeline, lane: usize) -> f64 {
+        timeline.totals(lane).iter().sum::<f64>() / timeline.walls[lane]
+    }
+
     fn case(lane: usize, started: f64, fresh: bool, phases: Option<Phases>) -> Event {
         Event::Case {
             node: "n".into(),
@@ -250,10 +250,16 @@ mod tests {
     /// its second is handed off; a failed case is unrecorded; idle spans as recorded.
     #[test]
     fn a_lanes_wall_time_splits_into_its_phases() {
-        let phases = Some(Phases {
+        let solved = Phases {
             setup_s: 0.25,
             solve_s: 0.5,
             wall_s: 0.875,
+        };
+        let phases = Some(solved);
+        // A worker that was up takes a quarter second to hand the case over.
+        let handed_off = Some(Phases {
+            wall_s: 0.75,
+            ..solved
         });
         let run = RunTimeline {
             run: "h-1-1".into(),
@@ -282,7 +288,7 @@ mod tests {
                     from: 12.0,
                     to: 12.25,
                 },
-                case(0, 12.25, false, phases),
+                case(0, 12.25, false, handed_off),
                 Event::Batch {
                     begin: 12.0,
                     end: 13.5,
@@ -295,18 +301,21 @@ mod tests {
         assert_eq!(timeline.walls, vec![3.5, 3.5]);
         let [starting, setup, solve, measuring, passing, unrecorded, idle, planning] =
             timeline.totals(0);
-        assert_eq!((starting, setup, solve, measuring), (0.125, 0.5, 1.0, 0.25));
+        assert_eq!(
+            (starting, setup, solve, measuring),
+            (0.125, 0.5, 1.0, 0.125)
+        );
         assert_eq!(
             (passing, unrecorded, idle, planning),
-            (0.125 + 0.25 + 0.25, 0.0, 0.5, 0.5)
+            (0.25 + 0.25 + 0.25, 0.0, 0.5, 0.5)
         );
-        assert_eq!(timeline.accounted(0), 1.0);
+        assert_eq!(accounted(&timeline, 0), 1.0);
         let lane1 = timeline.totals(1);
         assert_eq!(lane1[5], 1.25, "the failed case's span");
         assert_eq!(lane1[6], 0.25);
         assert_eq!(lane1[7], 0.5);
         assert_eq!(
-            timeline.accounted(1),
+            accounted(&timeline, 1),
             2.0 / 3.5,
             "its second batch was not recorded"
         );

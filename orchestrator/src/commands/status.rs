@@ -51,7 +51,9 @@ fn timeline(args: &StatusArgs) -> Result<Reply, Failure> {
     for run in &runs {
         reply.line(crate::output::timeline::table(run).join("\n"));
     }
-    if let Some((path, _)) = crate::output::timeline::write_latest(&store)? {
+    // The latest, read above: drawn without reading it again.
+    if let Some(latest) = runs.last() {
+        let (path, _) = crate::output::timeline::write(&store, latest)?;
         reply.note(format!("timeline: {}", path.display()));
     }
     Ok(reply)

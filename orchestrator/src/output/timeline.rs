@@ -59,27 +59,19 @@ pub fn table(timeline: &Timeline) -> Vec<String> {
     }
     header.push_str("  accounted");
     lines.push(header);
+    let mut busy = 0.0;
     for (lane, label) in labels.iter().enumerate() {
         let totals = timeline.totals(lane);
         let mut line = format!("  {label:width$}  {:>8.2}", timeline.walls[lane]);
         for (phase, seconds) in Phase::ALL.iter().zip(totals) {
             line.push_str(&format!("  {seconds:>w$.2}", w = phase.name().len().max(6)));
+            busy += if phase.busy() { seconds } else { 0.0 };
         }
-        line.push_str(&format!("  {:>8.1} %", 100.0 * timeline.accounted(lane)));
+        let accounted = totals.iter().sum::<f64>() / timeline.walls[lane];
+        line.push_str(&format!("  {:>8.1} %", 100.0 * accounted));
         lines.push(line);
     }
     let wall: f64 = timeline.walls.iter().sum();
-    let busy: f64 = (0..timeline.lanes.len())
-        .map(|lane| {
-            let totals = timeline.totals(lane);
-            Phase::ALL
-                .iter()
-                .zip(totals)
-                .filter(|(p, _)| p.busy())
-                .map(|(_, s)| s)
-                .sum::<f64>()
-        })
-        .sum();
     lines.push(format!(
         "  busy {:.1} % of the lanes' wall time (the rest idle or between rounds)",
         100.0 * busy / wall.max(f64::MIN_POSITIVE)
@@ -117,11 +109,16 @@ pub fn chart(timeline: &Timeline) -> Gantt {
 /// no run left one.
 pub fn write_latest(store: &Store) -> Result<Option<(PathBuf, String)>, Fault> {
     let (_, runs) = crate::store::timeline::latest(store, 1);
-    let Some(timeline) = runs.iter().find_map(Timeline::of) else {
-        return Ok(None);
-    };
-    let svg = gantt::render(&chart(&timeline)).map_err(Fault::Io)?;
+    match runs.iter().find_map(Timeline::of) {
+        Some(timeline) => write(store, &timeline).map(Some),
+        None => Ok(None),
+    }
+}
+
+/// Draws `timeline` into `results/<study>/timeline.svg`; returns its path and text.
+pub fn write(store: &Store, timeline: &Timeline) -> Result<(PathBuf, String), Fault> {
+    let svg = gantt::render(&chart(timeline)).map_err(Fault::Io)?;
     let path = store.table("timeline.svg");
     write_atomically(&path, svg.as_bytes())?;
-    Ok(Some((path, svg)))
+    Ok((path, svg))
 }

@@ -151,19 +151,8 @@ pub fn run(
     stop: &Stop,
     progress: &mut Progress,
 ) -> Result<Tally, FileError> {
-    let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
-    // Cases one after another gain nothing from it, and in a job with a time limit the short
-    // ones would wait behind a long one that may not finish.
-    if let Some(costs) = costs.filter(|c| options.side_by_side() && c.len() == planned.len()) {
-        // Equal costs in key order, which is no order of the study's: the probes of one
-        // operator (a search's, its integrators') cost the same and stand together in the
-        // plan, and side by side they would wait for one another's spectrum (the first round
-        // of the stability map on two workers took as long as on one).
-        order.sort_by(|&a, &b| {
-            let by_key = || planned[a].key.cmp(&planned[b].key);
-            costs[b].total_cmp(&costs[a]).then_with(by_key)
-        });
-    }
+    let costs = costs.filter(|c| options.side_by_side() && c.len() == planned.len());
+    let order = queue_order(planned, costs);
     let mut running: Vec<Running> = Vec::new();
     let mut pool = Pool {
         planned,
@@ -198,6 +187,25 @@ pub fn run(
     }
     pool.workers.timeline.end_batch();
     outcome.map(|()| pool.tally)
+}
+
+/// The order the planned points that run start in: the costliest first where `costs` are
+/// given (cases side by side), else plan order. Cases one after another gain nothing from it,
+/// and in a job with a time limit the short ones would wait behind a long one that may not
+/// finish.
+fn queue_order(planned: &[Planned], costs: Option<&[f64]>) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..planned.len()).filter(|&i| planned[i].runs()).collect();
+    if let Some(costs) = costs {
+        // Equal costs in key order, which is no order of the study's: the probes of one
+        // operator (a search's, its integrators') cost the same and stand together in the
+        // plan, and side by side they would wait for one another's spectrum (the first round
+        // of the stability map on two workers took as long as on one).
+        order.sort_by(|&a, &b| {
+            let by_key = || planned[a].key.cmp(&planned[b].key);
+            costs[b].total_cmp(&costs[a]).then_with(by_key)
+        });
+    }
+    order
 }
 
 /// A pool's state while it runs one batch of points.
@@ -727,6 +735,40 @@ fn served_line(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The costliest first where costs are given, equal costs by key (not in plan order, where
+    /// one operator's probes stand together), points that do not run left out; plan order
+    /// without costs.
+    #[test]
+    fn points_start_costliest_first_and_equal_costs_by_key() {
+        let point = |n: u64, runs: bool| {
+            let fields = serde_json::json!({"dim": 1, "n": n, "m": 2});
+            Planned {
+                point: crate::model::study::Point::from_fields(fields.as_object().unwrap().clone()),
+                case: Err("not checked".into()),
+                key: crate::store::case_id_and_key(&fields.to_string(), "", 0).1,
+                case_id: Default::default(),
+                decision: match runs {
+                    true => Decision::Run(Reason::Missing),
+                    false => Decision::Duplicate,
+                },
+            }
+        };
+        let planned: Vec<Planned> = (0..6).map(|k| point(16 + k, k != 5)).collect();
+        let costs = [1.0, 5.0, 5.0, 1.0, 5.0, 9.0];
+        assert_eq!(queue_order(&planned, None), vec![0, 1, 2, 3, 4]);
+        let order = queue_order(&planned, Some(&costs));
+        let mut dear = [1, 2, 4];
+        dear.sort_by_key(|&k| planned[k].key);
+        let mut cheap = [0, 3];
+        cheap.sort_by_key(|&k| planned[k].key);
+        assert_eq!(order, [dear.to_vec(), cheap.to_vec()].concat());
+        assert_ne!(
+            dear,
+            [1, 2, 4],
+            "the keys are not in plan order: the test tells them apart"
+        );
+    }
 
     /// Cases go where their cores fit: several on a node within its cores and the budget, one
     /// a node when the study times its runs, and one larger than any room alone.
