@@ -62,12 +62,11 @@ impl AdaptiveKind for Target {
 /// How many times an answer's timing run found noisy runs again.
 const NOISY_RERUNS: usize = 2;
 
-/// Each candidate's answer timed after the searches, where its cost is a timing or the study
-/// asks for repeats: the study's `repeat` runs of its probe (as repeats 1, 2, …: the probe
+/// Each candidate's answer timed after the searches, where its cost is a timing: the study's `repeat` runs of its probe (as repeats 1, 2, …: the probe
 /// itself, repeat 0, ran beside the search's other probes), each alone on the machine (a round
 /// of one); a run timed on a busy machine (`noisy`) runs again, `NOISY_RERUNS` times at most,
 /// where `run_round` runs it.
-/// The answer's cost over them goes to the ranking; a count asked once is the probe's own.
+/// The answer's cost over them goes to the ranking; a count is the probe's own, never repeated.
 /// Returns whether every run finished (false: interrupted) and the runs planned.
 fn time_answers(
     Asked {
@@ -80,9 +79,10 @@ fn time_answers(
     searched: &mut [Searched<Aimed>],
     run_round: &mut RunRound,
 ) -> Result<(bool, Vec<Planned>), Fault> {
-    let repeats = match (study.repeat, spec.cost_is_timed()) {
-        (0 | 1, false) => 0,
-        (repeats, _) => repeats.max(1),
+    // A count (`bond_evaluations`, `steps_done`) is the same every time: the probe's own.
+    let repeats = match spec.cost_is_timed() {
+        false => 0,
+        true => study.repeat.max(1),
     };
     let mut points: Vec<(usize, Point)> = Vec::new();
     for (k, s) in searched.iter_mut().enumerate() {

@@ -8,9 +8,11 @@
 //! coarsest that met it to a relative tolerance. In space and time (`field` and `time`): the
 //! runs' errors and costs fitted as e ≈ C·h^p + D·dt^q + F (or |C·h^p − D·dt^q| where the parts
 //! cancel) and K·h^−a·dt^−b (`fit`), the cheapest (h, dt) whose parts at their worst are within
-//! the target by `MARGIN` predicted, verified by a run, and the model fitted again until its
-//! prediction is no cheaper than a run that met the target, or lies within the tolerance of one
-//! in both fields. A run that meets the target only by its parts cancelling is no answer.
+//! the target by a margin (the fit's own leave-one-out spread) predicted, verified by a run, and
+//! the model fitted again until its prediction is no cheaper than a run that met the target, or
+//! lies within the tolerance of one in both fields; then the cheaper neighbours of the cheapest
+//! run that met it (`neighbours`), so that the answer is the cheapest run, not the model's. A run
+//! that meets the target only by its parts cancelling is no answer.
 //!
 //! Either way an explicit step is never run where it is unstable: the solver's check refuses
 //! it before it runs (`Adaptive::absorbs`), a search in space and time keeps below the stable
@@ -19,7 +21,9 @@
 //! falling (three levels within 10 % of each other) ends the candidate as unreachable, naming
 //! the floor and what the search does not refine.
 
+mod axes;
 mod fit;
+mod neighbours;
 
 use crate::model::adaptive::{
     check_start, core_seconds, counts_nodes, positive, ran, refused_for_its_step, Adaptive, Lookup,
@@ -28,6 +32,7 @@ use crate::model::adaptive::{
 use schema::record::{Status, Stored};
 use serde::Deserialize;
 
+use axes::Axes;
 pub use fit::ErrorModel;
 
 /// The smallest error a target may ask for: a few hundred ulps of an O(1) solution, the
@@ -92,9 +97,16 @@ const STEPS: [&str; 2] = ["dt", "cfl"];
 pub const CORE_SECONDS: &str = "core_seconds";
 pub const BOND_EVALUATIONS: &str = "bond_evaluations";
 
-/// How far inside the target the model aims, in space and time, until a run has met it: its
-/// error at most below/MARGIN.
-const MARGIN: f64 = 1.25;
+/// How far inside the target the model aims, in space and time, until a run has met it, while
+/// the fit has too few runs (four) to tell its own spread: its error at most below/1.25. With
+/// them, the margin is the fit's leave-one-out spread (`TargetSpec::margin`), at most
+/// `MOST_MARGIN`.
+const PRIOR_MARGIN: f64 = 1.25;
+const MOST_MARGIN: f64 = 2.0;
+
+/// How far a run's modelled parts, each at its worst, may lie above the target for the run to
+/// count as meeting it: beyond, it meets only by its parts cancelling.
+const CANCELLING: f64 = 1.25;
 
 /// A level run: its values of the fields, its error and cost, and what the models read of its
 /// record.
@@ -516,36 +528,11 @@ impl TargetSpec {
         };
         let [s0, t0] = [self.start, time.start];
         // A start found unstable: halve its step until one runs.
-        let Some(first) = aimed.levels.first() else {
+        let Some(axes) = Axes::of(self, aimed) else {
             let finest = (aimed.unstable.iter().map(|p| p[1])).fold(t0, f64::min);
             return Ok(vec![s0, finest / 2.0]);
         };
-        let fitted = fit::stable_step(
-            &(aimed.levels.iter())
-                .filter_map(|l| Some((l.h, l.stable?)))
-                .collect::<Vec<_>>(),
-        );
-        // A step the solver refused (or that diverged) lies above the stable one, whatever the
-        // fit says: the fit lowered to keep 2 % below each.
-        let h_of = |value: f64| first.h * self.fineness(s0) / self.fineness(value);
-        let lowered = match (&fitted, time.field.as_str()) {
-            (Some(fitted), "dt") => (aimed.unstable.iter())
-                .map(|p| p[1] / fitted(h_of(p[0])) * 0.98)
-                .fold(1.0, f64::min),
-            _ => 1.0,
-        };
-        let stable = fitted.map(|fitted| move |h: f64| fitted(h) * lowered);
-        // The temporal field's value of a step dt at spacing h, and the step of a value.
-        let step_of = |value: f64, h: f64| match (time.field.as_str(), &stable) {
-            ("cfl", Some(stable)) => value * stable(h),
-            ("cfl", None) => value * first.dt / time.start.max(f64::MIN_POSITIVE),
-            _ => value,
-        };
-        let value_of_step = |dt: f64, h: f64| match (time.field.as_str(), &stable) {
-            ("cfl", Some(stable)) => dt / stable(h),
-            ("cfl", None) => dt / first.dt * time.start,
-            _ => dt,
-        };
+        let first = &aimed.levels[0];
         let t_start = aimed.levels[0].time.unwrap_or(t0);
         // The exploration: a level finer in space (at the start's step, or the stable step of
         // the finer grid where an explicit integrator cannot take it: found from the start's
@@ -556,10 +543,10 @@ impl TargetSpec {
             .chain(aimed.unstable.iter().map(|p| p[0]))
             .any(|value| value == s1);
         if !explored {
-            let h1 = h_of(s1);
-            let step = match &stable {
-                Some(stable) if step_of(t_start, h1) > stable(h1) => {
-                    value_of_step(stable(h1) * 0.9, h1)
+            let h1 = axes.h(s1);
+            let step = match axes.stable(h1) {
+                Some(stable) if axes.step(t_start, h1) > stable => {
+                    axes.value_of_step(stable * 0.9, h1)
                 }
                 _ => t_start,
             };
@@ -577,7 +564,8 @@ impl TargetSpec {
             .collect();
         aimed.model = Some(model);
         let cost = fit::cost_model(&points, first.dim).ok_or(Reached::Budget)?;
-        if model.floor > self.below / MARGIN && self.floor_seen(aimed) {
+        let margin = self.margin(&model);
+        if model.floor > self.below / margin && self.floor_seen(aimed) {
             return Err(Reached::Unreachable {
                 floor: model.floor,
                 from: "neither the grid nor the step (round-off, or the method's own)".into(),
@@ -589,7 +577,7 @@ impl TargetSpec {
         let met = meeting.iter().any(|&meets| meets);
         let aim = match met {
             true => self.below / (1.0 + self.rtol / 4.0),
-            false => self.below / MARGIN,
+            false => self.below / margin,
         };
         // The cheapest (h, dt) of the model within the aim: for each h on a fine log grid, the
         // largest dt its temporal part allows (capped by the stable step, and by t_end: one
@@ -612,8 +600,8 @@ impl TargetSpec {
                 true => (temporal / model.d).powf(1.0 / model.q),
                 false => f64::INFINITY,
             };
-            if let Some(stable) = &stable {
-                dt = dt.min(stable(h) * (1.0 - 1e-9));
+            if let Some(stable) = axes.stable(h) {
+                dt = dt.min(stable * (1.0 - 1e-9));
             }
             let dt = dt.min(first.t_end);
             let predicted = cost.cost(h, dt);
@@ -645,25 +633,29 @@ impl TargetSpec {
             false => spatial,
         };
         // The grid as rounded (a whole n is finer than the model's h): its step capped again.
-        let h = h_of(spatial);
-        let dt = match &stable {
-            Some(stable) => dt.min(stable(h) * (1.0 - 1e-9)),
+        let h = axes.h(spatial);
+        let dt = match axes.stable(h) {
+            Some(stable) => dt.min(stable * (1.0 - 1e-9)),
             None => dt,
         };
-        let probe = vec![spatial, value_of_step(whole_steps(dt, first.t_end), h)];
+        let probe = vec![spatial, axes.value_of_step(whole_steps(dt, first.t_end), h)];
         if let Some(cheapest) = cheapest {
             let near = |a: f64, b: f64| (a / b - 1.0).abs() <= self.rtol;
             let close =
                 near(probe[0], cheapest.value) && near(probe[1], cheapest.time.unwrap_or(probe[1]));
             if close || predicted >= modelled(cheapest) * (1.0 - self.rtol) {
-                return Err(Reached::Found);
+                return self
+                    .cheaper_neighbour(aimed, &model, &axes, margin)
+                    .ok_or(Reached::Found);
             }
         }
         if ran(&probe) {
-            // The model predicts a run already made: with one that met, it cannot do better;
-            // without, finer in both, by the tolerance.
+            // The model predicts a run already made: with one that met, it cannot do better
+            // than the runs beside it; without, finer in both, by the tolerance.
             if met {
-                return Err(Reached::Found);
+                return self
+                    .cheaper_neighbour(aimed, &model, &axes, margin)
+                    .ok_or(Reached::Found);
             }
             let step = 1.0 + 2.0 * self.rtol;
             return Ok(vec![space(step, probe[0]), probe[1] / step]);
@@ -672,12 +664,21 @@ impl TargetSpec {
     }
 
     /// Whether a level meets the target: its error at most `below`, and in space and time the
-    /// model's parts, each at its worst, within `MARGIN` of it. A run far below its parts meets
+    /// model's parts, each at its worst, within `CANCELLING` of it. A run far below its parts meets
     /// the target by their cancelling, a coincidence of the problem that a finer grid or a
     /// smaller step does not keep: no answer to bet on.
     fn meets(&self, level: &Level, model: Option<&ErrorModel>) -> bool {
         level.error <= self.below
-            && model.is_none_or(|m| m.error(level.h, level.dt) <= self.below * MARGIN)
+            && model.is_none_or(|m| m.error(level.h, level.dt) <= self.below * CANCELLING)
+    }
+
+    /// How far inside the target the model aims before a run has met it: what its predictions
+    /// missed runs they were not fitted to by (e^rms of the leave-one-out log ratios), at least
+    /// a quarter of `rtol`.
+    fn margin(&self, model: &ErrorModel) -> f64 {
+        (model.spread)
+            .map_or(PRIOR_MARGIN, f64::exp)
+            .clamp(1.0 + self.rtol / 4.0, MOST_MARGIN)
     }
 
     /// Whether a floor shows in the runs: the finest run in space and the finest in time each
