@@ -56,7 +56,11 @@ pub(super) fn plan(args: &PlanCommandArgs) -> Result<Reply, Failure> {
     // What an adaptive study's plan shows: the probes so far and the next round, and the most
     // runs its questions can take.
     if let Some(question) = study.question() {
-        let questions = study.expand().map_or(0, |points| points.len());
+        // A point's repeats are one question where it is searched once (an error target).
+        let one = question.one_search_per_point();
+        let questions = study.expand().map_or(0, |points| {
+            points.iter().filter(|p| !one || p.repeat == 0).count()
+        });
         let most = question.worst_case_probes();
         let rounds = question
             .worst_case_rounds()

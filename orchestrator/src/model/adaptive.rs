@@ -80,6 +80,7 @@ pub trait Kind: std::fmt::Debug + Send + Sync {
     fn field(&self) -> &str;
     fn worst_case_probes(&self) -> usize;
     fn worst_case_rounds(&self) -> Option<usize>;
+    fn one_search_per_point(&self) -> bool;
     fn as_any(&self) -> &dyn std::any::Any;
 }
 
@@ -110,6 +111,10 @@ impl<A: Adaptive + std::fmt::Debug + Send + Sync + 'static> Kind for A {
 
     fn worst_case_rounds(&self) -> Option<usize> {
         Adaptive::worst_case_rounds(self)
+    }
+
+    fn one_search_per_point(&self) -> bool {
+        A::ONE_SEARCH_PER_POINT
     }
 
     fn as_any(&self) -> &dyn std::any::Any {

@@ -22,6 +22,7 @@
 //! the floor and what the search does not refine.
 
 mod axes;
+mod erratic;
 mod fit;
 mod neighbours;
 
@@ -357,7 +358,8 @@ impl TargetSpec {
                 }
             }
             let next = match self.time {
-                None => self.next_along_one(&aimed),
+                None => (self.next_along_one(&aimed))
+                    .or_else(|reached| self.robust_along_one(&aimed, reached)),
                 Some(_) => self.next_in_space_and_time(&mut aimed),
             };
             match next {
@@ -716,11 +718,13 @@ impl Aimed {
         self.levels.len() + self.unstable.len() - self.refused
     }
 
-    /// The candidate's answer: along one field the coarsest level run that meets `below`; in
+    /// The candidate's answer: along one field the coarsest level run that meets `below` (where
+    /// the error is erratic, the coarsest whose finer runs all meet it: `Aimed::robust`); in
     /// space and time the cheapest that meets it by the runs' measured cost.
     pub fn answer(&self, spec: &TargetSpec) -> Option<Level> {
         let meeting = (self.levels.iter()).filter(|l| spec.meets(l, self.model.as_ref()));
         match spec.time {
+            None if self.erratic(spec).is_some() => self.robust(spec).cloned(),
             None => meeting
                 .min_by(|a, b| spec.fineness(a.value).total_cmp(&spec.fineness(b.value)))
                 .cloned(),
@@ -772,7 +776,6 @@ impl Adaptive for TargetSpec {
     const SEARCHES: &'static str = "candidates";
     const TABLE: &'static str = "target";
     const TITLE: &'static str = "The cheapest configuration for the error target";
-    // A target's search is bounded in runs, not in rounds: `worst_case_rounds` is unknown.
     const ONE_SEARCH_PER_POINT: bool = true;
 
     fn fields(&self) -> Vec<&str> {
@@ -783,6 +786,12 @@ impl Adaptive for TargetSpec {
 
     fn worst_case_probes(&self) -> usize {
         self.most_probes()
+    }
+
+    /// A round runs one probe of each candidate: as many rounds as probes, at most (then each
+    /// timed answer, alone).
+    fn worst_case_rounds(&self) -> Option<usize> {
+        Some(self.most_probes())
     }
 
     fn absorbs(&self, refusal: &str) -> bool {

@@ -37,8 +37,10 @@ pub fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String>
     for (ranked, s) in ranked.iter().zip(aimed) {
         let runs = s.outcome.runs();
         let label = s.origin.shown();
+        let erratic = (s.outcome.erratic(spec)).map_or(String::new(), |e| format!("; {e}"));
         let Some(r) = ranked else {
             let why = (s.outcome.reached.as_ref()).map_or_else(String::new, ToString::to_string);
+            let why = format!("{why}{erratic}");
             unanswered.push(format!("–. {label}: no answer: {why} ({runs} runs)"));
             continue;
         };
@@ -58,8 +60,8 @@ pub fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String>
         };
         // An answer not narrowed to the tolerance says why.
         let caveat = match &s.outcome.reached {
-            Some(Reached::Found) | None => String::new(),
-            Some(reached) => format!("; {reached}"),
+            Some(Reached::Found) | None => erratic,
+            Some(reached) => format!("; {reached}{erratic}"),
         };
         let line = format!(
             "{label}: {resolution}, error {}, {} {cost} ({runs} runs{caveat})",
@@ -72,7 +74,12 @@ pub fn target_lines(spec: &TargetSpec, aimed: &[Searched<Aimed>]) -> Vec<String>
         }
     }
     places.sort_by_key(|(rank, _, _)| *rank);
-    let mut said = vec![format!("to reach {} ≤ {}:", spec.error, number(spec.below))];
+    let mut said = vec![format!(
+        "to reach {} ≤ {} ({}):",
+        spec.error,
+        number(spec.below),
+        spec.cheapest_means()
+    )];
     for (rank, tied_to, lines) in places {
         match lines.as_slice() {
             [one] => said.push(format!("{rank}. {one}")),

@@ -100,7 +100,7 @@ impl TargetSpec {
                 let span = (far / here).ln();
                 guess.clamp(here * (0.25 * span).exp(), here * (0.75 * span).exp())
             }
-            // A walk whose last step along the line met goes on at up to the cube of that
+            // A walk whose last step along the line met goes on at up to the square of that
             // step (at most twice as coarse): there the runs have told more than the model.
             None => match finer_met {
                 Some((v, t)) => {
@@ -153,6 +153,29 @@ impl TargetSpec {
     /// How close in each field the walk narrows: a quarter of `rtol`.
     fn walk_tolerance(&self) -> f64 {
         self.rtol / 4.0
+    }
+
+    /// What "cheapest" means, as the answers say it: in space and time `the cheapest run to
+    /// within 2.5 % in each field` (the walk's tolerance); along one field `the coarsest n to
+    /// within 10 % or one node`.
+    pub fn cheapest_means(&self) -> String {
+        let percent = |tolerance: f64| schema::text::number(100.0 * tolerance);
+        match (&self.time, self.is_grid()) {
+            (Some(_), _) => format!(
+                "the cheapest run to within {} % in each field",
+                percent(self.walk_tolerance())
+            ),
+            (None, true) => format!(
+                "the coarsest {} to within {} % or one node",
+                self.field,
+                percent(self.rtol)
+            ),
+            (None, false) => format!(
+                "the coarsest {} to within {} %",
+                self.field,
+                percent(self.rtol)
+            ),
+        }
     }
 
     /// The probe `best` moved along the field to coarseness `c` (a spacing or a step): a whole n

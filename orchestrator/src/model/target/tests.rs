@@ -391,3 +391,75 @@ fn the_margin_is_the_fits_own_spread() {
     assert_eq!(spec.margin(&model(Some(0.0))), 1.0 + spec.rtol / 4.0);
     assert_eq!(spec.margin(&model(Some(5.0))), 2.0);
 }
+
+/// An error erratic in n (thirtyfold in a band of grids, as where ε/h crosses whole numbers at a
+/// fixed horizon) is said, with the two runs that show it, and the answer is a run whose finer
+/// runs all meet the target; a monotone error says nothing.
+#[test]
+fn an_erratic_error_is_said_and_answered_with_a_run_whose_finer_runs_meet() {
+    let spec = TargetSpec {
+        start: 150.0,
+        ..spec(2e-4)
+    };
+    let banded = along_n(|h, _| {
+        let band = (124.0..135.0).contains(&(1.0 / h).round());
+        3.0 * h * h * if band { 30.0 } else { 1.0 }
+    });
+    let (aimed, _) = banded.aim(&spec);
+    let erratic = aimed.erratic(&spec).unwrap_or_else(|| panic!("{aimed:?}"));
+    assert!(
+        erratic.starts_with("error not monotone in n: "),
+        "{erratic}"
+    );
+    let answer = aimed.answer(&spec).unwrap();
+    let finer: Vec<&Level> = (aimed.levels.iter())
+        .filter(|l| l.value > answer.value)
+        .collect();
+    assert!(answer.error <= 2e-4, "{answer:?}");
+    assert!(
+        !finer.is_empty() && finer.iter().all(|l| l.error <= 2e-4),
+        "{aimed:?}"
+    );
+    let (plain, _) = along_n(|h, _| 3.0 * h * h).aim(&spec);
+    assert_eq!(plain.erratic(&spec), None);
+}
+
+/// Runs at n = 120 (meets), 128 (misses thirtyfold above) and 150 (meets): the coarsest run
+/// that meets is no answer, since a finer one misses; 150 is once a finer run (asked for
+/// next, one `rtol` step finer) meets too.
+#[test]
+fn a_run_with_a_finer_run_that_misses_is_no_answer() {
+    let spec = spec(2e-4);
+    let level = |value: f64, error: f64| Level {
+        value,
+        time: None,
+        error,
+        cost: value,
+        h: 1.0 / value,
+        dt: 1e-9,
+        t_end: 1.0,
+        stable: None,
+        fixed: String::new(),
+        order: None,
+        dim: 1.0,
+    };
+    let mut aimed = Aimed {
+        levels: vec![
+            level(120.0, 1.9e-4),
+            level(128.0, 5.5e-3),
+            level(150.0, 1.3e-4),
+        ],
+        ..Aimed::default()
+    };
+    assert_eq!(
+        aimed.erratic(&spec).as_deref(),
+        Some("error not monotone in n: 0.00019 at 120, 0.0055 at 128")
+    );
+    assert_eq!(aimed.answer(&spec), None, "150 has no finer run yet");
+    assert_eq!(
+        spec.robust_along_one(&aimed, Reached::Found),
+        Ok(vec![165.0])
+    );
+    aimed.levels.push(level(165.0, 1.1e-4));
+    assert_eq!(aimed.answer(&spec).map(|l| l.value), Some(150.0));
+}
