@@ -782,7 +782,7 @@ fn checkpoint_step(path: &Path) -> u64 {
 fn a_run_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_bits() {
     stops_over_two_ranks_and_resumes(
         "heat",
-        r#"{"dim": 2, "n": 128, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2, "source": "discrete"}"#,
+        r#"{"dim": 2, "n": 64, "m": 3, "t_end": 0.5, "cfl": 0.5, "ranks": 2, "source": "discrete"}"#,
         200,
     );
 }
@@ -799,9 +799,9 @@ fn every_integrator_over_two_ranks_stops_at_one_step_and_resumes_with_the_same_b
         ("crank_nicolson", 1.0),
     ] {
         let case = format!(
-            r#"{{"dim": 2, "n": 128, "m": 3, "t_end": 0.05, "cfl": {cfl}, "ranks": 2, "source": "discrete", "integrator": "{integrator}"}}"#
+            r#"{{"dim": 2, "n": 64, "m": 3, "t_end": 0.05, "cfl": {cfl}, "ranks": 2, "source": "discrete", "integrator": "{integrator}"}}"#
         );
-        stops_over_two_ranks_and_resumes(integrator, &case, 50);
+        stops_over_two_ranks_and_resumes(integrator, &case, 20);
     }
 }
 
