@@ -3,7 +3,9 @@
 //! review (docs/reliability.md): a record whose content would become a path, files that are not
 //! plain files, a corrupt table, and the exit status of every I/O failure.
 
-use nonlocal_study::{records, text, Scratch};
+use nonlocal_study::{edit_records, records, text, Scratch};
+#[path = "support/parquet.rs"]
+mod parquet;
 use serde_json::{json, Value};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -758,4 +760,167 @@ fn interleaved_compare_stores_under_the_study_and_fails_a_crashing_or_hanging_bu
         said.contains("by B in round 1") && said.contains("timed out"),
         "{said}"
     );
+}
+
+/// A record rewritten in place with a field that does not parse (`"error_l2_norm": "abcabc…"`
+/// under a CRC that holds, the segment grown where its frame stood): `status` names the
+/// field, and the next `run` counts the point as not run and runs it again, the first time
+/// (the catalog's offsets from before the edit point inside a frame and are not trusted).
+#[test]
+fn a_record_edited_in_place_to_a_field_that_does_not_parse_runs_again() {
+    let scratch = Scratch::new("edited", &tiny("edited"));
+    ran(&scratch, "edited");
+    // A second run reads the store through the catalog the first left.
+    let again = scratch.nlstudy("run", &[]);
+    assert!(text(&again).contains("0 ran"), "{}", text(&again));
+    let mut first = true;
+    let edited = edit_records(&scratch.runs("edited"), |record| {
+        let edit = std::mem::take(&mut first);
+        if edit {
+            record["error_l2_norm"] = json!("abc".repeat(10));
+        }
+        edit
+    });
+    assert_eq!(edited, 1);
+    let status = scratch.nlstudy("status", &[]);
+    assert!(text(&status).contains("error_l2_norm"), "{}", text(&status));
+    let run = scratch.nlstudy("run", &[]);
+    let said = text(&run);
+    assert!(run.status.success(), "{said}");
+    assert!(
+        said.contains("1 ran (1 ok") && said.contains("1 already stored"),
+        "{said}"
+    );
+    assert!(said.contains("error_l2_norm"), "{said}");
+    for record in records(&scratch.runs("edited")) {
+        assert!(record["error_l2_norm"].is_f64(), "{record}");
+    }
+}
+
+/// A stored record from elsewhere whose message holds escape sequences (a failed probe of a
+/// boundary search): the answer lines, the boundaries table and the report show them as their
+/// codes (`\u{1b}`), never the raw bytes a terminal or a reader would act on (`table`'s cells:
+/// `analysis::pivot`'s unit test).
+#[test]
+fn a_stored_messages_escape_sequences_reach_no_answer_table_or_report() {
+    let study = json!({
+        "name": "esc",
+        "base": {"dim": 1, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
+                 "amplification_steps": 400, "m": 2, "n": 32},
+        "sweep": [{"product": {"integrator": ["forward_euler", "heun"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 4], "flips": "amplification > 1", "rtol": 1e-2}
+    });
+    let scratch = Scratch::new("esc", &study);
+    let first = scratch.nlstudy("run", &[]);
+    assert!(first.status.success(), "{}", text(&first));
+    let edited = edit_records(&scratch.runs("esc"), |record| {
+        let edit = record["case"]["cfl"] == json!(0.5) && record["case"]["integrator"].is_null();
+        if edit {
+            record["status"] = json!("failed");
+            record["message"] = json!("boom \u{1b}[31mRED\u{1b}]0;pwned\u{7}");
+        }
+        edit
+    });
+    assert_eq!(edited, 1);
+    let run = scratch.nlstudy("run", &[]);
+    let dir = scratch.dir.join("results/esc");
+    let boundaries = parquet::read_parquet(&dir.join("esc-boundaries.parquet"));
+    let ended = boundaries.column("ended").unwrap().str().unwrap();
+    let ended: Vec<&str> = (0..ended.len()).filter_map(|i| ended.get(i)).collect();
+    // The other point's search still answers.
+    let answered = parquet::floats(&boundaries, "boundary");
+    assert_eq!(
+        answered.iter().filter(|b| b.is_finite()).count(),
+        1,
+        "{boundaries}"
+    );
+    let report = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    let shown = [
+        ("run", text(&run)),
+        ("boundaries", ended.join("\n")),
+        ("report", report),
+    ];
+    for (what, shown) in shown {
+        assert!(
+            !shown.contains('\u{1b}') && !shown.contains('\u{7}'),
+            "{what}: {shown:?}"
+        );
+        assert!(shown.contains("boom \\u{1b}[31mRED"), "{what}: {shown}");
+    }
+}
+
+/// A study file that is a FIFO, written once: `run` reads it once (the study and its owner's
+/// hash from the same text) and runs its points, instead of blocking on a second open with no
+/// writer left.
+#[test]
+fn a_study_file_that_is_a_fifo_is_read_once() {
+    let scratch = Scratch::new("piped", &tiny("piped"));
+    let written = std::fs::read_to_string(scratch.study()).unwrap();
+    std::fs::remove_file(scratch.study()).unwrap();
+    let made = Command::new("mkfifo")
+        .arg(scratch.study())
+        .status()
+        .unwrap();
+    assert!(made.success());
+    let fifo = scratch.study();
+    std::thread::spawn(move || std::fs::write(fifo, written));
+    let (out, _) = within_a_minute(&scratch, "run", &[])
+        .expect("`nlstudy run` waits on a second open of its FIFO study file");
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("2 ran"), "{}", text(&out));
+}
+
+/// A damaged store and `show --key`: a key whose record cannot be read is refused naming the
+/// damage that may have held it, not as if it had never been stored.
+#[test]
+fn show_names_the_damage_where_a_key_is_not_found() {
+    let scratch = Scratch::new("shown", &tiny("shown"));
+    ran(&scratch, "shown");
+    let segment = nonlocal_study::segment_files(&scratch.runs("shown"))[0].clone();
+    let mut bytes = std::fs::read(&segment).unwrap();
+    let (_, first) = &nonlocal_study::frames(&bytes)[0];
+    let first: Value = serde_json::from_slice(first).unwrap();
+    let key = first["key"].as_str().unwrap().to_string();
+    // A byte of the first frame's body changed: its CRC no longer holds.
+    let body = bytes.iter().position(|&b| b == b'{').unwrap();
+    bytes[body + 1] ^= 0x20;
+    std::fs::write(&segment, &bytes).unwrap();
+    let out = scratch.nlstudy("show", &["--key", &key]);
+    let said = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{said}");
+    assert!(
+        said.contains("damaged") && said.contains(&segment.display().to_string()),
+        "{said}"
+    );
+}
+
+/// A number given as 1e-300 where it is refused is quoted in a few characters, as given
+/// (`exact`), not in Rust's fixed notation of 300 digits: a flag, a study's bracket, a target.
+#[test]
+fn a_refused_tiny_number_is_quoted_short() {
+    let scratch = Scratch::new("tinynumber", &tiny("tinynumber"));
+    let mut said = Vec::new();
+    for extra in [
+        vec!["--timeout=-1e-300"],
+        vec!["--checkpoint-every=-1e-300"],
+    ] {
+        said.push(text(&scratch.nlstudy("run", &extra)));
+    }
+    said.push(text(&scratch.nlstudy(
+        "compare",
+        &["--against", "history", "--threshold=-1e-300"],
+    )));
+    let mut bracketed = tiny("tinynumber");
+    bracketed["boundary"] = json!({"field": "cfl", "bracket": [1e-300, 1e-300],
+        "flips": "amplification > 1", "rtol": 1e-3});
+    scratch.write_study(&bracketed);
+    said.push(text(&scratch.nlstudy("plan", &[])));
+    let mut target = tiny("tinynumber");
+    target["target"] = json!({"field": "n", "start": -1e-300, "below": 1e-3});
+    scratch.write_study(&target);
+    said.push(text(&scratch.nlstudy("plan", &[])));
+    for said in said {
+        assert!(said.contains("1e-300"), "{said}");
+        assert!(said.lines().all(|l| l.len() < 300), "{said}");
+    }
 }

@@ -1790,6 +1790,48 @@ fn an_adaptive_study_stops_at_its_budget_and_says_so() {
     assert_eq!(records(&scratch.runs("budgeted")).len(), 15);
 }
 
+/// A budget spent before a search's bracket ends were both probed (11 runs for six searches of
+/// two ends each) leaves that search without an estimate: the middle of a bracket never probed
+/// is no boundary, so the table holds none for it and its answer line says why.
+#[test]
+fn a_budget_spent_before_a_brackets_ends_gives_that_search_no_boundary() {
+    let study = json!({
+        "name": "unprobed",
+        "base": {"dim": 1, "n": 64, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
+                 "amplification_steps": 100},
+        "sweep": [{"product": {"m": [1, 2, 4], "integrator": ["forward_euler", "crank_nicolson"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 1e-3},
+        "budget": {"runs": 11}
+    });
+    let scratch = Scratch::new("unprobed", &study);
+    let run = scratch.nlstudy("run", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let said = text(&run);
+    let why = "the study's budget spent before the bracket's ends were probed";
+    let line = said
+        .lines()
+        .find(|l| l.contains(why))
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!(!line.contains("cfl ="), "{line}");
+    let table = read_parquet(
+        &scratch
+            .dir
+            .join("results/unprobed/unprobed-boundaries.parquet"),
+    );
+    let ended = table.column("ended").unwrap().str().unwrap().clone();
+    let boundary = floats(&table, "boundary");
+    let unprobed: Vec<usize> = (0..ended.len())
+        .filter(|&i| ended.get(i) == Some(why))
+        .collect();
+    assert_eq!(unprobed.len(), 1, "{table}");
+    assert!(boundary[unprobed[0]].is_nan(), "{table}");
+    assert!(
+        floats(&table, "boundary_lo")[unprobed[0]].is_nan(),
+        "{table}"
+    );
+}
+
 /// `collect` is make-style: with no record, point or study text changed since the tables were
 /// made, they stand as they are (not rewritten) and it says so; a new point's record, a rerun
 /// or a table gone makes them again.

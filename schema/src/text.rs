@@ -31,6 +31,16 @@ pub fn number(x: f64) -> String {
     trim_zeros(format!("{x:.decimals$}"))
 }
 
+/// A number as given, to its last digit (a refusal quotes what it refuses): its shortest form,
+/// in scientific notation where the fixed one would be long (`1e-300`, not 300 characters).
+pub fn exact(x: f64) -> String {
+    let fixed = format!("{x}");
+    match fixed.len() > 20 {
+        true => format!("{x:e}"),
+        false => fixed,
+    }
+}
+
 /// Numbers that are read side by side (one axis's ticks, one column): in one notation, so
 /// `1e-4` does not stand beside `0.01`; scientific for all when any needs it.
 pub fn numbers_alike(values: &[f64]) -> Vec<String> {
@@ -115,6 +125,16 @@ mod tests {
         assert_eq!(first_chars("ééééééééé", 8), "éééééééé");
         assert_eq!(first_chars("a€€€€€€€€", 2), "a€");
         assert_eq!(first_chars("", 8), "");
+    }
+
+    #[test]
+    fn an_exact_number_keeps_its_digits_and_is_never_long() {
+        assert_eq!(exact(0.1), "0.1");
+        assert_eq!(exact(1.00001), "1.00001");
+        assert_eq!(exact(-1e-300), "-1e-300");
+        assert_eq!(exact(1e300), "1e300");
+        assert_eq!(exact(123456.5), "123456.5");
+        assert_eq!(exact(f64::NAN), "NaN");
     }
 
     #[test]

@@ -418,6 +418,33 @@ pub fn frames(bytes: &[u8]) -> Vec<(u64, Vec<u8>)> {
     found
 }
 
+/// Rewrites a study's stored records in place, as an editor or a foreign writer would: each
+/// record `edit` changes (it returns true) is written back in a frame whose length and CRC-32
+/// hold, so the segment grows or shrinks where the frame stood. Returns how many changed.
+pub fn edit_records(runs: &Path, mut edit: impl FnMut(&mut serde_json::Value) -> bool) -> usize {
+    let mut changed = 0;
+    for segment in segment_files(runs) {
+        let bytes = std::fs::read(&segment).unwrap();
+        let mut out = Vec::with_capacity(bytes.len());
+        for (seq, body) in frames(&bytes) {
+            let mut record: serde_json::Value = serde_json::from_slice(&body).unwrap();
+            let body = match edit(&mut record) {
+                true => {
+                    changed += 1;
+                    record.to_string().into_bytes()
+                }
+                false => body,
+            };
+            let mut whole = body;
+            whole.push(b'\n');
+            out.extend(format!("nlrecord {seq} {} {:08x}\n", whole.len(), crc32(&whole)).bytes());
+            out.extend(whole);
+        }
+        std::fs::write(&segment, out).unwrap();
+    }
+    changed
+}
+
 /// CRC-32 (IEEE, reflected), bit by bit: the check the store's frames carry.
 fn crc32(bytes: &[u8]) -> u32 {
     let mut crc = !0u32;

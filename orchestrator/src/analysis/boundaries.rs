@@ -4,7 +4,7 @@
 
 use crate::analysis::answer_table::{self, measured, origin_rows, text};
 use crate::model::adaptive::Adaptive as _;
-use crate::model::boundary::{BoundarySpec, Ended, Search};
+use crate::model::boundary::{BoundarySpec, Search};
 use crate::model::expression;
 use crate::model::study::Study;
 use crate::run::search::Searched;
@@ -25,10 +25,7 @@ pub fn rows(spec: &BoundarySpec, searched: &[Searched<Search>]) -> Vec<Row> {
             let search = &s.outcome;
             let predicted = s.record.as_ref().and_then(|r| prediction(spec, r));
             // The bracket was narrowed by probes, whether or not to the tolerance.
-            let bracketed = matches!(
-                search.ended,
-                Some(Ended::Found | Ended::Resolution | Ended::Budget | Ended::StudyBudget)
-            );
+            let bracketed = search.bracketed();
             row.set("field", Value::from(spec.field.as_str()));
             row.set("boundary", measured(search.boundary()));
             row.set("boundary_lo", measured(bracketed.then_some(search.below)));

@@ -153,7 +153,7 @@ pub fn compare(points: &[Paired], threshold: f64, noise: &NoiseModel) -> Compari
                 median(&scale_b)
             });
             let short = metric.span.is_some() && shortest < RESOLUTION_S;
-            let noisy = !metric.cpu && (all_noisy(a) || all_noisy(b));
+            let noisy = metric.wall && (all_noisy(a) || all_noisy(b));
             let set_aside = match (short, noisy) {
                 _ if kind == Kind::Deterministic => None,
                 (true, _) => Some(Verdict::TooShort),

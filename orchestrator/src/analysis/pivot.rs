@@ -303,9 +303,11 @@ pub fn markdown_table(header: &[String], lines: &[Vec<String>]) -> String {
 }
 
 /// Text as one Markdown table cell: a `|` (a branch named `a|b`) would end the cell, so it is
-/// escaped, and a line break would end the row, so it becomes a space.
+/// escaped, a line break would end the row, so it becomes a space, and a control character
+/// (a stored message's ESC) would act on the terminal, so it is shown as its code.
 pub fn cell(text: &str) -> String {
-    text.replace('|', "\\|").replace(['\n', '\r'], " ")
+    let text = text.replace('|', "\\|").replace(['\n', '\r'], " ");
+    schema::text::printable(&text).into_owned()
 }
 
 #[cfg(test)]
@@ -331,6 +333,19 @@ mod tests {
             let bars = line.replace("\\|", "").matches('|').count();
             assert_eq!(bars, 3, "{line}");
         }
+    }
+
+    #[test]
+    fn a_control_character_in_a_cell_is_shown_as_its_code() {
+        let table = markdown_table(
+            &["message".into()],
+            &[vec!["boom \u{1b}[31mRED\u{1b}]0;pwned\u{7}".into()]],
+        );
+        assert!(
+            !table.contains('\u{1b}') && !table.contains('\u{7}'),
+            "{table:?}"
+        );
+        assert!(table.contains("boom \\u{1b}[31mRED"), "{table}");
     }
 
     #[test]

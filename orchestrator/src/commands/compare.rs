@@ -22,7 +22,7 @@ pub(super) fn compare(args: &CompareArgs) -> Result<Reply, Failure> {
         };
         return Err(Failure::BadInput(format!(
             "--threshold: {} is not {what}; give e.g. 0.1 for 10 %",
-            args.threshold
+            schema::text::exact(args.threshold)
         )));
     }
     if let Some(path) = args.against.strip_prefix("solver:") {
@@ -184,8 +184,7 @@ fn baseline(
     }
     // The same study is the same file or the same text, wherever it lies (another checkout).
     if let Some(theirs) = other.owner() {
-        let ours = std::fs::read(&common.study).unwrap_or_default();
-        let same_text = crate::store::hex(&sha2::Sha256::digest(&ours)) == theirs.sha256;
+        let same_text = crate::store::hex(&sha2::Sha256::digest(&study.text)) == theirs.sha256;
         let same_file = std::fs::canonicalize(&common.study).is_ok_and(|p| p == theirs.study_file);
         if !(same_text || same_file) {
             return Err(Failure::BadInput(format!(

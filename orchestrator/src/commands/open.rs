@@ -50,8 +50,7 @@ pub(super) fn claim(
             folder.display()
         )));
     }
-    let text = Study::text_of(&args.study).unwrap_or_default();
-    match store.claim(&args.study, &text, args.adopt, writes) {
+    match store.claim(&args.study, &study.text, args.adopt, writes) {
         Ok(()) => Ok(()),
         Err(Refusal::Io(e)) => Err(e.into()),
         Err(Refusal::OwnedBy(owner)) => Err(Failure::BadInput(format!(

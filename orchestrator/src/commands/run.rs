@@ -314,14 +314,15 @@ const LONGEST_TIMEOUT_S: f64 = 1e9;
 /// A case's timeout from `field`: a positive, finite number of seconds.
 /// A period of wall time given in seconds (a timeout, a checkpoint period), checked.
 fn period(seconds: f64, field: &str) -> Result<Duration, Failure> {
+    let given = schema::text::exact(seconds);
     if !seconds.is_finite() {
         return Err(Failure::BadInput(format!(
-            "{field}: {seconds} is not a finite number; give a number of seconds, or none"
+            "{field}: {given} is not a finite number; give a number of seconds, or none"
         )));
     }
     if !(seconds > 0.0 && seconds <= LONGEST_TIMEOUT_S) {
         return Err(Failure::BadInput(format!(
-            "{field}: {seconds} is not a period; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none"
+            "{field}: {given} is not a period; give a number of seconds above 0 and at most {LONGEST_TIMEOUT_S:e}, or none"
         )));
     }
     Ok(Duration::from_secs_f64(seconds))

@@ -186,7 +186,8 @@ fn poll(seconds: f64) -> Result<Duration, Failure> {
     match seconds.is_finite() && seconds >= 0.01 {
         true => Ok(Duration::from_secs_f64(seconds)),
         false => Err(Failure::BadInput(format!(
-            "--poll {seconds}: give the longest pause between two questions to the scheduler in seconds, at least 0.01 (e.g. 60)"
+            "--poll {}: give the longest pause between two questions to the scheduler in seconds, at least 0.01 (e.g. 60)",
+            schema::text::exact(seconds)
         ))),
     }
 }

@@ -145,19 +145,20 @@ pub const LARGEST_START: f64 = 1e9;
 /// `LARGEST_START`, whole for `n`; a refusal names `<section>.start`.
 pub fn check_start(section: &str, field: &str, start: f64) -> Result<(), (String, String)> {
     let place = format!("{section}.start");
+    let given = schema::text::exact(start);
     if !(start.is_finite() && start > 0.0) {
-        return Err((place, format!("must be a positive number (got {start})")));
+        return Err((place, format!("must be a positive number (got {given})")));
     }
     if start > LARGEST_START {
         return Err((
             place,
-            format!("{start} is past any run (at most {LARGEST_START:e}); give the first value a run can have"),
+            format!("{given} is past any run (at most {LARGEST_START:e}); give the first value a run can have"),
         ));
     }
     if counts_nodes(field) && start.fract() != 0.0 {
         return Err((
             place,
-            format!("`n` counts nodes: give a whole number (got {start})"),
+            format!("`n` counts nodes: give a whole number (got {given})"),
         ));
     }
     Ok(())
@@ -168,11 +169,16 @@ pub fn refused_for_its_step(refusal: &str) -> bool {
     refusal.contains("above dt_stable")
 }
 
-/// Whether a probe ran: a failed run answers no question, and says why.
+/// Whether a probe ran: a failed run answers no question, and says why (its message made
+/// printable: a stored record may come from elsewhere, and this text reaches the answer lines,
+/// the boundaries table and the report).
 pub fn ran(stored: &Stored) -> Result<(), String> {
     match stored.record() {
         Some(_) => Ok(()),
-        None => Err(format!("the run failed: {}", stored.message())),
+        None => Err(format!(
+            "the run failed: {}",
+            schema::text::printable(stored.message())
+        )),
     }
 }
 
@@ -182,7 +188,10 @@ pub fn positive(name: &str, stored: &Stored) -> Result<f64, String> {
     ran(stored)?;
     match column(stored, name).and_then(|v| v.as_f64()) {
         Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-        Some(x) => Err(format!("`{name}` is {x}, not a positive number")),
+        Some(x) => Err(format!(
+            "`{name}` is {}, not a positive number",
+            schema::text::exact(x)
+        )),
         None => Err(format!("its record has no `{name}`")),
     }
 }
@@ -216,7 +225,10 @@ impl Budget {
         match self.core_seconds {
             Some(s) if !(s.is_finite() && s > 0.0) => Err((
                 "budget.core_seconds".into(),
-                format!("must be a positive number of seconds (got {s})"),
+                format!(
+                    "must be a positive number of seconds (got {})",
+                    schema::text::exact(s)
+                ),
             )),
             _ => Ok(()),
         }

@@ -11,6 +11,7 @@ use crate::model::adaptive::{ran, Adaptive, Lookup, Probe};
 use crate::model::expression::{self, Scope};
 use schema::case::{Case, Numeric};
 use schema::record::{columns, Stored};
+use schema::text::exact;
 use serde::Deserialize;
 
 /// A boundary search as a study writes it.
@@ -101,6 +102,9 @@ pub enum Ended {
     Resolution,
     /// The study's `budget` was spent first.
     StudyBudget,
+    /// The study's `budget` was spent before the bracket's ends were probed: there is no
+    /// estimate, only the bracket the study gave.
+    Unprobed,
     /// A probe's record could not answer (the run failed, or lacks a field the condition reads).
     Unanswered { value: f64, why: String },
 }
@@ -131,6 +135,7 @@ impl BoundarySpec {
             );
         }
         let [below, above] = self.bracket;
+        let given = format!("[{}, {}]", exact(below), exact(above));
         if !(below.is_finite() && above.is_finite()) {
             return fail("bracket", "must be two finite numbers".into());
         }
@@ -138,7 +143,7 @@ impl BoundarySpec {
             return fail(
                 "bracket",
                 format!(
-                    "`{}` takes whole numbers: give whole ends (got [{below}, {above}])",
+                    "`{}` takes whole numbers: give whole ends (got {given})",
                     self.field
                 ),
             );
@@ -146,7 +151,7 @@ impl BoundarySpec {
         if below >= above {
             return fail(
                 "bracket",
-                format!("[{below}, {above}] is empty; give [below, above] with below < above"),
+                format!("{given} is empty; give [below, above] with below < above"),
             );
         }
         if !(self.rtol >= FINEST_RTOL && self.rtol < 1.0) {
@@ -154,7 +159,7 @@ impl BoundarySpec {
                 "rtol",
                 format!(
                     "must lie in [{FINEST_RTOL:e}, 1) (got {}): a double resolves no finer; 1e-3 finds a boundary to 0.1 %",
-                    self.rtol
+                    exact(self.rtol)
                 ),
             );
         }
@@ -325,7 +330,11 @@ impl Adaptive for BoundarySpec {
     }
 
     fn out_of_budget(&self, search: &mut Search) {
-        search.ended.get_or_insert(Ended::StudyBudget);
+        let ended = match search.rounds {
+            0 => Ended::Unprobed,
+            _ => Ended::StudyBudget,
+        };
+        search.ended.get_or_insert(ended);
     }
 
     fn replay(&self, record: &mut Lookup) -> (Search, Vec<Probe>) {
@@ -354,11 +363,16 @@ impl Search {
     /// (to the tolerance, to the field's resolution, or as far as a budget let them: the
     /// bracket then says how far the estimate may be off).
     pub fn boundary(&self) -> Option<f64> {
+        self.bracketed().then_some(0.5 * (self.below + self.above))
+    }
+
+    /// Whether probes narrowed the bracket, to the tolerance or not: its ends are then
+    /// measured values, not the study's guess.
+    pub fn bracketed(&self) -> bool {
         matches!(
             self.ended,
             Some(Ended::Found | Ended::Resolution | Ended::Budget | Ended::StudyBudget)
         )
-        .then_some(0.5 * (self.below + self.above))
     }
 }
 
@@ -374,8 +388,12 @@ impl std::fmt::Display for Ended {
                 "at the field's resolution: the bracket's ends are neighbouring values"
             ),
             Ended::StudyBudget => write!(f, "the study's budget spent before the tolerance"),
+            Ended::Unprobed => write!(
+                f,
+                "the study's budget spent before the bracket's ends were probed"
+            ),
             Ended::Unanswered { value, why } => {
-                write!(f, "the probe at {value} cannot answer: {why}")
+                write!(f, "the probe at {} cannot answer: {why}", exact(*value))
             }
         }
     }
@@ -492,6 +510,23 @@ mod tests {
         });
         assert!(matches!(failed.0.ended, Some(Ended::Unanswered { value, .. }) if value == 2.0));
         assert_eq!(whole.boundary(), search(&spec, |v| v >= 1.2345).boundary());
+    }
+
+    /// A study's budget spent before a search's first round was answered leaves no estimate
+    /// (the middle of a bracket never probed is no measurement); spent after it, the estimate
+    /// stands with its measured bracket.
+    #[test]
+    fn a_budget_spent_before_the_ends_were_probed_gives_no_boundary() {
+        let spec = spec(3);
+        let (mut unprobed, _) = spec.replay(|v| (v == 0.5).then_some(Ok(false)));
+        assert_eq!(unprobed.rounds, 0);
+        Adaptive::out_of_budget(&spec, &mut unprobed);
+        assert_eq!(unprobed.ended, Some(Ended::Unprobed));
+        assert_eq!(unprobed.boundary(), None);
+        let (mut probed, _) = spec.replay(|v| (v == 0.5 || v == 2.0).then_some(Ok(v >= 1.2345)));
+        Adaptive::out_of_budget(&spec, &mut probed);
+        assert_eq!(probed.ended, Some(Ended::StudyBudget));
+        assert_eq!(probed.boundary(), Some(1.25));
     }
 
     /// A tolerance finer than the field can resolve (a study's `rtol` is refused below

@@ -6,6 +6,7 @@
 
 use crate::model::adaptive::{check_start, counts_nodes, positive, Adaptive, Lookup, Probe};
 use crate::statistics::fitted_slope;
+use schema::text::exact;
 use serde::Deserialize;
 
 /// A refinement as a study writes it.
@@ -88,20 +89,20 @@ impl RefineSpec {
                 "factor",
                 format!(
                     "must be above 1 (got {}); 2 doubles n or halves dt",
-                    self.factor
+                    exact(self.factor)
                 ),
             );
         }
         if !(self.agree > 0.0 && self.agree.is_finite()) {
             return fail(
                 "agree",
-                format!("must be a positive number (got {})", self.agree),
+                format!("must be a positive number (got {})", exact(self.agree)),
             );
         }
         if let Some(target) = self.target.filter(|t| !(t.is_finite() && *t > 0.0)) {
             return fail(
                 "target",
-                format!("must be a positive number (got {target})"),
+                format!("must be a positive number (got {})", exact(target)),
             );
         }
         if !(1..=30).contains(&self.max_levels) {
@@ -290,7 +291,7 @@ impl std::fmt::Display for Stopped {
             Stopped::Budget => write!(f, "max_levels run"),
             Stopped::StudyBudget => write!(f, "the study's budget spent"),
             Stopped::Unanswered { value, why } => {
-                write!(f, "the level at {value} cannot answer: {why}")
+                write!(f, "the level at {} cannot answer: {why}", exact(*value))
             }
         }
     }

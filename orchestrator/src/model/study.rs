@@ -72,6 +72,10 @@ pub struct Study {
     /// What the adaptive question may spend over all the points: runs and core-seconds.
     #[serde(default)]
     pub budget: Option<Budget>,
+    /// The study file's text as it was read (`Study::read`), once: what its owner file hashes,
+    /// so that a FIFO or a file replaced meanwhile is never read a second time.
+    #[serde(skip)]
+    pub text: String,
 }
 
 /// The adaptive sections a study file may hold, each read into its question: the registry of
@@ -338,14 +342,16 @@ impl Study {
     /// `.toml`, else JSON in which comments are allowed (JSONC).
     pub fn read(path: &Path, sections: &dyn Sections) -> Result<Study, StudyError> {
         let text = Study::text_of(path)?;
-        match path.extension().and_then(|x| x.to_str()) {
+        let mut study = match path.extension().and_then(|x| x.to_str()) {
             Some("toml") => Study::parse_toml(&text, sections),
             _ => Study::parse(&text, sections),
-        }
+        }?;
+        study.text = text;
+        Ok(study)
     }
 
     /// The text of the study file `path`: at most `TEXT_CAP` bytes of UTF-8.
-    pub fn text_of(path: &Path) -> Result<String, StudyError> {
+    fn text_of(path: &Path) -> Result<String, StudyError> {
         let name = path.display().to_string();
         let bytes = schema::regular::read_at_most(path, TEXT_CAP, "a study file").map_err(|e| {
             StudyError::new(

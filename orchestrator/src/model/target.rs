@@ -31,6 +31,7 @@ use crate::model::adaptive::{
     Probe, LARGEST_START,
 };
 use schema::record::{Status, Stored};
+use schema::text::exact;
 use serde::Deserialize;
 
 use axes::Axes;
@@ -195,7 +196,10 @@ impl TargetSpec {
         if !(self.below.is_finite() && self.below > 0.0) {
             return fail(
                 "below",
-                format!("must be a positive, finite error (got {})", self.below),
+                format!(
+                    "must be a positive, finite error (got {})",
+                    exact(self.below)
+                ),
             );
         }
         if self.below < ROUND_OFF {
@@ -208,7 +212,10 @@ impl TargetSpec {
             );
         }
         if !(self.rtol > 0.0 && self.rtol < 1.0) {
-            return fail("rtol", format!("must lie in (0, 1) (got {})", self.rtol));
+            return fail(
+                "rtol",
+                format!("must lie in (0, 1) (got {})", exact(self.rtol)),
+            );
         }
         if let Some(time) = &self.time {
             if !STEPS.contains(&time.field.as_str()) {
@@ -231,7 +238,7 @@ impl TargetSpec {
                     "time.start",
                     format!(
                         "must be a positive number at most {LARGEST_START:e} (got {})",
-                        time.start
+                        exact(time.start)
                     ),
                 );
             }
@@ -815,7 +822,7 @@ impl std::fmt::Display for Reached {
             Reached::Budget => write!(f, "max_probes spent"),
             Reached::StudyBudget => write!(f, "the study's budget spent"),
             Reached::Unanswered { value, why } => {
-                write!(f, "the level at {value} cannot answer: {why}")
+                write!(f, "the level at {} cannot answer: {why}", exact(*value))
             }
             Reached::Unreachable { floor, from } => write!(
                 f,

@@ -15,6 +15,7 @@ use crate::store::{write_atomically, Store};
 use maud::{html, Markup, PreEscaped, DOCTYPE};
 use schema::record::columns;
 use schema::record::{Provenance, Status, Stored};
+use schema::text::printable;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 
@@ -295,7 +296,7 @@ fn failures_section(records: &[Stored]) -> Markup {
         @for record in failed {
             h3 { (record.key) }
             p { "Case: " code { (record.case().to_string()) } }
-            pre { (record.message()) }
+            pre { (printable(record.message())) }
         }
     }
 }
@@ -307,7 +308,7 @@ fn provenance_section(records: &[Stored]) -> Markup {
             .iter()
             .filter_map(|r| r.provenance().and_then(field))
             .collect();
-        set.into_iter().collect::<Vec<_>>().join(", ")
+        printable(&set.into_iter().collect::<Vec<_>>().join(", ")).into_owned()
     };
     let stamps = values(|p| Some(&p.timestamp));
     let first = stamps.split(", ").next().unwrap_or("");

@@ -32,9 +32,10 @@ pub(super) struct Metric {
     /// The wall time a value is measured over, for a wall time or a rate over one: its drift is
     /// read at that scale, and below `RESOLUTION_S` it is too short to judge.
     pub span: Option<fn(&Record<Value>) -> f64>,
-    /// A CPU time: the work itself, which other tasks on the machine do not lengthen, so a run
-    /// timed on a busy machine (`noisy`) still measures it.
-    pub cpu: bool,
+    /// A wall time, or a rate over one: other tasks on the machine lengthen it, so runs timed
+    /// on a busy machine (`noisy`) cannot judge it. A CPU time (the work itself) and the peak
+    /// memory are measured whatever the load.
+    pub wall: bool,
 }
 
 /// The metrics of a record compared; `bond_updates_per_s` from bonds × steps done / solve time,
@@ -46,7 +47,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Measured,
         span: Some(|r| r.solve_s),
-        cpu: false,
+        wall: true,
     },
     Metric {
         name: columns::SOLVE_CPU_S,
@@ -54,7 +55,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Measured,
         span: Some(|r| r.solve_cpu_s.unwrap_or(r.solve_s)),
-        cpu: true,
+        wall: false,
     },
     Metric {
         name: columns::STEP_S,
@@ -62,7 +63,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Measured,
         span: None,
-        cpu: false,
+        wall: true,
     },
     Metric {
         name: columns::SETUP_S,
@@ -70,7 +71,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Measured,
         span: Some(|r| r.setup_s),
-        cpu: false,
+        wall: true,
     },
     Metric {
         name: BOND_UPDATES_PER_S,
@@ -78,7 +79,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Higher,
         kind: Kind::Measured,
         span: Some(|r| r.solve_s),
-        cpu: false,
+        wall: true,
     },
     Metric {
         name: columns::PEAK_MEMORY_BYTES,
@@ -86,7 +87,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Measured,
         span: None,
-        cpu: false,
+        wall: false,
     },
     Metric {
         name: columns::ERROR_L2_NORM,
@@ -94,7 +95,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Deterministic,
         span: None,
-        cpu: false,
+        wall: false,
     },
     Metric {
         name: columns::ERROR_MAX,
@@ -102,7 +103,7 @@ pub(super) const METRICS: &[Metric] = &[
         better: Better::Lower,
         kind: Kind::Deterministic,
         span: None,
-        cpu: false,
+        wall: false,
     },
 ];
 

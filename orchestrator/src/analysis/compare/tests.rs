@@ -85,18 +85,33 @@ fn short_timings_and_noisy_runs_get_no_verdict() {
         verdict(&one("p", &fast, &slow), "solve_s"),
         Verdict::TooShort
     );
-    let quiet: Vec<Stored> = [1.0, 1.01, 0.99].iter().map(|t| run(*t, 1e-3)).collect();
+    // Noisy runs with twice the memory: their wall times are not judged, their memory is (a
+    // busy machine lengthens a solve, it does not grow its peak memory).
+    let with_memory = |t: &f64, bytes: u64| {
+        let mut r = run(*t, 1e-3);
+        r.record_mut().unwrap().peak_memory_bytes = Some(bytes);
+        r
+    };
+    let quiet: Vec<Stored> = [1.0, 1.01, 0.99]
+        .iter()
+        .map(|t| with_memory(t, 100_000_000))
+        .collect();
     let noisy: Vec<Stored> = [5.0, 5.1, 4.9]
         .iter()
         .map(|t| {
-            let mut r = run(*t, 1e-3);
+            let mut r = with_memory(t, 200_000_000);
             r.record_mut().unwrap().provenance.noisy = true;
             r
         })
         .collect();
     let abstained = one("p", &quiet, &noisy);
     assert_eq!(verdict(&abstained, "solve_s"), Verdict::Abstained);
-    assert_eq!(abstained.regressions(), 0);
+    assert_eq!(
+        verdict(&abstained, "bond_updates_per_s"),
+        Verdict::Abstained
+    );
+    assert_eq!(verdict(&abstained, "peak_memory_bytes"), Verdict::Worse);
+    assert_eq!(abstained.regressions(), 1);
 }
 
 /// A history of two runs of one build, 12 points with 3 % jitter between them.
