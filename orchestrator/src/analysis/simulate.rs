@@ -36,6 +36,9 @@ impl Measured {
     /// `None` for a run with no batch or no case.
     pub fn of(run: &RunTimeline) -> Option<Measured> {
         let batches = run.batches();
+        if batches.is_empty() {
+            return None;
+        }
         let mut times = vec![Vec::new(); batches.len()];
         let (mut driver, mut starts) = (Vec::new(), Vec::new());
         let mut lanes = std::collections::BTreeSet::new();

@@ -1,8 +1,9 @@
 //! Every reader of a file the tool did not write in this process, given byte-mutated copies of
 //! real files of its kind: a stored record and a superseded one, study files in JSON, JSONC and
-//! TOML, site profiles in TOML and JSON, the jobs ledger, the owner file and the Parquet tables
-//! (read, then pivoted and drawn as `table` and `plot` would). Each must answer (a value or an
-//! error), never panic, hang or abort.
+//! TOML, site profiles in TOML and JSON, the jobs ledger, the owner file, the Parquet tables
+//! (read, then pivoted and drawn as `table` and `plot` would) and the run timelines (read, then
+//! split into phases, tabled, charted and simulated as `status --timeline` and `plan
+//! --simulate` would). Each must answer (a value or an error), never panic, hang or abort.
 //!
 //! `make test` runs `FUZZ_CASES` (10⁴ by default) cases per kind from the seed `FUZZ_SEED`
 //! (printed, so that a failure replays); a longer run:
@@ -455,6 +456,73 @@ fn fuzz_segments_and_the_catalog() {
         );
         for record in &records {
             assert_eq!(reader.stored(&record.key).as_ref(), Some(record));
+        }
+    });
+}
+
+/// A run's timeline (`store::timeline`), every kind of event, mutated: read as `status
+/// --timeline`, `report` and `plan --simulate` read it, none may panic. Lines that no longer
+/// parse are skipped; what parses may say anything (a lane of 2⁶⁴ − 1, a case before its
+/// batch, no batch at all, times that run backwards).
+#[test]
+fn fuzz_timelines() {
+    use crate::store::timeline::{dir, latest, Event, Phases, Writer};
+    let (_scratch, root) = scratch();
+    let store = Store::open(&root, "s");
+    let run = "host-100-1";
+    let mut writer = Writer::create(&dir(&store), run).unwrap();
+    let case = |node: &str, lane, started: f64, fresh| Event::Case {
+        node: node.into(),
+        lane,
+        key: format!("k{started}"),
+        started,
+        answered: started + 1.0,
+        saved: started + 1.25,
+        fresh,
+        phases: fresh.then_some(Phases {
+            setup_s: 0.125,
+            solve_s: 0.5,
+            wall_s: 0.75,
+        }),
+    };
+    let events = [
+        case("n1", 0, 1.0, true),
+        case("n2", 1, 1.5, false),
+        Event::Idle {
+            node: "n1".into(),
+            lane: 0,
+            from: 2.25,
+            to: 3.0,
+        },
+        Event::Batch {
+            begin: 0.5,
+            end: 3.0,
+        },
+        case("n1", 0, 3.5, false),
+        Event::Batch {
+            begin: 3.25,
+            end: 4.75,
+        },
+    ];
+    for event in &events {
+        writer.write(event).unwrap();
+    }
+    writer.flush().unwrap();
+    drop(writer);
+    let path = dir(&store).join(format!("{run}.jsonl"));
+    let original = read(&path);
+    let (_, runs) = latest(&store, 1);
+    assert_eq!(runs[0].events, events, "the corpus reads back whole");
+    fuzz("timeline", &[original], |bytes| {
+        std::fs::write(&path, bytes).unwrap();
+        for run in latest(&store, 1).1 {
+            if let Some(timeline) = crate::analysis::timeline::Timeline::of(&run) {
+                let _ = crate::output::timeline::table(&timeline);
+                let _ = crate::output::timeline::chart(&timeline);
+            }
+            if let Some(measured) = crate::analysis::simulate::Measured::of(&run) {
+                let _ = (measured.on(1), measured.on(64));
+            }
         }
     });
 }
