@@ -524,14 +524,6 @@ impl TargetSpec {
         if aimed.levels.len() + aimed.unstable.len() >= self.most_probes() {
             return Err(Reached::Budget);
         }
-        let ran = |probe: &[f64]| {
-            (aimed
-                .levels
-                .iter()
-                .map(|l| vec![l.value, l.time.unwrap_or(0.0)]))
-            .chain(aimed.unstable.iter().cloned())
-            .any(|run| run.as_slice() == probe)
-        };
         let space = |fineness_factor: f64, value: f64| -> f64 {
             self.value_of(self.fineness(value) * fineness_factor)
         };
@@ -562,7 +554,7 @@ impl TargetSpec {
             return Ok(vec![s1, step]);
         }
         let finer_in_time = vec![s0, t_start / 2.0];
-        if !ran(&finer_in_time) {
+        if !aimed.has_run(&finer_in_time) {
             return Ok(finer_in_time);
         }
         let points: Vec<fit::Point> = aimed.levels.iter().map(Level::point).collect();
@@ -658,7 +650,7 @@ impl TargetSpec {
                     .ok_or(Reached::Found);
             }
         }
-        if ran(&probe) {
+        if aimed.has_run(&probe) {
             // The model predicts a run already made: with one that met, it cannot do better
             // than the runs beside it; without, finer in both, by the tolerance.
             if met {
@@ -720,6 +712,13 @@ fn whole_steps(dt: f64, t_end: f64) -> f64 {
 }
 
 impl Aimed {
+    /// Whether `probe` (a value, and a step in space and time) was run already: a level there,
+    /// or a probe found unstable.
+    pub fn has_run(&self, probe: &[f64]) -> bool {
+        (self.levels.iter()).any(|l| l.value == probe[0] && l.time == probe.get(1).copied())
+            || self.unstable.iter().any(|p| p.as_slice() == probe)
+    }
+
     /// The runs its search made (a probe refused for its step never ran).
     pub fn runs(&self) -> usize {
         self.levels.len() + self.unstable.len() - self.refused

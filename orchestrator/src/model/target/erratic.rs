@@ -16,34 +16,16 @@ impl Aimed {
     /// (its other field held), beyond `RISE`: `error not monotone in n: 2.3e-6 at 128, 2.9e-5
     /// at 144`.
     pub fn erratic(&self, spec: &TargetSpec) -> Option<String> {
-        let mut fields: Vec<(&str, Vec<&Level>)> = Vec::new();
-        // Along the first field: runs of one temporal value (all, along one field).
-        let mut by_time: Vec<(Option<u64>, Vec<&Level>)> = Vec::new();
-        for l in &self.levels {
-            let key = l.time.map(f64::to_bits);
-            match by_time.iter_mut().find(|(k, _)| *k == key) {
-                Some((_, line)) => line.push(l),
-                None => by_time.push((key, vec![l])),
-            }
-        }
-        fields.extend(
-            by_time
+        // Along the first field: runs of one temporal value (all, along one field); along the
+        // step: runs of one spatial value.
+        let mut fields: Vec<(&str, Vec<&Level>)> =
+            lines(&self.levels, |l| l.time.map(f64::to_bits))
                 .into_iter()
-                .map(|(_, line)| (spec.field.as_str(), line)),
-        );
+                .map(|line| (spec.field.as_str(), line))
+                .collect();
         if let Some(time) = &spec.time {
-            let mut by_value: Vec<(u64, Vec<&Level>)> = Vec::new();
-            for l in &self.levels {
-                match by_value.iter_mut().find(|(k, _)| *k == l.value.to_bits()) {
-                    Some((_, line)) => line.push(l),
-                    None => by_value.push((l.value.to_bits(), vec![l])),
-                }
-            }
-            fields.extend(
-                by_value
-                    .into_iter()
-                    .map(|(_, line)| (time.field.as_str(), line)),
-            );
+            let by_value = lines(&self.levels, |l| l.value.to_bits());
+            fields.extend(by_value.into_iter().map(|line| (time.field.as_str(), line)));
         }
         fields.into_iter().find_map(|(field, mut line)| {
             // Coarse to fine: the first field by its fineness, a step by its size (larger first).
@@ -108,4 +90,17 @@ impl TargetSpec {
         }
         Ok(vec![value])
     }
+}
+
+/// The levels grouped by `key` (the field held along a line), in the order first met.
+fn lines<K: PartialEq>(levels: &[Level], key: impl Fn(&Level) -> K) -> Vec<Vec<&Level>> {
+    let mut lines: Vec<(K, Vec<&Level>)> = Vec::new();
+    for l in levels {
+        let k = key(l);
+        match lines.iter_mut().find(|(held, _)| *held == k) {
+            Some((_, line)) => line.push(l),
+            None => lines.push((k, vec![l])),
+        }
+    }
+    lines.into_iter().map(|(_, line)| line).collect()
 }

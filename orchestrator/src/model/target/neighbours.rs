@@ -28,17 +28,10 @@ impl TargetSpec {
         margin: f64,
     ) -> Option<Probe> {
         let best = aimed.answer(self)?;
-        let ran = |probe: &[f64]| {
-            (aimed
-                .levels
-                .iter()
-                .any(|l| l.value == probe[0] && l.time == Some(probe[1])))
-                || aimed.unstable.iter().any(|p| p.as_slice() == probe)
-        };
         [Along::Space, Along::Time]
             .into_iter()
             .filter_map(|along| self.neighbour(along, &best, aimed, model, axes, margin))
-            .find(|probe| !ran(probe))
+            .find(|probe| !aimed.has_run(probe))
     }
 
     /// The neighbour of `best` along one field, where one is worth running.
