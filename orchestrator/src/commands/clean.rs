@@ -1,15 +1,18 @@
 //! `nlstudy clean`: what a study's results directory holds that the study no longer makes.
 //! Figures no spec draws are removed (they are drawn from the tables, and would be mistaken for
-//! current ones); records no point of the study has are listed, and deleted only when asked:
-//! they were computed, and an edit of the study may bring their points back.
+//! current ones), and so are the run timelines older than the latest few (each run adds one);
+//! records no point of the study has are listed, and deleted only when asked: they were
+//! computed, and an edit of the study may bring their points back.
 
 use super::failure::Failure;
 use super::open::planned;
 use crate::cli::args::CleanArgs;
+use crate::console::counted;
 use crate::console::Reply;
 use crate::model::study::Study;
 use crate::run::plan::{Options, Planned};
 use crate::store::fs::remove_where;
+use crate::store::timeline::{self, LATEST};
 use crate::store::{Fault, Store, CHECKPOINT};
 use schema::record::Stored;
 use serde_json::Value;
@@ -22,6 +25,13 @@ pub(super) fn clean(args: &CleanArgs) -> Result<Reply, Failure> {
     for figure in &cleaned.figures {
         reply.line(format!(
             "removed figures/{figure}: no figure of the study draws it"
+        ));
+    }
+    if cleaned.timelines.0 > 0 {
+        reply.line(format!(
+            "removed {} older than the latest {LATEST} ({} kB): `status --timeline`, `report` and `plan --simulate` read the latest",
+            counted(cleaned.timelines.0, "timeline"),
+            crate::console::number((cleaned.timelines.1 as f64 / 1e3).ceil())
         ));
     }
     for key in &cleaned.checkpoints {
@@ -64,6 +74,8 @@ struct Cleaned {
     deleted: bool,
     /// Keys whose checkpoints were removed: no run will resume them.
     checkpoints: Vec<String>,
+    /// Run timelines removed, and their bytes: all but the latest `LATEST`.
+    timelines: (usize, u64),
 }
 
 fn clean_results(
@@ -108,6 +120,7 @@ fn clean_results(
         orphans,
         deleted: delete_orphans,
         checkpoints: stale_checkpoints(store, planned)?,
+        timelines: timeline::remove_older(store, LATEST),
     })
 }
 

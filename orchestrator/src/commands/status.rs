@@ -8,9 +8,7 @@ use crate::cli::args::StatusArgs;
 use crate::console::Reply;
 use crate::output::status;
 use crate::run::plan::Options;
-
-/// The runs whose timelines `--timeline` prints: a round of a cluster's jobs is one run each.
-const RUNS_SHOWN: usize = 8;
+use crate::store::timeline::LATEST;
 
 pub(super) fn status(args: &StatusArgs) -> Result<Reply, Failure> {
     if args.timeline {
@@ -34,7 +32,7 @@ pub(super) fn status(args: &StatusArgs) -> Result<Reply, Failure> {
 fn timeline(args: &StatusArgs) -> Result<Reply, Failure> {
     let study = read_study(&args.common.study)?;
     let store = open_store(&args.common, &study, false)?;
-    let (all, read) = crate::store::timeline::latest(&store, RUNS_SHOWN);
+    let (all, read) = crate::store::timeline::latest(&store, LATEST);
     let runs: Vec<Timeline> = read.iter().filter_map(Timeline::of).collect();
     let mut reply = Reply::default();
     if runs.is_empty() {
@@ -44,7 +42,7 @@ fn timeline(args: &StatusArgs) -> Result<Reply, Failure> {
         ));
         return Ok(reply);
     }
-    let skipped = all.saturating_sub(RUNS_SHOWN);
+    let skipped = all.saturating_sub(LATEST);
     if skipped > 0 {
         reply.line(format!("({skipped} earlier runs not shown)"));
     }

@@ -112,6 +112,10 @@ impl Writer {
     }
 }
 
+/// The runs whose timelines `status --timeline` shows, and `clean` keeps (a round of a
+/// cluster's jobs is one run each).
+pub const LATEST: usize = 8;
+
 /// The largest timeline read: about 400 bytes an event, a million events.
 const TIMELINE_CAP: u64 = 512 << 20;
 
@@ -119,21 +123,7 @@ const TIMELINE_CAP: u64 = 512 << 20;
 /// hosts), each with the events that parse, and how many runs left timelines in all. Only those
 /// are read: each run of a study adds one. Files that cannot be read are skipped with a warning.
 pub fn latest(store: &Store, last: usize) -> (usize, Vec<RunTimeline>) {
-    let Ok(entries) = std::fs::read_dir(dir(store)) else {
-        return (0, Vec::new());
-    };
-    let mut names: Vec<(std::path::PathBuf, String)> = entries
-        .flatten()
-        .filter_map(|entry| {
-            let name = entry
-                .file_name()
-                .to_str()?
-                .strip_suffix(".jsonl")?
-                .to_string();
-            Some((entry.path(), name))
-        })
-        .collect();
-    names.sort_by_key(|(_, name)| started_ns(name));
+    let names = by_start(store);
     let all = names.len();
     let runs = names[all.saturating_sub(last)..]
         .iter()
@@ -152,6 +142,50 @@ pub fn latest(store: &Store, last: usize) -> (usize, Vec<RunTimeline>) {
         })
         .collect();
     (all, runs)
+}
+
+/// The study's timeline files and their run ids, oldest first (by the start in their names).
+fn by_start(store: &Store) -> Vec<(PathBuf, String)> {
+    let Ok(entries) = std::fs::read_dir(dir(store)) else {
+        return Vec::new();
+    };
+    let mut names: Vec<(PathBuf, String)> = entries
+        .flatten()
+        .filter_map(|entry| {
+            let name = entry
+                .file_name()
+                .to_str()?
+                .strip_suffix(".jsonl")?
+                .to_string();
+            Some((entry.path(), name))
+        })
+        .collect();
+    names.sort_by_key(|(_, name)| started_ns(name));
+    names
+}
+
+/// Removes the study's timelines but its latest `keep` (each run adds one, about 5 MB for the
+/// stability map's): only regular files named as a run names them (`<host>-<start>-<pid>.jsonl`),
+/// never through a link. Returns how many went and their bytes.
+pub fn remove_older(store: &Store, keep: usize) -> (usize, u64) {
+    let names = by_start(store);
+    let older = &names[..names.len().saturating_sub(keep)];
+    let (mut removed, mut bytes) = (0, 0);
+    for (path, name) in older {
+        let own = started_ns(name) > 0 && name.rsplit('-').next().is_some_and(is_number);
+        let Ok(meta) = std::fs::symlink_metadata(path) else {
+            continue;
+        };
+        if own && meta.is_file() && std::fs::remove_file(path).is_ok() {
+            removed += 1;
+            bytes += meta.len();
+        }
+    }
+    (removed, bytes)
+}
+
+fn is_number(text: &str) -> bool {
+    !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit())
 }
 
 /// A run id's start in nanoseconds (`<host>-<start>-<pid>`), for ordering runs of any host.
@@ -209,6 +243,45 @@ mod tests {
         assert!(
             Writer::create(&dir(&store), "host-200-7").is_err(),
             "never over a file already there"
+        );
+    }
+
+    /// `clean`'s rule: the latest timelines stay, older ones go; a file that is no run's
+    /// timeline (another name, a link to one) stays whatever its age.
+    #[test]
+    fn older_timelines_go_and_the_latest_and_what_is_not_a_timeline_stay() {
+        let scratch = tempfile::tempdir().unwrap();
+        let store = Store::open(scratch.path(), "s");
+        for start in 1..=5 {
+            let mut writer = Writer::create(&dir(&store), &format!("host-{start}00-7")).unwrap();
+            writer
+                .write(&Event::Batch {
+                    begin: 0.0,
+                    end: 1.0,
+                })
+                .unwrap();
+            writer.flush().unwrap();
+        }
+        let notes = dir(&store).join("notes.jsonl");
+        std::fs::write(&notes, "mine").unwrap();
+        let link = dir(&store).join("host-50-7.jsonl");
+        std::os::unix::fs::symlink(dir(&store).join("host-500-7.jsonl"), &link).unwrap();
+        let (removed, bytes) = remove_older(&store, 2);
+        assert_eq!(removed, 3);
+        assert_eq!(bytes, 3 * 40);
+        let mut left: Vec<String> = std::fs::read_dir(dir(&store))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            [
+                "host-400-7.jsonl",
+                "host-50-7.jsonl",
+                "host-500-7.jsonl",
+                "notes.jsonl"
+            ]
         );
     }
 }
