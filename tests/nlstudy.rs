@@ -1747,21 +1747,26 @@ fn a_search_killed_mid_round_resumes_without_running_a_probe_twice() {
     assert_eq!(floats(&table(&killed), "boundary"), answer);
 }
 
-/// The study's budget is honoured: a round is cut to the runs left and none starts once they are
-/// spent; the searches it stopped say so, the run reports what was spent, and a second run
-/// spends nothing more.
-#[test]
-fn an_adaptive_study_stops_at_its_budget_and_says_so() {
-    let study = json!({
-        "name": "budgeted",
+/// Six boundary searches (two ends each, then three probes a round) under a study budget of
+/// `runs`.
+fn budgeted(name: &str, runs: usize) -> Value {
+    json!({
+        "name": name,
         "base": {"dim": 1, "n": 64, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
                  "amplification_steps": 100},
         "sweep": [{"product": {"m": [1, 2, 4], "integrator": ["forward_euler", "crank_nicolson"]}}],
         "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
                      "rtol": 1e-3},
-        "budget": {"runs": 15}
-    });
-    let scratch = Scratch::new("budgeted", &study);
+        "budget": {"runs": runs}
+    })
+}
+
+/// The study's budget is honoured: a round is cut to the runs left and none starts once they are
+/// spent; the searches it stopped say so, the run reports what was spent, and a second run
+/// spends nothing more.
+#[test]
+fn an_adaptive_study_stops_at_its_budget_and_says_so() {
+    let scratch = Scratch::new("budgeted", &budgeted("budgeted", 15));
     let run = scratch.nlstudy("run", &[]);
     assert!(run.status.success(), "{}", text(&run));
     assert!(
@@ -1795,16 +1800,7 @@ fn an_adaptive_study_stops_at_its_budget_and_says_so() {
 /// is no boundary, so the table holds none for it and its answer line says why.
 #[test]
 fn a_budget_spent_before_a_brackets_ends_gives_that_search_no_boundary() {
-    let study = json!({
-        "name": "unprobed",
-        "base": {"dim": 1, "n": 64, "problem": "bump", "t_end": 1e-6, "allow_unstable": true,
-                 "amplification_steps": 100},
-        "sweep": [{"product": {"m": [1, 2, 4], "integrator": ["forward_euler", "crank_nicolson"]}}],
-        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
-                     "rtol": 1e-3},
-        "budget": {"runs": 11}
-    });
-    let scratch = Scratch::new("unprobed", &study);
+    let scratch = Scratch::new("unprobed", &budgeted("unprobed", 11));
     let run = scratch.nlstudy("run", &[]);
     assert!(run.status.success(), "{}", text(&run));
     let said = text(&run);
