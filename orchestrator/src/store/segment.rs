@@ -168,8 +168,13 @@ fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
 
 /// The bytes of `path` from `from` to its end: read whole frames from them.
 pub fn read_from(path: &Path, from: u64) -> io::Result<Vec<u8>> {
+    read_between(path, from, u64::MAX)
+}
+
+/// The bytes of `path` from `from` to `to` (or its end, if sooner).
+pub fn read_between(path: &Path, from: u64, to: u64) -> io::Result<Vec<u8>> {
     let (file, len) = super::fs::open_regular(path).map_err(io::Error::other)?;
-    let mut bytes = vec![0; len.saturating_sub(from) as usize];
+    let mut bytes = vec![0; len.min(to).saturating_sub(from) as usize];
     let n = read_at_most(&file, &mut bytes, from)?;
     bytes.truncate(n);
     Ok(bytes)
