@@ -1475,6 +1475,106 @@ fn submitting_an_adaptive_study_says_its_rounds_and_how_they_run() {
     );
 }
 
+/// What a round, and a whole adaptive study in one job, may take, from stored timings: nothing
+/// before a point is timed; once the first round is stored (the wrapper's runs, 25 s each), the
+/// next round's probes, new points, cost their work at the stored ones' rate (the same work:
+/// 25 s each), and a whole job's limit is the plan's worst case of rounds × that round × 2 +
+/// 10 s. A study whose first round does not bound its later ones (7 probes a round after
+/// the bracket's 2) gets no forecast from it.
+#[test]
+fn a_forecast_and_a_whole_jobs_limit_come_from_the_stored_rounds_timings() {
+    let study = |per_round: usize| {
+        json!({
+            "name": "forecast",
+            "base": {"dim": 1, "n": 64, "m": 2, "problem": "bump", "t_end": 1e-6,
+                     "allow_unstable": true, "amplification_steps": 100},
+            "sweep": [{"product": {"integrator": ["forward_euler", "heun"]}}],
+            "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                         "rtol": 0.01, "per_round": per_round}
+        })
+    };
+    let scratch = Scratch::new("forecast", &study(1));
+    let dry = |extra: &[&str]| {
+        let out = scratch.nlstudy(
+            "submit",
+            &[&["--scheduler", "slurm", "--dry-run"], extra].concat(),
+        );
+        assert!(out.status.success(), "{}", text(&out));
+        text(&out)
+    };
+    let whole = dry(&["--whole"]);
+    assert!(
+        whole.contains("the scheduler's default (no point of the study is timed yet"),
+        "{whole}"
+    );
+    assert!(!dry(&[]).contains("s a round"));
+    // The first round only (its four bracket ends), as a job's `run --only` runs it.
+    let plan = text(&scratch.nlstudy("plan", &[]));
+    let keys: Vec<&str> = plan
+        .lines()
+        .filter(|l| l.split_whitespace().nth(1) == Some("run"))
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert_eq!(keys.len(), 4, "{plan}");
+    let wrapper = timing_wrapper(&scratch);
+    let only = keys.join(",");
+    let args = [
+        "--no-collect",
+        "--only",
+        &only,
+        "--solver",
+        wrapper.to_str().unwrap(),
+    ];
+    let ran = scratch.command("run", &args).env("FACTOR", "100").output();
+    let ran = ran.unwrap();
+    assert!(ran.status.success(), "{}", text(&ran));
+
+    let rounds = dry(&[]);
+    let most: f64 = between(&rounds, "of at most ", " rounds").parse().unwrap();
+    assert_eq!(most, 10.0, "2 + 9 halvings of 1.5 to 0.005: {rounds}");
+    // Two probes (a search's one each) of 25 s on the job's one lane.
+    let round_s: f64 = between(&rounds, "predicted ", " s a round")
+        .parse()
+        .unwrap();
+    assert!((49.0..=51.0).contains(&round_s), "{rounds}");
+    // The job's own limit: its two points' work at the first round's rate, × 2 + 10 s each.
+    assert!(
+        rounds.contains("time 00:05:00: from 2 points' work at the study's stored points' rate × 2"),
+        "{rounds}"
+    );
+    assert!(
+        rounds.contains("from the points' stored timings, so about")
+            && rounds.contains("for 10 rounds at most, queue waits not included"),
+        "{rounds}"
+    );
+    // 10 × 50 s × 2 + 10 s, rounded up to the minute: 17 min.
+    let whole = dry(&["--whole"]);
+    assert!(
+        whole.contains("time 00:17:00: from the plan's worst case, 10 rounds × "),
+        "{whole}"
+    );
+
+    scratch.write_study(&study(7));
+    let later_longer = dry(&["--whole"]);
+    assert!(
+        later_longer.contains("its later rounds may be longer than its first"),
+        "{later_longer}"
+    );
+    assert!(!dry(&[]).contains("s a round"));
+}
+
+/// The text of `said` between the first `before` and the next `after`.
+fn between<'a>(said: &'a str, before: &str, after: &str) -> &'a str {
+    let start = said
+        .find(before)
+        .unwrap_or_else(|| panic!("no {before:?} in {said}"))
+        + before.len();
+    let end = said[start..]
+        .find(after)
+        .unwrap_or_else(|| panic!("no {after:?} in {said}"));
+    &said[start..start + end]
+}
+
 /// A boundary search finds each explicit integrator's stability limit where the operator's
 /// symbol puts it (cfl = 1), finds none for Crank–Nicolson, spends every probe once (the table's
 /// probes are the stored records), and a second run runs nothing and gives the same table.

@@ -593,6 +593,7 @@ fn followed_to_the_answer(slurm: &LocalSlurm) {
     assert_eq!(submitted.len(), jobs, "a point was submitted twice: {said}");
     assert_eq!(answers(&said), answers(&text(&run)), "{said}");
     assert!(said.contains("report: "), "{said}");
+    assert!(said.contains(" s of waiting; it took "), "{said}");
 
     // The whole study in one job: one sbatch, the same answer.
     let whole = Scratch::new("followed-whole", &study);

@@ -132,9 +132,7 @@ fn predicted_costs(planned: &[Planned], store: &Store, options: &PoolOptions) ->
     }
     let history = History::from_index(planned, &store.index());
     let points: Vec<&Planned> = planned.iter().collect();
-    Some(crate::run::cluster::balance::predicted_costs(
-        &points, &history,
-    ))
+    Some(crate::run::cluster::balance::predicted_costs(&points, &history).costs)
 }
 
 /// What a pool is given from the flags and the study: the nodes (inside a Slurm job of several

@@ -9,6 +9,7 @@ use crate::console::{Reply, OUT};
 use crate::model::site::{Site, SITE_VARIABLE};
 use crate::model::study::Study;
 use crate::run::cluster::follow::{self, Waited};
+use crate::run::cluster::forecast;
 use crate::run::cluster::submit::{self, Sent};
 use crate::run::cluster::{ledger, scheduler::Scheduler};
 use crate::run::nlsolve::Nlsolve;
@@ -61,6 +62,10 @@ pub(super) fn submit(args: &SubmitArgs) -> Result<Reply, Failure> {
         let mut reply = Reply::default();
         if let (Some(rounds), true) = (rounds, sent.jobs > 0) {
             reply.line(what_happens_next(args, rounds, sent));
+            // Which round this is, no submit knows: the forecast only where the first bounds.
+            if let (Some(round_s), Some(1)) = (sent.round_s, bounds_from(&study)) {
+                reply.line(forecast::at_most(rounds, round_s));
+            }
         }
         return Ok(reply);
     };
@@ -85,6 +90,10 @@ fn follow_to_the_end(
     };
     let (mut rounds, mut waited) = (0, Waited::default());
     let started = std::time::Instant::now();
+    // The first prediction of the whole time, said again beside what it took at the end.
+    let mut first_estimate: Option<(usize, f64)> = None;
+    let most_rounds = study.question().and_then(|q| q.worst_case_rounds());
+    let bounds_from = bounds_from(&study);
     // Each round's plan replays every search from the stored records, and the plan that finds
     // nothing left to submit holds the answers: they are not replayed again (3 s of the map's).
     let (answered, planned) = loop {
@@ -107,17 +116,35 @@ fn follow_to_the_end(
         if sent.jobs > 0 {
             rounds += 1;
         }
+        // The rounds left at most, this one included (a whole study's job runs them all).
+        let (this, left) = match args.whole {
+            true => (1, most_rounds),
+            false => (
+                rounds,
+                most_rounds.map(|most| most.saturating_sub(rounds) + 1),
+            ),
+        };
+        let left = left.filter(|_| bounds_from.is_some_and(|from| this >= from));
+        let predicted = match (sent.round_s, left) {
+            (Some(round_s), Some(left)) if sent.jobs > 0 => {
+                first_estimate.get_or_insert((rounds, round_s * left as f64));
+                format!("; {}", forecast::at_most(left, round_s))
+            }
+            _ => String::new(),
+        };
         if sent.jobs > 0 && args.whole {
             say(format!(
-                "the whole study in one job, {} points so far",
+                "the whole study in one job, {} points so far{predicted}",
                 sent.points
             ));
         } else if sent.jobs > 0 {
-            let most = study.question().and_then(|q| q.worst_case_rounds());
-            let most_rounds = most.map_or(String::new(), |n| format!(" of at most {n}"));
-            let eta = eta(rounds, most, started.elapsed());
+            let of_most = most_rounds.map_or(String::new(), |n| format!(" of at most {n}"));
+            let eta = match predicted.is_empty() {
+                true => eta(rounds, most_rounds, started.elapsed()),
+                false => predicted,
+            };
             say(format!(
-                "round {rounds}{most_rounds}: {} jobs, {} points{eta}",
+                "round {rounds}{of_most}: {} jobs, {} points{eta}",
                 sent.jobs, sent.points
             ));
         }
@@ -128,9 +155,22 @@ fn follow_to_the_end(
         false => format!("{rounds} rounds of jobs"),
     };
     let mut reply = Reply::default();
+    let estimated = match first_estimate {
+        Some((1, total)) => format!(
+            " (predicted at its first round: at most about {})",
+            forecast::seconds(total)
+        ),
+        Some((k, total)) => format!(
+            " (predicted at round {k}: at most about {} to go)",
+            forecast::seconds(total)
+        ),
+        None => String::new(),
+    };
     reply.note(format!(
-        "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting",
-        waited.questions, waited.seconds
+        "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting; it took {}{estimated}",
+        waited.questions,
+        waited.seconds,
+        forecast::seconds(started.elapsed().as_secs_f64())
     ));
     // The driver's jobs ran one build on the cluster's nodes: a whole study on several nodes
     // has tabulated its nodes' runs together (its job script), and rounds of jobs run wherever
@@ -146,6 +186,11 @@ fn follow_to_the_end(
         answered.as_deref(),
         allow_mixed,
     )
+}
+
+/// The round of `study`'s question from which a round's length bounds each later one's.
+fn bounds_from(study: &Study) -> Option<usize> {
+    study.question()?.rounds_no_longer_from()
 }
 
 /// How long the rounds left may take, from the rounds done (`elapsed` since the first was

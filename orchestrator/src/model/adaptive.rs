@@ -54,6 +54,13 @@ pub trait Adaptive {
         None
     }
 
+    /// The round from which no later round is longer than the one before it (the same probes
+    /// or fewer, each of about the same cost), so that a round's length times the rounds left
+    /// bounds the time left; `None` when its rounds grow (a finer grid each).
+    fn rounds_no_longer_from(&self) -> Option<usize> {
+        None
+    }
+
     /// Whether the solver's refusal of a probe (`nlsolve check`'s sentence) is an answer the
     /// question reads, such as a step above the stable one, rather than a fault of the study:
     /// such a probe is not run, and not counted among the study's refusals.
@@ -80,6 +87,7 @@ pub trait Kind: std::fmt::Debug + Send + Sync {
     fn field(&self) -> &str;
     fn worst_case_probes(&self) -> usize;
     fn worst_case_rounds(&self) -> Option<usize>;
+    fn rounds_no_longer_from(&self) -> Option<usize>;
     fn one_search_per_point(&self) -> bool;
     fn as_any(&self) -> &dyn std::any::Any;
 }
@@ -111,6 +119,10 @@ impl<A: Adaptive + std::fmt::Debug + Send + Sync + 'static> Kind for A {
 
     fn worst_case_rounds(&self) -> Option<usize> {
         Adaptive::worst_case_rounds(self)
+    }
+
+    fn rounds_no_longer_from(&self) -> Option<usize> {
+        Adaptive::rounds_no_longer_from(self)
     }
 
     fn one_search_per_point(&self) -> bool {

@@ -329,6 +329,12 @@ impl Adaptive for BoundarySpec {
         Some(BoundarySpec::worst_case_rounds(self))
     }
 
+    /// Each search probes its bracket's two ends, then `per_round` a round until it ends: the
+    /// first round is the longest when `per_round` is at most 2, else the second.
+    fn rounds_no_longer_from(&self) -> Option<usize> {
+        Some(if self.per_round <= 2 { 1 } else { 2 })
+    }
+
     fn out_of_budget(&self, search: &mut Search) {
         let ended = match search.rounds {
             0 => Ended::Unprobed,

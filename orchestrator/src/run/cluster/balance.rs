@@ -14,9 +14,19 @@ use crate::statistics::median;
 use schema::case::Case;
 use schema::choices::Method;
 
+/// The predicted costs of some points, and whether they are seconds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Predicted {
+    pub costs: Vec<f64>,
+    /// Seconds (every point timed, or the untimed scaled at the timed ones' rate), not units of
+    /// the cost model's work.
+    pub seconds: bool,
+}
+
 /// The predicted cost of each of `points`, in seconds where the store timed them or their
-/// neighbours (the untimed scaled by the timed ones' rate), else in the cost model's work.
-pub fn predicted_costs(points: &[&Planned], history: &History) -> Vec<f64> {
+/// neighbours (the untimed scaled by the timed ones' rate, or the study's stored points'),
+/// else in the cost model's work.
+pub fn predicted_costs(points: &[&Planned], history: &History) -> Predicted {
     let work: Vec<Option<f64>> = points
         .iter()
         .map(|p| p.case.as_ref().ok()?.case().map(|c| work(&c)))
@@ -31,14 +41,16 @@ pub fn predicted_costs(points: &[&Planned], history: &History) -> Vec<f64> {
         .filter_map(|(t, w)| Some(t.as_ref()? / w.filter(|w| *w > 0.0)?))
         .filter(|r| r.is_finite() && *r > 0.0)
         .collect();
-    let rate = match rates.is_empty() {
-        true => 1.0,
-        false => median(&rates),
-    };
+    // This round's timed points give the rate, else every stored point of the study does (a
+    // search's next probes are new points, its earlier ones timed).
+    let rate = [&rates, &history.rates]
+        .into_iter()
+        .find(|r| !r.is_empty())
+        .map(|r| median(r));
     let costs: Vec<Option<f64>> = timed
         .iter()
         .zip(&work)
-        .map(|(t, w)| t.or(w.map(|w| w * rate)))
+        .map(|(t, w)| t.or(w.map(|w| w * rate.unwrap_or(1.0))))
         .map(|c| c.filter(|c| c.is_finite() && *c >= 0.0))
         .collect();
     // A point neither timed nor modelled (a case this build cannot read) counts as a typical one.
@@ -47,7 +59,10 @@ pub fn predicted_costs(points: &[&Planned], history: &History) -> Vec<f64> {
         true => 1.0,
         false => median(&known),
     };
-    costs.into_iter().map(|c| c.unwrap_or(typical)).collect()
+    Predicted {
+        seconds: rate.is_some() || timed.iter().all(Option::is_some),
+        costs: costs.into_iter().map(|c| c.unwrap_or(typical)).collect(),
+    }
 }
 
 /// The cost model's work of a case: its nodes, the bonds (stencil points) of each, and its
@@ -170,15 +185,23 @@ mod tests {
         let unread = planned("c", case(8), false);
         let series = timed.point.series().refinement;
         let history = History::of_series(series, &[(64, &[2.0])]);
-        let costs = predicted_costs(&[&timed, &untimed, &unread], &history);
+        let predicted = predicted_costs(&[&timed, &untimed, &unread], &history);
         // Twice the nodes, the same bonds and steps: twice the time.
-        assert_eq!(costs, vec![2.0, 4.0, 3.0]);
+        assert_eq!(predicted.costs, vec![2.0, 4.0, 3.0]);
+        assert!(predicted.seconds);
         let none = predicted_costs(&[&timed, &untimed], &History::default());
         assert_eq!(
-            none[1] / none[0],
+            none.costs[1] / none.costs[0],
             2.0,
             "work units when nothing is timed: {none:?}"
         );
+        assert!(!none.seconds);
+        // A search's next probes, none timed, at the rate of the study's stored points.
+        let probes = predicted_costs(&[&untimed], &History::at_rate(1e-3));
+        let checked = crate::run::nlsolve::Checked::unresolved(&case(128));
+        let expected = work(&checked.case().unwrap()) * 1e-3;
+        assert_eq!(probes.costs, vec![expected]);
+        assert!(probes.seconds);
     }
 
     #[test]

@@ -5,11 +5,14 @@
 //! A point's estimate is the median wall time (set-up + solve) of its stored runs; without
 //! them, the median at the largest smaller `n` of its series, scaled to its own `n` by the
 //! power law the two largest such grids show (time ∝ n^b), or by n^(dim+2) (an explicit step
-//! count at a fixed CFL number) when only one is stored. A job's limit is the sum over its
+//! count at a fixed CFL number) when only one is stored; without those either (a search's next
+//! probe, a new value of its field), its cost model's work (`balance::work`) at the median rate
+//! of the study's stored points. A job's limit is the sum over its
 //! points × `SAFETY` plus `START_S` per point, rounded up to the minute and at least `FLOOR_S`.
 //! A point stopped at step k of N with a checkpoint resumes there: it counts (N − k)/N of its
 //! estimate.
 
+use super::balance::work;
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
@@ -34,8 +37,17 @@ pub struct Estimate {
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Source {
-    Itself { runs: usize },
-    Neighbours { n: Vec<u64>, exponent: f64 },
+    Itself {
+        runs: usize,
+    },
+    Neighbours {
+        n: Vec<u64>,
+        exponent: f64,
+    },
+    /// The cost model's work at the study's stored points' median rate (a search's next probe).
+    Work {
+        rate: f64,
+    },
 }
 
 /// The stored wall times of a study's points, by refinement series and grid.
@@ -45,6 +57,9 @@ pub struct History {
     times: HashMap<String, HashMap<u64, Vec<f64>>>,
     /// Key → the share of its steps a point with a checkpoint has left.
     left: HashMap<String, f64>,
+    /// Seconds per unit of the cost model's work (`balance::work`) of each timed point: the
+    /// rate that turns an untimed point's work into seconds.
+    pub rates: Vec<f64>,
 }
 
 impl History {
@@ -52,19 +67,31 @@ impl History {
     /// because it is stale still has its old timings).
     pub fn from_index(planned: &[Planned], index: &Index) -> History {
         let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
+        let mut rates = Vec::new();
         for p in planned {
             let Some(stored) = index.stored.get(p.key.as_str()) else {
                 continue;
             };
             let measured = matches!(stored.status, Status::Ok | Status::Diverged);
-            if let (true, Some(n), Some(wall)) = (measured, grid(p), stored.wall_s) {
+            let (true, Some(wall)) = (measured, stored.wall_s) else {
+                continue;
+            };
+            if let Some(n) = grid(p) {
                 let series = times.entry(p.point.series().refinement).or_default();
                 series.entry(n).or_default().push(wall);
             }
+            let work = p
+                .case
+                .as_ref()
+                .ok()
+                .and_then(|c| c.case())
+                .map(|c| work(&c));
+            rates.extend(work.map(|w| wall / w).filter(|r| r.is_finite() && *r > 0.0));
         }
         History {
             times,
             left: HashMap::new(),
+            rates,
         }
     }
 
@@ -141,10 +168,20 @@ impl History {
     pub fn limit(&self, points: &[&Planned]) -> Result<(WallTime, String), String> {
         let mut total = 0.0;
         let (mut own, mut scaled, mut resumed) = (0, 0, 0);
+        let rate = (!self.rates.is_empty()).then(|| median(&self.rates));
+        let mut rated = 0;
         for p in points {
-            let Some(estimate) = self.estimate(p) else {
+            let by_work = || {
+                let work = work(&p.case.as_ref().ok()?.case()?);
+                let seconds = Some(work * rate?).filter(|s| s.is_finite() && *s >= 0.0)?;
+                Some(Estimate {
+                    seconds,
+                    from: Source::Work { rate: rate? },
+                })
+            };
+            let Some(estimate) = self.estimate(p).or_else(by_work) else {
                 return Err(format!(
-                    "{} has no stored timing, nor a smaller grid of its series",
+                    "{} has no stored timing, nor a smaller grid of its series, nor a stored point of the study to rate its work",
                     p.point.label()
                 ));
             };
@@ -154,12 +191,10 @@ impl History {
             match estimate.from {
                 Source::Itself { .. } => own += 1,
                 Source::Neighbours { .. } => scaled += 1,
+                Source::Work { .. } => rated += 1,
             }
         }
-        let seconds = ((total / 60.0).ceil() as u64 * 60).max(FLOOR_S);
-        let time = WallTime::from_seconds(seconds).ok_or_else(|| {
-            format!("the stored timings ask for {seconds} s, beyond a wall time's 366 days")
-        })?;
+        let time = wall_time(total)?;
         let points = |k: usize| match k {
             1 => "1 point".to_string(),
             k => format!("{k} points"),
@@ -172,6 +207,11 @@ impl History {
                 points(o),
                 points(s)
             ),
+        };
+        let from = match (own + scaled, rated) {
+            (_, 0) => from,
+            (0, r) => format!("{}' work at the study's stored points' rate", points(r)),
+            (_, r) => format!("{from}, {}' work at their rate", points(r)),
         };
         let from = match resumed {
             0 => from,
@@ -190,18 +230,40 @@ impl History {
     }
 }
 
+/// A limit of `total` seconds: rounded up to the minute, at least `FLOOR_S`.
+pub fn wall_time(total: f64) -> Result<WallTime, String> {
+    let minutes = (total / 60.0).ceil();
+    let seconds = match minutes.is_finite() && minutes < 1e9 {
+        true => (minutes.max(0.0) as u64 * 60).max(FLOOR_S),
+        false => u64::MAX,
+    };
+    WallTime::from_seconds(seconds).ok_or_else(|| {
+        let total = schema::text::exact(total);
+        format!("the stored timings ask for {total} s, beyond a wall time's 366 days")
+    })
+}
+
 fn grid(point: &Planned) -> Option<u64> {
     point.point.get("n")?.as_u64()
 }
 
 #[cfg(test)]
 impl History {
+    /// A history of no timings but a rate of seconds per unit of work.
+    pub(crate) fn at_rate(seconds_per_work: f64) -> History {
+        History {
+            rates: vec![seconds_per_work],
+            ..History::default()
+        }
+    }
+
     /// The wall times `runs` (grid, times) of the refinement series named `series`.
     pub(crate) fn of_series(series: String, runs: &[(u64, &[f64])]) -> History {
         let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
         History {
             times: HashMap::from([(series, times)]),
             left: HashMap::new(),
+            rates: Vec::new(),
         }
     }
 }

@@ -4,6 +4,7 @@
 pub mod balance;
 pub mod ended;
 pub mod follow;
+pub mod forecast;
 pub mod ledger;
 pub mod limits;
 pub mod pack;

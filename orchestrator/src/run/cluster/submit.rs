@@ -4,11 +4,13 @@
 //! the workstation, and a requeued job runs only what is missing.
 
 use super::balance::predicted_costs;
+use super::forecast;
 use super::ledger::{self, LedgerEntry};
-use super::limits::History;
+use super::limits::{self, History, SAFETY, START_S};
 use super::pack::{self, pack};
 use super::scheduler::{self, Scheduler};
 use super::script::{write_jobs, Job, JobCommand, Settings};
+use crate::model::adaptive::Kind;
 use crate::model::launcher::Launcher;
 use crate::model::resources::{Resources, WallTime};
 use crate::model::site::Site;
@@ -54,6 +56,9 @@ pub struct Sent {
     pub jobs: usize,
     pub points: usize,
     pub held: usize,
+    /// The round's predicted length in seconds (`forecast::round`), when its points' costs
+    /// are timed ones.
+    pub round_s: Option<f64>,
 }
 
 /// Writes the job scripts for the planned points that run (those the solver refuses are named
@@ -100,6 +105,7 @@ pub fn submit_study(
     let command = job_command(study, solver, target)?;
     let history =
         History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
+    let predicted = predicted_costs(&runnable, &history);
     let packs = match target.whole {
         true => vec![pack::whole(
             &study.name,
@@ -110,20 +116,25 @@ pub fn submit_study(
         false => pack(
             &study.name,
             &runnable,
-            &predicted_costs(&runnable, &history),
+            &predicted.costs,
             &target.resources,
             target.site.cores_per_node,
             target.array,
         ),
     };
+    let cost: HashMap<&str, f64> = runnable
+        .iter()
+        .zip(&predicted.costs)
+        .map(|(p, c)| (p.key.as_str(), *c))
+        .collect();
+    let round_s = predicted.seconds.then(|| forecast::round(&packs, &cost));
     let packs: Vec<_> = packs
         .into_iter()
         .map(|pack| {
             let (time, from) = match (target.whole, study.question()) {
-                (true, Some(_)) if target.time.is_none() => fallback(
-                    target,
-                    "the rounds of an adaptive study are not known before they run".into(),
-                ),
+                (true, Some(question)) if target.time.is_none() => {
+                    whole_limit(question, round_s, target)
+                }
                 _ => time_limit(&pack.bundles, &history, target),
             };
             (pack, time, from)
@@ -150,6 +161,7 @@ pub fn submit_study(
         jobs: jobs.len(),
         points: runnable.len(),
         held,
+        round_s,
     })
 }
 
@@ -260,6 +272,41 @@ fn time_limit(
             Some((time, from)) => (Some(time), format!("from {from}")),
             None => fallback(target, "no points".into()),
         },
+        Err(why) => fallback(target, why),
+    }
+}
+
+/// The time limit of a job running every round of an adaptive study (`--whole`): the plan's
+/// worst case of rounds, each as long as this one's predicted length on the job's lanes, × the
+/// margin; without both, the site's default, saying which is unknown.
+fn whole_limit(
+    question: &dyn Kind,
+    round_s: Option<f64>,
+    target: &Target,
+) -> (Option<WallTime>, String) {
+    let Some(rounds) = question.worst_case_rounds() else {
+        return fallback(target, "the question does not bound its rounds".into());
+    };
+    if question.rounds_no_longer_from() != Some(1) {
+        return fallback(
+            target,
+            "its later rounds may be longer than its first (a finer grid, more probes), so the first bounds none".into(),
+        );
+    }
+    let Some(round_s) = round_s else {
+        return fallback(
+            target,
+            "no point of the study is timed yet, nor a smaller grid of its series, so the length of its rounds is not known".into(),
+        );
+    };
+    match limits::wall_time(rounds as f64 * round_s * SAFETY + START_S) {
+        Ok(time) => (
+            Some(time),
+            format!(
+                "from the plan's worst case, {rounds} rounds × {} (this round's points, predicted from stored timings, on the job's cores) × {SAFETY} + {START_S} s",
+                forecast::seconds(round_s)
+            ),
+        ),
         Err(why) => fallback(target, why),
     }
 }
