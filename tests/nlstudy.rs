@@ -1324,14 +1324,14 @@ fn shell_wrapper(scratch: &Scratch, name: &str, first: &str) -> PathBuf {
 }
 
 /// A solver wrapper whose records report timings of a scale `compare` judges: solve 0.2 s ×
-/// $FACTOR (within 1 %, per process), step and set-up in proportion, never `noisy`, and the CPU
+/// $FACTOR (within 1 %, per process), step, set-up and the whole wall time in proportion, never `noisy`, and the CPU
 /// $CPU when given.
 fn timing_wrapper(scratch: &Scratch) -> PathBuf {
     let wrapper = scratch.dir.join("timed-nlsolve");
     std::fs::write(
         &wrapper,
         format!(
-            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\ntimed_runs = []\ndef timed(text):\n    record = json.loads(text)\n    if 'error' in record:\n        return text\n    timed_runs.append(1)\n    scale = 0.2 * float(os.environ.get('FACTOR', '1')) * (1 + 0.01 * (((os.getpid() + len(timed_runs)) % 7) - 3) / 3)\n    record['solve_s'] = scale\n    record['step_s'] = scale / max(1, record['steps_done'])\n    record['setup_s'] = scale / 4\n    record['provenance']['noisy'] = False\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    return json.dumps(record) + '\\n'\nreal = subprocess.Popen(['{}'] + sys.argv[1:], stdout=subprocess.PIPE, text=True)\nfor line in real.stdout:\n    sys.stdout.write(timed(line) if sys.argv[1:2] in (['run'], ['serve']) and line.strip() else line)\n    sys.stdout.flush()\nsys.exit(real.wait())\n",
+            "#!/usr/bin/env python3\nimport json, os, subprocess, sys\ntimed_runs = []\ndef timed(text):\n    record = json.loads(text)\n    if 'error' in record:\n        return text\n    timed_runs.append(1)\n    scale = 0.2 * float(os.environ.get('FACTOR', '1')) * (1 + 0.01 * (((os.getpid() + len(timed_runs)) % 7) - 3) / 3)\n    record['solve_s'] = scale\n    record['step_s'] = scale / max(1, record['steps_done'])\n    record['setup_s'] = scale / 4\n    record['wall_s'] = scale * 1.25\n    record['provenance']['noisy'] = False\n    record['provenance']['cpu'] = os.environ.get('CPU', record['provenance']['cpu'])\n    return json.dumps(record) + '\\n'\nreal = subprocess.Popen(['{}'] + sys.argv[1:], stdout=subprocess.PIPE, text=True)\nfor line in real.stdout:\n    sys.stdout.write(timed(line) if sys.argv[1:2] in (['run'], ['serve']) and line.strip() else line)\n    sys.stdout.flush()\nsys.exit(real.wait())\n",
             binary("nlsolve").display()
         ),
     )

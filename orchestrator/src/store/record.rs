@@ -130,9 +130,11 @@ pub(crate) fn read_indexed(path: Option<&Path>, text: &str) -> Result<Indexed, S
 impl Indexed {
     fn from_stored(stored: Stored) -> Indexed {
         let status = stored.status();
+        // The whole run where the record has it (the spectrum and errors measured after the
+        // solve are most of a stability probe's time), else its set-up and solve.
         let wall_s = stored
             .record()
-            .map(|r| r.setup_s + r.solve_s)
+            .map(|r| r.wall_s.unwrap_or(r.setup_s + r.solve_s))
             .filter(|w| w.is_finite() && *w >= 0.0);
         let failure = (status == Status::Failed)
             .then(|| stored.message().lines().next().unwrap_or("").to_string());
