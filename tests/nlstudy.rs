@@ -1477,8 +1477,8 @@ fn submitting_an_adaptive_study_says_its_rounds_and_how_they_run() {
 
 /// What a round, and a whole adaptive study in one job, may take, from stored timings: nothing
 /// before a point is timed; once the first round is stored (the wrapper's runs, 25 s each), the
-/// next round's probes, new points, cost their work at the stored ones' rate (the same work:
-/// 25 s each), and a whole job's limit is the plan's worst case of rounds × that round × 2 +
+/// next round's probes, new points, cost what their searches' stored probes did (25 s each),
+/// and a whole job's limit is the plan's worst case of rounds × that round × 2 +
 /// 10 s. A study whose first round does not bound its later ones (7 probes a round after
 /// the bracket's 2) gets no forecast from it.
 #[test]
@@ -1537,9 +1537,9 @@ fn a_forecast_and_a_whole_jobs_limit_come_from_the_stored_rounds_timings() {
         .parse()
         .unwrap();
     assert!((49.0..=51.0).contains(&round_s), "{rounds}");
-    // The job's own limit: its two points' work at the first round's rate, × 2 + 10 s each.
+    // The job's own limit: its two probes at their searches' stored probes' times, × 2 + 10 s.
     assert!(
-        rounds.contains("time 00:05:00: from 2 points' work at the study's stored points' rate × 2"),
+        rounds.contains("time 00:05:00: from 2 points timed by their searches' stored probes × 2"),
         "{rounds}"
     );
     assert!(

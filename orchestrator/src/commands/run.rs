@@ -130,7 +130,9 @@ fn predicted_costs(planned: &[Planned], store: &Store, options: &PoolOptions) ->
     if !options.side_by_side() {
         return None;
     }
-    let history = History::from_index(planned, &store.index());
+    // Not by searches: the pool orders a round's probes by their work, ties by key, which
+    // keeps two workers off one operator's spectrum at once (docs/performance.md).
+    let history = History::from_index(planned, &store.index(), None);
     let points: Vec<&Planned> = planned.iter().collect();
     Some(crate::run::cluster::balance::predicted_costs(&points, &history).costs)
 }

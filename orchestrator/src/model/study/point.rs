@@ -161,6 +161,11 @@ impl Point {
         self.label_without(&[])
     }
 
+    /// The label without `field`: what the probes of one search share.
+    pub fn label_without_field(&self, field: &str) -> String {
+        self.label_without(&[field.to_string()])
+    }
+
     fn label_without(&self, left_out: &[String]) -> String {
         use std::fmt::Write as _;
         let mut label = String::new();

@@ -44,7 +44,11 @@ pub enum Source {
         n: Vec<u64>,
         exponent: f64,
     },
-    /// The cost model's work at the study's stored points' median rate (a search's next probe).
+    /// The stored probes of the same search: the point's fields but the probed one.
+    Search {
+        runs: usize,
+    },
+    /// The cost model's work at the study's stored points' median rate.
     Work {
         rate: f64,
     },
@@ -57,6 +61,10 @@ pub struct History {
     times: HashMap<String, HashMap<u64, Vec<f64>>>,
     /// Key → the share of its steps a point with a checkpoint has left.
     left: HashMap<String, f64>,
+    /// The field an adaptive study probes, and the wall times of its searches' stored probes,
+    /// by the point's label without it.
+    probed: Option<String>,
+    searches: HashMap<String, Vec<f64>>,
     /// Seconds per unit of the cost model's work (`balance::work`) of each timed point: the
     /// rate that turns an untimed point's work into seconds.
     pub rates: Vec<f64>,
@@ -64,10 +72,11 @@ pub struct History {
 
 impl History {
     /// The wall times the store's index holds for the planned points (a point that runs again
-    /// because it is stale still has its old timings).
-    pub fn from_index(planned: &[Planned], index: &Index) -> History {
+    /// because it is stale still has its old timings); `probed`, the field an adaptive study's
+    /// searches probe, if it is one.
+    pub fn from_index(planned: &[Planned], index: &Index, probed: Option<&str>) -> History {
         let mut times: HashMap<String, HashMap<u64, Vec<f64>>> = HashMap::new();
-        let mut rates = Vec::new();
+        let (mut searches, mut rates) = (HashMap::<String, Vec<f64>>::new(), Vec::new());
         for p in planned {
             let Some(stored) = index.stored.get(p.key.as_str()) else {
                 continue;
@@ -80,6 +89,10 @@ impl History {
                 let series = times.entry(p.point.series().refinement).or_default();
                 series.entry(n).or_default().push(wall);
             }
+            if let Some(field) = probed {
+                let search = p.point.label_without_field(field);
+                searches.entry(search).or_default().push(wall);
+            }
             let work = p
                 .case
                 .as_ref()
@@ -91,6 +104,8 @@ impl History {
         History {
             times,
             left: HashMap::new(),
+            probed: probed.map(str::to_string),
+            searches,
             rates,
         }
     }
@@ -122,16 +137,29 @@ impl History {
         self
     }
 
-    /// The estimate for `point`, if it or a neighbour was timed.
+    /// The estimate for `point`, if it, a probe of its search or a neighbour was timed.
     pub fn estimate(&self, point: &Planned) -> Option<Estimate> {
-        let n = grid(point)?;
-        let series = self.times.get(&point.point.series().refinement)?;
-        if let Some(own) = series.get(&n) {
+        let n = grid(point);
+        let series = self.times.get(&point.point.series().refinement);
+        if let Some(own) = series.zip(n).and_then(|(s, n)| s.get(&n)) {
             return Some(Estimate {
                 seconds: median(own),
                 from: Source::Itself { runs: own.len() },
             });
         }
+        // A search's next probe costs what its earlier ones did: the same operator and case,
+        // another value of one field (and the spectrum its first probe measured, shared).
+        let search = self
+            .probed
+            .as_ref()
+            .map(|f| point.point.label_without_field(f));
+        if let Some(probes) = search.and_then(|s| self.searches.get(&s)) {
+            return Some(Estimate {
+                seconds: median(probes),
+                from: Source::Search { runs: probes.len() },
+            });
+        }
+        let (n, series) = (n?, series?);
         let mut below: Vec<(u64, f64)> = series
             .iter()
             .filter(|(m, _)| **m < n)
@@ -169,7 +197,7 @@ impl History {
         let mut total = 0.0;
         let (mut own, mut scaled, mut resumed) = (0, 0, 0);
         let rate = (!self.rates.is_empty()).then(|| median(&self.rates));
-        let mut rated = 0;
+        let (mut searched, mut rated) = (0, 0);
         for p in points {
             let by_work = || {
                 let work = work(&p.case.as_ref().ok()?.case()?);
@@ -191,6 +219,7 @@ impl History {
             match estimate.from {
                 Source::Itself { .. } => own += 1,
                 Source::Neighbours { .. } => scaled += 1,
+                Source::Search { .. } => searched += 1,
                 Source::Work { .. } => rated += 1,
             }
         }
@@ -208,7 +237,12 @@ impl History {
                 points(s)
             ),
         };
-        let from = match (own + scaled, rated) {
+        let from = match (own + scaled, searched) {
+            (_, 0) => from,
+            (0, s) => format!("{} timed by their searches' stored probes", points(s)),
+            (_, s) => format!("{from}, {} by their searches' stored probes", points(s)),
+        };
+        let from = match (own + scaled + searched, rated) {
             (_, 0) => from,
             (0, r) => format!("{}' work at the study's stored points' rate", points(r)),
             (_, r) => format!("{from}, {}' work at their rate", points(r)),
@@ -262,8 +296,7 @@ impl History {
         let times = runs.iter().map(|(n, t)| (*n, t.to_vec())).collect();
         History {
             times: HashMap::from([(series, times)]),
-            left: HashMap::new(),
-            rates: Vec::new(),
+            ..History::default()
         }
     }
 }
@@ -325,6 +358,37 @@ mod tests {
         assert!((h.estimate(&point("b", 2, 200)).unwrap().seconds - 16.0).abs() < 1e-9);
         assert_eq!(h.estimate(&point("b", 2, 50)), None, "no smaller grid");
         assert_eq!(h.estimate(&point("c", 2, 200)), None, "another series");
+    }
+
+    /// A search's new probe (a value of the probed field not run before) costs the median of
+    /// its search's stored probes: the same point but that field; another search's say nothing.
+    #[test]
+    fn a_searchs_next_probe_is_timed_by_its_stored_probes() {
+        let probe = |series: &str, cfl: f64| {
+            let mut p = point(series, 1, 64);
+            p.point = p.point.with("cfl", cfl.into());
+            p
+        };
+        let search = probe("a", 0.5).point.label_without_field("cfl");
+        let h = History {
+            probed: Some("cfl".into()),
+            searches: HashMap::from([(search, vec![1.0, 9.0, 2.0])]),
+            ..History::default()
+        };
+        assert_eq!(
+            h.estimate(&probe("a", 1.25)),
+            Some(Estimate {
+                seconds: 2.0,
+                from: Source::Search { runs: 3 }
+            })
+        );
+        assert_eq!(h.estimate(&probe("b", 1.25)), None, "another search");
+        let (time, from) = h.limit(&[&probe("a", 1.25)]).unwrap();
+        assert_eq!(time.seconds(), FLOOR_S);
+        assert!(
+            from.contains("1 point timed by their searches' stored probes"),
+            "{from}"
+        );
     }
 
     #[test]

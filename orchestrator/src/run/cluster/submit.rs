@@ -103,8 +103,8 @@ pub fn submit_study(
     }
     crate::store::fs::create_dir(&target.results)?;
     let command = job_command(study, solver, target)?;
-    let history =
-        History::from_index(planned, index).resuming(store, planned, solver.fingerprint.as_deref());
+    let history = History::from_index(planned, index, study.question().map(|q| q.field()))
+        .resuming(store, planned, solver.fingerprint.as_deref());
     let predicted = predicted_costs(&runnable, &history);
     let packs = match target.whole {
         true => vec![pack::whole(
