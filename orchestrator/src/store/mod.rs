@@ -115,7 +115,7 @@ impl Store {
             let opened = Appender::open(&dir, &candidates)?;
             if let Some(cut) = &opened.cut {
                 log::warn!(
-                    "segment runs/{}/{} ended in {} bytes of a frame cut short (a write torn by a crash, or a frame's length changed): cut off; a record they held counts as not run",
+                    "segment runs/{}/{} ended in {} bytes of a frame cut short (a write torn by a crash, or a frame's length changed): cut off; the record they held is not counted (its point runs again, unless an earlier record of it stands)",
                     segment::DIR,
                     opened.name,
                     cut.end - cut.start

@@ -267,7 +267,7 @@ pub struct Recorded {
     pub status: Status,
     /// The fingerprint of the solver that made it ("" when it does not say).
     pub fingerprint: super::shared::Shared,
-    /// Its wall time, set-up + solve, in seconds, when it says.
+    /// Its wall time in seconds, the whole run's (else set-up + solve), when it says.
     pub wall_s: Option<f64>,
 }
 
@@ -285,13 +285,13 @@ impl std::fmt::Display for Unreadable {
         match &self.at {
             None => write!(
                 f,
-                "{} is not a whole record ({}); its point counts as not run",
+                "{} is not a whole record ({}); its point runs again",
                 self.path.display(),
                 self.problem
             ),
             Some(at) => write!(
                 f,
-                "{} bytes {}–{} are not a whole record ({}); a record they held counts as not run",
+                "{} bytes {}–{} are not a whole record ({}), kept where they are: the record they held is not counted (its point runs again, unless an earlier record of it stands)",
                 self.path.display(),
                 at.start,
                 at.end,

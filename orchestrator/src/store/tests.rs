@@ -803,6 +803,33 @@ fn a_whole_frame_that_is_not_a_typed_record_is_not_counted_stored() {
     }
 }
 
+/// Such a frame written over a stored key (a later sequence number): the earlier record
+/// stands, and the report says that it may, rather than that the point counts as not run.
+#[test]
+fn a_whole_frame_that_is_not_a_record_leaves_an_earlier_record_of_its_key_standing() {
+    let (dir, store, _) = twenty_with_their_catalog();
+    let (key, mut record) = keyed(3, "ok");
+    record["error_l2_norm"] = json!("abc");
+    let frame = segment::encode(segment::now_ns(), record.to_string().as_bytes());
+    std::fs::write(store.segments().join("hand.seg"), frame).unwrap();
+    let again = Store::open(dir.path(), "s");
+    let index = again.index();
+    assert_eq!(index.stored.len(), 20);
+    assert_eq!(
+        again.status(&key),
+        Some(Status::Ok),
+        "the earlier record stands"
+    );
+    let said: Vec<String> = index.unreadable.iter().map(|u| u.to_string()).collect();
+    assert_eq!(said.len(), 1, "{said:?}");
+    assert!(
+        said[0].contains("hand.seg")
+            && said[0].contains("kept where they are")
+            && said[0].contains("unless an earlier record of it stands"),
+        "{said:?}"
+    );
+}
+
 /// A `*.seg` that is a symbolic link (to a segment of the store, or anywhere) is not read
 /// through, and is said, not passed over in silence.
 #[test]
