@@ -1422,7 +1422,7 @@ fn time_limits_come_from_stored_timings_unless_given() {
     let out = scratch.nlstudy("submit", &["--scheduler", "slurm", "--dry-run"]);
     assert!(out.status.success(), "{}", text(&out));
     assert!(
-        text(&out).contains("time 00:05:00: from 4 points scaled from smaller grids × 2 + 10 s each, at least 5 min"),
+        text(&out).contains("time 00:05:00: from 4 points scaled from smaller grids × 2, + 10 s for the job and 1 s a case (10 s over ranks), at least 5 min"),
         "{}",
         text(&out)
     );

@@ -8,7 +8,9 @@
 //! count at a fixed CFL number) when only one is stored; without those either (a search's next
 //! probe, a new value of its field), its cost model's work (`balance::work`) at the median rate
 //! of the study's stored points. A job's limit is the sum over its
-//! points × `SAFETY` plus `START_S` per point, rounded up to the minute and at least `FLOOR_S`.
+//! points × `SAFETY`, plus `START_S` for the job (its workers' start, MPI's) and `CASE_S` a case
+//! (its hand-off to a worker and its record stored; `START_S` a case over several ranks, which
+//! starts MPI of its own), rounded up to the minute and at least `FLOOR_S`.
 //! A point stopped at step k of N with a checkpoint resumes there: it counts (N − k)/N of its
 //! estimate.
 
@@ -22,8 +24,11 @@ use std::collections::HashMap;
 
 /// The margin over the estimate: timings vary between nodes and runs.
 pub const SAFETY: f64 = 2.0;
-/// Seconds per point for what the timings leave out: starting the process, MPI's start-up.
+/// Seconds a job, and a case over several ranks, take to start (the processes, MPI's start-up),
+/// which the timings leave out.
 pub const START_S: f64 = 10.0;
+/// Seconds a case on a worker takes beyond its timing: its hand-off and its record stored.
+pub const CASE_S: f64 = 1.0;
 /// The shortest limit set from history.
 pub const FLOOR_S: u64 = 5 * 60;
 
@@ -194,7 +199,7 @@ impl History {
     /// The limit of a job running `points` one after another, and a sentence of where it came
     /// from; `None` when a point has no estimate (then the job's limit is the site's or none).
     pub fn limit(&self, points: &[&Planned]) -> Result<(WallTime, String), String> {
-        let mut total = 0.0;
+        let mut total = START_S;
         let (mut own, mut scaled, mut resumed) = (0, 0, 0);
         let rate = (!self.rates.is_empty()).then(|| median(&self.rates));
         let (mut searched, mut rated) = (0, 0);
@@ -215,7 +220,9 @@ impl History {
             };
             let left = self.left.get(p.key.as_str()).copied().unwrap_or(1.0);
             resumed += usize::from(left < 1.0);
-            total += estimate.seconds * left * SAFETY + START_S;
+            let ranks = p.case.as_ref().map_or(1, |c| c.ranks());
+            let start = if ranks > 1 { START_S } else { CASE_S };
+            total += estimate.seconds * left * SAFETY + start;
             match estimate.from {
                 Source::Itself { .. } => own += 1,
                 Source::Neighbours { .. } => scaled += 1,
@@ -257,7 +264,7 @@ impl History {
         Ok((
             time,
             format!(
-                "{from} × {SAFETY} + {START_S} s each, at least {} min",
+                "{from} × {SAFETY}, + {START_S} s for the job and {CASE_S} s a case ({START_S} s over ranks), at least {} min",
                 FLOOR_S / 60
             ),
         ))
@@ -395,13 +402,24 @@ mod tests {
     fn a_jobs_limit_sums_its_points_with_the_margin_rounds_up_and_has_a_floor() {
         let h = history("a", &[(64, &[100.0]), (128, &[400.0])]);
         let (p, q) = (point("a", 1, 64), point("a", 1, 128));
-        // (100 + 400) × 2 + 2 × 10 s = 1020 s → 17 min.
+        // (100 + 400) × 2 + 10 s + 2 × 1 s = 1012 s → 17 min.
         let (time, from) = h.limit(&[&p, &q]).unwrap();
         assert_eq!(time.seconds(), 17 * 60);
         assert!(from.contains("the stored timings of 2 points"), "{from}");
         let tiny = history("t", &[(8, &[0.01])]);
         let (time, _) = tiny.limit(&[&point("t", 1, 8)]).unwrap();
         assert_eq!(time.seconds(), FLOOR_S);
+        // 567 probes of 0.01 s on a worker: 10 s + 567 × (0.02 + 1) s = 588 s → 10 min (at
+        // 10 s a case, as before, 95 min); a case over two ranks starts MPI: 10 s of its own.
+        let probes = history("p", &[(64, &[0.01])]);
+        let one = point("p", 1, 64);
+        let (time, _) = probes.limit(&vec![&one; 567]).unwrap();
+        assert_eq!(time.seconds(), 10 * 60);
+        let mut ranked = point("p", 1, 64);
+        let case = serde_json::json!({"dim": 1, "n": 64, "m": 2, "ranks": 2});
+        ranked.case = Ok(Checked::unresolved(&case));
+        let (time, _) = probes.limit(&vec![&ranked; 567]).unwrap();
+        assert_eq!(time.seconds(), 95 * 60, "10 + 567 × 10.02 s = 5691 s");
         let e = h.limit(&[&p, &point("z", 1, 64)]).unwrap_err();
         assert!(e.contains("no stored timing"), "{e}");
     }
@@ -412,7 +430,7 @@ mod tests {
         let mut h = history("a", &[(64, &[1000.0]), (128, &[4000.0])]);
         let (p, q) = (point("a", 1, 64), point("a", 1, 128));
         h.left.insert(q.key.to_string(), 0.25);
-        // 1000 × 2 + 10 + 4000 × 0.25 × 2 + 10 = 4020 s → 67 min.
+        // 10 + 1000 × 2 + 1 + 4000 × 0.25 × 2 + 1 = 4012 s → 67 min.
         let (time, from) = h.limit(&[&p, &q]).unwrap();
         assert_eq!(time.seconds(), 67 * 60);
         assert!(
