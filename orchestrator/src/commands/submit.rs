@@ -93,7 +93,6 @@ fn follow_to_the_end(
     // The first prediction of the whole time, said again beside what it took at the end.
     let mut first_estimate: Option<(usize, f64)> = None;
     let most_rounds = study.question().and_then(|q| q.worst_case_rounds());
-    let bounds_from = bounds_from(&study);
     // Each round's plan replays every search from the stored records, and the plan that finds
     // nothing left to submit holds the answers: they are not replayed again (3 s of the map's).
     let (answered, planned) = loop {
@@ -116,21 +115,12 @@ fn follow_to_the_end(
         if sent.jobs > 0 {
             rounds += 1;
         }
-        // The rounds left at most, this one included (a whole study's job runs them all).
-        let (this, left) = match args.whole {
-            true => (1, most_rounds),
-            false => (
-                rounds,
-                most_rounds.map(|most| most.saturating_sub(rounds) + 1),
-            ),
-        };
-        let left = left.filter(|_| bounds_from.is_some_and(|from| this >= from));
-        let predicted = match (sent.round_s, left) {
-            (Some(round_s), Some(left)) if sent.jobs > 0 => {
+        let predicted = match rounds_left(&study, args.whole, rounds, sent) {
+            Some((left, round_s)) => {
                 first_estimate.get_or_insert((rounds, round_s * left as f64));
                 format!("; {}", forecast::at_most(left, round_s))
             }
-            _ => String::new(),
+            None => String::new(),
         };
         if sent.jobs > 0 && args.whole {
             say(format!(
@@ -191,6 +181,19 @@ fn follow_to_the_end(
 /// The round of `study`'s question from which a round's length bounds each later one's.
 fn bounds_from(study: &Study) -> Option<usize> {
     study.question()?.rounds_no_longer_from()
+}
+
+/// The rounds left at most, this one (`round`, as `sent`) included, and its predicted length:
+/// where the round's points are timed and it bounds the later rounds (a whole study's job runs
+/// every round, from the first).
+fn rounds_left(study: &Study, whole: bool, round: usize, sent: Sent) -> Option<(usize, f64)> {
+    let most = study.question()?.worst_case_rounds()?;
+    let (this, left) = match whole {
+        true => (1, most),
+        false => (round, most.saturating_sub(round) + 1),
+    };
+    let bounded = bounds_from(study).is_some_and(|from| this >= from);
+    Some((left, sent.round_s?)).filter(|_| bounded && sent.jobs > 0)
 }
 
 /// How long the rounds left may take, from the rounds done (`elapsed` since the first was
