@@ -1455,14 +1455,7 @@ fn submitting_an_adaptive_study_says_its_rounds_and_how_they_run() {
                      "rtol": 0.01, "per_round": 7}
     });
     let scratch = Scratch::new("ways", &study);
-    let dry = |extra: &[&str]| {
-        let out = scratch.nlstudy(
-            "submit",
-            &[&["--scheduler", "slurm", "--dry-run"], extra].concat(),
-        );
-        assert!(out.status.success(), "{}", text(&out));
-        text(&out)
-    };
+    let dry = |extra: &[&str]| dry_submit(&scratch, extra);
     let rounds = dry(&[]);
     assert!(
         rounds.contains("this round: 1 jobs, 2 points, of at most 4 rounds; submit again"),
@@ -1494,14 +1487,7 @@ fn a_forecast_and_a_whole_jobs_limit_come_from_the_stored_rounds_timings() {
         })
     };
     let scratch = Scratch::new("forecast", &study(1));
-    let dry = |extra: &[&str]| {
-        let out = scratch.nlstudy(
-            "submit",
-            &[&["--scheduler", "slurm", "--dry-run"], extra].concat(),
-        );
-        assert!(out.status.success(), "{}", text(&out));
-        text(&out)
-    };
+    let dry = |extra: &[&str]| dry_submit(&scratch, extra);
     let whole = dry(&["--whole"]);
     assert!(
         whole.contains("the scheduler's default (no point of the study is timed yet"),
@@ -1561,6 +1547,16 @@ fn a_forecast_and_a_whole_jobs_limit_come_from_the_stored_rounds_timings() {
         "{later_longer}"
     );
     assert!(!dry(&[]).contains("s a round"));
+}
+
+/// What `submit --scheduler slurm --dry-run EXTRA…` says of the study of `scratch`; it succeeds.
+fn dry_submit(scratch: &Scratch, extra: &[&str]) -> String {
+    let out = scratch.nlstudy(
+        "submit",
+        &[&["--scheduler", "slurm", "--dry-run"], extra].concat(),
+    );
+    assert!(out.status.success(), "{}", text(&out));
+    text(&out)
 }
 
 /// The text of `said` between the first `before` and the next `after`.
