@@ -145,22 +145,12 @@ fn follow_to_the_end(
         false => format!("{rounds} rounds of jobs"),
     };
     let mut reply = Reply::default();
-    let estimated = match first_estimate {
-        Some((1, total)) => format!(
-            " (predicted at its first round: at most about {})",
-            forecast::seconds(total)
-        ),
-        Some((k, total)) => format!(
-            " (predicted at round {k}: at most about {} to go)",
-            forecast::seconds(total)
-        ),
-        None => String::new(),
-    };
     reply.note(format!(
-        "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting; it took {}{estimated}",
+        "nlstudy: {submitted}; {} questions to {scheduler} in {:.0} s of waiting; it took {}{}",
         waited.questions,
         waited.seconds,
-        forecast::seconds(started.elapsed().as_secs_f64())
+        forecast::seconds(started.elapsed().as_secs_f64()),
+        beside(first_estimate)
     ));
     // The driver's jobs ran one build on the cluster's nodes: a whole study on several nodes
     // has tabulated its nodes' runs together (its job script), and rounds of jobs run wherever
@@ -176,6 +166,21 @@ fn follow_to_the_end(
         answered.as_deref(),
         allow_mixed,
     )
+}
+
+/// The first forecast of a followed study, `(round, seconds to go)`, as said beside what it took.
+fn beside(first_estimate: Option<(usize, f64)>) -> String {
+    match first_estimate {
+        Some((1, total)) => format!(
+            " (predicted at its first round: at most about {})",
+            forecast::seconds(total)
+        ),
+        Some((k, total)) => format!(
+            " (predicted at round {k}: at most about {} to go)",
+            forecast::seconds(total)
+        ),
+        None => String::new(),
+    }
 }
 
 /// The round of `study`'s question from which a round's length bounds each later one's.

@@ -6,7 +6,7 @@
 //! them, the median at the largest smaller `n` of its series, scaled to its own `n` by the
 //! power law the two largest such grids show (time ∝ n^b), or by n^(dim+2) (an explicit step
 //! count at a fixed CFL number) when only one is stored; without those either (a search's next
-//! probe, a new value of its field), its cost model's work (`balance::work`) at the median rate
+//! probe, a new value of its field), its cost model's work (`cost::work`) at the median rate
 //! of the study's stored points. A job's limit is the sum over its
 //! points × `SAFETY`, plus `START_S` for the job (its workers' start, MPI's) and `CASE_S` a case
 //! (its hand-off to a worker and its record stored; `START_S` a case over several ranks, which
@@ -14,7 +14,7 @@
 //! A point stopped at step k of N with a checkpoint resumes there: it counts (N − k)/N of its
 //! estimate.
 
-use super::balance::work;
+use super::cost::work;
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
@@ -70,7 +70,7 @@ pub struct History {
     /// by the point's label without it.
     probed: Option<String>,
     searches: HashMap<String, Vec<f64>>,
-    /// Seconds per unit of the cost model's work (`balance::work`) of each timed point: the
+    /// Seconds per unit of the cost model's work (`cost::work`) of each timed point: the
     /// rate that turns an untimed point's work into seconds.
     pub rates: Vec<f64>,
 }

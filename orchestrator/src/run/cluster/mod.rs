@@ -2,6 +2,7 @@
 //! `nlstudy submit`, which ties them together.
 
 pub mod balance;
+pub mod cost;
 pub mod ended;
 pub mod follow;
 pub mod forecast;
