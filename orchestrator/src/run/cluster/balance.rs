@@ -8,7 +8,7 @@
 //! longest first onto the least loaded job (LPT scheduling, within 4/3 of the best makespan),
 //! and each job lists its points longest first, so its workers take the long ones first too.
 
-use super::cost::work;
+use super::cost::work_of;
 use super::limits::History;
 use crate::run::plan::Planned;
 use crate::statistics::median;
@@ -26,10 +26,7 @@ pub struct Predicted {
 /// neighbours (the untimed scaled by the timed ones' rate, or the study's stored points'),
 /// else in the cost model's work.
 pub fn predicted_costs(points: &[&Planned], history: &History) -> Predicted {
-    let work: Vec<Option<f64>> = points
-        .iter()
-        .map(|p| p.case.as_ref().ok()?.case().map(|c| work(&c)))
-        .collect();
+    let work: Vec<Option<f64>> = points.iter().map(|p| work_of(p)).collect();
     let timed: Vec<Option<f64>> = points
         .iter()
         .map(|p| history.estimate(p).map(|e| e.seconds))
@@ -174,7 +171,7 @@ mod tests {
         // A search's next probes, none timed, at the rate of the study's stored points.
         let probes = predicted_costs(&[&untimed], &History::at_rate(1e-3));
         let checked = crate::run::nlsolve::Checked::unresolved(&case(128));
-        let expected = work(&checked.case().unwrap()) * 1e-3;
+        let expected = crate::run::cluster::cost::work(&checked.case().unwrap()) * 1e-3;
         assert_eq!(probes.costs, vec![expected]);
         assert!(probes.seconds);
     }

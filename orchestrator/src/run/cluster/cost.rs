@@ -2,8 +2,14 @@
 //! and packs points no run has timed yet (`balance`), and that the study's timed points turn
 //! into seconds (`limits`).
 
+use crate::run::plan::Planned;
 use schema::case::Case;
 use schema::choices::Method;
+
+/// The work of a planned point's case; none for a case this build cannot read.
+pub fn work_of(point: &Planned) -> Option<f64> {
+    Some(work(&point.case.as_ref().ok()?.case()?))
+}
 
 /// The cost model's work of a case: its nodes, the bonds (stencil points) of each, and its
 /// steps (those to `t_end`, from `dt` or, at a CFL number, from a step ∝ h², plus the steps of

@@ -2,8 +2,9 @@
 //! their nearest neighbours in the sweep (the same refinement series, a smaller grid), so a
 //! study is neither killed at a guessed limit nor kept waiting in the queue by a huge one.
 //!
-//! A point's estimate is the median wall time (set-up + solve) of its stored runs; without
-//! them, the median at the largest smaller `n` of its series, scaled to its own `n` by the
+//! A point's estimate is the median wall time (the whole run's) of its stored runs; without
+//! them, the median of its search's stored probes (the point but the field an adaptive study
+//! probes); else the median at the largest smaller `n` of its series, scaled to its own `n` by the
 //! power law the two largest such grids show (time ∝ n^b), or by n^(dim+2) (an explicit step
 //! count at a fixed CFL number) when only one is stored; without those either (a search's next
 //! probe, a new value of its field), its cost model's work (`cost::work`) at the median rate
@@ -14,7 +15,7 @@
 //! A point stopped at step k of N with a checkpoint resumes there: it counts (N − k)/N of its
 //! estimate.
 
-use super::cost::work;
+use super::cost::work_of;
 use crate::model::resources::WallTime;
 use crate::run::plan::Planned;
 use crate::statistics::median;
@@ -98,13 +99,8 @@ impl History {
                 let search = p.point.label_without_field(field);
                 searches.entry(search).or_default().push(wall);
             }
-            let work = p
-                .case
-                .as_ref()
-                .ok()
-                .and_then(|c| c.case())
-                .map(|c| work(&c));
-            rates.extend(work.map(|w| wall / w).filter(|r| r.is_finite() && *r > 0.0));
+            let rate = work_of(p).map(|w| wall / w);
+            rates.extend(rate.filter(|r| r.is_finite() && *r > 0.0));
         }
         History {
             times,
@@ -205,8 +201,7 @@ impl History {
         let (mut searched, mut rated) = (0, 0);
         for p in points {
             let by_work = || {
-                let work = work(&p.case.as_ref().ok()?.case()?);
-                let seconds = Some(work * rate?).filter(|s| s.is_finite() && *s >= 0.0)?;
+                let seconds = Some(work_of(p)? * rate?).filter(|s| s.is_finite() && *s >= 0.0)?;
                 Some(Estimate {
                     seconds,
                     from: Source::Work { rate: rate? },
