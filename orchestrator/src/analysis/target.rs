@@ -192,6 +192,7 @@ mod tests {
     use super::*;
     use schema::record::example::record;
     use serde_json::json;
+    use std::sync::Arc;
 
     /// Candidates of costs drawn from one distribution tie; one twice as costly is ranked after
     /// them; the ranking reads the cost order (a mutant ranking the dearest first fails it).
@@ -212,7 +213,7 @@ mod tests {
             .into_iter()
             .zip(costs)
             .map(|(origin, costs)| {
-                let stored = record(json!({"error_l2_norm": 1e-4, "steps_done": 10}));
+                let stored = Arc::new(record(json!({"error_l2_norm": 1e-4, "steps_done": 10})));
                 let (aimed, _) = spec.replay_levels(|_| Some(Ok(stored.clone())));
                 Searched {
                     origin,

@@ -15,6 +15,7 @@ use schema::record::columns;
 use serde::Deserialize;
 use serde_json::{json, Value};
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// The section `first_below`: `field`'s `values` in order, until `error` is below `below`.
 #[derive(Debug, Deserialize)]
@@ -200,7 +201,7 @@ fn a_fourth_kind_is_one_module_and_its_registration() {
     let errors = [(16.0, 4e-3), (32.0, 9e-4)];
     let (walked, next) = spec.replay(&mut |v: &[f64]| {
         let error = errors.iter().find(|(n, _)| *n == v[0])?.1;
-        Some(Ok(with_error(error)))
+        Some(Ok(Arc::new(with_error(error))))
     });
     assert_eq!(next, Vec::<Probe>::new());
     assert_eq!(
@@ -212,7 +213,7 @@ fn a_fourth_kind_is_one_module_and_its_registration() {
         }
     );
     let (walking, next) =
-        spec.replay(&mut |v: &[f64]| (v[0] == 16.0).then(|| Ok(with_error(4e-3))));
+        spec.replay(&mut |v: &[f64]| (v[0] == 16.0).then(|| Ok(Arc::new(with_error(4e-3)))));
     assert_eq!((walking, next), (Walked::Walking, vec![vec![32.0]]));
 
     // Its answers' lines and table.

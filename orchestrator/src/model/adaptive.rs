@@ -10,13 +10,17 @@ use schema::case::{Case, Numeric};
 use schema::record::{column, columns, Stored};
 use serde::Deserialize;
 use serde_json::Value;
+use std::sync::Arc;
 
 /// A probe: the values of the question's fields, in the order of `Adaptive::fields`.
 pub type Probe = Vec<f64>;
 
-/// The record of a probe that ran (Err: the solver refused it or it stored nothing), None
-/// for a probe not run yet.
-pub type Lookup<'a> = dyn FnMut(&[f64]) -> Option<Result<Stored, String>> + 'a;
+/// The record of a probe that ran (Err: the solver refused it or it stored nothing). Shared:
+/// every round replays every search through it.
+pub type ProbeRecord = Result<Arc<Stored>, String>;
+
+/// A probe's record, None for a probe not run yet.
+pub type Lookup<'a> = dyn FnMut(&[f64]) -> Option<ProbeRecord> + 'a;
 
 pub trait Adaptive {
     /// What a question found from one point.

@@ -33,6 +33,7 @@ use crate::model::adaptive::{
 use schema::record::{Status, Stored};
 use schema::text::exact;
 use serde::Deserialize;
+use std::sync::Arc;
 
 use axes::Axes;
 pub use fit::ErrorModel;
@@ -291,7 +292,7 @@ impl TargetSpec {
 
     /// What a probe's record gives: a level, a probe found unstable (refused for its step, or
     /// diverged), or why it cannot answer.
-    fn seen(&self, probe: &[f64], stored: Result<Stored, String>) -> Result<Seen, String> {
+    fn seen(&self, probe: &[f64], stored: Result<Arc<Stored>, String>) -> Result<Seen, String> {
         let stored = match stored {
             Ok(stored) => stored,
             Err(why) if refused_for_its_step(&why) => return Ok(Seen::Unstable { ran: false }),
@@ -346,7 +347,7 @@ impl TargetSpec {
     /// The search as far as `record` knows it, and the next probe (none once it ended).
     pub fn replay_levels(
         &self,
-        mut record: impl FnMut(&[f64]) -> Option<Result<Stored, String>>,
+        mut record: impl FnMut(&[f64]) -> Option<Result<Arc<Stored>, String>>,
     ) -> (Aimed, Vec<Probe>) {
         let mut aimed = Aimed::default();
         let mut probe = self.first();

@@ -6,7 +6,7 @@
 //!
 //! Each kind runs its questions through `searches` (`kinds::AdaptiveKind::search`).
 
-use crate::model::adaptive::{Adaptive, Spent};
+use crate::model::adaptive::{Adaptive, ProbeRecord, Spent};
 use crate::model::study::{Point, Study};
 use crate::run::nlsolve::Nlsolve;
 use crate::run::plan::{self, Planned};
@@ -49,8 +49,7 @@ pub fn searches<A: Adaptive>(
         ..*options
     };
     // Each point's probes by their values (their bits).
-    let mut probed: Vec<HashMap<Vec<u64>, Result<Stored, String>>> =
-        vec![HashMap::new(); origins.len()];
+    let mut probed: Vec<HashMap<Vec<u64>, ProbeRecord>> = vec![HashMap::new(); origins.len()];
     let bits = |probe: &[f64]| -> Vec<u64> { probe.iter().map(|v| v.to_bits()).collect() };
     let mut probes: Vec<Planned> = Vec::new();
     loop {
@@ -65,7 +64,7 @@ pub fn searches<A: Adaptive>(
         // runs left, and none starts once it is spent.
         if let Some(budget) = &study.budget {
             let records = probed.iter().flat_map(|known| known.values());
-            let spent = Spent::spent_by(records.filter_map(|r| r.as_ref().ok()));
+            let spent = Spent::spent_by(records.filter_map(|r| Some(&**r.as_ref().ok()?)));
             if budget.is_spent(&spent) {
                 // Questions that ended keep their end.
                 for outcome in &mut outcomes {
@@ -84,7 +83,9 @@ pub fn searches<A: Adaptive>(
                 .map(|((origin, outcome), known)| Searched {
                     origin,
                     outcome,
-                    record: known.values().find_map(|r| r.as_ref().ok()).cloned(),
+                    record: known
+                        .values()
+                        .find_map(|r| Some(Stored::clone(r.as_ref().ok()?))),
                 })
                 .collect();
             return Ok((Some(searched), probes));
@@ -102,12 +103,14 @@ pub fn searches<A: Adaptive>(
             probes.extend(to_run);
             return Ok((None, probes));
         }
+        let ran = planned.iter().filter(|p| p.case.is_ok());
+        let mut records = store.stored_shared(ran.map(|p| p.key.as_str())).into_iter();
         for ((s, v), probe) in pending.iter().zip(&planned) {
             let record = match &probe.case {
                 Err(refusal) => Err(format!("the solver refused it: {refusal}")),
-                Ok(_) => store
-                    .stored(probe.key.as_str())
-                    .ok_or_else(|| "no record was stored".to_string()),
+                Ok(_) => {
+                    (records.next().flatten()).ok_or_else(|| "no record was stored".to_string())
+                }
             };
             probed[*s].insert(bits(v), record);
         }

@@ -36,7 +36,7 @@ pub use record::{case_id_and_key, fingerprint_of, hex, Id, Recorded, Unreadable}
 use record::{check_identity, listing, read_indexed, read_record, read_superseded, Indexed};
 use segment::Appender;
 pub use shared::{shared, Shared};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 pub struct Store {
     pub study: String,
@@ -45,6 +45,8 @@ pub struct Store {
     catalog: Mutex<Option<Catalog>>,
     /// The segment this process appends to (taken on its first record).
     appender: Mutex<Option<Appender>>,
+    /// The records `stored_shared` parsed, each with where it lay.
+    parsed: Mutex<KeyMap<(Location, Arc<Stored>)>>,
 }
 
 impl Store {
@@ -54,6 +56,7 @@ impl Store {
             runs: results.join(study).join("runs"),
             catalog: Mutex::new(None),
             appender: Mutex::new(None),
+            parsed: Mutex::default(),
         }
     }
 
@@ -416,6 +419,32 @@ impl Store {
     /// The stored record of `key`, read now, if whole.
     pub fn stored(&self, key: &str) -> Option<Stored> {
         Some(self.stored_text(key, true)?.0)
+    }
+
+    /// The stored records of `keys` after one look at what the store gained (not one a key),
+    /// each read and parsed once a process: a search's every round asks again for the records
+    /// of all its rounds before (the stability map's driver, about 10⁵ of them over its rounds).
+    /// A record stored again lies elsewhere, and is read again.
+    pub fn stored_shared<'k>(
+        &self,
+        keys: impl IntoIterator<Item = &'k str>,
+    ) -> Vec<Option<Arc<Stored>>> {
+        drop(self.catalog(false));
+        keys.into_iter().map(|key| self.parsed(key)).collect()
+    }
+
+    fn parsed(&self, key: &str) -> Option<Arc<Stored>> {
+        let at = self.catalog_as_read().as_ref()?.get(key)?.at.clone();
+        let lock = || self.parsed.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((was, stored)) = lock().get(key) {
+            if *was == at {
+                return Some(stored.clone());
+            }
+        }
+        let (stored, _, at) = self.stored_text(key, false)?;
+        let stored = Arc::new(stored);
+        lock().insert(key.to_string(), (at, stored.clone()));
+        Some(stored)
     }
 
     /// The stored record of `key` where the catalog last saw it (without looking for what

@@ -99,6 +99,33 @@ fn a_replaced_result_moves_to_history_even_from_the_same_build() {
     assert_eq!(store.history().records.len(), 2);
 }
 
+/// A search asks for all its probes' records every round: each is read once while it lies where
+/// it lay, and read again once another writer (here another process's store) stored it anew.
+#[test]
+fn shared_records_are_parsed_once_and_read_again_once_stored_again() {
+    let (dir, store) = scratch();
+    let (k, record) = keyed(4, "ok");
+    let mut first = record.clone();
+    first["message"] = json!("first");
+    assert!(store.save(&k, &typed(&first)).unwrap());
+    let (missing, _) = keyed(5, "ok");
+    let once = store.stored_shared([k.as_str(), missing.as_str()]);
+    assert_eq!(once[0].as_ref().unwrap().message(), "first");
+    assert!(once[1].is_none(), "a key with no record has none");
+    let again = store.stored_shared([k.as_str()]);
+    assert!(Arc::ptr_eq(
+        once[0].as_ref().unwrap(),
+        again[0].as_ref().unwrap()
+    ));
+    let other = Store::open(dir.path(), "s");
+    let mut second = record;
+    second["message"] = json!("second");
+    assert!(other.save(&k, &typed(&second)).unwrap());
+    other.persist_catalog();
+    let now = store.stored_shared([k.as_str()]);
+    assert_eq!(now[0].as_ref().unwrap().message(), "second");
+}
+
 /// A stored record's fingerprint reaches a file name only as 64 hex digits: a traversal, a
 /// slash or 300 characters move the record to `<key>.unknown.json`, inside the history,
 /// and the file the traversal aimed at stays as it was.
