@@ -13,6 +13,10 @@ use std::time::{Duration, Instant};
 /// again, up to the driver's `--poll` (Snakemake's Slurm executor grows its pause likewise).
 const FIRST_PAUSE: Duration = Duration::from_secs(1);
 
+/// The first pause once every job left its mark: they leave the queue within moments, and a
+/// round's next jobs wait for that (a second's pause was a second of every round).
+const ENDED_PAUSE: Duration = Duration::from_millis(100);
+
 /// Questions to the scheduler that may fail in a row (a restarting controller) before the
 /// driver stops; its jobs stay queued, and the driver started again finds them.
 const FAILED_QUESTIONS: usize = 5;
@@ -25,8 +29,12 @@ pub struct Backoff {
 
 impl Backoff {
     pub fn new(most: Duration) -> Backoff {
+        Backoff::from(FIRST_PAUSE, most)
+    }
+
+    fn from(first: Duration, most: Duration) -> Backoff {
         Backoff {
-            next: FIRST_PAUSE.min(most),
+            next: first.min(most),
             most,
         }
     }
@@ -80,7 +88,7 @@ pub fn wait_for_jobs(
                 let ids: Vec<&str> = held.iter().map(|h| h.id.as_str()).collect();
                 if pause_unless_ended(store, &ids, backoff.pause()) {
                     // Their `nlstudy run` ended: they leave the queue within moments.
-                    backoff = Backoff::new(most);
+                    backoff = Backoff::from(ENDED_PAUSE, most);
                 }
             }
             Err(message) => {
