@@ -1549,6 +1549,87 @@ fn a_forecast_and_a_whole_jobs_limit_come_from_the_stored_rounds_timings() {
     assert!(!dry(&[]).contains("s a round"));
 }
 
+/// A round's job is handed its probes (`--probes`, a file its submit wrote beside its script)
+/// and plans them without replaying the study's searches: the same keys and points to run as
+/// the replay plans, round after round, to the study's end. A file that no longer gives the
+/// job's probes (garbled, a key missing, a probe moved to another point of the sweep) is said
+/// and the searches are replayed: the same keys run.
+#[test]
+fn a_job_handed_its_probes_plans_them_as_the_replay_of_its_searches_does() {
+    let study = json!({
+        "name": "handed",
+        "base": {"dim": 1, "n": 32, "m": 2, "problem": "bump", "t_end": 1e-6,
+                 "allow_unstable": true, "amplification_steps": 50},
+        "sweep": [{"product": {"integrator": ["forward_euler", "heun"]}}],
+        "boundary": {"field": "cfl", "bracket": [0.5, 2.0], "flips": "amplification > 1",
+                     "rtol": 0.05, "per_round": 1}
+    });
+    let scratch = Scratch::new("handed", &study);
+    let jobs = scratch.dir.join("results/handed/jobs");
+    let replayed = "its searches are replayed to find them";
+    // The points `plan` says run, as `key label` lines.
+    let to_run = |extra: &[&str]| -> Vec<String> {
+        let plan = scratch.nlstudy("plan", extra);
+        assert!(plan.status.success(), "{}", text(&plan));
+        let said = String::from_utf8_lossy(&plan.stdout).to_string();
+        let mut lines: Vec<String> = (said.lines())
+            .filter(|l| l.split_whitespace().nth(1) == Some("run"))
+            .map(String::from)
+            .collect();
+        lines.sort();
+        lines
+    };
+    let mut rounds = 0;
+    loop {
+        let submitted = dry_submit(&scratch, &["--cases-per-job", "1"]);
+        if submitted.contains("nothing to submit") {
+            break;
+        }
+        rounds += 1;
+        let mut scripts: Vec<PathBuf> = std::fs::read_dir(&jobs)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "sbatch"))
+            .collect();
+        scripts.sort();
+        // The bracket's two ends first, then a probe a search each round.
+        let probes = if rounds == 1 { 4 } else { 2 };
+        assert_eq!(scripts.len(), probes, "{submitted}");
+        for script in &scripts {
+            let script = std::fs::read_to_string(script).unwrap();
+            let words: Vec<&str> = script.lines().last().unwrap().split(' ').collect();
+            let value_of = |option: &str| {
+                let at = words.iter().position(|w| *w == option);
+                let value = words[at.unwrap_or_else(|| panic!("no {option}: {script}")) + 1];
+                value.trim_matches('\'').to_string()
+            };
+            let (only, probes) = (value_of("--only"), value_of("--probes"));
+            let handed = ["--only", &only, "--probes", &probes];
+            let planned = to_run(&handed);
+            assert_eq!(planned.len(), 1, "{planned:?}");
+            assert_eq!(planned, to_run(&["--only", &only]), "round {rounds}");
+            // The file damaged each way, after which the same probe is planned by the replay.
+            let file = std::fs::read_to_string(&probes).unwrap();
+            let mut moved: Value = serde_json::from_str(&file).unwrap();
+            moved[0]["origin"] = json!(1 - moved[0]["origin"].as_u64().unwrap());
+            for damaged in ["[{\"key\": ".to_string(), "[]".into(), moved.to_string()] {
+                std::fs::write(&probes, &damaged).unwrap();
+                let plan = scratch.nlstudy("plan", &handed);
+                assert!(text(&plan).contains(replayed), "{damaged}: {}", text(&plan));
+                assert_eq!(to_run(&handed), planned, "{damaged}");
+            }
+            std::fs::write(&probes, &file).unwrap();
+            let ran = scratch.nlstudy("run", &[&handed[..], &["--no-collect"]].concat());
+            assert!(ran.status.success(), "{}", text(&ran));
+            assert!(!text(&ran).contains(replayed), "{}", text(&ran));
+        }
+    }
+    assert!(rounds >= 4, "bisection to 5 % of the bracket takes rounds: {rounds}");
+    // The jobs ran every probe: the study is answered as a run would answer it.
+    let answered = scratch.nlstudy("run", &[]);
+    assert!(text(&answered).contains(": 0 ran ("), "{}", text(&answered));
+}
+
 /// What `submit --scheduler slurm --dry-run EXTRA…` says of the study of `scratch`; it succeeds.
 fn dry_submit(scratch: &Scratch, extra: &[&str]) -> String {
     let out = scratch.nlstudy(

@@ -289,6 +289,11 @@ pub struct PlanArgs {
     /// Only the points with these keys (comma-separated), as cluster jobs do.
     #[arg(long, value_delimiter = ',')]
     pub only: Option<Vec<String>>,
+    /// With --only, the file of those keys' probes that `submit` wrote beside the job's
+    /// script: an adaptive study's job plans them at once, rather than replaying every search
+    /// from the store to find them (it does when the file no longer gives them all).
+    #[arg(long, requires = "only", value_name = "FILE")]
+    pub probes: Option<PathBuf>,
     /// Reuse stored records that a solver of another fingerprint made (by default they are
     /// stale and run again; the old record moves to <results>/<study>/history/).
     #[arg(long)]
@@ -367,6 +372,7 @@ impl PlanArgs {
                 .only
                 .as_ref()
                 .map(|keys| keys.iter().cloned().collect()),
+            probes: self.probes.clone(),
             keep_stale: self.keep_stale,
         }
     }

@@ -25,7 +25,8 @@ use kind::{Registered, RunRound};
 use crate::model::adaptive::Kind;
 use crate::model::study::{Sections, Study, StudyError};
 use crate::run::plan::{self, Planned};
-use crate::run::search::Answers;
+use crate::run::cluster::probes;
+use crate::run::search::{self, Answers};
 use crate::store::Fault;
 use serde_json::Value;
 use std::path::Path;
@@ -97,8 +98,12 @@ pub fn answer<'a>(
 
 /// The probes of an adaptive study so far: those stored (skipped) and the next round's (to
 /// run), as `plan` shows them, `submit` sends them to the scheduler and a job's `run --only`
-/// runs its share of them. None for a study of a fixed sweep.
+/// runs its share of them: a job handed its probes (`--probes`) plans those alone. None for a
+/// study of a fixed sweep.
 pub fn probes_so_far(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
+    if let Some(given) = probes_given(asked)? {
+        return Ok(Some(given));
+    }
     let Some((_, mut probes)) = answer(asked, &mut |_| Ok(false))? else {
         return Ok(None);
     };
@@ -110,3 +115,34 @@ pub fn probes_so_far(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
 
 #[cfg(test)]
 mod tests;
+
+/// A job's `--only` probes planned from the file its submit wrote (`--probes`), without
+/// replaying the study's searches; None, said, where the file does not give them as they are
+/// now, and the searches are replayed.
+fn probes_given(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
+    let options = asked.options;
+    let (Some(file), Some(only), Some(question)) =
+        (&options.probes, &options.only, asked.study.question())
+    else {
+        return Ok(None);
+    };
+    let replayed = |why: &str| {
+        log::info!(
+            "the probes of --probes {file:?} are not this job's as the study is now ({why}): its searches are replayed to find them"
+        )
+    };
+    let given = match probes::read(file, only) {
+        Ok(given) => given,
+        Err(why) => {
+            replayed(&why);
+            return Ok(None);
+        }
+    };
+    let (study, solver) = (asked.study, asked.solver);
+    let index = asked.store.index();
+    let planned = search::plan_given(study, question, solver, &index, options, given)?;
+    if planned.is_none() {
+        replayed("a probe plans to another key");
+    }
+    Ok(planned)
+}

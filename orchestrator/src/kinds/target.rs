@@ -4,6 +4,7 @@
 
 use super::kind::{AdaptiveKind, Asked, Outcome, RunRound};
 use crate::analysis::figure_columns::measured;
+use crate::model::adaptive::Adaptive;
 use crate::model::study::{Point, Study, StudyError};
 use crate::model::target::{self, Aimed, TargetSpec};
 use crate::run::plan::{self, Planned};
@@ -95,7 +96,7 @@ fn time_answers(
         }
         let mut probe = vec![answer.value];
         probe.extend(answer.time);
-        let point = plan::probe(spec, &s.origin, &probe);
+        let point = plan::probe(&Adaptive::fields(spec), &s.origin, &probe);
         points.extend((1..=repeats).map(|r| {
             let mut repeated = point.clone();
             repeated.repeat = r;
@@ -104,6 +105,7 @@ fn time_answers(
     }
     let options = plan::Options {
         only: None,
+        probes: None,
         ..*options
     };
     let planned = plan::plan_points(

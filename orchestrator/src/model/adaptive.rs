@@ -89,6 +89,7 @@ pub trait Kind: std::fmt::Debug + Send + Sync {
     fn table(&self) -> &'static str;
     fn title(&self) -> &'static str;
     fn field(&self) -> &str;
+    fn fields(&self) -> Vec<&str>;
     fn worst_case_probes(&self) -> usize;
     fn worst_case_rounds(&self) -> Option<usize>;
     fn rounds_no_longer_from(&self) -> Option<usize>;
@@ -115,6 +116,10 @@ impl<A: Adaptive + std::fmt::Debug + Send + Sync + 'static> Kind for A {
 
     fn field(&self) -> &str {
         Adaptive::field(self)
+    }
+
+    fn fields(&self) -> Vec<&str> {
+        Adaptive::fields(self)
     }
 
     fn worst_case_probes(&self) -> usize {

@@ -54,6 +54,7 @@ impl Side {
             key,
             case_id,
             decision: Decision::Run(Reason::Missing),
+            probe: None,
         })
     }
 

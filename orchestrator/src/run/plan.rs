@@ -1,6 +1,6 @@
 //! Which points of a study run, and why: make-style, against the record store.
 
-use crate::model::adaptive::Adaptive;
+use crate::model::adaptive::{Adaptive, Probe};
 use crate::model::study::{Point, Study, StudyError};
 use crate::run::nlsolve::{Checked, Nlsolve};
 use crate::store::Fault;
@@ -18,6 +18,8 @@ pub struct Options {
     pub rerun_failed: bool,
     /// Only these keys (how a cluster job runs its share of a study).
     pub only: Option<HashSet<String>>,
+    /// The file of `only`'s probes its submit wrote beside the job (`cluster::probes`).
+    pub probes: Option<std::path::PathBuf>,
     /// Reuse records another solver made (`--keep-stale`) instead of running them again.
     pub keep_stale: bool,
 }
@@ -73,6 +75,17 @@ pub struct Planned {
     pub key: Id,
     pub case_id: Id,
     pub decision: Decision,
+    /// An adaptive question's probe: where its search starts and what it probes (what a
+    /// cluster job is handed to plan its share without replaying the searches).
+    pub probe: Option<ProbeOf>,
+}
+
+/// Where a probe comes from: the point of the sweep its question searches from (its index
+/// among `search::origins`) and the values of the question's fields it probes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeOf {
+    pub origin: usize,
+    pub at: Probe,
 }
 
 impl Planned {
@@ -146,9 +159,9 @@ pub fn restrict(planned: &mut [Planned], only: &HashSet<String>) -> Result<(), F
     Ok(())
 }
 
-/// The probe of `origin` at `v` of the question's field: a point like any other.
-pub fn probe<A: Adaptive>(question: &A, origin: &Point, probe: &[f64]) -> Point {
-    let fields = question.fields();
+/// The probe of `origin` at `probe`, the values of the question's `fields`: a point like any
+/// other.
+pub fn probe(fields: &[&str], origin: &Point, probe: &[f64]) -> Point {
     (fields.iter().zip(probe)).fold(origin.clone(), |point, (field, &v)| {
         point.with(field, crate::model::adaptive::value(field, v))
     })
@@ -187,6 +200,7 @@ pub fn plan_points(
             key: Id::default(),
             case_id: Id::default(),
             decision: Decision::Duplicate,
+            probe: None,
         })
         .collect();
     let points: Vec<&Point> = planned.iter().map(|p| &p.point).collect();

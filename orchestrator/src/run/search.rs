@@ -6,11 +6,11 @@
 //!
 //! Each kind runs its questions through `searches` (`kinds::AdaptiveKind::search`).
 
-use crate::model::adaptive::{Adaptive, ProbeRecord, Spent};
+use crate::model::adaptive::{Adaptive, Kind, ProbeRecord, Spent};
 use crate::model::study::{Point, Study};
 use crate::run::nlsolve::Nlsolve;
-use crate::run::plan::{self, Planned};
-use crate::store::{Fault, Store};
+use crate::run::plan::{self, Planned, ProbeOf};
+use crate::store::{Fault, Index, Store};
 use schema::record::Stored;
 use std::collections::HashMap;
 
@@ -37,15 +37,12 @@ pub fn searches<A: Adaptive>(
     options: &plan::Options,
     run_round: &mut impl FnMut(&[Planned]) -> Result<bool, Fault>,
 ) -> Result<Answers<Vec<Searched<A::Outcome>>>, Fault> {
-    let mut origins = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
-    if A::ONE_SEARCH_PER_POINT {
-        // Its repeats are one candidate: searched once, its answer timed over them.
-        origins.retain(|origin| origin.repeat == 0);
-    }
+    let origins = origins(study, A::ONE_SEARCH_PER_POINT)?;
     plan::origins_may_search(question, &origins).map_err(|e| Fault::Input(e.to_string()))?;
     // Every probe is planned: a job's `--only` applies to the round it ran (`probes_so_far`).
     let options = plan::Options {
         only: None,
+        probes: None,
         ..*options
     };
     // Each point's probes by their values (their bits).
@@ -90,11 +87,18 @@ pub fn searches<A: Adaptive>(
                 .collect();
             return Ok((Some(searched), probes));
         }
+        let fields = question.fields();
         let points = pending
             .iter()
-            .map(|(s, v)| plan::probe(question, &origins[*s], v))
+            .map(|(s, v)| plan::probe(&fields, &origins[*s], v))
             .collect();
-        let planned = plan::plan_points(points, solver, &store.index(), &options)?;
+        let mut planned = plan::plan_points(points, solver, &store.index(), &options)?;
+        for (p, (s, v)) in planned.iter_mut().zip(&pending) {
+            p.probe = Some(ProbeOf {
+                origin: *s,
+                at: v.clone(),
+            });
+        }
         // A probe refused in a way the question reads (a step above the stable one) is an
         // answer from `check`: it is neither run nor a refusal of the study's.
         let absorbed = |p: &Planned| matches!(&p.case, Err(why) if question.absorbs(why));
@@ -116,6 +120,56 @@ pub fn searches<A: Adaptive>(
         }
         probes.extend(to_run);
     }
+}
+
+/// The points of `study`'s sweep its question searches from: every point, or each point's
+/// first repeat where its repeats are one question (`Adaptive::ONE_SEARCH_PER_POINT`).
+pub fn origins(study: &Study, one_search_per_point: bool) -> Result<Vec<Point>, Fault> {
+    let mut origins = study.expand().map_err(|e| Fault::Input(e.to_string()))?;
+    if one_search_per_point {
+        // Its repeats are one candidate: searched once, its answer timed over them.
+        origins.retain(|origin| origin.repeat == 0);
+    }
+    Ok(origins)
+}
+
+/// The probes `given` planned as `searches` planned them, without replaying a search: what a
+/// cluster job does with the probes its submit handed it (`cluster::probes`), each with the key
+/// the driver planned it to. None when a probe is no longer what it was (no such origin, or
+/// planned to another key: the study file or the solver changed since the submit), and the
+/// job replays the searches instead.
+pub fn plan_given(
+    study: &Study,
+    question: &dyn Kind,
+    solver: &Nlsolve,
+    index: &Index,
+    options: &plan::Options,
+    given: Vec<(String, ProbeOf)>,
+) -> Result<Option<Vec<Planned>>, Fault> {
+    let origins = origins(study, question.one_search_per_point())?;
+    let fields = question.fields();
+    let mut points = Vec::with_capacity(given.len());
+    for (_, probe) in &given {
+        match origins.get(probe.origin) {
+            Some(origin) if probe.at.len() == fields.len() => {
+                points.push(plan::probe(&fields, origin, &probe.at))
+            }
+            _ => return Ok(None),
+        }
+    }
+    let options = plan::Options {
+        only: None,
+        probes: None,
+        ..*options
+    };
+    let mut planned = plan::plan_points(points, solver, index, &options)?;
+    for (p, (key, probe)) in planned.iter_mut().zip(given) {
+        if p.key.as_str() != key {
+            return Ok(None);
+        }
+        p.probe = Some(probe);
+    }
+    Ok(Some(planned))
 }
 
 /// What the stored probes among `probes` spent (each key once).

@@ -145,6 +145,7 @@ mod tests {
             key: crate::store::case_id_and_key(&fields.to_string(), "", 0).1,
             case_id: Default::default(),
             decision: Decision::Run(Reason::Missing),
+            probe: None,
         }
     }
 

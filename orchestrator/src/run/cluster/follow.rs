@@ -221,6 +221,7 @@ mod tests {
                 case: Err("not checked".into()),
                 case_id: Default::default(),
                 decision: Decision::Run(Reason::Missing),
+                probe: None,
             })
             .collect()
     }

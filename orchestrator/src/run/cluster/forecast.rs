@@ -84,6 +84,7 @@ mod tests {
             key: crate::store::case_id_and_key(&case.to_string(), "", 0).1,
             case_id: Default::default(),
             decision: Decision::Run(Reason::Missing),
+            probe: None,
         }
     }
 

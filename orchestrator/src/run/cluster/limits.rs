@@ -327,6 +327,7 @@ mod tests {
             key: crate::store::case_id_and_key(&format!("{series}-{n}"), "", 0).1,
             case_id: Default::default(),
             decision: Decision::Run(Reason::Missing),
+            probe: None,
         }
     }
 

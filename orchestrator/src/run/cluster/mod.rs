@@ -9,6 +9,7 @@ pub mod forecast;
 pub mod ledger;
 pub mod limits;
 pub mod pack;
+pub mod probes;
 pub mod scheduler;
 pub mod script;
 pub mod submit;

@@ -4,6 +4,7 @@
 //! warning signal the scheduler sends the batch shell reaches nlstudy, which stops cleanly).
 
 use super::pack::{Pack, Shape};
+use super::probes;
 use super::scheduler::Scheduler;
 use crate::model::launcher::Launcher;
 use crate::model::resources::{Resources, WallTime};
@@ -75,17 +76,21 @@ pub fn write_jobs(
             .iter()
             .map(|b| b.iter().map(|p| p.key.to_string()).collect())
             .collect();
+        let path = command
+            .jobs
+            .join(format!("{}.{}", pack.name, extension(settings.scheduler)));
+        // A whole study's job runs every round: it has no probes of one to be handed.
+        let probes = probes::beside(&path);
+        let handed = !command.whole && probes::write(&probes, pack.bundles.iter().flatten().copied())?;
         let job = Spec {
             name: &pack.name,
             bundles: &bundles,
             array: pack.array,
             shape: pack.shape,
             time: *time,
+            probes: handed.then_some(probes.as_path()),
         };
         let script = script(&job, settings, command).map_err(Fault::Input)?;
-        let path = command
-            .jobs
-            .join(format!("{}.{}", pack.name, extension(settings.scheduler)));
         write_atomically(&path, script.as_bytes())?;
         jobs.push(Job {
             name: pack.name.clone(),
@@ -103,15 +108,17 @@ fn extension(scheduler: Scheduler) -> &'static str {
         Scheduler::Lsf => "bsub",
     }
 }
-/// Moves the job scripts in `jobs` to `jobs/archive/<seconds since the epoch>-<name>`: a
-/// script of an earlier submit holds keys this one may no longer have, and is kept, not lost.
+/// Moves the job scripts in `jobs`, and their probes, to `jobs/archive/<seconds since the
+/// epoch>-<name>`: a script of an earlier submit holds keys this one may no longer have, and is
+/// kept, not lost.
 fn archive_earlier_scripts(jobs: &Path) -> Result<(), FileError> {
+    let script = |p: &Path| p.extension().is_some_and(|x| x == "sbatch" || x == "bsub");
     let earlier: Vec<PathBuf> = std::fs::read_dir(jobs)
         .map_err(FileError::on("read", jobs))?
         .flatten()
         .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
         .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "sbatch" || x == "bsub"))
+        .filter(|p| script(p) || probes::is_probes_file(p))
         .collect();
     if earlier.is_empty() {
         return Ok(());
@@ -134,6 +141,8 @@ struct Spec<'a> {
     array: bool,
     shape: Shape,
     time: Option<WallTime>,
+    /// The file of its points' probes (`probes`), when they are an adaptive study's.
+    probes: Option<&'a Path>,
 }
 
 /// The whole script of one job. Every value from a study file, a site profile or a flag reaches
@@ -182,7 +191,7 @@ fn script(job: &Spec, settings: &Settings, command: &JobCommand) -> Result<Strin
         default_launcher(settings.scheduler).to_string(),
         Launcher::text,
     );
-    text.push_str(&body(&keys, job.shape, &launcher, command)?);
+    text.push_str(&body(&keys, job, &launcher, command)?);
     Ok(text)
 }
 
@@ -333,7 +342,8 @@ fn lsf_directives(
 /// quoted shell word (`keys` is one already: a bundle, or the array's element of them). Jobs of
 /// one study may run at once, so none writes the study's tables: `nlstudy collect` does, once
 /// they are done. A job of the whole study runs all of it, every round, and writes them.
-fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Result<String, String> {
+fn body(keys: &str, job: &Spec, launcher: &str, command: &JobCommand) -> Result<String, String> {
+    let shape = job.shape;
     let mut words = vec![
         "exec".to_string(),
         path_word(&command.nlstudy)?,
@@ -362,6 +372,9 @@ fn body(keys: &str, shape: Shape, launcher: &str, command: &JobCommand) -> Resul
     }
     if !command.whole {
         words.extend(["--only".into(), keys.to_string()]);
+    }
+    if let Some(probes) = job.probes {
+        words.extend(["--probes".into(), path_word(probes)?]);
     }
     Ok(words.join(" ") + "\n")
 }

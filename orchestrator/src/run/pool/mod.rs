@@ -752,6 +752,7 @@ mod tests {
                     true => Decision::Run(Reason::Missing),
                     false => Decision::Duplicate,
                 },
+                probe: None,
             }
         };
         let planned: Vec<Planned> = (0..6).map(|k| point(16 + k, k != 5)).collect();

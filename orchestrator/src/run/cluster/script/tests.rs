@@ -146,6 +146,7 @@ fn hostile_paths_and_values_never_reach_a_shell_unquoted() {
                     array: false,
                     shape,
                     time: Some(WallTime::from_str("1-00:30:00").unwrap()),
+                    probes: None,
                 };
                 let settings = Settings {
                     scheduler,
@@ -225,6 +226,7 @@ fn a_sites_launcher_reaches_the_job_whole_and_lsf_keeps_a_job_on_one_host() {
             threads: 2,
         },
         time: None,
+        probes: None,
     };
     for scheduler in SCHEDULERS {
         let settings = Settings {
@@ -292,6 +294,7 @@ fn a_whole_study_on_several_nodes_uses_them_all_and_tabulates_their_runs() {
                 threads: 1,
             },
             time: None,
+            probes: None,
         };
         let text = script(&job, &settings, &command(allow_mixed)).unwrap();
         let run = text.lines().last().unwrap().to_string();
@@ -350,6 +353,7 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
             threads: 3,
         },
         time: Some(WallTime::from_str("00:10:00").unwrap()),
+        probes: None,
     };
     let cases = [
         (
@@ -448,11 +452,13 @@ fn every_site_profile_field_lands_in_both_schedulers_scripts() {
     }
 }
 
-/// An array's element runs its own bundle: Slurm's index from 0, LSF's from 1.
+/// An array's element runs its own bundle: Slurm's index from 0, LSF's from 1; each is handed
+/// the array's probes file, its path one word whatever it holds.
 #[test]
 fn each_array_element_runs_its_own_bundle() {
     let (_sandbox, root) = sandbox();
     let command = job_command(&root);
+    let probes = root.join("it's a job's.probes.json");
     let bundles = [
         vec!["aa".to_string(), "bb".to_string()],
         vec!["cc".to_string()],
@@ -468,6 +474,7 @@ fn each_array_element_runs_its_own_bundle() {
             threads: 1,
         },
         time: None,
+        probes: Some(&probes),
     };
     let args = root.join("args");
     stub(&command.nlstudy, &args);
@@ -500,7 +507,11 @@ fn each_array_element_runs_its_own_bundle() {
             run_script(&path, &root, &[(index, (element + first).to_string())]);
             let got = std::fs::read_to_string(&args).unwrap();
             assert!(
-                got.ends_with(&format!("--only\n{}\n", bundle.join(","))),
+                got.ends_with(&format!(
+                    "--only\n{}\n--probes\n{}\n",
+                    bundle.join(","),
+                    probes.display()
+                )),
                 "{got}"
             );
         }
