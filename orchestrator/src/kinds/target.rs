@@ -127,9 +127,10 @@ fn time_answers(
         return Ok((false, planned));
     }
     for _ in 0..NOISY_RERUNS {
-        let noisy: Vec<Point> = (planned.iter())
-            .filter(|p| store.stored(p.key.as_str()).is_some_and(|s| s.noisy()))
-            .map(|p| p.point.clone())
+        let stored = store.stored_shared(planned.iter().map(|p| p.key.as_str()));
+        let noisy: Vec<Point> = (planned.iter().zip(stored))
+            .filter(|(_, s)| s.as_ref().is_some_and(|s| s.noisy()))
+            .map(|(p, _)| p.point.clone())
             .collect();
         if noisy.is_empty() {
             break;

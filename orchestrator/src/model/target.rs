@@ -28,12 +28,11 @@ mod neighbours;
 
 use crate::model::adaptive::{
     check_start, core_seconds, counts_nodes, positive, ran, refused_for_its_step, Adaptive, Lookup,
-    Probe, LARGEST_START,
+    Probe, ProbeRecord, LARGEST_START,
 };
 use schema::record::{Status, Stored};
 use schema::text::exact;
 use serde::Deserialize;
-use std::sync::Arc;
 
 use axes::Axes;
 pub use fit::ErrorModel;
@@ -292,7 +291,7 @@ impl TargetSpec {
 
     /// What a probe's record gives: a level, a probe found unstable (refused for its step, or
     /// diverged), or why it cannot answer.
-    fn seen(&self, probe: &[f64], stored: Result<Arc<Stored>, String>) -> Result<Seen, String> {
+    fn seen(&self, probe: &[f64], stored: ProbeRecord) -> Result<Seen, String> {
         let stored = match stored {
             Ok(stored) => stored,
             Err(why) if refused_for_its_step(&why) => return Ok(Seen::Unstable { ran: false }),
@@ -347,7 +346,7 @@ impl TargetSpec {
     /// The search as far as `record` knows it, and the next probe (none once it ended).
     pub fn replay_levels(
         &self,
-        mut record: impl FnMut(&[f64]) -> Option<Result<Arc<Stored>, String>>,
+        mut record: impl FnMut(&[f64]) -> Option<ProbeRecord>,
     ) -> (Aimed, Vec<Probe>) {
         let mut aimed = Aimed::default();
         let mut probe = self.first();

@@ -49,6 +49,9 @@ pub fn searches<A: Adaptive>(
     let mut probed: Vec<HashMap<Vec<u64>, ProbeRecord>> = vec![HashMap::new(); origins.len()];
     let bits = |probe: &[f64]| -> Vec<u64> { probe.iter().map(|v| v.to_bits()).collect() };
     let mut probes: Vec<Planned> = Vec::new();
+    // Read again only after a round ran: the replay of the stored rounds plans against one
+    // (each read was a tenth of the driver's time by the map's last rounds).
+    let mut index = store.index();
     loop {
         let mut pending: Vec<(usize, Vec<f64>)> = Vec::new();
         let mut outcomes = Vec::with_capacity(origins.len());
@@ -92,7 +95,7 @@ pub fn searches<A: Adaptive>(
             .iter()
             .map(|(s, v)| plan::probe(&fields, &origins[*s], v))
             .collect();
-        let mut planned = plan::plan_points(points, solver, &store.index(), &options)?;
+        let mut planned = plan::plan_points(points, solver, &index, &options)?;
         for (p, (s, v)) in planned.iter_mut().zip(&pending) {
             p.probe = Some(ProbeOf {
                 origin: *s,
@@ -103,9 +106,12 @@ pub fn searches<A: Adaptive>(
         // answer from `check`: it is neither run nor a refusal of the study's.
         let absorbed = |p: &Planned| matches!(&p.case, Err(why) if question.absorbs(why));
         let to_run: Vec<Planned> = planned.iter().filter(|p| !absorbed(p)).cloned().collect();
-        if to_run.iter().any(Planned::runs) && !run_round(&to_run)? {
-            probes.extend(to_run);
-            return Ok((None, probes));
+        if to_run.iter().any(Planned::runs) {
+            if !run_round(&to_run)? {
+                probes.extend(to_run);
+                return Ok((None, probes));
+            }
+            index = store.index();
         }
         let ran = planned.iter().filter(|p| p.case.is_ok());
         let mut records = store.stored_shared(ran.map(|p| p.key.as_str())).into_iter();
@@ -174,9 +180,6 @@ pub fn plan_given(
 
 /// What the stored probes among `probes` spent (each key once).
 pub fn spent(probes: &[Planned], store: &Store) -> Spent {
-    let records: Vec<Stored> = probes
-        .iter()
-        .filter_map(|p| store.stored(p.key.as_str()))
-        .collect();
-    Spent::spent_by(&records)
+    let records = store.stored_shared(probes.iter().map(|p| p.key.as_str()));
+    Spent::spent_by(records.iter().flatten().map(|r| &**r))
 }

@@ -68,7 +68,7 @@ impl Model {
             let (aimed, next) = spec.replay_levels(|v| {
                 ran.iter()
                     .any(|r| r.as_slice() == v)
-                    .then(|| self.run(spec, v).map(Arc::new))
+                    .then(|| self.run(spec, v).map(std::sync::Arc::new))
             });
             match next.into_iter().next() {
                 None => return (aimed, ran.len()),
