@@ -128,7 +128,7 @@ fn probes_given(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
     };
     let replayed = |why: &str| {
         log::info!(
-            "the probes of --probes {file:?} are not this job's as the study is now ({why}): its searches are replayed to find them"
+            "--probes {file:?} does not give this job's probes as the study is now ({why}): its searches are replayed to find them"
         )
     };
     let given = match probes::read(file, only) {
