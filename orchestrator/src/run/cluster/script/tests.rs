@@ -573,13 +573,17 @@ fn an_earlier_submits_scripts_are_archived_not_left_beside_the_new_ones() {
     let jobs = root.join("jobs");
     std::fs::create_dir_all(&jobs).unwrap();
     std::fs::write(jobs.join("nlstudy-s-0.sbatch"), "old").unwrap();
+    std::fs::write(jobs.join("nlstudy-s-0.probes.json"), "[]").unwrap();
     std::fs::write(jobs.join("nlstudy-s-0.42.out"), "log").unwrap();
+    std::fs::write(jobs.join("notes.json"), "{}").unwrap();
     archive_earlier_scripts(&jobs).unwrap();
     assert!(!jobs.join("nlstudy-s-0.sbatch").exists());
+    assert!(!jobs.join("nlstudy-s-0.probes.json").exists(), "its probes go with it");
     assert!(jobs.join("nlstudy-s-0.42.out").exists(), "job output stays");
+    assert!(jobs.join("notes.json").exists(), "what is not the tool's stays");
     let archived: Vec<_> = std::fs::read_dir(jobs.join("archive"))
         .unwrap()
         .flatten()
         .collect();
-    assert_eq!(archived.len(), 1);
+    assert_eq!(archived.len(), 2);
 }
