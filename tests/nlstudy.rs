@@ -1624,7 +1624,10 @@ fn a_job_handed_its_probes_plans_them_as_the_replay_of_its_searches_does() {
             assert!(!text(&ran).contains(replayed), "{}", text(&ran));
         }
     }
-    assert!(rounds >= 4, "bisection to 5 % of the bracket takes rounds: {rounds}");
+    assert!(
+        rounds >= 4,
+        "bisection to 5 % of the bracket takes rounds: {rounds}"
+    );
     // The jobs ran every probe: the study is answered as a run would answer it.
     let answered = scratch.nlstudy("run", &[]);
     assert!(text(&answered).contains(": 0 ran ("), "{}", text(&answered));

@@ -24,8 +24,8 @@ use kind::{Registered, RunRound};
 
 use crate::model::adaptive::Kind;
 use crate::model::study::{Sections, Study, StudyError};
-use crate::run::plan::{self, Planned};
 use crate::run::cluster::probes;
+use crate::run::plan::{self, Planned};
 use crate::run::search::{self, Answers};
 use crate::store::Fault;
 use serde_json::Value;
@@ -113,9 +113,6 @@ pub fn probes_so_far(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
     Ok(Some(probes))
 }
 
-#[cfg(test)]
-mod tests;
-
 /// A job's `--only` probes planned from the file its submit wrote (`--probes`), without
 /// replaying the study's searches; None, said, where the file does not give them as they are
 /// now, and the searches are replayed.
@@ -146,3 +143,6 @@ fn probes_given(asked: Asked) -> Result<Option<Vec<Planned>>, Fault> {
     }
     Ok(planned)
 }
+
+#[cfg(test)]
+mod tests;

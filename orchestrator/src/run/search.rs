@@ -50,7 +50,7 @@ pub fn searches<A: Adaptive>(
     let bits = |probe: &[f64]| -> Vec<u64> { probe.iter().map(|v| v.to_bits()).collect() };
     let mut probes: Vec<Planned> = Vec::new();
     // Read again only after a round ran: the replay of the stored rounds plans against one
-    // (each read was a tenth of the driver's time by the map's last rounds).
+    // (a read each was about a tenth of the driver's CPU over the map).
     let mut index = store.index();
     loop {
         let mut pending: Vec<(usize, Vec<f64>)> = Vec::new();

@@ -112,7 +112,10 @@ mod tests {
         assert!(is_probes_file(&path));
         let at = |v: Vec<f64>| Some(ProbeOf { origin: 3, at: v });
         let points = [
-            planned("a", at(vec![0.1 + 0.2, f64::from_bits(0x7ff8_0000_0000_0001)])),
+            planned(
+                "a",
+                at(vec![0.1 + 0.2, f64::from_bits(0x7ff8_0000_0000_0001)]),
+            ),
             planned("b", at(vec![-0.0, 1e-300])),
             planned("c", at(vec![2.0, 3.0])),
         ];

@@ -81,7 +81,8 @@ pub fn write_jobs(
             .join(format!("{}.{}", pack.name, extension(settings.scheduler)));
         // A whole study's job runs every round: it has no probes of one to be handed.
         let probes = probes::beside(&path);
-        let handed = !command.whole && probes::write(&probes, pack.bundles.iter().flatten().copied())?;
+        let handed =
+            !command.whole && probes::write(&probes, pack.bundles.iter().flatten().copied())?;
         let job = Spec {
             name: &pack.name,
             bundles: &bundles,

@@ -578,9 +578,15 @@ fn an_earlier_submits_scripts_are_archived_not_left_beside_the_new_ones() {
     std::fs::write(jobs.join("notes.json"), "{}").unwrap();
     archive_earlier_scripts(&jobs).unwrap();
     assert!(!jobs.join("nlstudy-s-0.sbatch").exists());
-    assert!(!jobs.join("nlstudy-s-0.probes.json").exists(), "its probes go with it");
+    assert!(
+        !jobs.join("nlstudy-s-0.probes.json").exists(),
+        "its probes go with it"
+    );
     assert!(jobs.join("nlstudy-s-0.42.out").exists(), "job output stays");
-    assert!(jobs.join("notes.json").exists(), "what is not the tool's stays");
+    assert!(
+        jobs.join("notes.json").exists(),
+        "what is not the tool's stays"
+    );
     let archived: Vec<_> = std::fs::read_dir(jobs.join("archive"))
         .unwrap()
         .flatten()
