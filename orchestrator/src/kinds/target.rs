@@ -103,11 +103,7 @@ fn time_answers(
             (k, repeated)
         }));
     }
-    let options = plan::Options {
-        only: None,
-        probes: None,
-        ..*options
-    };
+    let options = options.of_every_probe();
     let planned = plan::plan_points(
         points.iter().map(|(_, p)| p.clone()).collect(),
         solver,

@@ -24,6 +24,18 @@ pub struct Options {
     pub keep_stale: bool,
 }
 
+impl Options {
+    /// These options for planning every probe of a study's searches: a job's `--only` and
+    /// `--probes` select among those probes afterwards.
+    pub fn of_every_probe(&self) -> Options {
+        Options {
+            only: None,
+            probes: None,
+            ..*self
+        }
+    }
+}
+
 /// Why a point runs.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Reason {

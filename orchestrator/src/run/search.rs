@@ -40,11 +40,7 @@ pub fn searches<A: Adaptive>(
     let origins = origins(study, A::ONE_SEARCH_PER_POINT)?;
     plan::origins_may_search(question, &origins).map_err(|e| Fault::Input(e.to_string()))?;
     // Every probe is planned: a job's `--only` applies to the round it ran (`probes_so_far`).
-    let options = plan::Options {
-        only: None,
-        probes: None,
-        ..*options
-    };
+    let options = options.of_every_probe();
     // Each point's probes by their values (their bits).
     let mut probed: Vec<HashMap<Vec<u64>, ProbeRecord>> = vec![HashMap::new(); origins.len()];
     let bits = |probe: &[f64]| -> Vec<u64> { probe.iter().map(|v| v.to_bits()).collect() };
@@ -163,11 +159,7 @@ pub fn plan_given(
             _ => return Ok(None),
         }
     }
-    let options = plan::Options {
-        only: None,
-        probes: None,
-        ..*options
-    };
+    let options = options.of_every_probe();
     let mut planned = plan::plan_points(points, solver, index, &options)?;
     for (p, (key, probe)) in planned.iter_mut().zip(given) {
         if p.key.as_str() != key {
